@@ -1,0 +1,21 @@
+#!/usr/bin/env bash
+# Install everything the test suite needs, then run it (lint + pytest).
+#   bash scripts/test.sh [extra pytest arguments]
+# Debian packages (the real check_urdf from urdfdom) are installed when missing, as root
+# directly or through sudo; pip installs mexone in editable mode with its test extras.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+apt_packages=()
+command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
+if ((${#apt_packages[@]})); then
+  sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo"
+  echo "installing Debian packages: ${apt_packages[*]}"
+  $sudo apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${apt_packages[@]}" >/dev/null
+fi
+
+python3 -m pip install -q --disable-pip-version-check -e ".[test]"
+python3 -m ruff check src tests benchmarks
+python3 -m pytest "$@"

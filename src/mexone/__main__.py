@@ -1,0 +1,5 @@
+import sys
+
+from mexone.cli import main
+
+sys.exit(main())

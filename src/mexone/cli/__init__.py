@@ -1,0 +1,48 @@
+"""`mexone <verb>`: one module per verb, each with `add_parser(subparsers)` and `run(args)`.
+
+Exit codes: 0 ok, 1 findings or failed checks, 2 bad input (one line on stderr, no traceback),
+130 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from mexone.errors import MexoneError
+
+__all__ = ["main", "build_parser"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from mexone.cli import check, convert
+
+    parser = argparse.ArgumentParser(
+        prog="mexone",
+        description="Mex-One humanoid simulation lab: URDF robots on MuJoCo with "
+                    "ros_control-style controllers and ROS-named topics.",
+        epilog="Run 'mexone <verb> --help' for each verb's options.",
+    )
+    sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
+    for module in (check, convert):
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except MexoneError as exc:
+        print(f"mexone: {exc.one_line()}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("mexone: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

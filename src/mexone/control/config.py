@@ -1,0 +1,206 @@
+"""ros_control controller YAML (the seed's Listing 3.17) -> ControlConfig, with line numbers.
+
+Accepts the file as ``rosparam load`` sees it: controllers under a namespace key
+(``mex_rb: {joint_state_controller: ..., l_knee_position_controller: ...}``) or at the top
+level, plus ``gazebo_ros_control/pid_gains/<joint>`` as gazebo_ros_control reads it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from mexone.errors import InputError
+
+__all__ = [
+    "PidGains",
+    "ControllerSpec",
+    "ControlConfig",
+    "CONTROLLER_TYPES",
+    "load_control_config",
+    "parse_control_config",
+]
+
+# type -> (command kind, hardware interface it claims, single joint?)
+CONTROLLER_TYPES: dict[str, tuple[str, str, bool]] = {
+    "joint_state_controller/JointStateController": ("state", "", False),
+    "position_controllers/JointPositionController": ("position", "PositionJointInterface", True),
+    "velocity_controllers/JointVelocityController": ("velocity", "VelocityJointInterface", True),
+    "effort_controllers/JointPositionController": ("position", "EffortJointInterface", True),
+    "effort_controllers/JointVelocityController": ("velocity", "EffortJointInterface", True),
+    "effort_controllers/JointEffortController": ("effort", "EffortJointInterface", True),
+    "position_controllers/JointGroupPositionController": ("position", "PositionJointInterface", False),
+    "velocity_controllers/JointGroupVelocityController": ("velocity", "VelocityJointInterface", False),
+    "effort_controllers/JointGroupPositionController": ("position", "EffortJointInterface", False),
+    "effort_controllers/JointGroupEffortController": ("effort", "EffortJointInterface", False),
+    "effort_controllers/JointTrajectoryController": ("trajectory", "EffortJointInterface", False),
+    "position_controllers/JointTrajectoryController": ("trajectory", "PositionJointInterface", False),
+}
+
+
+@dataclass(frozen=True)
+class PidGains:
+    """control_toolbox::Pid parameters; i_clamp 0 means no integral action, as in ROS."""
+
+    p: float
+    i: float = 0.0
+    d: float = 0.0
+    i_clamp_min: float = 0.0
+    i_clamp_max: float = 0.0
+    antiwindup: bool = False
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    name: str
+    type: str
+    joints: tuple[str, ...] = ()
+    pid: PidGains | None = None
+    publish_rate: float | None = None
+    line: int | None = None
+
+    @property
+    def kind(self) -> str:
+        return CONTROLLER_TYPES[self.type][0]
+
+    @property
+    def interface(self) -> str:
+        return CONTROLLER_TYPES[self.type][1]
+
+
+@dataclass
+class ControlConfig:
+    namespace: str | None
+    controllers: dict[str, ControllerSpec] = field(default_factory=dict)
+    pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
+    source: Path | None = None
+
+
+def load_control_config(path: Path | str) -> ControlConfig:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise InputError("no such file", file=path, hint="check the path") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read: {exc}", file=path) from None
+    return parse_control_config(text, path)
+
+
+class _Reader:
+    def __init__(self, path: Path | None):
+        self.path = path
+        self.builder = yaml.SafeLoader("")
+
+    def error(self, node: yaml.Node, what: str, hint: str | None = None) -> InputError:
+        return InputError(what, file=self.path or "<yaml>", line=node.start_mark.line + 1, hint=hint)
+
+    def mapping(self, node: yaml.Node, what: str) -> list[tuple[str, yaml.Node, yaml.Node]]:
+        if not isinstance(node, yaml.MappingNode):
+            raise self.error(node, f"{what} must be a mapping of names to settings")
+        return [(str(k.value), k, v) for k, v in node.value]
+
+    def value(self, node: yaml.Node):
+        return self.builder.construct_document(node)
+
+    def number(self, node: yaml.Node, what: str) -> float:
+        value = self.value(node)
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.error(node, f"{what}: '{node.value}' is not a number")
+        if not math.isfinite(value):
+            raise self.error(node, f"{what}: '{node.value}' is not finite", "use a finite number")
+        return float(value)
+
+
+def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
+    reader = _Reader(path)
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+        raise InputError(f"malformed YAML: {problem}", file=path or "<yaml>",
+                         line=mark.line + 1 if mark else None, hint="fix the YAML syntax") from None
+    if root is None:
+        raise InputError("empty controller file", file=path or "<yaml>",
+                         hint="expected the ros_control schema of the seed's Listing 3.17")
+    entries = reader.mapping(root, "the file")
+    if any(_is_controller(v) for _, _, v in entries):
+        namespace, body = None, root
+    else:
+        spaces = [(name, key, v) for name, key, v in entries if isinstance(v, yaml.MappingNode)]
+        if len(spaces) != 1:
+            raise reader.error(root, f"expected one robot namespace holding the controllers, "
+                                     f"found {len(spaces)}", "e.g. 'mex_rb:' with controllers below")
+        namespace, _, body = spaces[0]
+    config = ControlConfig(namespace=namespace, source=path)
+    for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
+        if name == "gazebo_ros_control":
+            _pid_gains(reader, node, config)
+        elif _is_controller(node):
+            config.controllers[name] = _controller(reader, name, key, node)
+        else:
+            raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
+                               "every controller needs type: <package>/<Controller>")
+    return config
+
+
+def _is_controller(node: yaml.Node) -> bool:
+    return isinstance(node, yaml.MappingNode) and any(k.value == "type" for k, _ in node.value)
+
+
+def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> ControllerSpec:
+    fields = {k: (knode, v) for k, knode, v in reader.mapping(node, f"controller '{name}'")}
+    type_node = fields["type"][1]
+    ctype = str(reader.value(type_node))
+    if ctype not in CONTROLLER_TYPES:
+        raise reader.error(type_node, f"controller '{name}' has unknown type '{ctype}'",
+                           "valid types: " + ", ".join(CONTROLLER_TYPES))
+    kind, _, single = CONTROLLER_TYPES[ctype]
+    joints: tuple[str, ...] = ()
+    if kind != "state":
+        if single:
+            if "joint" not in fields:
+                raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joint'")
+            joints = (str(reader.value(fields["joint"][1])),)
+        else:
+            if "joints" not in fields:
+                raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joints' list")
+            value = reader.value(fields["joints"][1])
+            if not isinstance(value, list) or not value:
+                raise reader.error(fields["joints"][1], f"controller '{name}': 'joints' must be a "
+                                                        "non-empty list of joint names")
+            joints = tuple(str(j) for j in value)
+    pid = _pid(reader, name, fields["pid"][1]) if "pid" in fields else None
+    rate = None
+    if "publish_rate" in fields:
+        rate = reader.number(fields["publish_rate"][1], f"controller '{name}': publish_rate")
+        if rate <= 0:
+            raise reader.error(fields["publish_rate"][1], f"controller '{name}': publish_rate must be > 0")
+    return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1)
+
+
+def _pid(reader: _Reader, owner: str, node: yaml.Node) -> PidGains:
+    fields = {k: (knode, v) for k, knode, v in reader.mapping(node, f"'{owner}' pid")}
+    if "p" not in fields:
+        raise reader.error(node, f"'{owner}' pid has no 'p' gain", "add p: <gain>")
+    values = {}
+    for key in ("p", "i", "d", "i_clamp_min", "i_clamp_max", "i_clamp"):
+        if key in fields:
+            values[key] = reader.number(fields[key][1], f"'{owner}' pid {key}")
+    if "i_clamp" in values:  # control_toolbox's symmetric shorthand
+        clamp = abs(values.pop("i_clamp"))
+        values.setdefault("i_clamp_min", -clamp)
+        values.setdefault("i_clamp_max", clamp)
+    antiwindup = bool(reader.value(fields["antiwindup"][1])) if "antiwindup" in fields else False
+    return PidGains(antiwindup=antiwindup, **values)
+
+
+def _pid_gains(reader: _Reader, node: yaml.Node, config: ControlConfig) -> None:
+    fields = {k: v for k, _, v in reader.mapping(node, "gazebo_ros_control")}
+    if "pid_gains" in fields:
+        for joint, _, gains in reader.mapping(fields["pid_gains"], "pid_gains"):
+            config.pid_gains[joint] = _pid(reader, f"pid_gains/{joint}", gains)

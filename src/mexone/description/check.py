@@ -1,0 +1,399 @@
+"""`mexone check`: the kinematic tree as check_urdf prints it, then a physics lint.
+
+Each rule is a function yielding Findings; they catch what the seed found only by watching
+Gazebo explode (its Figs. 4.6-4.8): misplaced centres of mass, overlarge inertias, misplaced
+collisions and joints, missing meshes, meaningless limits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mexone.control.config import ControlConfig
+from mexone.description.findings import Finding
+from mexone.description.meshes import geometry_bounds
+from mexone.description.model import Geometry, Link, Mesh, Pose, RobotModel
+from mexone.errors import MexoneError
+
+__all__ = ["check_model", "format_tree", "summary", "RULES"]
+
+# Tolerances, each with its reason
+_COM_TOL = 0.002  # m: COM this far outside every geometry box is outside the link
+_INERTIA_SLACK = 1.5  # a moment above 1.5 m r^2 needs mass beyond the link's furthest corner
+_MISMATCH_MIN = 0.01  # m: collision/visual centres may differ by this much however small
+_MISMATCH_FRACTION = 0.25  # ...or by this fraction of the visual's diagonal
+_JOINT_FAR_MIN = 0.02  # m
+_JOINT_FAR_FRACTION = 0.2
+_MM_EXTENT = 5.0  # m: a robot part whose mesh spans more than this is written in millimetres
+_TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled twice
+
+
+@dataclass(frozen=True)
+class Box3:
+    """An oriented box: a geometry's bounds placed in its link's frame."""
+
+    pose: np.ndarray  # 4x4, geometry frame in link frame
+    lower: np.ndarray
+    upper: np.ndarray
+
+    def corners(self) -> np.ndarray:
+        pts = np.array([[x, y, z] for x in (self.lower[0], self.upper[0])
+                        for y in (self.lower[1], self.upper[1])
+                        for z in (self.lower[2], self.upper[2])])
+        return pts @ self.pose[:3, :3].T + self.pose[:3, 3]
+
+    def contains(self, point: np.ndarray, tol: float) -> bool:
+        local = self.pose[:3, :3].T @ (point - self.pose[:3, 3])
+        return bool(np.all(local >= self.lower - tol) and np.all(local <= self.upper + tol))
+
+
+@dataclass
+class _Context:
+    model: RobotModel
+    controllers: ControlConfig | None
+    visual_boxes: dict[str, list[Box3]] = field(default_factory=dict)
+    collision_boxes: dict[str, list[Box3]] = field(default_factory=dict)
+    mesh_findings: list[Finding] = field(default_factory=list)
+
+    def boxes(self, link: str) -> list[Box3]:
+        return self.visual_boxes.get(link, []) + self.collision_boxes.get(link, [])
+
+
+def _aabb(boxes: list[Box3]) -> tuple[np.ndarray, np.ndarray] | None:
+    if not boxes:
+        return None
+    pts = np.vstack([b.corners() for b in boxes])
+    return pts.min(axis=0), pts.max(axis=0)
+
+
+def _point_box_distance(point: np.ndarray, aabb: tuple[np.ndarray, np.ndarray]) -> float:
+    lower, upper = aabb
+    return float(np.linalg.norm(np.maximum(0, np.maximum(lower - point, point - upper))))
+
+
+def _element(kind: str, name: str) -> str:
+    return f'{kind} "{name}"'
+
+
+# ----- geometry gathering (and the mesh rules, which fall out of it) ---------------------------
+def _gather(ctx: _Context) -> None:
+    base = ctx.model.base_dir
+    reported: set[str] = set()
+    for link in ctx.model.links.values():
+        for kind, items, store in (("visual", link.visuals, ctx.visual_boxes),
+                                   ("collision", link.collisions, ctx.collision_boxes)):
+            for item in items:
+                box = _bounds(ctx, link, kind, item.geometry, item.origin, item.line, base, reported)
+                if box is not None:
+                    store.setdefault(link.name, []).append(box)
+
+
+def _bounds(ctx: _Context, link: Link, kind: str, geometry: Geometry, origin: Pose,
+            line: int | None, base: Path, reported: set[str]) -> Box3 | None:
+    element = _element("link", link.name)
+    try:
+        lower, upper = geometry_bounds(geometry, base)
+    except MexoneError as exc:
+        if isinstance(geometry, Mesh) and geometry.filename not in reported:
+            reported.add(geometry.filename)
+            missing = "does not exist" in exc.what or "cannot find" in exc.what
+            code = "mesh-missing" if missing else "mesh-unreadable"
+            ctx.mesh_findings.append(Finding(code, "error", element,
+                                             f"{kind} {exc.what} ({exc.hint})", line))
+        return None
+    if isinstance(geometry, Mesh) and geometry.filename not in reported:
+        extent = float(np.max(upper - lower))
+        scale = max(abs(s) for s in geometry.scale)
+        if scale == 1.0 and extent > _MM_EXTENT:
+            reported.add(geometry.filename)
+            ctx.mesh_findings.append(Finding(
+                "mesh-units", "error", element,
+                f"{kind} mesh '{geometry.filename}' spans {extent:.0f} m at scale 1: it is written "
+                'in millimetres; add scale="0.001 0.001 0.001" to the <mesh>', line))
+        elif extent < _TINY_EXTENT:
+            reported.add(geometry.filename)
+            ctx.mesh_findings.append(Finding(
+                "mesh-units", "warning", element,
+                f"{kind} mesh '{geometry.filename}' spans only {extent * 1000:.2f} mm after scale "
+                f"{scale:g}: is it already in metres? then drop the scale", line))
+    return Box3(origin.matrix, lower, upper)
+
+
+def _rule_meshes(ctx: _Context) -> Iterator[Finding]:
+    yield from ctx.mesh_findings
+
+
+# ----- inertial rules --------------------------------------------------------------------------
+def _rule_inertial(ctx: _Context) -> Iterator[Finding]:
+    moving_children = {j.child for j in ctx.model.joints.values() if j.type != "fixed"}
+    floating_root = None if ctx.model.fixed_to_world else ctx.model.root
+    for link in ctx.model.links.values():
+        element = _element("link", link.name)
+        inertial = link.inertial
+        if inertial is None:
+            if link.name in moving_children or link.name == floating_root:
+                yield Finding("inertial-missing", "error", element,
+                              "moves but has no <inertial>: Gazebo ignores the link and MuJoCo "
+                              "refuses it; give it its mass and inertia", link.line)
+            continue
+        if inertial.mass <= 0:
+            yield Finding("mass-nonpositive", "error", element,
+                          f"mass {inertial.mass:g} kg: a body needs a positive mass", link.line)
+            continue
+        moments = np.linalg.eigvalsh(inertial.tensor)
+        if moments[0] <= 0:
+            yield Finding("inertia-not-positive", "error", element,
+                          f"inertia is not positive definite (principal moments "
+                          f"{', '.join(f'{m:.3g}' for m in moments)} kg m^2): every moment must be "
+                          "> 0; derive it from the link's shape and mass", link.line)
+            continue
+        if moments[0] + moments[1] < moments[2] * (1 - 1e-6):
+            yield Finding("inertia-triangle", "error", element,
+                          f"principal moments {moments[0]:.3g} + {moments[1]:.3g} < {moments[2]:.3g} "
+                          "break the triangle inequality: no real body has them", link.line)
+        yield from _inertia_size(ctx, link, moments)
+        yield from _com_inside(ctx, link)
+
+
+def _inertia_size(ctx: _Context, link: Link, moments: np.ndarray) -> Iterator[Finding]:
+    """No moment can exceed m r^2 with r the distance from the COM to the furthest point."""
+    aabb = _aabb(ctx.boxes(link.name))
+    if aabb is None:
+        return
+    com = np.asarray(link.inertial.origin.xyz)
+    corners = np.array([[x, y, z] for x in (aabb[0][0], aabb[1][0]) for y in (aabb[0][1], aabb[1][1])
+                        for z in (aabb[0][2], aabb[1][2])])
+    reach = float(np.max(np.linalg.norm(corners - com, axis=1)))
+    bound = link.inertial.mass * reach**2
+    if moments[2] > _INERTIA_SLACK * bound:
+        yield Finding("inertia-too-large", "error", _element("link", link.name),
+                      f"largest moment {moments[2]:.3g} kg m^2 is {moments[2] / bound:.0f}x what "
+                      f"{link.inertial.mass:g} kg within {reach:.3f} m can have: the link will spin "
+                      "like a flywheel and explode (seed Fig. 4.7); check units and values",
+                      link.line)
+
+
+def _com_inside(ctx: _Context, link: Link) -> Iterator[Finding]:
+    boxes = ctx.boxes(link.name)
+    if not boxes:
+        return
+    com = np.asarray(link.inertial.origin.xyz)
+    if not any(b.contains(com, _COM_TOL) for b in boxes):
+        yield Finding("com-outside", "error", _element("link", link.name),
+                      f"centre of mass ({', '.join(f'{v:.3f}' for v in com)}) m lies outside the "
+                      "link's geometry: check the <inertial> origin (seed Fig. 4.7)", link.line)
+
+
+# ----- geometry placement rules ----------------------------------------------------------------
+def _rule_collision_matches_visual(ctx: _Context) -> Iterator[Finding]:
+    for name, visuals in ctx.visual_boxes.items():
+        collisions = ctx.collision_boxes.get(name)
+        if not collisions:
+            continue
+        v_lo, v_hi = _aabb(visuals)
+        c_lo, c_hi = _aabb(collisions)
+        offset = float(np.linalg.norm((v_lo + v_hi) / 2 - (c_lo + c_hi) / 2))
+        allowed = max(_MISMATCH_MIN, _MISMATCH_FRACTION * float(np.linalg.norm(v_hi - v_lo)))
+        if offset > allowed:
+            yield Finding("collision-misplaced", "warning", _element("link", name),
+                          f"collision geometry is {offset:.3f} m from the visual geometry: the "
+                          "robot will touch things where it looks empty (seed Fig. 4.6); check "
+                          "the <collision> origin", ctx.model.links[name].line)
+
+
+def _rule_joint_placement(ctx: _Context) -> Iterator[Finding]:
+    for joint in ctx.model.joints.values():
+        parent_box = _aabb(ctx.boxes(joint.parent))
+        child_box = _aabb(ctx.boxes(joint.child))
+        if parent_box is None or child_box is None:
+            continue
+        distances = []
+        for aabb, point in ((parent_box, np.asarray(joint.origin.xyz)), (child_box, np.zeros(3))):
+            allowed = max(_JOINT_FAR_MIN, _JOINT_FAR_FRACTION * float(np.linalg.norm(aabb[1] - aabb[0])))
+            distances.append((_point_box_distance(point, aabb), allowed))
+        if all(d > allowed for d, allowed in distances):
+            yield Finding("joint-misplaced", "warning", _element("joint", joint.name),
+                          f"joint origin is {distances[0][0]:.3f} m from '{joint.parent}' and "
+                          f"{distances[1][0]:.3f} m from '{joint.child}': the link will rotate "
+                          "about a point outside the robot (seed Fig. 3.7); check the <origin>",
+                          joint.line)
+
+
+# ----- joints, names, tree ---------------------------------------------------------------------
+def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
+    actuated = {j.name for j in ctx.model.actuated_joints}
+    for joint in ctx.model.joints.values():
+        element = _element("joint", joint.name)
+        lim = joint.limit
+        if joint.type in ("revolute", "prismatic") and lim and lim.lower > lim.upper:
+            yield Finding("limit-range", "error", element,
+                          f"lower limit {lim.lower:g} > upper limit {lim.upper:g}: swap them",
+                          joint.line)
+        if joint.name in actuated and lim is not None:
+            if lim.effort <= 0:
+                yield Finding("effort-limit", "error", element,
+                              f"effort limit {lim.effort:g} on an actuated joint: SDF reads a "
+                              "negative limit as 'unlimited', ros_control clamps every command to "
+                              "it (the motor then does nothing or the wrong thing); set the "
+                              "motor's peak torque in N m", joint.line)
+            if lim.velocity <= 0:
+                yield Finding("velocity-limit", "error", element,
+                              f"velocity limit {lim.velocity:g} on an actuated joint: a simulator "
+                              "either ignores it or holds the joint still; set the motor's top "
+                              "speed in rad/s", joint.line)
+        dyn = ctx.model.joint_dynamics(joint.name)
+        if dyn.damping < 0 or dyn.friction < 0:
+            yield Finding("dynamics-negative", "error", element,
+                          f"damping {dyn.damping:g} / friction {dyn.friction:g}: negative values "
+                          "add energy and make the simulation diverge", joint.line)
+
+
+def _rule_names(ctx: _Context) -> Iterator[Finding]:
+    model = ctx.model
+    if model.name != model.name.lower():
+        yield Finding("name-capitals", "warning", f'robot "{model.name}"',
+                      "robot names with capitals break ROS launch (seed 3.3.1); use lower case",
+                      None)
+    for kind, table in (("link", model.links), ("joint", model.joints)):
+        for name, item in table.items():
+            if name != name.lower():
+                yield Finding("name-capitals", "warning", _element(kind, name),
+                              "ROS names are lower_case_with_underscores; topics and tools may "
+                              "not find it", item.line)
+    yield from model.reader_findings
+
+
+def _rule_tree(ctx: _Context) -> Iterator[Finding]:
+    model = ctx.model
+    roots = model.roots
+    if len(roots) > 1:
+        yield Finding("multiple-roots", "error", f'robot "{model.name}"',
+                      f"{len(roots)} root links ({', '.join(roots)}): connect them with joints so "
+                      "one link is the root", None)
+    parents: dict[str, str] = {}
+    for joint in model.joints.values():
+        if joint.child in parents:
+            yield Finding("loop", "error", _element("joint", joint.name),
+                          f"link '{joint.child}' is already the child of joint "
+                          f"'{parents[joint.child]}': URDF trees cannot close loops", joint.line)
+        parents.setdefault(joint.child, joint.name)
+    reachable = {name for root in roots for name in _reach(model, root)}
+    if unreached := set(model.links) - reachable:
+        yield Finding("loop", "error", f'robot "{model.name}"',
+                      f"links {', '.join(sorted(unreached))} form a cycle with no root", None)
+
+
+def _reach(model: RobotModel, start: str) -> list[str]:
+    seen, stack = [], [start]
+    while stack:
+        name = stack.pop()
+        if name not in seen:
+            seen.append(name)
+            stack.extend(j.child for j in model.child_joints.get(name, []))
+    return seen
+
+
+def _rule_transmissions(ctx: _Context) -> Iterator[Finding]:
+    model = ctx.model
+    for tx in model.transmissions:
+        element = f'transmission "{tx.name}"'
+        if tx.joint not in model.joints:
+            yield Finding("transmission-unknown-joint", "error", element,
+                          f"names joint '{tx.joint}', which does not exist", tx.line)
+        elif not model.joints[tx.joint].moving:
+            yield Finding("transmission-fixed-joint", "warning", element,
+                          f"drives joint '{tx.joint}', which is {model.joints[tx.joint].type}",
+                          tx.line)
+        if tx.mechanical_reduction == 0:
+            yield Finding("transmission-reduction", "error", element,
+                          "mechanicalReduction 0 transmits no torque; use 1 for a direct drive",
+                          tx.line)
+
+
+def _rule_controllers(ctx: _Context) -> Iterator[Finding]:
+    config = ctx.controllers
+    if config is None:
+        return
+    model = ctx.model
+    for spec in config.controllers.values():
+        element = f'controller "{spec.name}"'
+        for joint in spec.joints:
+            if joint not in model.joints:
+                yield Finding("controller-unknown-joint", "error", element,
+                              f"names joint '{joint}', which the model does not have", spec.line)
+                continue
+            tx = model.transmission_for(joint)
+            if tx is None:
+                yield Finding("controller-no-transmission", "error", element,
+                              f"drives joint '{joint}', which has no <transmission>: "
+                              "gazebo_ros_control will not load it; add one", spec.line)
+            elif spec.interface and not tx.hardware_interface.endswith(spec.interface):
+                yield Finding("controller-interface", "warning", element,
+                              f"{spec.type} claims {spec.interface} but the transmission of "
+                              f"'{joint}' offers {tx.hardware_interface}", spec.line)
+        if spec.type == "position_controllers/JointPositionController" and spec.pid is not None:
+            yield Finding("position-controller-pid", "info", element,
+                          "Gazebo 7 ignored this pid: block and teleported the joint; mexone "
+                          "applies the PID as a torque, so the joint now has real dynamics",
+                          spec.line)
+        if spec.pid is not None and spec.pid.i and not (spec.pid.i_clamp_min or spec.pid.i_clamp_max):
+            yield Finding("pid-integral-unclamped", "warning", element,
+                          f"i: {spec.pid.i:g} without i_clamp_min/max does nothing in ROS "
+                          "(the integral is clamped to 0); add i_clamp_min/i_clamp_max", spec.line)
+
+
+RULES: tuple[Callable[[_Context], Iterator[Finding]], ...] = (
+    _rule_tree,
+    _rule_names,
+    _rule_meshes,
+    _rule_inertial,
+    _rule_collision_matches_visual,
+    _rule_joint_placement,
+    _rule_joint_values,
+    _rule_transmissions,
+    _rule_controllers,
+)
+
+
+def check_model(model: RobotModel, controllers: ControlConfig | None = None) -> list[Finding]:
+    ctx = _Context(model, controllers)
+    _gather(ctx)
+    return [finding for rule in RULES for finding in rule(ctx)]
+
+
+# ----- reports ---------------------------------------------------------------------------------
+def format_tree(model: RobotModel) -> str:
+    """The tree exactly as urdfdom's check_urdf prints it (children sorted by joint name)."""
+    lines = [f"robot name is: {model.name}",
+             "---------- Successfully Parsed XML ---------------"]
+    children = {name: sorted(joints, key=lambda j: j.name)
+                for name, joints in model.child_joints.items()}
+    root = model.root
+    lines.append(f"root Link: {root} has {len(children.get(root, []))} child(ren)")
+
+    def visit(link: str, level: int, seen: set[str]) -> None:
+        for i, joint in enumerate(children.get(link, []), start=1):
+            if joint.child in seen:
+                continue
+            seen.add(joint.child)
+            lines.append("  " * level + f"child({i}):  {joint.child}")
+            visit(joint.child, level + 2, seen)
+
+    visit(root, 2, {root})
+    return "\n".join(lines)
+
+
+def summary(model: RobotModel, findings: list[Finding]) -> dict:
+    return {
+        "robot": model.name,
+        "root": model.root,
+        "links": len(model.links),
+        "joints": len(model.joints),
+        "actuated": len(model.actuated_joints),
+        "mass": round(model.mass, 6),
+        "findings": [f.as_dict() for f in findings],
+    }

@@ -1,0 +1,27 @@
+"""Finding: one thing `mexone check` (or a reader) noticed about a model."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+__all__ = ["Finding", "SEVERITIES"]
+
+SEVERITIES = ("error", "warning", "info")
+
+
+@dataclass(frozen=True)
+class Finding:
+    code: str  # stable, kebab-case: tests and scripts match on it
+    severity: str  # error: will misbehave in simulation; warning: likely wrong; info: to know
+    element: str  # e.g. 'link "head"' or 'joint "l_knee"'
+    message: str  # what is wrong and what to do, one line
+    line: int | None = None
+
+    def as_dict(self) -> dict:
+        out = asdict(self)
+        out.pop("line")
+        return out
+
+    def one_line(self, file: str | None = None) -> str:
+        where = f"{file}:{self.line}: " if file and self.line else ""
+        return f"{where}{self.severity}: {self.element}: {self.message} [{self.code}]"

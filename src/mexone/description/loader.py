@@ -1,0 +1,55 @@
+"""load_model(path): any supported robot file -> RobotModel, chosen by the file's name."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mexone.description.model import RobotModel
+from mexone.description.sdf import read_sdf
+from mexone.description.urdf import parse_urdf, read_urdf
+from mexone.description.xmlio import XmlReader
+from mexone.errors import InputError
+
+__all__ = ["load_model", "model_format", "FORMATS"]
+
+FORMATS = {"urdf": "URDF", "xacro": "URDF with xacro macros", "sdf": "SDF model (Gazebo)"}
+
+
+def model_format(path: Path) -> str:
+    """'urdf', 'xacro' or 'sdf' from the file name; a Gazebo model folder means its model.sdf."""
+    name = path.name.lower()
+    if name.endswith(".xacro"):
+        return "xacro"
+    if name.endswith(".urdf"):
+        return "urdf"
+    if name.endswith((".sdf", ".world")) or path.is_dir():
+        return "sdf"
+    raise InputError(f"unknown model format '{path.suffix or path.name}'", file=path,
+                     hint="expected .urdf, .urdf.xacro/.xacro, .sdf or a Gazebo model folder")
+
+
+def load_model(path: Path | str) -> RobotModel:
+    path = Path(path)
+    kind = model_format(path)
+    if kind == "urdf":
+        return read_urdf(path)
+    if kind == "sdf":
+        return read_sdf(path / "model.sdf" if path.is_dir() else path)
+    return _read_xacro(path)
+
+
+def _read_xacro(path: Path) -> RobotModel:
+    import xacro  # imported here: it is slow and only xacro input needs it
+
+    XmlReader(path)  # vets the source (entities refused, syntax errors with lines) before xacro
+    try:
+        doc = xacro.process_file(str(path))
+    except xacro.XacroException as exc:
+        what = " ".join(str(exc).split())
+        raise InputError(f"xacro: {what}", file=path, hint="fix the xacro source") from None
+    except Exception as exc:  # xacro surfaces its users' mistakes as assorted Python errors
+        raise InputError(f"xacro: {type(exc).__name__}: {exc}", file=path,
+                         hint="fix the xacro source") from None
+    expanded = doc.toxml(encoding="utf-8")
+    # line numbers now refer to the expanded document; say so in every message
+    return parse_urdf(XmlReader(path, data=expanded, label=f"{path} (after xacro)"), path)

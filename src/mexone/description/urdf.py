@@ -1,0 +1,311 @@
+"""URDF (with Gazebo's ``<gazebo>`` extensions and ros_control ``<transmission>``) <-> RobotModel."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from lxml import etree
+
+from mexone.description.findings import Finding
+from mexone.description.model import (
+    JOINT_TYPES,
+    Box,
+    Collision,
+    Cylinder,
+    Dynamics,
+    GazeboLink,
+    Geometry,
+    Inertial,
+    Joint,
+    Limit,
+    Link,
+    Mesh,
+    Pose,
+    RobotModel,
+    Sphere,
+    Transmission,
+    Visual,
+)
+from mexone.description.xmlio import XmlReader
+
+__all__ = ["read_urdf", "parse_urdf", "write_urdf", "fmt"]
+
+_GAZEBO_LINK_NUMBERS = {"mu1": "mu1", "mu2": "mu2", "kp": "kp", "kd": "kd", "maxVel": "max_vel",
+                        "minDepth": "min_depth"}
+
+
+def read_urdf(path: Path | str, label: str | None = None) -> RobotModel:
+    return parse_urdf(XmlReader(path, label=label), Path(path))
+
+
+def parse_urdf(xml: XmlReader, source: Path | None = None) -> RobotModel:
+    root = xml.root
+    if root.tag != "robot":
+        hint = "an SDF file must end in .sdf or .world" if root.tag == "sdf" else None
+        raise xml.fail(root, "is not a URDF root: expected <robot>", hint)
+    findings: list[Finding] = []
+    model = RobotModel(name=xml.attr(root, "name"), links={}, joints={}, source=source,
+                       reader_findings=findings)
+
+    for el in root.iterfind("link"):
+        link = _link(xml, el)
+        _keep_first(model.links, link, "link", findings)
+    for el in root.iterfind("joint"):
+        joint = _joint(xml, el)
+        for end in (joint.parent, joint.child):
+            if end not in model.links:
+                raise xml.fail(el, f"names link '{end}', which is not defined",
+                               "add the <link> or correct the name")
+        _keep_first(model.joints, joint, "joint", findings)
+    for el in root.iterfind("transmission"):
+        model.transmissions.append(_transmission(xml, el))
+    for el in root.iterfind("gazebo"):
+        _gazebo(xml, el, model)
+    return model
+
+
+def _keep_first(table: dict, item, kind: str, findings: list[Finding]) -> None:
+    if item.name in table:
+        findings.append(Finding("duplicate-name", "error", f'{kind} "{item.name}"',
+                                f"the name is used twice (first on line {table[item.name].line}); "
+                                "names must be unique", item.line))
+        return
+    table[item.name] = item
+
+
+# ----- reading ---------------------------------------------------------------------------------
+def _origin(xml: XmlReader, parent: etree._Element) -> Pose:
+    el = parent.find("origin")
+    if el is None:
+        return Pose()
+    return Pose(xml.vector_attr(el, "xyz", (0, 0, 0)), xml.vector_attr(el, "rpy", (0, 0, 0)))
+
+
+def _geometry(xml: XmlReader, parent: etree._Element) -> Geometry:
+    geo = xml.child(parent, "geometry", required=True)
+    shapes = [c for c in geo if c.tag in ("box", "cylinder", "sphere", "mesh")]
+    if len(shapes) != 1:
+        raise xml.fail(geo, f"must hold exactly one of box, cylinder, sphere, mesh (found {len(shapes)})")
+    el = shapes[0]
+    if el.tag == "box":
+        return Box(xml.vector_attr(el, "size"))
+    if el.tag == "cylinder":
+        return Cylinder(xml.float_attr(el, "radius"), xml.float_attr(el, "length"))
+    if el.tag == "sphere":
+        return Sphere(xml.float_attr(el, "radius"))
+    return Mesh(xml.attr(el, "filename"), xml.vector_attr(el, "scale", (1, 1, 1)))
+
+
+def _link(xml: XmlReader, el: etree._Element) -> Link:
+    link = Link(name=xml.attr(el, "name"), line=el.sourceline)
+    inertial = el.find("inertial")
+    if inertial is not None:
+        mass = xml.child(inertial, "mass", required=True)
+        tensor = xml.child(inertial, "inertia", required=True)
+        link.inertial = Inertial(
+            mass=xml.float_attr(mass, "value"),
+            inertia=tuple(xml.float_attr(tensor, k) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
+            origin=_origin(xml, inertial),
+        )
+    for vis in el.iterfind("visual"):
+        material, rgba = None, None
+        mat = vis.find("material")
+        if mat is not None:
+            material = mat.get("name")
+            color = mat.find("color")
+            if color is not None:
+                rgba = xml.vector_attr(color, "rgba", count=4)
+        link.visuals.append(Visual(_geometry(xml, vis), _origin(xml, vis), vis.get("name"),
+                                   material, rgba, vis.sourceline))
+    for col in el.iterfind("collision"):
+        link.collisions.append(Collision(_geometry(xml, col), _origin(xml, col), col.get("name"),
+                                         col.sourceline))
+    return link
+
+
+def _joint(xml: XmlReader, el: etree._Element) -> Joint:
+    name = xml.attr(el, "name")
+    jtype = xml.attr(el, "type")
+    if jtype not in JOINT_TYPES:
+        raise xml.fail(el, f"has unknown type '{jtype}'", "use one of " + ", ".join(JOINT_TYPES))
+    parent = xml.attr(xml.child(el, "parent", required=True), "link")
+    child = xml.attr(xml.child(el, "child", required=True), "link")
+    axis = (1.0, 0.0, 0.0)
+    axis_el = el.find("axis")
+    if axis_el is not None:
+        axis = xml.vector_attr(axis_el, "xyz", (1, 0, 0))
+        if not any(axis):
+            raise xml.fail(axis_el, "has a zero axis", "give the rotation axis, e.g. xyz=\"0 0 1\"")
+    limit = None
+    limit_el = el.find("limit")
+    if limit_el is not None:
+        limit = Limit(
+            lower=xml.float_attr(limit_el, "lower", 0.0),
+            upper=xml.float_attr(limit_el, "upper", 0.0),
+            effort=xml.float_attr(limit_el, "effort"),
+            velocity=xml.float_attr(limit_el, "velocity"),
+        )
+    elif jtype in ("revolute", "prismatic"):
+        raise xml.fail(el, f"is {jtype} but has no <limit>",
+                       "add <limit lower upper effort velocity>; URDF requires it")
+    dynamics = Dynamics()
+    dyn = el.find("dynamics")
+    if dyn is not None:
+        dynamics = Dynamics(xml.float_attr(dyn, "damping", 0.0), xml.float_attr(dyn, "friction", 0.0))
+    return Joint(name, jtype, parent, child, _origin(xml, el), axis, limit, dynamics, el.sourceline)
+
+
+def _transmission(xml: XmlReader, el: etree._Element) -> Transmission:
+    name = xml.attr(el, "name")
+    joint = xml.child(el, "joint", required=True)
+    actuator = el.find("actuator")
+    # ros_control reads the hardwareInterface under <joint>; older files put it under <actuator>
+    iface = joint.findtext("hardwareInterface") or (
+        actuator.findtext("hardwareInterface") if actuator is not None else None)
+    reduction = 1.0
+    if actuator is not None and actuator.find("mechanicalReduction") is not None:
+        reduction = xml.text_number(actuator, "mechanicalReduction")
+    return Transmission(
+        name=name,
+        joint=xml.attr(joint, "name"),
+        type=(el.findtext("type") or el.get("type") or "transmission_interface/SimpleTransmission").strip(),
+        hardware_interface=(iface or "hardware_interface/EffortJointInterface").strip(),
+        actuator=actuator.get("name") if actuator is not None else None,
+        mechanical_reduction=reduction,
+        line=el.sourceline,
+    )
+
+
+def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
+    ref = el.get("reference")
+    if ref is None:
+        plugin = el.find("plugin")
+        if plugin is not None and (ns := plugin.findtext("robotNamespace")) is not None:
+            model.ros_namespace = ns.strip()
+        return
+    if ref in model.links:
+        props = model.gazebo_links.setdefault(ref, GazeboLink(line=el.sourceline))
+        collide = xml.text_bool(el, "selfCollide")
+        if collide is not None:
+            props.self_collide = collide
+        for tag, attr in _GAZEBO_LINK_NUMBERS.items():
+            if el.find(tag) is not None:
+                setattr(props, attr, xml.text_number(el, tag))
+        if (material := xml.text(el, "material")) is not None:
+            props.material = material
+    elif ref in model.joints:
+        dyn = el.find("axis/dynamics")
+        if dyn is not None:
+            base = model.joints[ref].dynamics
+            model.gazebo_joints[ref] = Dynamics(xml.text_number(dyn, "damping", base.damping),
+                                                xml.text_number(dyn, "friction", base.friction))
+    else:
+        model.reader_findings.append(Finding(
+            "gazebo-unknown-reference", "warning", f'<gazebo reference="{ref}">',
+            "names no link or joint; Gazebo ignores it silently: correct the name", el.sourceline))
+
+
+# ----- writing ---------------------------------------------------------------------------------
+def fmt(value: float) -> str:
+    """Shortest text that reads back to the same float within 1e-12 (and prints 0 as 0)."""
+    text = format(float(value), ".12g")
+    return "0" if text == "-0" else text
+
+
+def _vec(values) -> str:
+    return " ".join(fmt(v) for v in values)
+
+
+def _sub(parent: etree._Element, tag: str, text: str | None = None, **attrs) -> etree._Element:
+    el = etree.SubElement(parent, tag, {k: v for k, v in attrs.items() if v is not None})
+    if text is not None:
+        el.text = text
+    return el
+
+
+def _write_origin(parent: etree._Element, pose: Pose) -> None:
+    if not pose.is_identity():
+        _sub(parent, "origin", xyz=_vec(pose.xyz), rpy=_vec(pose.rpy))
+
+
+def _write_geometry(parent: etree._Element, geometry: Geometry) -> None:
+    geo = _sub(parent, "geometry")
+    match geometry:
+        case Box(size):
+            _sub(geo, "box", size=_vec(size))
+        case Cylinder(radius, length):
+            _sub(geo, "cylinder", radius=fmt(radius), length=fmt(length))
+        case Sphere(radius):
+            _sub(geo, "sphere", radius=fmt(radius))
+        case Mesh(filename, scale):
+            _sub(geo, "mesh", filename=filename, scale=None if scale == (1, 1, 1) else _vec(scale))
+
+
+def write_urdf(model: RobotModel, comment: str | None = None) -> str:
+    robot = etree.Element("robot", name=model.name)
+    if comment:
+        robot.append(etree.Comment(comment))
+    for link in model.links.values():
+        el = _sub(robot, "link", name=link.name)
+        if link.inertial:
+            inertial = _sub(el, "inertial")
+            _write_origin(inertial, link.inertial.origin)
+            _sub(inertial, "mass", value=fmt(link.inertial.mass))
+            keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+            _sub(inertial, "inertia", **{k: fmt(v) for k, v in zip(keys, link.inertial.inertia)})
+        for vis in link.visuals:
+            v = _sub(el, "visual", name=vis.name)
+            _write_origin(v, vis.origin)
+            _write_geometry(v, vis.geometry)
+            if vis.material or vis.rgba:
+                mat = _sub(v, "material", name=vis.material or f"{link.name}_color")
+                if vis.rgba:
+                    _sub(mat, "color", rgba=_vec(vis.rgba))
+        for col in link.collisions:
+            c = _sub(el, "collision", name=col.name)
+            _write_origin(c, col.origin)
+            _write_geometry(c, col.geometry)
+    for joint in model.joints.values():
+        el = _sub(robot, "joint", name=joint.name, type=joint.type)
+        _write_origin(el, joint.origin)
+        _sub(el, "parent", link=joint.parent)
+        _sub(el, "child", link=joint.child)
+        if joint.type != "fixed":
+            _sub(el, "axis", xyz=_vec(joint.axis))
+        if joint.limit:
+            lim = joint.limit
+            _sub(el, "limit", lower=fmt(lim.lower), upper=fmt(lim.upper), effort=fmt(lim.effort),
+                 velocity=fmt(lim.velocity))
+        if joint.moving and (joint.dynamics.damping or joint.dynamics.friction):
+            _sub(el, "dynamics", damping=fmt(joint.dynamics.damping),
+                 friction=fmt(joint.dynamics.friction))
+    for tx in model.transmissions:
+        el = _sub(robot, "transmission", name=tx.name)
+        _sub(el, "type", tx.type)
+        _sub(_sub(el, "joint", name=tx.joint), "hardwareInterface", tx.hardware_interface)
+        act = _sub(el, "actuator", name=tx.actuator or f"{tx.joint}_motor")
+        _sub(act, "mechanicalReduction", fmt(tx.mechanical_reduction))
+    _write_gazebo(robot, model)
+    etree.indent(robot, space="  ")
+    return '<?xml version="1.0"?>\n' + etree.tostring(robot, encoding="unicode") + "\n"
+
+
+def _write_gazebo(robot: etree._Element, model: RobotModel) -> None:
+    for name, props in model.gazebo_links.items():
+        el = _sub(robot, "gazebo", reference=name)
+        if props.self_collide is not None:
+            _sub(el, "selfCollide", "true" if props.self_collide else "false")
+        for tag, attr in _GAZEBO_LINK_NUMBERS.items():
+            if (value := getattr(props, attr)) is not None:
+                _sub(el, tag, fmt(value))
+        if props.material:
+            _sub(el, "material", props.material)
+    for name, dyn in model.gazebo_joints.items():
+        dynamics = _sub(_sub(_sub(robot, "gazebo", reference=name), "axis"), "dynamics")
+        _sub(dynamics, "damping", fmt(dyn.damping))
+        _sub(dynamics, "friction", fmt(dyn.friction))
+    if model.ros_namespace is not None:
+        plugin = _sub(_sub(robot, "gazebo"), "plugin", name="gazebo_ros_control",
+                      filename="libgazebo_ros_control.so")
+        _sub(plugin, "robotNamespace", model.ros_namespace)
+        _sub(plugin, "robotSimType", "gazebo_ros_control/DefaultRobotHWSim")

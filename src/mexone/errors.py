@@ -1,0 +1,66 @@
+"""Exception hierarchy: every error a user can cause is a MexoneError with a one-line message.
+
+The CLI prints ``mexone: <str(error)>`` and exits 2; nothing else of the error reaches the user.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = [
+    "MexoneError",
+    "InputError",
+    "ModelError",
+    "UnsupportedError",
+    "OutputExistsError",
+]
+
+
+class MexoneError(Exception):
+    """Base class: something the user can fix, located in a file and line where known."""
+
+    def __init__(
+        self,
+        what: str,
+        *,
+        file: str | Path | None = None,
+        line: int | None = None,
+        hint: str | None = None,
+    ) -> None:
+        self.what = what
+        self.file = str(file) if file is not None else None
+        self.line = line
+        self.hint = hint
+        super().__init__(self.one_line())
+
+    def one_line(self) -> str:
+        where = ""
+        if self.file is not None:
+            where = f"{self.file}:{self.line}: " if self.line else f"{self.file}: "
+        hint = f" ({self.hint})" if self.hint else ""
+        return f"{where}{self.what}{hint}"
+
+    def located(self, file: str | Path, line: int | None = None) -> MexoneError:
+        """Fill in the location if the raiser did not know it."""
+        if self.file is None:
+            self.file = str(file)
+        if self.line is None:
+            self.line = line
+        self.args = (self.one_line(),)
+        return self
+
+
+class InputError(MexoneError):
+    """A file that cannot be read: missing, malformed XML, wrong types, refused entities."""
+
+
+class ModelError(MexoneError):
+    """A readable file that does not describe a robot we can build (unknown link, bad tree)."""
+
+
+class UnsupportedError(MexoneError):
+    """Valid input that the target format or simulator cannot represent faithfully."""
+
+
+class OutputExistsError(MexoneError):
+    """Refusing to overwrite a file the user made."""

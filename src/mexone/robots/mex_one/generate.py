@@ -1,0 +1,170 @@
+"""Write Mex-One's URDF, STL meshes and controller YAML from the parameter table.
+
+    python -m mexone.robots.mex_one.generate [OUT_DIR]
+
+With no OUT_DIR it rewrites the package data beside this file (the committed files).
+Inertias come from the shapes and masses (uniform density), so they cannot disagree with the
+geometry; meshes are written in millimetres, like a CAD export, and loaded with scale 0.001.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from mexone.description.model import (
+    Box,
+    Collision,
+    Cylinder,
+    Dynamics,
+    GazeboLink,
+    Inertial,
+    Joint,
+    Limit,
+    Link,
+    Mesh,
+    Pose,
+    RobotModel,
+    Transmission,
+    Visual,
+)
+from mexone.description.urdf import write_urdf
+from mexone.robots.mex_one import params
+
+__all__ = ["build_model", "controllers_yaml", "mesh_for", "generate", "HERE"]
+
+HERE = Path(__file__).resolve().parent
+MM = 1000.0
+_SECTIONS = 48  # facets around a cylinder: smooth enough to look round
+
+
+def _volume(shape: params.Shape) -> float:
+    if shape.kind == "box":
+        return float(np.prod(shape.size))
+    radius, length = shape.size
+    return float(np.pi * radius**2 * length)
+
+
+def _own_inertia(shape: params.Shape, mass: float) -> np.ndarray:
+    """Inertia tensor of a uniform solid about its own centre."""
+    if shape.kind == "box":
+        x, y, z = shape.size
+        return mass / 12 * np.diag([y * y + z * z, x * x + z * z, x * x + y * y])
+    r, h = shape.size
+    side = mass / 12 * (3 * r * r + h * h)
+    return np.diag([side, side, mass * r * r / 2])
+
+
+def inertial_for(part: params.Part) -> Inertial:
+    """Mass spread by volume over the part's shapes; parallel-axis sum about the joint COM."""
+    volumes = np.array([_volume(s) for s in part.shapes])
+    masses = part.mass * volumes / volumes.sum()
+    centres = np.array([s.center for s in part.shapes])
+    com = masses @ centres / part.mass
+    tensor = np.zeros((3, 3))
+    for shape, m, c in zip(part.shapes, masses, centres):
+        d = c - com
+        tensor += _own_inertia(shape, m) + m * (d @ d * np.eye(3) - np.outer(d, d))
+    ixx, ixy, ixz, iyy, iyz, izz = (tensor[0, 0], tensor[0, 1], tensor[0, 2], tensor[1, 1],
+                                    tensor[1, 2], tensor[2, 2])
+    rounded = tuple(float(f"{v:.6g}") for v in (ixx, ixy, ixz, iyy, iyz, izz))
+    return Inertial(part.mass, rounded, Pose(tuple(float(f"{v:.6g}") for v in com)))
+
+
+def _primitive(shape: params.Shape):
+    return Box(shape.size) if shape.kind == "box" else Cylinder(*shape.size)
+
+
+def mesh_for(part: params.Part):
+    """The part's visual mesh in millimetres, in the link frame (as a CAD export would be)."""
+    import trimesh
+
+    pieces = []
+    for shape in part.shapes:
+        if shape.kind == "box":
+            piece = trimesh.creation.box(extents=np.asarray(shape.size) * MM)
+        else:
+            radius, length = shape.size
+            piece = trimesh.creation.cylinder(radius=radius * MM, height=length * MM,
+                                              sections=_SECTIONS)
+        piece.apply_translation(np.asarray(shape.center) * MM)
+        pieces.append(piece)
+    return trimesh.util.concatenate(pieces)
+
+
+def build_model() -> RobotModel:
+    model = RobotModel(name=params.ROBOT_NAME, links={}, joints={},
+                       ros_namespace=f"/{params.ROBOT_NAME}")
+    for part in params.parts():
+        mesh = Mesh(f"package://{params.PACKAGE}/meshes/{part.name}.stl", (0.001, 0.001, 0.001))
+        model.links[part.name] = Link(
+            part.name,
+            inertial_for(part),
+            [Visual(mesh, name=f"{part.name}_visual", material=part.material,
+                    rgba=part.rgba)],
+            [Collision(_primitive(s), Pose(s.center), f"{part.name}_collision_{i}")
+             for i, s in enumerate(part.shapes)],
+        )
+        model.gazebo_links[part.name] = GazeboLink(
+            self_collide=True, mu1=part.mu, mu2=part.mu, kp=params.CONTACT_KP,
+            kd=params.CONTACT_KD, material=part.material)
+    for h in params.hinges():
+        dynamics = Dynamics(h.damping, h.friction)
+        model.joints[h.name] = Joint(h.name, "revolute", h.parent, h.child, Pose(h.xyz), h.axis,
+                                     Limit(h.lower, h.upper, h.effort, h.velocity), dynamics)
+        model.gazebo_joints[h.name] = dynamics  # the seed's Listing 3.11, from the same numbers
+        model.transmissions.append(Transmission(
+            f"{h.name}_transmission", h.name,
+            hardware_interface="hardware_interface/EffortJointInterface",
+            actuator=f"{h.name}_motor", mechanical_reduction=1.0))
+    return model
+
+
+def controllers_yaml() -> str:
+    controllers: dict = {
+        "joint_state_controller": {"type": "joint_state_controller/JointStateController",
+                                   "publish_rate": params.JOINT_STATE_RATE},
+    }
+    for h in params.hinges():
+        controllers[f"{h.name}_position_controller"] = {
+            "type": "effort_controllers/JointPositionController",
+            "joint": h.name,
+            "pid": {"p": h.p, "i": h.i, "d": h.d, "i_clamp_min": 0.0, "i_clamp_max": 0.0},
+        }
+    header = ("# Mex-One controllers in the ros_control schema of the seed's Listing 3.17.\n"
+              "# Generated by `python -m mexone.robots.mex_one.generate` from params.py.\n"
+              "# Effort-interface position controllers: the PID output is the joint torque, which\n"
+              "# is what the seed's position_controllers/JointPositionController meant to do.\n")
+    return header + yaml.safe_dump({params.ROBOT_NAME: controllers}, sort_keys=False)
+
+
+URDF_COMMENT = (" Mex-One (Cinvestav Guadalajara), reconstructed at its published scale: 1.05 m, "
+                "15 kg, 21 DOF. Generated from mexone/robots/mex_one/params.py; do not edit by "
+                "hand. ")
+
+
+def generate(out: Path = HERE) -> list[Path]:
+    """Write every generated file below `out`; returns the paths written."""
+    written = []
+    for sub in ("urdf", "meshes", "config"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    urdf = out / "urdf" / f"{params.ROBOT_NAME}.urdf"
+    urdf.write_text(write_urdf(build_model(), URDF_COMMENT))
+    written.append(urdf)
+    for part in params.parts():
+        path = out / "meshes" / f"{part.name}.stl"
+        mesh_for(part).export(path, file_type="stl")
+        written.append(path)
+    yaml_path = out / "config" / "controllers.yaml"
+    yaml_path.write_text(controllers_yaml())
+    written.append(yaml_path)
+    return written
+
+
+if __name__ == "__main__":
+    target = Path(sys.argv[1]) if len(sys.argv) > 1 else HERE
+    for path in generate(target):
+        print(path)

@@ -1,0 +1,165 @@
+"""Mex-One in one table: every dimension, mass, limit and gain the generator turns into files.
+
+Published (DESIGN.md section 2): height 1.05 m, mass about 15 kg, a Kinect on the head.
+Assumed (no CAD or joint list is public): the 21-DOF layout below, segment lengths in
+proportion to a child-sized humanoid, masses by segment, servo-class torque limits.
+Edit a number here and run ``python -m mexone.robots.mex_one.generate``; a test fails if the
+committed files drift from this table.
+
+Frames: x forward, y left, z up; the robot stands with its soles at z = 0 and every joint
+at 0 is the home pose (arms hanging, legs straight). Left parts are given; right parts are
+their mirror images in y (same axes, roll and yaw limits mirrored).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+ROBOT_NAME = "mex_rb"  # the seed's robot and ROS namespace name
+PACKAGE = "mex_rb"  # package:// name of the mesh folder, as in the seed's Listing 3.5
+HEIGHT = 1.05  # m, sole to top of the Kinect
+PELVIS_HEIGHT = 0.60  # m, pelvis frame above the soles at home
+
+
+@dataclass(frozen=True)
+class Shape:
+    """A primitive in its link's frame: kind 'box' (size = x y z) or 'cylinder' (radius, length,
+    axis z). Visual meshes and collision primitives are both made from it."""
+
+    kind: str
+    size: tuple[float, ...]
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Part:
+    name: str
+    mass: float  # kg, spread uniformly over the shapes' volume
+    shapes: tuple[Shape, ...]
+    material: str  # Gazebo material script name
+    rgba: tuple[float, float, float, float]
+    mu: float = 0.9  # Coulomb friction with other surfaces (mu1 = mu2)
+
+
+@dataclass(frozen=True)
+class Hinge:
+    name: str
+    parent: str
+    child: str
+    xyz: tuple[float, float, float]  # joint origin in the parent's frame
+    axis: tuple[float, float, float]
+    lower: float  # rad
+    upper: float
+    effort: float  # N m, peak motor torque after the gearbox
+    velocity: float  # rad/s
+    damping: float  # N m s/rad, gearbox viscous loss
+    friction: float  # N m, gearbox static friction
+    p: float  # PID gains of its position controller (N m/rad, N m/(rad s), N m s/rad)
+    i: float
+    d: float
+
+
+GREY = (0.75, 0.75, 0.78, 1.0)
+DARK = (0.25, 0.25, 0.28, 1.0)
+WHITE = (0.95, 0.95, 0.95, 1.0)
+BLACK = (0.08, 0.08, 0.08, 1.0)
+
+
+def _box(x, y, z, center=(0.0, 0.0, 0.0)) -> Shape:
+    return Shape("box", (x, y, z), center)
+
+
+def _cyl(r, length, center=(0.0, 0.0, 0.0)) -> Shape:
+    return Shape("cylinder", (r, length), center)
+
+
+# Total: 15.0 kg. Left limbs only; the right side is mirrored by `parts()`.
+_CENTRE_PARTS = (
+    Part("pelvis", 2.0, (_box(0.12, 0.18, 0.08),), "Gazebo/Grey", GREY),
+    Part("torso", 3.6, (_box(0.12, 0.20, 0.24, (0.0, 0.0, 0.13)),), "Gazebo/Grey", GREY),
+    Part("neck", 0.15, (_cyl(0.025, 0.04, (0.0, 0.0, 0.02)),), "Gazebo/DarkGrey", DARK),
+    # head with the Kinect on top, as on the real robot
+    Part("head", 0.95, (_box(0.10, 0.12, 0.065, (0.0, 0.0, 0.0375)),
+                        _box(0.065, 0.28, 0.04, (0.0, 0.0, 0.09))), "Gazebo/White", WHITE),
+)
+_LEFT_PARTS = (
+    Part("l_hip_rotor", 0.25, (_cyl(0.03, 0.03, (0.0, 0.0, -0.015)),), "Gazebo/DarkGrey", DARK),
+    Part("l_hip_bracket", 0.35, (_box(0.05, 0.05, 0.04),), "Gazebo/DarkGrey", DARK),
+    Part("l_thigh", 1.0, (_cyl(0.04, 0.17, (0.0, 0.0, -0.115)),), "Gazebo/Grey", GREY),
+    Part("l_shank", 0.8, (_cyl(0.035, 0.17, (0.0, 0.0, -0.115)),), "Gazebo/Grey", GREY),
+    Part("l_ankle", 0.2, (_box(0.04, 0.04, 0.03),), "Gazebo/DarkGrey", DARK),
+    Part("l_foot", 0.45, (_box(0.16, 0.08, 0.03, (0.02, 0.0, -0.045)),), "Gazebo/Black", BLACK,
+         mu=1.0),
+    Part("l_shoulder", 0.2, (_box(0.05, 0.04, 0.05),), "Gazebo/DarkGrey", DARK),
+    Part("l_upper_arm", 0.5, (_cyl(0.03, 0.13, (0.0, 0.0, -0.095)),), "Gazebo/Grey", GREY),
+    Part("l_forearm", 0.4, (_cyl(0.025, 0.15, (0.0, 0.0, -0.095)),), "Gazebo/Grey", GREY),
+)
+
+X, Y, Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
+_LEG = dict(velocity=5.0, damping=0.5, friction=0.05)
+_ARM = dict(velocity=5.0, damping=0.2, friction=0.02)
+_HEAD = dict(velocity=5.0, damping=0.1, friction=0.01)
+
+_CENTRE_JOINTS = (
+    Hinge("waist_yaw", "pelvis", "torso", (0.0, 0.0, 0.04), Z, -1.0, 1.0, 15.0, p=150.0, i=0.0,
+          d=1.5, **_LEG),
+    Hinge("neck_yaw", "torso", "neck", (0.0, 0.0, 0.26), Z, -1.2, 1.2, 3.0, p=15.0, i=0.0, d=0.2,
+          **_HEAD),
+    Hinge("neck_pitch", "neck", "head", (0.0, 0.0, 0.04), Y, -0.5, 0.8, 3.0, p=15.0, i=0.0, d=0.2,
+          **_HEAD),
+)
+# Left side; limits are for the left, mirrored for the right where the axis is x or z.
+_LEFT_JOINTS = (
+    Hinge("l_hip_yaw", "pelvis", "l_hip_rotor", (0.0, 0.06, -0.03), Z, -0.8, 0.8, 10.0, p=100.0,
+          i=0.0, d=1.0, **_LEG),
+    Hinge("l_hip_roll", "l_hip_rotor", "l_hip_bracket", (0.0, 0.0, -0.05), X, -0.4, 0.6, 20.0,
+          p=300.0, i=0.0, d=3.0, **_LEG),
+    Hinge("l_hip_pitch", "l_hip_bracket", "l_thigh", (0.0, 0.0, 0.0), Y, -1.8, 0.6, 25.0,
+          p=300.0, i=0.0, d=3.0, **_LEG),
+    Hinge("l_knee", "l_thigh", "l_shank", (0.0, 0.0, -0.23), Y, -0.1, 2.2, 25.0, p=300.0, i=0.0,
+          d=3.0, **_LEG),
+    Hinge("l_ankle_pitch", "l_shank", "l_ankle", (0.0, 0.0, -0.23), Y, -0.9, 0.9, 20.0, p=300.0,
+          i=0.0, d=3.0, **_LEG),
+    Hinge("l_ankle_roll", "l_ankle", "l_foot", (0.0, 0.0, 0.0), X, -0.5, 0.5, 15.0, p=300.0,
+          i=0.0, d=3.0, **_LEG),
+    Hinge("l_shoulder_pitch", "torso", "l_shoulder", (0.0, 0.14, 0.22), Y, -3.0, 3.0, 8.0,
+          p=40.0, i=0.0, d=0.5, **_ARM),
+    Hinge("l_shoulder_roll", "l_shoulder", "l_upper_arm", (0.0, 0.0, 0.0), X, -0.5, 2.5, 8.0,
+          p=40.0, i=0.0, d=0.5, **_ARM),
+    Hinge("l_elbow", "l_upper_arm", "l_forearm", (0.0, 0.0, -0.17), Y, -2.5, 0.1, 6.0, p=30.0,
+          i=0.0, d=0.4, **_ARM),
+)
+
+
+def _mirror_name(name: str) -> str:
+    return "r_" + name[2:] if name.startswith("l_") else name
+
+
+def _mirror_shape(shape: Shape) -> Shape:
+    x, y, z = shape.center
+    return Shape(shape.kind, shape.size, (x, -y, z))
+
+
+def parts() -> list[Part]:
+    """Every link, in the order written to the URDF."""
+    right = [Part(_mirror_name(p.name), p.mass, tuple(_mirror_shape(s) for s in p.shapes),
+                  p.material, p.rgba, p.mu) for p in _LEFT_PARTS]
+    return [*_CENTRE_PARTS, *_LEFT_PARTS, *right]
+
+
+def hinges() -> list[Hinge]:
+    """Every joint, in the order written to the URDF."""
+    right = []
+    for h in _LEFT_JOINTS:
+        lower, upper = (-h.upper, -h.lower) if h.axis != Y else (h.lower, h.upper)
+        x, y, z = h.xyz
+        right.append(Hinge(_mirror_name(h.name), _mirror_name(h.parent), _mirror_name(h.child),
+                           (x, -y, z), h.axis, lower, upper, h.effort, h.velocity, h.damping,
+                           h.friction, h.p, h.i, h.d))
+    return [*_CENTRE_JOINTS, *_LEFT_JOINTS, *right]
+
+
+# Contact: Gazebo's ODE contact stiffness kp (N/m) and damping kd (N s/m) for every link
+CONTACT_KP = 1.0e6
+CONTACT_KD = 100.0
+JOINT_STATE_RATE = 50.0  # Hz, as the seed's Listing 3.17
