@@ -245,11 +245,12 @@ def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
                               f"velocity limit {lim.velocity:g} on an actuated joint: a simulator "
                               "either ignores it or holds the joint still; set the motor's top "
                               "speed in rad/s", joint.line)
-        dyn = ctx.model.joint_dynamics(joint.name)
-        if dyn.damping < 0 or dyn.friction < 0:
-            yield Finding("dynamics-negative", "error", element,
-                          f"damping {dyn.damping:g} / friction {dyn.friction:g}: negative values "
-                          "add energy and make the simulation diverge", joint.line)
+        stated = [joint.dynamics, ctx.model.gazebo_joints.get(joint.name, joint.dynamics)]
+        for dyn in dict.fromkeys(stated):
+            if dyn.damping < 0 or dyn.friction < 0:
+                yield Finding("dynamics-negative", "error", element,
+                              f"damping {dyn.damping:g} / friction {dyn.friction:g}: negative "
+                              "values add energy and make the simulation diverge", joint.line)
 
 
 def _rule_names(ctx: _Context) -> Iterator[Finding]:

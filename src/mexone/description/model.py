@@ -33,9 +33,11 @@ __all__ = [
     "GazeboLink",
     "RobotModel",
     "JOINT_TYPES",
+    "INERTIA_KEYS",
     "MOVING_JOINT_TYPES",
 ]
 
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 MOVING_JOINT_TYPES = ("revolute", "continuous", "prismatic")
 
@@ -292,4 +294,4 @@ class RobotModel:
 
     @property
     def base_dir(self) -> Path:
-        return self.source.parent if self.source else Path.cwd()
+        return self.source.resolve().parent if self.source else Path.cwd()

@@ -14,6 +14,7 @@ import numpy as np
 from lxml import etree
 
 from mexone.description.model import (
+    INERTIA_KEYS,
     Box,
     Collision,
     Cylinder,
@@ -63,12 +64,12 @@ class _SdfModel:
         text = pose.text.strip()
         fmt_ = pose.get("rotation_format", "euler_rpy")
         if fmt_ == "quat_xyzw":
-            x, y, z, qx, qy, qz, qw = self.xml.numbers(pose, text, 7, "<pose>")
+            x, y, z, qx, qy, qz, qw = self.xml.numbers(pose, text, 7, "value")
             out = np.eye(4)
             out[:3, :3] = _quat_matrix(qw, qx, qy, qz)
             out[:3, 3] = (x, y, z)
             return out
-        values = self.xml.numbers(pose, text, 6, "<pose>")
+        values = self.xml.numbers(pose, text, 6, "value")
         rpy = np.radians(values[3:]) if pose.get("degrees") == "true" else values[3:]
         return make_transform(values[:3], rpy)
 
@@ -165,8 +166,10 @@ def _to_model(sdf: _SdfModel, path: Path) -> RobotModel:
             "URDF needs exactly one root", file=path, line=sdf.el.sourceline,
             hint="join the parts with fixed joints")
 
-    # URDF frame of each link: the root keeps its SDF frame, a child link sits at its joint.
-    frames = {name: sdf.frame_of(parent_of.get(name, name), sdf.links[name]) for name in sdf.links}
+    # URDF frame of each link: a child link sits at its joint; the root is the model frame, so
+    # its parts keep their model-frame placement (the seed adds the link's "general pose").
+    frames = {name: sdf.frame_of(parent_of[name], sdf.links[name]) if name in parent_of
+              else np.eye(4) for name in sdf.links}
     if world_fixed:
         model.links["world"] = Link("world")
         frames["world"] = invert(sdf.pose(sdf.el))  # model pose: where the base is welded
@@ -187,7 +190,7 @@ def _geometry(sdf: _SdfModel, parent: etree._Element) -> Geometry:
     geo = xml.child(parent, "geometry", required=True)
     if (box := geo.find("box")) is not None:
         size = box.find("size")
-        return Box(xml.numbers(size, size.text or "", 3, "<size>") if size is not None else (1, 1, 1))
+        return Box(xml.numbers(size, size.text or "", 3, "value") if size is not None else (1, 1, 1))
     if (cyl := geo.find("cylinder")) is not None:
         return Cylinder(xml.text_number(cyl, "radius", 1.0), xml.text_number(cyl, "length", 1.0))
     if (sph := geo.find("sphere")) is not None:
@@ -197,7 +200,7 @@ def _geometry(sdf: _SdfModel, parent: etree._Element) -> Geometry:
         if not uri:
             raise xml.fail(mesh, "has no <uri>")
         scale_el = mesh.find("scale")
-        scale = xml.numbers(scale_el, scale_el.text or "", 3, "<scale>") if scale_el is not None \
+        scale = xml.numbers(scale_el, scale_el.text or "", 3, "value") if scale_el is not None \
             else (1.0, 1.0, 1.0)
         return Mesh(uri, scale)
     kinds = ", ".join(c.tag for c in geo) or "nothing"
@@ -216,9 +219,8 @@ def _link(sdf: _SdfModel, el: etree._Element, name: str, to_urdf: np.ndarray,
         link.inertial = Inertial(1.0, (1, 0, 0, 1, 0, 1), Pose.from_matrix(to_urdf))
     else:
         tensor = inertial.find("inertia")
-        keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
         defaults = (1, 0, 0, 1, 0, 1)
-        moments = tuple(xml.text_number(tensor, k, d) for k, d in zip(keys, defaults)) \
+        moments = tuple(xml.text_number(tensor, k, d) for k, d in zip(INERTIA_KEYS, defaults, strict=True)) \
             if tensor is not None else defaults
         link.inertial = Inertial(xml.text_number(inertial, "mass", 1.0), moments,
                                  Pose.from_matrix(to_urdf @ sdf.pose(inertial)))
@@ -228,7 +230,7 @@ def _link(sdf: _SdfModel, el: etree._Element, name: str, to_urdf: np.ndarray,
         script = vis.findtext("material/script/name")
         rgba = None
         if (diffuse := vis.find("material/diffuse")) is not None:
-            rgba = xml.numbers(diffuse, diffuse.text or "", 4, "<diffuse>")
+            rgba = xml.numbers(diffuse, diffuse.text or "", 4, "value")
         link.visuals.append(Visual(_geometry(sdf, vis), Pose.from_matrix(to_urdf @ sdf.pose(vis)),
                                    vis.get("name"), None, rgba, vis.sourceline))
         if script and props.material is None:
@@ -268,7 +270,7 @@ def _joint(sdf: _SdfModel, el: etree._Element, frames: dict[str, np.ndarray]) ->
     if axis_el is not None:
         xyz_el = xml.child(axis_el, "xyz", required=sdf_type != "fixed")
         if xyz_el is not None:
-            axis = np.array(xml.numbers(xyz_el, xyz_el.text or "", 3, "<xyz>"))
+            axis = np.array(xml.numbers(xyz_el, xyz_el.text or "", 3, "value"))
             if not axis.any():
                 raise xml.fail(xyz_el, "is a zero axis", "give the rotation axis, e.g. 0 0 1")
             axis = _axis_in_joint_frame(sdf, axis_el, xyz_el, axis, frames[child])
@@ -284,7 +286,8 @@ def _joint(sdf: _SdfModel, el: etree._Element, frames: dict[str, np.ndarray]) ->
                                file=xml.label, line=el.sourceline,
                                hint="URDF has revolute, continuous, prismatic and fixed joints")
     urdf_type = _URDF_TYPES[sdf_type]
-    if urdf_type == "revolute" and (limit is None or (limit.lower < -_UNBOUNDED and limit.upper > _UNBOUNDED)):
+    unbounded = limit is None or (limit.lower < -_UNBOUNDED and limit.upper > _UNBOUNDED)
+    if urdf_type == "revolute" and unbounded:
         urdf_type = "continuous"
     if urdf_type in ("revolute", "prismatic") and limit is None:
         limit = Limit(0.0, 0.0, -1.0, -1.0)
@@ -355,7 +358,7 @@ def write_sdf(model: RobotModel) -> str:
     sdf = etree.Element("sdf", version="1.6")
     el_model = _sub(sdf, "model", name=model.name)
     frames = model.link_frames
-    for name in model.walk():
+    for name in model.links:
         if name == "world":
             continue
         link = model.links[name]
@@ -369,7 +372,7 @@ def write_sdf(model: RobotModel) -> str:
             _sub(inertial, "pose", _pose_text(link.inertial.origin.matrix), frame="")
             _sub(inertial, "mass", fmt(link.inertial.mass))
             tensor = _sub(inertial, "inertia")
-            for key, value in zip(("ixx", "ixy", "ixz", "iyy", "iyz", "izz"), link.inertial.inertia):
+            for key, value in zip(INERTIA_KEYS, link.inertial.inertia, strict=True):
                 _sub(tensor, key, fmt(value))
         for i, col in enumerate(link.collisions):
             c = _sub(el, "collision", name=col.name or f"{name}_collision_{i}")

@@ -8,6 +8,7 @@ from lxml import etree
 
 from mexone.description.findings import Finding
 from mexone.description.model import (
+    INERTIA_KEYS,
     JOINT_TYPES,
     Box,
     Collision,
@@ -104,7 +105,7 @@ def _link(xml: XmlReader, el: etree._Element) -> Link:
         tensor = xml.child(inertial, "inertia", required=True)
         link.inertial = Inertial(
             mass=xml.float_attr(mass, "value"),
-            inertia=tuple(xml.float_attr(tensor, k) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
+            inertia=tuple(xml.float_attr(tensor, k) for k in INERTIA_KEYS),
             origin=_origin(xml, inertial),
         )
     for vis in el.iterfind("visual"):
@@ -207,9 +208,11 @@ def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
 
 # ----- writing ---------------------------------------------------------------------------------
 def fmt(value: float) -> str:
-    """Shortest text that reads back to the same float within 1e-12 (and prints 0 as 0)."""
-    text = format(float(value), ".12g")
-    return "0" if text == "-0" else text
+    """Text that reads back to the same float within 1e-12; noise below 1e-15 prints as 0."""
+    value = float(value)
+    if abs(value) < 1e-15:  # rounding noise from frame algebra
+        return "0"
+    return format(value, ".12g")
 
 
 def _vec(values) -> str:
@@ -251,8 +254,8 @@ def write_urdf(model: RobotModel, comment: str | None = None) -> str:
             inertial = _sub(el, "inertial")
             _write_origin(inertial, link.inertial.origin)
             _sub(inertial, "mass", value=fmt(link.inertial.mass))
-            keys = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-            _sub(inertial, "inertia", **{k: fmt(v) for k, v in zip(keys, link.inertial.inertia)})
+            values = zip(INERTIA_KEYS, link.inertial.inertia, strict=True)
+            _sub(inertial, "inertia", **{k: fmt(v) for k, v in values})
         for vis in link.visuals:
             v = _sub(el, "visual", name=vis.name)
             _write_origin(v, vis.origin)

@@ -75,9 +75,14 @@ class XmlReader:
             resolve_entities=False, no_network=True, remove_comments=True, huge_tree=False
         )
         try:
-            return etree.fromstring(data, parser=parser)
+            root = etree.fromstring(data, parser=parser)
         except etree.XMLSyntaxError as exc:
             raise self.error(f"malformed XML: {exc.msg}", exc.lineno, "fix the XML syntax") from None
+        docinfo = root.getroottree().docinfo
+        if docinfo.system_url or docinfo.public_id:
+            raise self.error("external DTD refused", _line_of(data, b"<!DOCTYPE"),
+                             "a model must not pull in other files through the DTD")
+        return root
 
     # ----- errors --------------------------------------------------------------------------
     def error(self, what: str, line: int | None = None, hint: str | None = None) -> InputError:
@@ -139,7 +144,7 @@ class XmlReader:
             if default is None:
                 raise self.fail(el, f"is missing <{tag}>")
             return default
-        return self.number(sub, sub.text.strip(), f"<{tag}>")
+        return self.number(sub, sub.text.strip(), "value")
 
     def text_bool(self, el: etree._Element, tag: str) -> bool | None:
         sub = el.find(tag)

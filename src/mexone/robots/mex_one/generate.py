@@ -65,7 +65,7 @@ def inertial_for(part: params.Part) -> Inertial:
     centres = np.array([s.center for s in part.shapes])
     com = masses @ centres / part.mass
     tensor = np.zeros((3, 3))
-    for shape, m, c in zip(part.shapes, masses, centres):
+    for shape, m, c in zip(part.shapes, masses, centres, strict=True):
         d = c - com
         tensor += _own_inertia(shape, m) + m * (d @ d * np.eye(3) - np.outer(d, d))
     ixx, ixy, ixz, iyy, iyz, izz = (tensor[0, 0], tensor[0, 1], tensor[0, 2], tensor[1, 1],
