@@ -17,5 +17,5 @@ if ((${#apt_packages[@]})); then
 fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[test]"
-python3 -m ruff check src tests benchmarks
+python3 -m ruff check .
 python3 -m pytest "$@"
