@@ -76,7 +76,8 @@ def _cyl(r, length, center=(0.0, 0.0, 0.0)) -> Shape:
 # Total: 15.0 kg. Left limbs only; the right side is mirrored by `parts()`.
 _CENTRE_PARTS = (
     Part("pelvis", 2.0, (_box(0.12, 0.18, 0.08),), "Gazebo/Grey", GREY),
-    Part("torso", 3.6, (_box(0.12, 0.20, 0.24, (0.0, 0.0, 0.13)),), "Gazebo/Grey", GREY),
+    # electronics and battery sit a little forward: the COM is 1 cm ahead of the hips
+    Part("torso", 3.6, (_box(0.12, 0.20, 0.24, (0.01, 0.0, 0.13)),), "Gazebo/Grey", GREY),
     Part("neck", 0.15, (_cyl(0.025, 0.04, (0.0, 0.0, 0.02)),), "Gazebo/DarkGrey", DARK),
     # head with the Kinect on top, as on the real robot
     Part("head", 0.95, (_box(0.10, 0.12, 0.065, (0.0, 0.0, 0.0375)),

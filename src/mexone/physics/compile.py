@@ -1,0 +1,439 @@
+"""RobotModel + World -> MuJoCo (MjSpec -> MjModel), the way Gazebo 7 would simulate the URDF.
+
+MuJoCo's own URDF importer drops ``<gazebo>`` and ``<transmission>``, welds the root to the
+world and cannot resolve ``package://``; this module owns all of that. The mapping of every
+Gazebo property we honour is in ``GAZEBO_MAPPING`` (printed by ``mexone sim --explain``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from mexone.description.meshes import geometry_bounds, resolve_mesh
+from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel, Sphere
+from mexone.description.transforms import rpy_to_matrix
+from mexone.errors import MexoneError, ModelError, UnsupportedError
+from mexone.physics.world import World, default_world
+
+__all__ = ["Spawn", "CompileOptions", "Compiled", "compile_model", "GAZEBO_MAPPING",
+           "GROUP_VISUAL", "GROUP_COLLISION", "lowest_point"]
+
+GROUP_VISUAL = 1  # MuJoCo geom groups: the viewer's toggles for visual and collision geometry
+GROUP_COLLISION = 3
+
+# contype/conaffinity bits: a contact happens if (type1 & aff2) or (type2 & aff1)
+_SELF = 2  # links with selfCollide: touch every link of the robot
+_PLAIN = 4  # links without: touch only selfCollide links (and the ground, through <pair>s)
+
+# Gazebo (SDF/ODE) defaults where a URDF is silent
+_GAZEBO_MU = 1.0
+_GAZEBO_KP = 1e12
+_GAZEBO_KD = 1.0
+_DMAX = 0.95  # MuJoCo's default solimp[1]: the impedance a settled contact reaches
+
+GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
+    ("<gazebo> mu1, mu2", "pair/geom friction[0:2]",
+     "min-combined as ODE does: explicit <pair>s with the ground; between links, geom "
+     "priority ordered so the lower friction wins"),
+    ("<gazebo> kp, kd", "solref = (timeconst, dampratio)",
+     "ODE's kp (N/m) as stiffness of the robot's mass, k = kp/m: timeconst = "
+     "1/(dmax*zeta*sqrt(k)); zeta = max(1, kd/(2 sqrt(kp m))): ODE contacts are inelastic, so "
+     "at least critically damped; timeconst >= 2 steps (MuJoCo's stability floor). Pair kp "
+     "in series 1/(1/kp1+1/kp2), kd summed, as ODE combines them"),
+    ("<gazebo> selfCollide", "contype/conaffinity bits",
+     "links collide with each other when either has selfCollide (as Gazebo's ODE spaces); "
+     "never across a joint (exclude pairs, lumping fixed joints as Gazebo does)"),
+    ("<gazebo> maxVel, minDepth", "(none)",
+     "no MuJoCo equivalent: correction speed follows from solref; ignored"),
+    ("<dynamics damping> / <gazebo> axis/dynamics/damping", "joint damping",
+     "viscous, integrated implicitly (implicitfast)"),
+    ("<dynamics friction> / <gazebo> axis/dynamics/friction", "joint frictionloss", "Coulomb"),
+    ("<limit lower upper>", "joint range (limited)", "continuous joints unlimited"),
+    ("<limit effort>", "actuator forcerange = effort / mechanicalReduction",
+     "a command can never exceed it; <= 0 means unlimited, as SDF reads -1"),
+    ("<transmission> mechanicalReduction", "actuator gear",
+     "joint effort = gear * actuator effort; joint-space commands are unchanged"),
+    ("collision <mesh>", "mesh geom", "MuJoCo collides with the mesh's convex hull"),
+    ("root link", "free joint", "unless the URDF welds it to a 'world' link"),
+    ("world <physics> max_step_size, ode/solver/iters", "option timestep, iterations", ""),
+)
+
+
+@dataclass(frozen=True)
+class Spawn:
+    """Where the robot appears, as spawn_model's -x -y -z -R -P -Y. With on_ground, z is measured
+    from the robot's lowest collision point at home, so z = 0 stands it on the ground."""
+
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    on_ground: bool = True
+
+
+@dataclass(frozen=True)
+class CompileOptions:
+    self_collision: bool | None = None  # None: as each link's <gazebo selfCollide> says
+    visuals: bool = True  # visual meshes as geoms (rendering, MJCF export); no physics effect
+    integrator: str = "implicitfast"  # implicit in velocity: joint damping never destabilises
+    armature: float = 0.0  # kg m^2 added to every moving joint (rotor inertia); Gazebo has none
+
+
+@dataclass
+class Compiled:
+    """The MuJoCo model plus the name maps the other layers need."""
+
+    spec: mujoco.MjSpec
+    model: mujoco.MjModel
+    robot: RobotModel
+    world: World
+    spawn: Spawn
+    joints: list[str]  # moving joints, in URDF order
+    qpos_adr: np.ndarray
+    dof_adr: np.ndarray
+    actuated: list[str]  # joints with a transmission (an actuator each, same order)
+    gear: np.ndarray
+    bodies: dict[str, int] = field(default_factory=dict)  # link -> body id
+    free: bool = True  # the root has a free joint
+
+    @property
+    def root_body(self) -> int:
+        return self.bodies[self.robot.base_link]
+
+
+def _quat(rotation: np.ndarray) -> np.ndarray:
+    out = np.zeros(4)
+    mujoco.mju_mat2Quat(out, np.ascontiguousarray(rotation).ravel())
+    return out
+
+
+def _set_pose(element, matrix: np.ndarray) -> None:
+    element.pos = matrix[:3, 3]
+    element.quat = _quat(matrix[:3, :3])
+
+
+def lowest_point(robot: RobotModel) -> float:
+    """Lowest z of any collision geometry at home, in the root's frame (for standing spawns)."""
+    lowest = np.inf
+    for name, frame in robot.link_frames.items():
+        for col in robot.links[name].collisions:
+            lower, upper = geometry_bounds(col.geometry, robot.base_dir)
+            corners = np.array([[x, y, z, 1.0] for x in (lower[0], upper[0])
+                                for y in (lower[1], upper[1]) for z in (lower[2], upper[2])])
+            if isinstance(col.geometry, Cylinder | Sphere):  # round: the box corners overshoot
+                corners = _round_extremes(col.geometry)
+            points = (frame @ col.origin.matrix @ corners.T)[2]
+            lowest = min(lowest, float(points.min()))
+    return 0.0 if lowest == np.inf else lowest
+
+
+def _round_extremes(geometry: Cylinder | Sphere) -> np.ndarray:
+    """Points that bound a cylinder or sphere well enough: rims sampled every 7.5 degrees."""
+    angles = np.linspace(0, 2 * np.pi, 48, endpoint=False)
+    if isinstance(geometry, Sphere):
+        r = geometry.radius
+        ring = [[r * np.cos(a) * np.cos(b), r * np.sin(a) * np.cos(b), r * np.sin(b), 1.0]
+                for a in angles for b in np.linspace(-np.pi / 2, np.pi / 2, 25)]
+        return np.array(ring)
+    r, h = geometry.radius, geometry.length / 2
+    return np.array([[r * np.cos(a), r * np.sin(a), z, 1.0] for a in angles for z in (-h, h)])
+
+
+def _contact_solref(kp: float, kd: float, mass: float, step: float) -> tuple[float, float]:
+    k = kp / mass
+    zeta = max(1.0, kd / (2.0 * np.sqrt(kp * mass)))
+    return max(2.0 * step, 1.0 / (_DMAX * zeta * np.sqrt(k))), zeta
+
+
+def _combine(a: GazeboLink, b_kp: float, b_kd: float) -> tuple[float, float]:
+    kp_a = a.kp if a.kp is not None else _GAZEBO_KP
+    kd_a = a.kd if a.kd is not None else _GAZEBO_KD
+    return 1.0 / (1.0 / kp_a + 1.0 / b_kp), kd_a + b_kd
+
+
+def _lumps(robot: RobotModel) -> dict[str, str]:
+    """Each link's lump: links joined by fixed joints move as one body, as Gazebo merges them."""
+    lump = {name: name for name in robot.links}
+    for name in robot.walk():
+        for joint in robot.child_joints.get(name, []):
+            if joint.type == "fixed":
+                lump[joint.child] = lump[name]
+    return lump
+
+
+def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = Spawn(),
+                  options: CompileOptions = CompileOptions()) -> Compiled:
+    world = world or default_world()
+    _refuse_what_we_cannot_build(robot)
+    spec = mujoco.MjSpec()
+    spec.modelname = robot.name
+    spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
+    spec.compiler.autolimits = False
+    spec.option.timestep = world.step
+    spec.option.gravity = world.gravity
+    spec.option.iterations = max(world.iterations, 1)
+    spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{options.integrator.upper()}")
+    spec.visual.global_.offwidth = 1920
+    spec.visual.global_.offheight = 1080
+
+    _add_world(spec, world)
+    robot_mass = robot.mass  # > 0: _refuse_what_we_cannot_build saw a massive moving link
+
+    lift = -lowest_point(robot) if spawn.on_ground else 0.0
+    placement = np.eye(4)
+    placement[:3, :3] = rpy_to_matrix(spawn.rpy)
+    placement[:3, 3] = np.asarray(spawn.xyz) + np.array([0.0, 0.0, lift])
+
+    bodies: dict[str, mujoco.MjsBody] = {}
+    free = not robot.fixed_to_world
+    geoms_by_link: dict[str, list[str]] = {}
+    for name in robot.walk():
+        if name == "world":
+            continue
+        joint = robot.parent_joint.get(name)
+        if joint is None:  # the floating root
+            body = spec.worldbody.add_body(name=name)
+            _set_pose(body, placement)
+            body.add_freejoint(name=f"{name}_free")
+        elif joint.parent == "world":
+            body = spec.worldbody.add_body(name=name)
+            _set_pose(body, placement @ joint.origin.matrix)
+            _add_joint(body, robot, joint, options)
+        else:
+            body = bodies[joint.parent].add_body(name=name)
+            _set_pose(body, joint.origin.matrix)
+            _add_joint(body, robot, joint, options)
+        bodies[name] = body
+        _add_inertial(body, robot, name)
+        geoms_by_link[name] = _add_geoms(spec, body, robot, name, options, world, robot_mass)
+
+    _add_contact_rules(spec, robot, world, geoms_by_link, robot_mass)
+    actuated = _add_actuators(spec, robot)
+    try:
+        model = spec.compile()
+    except ValueError as exc:
+        raise ModelError(f"MuJoCo cannot build '{robot.name}': {' '.join(str(exc).split())}",
+                         file=robot.source, hint="run 'mexone check' on the model") from None
+
+    joints = [j.name for j in robot.moving_joints]
+    ids = [model.joint(j).id for j in joints]
+    return Compiled(
+        spec=spec, model=model, robot=robot, world=world, spawn=spawn, joints=joints,
+        qpos_adr=np.array([model.jnt_qposadr[i] for i in ids], dtype=int),
+        dof_adr=np.array([model.jnt_dofadr[i] for i in ids], dtype=int),
+        actuated=actuated,
+        gear=np.array([model.actuator_gear[i, 0] for i in range(model.nu)]),
+        bodies={name: model.body(name).id for name in bodies},
+        free=free,
+    )
+
+
+def _refuse_what_we_cannot_build(robot: RobotModel) -> None:
+    if len(robot.roots) != 1:
+        raise ModelError(f"'{robot.name}' has {len(robot.roots)} root links "
+                         f"({', '.join(robot.roots)})", file=robot.source,
+                         hint="connect them with joints; 'mexone check' shows the tree")
+    children = [j.child for j in robot.joints.values()]
+    if len(children) != len(set(children)):
+        raise ModelError(f"'{robot.name}' has a closed loop", file=robot.source,
+                         hint="URDF trees cannot close loops; 'mexone check' names the joint")
+    for joint in robot.joints.values():
+        if joint.type in ("floating", "planar"):
+            raise UnsupportedError(f"joint '{joint.name}' is {joint.type}, which mexone does not "
+                                   "simulate", file=robot.source, line=joint.line,
+                                   hint="use revolute, continuous, prismatic or fixed joints")
+        link = robot.links[joint.child]
+        if joint.moving and (link.inertial is None or link.inertial.mass <= 0):
+            raise ModelError(f"link '{link.name}' moves (joint '{joint.name}') but has no mass",
+                             file=robot.source, line=link.line,
+                             hint="give it an <inertial> with mass > 0")
+    root = robot.links[robot.root]
+    if not robot.fixed_to_world and (root.inertial is None or root.inertial.mass <= 0):
+        raise ModelError(f"floating root link '{root.name}' has no mass", file=robot.source,
+                         line=root.line, hint="give it an <inertial> or weld it to a 'world' link")
+
+
+def _add_world(spec: mujoco.MjSpec, world: World) -> None:
+    light = spec.worldbody.add_light(name="sun")
+    light.type = mujoco.mjtLightType.mjLIGHT_DIRECTIONAL
+    light.dir = world.sun_direction
+    light.pos = (0, 0, 10)
+    light.castshadow = True
+    if world.ground is None:
+        return
+    texture = spec.add_texture(name="ground_checker", type=mujoco.mjtTexture.mjTEXTURE_2D,
+                               builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER, width=256, height=256,
+                               rgb1=(0.42, 0.44, 0.47), rgb2=(0.36, 0.38, 0.41))
+    material = spec.add_material(name="ground", texrepeat=(20, 20), reflectance=0.05)
+    material.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = texture.name
+    plane = spec.worldbody.add_geom(name="ground_plane", type=mujoco.mjtGeom.mjGEOM_PLANE,
+                                    size=(0, 0, 0.05), material="ground")
+    plane.pos = (0, 0, world.ground.z)
+    plane.contype = 0  # contacts with the ground come from explicit <pair>s
+    plane.conaffinity = 0
+
+
+def _add_joint(body: mujoco.MjsBody, robot: RobotModel, joint, options: CompileOptions) -> None:
+    if not joint.moving:
+        return
+    kind = mujoco.mjtJoint.mjJNT_SLIDE if joint.type == "prismatic" else mujoco.mjtJoint.mjJNT_HINGE
+    mj = body.add_joint(name=joint.name, type=kind, axis=joint.axis)
+    if joint.type in ("revolute", "prismatic"):
+        mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE
+        mj.range = (joint.limit.lower, joint.limit.upper)
+    else:
+        mj.limited = mujoco.mjtLimited.mjLIMITED_FALSE
+    dyn = robot.joint_dynamics(joint.name)
+    mj.damping = (dyn.damping, 0.0, 0.0)  # MuJoCo 4: polynomial damping, linear term first
+    mj.frictionloss = dyn.friction
+    mj.armature = options.armature
+
+
+def _add_inertial(body: mujoco.MjsBody, robot: RobotModel, name: str) -> None:
+    inertial = robot.links[name].inertial
+    if inertial is None:
+        body.mass = 0.0
+        return
+    body.mass = inertial.mass
+    rotation = inertial.origin.matrix[:3, :3]
+    tensor = rotation @ inertial.tensor @ rotation.T
+    body.ipos = inertial.origin.xyz
+    body.fullinertia = (tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2],
+                        tensor[1, 2])
+    body.explicitinertial = True
+
+
+def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str) -> None:
+    match geometry:
+        case Box(size):
+            geom.type = mujoco.mjtGeom.mjGEOM_BOX
+            geom.size = np.asarray(size) / 2
+        case Cylinder(radius, length):
+            geom.type = mujoco.mjtGeom.mjGEOM_CYLINDER
+            geom.size = (radius, length / 2, 0)
+        case Sphere(radius):
+            geom.type = mujoco.mjtGeom.mjGEOM_SPHERE
+            geom.size = (radius, 0, 0)
+        case Mesh(filename, scale):
+            geom.type = mujoco.mjtGeom.mjGEOM_MESH
+            geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name)
+
+
+def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str) -> str:
+    try:
+        path = resolve_mesh(filename, robot.base_dir)
+    except MexoneError as exc:
+        raise ModelError(f"{exc.what}", file=robot.source, hint=exc.hint) from None
+    if not path.is_file():
+        raise ModelError(f"mesh file '{path}' does not exist", file=robot.source,
+                         hint="check the filename, or run 'mexone check'")
+    mesh = spec.add_mesh(name=name)
+    mesh.scale = scale
+    if path.suffix.lower() in (".stl", ".obj", ".msh"):
+        mesh.file = str(path)
+    else:  # .dae and the rest: through trimesh, as vertices and faces
+        from mexone.description.meshes import load_mesh
+
+        loaded = load_mesh(path)
+        mesh.uservert = np.asarray(loaded.vertices, dtype=np.float32).ravel()
+        mesh.userface = np.asarray(loaded.faces, dtype=np.int32).ravel()
+    return name
+
+
+def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions, world: World,
+               robot_mass: float) -> list[str]:
+    link = robot.links[name]
+    props = robot.gazebo_links.get(name, GazeboLink())
+    self_collide = bool(props.self_collide) if options.self_collision is None \
+        else options.self_collision
+    mu1 = props.mu1 if props.mu1 is not None else _GAZEBO_MU
+    kp = props.kp if props.kp is not None else _GAZEBO_KP
+    kd = props.kd if props.kd is not None else _GAZEBO_KD
+    collision_names = []
+    for i, col in enumerate(link.collisions):
+        geom = body.add_geom(name=f"{name}/collision/{i}")
+        _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}")
+        _set_pose(geom, col.origin.matrix)
+        geom.group = GROUP_COLLISION
+        geom.contype = _SELF if self_collide else _PLAIN
+        geom.conaffinity = (_SELF | _PLAIN) if self_collide else _SELF
+        geom.friction = (mu1, 0.005, 0.0001)
+        geom.priority = _friction_priority(mu1)
+        geom.solref = _contact_solref(kp, kd, robot_mass, world.step)
+        geom.rgba = (0.8, 0.45, 0.2, 0.5)
+        geom.density = 0.0
+        collision_names.append(geom.name)
+    if options.visuals:
+        for i, vis in enumerate(link.visuals):
+            geom = body.add_geom(name=f"{name}/visual/{i}")
+            _geom_shape(geom, vis.geometry, spec, robot, f"{name}/visual_mesh/{i}")
+            _set_pose(geom, vis.origin.matrix)
+            geom.group = GROUP_VISUAL
+            geom.contype = geom.conaffinity = 0
+            geom.density = 0.0
+            geom.rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
+    return collision_names
+
+
+def _friction_priority(mu: float) -> int:
+    """Higher priority for lower friction, so a pair uses the smaller mu (ODE's min rule)."""
+    return int(np.clip(round(-np.log10(max(mu, 1e-6)) * 100), -1000, 1000)) + 1000
+
+
+def _add_contact_rules(spec, robot: RobotModel, world: World, geoms: dict[str, list[str]],
+                       robot_mass: float) -> None:
+    lump = _lumps(robot)
+    # never across a joint: every link of the parent lump against every link of the child lump
+    members: dict[str, list[str]] = {}
+    for name, root in lump.items():
+        if name != "world":
+            members.setdefault(root, []).append(name)
+    excluded: set[tuple[str, str]] = set()
+    for group in members.values():  # links welded together
+        for i, a in enumerate(group):
+            for b in group[i + 1:]:
+                excluded.add((a, b))
+    for joint in robot.joints.values():
+        if joint.type == "fixed" or joint.parent == "world":
+            continue
+        for a in members[lump[joint.parent]]:
+            for b in members[lump[joint.child]]:
+                excluded.add((a, b))
+    for a, b in sorted(excluded):
+        spec.add_exclude(bodyname1=a, bodyname2=b)
+    if world.ground is None:
+        return
+    for name, names in geoms.items():
+        props = robot.gazebo_links.get(name, GazeboLink())
+        mu1 = props.mu1 if props.mu1 is not None else _GAZEBO_MU
+        mu2 = props.mu2 if props.mu2 is not None else mu1
+        kp, kd = _combine(props, _GAZEBO_KP, _GAZEBO_KD)
+        for geom in names:
+            spec.add_pair(name=f"ground/{geom}", geomname1="ground_plane", geomname2=geom,
+                          condim=3,
+                          friction=(min(mu1, world.ground.mu1), min(mu2, world.ground.mu2),
+                                    0.005, 0.0001, 0.0001),
+                          solref=_contact_solref(kp, kd, robot_mass, world.step))
+
+
+def _add_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> list[str]:
+    """One actuator per transmission; starts as a pure effort motor (gain 1, no bias)."""
+    actuated = []
+    for joint in robot.actuated_joints:
+        tx = robot.transmission_for(joint.name)
+        act = spec.add_actuator(name=joint.name, target=joint.name,
+                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        act.gear = (tx.mechanical_reduction, 0, 0, 0, 0, 0)
+        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+        act.gainprm = np.r_[1.0, np.zeros(9)]
+        act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        act.biasprm = np.zeros(10)
+        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        effort = joint.limit.effort if joint.limit else 0.0
+        if effort > 0:
+            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            limit = effort / abs(tx.mechanical_reduction)
+            act.forcerange = (-limit, limit)
+        actuated.append(joint.name)
+    return actuated

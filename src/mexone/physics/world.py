@@ -1,0 +1,85 @@
+"""World: what an SDF .world file says about the environment (Gazebo's defaults where silent).
+
+Reads the parts a robot lab needs: gravity, the physics step and solver iterations, a ground
+plane with its friction, and the sun. ``<include>`` of Gazebo's stock ``ground_plane`` and
+``sun`` models (the seed's Listing 3.14) are understood without Gazebo's model database.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from mexone.description.xmlio import XmlReader
+from mexone.errors import UnsupportedError
+
+__all__ = ["World", "Ground", "read_world", "default_world"]
+
+
+@dataclass(frozen=True)
+class Ground:
+    mu1: float = 100.0  # Gazebo's stock ground_plane
+    mu2: float = 50.0
+    z: float = 0.0
+
+
+@dataclass(frozen=True)
+class World:
+    name: str = "default"
+    gravity: tuple[float, float, float] = (0.0, 0.0, -9.81)
+    step: float = 0.001  # s, Gazebo's max_step_size
+    iterations: int = 50  # ODE quick-step iterations; the MuJoCo solver cap
+    real_time_factor: float = 1.0
+    ground: Ground | None = Ground()
+    sun_direction: tuple[float, float, float] = (-0.5, 0.1, -0.9)
+    source: Path | None = None
+
+
+def default_world() -> World:
+    """The built-in empty world (ground plane, sun, gravity, 1 ms step)."""
+    from mexone.robots.mex_one import world_path
+
+    return read_world(world_path())
+
+
+def read_world(path: Path | str) -> World:
+    path = Path(path)
+    xml = XmlReader(path)
+    root = xml.root
+    world = root.find("world") if root.tag == "sdf" else None
+    if world is None:
+        raise xml.fail(root, "holds no <world>", "a world file is <sdf><world>...</world></sdf>")
+    values: dict = {"name": world.get("name", "default"), "source": path, "ground": None}
+    if (g := world.find("gravity")) is not None:
+        values["gravity"] = xml.numbers(g, g.text or "", 3, "value")
+    physics = world.find("physics")
+    if physics is not None:
+        values["step"] = xml.text_number(physics, "max_step_size", 0.001)
+        if values["step"] <= 0:
+            raise xml.fail(physics, "has max_step_size <= 0", "Gazebo's default is 0.001")
+        values["real_time_factor"] = xml.text_number(physics, "real_time_factor", 1.0)
+        iters = physics.find("ode/solver/iters")
+        if iters is not None:
+            values["iterations"] = int(xml.number(iters, iters.text or "", "value"))
+    for include in world.iterfind("include"):
+        uri = (include.findtext("uri") or "").strip()
+        if uri == "model://ground_plane":
+            values["ground"] = Ground()
+        elif uri != "model://sun":
+            raise UnsupportedError(f"<include> of '{uri}' needs Gazebo's model database",
+                                   file=path, line=include.sourceline,
+                                   hint="write the model into the world file; only ground_plane "
+                                        "and sun are built in")
+    for model in world.iterfind("model"):
+        plane = model.find("link/collision/geometry/plane")
+        if plane is None:
+            raise UnsupportedError(f"world model '{model.get('name')}' is not a ground plane",
+                                   file=path, line=model.sourceline,
+                                   hint="spawn robots with 'mexone sim MODEL'; worlds hold the ground")
+        friction = model.find("link/collision/surface/friction/ode")
+        mu1 = xml.text_number(friction, "mu", 1.0) if friction is not None else 1.0
+        mu2 = xml.text_number(friction, "mu2", mu1) if friction is not None else mu1
+        values["ground"] = Ground(mu1, mu2)
+    if (sun := world.find("light/direction")) is not None:
+        values["sun_direction"] = xml.numbers(sun, sun.text or "", 3, "value")
+    return World(**values)
