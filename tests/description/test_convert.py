@@ -241,4 +241,4 @@ def test_refuses_to_overwrite_without_force(tmp_path, capsys):
 
 def test_unknown_output_format(tmp_path, capsys):
     assert main(["convert", str(SDF / "joint_offset.sdf"), "-o", str(tmp_path / "x.dae")]) == 2
-    assert "name the output .urdf or .sdf" in capsys.readouterr().err
+    assert "name the output .urdf, .sdf or .xml (MJCF)" in capsys.readouterr().err

@@ -15,7 +15,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import check, convert
+    from mexone.cli import check, convert, sim
 
     parser = argparse.ArgumentParser(
         prog="mexone",
@@ -24,7 +24,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (check, convert):
+    for module in (sim, check, convert):
         module.add_parser(sub)
     return parser
 

@@ -11,6 +11,7 @@ from mexone.description.loader import load_model
 from mexone.description.sdf import write_sdf
 from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
+from mexone.physics.mjcf import write_mjcf
 
 HELP = """\
 Convert a robot description. The output format follows OUT's extension:
@@ -18,15 +19,18 @@ Convert a robot description. The output format follows OUT's extension:
           link frames moved onto their joints, axes rotated into joint frames, SDF-only
           properties kept in <gazebo reference> blocks and <dynamics>)
   .sdf    SDF 1.6 model (link poses in the model frame)
+  .xml    MJCF (MuJoCo XML) from the simulator's own compile path: the robot exactly as
+  .mjcf   mexone simulates it, on the default world's ground, loadable by
+          mujoco.MjModel.from_xml_path
 Input: .urdf, .urdf.xacro/.xacro (expanded with xacro), .sdf or a Gazebo model folder.
 What the output format cannot represent (closed loops, ball joints, several models) is an
 error, never a silently different robot. An existing OUT is not replaced without --force."""
 
-WRITERS = {".urdf": write_urdf, ".sdf": write_sdf}
+WRITERS = {".urdf": write_urdf, ".sdf": write_sdf, ".xml": write_mjcf, ".mjcf": write_mjcf}
 
 
 def add_parser(sub) -> None:
-    parser = sub.add_parser("convert", help="convert between URDF, xacro and SDF",
+    parser = sub.add_parser("convert", help="convert between URDF, xacro, SDF and MJCF",
                             description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("input", type=Path, help="model to read")
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="OUT",
@@ -40,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
     writer = WRITERS.get(out.suffix.lower())
     if writer is None:
         raise InputError(f"cannot write '{out.suffix or out.name}' files", file=out,
-                         hint="name the output .urdf or .sdf")
+                         hint="name the output .urdf, .sdf or .xml (MJCF)")
     model = rebase_meshes(load_model(args.input), out.parent)
     text = writer(model)
     write_new_file(out, text, args.force)

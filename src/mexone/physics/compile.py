@@ -33,6 +33,7 @@ _GAZEBO_MU = 1.0
 _GAZEBO_KP = 1e12
 _GAZEBO_KD = 1.0
 _DMAX = 0.95  # MuJoCo's default solimp[1]: the impedance a settled contact reaches
+_MIN_STEPS_PER_TIMECONST = 4  # stiffer contacts chatter: a sliding box hops and slides 25% fast
 
 GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<gazebo> mu1, mu2", "pair/geom friction[0:2]",
@@ -41,7 +42,7 @@ GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<gazebo> kp, kd", "solref = (timeconst, dampratio)",
      "ODE's kp (N/m) as stiffness of the robot's mass, k = kp/m: timeconst = "
      "1/(dmax*zeta*sqrt(k)); zeta = max(1, kd/(2 sqrt(kp m))): ODE contacts are inelastic, so "
-     "at least critically damped; timeconst >= 2 steps (MuJoCo's stability floor). Pair kp "
+     "at least critically damped; timeconst >= 4 steps (stiffer contacts chatter). Pair kp "
      "in series 1/(1/kp1+1/kp2), kd summed, as ODE combines them"),
     ("<gazebo> selfCollide", "contype/conaffinity bits",
      "links collide with each other when either has selfCollide (as Gazebo's ODE spaces); "
@@ -59,6 +60,8 @@ GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("collision <mesh>", "mesh geom", "MuJoCo collides with the mesh's convex hull"),
     ("root link", "free joint", "unless the URDF welds it to a 'world' link"),
     ("world <physics> max_step_size, ode/solver/iters", "option timestep, iterations", ""),
+    ("Coulomb friction (ODE: pyramid, exact stiction)", "elliptic cone, impratio 10",
+     "MuJoCo's soft friction creeps under static load unless impratio is raised"),
 )
 
 
@@ -78,6 +81,7 @@ class CompileOptions:
     visuals: bool = True  # visual meshes as geoms (rendering, MJCF export); no physics effect
     integrator: str = "implicitfast"  # implicit in velocity: joint damping never destabilises
     armature: float = 0.0  # kg m^2 added to every moving joint (rotor inertia); Gazebo has none
+    fixed_base: bool = False  # weld the root to the world where it spawns (a robot on a stand)
 
 
 @dataclass
@@ -143,7 +147,7 @@ def _round_extremes(geometry: Cylinder | Sphere) -> np.ndarray:
 def _contact_solref(kp: float, kd: float, mass: float, step: float) -> tuple[float, float]:
     k = kp / mass
     zeta = max(1.0, kd / (2.0 * np.sqrt(kp * mass)))
-    return max(2.0 * step, 1.0 / (_DMAX * zeta * np.sqrt(k))), zeta
+    return max(_MIN_STEPS_PER_TIMECONST * step, 1.0 / (_DMAX * zeta * np.sqrt(k))), zeta
 
 
 def _combine(a: GazeboLink, b_kp: float, b_kd: float) -> tuple[float, float]:
@@ -165,7 +169,7 @@ def _lumps(robot: RobotModel) -> dict[str, str]:
 def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = Spawn(),
                   options: CompileOptions = CompileOptions()) -> Compiled:
     world = world or default_world()
-    _refuse_what_we_cannot_build(robot)
+    _refuse_what_we_cannot_build(robot, options.fixed_base)
     spec = mujoco.MjSpec()
     spec.modelname = robot.name
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
@@ -174,28 +178,32 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     spec.option.gravity = world.gravity
     spec.option.iterations = max(world.iterations, 1)
     spec.option.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{options.integrator.upper()}")
+    spec.option.cone = mujoco.mjtCone.mjCONE_ELLIPTIC  # true Coulomb cone...
+    spec.option.impratio = 10.0  # ...with stiff friction: a robot standing still does not creep
     spec.visual.global_.offwidth = 1920
     spec.visual.global_.offheight = 1080
 
     _add_world(spec, world)
-    robot_mass = robot.mass  # > 0: _refuse_what_we_cannot_build saw a massive moving link
+    robot_mass = robot.mass or 1.0  # a welded massless root with massless links: nothing moves
 
-    lift = -lowest_point(robot) if spawn.on_ground else 0.0
+    # a robot welded to the world stands where its URDF puts it; a free one on its lowest point
+    lift = -lowest_point(robot) if spawn.on_ground and not robot.fixed_to_world else 0.0
     placement = np.eye(4)
     placement[:3, :3] = rpy_to_matrix(spawn.rpy)
     placement[:3, 3] = np.asarray(spawn.xyz) + np.array([0.0, 0.0, lift])
 
     bodies: dict[str, mujoco.MjsBody] = {}
-    free = not robot.fixed_to_world
+    free = not (robot.fixed_to_world or options.fixed_base)
     geoms_by_link: dict[str, list[str]] = {}
     for name in robot.walk():
         if name == "world":
             continue
         joint = robot.parent_joint.get(name)
-        if joint is None:  # the floating root
+        if joint is None:  # the root: floating unless welded
             body = spec.worldbody.add_body(name=name)
             _set_pose(body, placement)
-            body.add_freejoint(name=f"{name}_free")
+            if free:
+                body.add_freejoint(name=f"{name}_free")
         elif joint.parent == "world":
             body = spec.worldbody.add_body(name=name)
             _set_pose(body, placement @ joint.origin.matrix)
@@ -229,7 +237,7 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     )
 
 
-def _refuse_what_we_cannot_build(robot: RobotModel) -> None:
+def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
     if len(robot.roots) != 1:
         raise ModelError(f"'{robot.name}' has {len(robot.roots)} root links "
                          f"({', '.join(robot.roots)})", file=robot.source,
@@ -249,7 +257,7 @@ def _refuse_what_we_cannot_build(robot: RobotModel) -> None:
                              file=robot.source, line=link.line,
                              hint="give it an <inertial> with mass > 0")
     root = robot.links[robot.root]
-    if not robot.fixed_to_world and (root.inertial is None or root.inertial.mass <= 0):
+    if not (robot.fixed_to_world or fixed_base) and (root.inertial is None or root.inertial.mass <= 0):
         raise ModelError(f"floating root link '{root.name}' has no mass", file=robot.source,
                          line=root.line, hint="give it an <inertial> or weld it to a 'world' link")
 

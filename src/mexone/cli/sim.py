@@ -1,0 +1,110 @@
+"""`mexone sim`: run a robot (the built-in Mex-One by default) in a world."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from mexone.description.loader import load_model
+from mexone.errors import InputError
+from mexone.physics import GAZEBO_MAPPING, CompileOptions, DivergenceError, Simulation, Spawn
+from mexone.physics.monitor import RunMonitor
+from mexone.physics.world import default_world, read_world
+from mexone.robots import mex_one
+
+HELP = """\
+Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
+with friction (mu1/mu2) and stiffness (kp/kd), joint damping and friction, self-collision
+where <gazebo selfCollide> says so, 1 ms steps.
+
+With --headless the run is unpaced (as fast as the machine allows) and ends with a summary:
+sim time, wall time, real-time factor, base height, the fastest link speed seen, and whether
+the robot came to rest. Without it the simulation keeps real time (--rtf 1) and prints sim
+time and the measured real-time factor until Ctrl-C or --duration.
+
+A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
+the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2."""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("sim", help="simulate a robot (default: the built-in Mex-One)",
+                       description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("model", nargs="?", type=Path,
+                   help="URDF, .urdf.xacro or SDF model (default: the built-in Mex-One)")
+    p.add_argument("--world", type=Path, help="SDF .world file (default: ground plane, sun, 1 ms)")
+    p.add_argument("--headless", action="store_true", help="no pacing, print a summary at the end")
+    p.add_argument("--duration", type=float, metavar="S",
+                   help="seconds of sim time to run (default: 5 headless, else until Ctrl-C)")
+    p.add_argument("--rtf", type=float, metavar="R",
+                   help="target real-time factor (default 1, or unlimited with --headless; "
+                        "0 = unlimited)")
+    p.add_argument("--no-controllers", action="store_true",
+                   help="no controllers: the joints are free (the seed's fall test)")
+    p.add_argument("--no-self-collide", action="store_true",
+                   help="turn self-collision off for every link (the seed's Fig. 4.8)")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.add_argument("--explain", action="store_true",
+                   help="print how each Gazebo property maps to MuJoCo, then exit")
+    pose = p.add_argument_group("spawn pose (as gazebo_ros spawn_model; z is the height of the "
+                                "robot's lowest point, so 0 stands it on the ground)")
+    for flag, name in (("-x", "x"), ("-y", "y"), ("-z", "z"), ("-R", "roll"), ("-P", "pitch"),
+                       ("-Y", "yaw")):
+        pose.add_argument(flag, dest=name, type=float, default=0.0, metavar=name.upper())
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.explain:
+        for gazebo, mujoco_name, how in GAZEBO_MAPPING:
+            print(f"{gazebo}\n    -> {mujoco_name}" + (f": {how}" if how else ""))
+        return 0
+    duration = args.duration if args.duration is not None else (5.0 if args.headless else None)
+    if duration is not None and duration <= 0:
+        raise InputError(f"--duration {duration:g}: must be > 0")
+    rtf = args.rtf if args.rtf is not None else (0.0 if args.headless else 1.0)
+    if rtf < 0:
+        raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
+    robot = load_model(args.model or mex_one.urdf_path())
+    world = read_world(args.world) if args.world else default_world()
+    spawn = Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw))
+    options = CompileOptions(self_collision=False if args.no_self_collide else None)
+    sim = Simulation(robot, world, spawn, options, target_rtf=rtf or None)
+    monitor = RunMonitor(sim)
+    live = not args.headless and sys.stderr.isatty()
+    last_status = [0.0]
+
+    def tick(s: Simulation) -> None:
+        monitor.tick(s)
+        if live and time.perf_counter() - last_status[0] > 0.5:
+            last_status[0] = time.perf_counter()
+            print(f"\rsim time {s.time:9.3f} s   real-time factor {s.rtf.value:5.2f}",
+                  end="", file=sys.stderr, flush=True)
+
+    if not args.headless and not args.json:
+        print(f"simulating {robot.name} ({len(sim.joint_names)} joints) at real-time factor "
+              f"{rtf or 'unlimited'}; Ctrl-C stops", file=sys.stderr)
+    try:
+        sim.run(duration if duration is not None else float("inf"), on_tick=tick, tick=0.01)
+    except DivergenceError as exc:
+        monitor.error = exc.one_line()
+    except KeyboardInterrupt:
+        pass
+    if live:
+        print(file=sys.stderr)
+    summary = monitor.summary()
+    if args.json:
+        print(json.dumps({k: v for k, v in summary.as_json().items() if k != "rest_time"}
+                         | ({"error": summary.error} if summary.error else {}), indent=2))
+    else:
+        print(f"{robot.name}: {summary.sim_time:.3f} s simulated in {summary.wall_time:.2f} s "
+              f"(real-time factor {summary.rtf:.2f})")
+        if summary.error:
+            print(f"mexone: {summary.error}", file=sys.stderr)
+        else:
+            rest = f"yes, since t = {summary.rest_time:.2f} s" if summary.at_rest else "no"
+            print(f"base height {summary.base_height:.3f} m, fastest link {summary.max_link_speed:.2f}"
+                  f" m/s, at rest: {rest}")
+    return 1 if summary.diverged else 0

@@ -1,0 +1,239 @@
+"""Simulation: one robot in one world, stepped in sim time, paced to wall time when asked.
+
+The control layer hooks in with ``add_hook``: each hook runs before every physics step (read
+-> update -> write, as ros_control's loop in gazebo_ros_control). With no hooks, MuJoCo steps
+many times per call, so a headless run costs what bare MuJoCo costs.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from mexone.description.check import check_model
+from mexone.description.loader import load_model
+from mexone.description.model import RobotModel
+from mexone.errors import InputError
+from mexone.physics.compile import CompileOptions, Compiled, Spawn, compile_model
+from mexone.physics.watchdog import Watchdog, link_speeds
+from mexone.physics.world import World
+
+__all__ = ["Simulation", "RtfMeter"]
+
+_WATCH_EVERY = 10  # steps between divergence checks: divergence grows fast, 10 ms catches it
+_LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
+                "inertia-too-large": "its inertia is implausibly large for its mass and size",
+                "inertia-triangle": "its inertia is physically impossible",
+                "inertia-not-positive": "its inertia is not positive definite",
+                "mass-nonpositive": "it has no mass",
+                "dynamics-negative": "a joint has negative damping or friction, which adds energy"}
+
+
+class RtfMeter:
+    """Real-time factor over the last `window` seconds of wall time, as Gazebo shows it."""
+
+    def __init__(self, window: float = 1.0):
+        self.window = window
+        self.samples: deque[tuple[float, float]] = deque()
+
+    def add(self, wall: float, sim: float) -> None:
+        self.samples.append((wall, sim))
+        while len(self.samples) > 2 and wall - self.samples[0][0] > self.window:
+            self.samples.popleft()
+
+    def clear(self) -> None:
+        self.samples.clear()
+
+    @property
+    def value(self) -> float:
+        if len(self.samples) < 2:
+            return 0.0
+        (w0, s0), (w1, s1) = self.samples[0], self.samples[-1]
+        return (s1 - s0) / (w1 - w0) if w1 > w0 else 0.0
+
+
+class Simulation:
+    def __init__(self, robot: RobotModel | Path | str, world: World | None = None,
+                 spawn: Spawn = Spawn(), options: CompileOptions = CompileOptions(),
+                 target_rtf: float | None = None):
+        if not isinstance(robot, RobotModel):
+            robot = load_model(robot)
+        self.robot = robot
+        self.compiled: Compiled = compile_model(robot, world, spawn, options)
+        self.model = self.compiled.model
+        self.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET  # the watchdog reports
+        self.data = mujoco.MjData(self.model)
+        self.joint_names = list(self.compiled.joints)
+        self._index = {name: i for i, name in enumerate(self.joint_names)}
+        self._actuated = np.array([self._index[j] for j in self.compiled.actuated], dtype=int)
+        passive = sorted(set(range(len(self.joint_names))) - set(self._actuated.tolist()))
+        self._passive = np.array(passive, dtype=int)
+        self._efforts = np.zeros(len(self.joint_names))
+        self.hooks: list[Callable[[Simulation], None]] = []
+        self.controllers_active = False
+        self.paused = False
+        self.target_rtf = target_rtf
+        self.rtf = RtfMeter()
+        self._pace_origin: tuple[float, float] | None = None
+        self._since_watch = 0
+        link_of_body = {body: name for name, body in self.compiled.bodies.items()}
+        self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
+        self.reset()
+
+    # ----- clock and stepping ----------------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    def add_hook(self, hook: Callable[[Simulation], None]) -> None:
+        self.hooks.append(hook)
+
+    def step(self, n: int = 1) -> None:
+        """Advance n physics steps (even when paused: this is Gazebo's step button)."""
+        model, data = self.model, self.data
+        remaining = int(n)
+        while remaining > 0:
+            chunk = min(remaining, _WATCH_EVERY - self._since_watch)
+            if self.hooks:
+                for _ in range(chunk):
+                    for hook in self.hooks:
+                        hook(self)
+                    mujoco.mj_step(model, data)
+            else:
+                mujoco.mj_step(model, data, chunk)
+            remaining -= chunk
+            self._since_watch += chunk
+            if self._since_watch >= _WATCH_EVERY:
+                self._since_watch = 0
+                self.watchdog.check(self.controllers_active)
+
+    def run(self, duration: float, on_tick: Callable[[Simulation], None] | None = None,
+            tick: float = 0.05) -> None:
+        """Simulate `duration` seconds of sim time, paced to target_rtf if set; on_tick is called
+        every `tick` seconds of sim time (status lines, GUI frames)."""
+        steps_per_tick = max(1, round(tick / self.timestep))
+        end = self.data.time + duration - 0.5 * self.timestep
+        while self.data.time < end:
+            if self.paused:
+                time.sleep(0.01)
+                self._pace_origin = None
+                continue
+            n = min(steps_per_tick, max(1, round((end - self.data.time) / self.timestep + 0.5)))
+            self.step(n)
+            self._pace()
+            if on_tick:
+                on_tick(self)
+
+    def _pace(self) -> None:
+        wall = time.perf_counter()
+        self.rtf.add(wall, self.time)
+        if not self.target_rtf:
+            return
+        if self._pace_origin is None:
+            self._pace_origin = (wall, self.time)
+            return
+        wall0, sim0 = self._pace_origin
+        ahead = wall0 + (self.time - sim0) / self.target_rtf - wall
+        if ahead > 0:
+            time.sleep(ahead)
+        elif ahead < -0.25:  # fell behind (slow machine): do not try to catch up in a burst
+            self._pace_origin = (wall, self.time)
+
+    def pause(self) -> None:
+        self.paused = True
+
+    def resume(self) -> None:
+        self.paused = False
+        self._pace_origin = None
+
+    def reset(self) -> None:
+        """Back to the spawn pose with every joint at 0 (home), sim time 0."""
+        mujoco.mj_resetData(self.model, self.data)
+        self._efforts[:] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+        self.rtf.clear()
+        self._pace_origin = None
+        self._since_watch = 0
+
+    # ----- joints -------------------------------------------------------------------------------
+    def _vector(self, values: Mapping[str, float] | Sequence[float] | np.ndarray) -> np.ndarray:
+        if isinstance(values, Mapping):
+            out = np.full(len(self.joint_names), np.nan)
+            for name, value in values.items():
+                if name not in self._index:
+                    raise InputError(f"no moving joint named '{name}'",
+                                     hint="joints: " + ", ".join(self.joint_names))
+                out[self._index[name]] = value
+            return out
+        out = np.asarray(values, dtype=float)
+        if out.shape != (len(self.joint_names),):
+            raise InputError(f"expected {len(self.joint_names)} joint values, got {out.shape}")
+        return out
+
+    def joint_positions(self) -> np.ndarray:
+        return self.data.qpos[self.compiled.qpos_adr].copy()
+
+    def joint_velocities(self) -> np.ndarray:
+        return self.data.qvel[self.compiled.dof_adr].copy()
+
+    def joint_efforts(self) -> np.ndarray:
+        """Torque (or force) each joint received from its motor and applied efforts."""
+        out = self.data.qfrc_applied[self.compiled.dof_adr].copy()
+        out[self._actuated] += self.data.actuator_force * self.compiled.gear
+        return out
+
+    def set_joint_positions(self, values: Mapping[str, float] | Sequence[float]) -> None:
+        """Teleport joints (velocities zeroed): for setting up experiments, not for control."""
+        vec = self._vector(values)
+        given = ~np.isnan(vec)
+        self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
+        self.data.qvel[self.compiled.dof_adr[given]] = 0.0
+        mujoco.mj_forward(self.model, self.data)
+
+    def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
+        """Joint-space efforts, held until changed. Actuated joints go through their motor, which
+        clamps to the URDF effort limit; joints without transmission are pushed directly."""
+        vec = self._vector(values)
+        if not np.isfinite(vec[~np.isnan(vec)]).all():
+            raise InputError("effort is not finite", hint="send finite numbers")
+        given = ~np.isnan(vec)
+        self._efforts[given] = vec[given]
+        if self._actuated.size:
+            self.data.ctrl[:] = self._efforts[self._actuated] / self.compiled.gear
+        if self._passive.size:
+            self.data.qfrc_applied[self.compiled.dof_adr[self._passive]] = self._efforts[self._passive]
+
+    # ----- links --------------------------------------------------------------------------------
+    def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:
+        """World position and (w, x, y, z) quaternion of a link frame."""
+        body = self.compiled.bodies.get(link)
+        if body is None:
+            raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
+        return self.data.xpos[body].copy(), self.data.xquat[body].copy()
+
+    def link_speeds(self) -> np.ndarray:
+        """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
+        linear, _ = link_speeds(self.model, self.data)
+        return linear[list(self.compiled.bodies.values())]
+
+    @property
+    def base_height(self) -> float:
+        return float(self.data.xpos[self.compiled.root_body][2])
+
+    def _likely_cause(self, link: str) -> str | None:
+        """The lint finding that explains a divergence: on that link first, else anywhere."""
+        suspects = [f for f in check_model(self.robot) if f.code in _LINT_CAUSES]
+        suspects.sort(key=lambda f: f.element != f'link "{link}"')
+        if not suspects:
+            return None
+        first = suspects[0]
+        return f"{first.element} {_LINT_CAUSES[first.code]} (mexone check: {first.code})"
