@@ -19,7 +19,7 @@ from mexone.description.check import check_model
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
-from mexone.physics.compile import CompileOptions, Compiled, Spawn, compile_model
+from mexone.physics.compile import Compiled, CompileOptions, Spawn, compile_model
 from mexone.physics.watchdog import Watchdog, link_speeds
 from mexone.physics.world import World
 
