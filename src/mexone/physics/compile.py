@@ -174,6 +174,7 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     spec.modelname = robot.name
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
     spec.compiler.autolimits = False
+    spec.compiler.degree = False  # URDF angles are radians; MJCF's default is degrees
     spec.option.timestep = world.step
     spec.option.gravity = world.gravity
     spec.option.iterations = max(world.iterations, 1)
