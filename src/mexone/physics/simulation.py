@@ -165,19 +165,26 @@ class Simulation:
         self._since_watch = 0
 
     # ----- joints -------------------------------------------------------------------------------
-    def _vector(self, values: Mapping[str, float] | Sequence[float] | np.ndarray) -> np.ndarray:
+    def _vector(self, values: Mapping[str, float] | Sequence[float] | np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(values, given): a full-length vector and which entries the caller set."""
+        n = len(self.joint_names)
         if isinstance(values, Mapping):
-            out = np.full(len(self.joint_names), np.nan)
+            out, given = np.zeros(n), np.zeros(n, dtype=bool)
             for name, value in values.items():
                 if name not in self._index:
                     raise InputError(f"no moving joint named '{name}'",
                                      hint="joints: " + ", ".join(self.joint_names))
                 out[self._index[name]] = value
-            return out
-        out = np.asarray(values, dtype=float)
-        if out.shape != (len(self.joint_names),):
-            raise InputError(f"expected {len(self.joint_names)} joint values, got {out.shape}")
-        return out
+                given[self._index[name]] = True
+        else:
+            out, given = np.asarray(values, dtype=float), np.ones(n, dtype=bool)
+            if out.shape != (n,):
+                raise InputError(f"expected {n} joint values, got shape {out.shape}")
+        if not np.isfinite(out[given]).all():
+            bad = [self.joint_names[i] for i in np.flatnonzero(given & ~np.isfinite(out))]
+            raise InputError(f"value for {', '.join(bad)} is not finite", hint="send finite numbers")
+        return out, given
 
     def joint_positions(self) -> np.ndarray:
         return self.data.qpos[self.compiled.qpos_adr].copy()
@@ -193,8 +200,7 @@ class Simulation:
 
     def set_joint_positions(self, values: Mapping[str, float] | Sequence[float]) -> None:
         """Teleport joints (velocities zeroed): for setting up experiments, not for control."""
-        vec = self._vector(values)
-        given = ~np.isnan(vec)
+        vec, given = self._vector(values)
         self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
@@ -202,10 +208,7 @@ class Simulation:
     def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
         """Joint-space efforts, held until changed. Actuated joints go through their motor, which
         clamps to the URDF effort limit; joints without transmission are pushed directly."""
-        vec = self._vector(values)
-        if not np.isfinite(vec[~np.isnan(vec)]).all():
-            raise InputError("effort is not finite", hint="send finite numbers")
-        given = ~np.isnan(vec)
+        vec, given = self._vector(values)
         self._efforts[given] = vec[given]
         if self._actuated.size:
             self.data.ctrl[:] = self._efforts[self._actuated] / self.compiled.gear

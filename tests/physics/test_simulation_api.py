@@ -1,0 +1,69 @@
+"""Simulation's controls: pause/step/reset, joint I/O, pacing to a real-time factor."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from mexone.errors import InputError
+from mexone.physics import Simulation
+from mexone.robots import mex_one
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return Simulation(mex_one.urdf_path())
+
+
+def test_reset_returns_to_home(sim):
+    sim.run(1.0)
+    assert sim.time == pytest.approx(1.0) and np.abs(sim.joint_positions()).max() > 1e-3
+    sim.reset()
+    assert sim.time == 0.0 and np.array_equal(sim.joint_positions(), np.zeros(21))
+    assert sim.base_height == pytest.approx(0.60)
+
+
+def test_step_advances_even_when_paused(sim):
+    sim.reset()
+    sim.pause()
+    sim.step(7)
+    assert sim.time == pytest.approx(0.007)
+    sim.resume()
+
+
+def test_set_positions_and_read_back(sim):
+    sim.reset()
+    sim.set_joint_positions({"l_elbow": -1.0, "neck_yaw": 0.5})
+    q = dict(zip(sim.joint_names, sim.joint_positions(), strict=True))
+    assert q["l_elbow"] == -1.0 and q["neck_yaw"] == 0.5
+    _, quat = sim.link_pose("head")
+    assert quat[0] == pytest.approx(np.cos(0.25))  # yawed by 0.5 rad
+
+
+def test_efforts_are_clamped_to_the_urdf_limit(sim):
+    sim.reset()
+    sim.apply_efforts({"l_knee": 1000.0})
+    sim.step(1)
+    knee = sim.joint_names.index("l_knee")
+    assert sim.joint_efforts()[knee] == pytest.approx(25.0)  # params: 25 N m knees
+    sim.apply_efforts(np.zeros(21))
+
+
+def test_bad_joint_and_effort_are_refused(sim):
+    with pytest.raises(InputError, match="no moving joint named 'l_wing'"):
+        sim.apply_efforts({"l_wing": 1.0})
+    with pytest.raises(InputError, match="not finite"):
+        sim.apply_efforts({"l_knee": float("nan")})
+    with pytest.raises(InputError, match="no link named"):
+        sim.link_pose("tail")
+
+
+def test_pacing_keeps_the_target_real_time_factor():
+    sim = Simulation(mex_one.urdf_path(), target_rtf=2.0)
+    start = time.perf_counter()
+    sim.run(1.0)
+    wall = time.perf_counter() - start
+    assert 0.45 < wall < 0.75  # 1 s of sim at twice real time
+    assert sim.rtf.value == pytest.approx(2.0, rel=0.15)
