@@ -7,6 +7,7 @@ Exit codes: 0 ok, 1 findings or failed checks, 2 bad input (one line on stderr, 
 from __future__ import annotations
 
 import argparse
+import logging
 import sys
 
 from mexone.errors import MexoneError
@@ -15,7 +16,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import check, convert, sim
+    from mexone.cli import check, convert, run, sim
 
     parser = argparse.ArgumentParser(
         prog="mexone",
@@ -24,12 +25,29 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, check, convert):
+    for module in (sim, run, check, convert):
         module.add_parser(sub)
     return parser
 
 
+class _OneLine(logging.Formatter):
+    def format(self, record: logging.LogRecord) -> str:
+        return f"mexone: {record.levelname.lower()}: {record.getMessage()}"
+
+
+def _setup_logging() -> None:
+    """Warnings (e.g. what Gazebo 7 would have done differently) as one line on stderr."""
+    root = logging.getLogger("mexone")
+    if not root.handlers:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(_OneLine())
+        root.addHandler(handler)
+        root.setLevel(logging.WARNING)
+        root.propagate = False
+
+
 def main(argv: list[str] | None = None) -> int:
+    _setup_logging()
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

@@ -8,17 +8,16 @@ import sys
 import time
 from pathlib import Path
 
-from mexone.description.loader import load_model
+from mexone.cli.common import add_model_options, lab_from_args
 from mexone.errors import InputError
-from mexone.physics import GAZEBO_MAPPING, CompileOptions, DivergenceError, Simulation, Spawn
+from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
-from mexone.physics.world import default_world, read_world
-from mexone.robots import mex_one
 
 HELP = """\
 Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
 with friction (mu1/mu2) and stiffness (kp/kd), joint damping and friction, self-collision
-where <gazebo selfCollide> says so, 1 ms steps.
+where <gazebo selfCollide> says so, 1 ms steps, and the ros_control controllers of the YAML
+(the built-in Mex-One loads its own and holds its home pose; --no-controllers lets it fall).
 
 With --headless the run is unpaced (as fast as the machine allows) and ends with a summary:
 sim time, wall time, real-time factor, base height, the fastest link speed seen, and whether
@@ -34,25 +33,16 @@ def add_parser(sub) -> None:
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model", nargs="?", type=Path,
                    help="URDF, .urdf.xacro or SDF model (default: the built-in Mex-One)")
-    p.add_argument("--world", type=Path, help="SDF .world file (default: ground plane, sun, 1 ms)")
     p.add_argument("--headless", action="store_true", help="no pacing, print a summary at the end")
     p.add_argument("--duration", type=float, metavar="S",
                    help="seconds of sim time to run (default: 5 headless, else until Ctrl-C)")
     p.add_argument("--rtf", type=float, metavar="R",
                    help="target real-time factor (default 1, or unlimited with --headless; "
                         "0 = unlimited)")
-    p.add_argument("--no-controllers", action="store_true",
-                   help="no controllers: the joints are free (the seed's fall test)")
-    p.add_argument("--no-self-collide", action="store_true",
-                   help="turn self-collision off for every link (the seed's Fig. 4.8)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--explain", action="store_true",
                    help="print how each Gazebo property maps to MuJoCo, then exit")
-    pose = p.add_argument_group("spawn pose (as gazebo_ros spawn_model; z is the height of the "
-                                "robot's lowest point, so 0 stands it on the ground)")
-    for flag, name in (("-x", "x"), ("-y", "y"), ("-z", "z"), ("-R", "roll"), ("-P", "pitch"),
-                       ("-Y", "yaw")):
-        pose.add_argument(flag, dest=name, type=float, default=0.0, metavar=name.upper())
+    add_model_options(p, model_positional=True)
     p.set_defaults(run=run)
 
 
@@ -67,11 +57,8 @@ def run(args: argparse.Namespace) -> int:
     rtf = args.rtf if args.rtf is not None else (0.0 if args.headless else 1.0)
     if rtf < 0:
         raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
-    robot = load_model(args.model or mex_one.urdf_path())
-    world = read_world(args.world) if args.world else default_world()
-    spawn = Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw))
-    options = CompileOptions(self_collision=False if args.no_self_collide else None)
-    sim = Simulation(robot, world, spawn, options, target_rtf=rtf or None)
+    lab = lab_from_args(args, target_rtf=rtf or None)
+    sim, robot = lab.sim, lab.sim.robot
     monitor = RunMonitor(sim)
     live = not args.headless and sys.stderr.isatty()
     last_status = [0.0]
@@ -84,8 +71,9 @@ def run(args: argparse.Namespace) -> int:
                   end="", file=sys.stderr, flush=True)
 
     if not args.headless and not args.json:
-        print(f"simulating {robot.name} ({len(sim.joint_names)} joints) at real-time factor "
-              f"{rtf or 'unlimited'}; Ctrl-C stops", file=sys.stderr)
+        ctrl = f"{len(lab.controllers.controllers)} controllers" if lab.controllers else "no controllers"
+        print(f"simulating {robot.name} ({len(sim.joint_names)} joints, {ctrl}) at real-time "
+              f"factor {rtf or 'unlimited'}; Ctrl-C stops", file=sys.stderr)
     try:
         sim.run(duration if duration is not None else float("inf"), on_tick=tick, tick=0.01)
     except DivergenceError as exc:

@@ -61,6 +61,9 @@ class ControllerSpec:
     pid: PidGains | None = None
     publish_rate: float | None = None
     line: int | None = None
+    gains: dict[str, PidGains] | None = None  # per joint (joint_trajectory_controller's gains:)
+    ideal_servo: bool = False  # teleport the joint as Gazebo 7's position interface did
+    source: Path | None = None
 
     @property
     def kind(self) -> str:
@@ -180,7 +183,20 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
         rate = reader.number(fields["publish_rate"][1], f"controller '{name}': publish_rate")
         if rate <= 0:
             raise reader.error(fields["publish_rate"][1], f"controller '{name}': publish_rate must be > 0")
-    return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1)
+    gains = None
+    if "gains" in fields:
+        gains = {joint: _pid(reader, f"{name}/gains/{joint}", node)
+                 for joint, _, node in reader.mapping(fields["gains"][1], f"'{name}' gains")}
+    ideal = False
+    if "ideal_servo" in fields:
+        ideal = reader.value(fields["ideal_servo"][1])
+        if not isinstance(ideal, bool):
+            raise reader.error(fields["ideal_servo"][1], f"'{name}' ideal_servo must be true or false")
+        if kind not in ("position", "trajectory"):
+            raise reader.error(fields["ideal_servo"][1], f"'{name}': ideal_servo is for position "
+                                                         "controllers")
+    return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1, gains, ideal,
+                          reader.path)
 
 
 def _pid(reader: _Reader, owner: str, node: yaml.Node) -> PidGains:

@@ -10,14 +10,17 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from mexone.control.config import ControlConfig
 from mexone.description.findings import Finding
 from mexone.description.meshes import geometry_bounds
 from mexone.description.model import Geometry, Link, Mesh, Pose, RobotModel
 from mexone.errors import MexoneError
+
+if TYPE_CHECKING:  # the control layer sits above this one: only its type is used here
+    from mexone.control.config import ControlConfig
 
 __all__ = ["check_model", "format_tree", "summary", "RULES"]
 

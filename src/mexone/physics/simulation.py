@@ -10,7 +10,9 @@ from __future__ import annotations
 import time
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import mujoco
 import numpy as np
@@ -23,7 +25,7 @@ from mexone.physics.compile import Compiled, CompileOptions, Spawn, compile_mode
 from mexone.physics.watchdog import Watchdog, link_speeds
 from mexone.physics.world import World
 
-__all__ = ["Simulation", "RtfMeter"]
+__all__ = ["Simulation", "RtfMeter", "Periodic", "Gate"]
 
 _WATCH_EVERY = 10  # steps between divergence checks: divergence grows fast, 10 ms catches it
 _LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
@@ -32,6 +34,21 @@ _LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
                 "inertia-not-positive": "its inertia is not positive definite",
                 "mass-nonpositive": "it has no mass",
                 "dynamics-negative": "a joint has negative damping or friction, which adds energy"}
+
+
+class Gate(Protocol):
+    """Lockstep with code waiting on sim time (see mexone.routines.runtime.Scheduler)."""
+
+    def horizon(self) -> float: ...  # block until nobody runs; the earliest wake-up time
+
+    def advance(self, sim_time: float) -> None: ...  # time moved on: wake whoever is due
+
+
+@dataclass
+class Periodic:
+    period: float
+    callback: Callable[[Simulation], None]
+    next_time: float
 
 
 class RtfMeter:
@@ -75,6 +92,7 @@ class Simulation:
         self._passive = np.array(passive, dtype=int)
         self._efforts = np.zeros(len(self.joint_names))
         self.hooks: list[Callable[[Simulation], None]] = []
+        self.periodic: list[Periodic] = []
         self.controllers_active = False
         self.paused = False
         self.target_rtf = target_rtf
@@ -95,14 +113,48 @@ class Simulation:
         return float(self.model.opt.timestep)
 
     def add_hook(self, hook: Callable[[Simulation], None]) -> None:
+        """Run `hook(sim)` before every physics step (a 1 kHz control loop, say)."""
         self.hooks.append(hook)
+
+    def remove_hook(self, hook: Callable[[Simulation], None]) -> None:
+        if hook in self.hooks:
+            self.hooks.remove(hook)
+
+    def add_periodic(self, period: float, callback: Callable[[Simulation], None]) -> Periodic:
+        """Call `callback(sim)` every `period` s of sim time, first one period from now.
+        Between calls MuJoCo steps in C, so a 50 Hz publisher costs nothing per step."""
+        if not period > 0:
+            raise InputError(f"period {period} must be > 0")
+        timer = Periodic(period, callback, self.time + period)
+        self.periodic.append(timer)
+        return timer
+
+    def remove_periodic(self, timer: Periodic) -> None:
+        if timer in self.periodic:
+            self.periodic.remove(timer)
+
+    def _fire_due(self) -> None:
+        now, half = self.time, 0.5 * self.timestep
+        for timer in list(self.periodic):
+            if now >= timer.next_time - half:
+                timer.next_time += timer.period
+                if timer.next_time < now - half:  # fell behind (e.g. after a reset): no burst
+                    timer.next_time = now + timer.period
+                timer.callback(self)
+
+    def _steps_until_due(self) -> int:
+        if not self.periodic:
+            return _WATCH_EVERY
+        soonest = min(t.next_time for t in self.periodic)
+        return max(1, int(np.ceil((soonest - self.time) / self.timestep - 0.5)))
 
     def step(self, n: int = 1) -> None:
         """Advance n physics steps (even when paused: this is Gazebo's step button)."""
         model, data = self.model, self.data
         remaining = int(n)
         while remaining > 0:
-            chunk = min(remaining, _WATCH_EVERY - self._since_watch)
+            self._fire_due()
+            chunk = min(remaining, _WATCH_EVERY - self._since_watch, self._steps_until_due())
             if self.hooks:
                 for _ in range(chunk):
                     for hook in self.hooks:
@@ -115,23 +167,39 @@ class Simulation:
             if self._since_watch >= _WATCH_EVERY:
                 self._since_watch = 0
                 self.watchdog.check(self.controllers_active)
+        self._fire_due()
 
     def run(self, duration: float, on_tick: Callable[[Simulation], None] | None = None,
-            tick: float = 0.05) -> None:
-        """Simulate `duration` seconds of sim time, paced to target_rtf if set; on_tick is called
-        every `tick` seconds of sim time (status lines, GUI frames)."""
-        steps_per_tick = max(1, round(tick / self.timestep))
-        end = self.data.time + duration - 0.5 * self.timestep
-        while self.data.time < end:
+            tick: float = 0.05, gate: Gate | None = None,
+            until: Callable[[], bool] | None = None) -> None:
+        """Simulate `duration` s of sim time, paced to target_rtf if set. on_tick(sim) runs every
+        `tick` s of sim time (status lines, GUI frames, monitors); `gate` holds the clock for
+        code running in lockstep with sim time (routines); `until()` true ends the run early."""
+        half = 0.5 * self.timestep
+        end = self.data.time + duration
+        next_tick = self.data.time + tick
+        while self.data.time < end - half and not (until and until()):
             if self.paused:
                 time.sleep(0.01)
                 self._pace_origin = None
                 continue
-            n = min(steps_per_tick, max(1, round((end - self.data.time) / self.timestep + 0.5)))
+            limit = min(end, next_tick)
+            if gate is not None:
+                limit = min(limit, gate.horizon())
+                if limit <= self.data.time + half:  # someone wakes now: let it run first
+                    gate.advance(self.time)
+                    continue
+            n = max(1, round((limit - self.data.time) / self.timestep))
+            if gate is not None:
+                n = min(n, self._steps_until_due())  # deliver messages to waiting routines
             self.step(n)
-            self._pace()
-            if on_tick:
-                on_tick(self)
+            if gate is not None:
+                gate.advance(self.time)
+            if self.data.time >= next_tick - half:
+                next_tick += tick
+                self._pace()
+                if on_tick:
+                    on_tick(self)
 
     def _pace(self) -> None:
         wall = time.perf_counter()
@@ -163,6 +231,8 @@ class Simulation:
         self.rtf.clear()
         self._pace_origin = None
         self._since_watch = 0
+        for timer in self.periodic:
+            timer.next_time = timer.period
 
     # ----- joints -------------------------------------------------------------------------------
     def _vector(self, values: Mapping[str, float] | Sequence[float] | np.ndarray

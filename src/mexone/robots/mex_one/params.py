@@ -124,11 +124,11 @@ _LEFT_JOINTS = (
     Hinge("l_ankle_roll", "l_ankle", "l_foot", (0.0, 0.0, 0.0), X, -0.5, 0.5, 15.0, p=300.0,
           i=0.0, d=3.0, **_LEG),
     Hinge("l_shoulder_pitch", "torso", "l_shoulder", (0.0, 0.14, 0.22), Y, -3.0, 3.0, 8.0,
-          p=40.0, i=0.0, d=0.5, **_ARM),
+          p=100.0, i=0.0, d=1.5, **_ARM),
     Hinge("l_shoulder_roll", "l_shoulder", "l_upper_arm", (0.0, 0.0, 0.0), X, -0.5, 2.5, 8.0,
-          p=40.0, i=0.0, d=0.5, **_ARM),
-    Hinge("l_elbow", "l_upper_arm", "l_forearm", (0.0, 0.0, -0.17), Y, -2.5, 0.1, 6.0, p=30.0,
-          i=0.0, d=0.4, **_ARM),
+          p=100.0, i=0.0, d=1.5, **_ARM),
+    Hinge("l_elbow", "l_upper_arm", "l_forearm", (0.0, 0.0, -0.17), Y, -2.5, 0.1, 6.0, p=60.0,
+          i=0.0, d=0.8, **_ARM),
 )
 
 

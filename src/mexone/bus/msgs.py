@@ -1,0 +1,116 @@
+"""Message dataclasses with the field names of their ROS counterparts, so routines port by
+changing imports. Times are rospy-like Time/Duration values in sim time."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+__all__ = [
+    "Time",
+    "Duration",
+    "Header",
+    "Float64",
+    "Float64MultiArray",
+    "JointState",
+    "Clock",
+    "JointTrajectoryPoint",
+    "JointTrajectory",
+    "ROS_TYPES",
+]
+
+
+@dataclass(frozen=True, order=True)
+class Time:
+    secs: int = 0
+    nsecs: int = 0
+
+    @staticmethod
+    def from_sec(seconds: float) -> Time:
+        secs = math.floor(seconds)
+        return Time(int(secs), int(round((seconds - secs) * 1e9)) % 1_000_000_000)
+
+    def to_sec(self) -> float:
+        return self.secs + self.nsecs * 1e-9
+
+    def to_nsec(self) -> int:
+        return self.secs * 1_000_000_000 + self.nsecs
+
+    def __add__(self, other: Duration) -> Time:
+        return Time.from_sec(self.to_sec() + other.to_sec())
+
+    def __sub__(self, other):
+        if isinstance(other, Time):
+            return Duration.from_sec(self.to_sec() - other.to_sec())
+        return Time.from_sec(self.to_sec() - other.to_sec())
+
+
+@dataclass(frozen=True, order=True)
+class Duration:
+    secs: int = 0
+    nsecs: int = 0
+
+    @staticmethod
+    def from_sec(seconds: float) -> Duration:
+        secs = math.floor(seconds)
+        return Duration(int(secs), int(round((seconds - secs) * 1e9)))
+
+    def to_sec(self) -> float:
+        return self.secs + self.nsecs * 1e-9
+
+
+@dataclass
+class Header:
+    seq: int = 0
+    stamp: Time = field(default_factory=Time)
+    frame_id: str = ""
+
+
+@dataclass
+class Float64:
+    data: float = 0.0
+
+
+@dataclass
+class Float64MultiArray:
+    data: list[float] = field(default_factory=list)
+
+
+@dataclass
+class JointState:
+    header: Header = field(default_factory=Header)
+    name: list[str] = field(default_factory=list)
+    position: list[float] = field(default_factory=list)
+    velocity: list[float] = field(default_factory=list)
+    effort: list[float] = field(default_factory=list)
+
+
+@dataclass
+class Clock:
+    clock: Time = field(default_factory=Time)
+
+
+@dataclass
+class JointTrajectoryPoint:
+    positions: list[float] = field(default_factory=list)
+    velocities: list[float] = field(default_factory=list)
+    accelerations: list[float] = field(default_factory=list)
+    effort: list[float] = field(default_factory=list)
+    time_from_start: Duration = field(default_factory=Duration)
+
+
+@dataclass
+class JointTrajectory:
+    header: Header = field(default_factory=Header)
+    joint_names: list[str] = field(default_factory=list)
+    points: list[JointTrajectoryPoint] = field(default_factory=list)
+
+
+# class -> ROS type name (for topic listings, the ROS bridge and bag files)
+ROS_TYPES: dict[type, str] = {
+    Float64: "std_msgs/Float64",
+    Float64MultiArray: "std_msgs/Float64MultiArray",
+    JointState: "sensor_msgs/JointState",
+    Clock: "rosgraph_msgs/Clock",
+    JointTrajectory: "trajectory_msgs/JointTrajectory",
+}

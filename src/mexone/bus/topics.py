@@ -1,0 +1,118 @@
+"""In-process topics with ROS names: one Bus per simulation, typed like ROS topics.
+
+Delivery is synchronous: publish() calls every subscriber's callback in the publishing
+thread before it returns, which keeps a headless run deterministic. A topic's type is fixed
+by its first publisher or subscriber; a mismatch is an error naming both types, as ROS does.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from mexone.bus.msgs import ROS_TYPES
+from mexone.errors import InputError
+
+__all__ = ["Bus", "Topic", "Subscription", "resolve_name"]
+
+
+def resolve_name(name: str, namespace: str = "/") -> str:
+    """ROS name resolution for the cases routines use: absolute, relative to a namespace."""
+    if not name:
+        raise InputError("empty topic name")
+    if name.startswith("/"):
+        return name
+    ns = namespace if namespace.endswith("/") else namespace + "/"
+    return ns + name
+
+
+@dataclass(eq=False)
+class Subscription:
+    topic: Topic
+    callback: Callable[[object], None]
+    bus: Bus | None = None
+
+    def unregister(self) -> None:
+        self.topic.remove(self)
+        if self.bus is not None:
+            self.bus._changed(self.topic)
+
+
+@dataclass(eq=False)
+class Topic:
+    name: str
+    type: type
+    subscriptions: list[Subscription] = field(default_factory=list)
+    publishers: int = 0
+    count: int = 0  # messages published
+    last: object | None = None  # the latest message, for GUIs and latched subscribers
+    lock: threading.Lock = field(default_factory=threading.Lock)
+
+    @property
+    def ros_type(self) -> str:
+        return ROS_TYPES.get(self.type, self.type.__name__)
+
+    def remove(self, sub: Subscription) -> None:
+        with self.lock:
+            if sub in self.subscriptions:
+                self.subscriptions.remove(sub)
+
+
+class Bus:
+    def __init__(self) -> None:
+        self.topics: dict[str, Topic] = {}
+        self._lock = threading.Lock()
+        self.taps: list[Callable[[str, object], None]] = []  # see every message (recorders)
+        # topic -> callbacks told the subscriber count when it changes (lazy publishers)
+        self.listeners: dict[str, list[Callable[[int], None]]] = {}
+
+    def on_subscribers(self, name: str, callback: Callable[[int], None]) -> None:
+        """Call `callback(count)` whenever the number of subscribers to `name` changes."""
+        self.listeners.setdefault(name, []).append(callback)
+
+    def _changed(self, topic: Topic) -> None:
+        for callback in self.listeners.get(topic.name, []):
+            callback(len(topic.subscriptions))
+
+    def topic(self, name: str, msg_type: type) -> Topic:
+        with self._lock:
+            topic = self.topics.get(name)
+            if topic is None:
+                topic = self.topics[name] = Topic(name, msg_type)
+            elif topic.type is not msg_type:
+                raise InputError(f"topic {name} carries {topic.ros_type}, not "
+                                 f"{ROS_TYPES.get(msg_type, msg_type.__name__)}",
+                                 hint="use the topic's message type")
+            return topic
+
+    def advertise(self, name: str, msg_type: type) -> Topic:
+        topic = self.topic(name, msg_type)
+        topic.publishers += 1
+        return topic
+
+    def subscribe(self, name: str, msg_type: type, callback: Callable[[object], None],
+                  latched: bool = False) -> Subscription:
+        topic = self.topic(name, msg_type)
+        sub = Subscription(topic, callback, self)
+        with topic.lock:
+            topic.subscriptions.append(sub)
+        self._changed(topic)
+        if latched and topic.last is not None:
+            callback(topic.last)
+        return sub
+
+    def publish(self, name: str, msg: object) -> None:
+        topic = self.topic(name, type(msg))
+        with topic.lock:
+            topic.count += 1
+            topic.last = msg
+            subs = list(topic.subscriptions)
+        for tap in self.taps:
+            tap(name, msg)
+        for sub in subs:
+            sub.callback(msg)
+
+    def has_subscribers(self, name: str) -> bool:
+        topic = self.topics.get(name)
+        return bool(topic and topic.subscriptions) or bool(self.taps)

@@ -1,0 +1,76 @@
+"""Tracking metrics of position-controlled joints: command vs actual, as a control student
+reports them (RMS and max error, overshoot and settling time of each setpoint change)."""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from mexone.control.controllers import PositionController
+from mexone.control.manager import ControllerManager
+from mexone.physics.simulation import Simulation
+
+__all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE"]
+
+SAMPLE_RATE = 200.0  # Hz: 5 ms resolution for settling times
+SETTLE_BAND = 0.02  # settled when within 2% of the step...
+SETTLE_FLOOR = 0.005  # ...or 5 mrad, whichever is larger
+MIN_STEP = 0.01  # rad: smaller setpoint changes count for errors, not for overshoot/settling
+
+
+@dataclass(frozen=True)
+class JointTracking:
+    joint: str
+    rms_error: float  # rad
+    max_error: float  # rad
+    overshoot: float  # worst over setpoint changes, fraction of the step (0.1 = 10%)
+    settling_time: float | None  # worst over setpoint changes, s; None if one never settled
+    steps: int  # setpoint changes of at least MIN_STEP
+
+    def as_json(self) -> dict:
+        return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in asdict(self).items()}
+
+
+class TrackingRecorder:
+    def __init__(self, sim: Simulation, manager: ControllerManager, rate: float = SAMPLE_RATE):
+        self.manager = manager
+        self.t: list[float] = []
+        self.rows: dict[str, list[tuple[float, float]]] = {}
+        sim.add_periodic(1.0 / rate, self.sample)
+
+    def sample(self, sim: Simulation) -> None:
+        self.t.append(sim.time)
+        for ctrl in self.manager.controllers.values():
+            if ctrl.running and isinstance(ctrl, PositionController):
+                q = ctrl.hw.position(ctrl.rows)
+                for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
+                    self.rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
+
+    def metrics(self) -> dict[str, JointTracking]:
+        return {joint: _metrics(joint, np.array(rows)) for joint, rows in self.rows.items()}
+
+
+def _metrics(joint: str, data: np.ndarray) -> JointTracking:
+    t, sp, q = data.T
+    error = sp - q
+    changes = np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1
+    overshoot, settling = 0.0, 0.0
+    bounds = list(changes) + [len(t)]
+    for k, start in enumerate(changes):
+        end = bounds[k + 1]
+        step = sp[start] - sp[start - 1]
+        window = (q[start:end] - sp[start]) * np.sign(step)
+        overshoot = max(overshoot, float(max(window.max(), 0.0)) / abs(step))
+        band = max(SETTLE_BAND * abs(step), SETTLE_FLOOR)
+        outside = np.flatnonzero(np.abs(q[start:end] - sp[start]) > band)
+        if settling is not None:
+            if outside.size == 0:
+                settle = 0.0
+            elif outside[-1] + 1 < end - start:
+                settle = t[start + outside[-1] + 1] - t[start]
+            else:
+                settle = None
+            settling = None if settle is None else max(settling, settle)
+    return JointTracking(joint, float(np.sqrt(np.mean(error**2))), float(np.abs(error).max()),
+                         overshoot, settling, len(changes))

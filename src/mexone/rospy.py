@@ -1,0 +1,254 @@
+"""A rospy-shaped API over mexone's in-process topics and sim time.
+
+A rospy routine ports by changing its imports::
+
+    from mexone import rospy                 # was: import rospy
+    from mexone.msgs import Float64          # was: from std_msgs.msg import Float64
+
+and runs with ``mexone run my_routine.py`` (headless, as fast as physics allows) or from the GUI
+(real time). Time is sim time, as for a node with use_sim_time.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+from mexone.bus import msgs as _msgs
+from mexone.bus.topics import resolve_name
+from mexone.routines.runtime import Shutdown, current
+
+__all__ = [
+    "init_node", "Publisher", "Subscriber", "Rate", "sleep", "spin", "is_shutdown",
+    "signal_shutdown", "on_shutdown", "get_time", "get_rostime", "Time", "Duration",
+    "loginfo", "logwarn", "logerr", "logdebug", "logfatal", "wait_for_message", "get_param",
+    "set_param", "has_param", "get_name", "get_namespace", "ROSException",
+    "ROSInterruptException", "ROSInitException",
+]
+
+
+class ROSException(Exception):
+    pass
+
+
+class ROSInterruptException(ROSException, KeyboardInterrupt):
+    """Raised in sleeps when the simulation ends, as rospy does on shutdown."""
+
+
+class ROSInitException(ROSException):
+    pass
+
+
+def _resolve(name: str) -> str:
+    ctx = current()
+    if name.startswith("~"):
+        return resolve_name(name[1:], ctx.node_name)
+    return resolve_name(name, "/")
+
+
+# ----- node -------------------------------------------------------------------------------
+def init_node(name: str, anonymous: bool = False, **_ignored: Any) -> None:
+    ctx = current()
+    ctx.node_name = "/" + name.strip("/") + (f"_{threading.get_ident()}" if anonymous else "")
+
+
+def get_name() -> str:
+    return current().node_name
+
+
+def get_namespace() -> str:
+    return "/"
+
+
+def is_shutdown() -> bool:
+    ctx = current()
+    return ctx.scheduler.stopped or ctx.shutdown_reason is not None
+
+
+def signal_shutdown(reason: str) -> None:
+    ctx = current()
+    ctx.shutdown_reason = reason
+    for hook in ctx.shutdown_hooks:
+        hook()
+
+
+def on_shutdown(hook) -> None:
+    current().shutdown_hooks.append(hook)
+
+
+# ----- time -------------------------------------------------------------------------------
+class Time(_msgs.Time):
+    @staticmethod
+    def now() -> _msgs.Time:
+        return _msgs.Time.from_sec(current().time)
+
+
+def Duration(secs: float = 0, nsecs: int = 0) -> _msgs.Duration:  # noqa: N802 - rospy's name
+    return _msgs.Duration.from_sec(secs + nsecs * 1e-9)
+
+
+def get_time() -> float:
+    return current().time
+
+
+def get_rostime() -> _msgs.Time:
+    return Time.now()
+
+
+def _wait(wake: float, ready=None) -> None:
+    ctx = current()
+    if ctx.shutdown_reason is not None:
+        raise ROSInterruptException(ctx.shutdown_reason)
+    try:
+        ctx.scheduler.wait(wake, ready)
+    except Shutdown:
+        raise ROSInterruptException("simulation ended") from None
+
+
+def sleep(duration) -> None:
+    seconds = duration.to_sec() if hasattr(duration, "to_sec") else float(duration)
+    _wait(current().time + max(seconds, 0.0))
+
+
+class Rate:
+    """Sleeps to keep `hz` in sim time; if a loop overruns by more than a period, it restarts
+    from now instead of bursting (rospy's behaviour)."""
+
+    def __init__(self, hz: float):
+        if hz <= 0:
+            raise ROSException(f"Rate({hz}): the rate must be > 0 Hz")
+        self.period = 1.0 / hz
+        self.last = current().time
+
+    def sleep(self) -> None:
+        now = current().time
+        wake = self.last + self.period
+        if now - wake > self.period:
+            wake = now
+        self.last = wake
+        if wake > now:
+            _wait(wake)
+        else:
+            _wait(now)
+
+    def remaining(self) -> _msgs.Duration:
+        return _msgs.Duration.from_sec(max(0.0, self.last + self.period - current().time))
+
+
+def spin() -> None:
+    while not is_shutdown():
+        _wait(float("inf"))
+
+
+# ----- topics -----------------------------------------------------------------------------
+class Publisher:
+    def __init__(self, name: str, data_class: type, queue_size: int | None = None,
+                 latch: bool = False, **_ignored: Any):
+        self.name = _resolve(name)
+        self.data_class = data_class
+        self._bus = current().lab.bus
+        self._bus.advertise(self.name, data_class)
+
+    def publish(self, *args: Any, **kwargs: Any) -> None:
+        msg = args[0] if len(args) == 1 and not kwargs and isinstance(args[0], self.data_class) \
+            else self.data_class(*args, **kwargs)
+        self._bus.publish(self.name, msg)
+
+    def get_num_connections(self) -> int:
+        topic = self._bus.topics.get(self.name)
+        return len(topic.subscriptions) if topic else 0
+
+    def unregister(self) -> None:
+        pass
+
+
+class Subscriber:
+    def __init__(self, name: str, data_class: type, callback=None, callback_args=None,
+                 queue_size: int | None = None, **_ignored: Any):
+        self.name = _resolve(name)
+        self.callback = callback
+
+        def deliver(msg):
+            if callback is None:
+                return
+            if callback_args is None:
+                callback(msg)
+            else:
+                callback(msg, callback_args)
+
+        self._sub = current().lab.bus.subscribe(self.name, data_class, deliver)
+
+    def unregister(self) -> None:
+        self._sub.unregister()
+
+
+def wait_for_message(topic: str, topic_type: type, timeout: float | None = None):
+    """The next message on `topic` (sim time timeout, in seconds)."""
+    box: list = []
+    sub = current().lab.bus.subscribe(_resolve(topic), topic_type, box.append)
+    try:
+        deadline = current().time + (timeout if timeout is not None else float("inf"))
+        _wait(deadline, ready=lambda: bool(box))
+    finally:
+        sub.unregister()
+    if not box:
+        raise ROSException(f"timeout exceeded while waiting for a message on {topic}")
+    return box[0]
+
+
+# ----- parameters and logging -------------------------------------------------------------
+def get_param(name: str, default: Any = KeyError) -> Any:
+    key = _resolve(name)
+    params = current().params
+    if key in params:
+        return params[key]
+    prefix = key.rstrip("/") + "/"
+    tree: dict = {}
+    for k, v in params.items():
+        if k.startswith(prefix):  # a namespace: rebuild the nested dict rospy returns
+            *parents, leaf = k[len(prefix):].split("/")
+            node = tree
+            for part in parents:
+                node = node.setdefault(part, {})
+            node[leaf] = v
+    if tree:
+        return tree
+    if default is KeyError:
+        raise KeyError(name)
+    return default
+
+
+def set_param(name: str, value: Any) -> None:
+    current().params[_resolve(name)] = value
+
+
+def has_param(name: str) -> bool:
+    try:
+        get_param(name)
+    except KeyError:
+        return False
+    return True
+
+
+def _log(level: str, text: str, *args: Any) -> None:
+    current().log(level, text % args if args else str(text))
+
+
+def loginfo(msg: str, *args: Any, **_kw: Any) -> None:
+    _log("INFO", msg, *args)
+
+
+def logwarn(msg: str, *args: Any, **_kw: Any) -> None:
+    _log("WARN", msg, *args)
+
+
+def logerr(msg: str, *args: Any, **_kw: Any) -> None:
+    _log("ERROR", msg, *args)
+
+
+def logdebug(msg: str, *args: Any, **_kw: Any) -> None:
+    _log("DEBUG", msg, *args)
+
+
+def logfatal(msg: str, *args: Any, **_kw: Any) -> None:
+    _log("FATAL", msg, *args)
