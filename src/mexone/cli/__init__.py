@@ -49,7 +49,11 @@ def _setup_logging() -> None:
 def main(argv: list[str] | None = None) -> int:
     _setup_logging()
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
+        if not (hasattr(args, "params") and all(":=" in e for e in extra)):
+            parser.error(f"unrecognized arguments: {' '.join(extra)}")
+        args.params += extra
     try:
         return int(args.run(args) or 0)
     except MexoneError as exc:

@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from mexone.bus.msgs import Float64, Float64MultiArray, JointTrajectory
-from mexone.control.config import ControllerSpec, PidGains
+from mexone.control.config import CONTROLLER_TYPES, ControllerSpec, PidGains
 from mexone.control.hardware import SimHardware
 from mexone.control.pid import PidArray
+from mexone.control.servo import ServoBank
 from mexone.errors import InputError
 
 __all__ = ["Controller", "PositionController", "VelocityController", "EffortController",
@@ -37,6 +38,8 @@ class Controller:
         self.rows = hw.rows(self.joints)
         self.running = False
         self._warned: set[str] = set()
+        if self.msg_type is Float64 and not CONTROLLER_TYPES[spec.type][2]:
+            self.msg_type = Float64MultiArray  # the JointGroup*Controller variants
 
     @property
     def needs_update(self) -> bool:
@@ -107,54 +110,50 @@ def _gains(spec: ControllerSpec, pid_gains: dict[str, PidGains], joints: list[st
 
 class PositionController(Controller):
     """effort_controllers/JointPositionController (and the Group and position_controllers
-    variants): torque = PID(setpoint - q, v_desired - qdot), or an ideal servo when asked."""
+    variants): torque = PID(setpoint - q, v_desired - qdot), or an ideal servo when asked.
+    The servo itself lives in the shared ServoBank, so all joints update in one vector step."""
 
-    def __init__(self, spec, hw, gains: list[PidGains] | None, ideal: bool):
+    def __init__(self, spec, hw, bank: ServoBank, gains: list[PidGains] | None, ideal: bool):
         super().__init__(spec, hw)
+        self.bank = bank
         self.ideal = ideal
-        self.pid = PidArray(gains) if gains else None
-        self.setpoint = np.zeros(len(self.rows))
-        self.velocity = np.zeros(len(self.rows))
-        self.i_term = np.zeros(len(self.rows))
+        self.gains = gains
+
+    @property
+    def setpoint(self) -> np.ndarray:
+        return self.bank.setpoint[self.rows]
 
     @property
     def needs_update(self) -> bool:
-        return self.ideal or (self.pid is not None and self.pid.integrates)
+        return self.ideal  # integral terms are the bank's job
 
     def start(self, t: float) -> None:
         super().start(t)
-        self.setpoint = self.hw.position(self.rows).copy()  # ros_controllers' starting()
-        self.velocity[:] = 0.0
         if self.ideal:
-            self.hw.release(self.rows)
-            return
-        self.pid.reset()
-        self.hw.set_feedback(self.rows, -self.pid.p, -self.pid.d)
-        self._write(np.zeros(len(self.rows)))
+            self.bank.release(self.rows)
+            self.bank.setpoint[self.rows] = self.hw.position(self.rows)  # starting(): hold
+            self.bank.velocity[self.rows] = 0.0
+        else:
+            self.bank.configure(self.rows, self.gains)
+
+    def stop(self) -> None:
+        self.running = False
+        self.bank.release(self.rows)
 
     def set_command(self, values: np.ndarray) -> None:
-        self.setpoint = self._clamp_to_limits(values)
-        self.velocity[:] = 0.0
-        if not self.ideal:
-            self._write(self.i_term)
+        self.follow(self._clamp_to_limits(values), np.zeros(len(self.rows)))
 
-    def _write(self, i_term: np.ndarray) -> None:
-        self.i_term = i_term
-        self.hw.set_u(self.rows, self.pid.p * self.setpoint + self.pid.d * self.velocity + i_term)
+    def follow(self, position: np.ndarray, velocity: np.ndarray) -> None:
+        """Track a (possibly moving) reference; positions are clamped to the joint limits."""
+        self.bank.setpoint[self.rows] = np.clip(position, self.hw.lower[self.rows],
+                                                self.hw.upper[self.rows])
+        self.bank.velocity[self.rows] = velocity
+        if not self.ideal:
+            self.bank.write(self.rows)
 
     def update(self, t: float, dt: float) -> None:
         if self.ideal:
-            self.hw.teleport(self.rows, self.setpoint, self.velocity)
-            return
-        error = self.setpoint - self.hw.position(self.rows)
-        self._write(self.pid.integral(error, dt))
-
-    def follow(self, position: np.ndarray, velocity: np.ndarray) -> None:
-        """Track a moving reference (trajectory controllers)."""
-        self.setpoint = np.clip(position, self.hw.lower[self.rows], self.hw.upper[self.rows])
-        self.velocity = velocity
-        if not self.ideal:
-            self._write(self.i_term)
+            self.hw.teleport(self.rows, self.bank.setpoint[self.rows], self.bank.velocity[self.rows])
 
 
 class VelocityController(Controller):
@@ -234,8 +233,8 @@ class TrajectoryController(PositionController):
 
     msg_type = JointTrajectory
 
-    def __init__(self, spec, hw, gains, ideal):
-        super().__init__(spec, hw, gains, ideal)
+    def __init__(self, spec, hw, bank, gains, ideal):
+        super().__init__(spec, hw, bank, gains, ideal)
         self.segments: list[_Segment] = []
 
     @property
@@ -258,7 +257,7 @@ class TrajectoryController(PositionController):
         start = msg.header.stamp.to_sec() or now
         idx = [order[j] for j in self.joints]
         segments, t_prev = [], now
-        p_prev, v_prev = self.setpoint.copy(), self.velocity.copy()
+        p_prev, v_prev = self.setpoint.copy(), self.bank.velocity[self.rows].copy()
         for point in msg.points:
             p = np.array([point.positions[i] for i in idx], dtype=float)
             v = np.array([point.velocities[i] for i in idx], dtype=float) if point.velocities else None
@@ -296,7 +295,7 @@ class TrajectoryController(PositionController):
         super().update(t, dt)
 
 
-def make_controller(spec: ControllerSpec, hw: SimHardware,
+def make_controller(spec: ControllerSpec, hw: SimHardware, bank: ServoBank,
                     pid_gains: dict[str, PidGains]) -> Controller:
     kind = spec.kind
     joints = list(spec.joints)
@@ -313,5 +312,5 @@ def make_controller(spec: ControllerSpec, hw: SimHardware,
                          line=spec.line, hint="add pid: {p: ..., d: ...}, or ideal_servo: true "
                                               "to teleport the joint as Gazebo 7 did")
     cls = TrajectoryController if kind == "trajectory" else PositionController
-    return cls(spec, hw, gains, spec.ideal_servo)
+    return cls(spec, hw, bank, gains, spec.ideal_servo)
 

@@ -18,6 +18,7 @@ from mexone.bus.topics import Bus, Subscription
 from mexone.control.config import ControlConfig, ControllerSpec
 from mexone.control.controllers import Controller, make_controller
 from mexone.control.hardware import SimHardware
+from mexone.control.servo import ServoBank
 from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
 
@@ -66,6 +67,7 @@ class ControllerManager:
             or sim.robot.name
         self.namespace = "/" + ns.strip("/")
         self.hw = SimHardware(sim)
+        self.bank = ServoBank(self.hw)
         self.control_period = control_period or sim.timestep
         if self.control_period < sim.timestep * (1 - 1e-9):
             raise InputError(f"control period {self.control_period} s is shorter than the physics "
@@ -97,7 +99,7 @@ class ControllerManager:
                              "does not have", file=spec.source, line=spec.line,
                              hint="joints: " + ", ".join(self.hw.joints))
         try:
-            self.controllers[name] = make_controller(spec, self.hw, self.config.pid_gains)
+            self.controllers[name] = make_controller(spec, self.hw, self.bank, self.config.pid_gains)
         except InputError as exc:
             raise exc.located(spec.source or "<controllers>", spec.line) from None
 
@@ -182,13 +184,15 @@ class ControllerManager:
             else:
                 self.sim.remove_periodic(handle)
             self._scheduled = None
-        if not active:
+        bank = self.bank
+        if not active and not bank.integrating.any():
             return
         dt = self.control_period
 
         def update(sim: Simulation) -> None:
             for ctrl in active:
                 ctrl.update(sim.time, dt)
+            bank.integrate(dt)
 
         if abs(dt - self.sim.timestep) < 1e-12:
             self.sim.add_hook(update)

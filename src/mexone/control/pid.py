@@ -40,17 +40,19 @@ class PidArray:
         self.i_error[:] = 0.0
         self.last_error[:] = 0.0
 
-    def integral(self, error: np.ndarray, dt: float) -> np.ndarray:
-        """Advance the integral by one period and return the i_term."""
-        self.i_error += dt * error
-        aw = self.antiwindup & (self.i != 0)
-        if aw.any():
+    def integral(self, error: np.ndarray, dt: float, rows: np.ndarray | slice = slice(None)
+                 ) -> np.ndarray:
+        """Advance the integral of `rows` (all by default) by one period; return their i_term."""
+        i, lo_c, hi_c, aw = self.i[rows], self.i_min[rows], self.i_max[rows], self.antiwindup[rows]
+        i_error = self.i_error[rows] + dt * error
+        wind = aw & (i != 0)
+        if wind.any():
             with np.errstate(divide="ignore", invalid="ignore"):
-                a, b = self.i_min / self.i, self.i_max / self.i
-            lo, hi = np.minimum(a, b), np.maximum(a, b)
-            self.i_error[aw] = np.clip(self.i_error[aw], lo[aw], hi[aw])
-        i_term = self.i * self.i_error
-        return np.where(self.antiwindup, i_term, np.clip(i_term, self.i_min, self.i_max))
+                a, b = lo_c / i, hi_c / i
+            i_error = np.where(wind, np.clip(i_error, np.minimum(a, b), np.maximum(a, b)), i_error)
+        self.i_error[rows] = i_error
+        i_term = i * i_error
+        return np.where(aw, i_term, np.clip(i_term, lo_c, hi_c))
 
     def error_rate(self, error: np.ndarray, dt: float) -> np.ndarray:
         """(e - e_last) / dt, the derivative computeCommand(error, dt) uses."""

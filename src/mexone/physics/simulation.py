@@ -186,6 +186,8 @@ class Simulation:
             limit = min(end, next_tick)
             if gate is not None:
                 limit = min(limit, gate.horizon())
+                if until and until():  # what the gate waited for may have ended the run
+                    break
                 if limit <= self.data.time + half:  # someone wakes now: let it run first
                     gate.advance(self.time)
                     continue
