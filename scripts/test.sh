@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
 # Install everything the test suite needs, then run it (lint + pytest).
 #   bash scripts/test.sh [extra pytest arguments]
-# Debian packages (the real check_urdf from urdfdom) are installed when missing, as root
+# Debian packages (the real check_urdf from urdfdom, Chromium for the GUI) are installed when missing, as root
 # directly or through sudo; pip installs mexone in editable mode with its test extras.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
 apt_packages=()
 command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
+command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's browser tests
 if ((${#apt_packages[@]})); then
   sudo=""
   [ "$(id -u)" = 0 ] || sudo="sudo"

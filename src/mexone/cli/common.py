@@ -9,7 +9,7 @@ from mexone.lab import Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
 
-__all__ = ["add_model_options", "lab_from_args"]
+__all__ = ["add_model_options", "lab_from_args", "options_from_args"]
 
 
 def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False) -> None:
@@ -32,14 +32,19 @@ def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False
         pose.add_argument(flag, dest=name, type=float, default=0.0, metavar=name.upper())
 
 
-def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None) -> Lab:
+def options_from_args(args: argparse.Namespace) -> CompileOptions:
+    return CompileOptions(self_collision=False if args.no_self_collide else None,
+                          fixed_base=args.fixed_base)
+
+
+def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None,
+                  options: CompileOptions | None = None) -> Lab:
     controllers = False if args.no_controllers else args.controllers
     return Lab.create(
         model=args.model,
         controllers=controllers,
         world=read_world(args.world) if args.world else default_world(),
         spawn=Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw)),
-        options=CompileOptions(self_collision=False if args.no_self_collide else None,
-                               fixed_base=args.fixed_base),
+        options=options or options_from_args(args),
         target_rtf=target_rtf,
     )

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from mexone.cli.common import add_model_options, lab_from_args
+from mexone.cli.common import add_model_options, lab_from_args, options_from_args
 from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
@@ -19,10 +19,15 @@ with friction (mu1/mu2) and stiffness (kp/kd), joint damping and friction, self-
 where <gazebo selfCollide> says so, 1 ms steps, and the ros_control controllers of the YAML
 (the built-in Mex-One loads its own and holds its home pose; --no-controllers lets it fall).
 
+Without --headless it serves the web GUI at http://127.0.0.1:8080 (--host, --port): the robot
+live in 3D, play/pause/step/reset, the real-time factor, Gazebo's View overlays (centre of mass,
+inertia, joints, collisions, contacts, transparent, wireframe), a slider per controller with
+editable PID gains, live plots, routines and physics settings. It keeps real time (--rtf 1)
+until Ctrl-C or --duration.
+
 With --headless the run is unpaced (as fast as the machine allows) and ends with a summary:
 sim time, wall time, real-time factor, base height, the fastest link speed seen, and whether
-the robot came to rest. Without it the simulation keeps real time (--rtf 1) and prints sim
-time and the measured real-time factor until Ctrl-C or --duration.
+the robot came to rest.
 
 A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
 the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2."""
@@ -33,7 +38,11 @@ def add_parser(sub) -> None:
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model", nargs="?", type=Path,
                    help="URDF, .urdf.xacro or SDF model (default: the built-in Mex-One)")
-    p.add_argument("--headless", action="store_true", help="no pacing, print a summary at the end")
+    p.add_argument("--headless", action="store_true",
+                   help="no web GUI and no pacing: run, then print a summary")
+    p.add_argument("--port", type=int, default=8080, help="web GUI port (default 8080)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="web GUI address (default 127.0.0.1, this machine only; 0.0.0.0 to share)")
     p.add_argument("--duration", type=float, metavar="S",
                    help="seconds of sim time to run (default: 5 headless, else until Ctrl-C)")
     p.add_argument("--rtf", type=float, metavar="R",
@@ -44,6 +53,27 @@ def add_parser(sub) -> None:
                    help="print how each Gazebo property maps to MuJoCo, then exit")
     add_model_options(p, model_positional=True)
     p.set_defaults(run=run)
+
+
+def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None) -> int:
+    from mexone.gui.app import GuiApp
+
+    try:
+        app = GuiApp(lambda options: lab_from_args(args, options=options), options_from_args(args),
+                     host=args.host, port=args.port, target_rtf=rtf)
+    except OSError as exc:
+        raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
+                         hint="pick another --port") from None
+    host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
+    print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{args.port}  (Ctrl-C stops)",
+          file=sys.stderr)
+    try:
+        app.serve_forever(duration)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app.stop()
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,6 +87,8 @@ def run(args: argparse.Namespace) -> int:
     rtf = args.rtf if args.rtf is not None else (0.0 if args.headless else 1.0)
     if rtf < 0:
         raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
+    if not args.headless and not args.json:
+        return _serve_gui(args, rtf, duration)
     lab = lab_from_args(args, target_rtf=rtf or None)
     sim, robot = lab.sim, lab.sim.robot
     monitor = RunMonitor(sim)

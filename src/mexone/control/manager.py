@@ -135,7 +135,7 @@ class ControllerManager:
             self._stop(name)
         for name in start:
             self._start(name)
-        self._reschedule()
+        self.reschedule()
 
     def _start(self, name: str) -> None:
         if name in self.publishers:
@@ -163,6 +163,12 @@ class ControllerManager:
         ctrl.stop()
         self._subs.pop(name).unregister()
 
+    def restart(self) -> None:
+        """Stop and start every running controller (after a reset: they hold the new pose)."""
+        running = [c.name for c in self.list() if c.state == "running"]
+        self.switch(stop=running)
+        self.switch(start=running)
+
     def start_all(self) -> None:
         self.load_all()
         self.switch(start=list(self.config.controllers))
@@ -174,7 +180,8 @@ class ControllerManager:
                                tuple(c.joints)) for c in self.controllers.values()]
         return out
 
-    def _reschedule(self) -> None:
+    def reschedule(self) -> None:
+        """(Re)install the per-period update for what the running controllers need now."""
         active = [c for c in self.controllers.values() if c.running and c.needs_update]
         self.sim.controllers_active = any(c.running for c in self.controllers.values())
         if self._scheduled is not None:

@@ -43,6 +43,15 @@ class ServoBank:
         self.hw.set_feedback(rows, -self.pid.p[rows], -self.pid.d[rows])
         self.write(rows)
 
+    def set_gains(self, rows: np.ndarray, gains: Sequence[PidGains]) -> None:
+        """Retune live: the setpoint and the accumulated integral stay."""
+        staged = PidArray(gains)
+        for name in ("p", "i", "d", "i_min", "i_max", "antiwindup"):
+            getattr(self.pid, name)[rows] = getattr(staged, name)
+        self.integrating[rows] = (staged.i != 0) & ((staged.i_min != 0) | (staged.i_max != 0))
+        self.hw.set_feedback(rows, -self.pid.p[rows], -self.pid.d[rows])
+        self.write(rows)
+
     def release(self, rows: np.ndarray) -> None:
         self.integrating[rows] = False
         self.hw.release(rows)

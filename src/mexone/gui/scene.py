@@ -1,0 +1,176 @@
+"""RobotScene: the robot in viser's 3D scene, plus the seed's View-menu overlays.
+
+Every link is a scene node ``/robot/<link>`` posed in the world each frame; its visual meshes,
+collision shapes, centre-of-mass marker, inertia box and joint axis hang below it, so toggling
+an overlay is one ``visible`` flag and a frame update is one pose per link.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+import viser
+
+from mexone.description.meshes import load_mesh, resolve_mesh
+from mexone.description.model import Box, Cylinder, Geometry, Mesh, RobotModel, Sphere
+from mexone.physics.simulation import Simulation
+
+__all__ = ["RobotScene", "OVERLAYS", "inertia_box"]
+
+OVERLAYS = ("Center of Mass", "Inertia", "Joints", "Collisions", "Contacts")
+_COLLISION_RGB = (224, 140, 60)
+_COM_RGB = (40, 40, 230)
+_INERTIA_RGB = (150, 60, 200)
+_JOINT_RGB = (250, 220, 0)
+_CONTACT_RGB = (230, 30, 30)
+_MAX_CONTACTS = 64
+
+
+def _trimesh_of(geometry: Geometry, robot: RobotModel):
+    import trimesh
+
+    match geometry:
+        case Box(size):
+            return trimesh.creation.box(extents=size)
+        case Cylinder(radius, length):
+            return trimesh.creation.cylinder(radius=radius, height=length, sections=32)
+        case Sphere(radius):
+            return trimesh.creation.icosphere(subdivisions=2, radius=radius)
+        case Mesh(filename, scale):
+            mesh = load_mesh(resolve_mesh(filename, robot.base_dir)).copy()
+            mesh.apply_scale(scale)
+            return mesh
+    raise TypeError(geometry)
+
+
+def inertia_box(mass: float, tensor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(box sizes, principal axes): the uniform box with the same mass and principal moments,
+    which is what Gazebo's View > Inertia draws."""
+    moments, axes = np.linalg.eigh(tensor)
+    a, b, c = moments
+    sizes = np.sqrt(np.maximum(6.0 / mass * np.array([b + c - a, a + c - b, a + b - c]), 0.0))
+    if np.linalg.det(axes) < 0:
+        axes[:, 2] *= -1
+    return sizes, axes
+
+
+def _wxyz(rotation: np.ndarray) -> np.ndarray:
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rotation).ravel())
+    return quat
+
+
+@dataclass
+class RobotScene:
+    server: viser.ViserServer
+    sim: Simulation
+    links: dict[str, viser.SceneNodeHandle] = field(default_factory=dict)
+    visuals: list = field(default_factory=list)
+    overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
+
+    def build(self) -> None:
+        scene, robot = self.server.scene, self.sim.robot
+        scene.set_up_direction("+z")
+        scene.add_grid("/ground", width=20, height=20, cell_size=0.25, section_size=1.0,
+                       plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
+        scene.add_light_directional("/sun", color=(255, 250, 240), intensity=2.0, cast_shadow=True,
+                                    wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
+        scene.add_light_ambient("/ambient", intensity=0.6)
+        for name in self.sim.compiled.bodies:
+            node = scene.add_frame(f"/robot/{name}", show_axes=False)
+            self.links[name] = node
+            link = robot.links[name]
+            for i, vis in enumerate(link.visuals):
+                mesh = _trimesh_of(vis.geometry, robot)
+                rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
+                self.visuals.append(scene.add_mesh_simple(
+                    f"/robot/{name}/visual_{i}", mesh.vertices.astype(np.float32), mesh.faces,
+                    color=tuple(int(255 * c) for c in rgba[:3]),
+                    position=vis.origin.xyz, wxyz=_wxyz(vis.origin.matrix[:3, :3])))
+            for i, col in enumerate(link.collisions):
+                mesh = _trimesh_of(col.geometry, robot)
+                self.overlays["Collisions"].append(scene.add_mesh_simple(
+                    f"/robot/{name}/collision_{i}", mesh.vertices.astype(np.float32), mesh.faces,
+                    color=_COLLISION_RGB, opacity=0.55, position=col.origin.xyz,
+                    wxyz=_wxyz(col.origin.matrix[:3, :3]), visible=False))
+            if link.inertial and link.inertial.mass > 0:
+                self._add_inertial(name, link.inertial)
+            joint = robot.parent_joint.get(name)
+            if joint is not None and joint.moving:
+                axis = np.asarray(joint.axis, dtype=float)
+                axis /= np.linalg.norm(axis)
+                self.overlays["Joints"].append(scene.add_arrows(
+                    f"/robot/{name}/joint_axis", np.array([[[0, 0, 0], 0.12 * axis]]),
+                    _JOINT_RGB, shaft_radius=0.004, head_radius=0.01, head_length=0.025,
+                    visible=False))
+        self.overlays["Contacts"].append(scene.add_line_segments(
+            "/contacts", np.zeros((1, 2, 3)), _CONTACT_RGB, thickness=0.006, visible=False))
+        self.update()
+
+    def _add_inertial(self, name: str, inertial) -> None:
+        scene = self.server.scene
+        com = np.asarray(inertial.origin.xyz)
+        radius = 0.015 * max(inertial.mass, 0.05) ** (1 / 3)
+        self.overlays["Center of Mass"].append(scene.add_icosphere(
+            f"/robot/{name}/com", radius=radius, color=_COM_RGB, position=com, visible=False))
+        rot = inertial.origin.matrix[:3, :3]
+        sizes, axes = inertia_box(inertial.mass, rot @ inertial.tensor @ rot.T)
+        self.overlays["Inertia"].append(scene.add_box(
+            f"/robot/{name}/inertia", dimensions=tuple(np.maximum(sizes, 1e-4)), color=_INERTIA_RGB,
+            opacity=0.35, position=com, wxyz=_wxyz(axes), visible=False))
+
+    # ----- per frame ------------------------------------------------------------------------
+    def update(self) -> None:
+        data = self.sim.data
+        with self.server.atomic():
+            for name, body in self.sim.compiled.bodies.items():
+                node = self.links[name]
+                node.position = data.xpos[body]
+                node.wxyz = data.xquat[body]
+            contacts = self.overlays["Contacts"][0]
+            if contacts.visible:
+                contacts.points = self._contact_segments()
+
+    def _contact_segments(self) -> np.ndarray:
+        model, data = self.sim.model, self.sim.data
+        force = np.zeros(6)
+        segments = []
+        for i in range(min(data.ncon, _MAX_CONTACTS)):
+            contact = data.contact[i]
+            mujoco.mj_contactForce(model, data, i, force)
+            frame = contact.frame.reshape(3, 3)  # rows: normal, tangent, tangent
+            world = frame.T @ force[:3]
+            tip = contact.pos + 0.01 * world  # 1 cm per newton
+            segments.append([contact.pos, tip])
+        return np.array(segments, dtype=np.float32) if segments else np.zeros((1, 2, 3), np.float32)
+
+    # ----- toggles --------------------------------------------------------------------------
+    def show(self, overlay: str, visible: bool) -> None:
+        for handle in self.overlays[overlay]:
+            handle.visible = visible
+        if overlay == "Contacts" and visible:
+            self.update()
+
+    def set_transparent(self, on: bool) -> None:
+        for handle in self.visuals:
+            handle.opacity = 0.35 if on else None
+
+    def set_wireframe(self, on: bool) -> None:
+        for handle in self.visuals:
+            handle.wireframe = on
+
+    def set_robot_visible(self, on: bool) -> None:
+        for handle in self.visuals:
+            handle.visible = on
+
+
+def _look(direction: np.ndarray) -> np.ndarray:
+    """A rotation whose -z axis points along `direction` (three.js lights shine along -z)."""
+    z = -direction / np.linalg.norm(direction)
+    x = np.cross([0.0, 0.0, 1.0], z)
+    if np.linalg.norm(x) < 1e-6:
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    return np.column_stack([x, np.cross(z, x), z])

@@ -1,0 +1,141 @@
+"""The web GUI in a real headless Chromium: it draws the robot, pause stops sim time, a slider
+moves its joint, the Collisions toggle adds the collision shapes; bad input is refused."""
+
+from __future__ import annotations
+
+import io
+import shutil
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from mexone.gui.app import GuiApp
+from mexone.lab import Lab
+from mexone.physics import CompileOptions
+
+CHROMIUM = shutil.which("chromium")
+ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def app():
+    port = free_port()
+    gui = GuiApp(lambda options: Lab.create(options=options), CompileOptions(), port=port)
+    thread = threading.Thread(target=gui.serve_forever, daemon=True)
+    thread.start()
+    yield gui
+    gui.stop()
+    thread.join(timeout=5)
+
+
+@pytest.fixture(scope="module")
+def page(app):
+    playwright = pytest.importorskip("playwright.sync_api")
+    if CHROMIUM is None:
+        pytest.skip("Debian chromium is not installed")
+    with playwright.sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        tab = browser.new_page(viewport={"width": 1280, "height": 800})
+        tab.goto(f"http://127.0.0.1:{app.server.get_port()}")
+        tab.wait_for_selector("canvas", timeout=30_000)
+        tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
+        time.sleep(3.0)  # meshes arrive and the first frames render
+        yield tab
+        browser.close()
+
+
+def pixels(tab) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(tab.screenshot())).convert("RGB"), dtype=np.int16)
+
+
+def wait_until(predicate, timeout=10.0) -> bool:
+    end = time.time() + timeout
+    while time.time() < end:
+        if predicate():
+            return True
+        time.sleep(0.1)
+    return False
+
+
+def test_the_page_draws_the_robot(app, page):
+    with_robot = pixels(page)
+    app.do(lambda: app.scene.set_robot_visible(False))
+    time.sleep(1.0)
+    empty = pixels(page)
+    app.do(lambda: app.scene.set_robot_visible(True))
+    changed = np.abs(with_robot - empty).sum(axis=2) > 30
+    assert changed.mean() > 0.005, "the robot is not on screen"
+
+
+def test_pause_stops_sim_time(app, page):
+    assert wait_until(lambda: app.lab.sim.time > 0.5)
+    page.get_by_role("button", name="Pause").click()
+    assert wait_until(lambda: app.lab.sim.paused)
+    frozen = app.lab.sim.time
+    time.sleep(0.7)
+    assert app.lab.sim.time == frozen
+    page.get_by_role("button", name="Play").click()
+    assert wait_until(lambda: app.lab.sim.time > frozen + 0.2)
+
+
+def test_a_slider_moves_its_joint(app, page):
+    elbow = app.lab.sim.joint_names.index("l_elbow")
+    slider = page.get_by_role("slider").nth(_slider_index(app, "l_elbow"))
+    slider.focus()
+    slider.press("Home")  # to the lower limit, -2.5 rad
+    assert wait_until(lambda: app.lab.sim.joint_positions()[elbow] < -2.0, timeout=15)
+
+
+def _slider_index(app, joint: str) -> int:
+    return [j for (_, j) in app.sliders].index(joint)
+
+
+def test_collisions_toggle_adds_collision_geometry(app, page):
+    before = pixels(page)
+    page.get_by_text("Collisions", exact=True).click()
+    assert wait_until(lambda: all(h.visible for h in app.scene.overlays["Collisions"]))
+    time.sleep(1.0)
+    after = pixels(page)
+    assert (np.abs(after - before).sum(axis=2) > 30).mean() > 0.002
+
+
+def test_bad_numbers_are_refused_not_crashing(app):
+    gains = app.lab.controllers.controllers["l_knee_position_controller"].gains[0]
+    with pytest.raises(ValueError):
+        app._set_gain(app.lab.controllers.controllers["l_knee_position_controller"], "p", -5.0)
+    assert app.lab.controllers.controllers["l_knee_position_controller"].gains[0] == gains
+    with pytest.raises(ValueError):
+        app._set_timestep(1.0)
+    assert app.lab.sim.model.opt.timestep == 0.001
+
+
+def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
+    """Four more tabs render the scene while we measure; then they close mid-run."""
+    if app.lab.sim.paused:
+        app.do(app.lab.sim.resume)
+    tabs = [page.context.browser.new_page() for _ in range(4)]
+    for tab in tabs:
+        tab.goto(page.url)
+    time.sleep(2.0)
+    start_wall, start_sim = time.time(), app.lab.sim.time
+    time.sleep(4.0)
+    for tab in tabs[:2]:
+        tab.close()
+    time.sleep(2.0)
+    rtf = (app.lab.sim.time - start_sim) / (time.time() - start_wall)
+    for tab in tabs[2:]:
+        tab.close()
+    assert rtf > 0.9  # real time, target 1.0, with five tabs open and two closed on the way
