@@ -9,6 +9,8 @@ cd "$(dirname "$0")/.."
 apt_packages=()
 command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
 command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's browser tests
+# offscreen rendering for `mexone render`: EGL with Mesa's software driver
+dpkg -s libegl1 libgl1-mesa-dri >/dev/null 2>&1 || apt_packages+=(libegl1 libgl1-mesa-dri)
 if ((${#apt_packages[@]})); then
   sudo=""
   [ "$(id -u)" = 0 ] || sudo="sudo"

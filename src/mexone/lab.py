@@ -6,7 +6,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from mexone.bus.msgs import Clock, Time
+import mujoco
+import numpy as np
+
+from mexone.bus.msgs import Clock, Header, TFMessage, Time, TransformStamped
 from mexone.bus.topics import Bus
 from mexone.control.config import ControlConfig, load_control_config
 from mexone.control.manager import ControllerManager
@@ -17,9 +20,14 @@ from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
 from mexone.robots import mex_one
 
-__all__ = ["Lab", "CLOCK_RATE"]
+__all__ = ["Lab", "CLOCK_RATE", "TF_RATE"]
+
+
+def _conjugate(q: np.ndarray) -> np.ndarray:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
 
 CLOCK_RATE = 1000.0  # Hz of /clock, as gazebo_ros publishes it (only while someone listens)
+TF_RATE = 50.0  # Hz of /tf, robot_state_publisher's default (only while someone listens)
 
 
 @dataclass
@@ -49,7 +57,8 @@ class Lab:
             manager = ControllerManager(sim, bus, config, control_period=control_period)
             manager.start_all()
         lab = cls(sim, bus, manager)
-        bus.on_subscribers("/clock", lab._clock_listeners)
+        bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
+        bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab
 
     @property
@@ -58,15 +67,40 @@ class Lab:
             return self.controllers.namespace
         return "/" + ((self.sim.robot.ros_namespace or "").strip("/") or self.sim.robot.name)
 
-    def _clock_listeners(self, count: int) -> None:
-        """Publish /clock only while someone listens: a 1 kHz publisher costs a Python call
-        per physics step."""
-        timer = self.__dict__.get("_clock_timer")
-        if count and timer is None:
-            self._clock_timer = self.sim.add_periodic(1.0 / CLOCK_RATE, self._publish_clock)
-        elif not count and timer is not None:
-            self.sim.remove_periodic(timer)
-            self._clock_timer = None
+    def _lazy(self, key: str, listeners: int, rate: float, publish) -> None:
+        """Run a publisher only while someone listens: a 1 kHz /clock costs a Python call per
+        physics step, which nobody should pay for unless they asked."""
+        timers = self.__dict__.setdefault("_timers", {})
+        if listeners and key not in timers:
+            timers[key] = self.sim.add_periodic(1.0 / rate, publish)
+        elif not listeners and key in timers:
+            self.sim.remove_periodic(timers.pop(key))
 
     def _publish_clock(self, sim: Simulation) -> None:
         self.bus.publish("/clock", Clock(Time.from_sec(sim.time)))
+
+    def _publish_tf(self, sim: Simulation) -> None:
+        """Every joint's transform (parent -> child link) and world -> the floating base."""
+        self.bus.publish("/tf", TFMessage(self.transforms()))
+
+    def transforms(self) -> list[TransformStamped]:
+        sim = self.sim
+        stamp = Time.from_sec(sim.time)
+        data, bodies = sim.data, sim.compiled.bodies
+        out = []
+        root = sim.robot.base_link
+        if sim.compiled.free or root in bodies:
+            out.append(TransformStamped(Header(0, stamp, "world"), root,
+                                        tuple(data.xpos[bodies[root]]),
+                                        tuple(data.xquat[bodies[root]])))
+        for joint in sim.robot.joints.values():
+            if joint.parent not in bodies or joint.child not in bodies:
+                continue
+            p, c = bodies[joint.parent], bodies[joint.child]
+            rot = data.xmat[p].reshape(3, 3)
+            pos = rot.T @ (data.xpos[c] - data.xpos[p])
+            quat = np.zeros(4)
+            mujoco.mju_mulQuat(quat, _conjugate(data.xquat[p]), data.xquat[c])
+            out.append(TransformStamped(Header(0, stamp, joint.parent), joint.child,
+                                        tuple(pos), tuple(quat)))
+        return out

@@ -10,8 +10,10 @@ from mexone.bus.msgs import (
     JointState,
     JointTrajectory,
     JointTrajectoryPoint,
+    TFMessage,
     Time,
+    TransformStamped,
 )
 
 __all__ = ["Clock", "Duration", "Float64", "Float64MultiArray", "Header", "JointState",
-           "JointTrajectory", "JointTrajectoryPoint", "Time"]
+           "JointTrajectory", "JointTrajectoryPoint", "Time", "TFMessage", "TransformStamped"]

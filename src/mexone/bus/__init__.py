@@ -10,7 +10,9 @@ from mexone.bus.msgs import (
     JointState,
     JointTrajectory,
     JointTrajectoryPoint,
+    TFMessage,
     Time,
+    TransformStamped,
 )
 from mexone.bus.topics import Bus, Subscription, Topic, resolve_name
 
@@ -29,4 +31,6 @@ __all__ = [
     "JointTrajectory",
     "JointTrajectoryPoint",
     "Time",
+    "TFMessage",
+    "TransformStamped",
 ]

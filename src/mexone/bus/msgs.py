@@ -3,7 +3,6 @@ changing imports. Times are rospy-like Time/Duration values in sim time."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 __all__ = [
@@ -16,6 +15,8 @@ __all__ = [
     "Clock",
     "JointTrajectoryPoint",
     "JointTrajectory",
+    "TransformStamped",
+    "TFMessage",
     "ROS_TYPES",
 ]
 
@@ -27,8 +28,8 @@ class Time:
 
     @staticmethod
     def from_sec(seconds: float) -> Time:
-        secs = math.floor(seconds)
-        return Time(int(secs), int(round((seconds - secs) * 1e9)) % 1_000_000_000)
+        secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)  # round first: 1.9999999999 -> 2
+        return Time(int(secs), int(nsecs))
 
     def to_sec(self) -> float:
         return self.secs + self.nsecs * 1e-9
@@ -52,8 +53,8 @@ class Duration:
 
     @staticmethod
     def from_sec(seconds: float) -> Duration:
-        secs = math.floor(seconds)
-        return Duration(int(secs), int(round((seconds - secs) * 1e9)))
+        secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)
+        return Duration(int(secs), int(nsecs))
 
     def to_sec(self) -> float:
         return self.secs + self.nsecs * 1e-9
@@ -106,6 +107,19 @@ class JointTrajectory:
     points: list[JointTrajectoryPoint] = field(default_factory=list)
 
 
+@dataclass
+class TransformStamped:
+    header: Header = field(default_factory=Header)  # frame_id: the parent frame
+    child_frame_id: str = ""
+    translation: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rotation: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)  # w, x, y, z
+
+
+@dataclass
+class TFMessage:
+    transforms: list[TransformStamped] = field(default_factory=list)
+
+
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
@@ -113,4 +127,5 @@ ROS_TYPES: dict[type, str] = {
     JointState: "sensor_msgs/JointState",
     Clock: "rosgraph_msgs/Clock",
     JointTrajectory: "trajectory_msgs/JointTrajectory",
+    TFMessage: "tf2_msgs/TFMessage",
 }

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 
 from mexone.errors import MexoneError
 
@@ -16,7 +18,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import check, convert, run, sim
+    from mexone.cli import check, convert, plot, record, render, run, sim
 
     parser = argparse.ArgumentParser(
         prog="mexone",
@@ -25,7 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, run, check, convert):
+    for module in (sim, run, record, plot, render, check, convert):
         module.add_parser(sub)
     return parser
 
@@ -46,8 +48,14 @@ def _setup_logging() -> None:
         root.propagate = False
 
 
+def _terminate(_signum, _frame) -> None:
+    raise KeyboardInterrupt  # SIGTERM ends a run like Ctrl-C: recordings close, files stay valid
+
+
 def main(argv: list[str] | None = None) -> int:
     _setup_logging()
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _terminate)
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
     if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`

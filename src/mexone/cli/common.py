@@ -3,13 +3,40 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from contextlib import contextmanager
 from pathlib import Path
 
 from mexone.lab import Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
 
-__all__ = ["add_model_options", "lab_from_args", "options_from_args"]
+__all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
+           "add_record_options"]
+
+
+def add_record_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--record", type=Path, metavar="BAG",
+                   help="record every topic to BAG: .mcap (rosbag2/ROS 2) or .bag (ROS 1)")
+    p.add_argument("--force", action="store_true", help="overwrite output files that exist")
+
+
+@contextmanager
+def recording(lab: Lab, path: Path | None, force: bool):
+    """Record while the body runs; the bag is closed (valid) however the body ends."""
+    if path is None:
+        yield None
+        return
+    from mexone.record.bag import BagRecorder
+
+    recorder = BagRecorder(lab, path, force)
+    try:
+        yield recorder
+    finally:
+        recorder.close()
+        total = sum(recorder.counts.values())
+        print(f"mexone: recorded {total} messages on {len(recorder.counts)} topics to {path}",
+              file=sys.stderr)
 
 
 def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False) -> None:

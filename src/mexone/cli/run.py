@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.cli.common import add_model_options, lab_from_args
+from mexone.cli.common import add_model_options, add_record_options, lab_from_args, recording
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
 from mexone.physics.watchdog import DivergenceError
@@ -40,6 +40,7 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--quiet", action="store_true", help="do not print the routine's log")
     add_model_options(p)
+    add_record_options(p)
     p.set_defaults(run=run)
 
 
@@ -62,11 +63,12 @@ def run(args: argparse.Namespace) -> int:
 
     runner = RoutineRunner(lab, args.routine, params, log)
     diverged = None
-    try:
-        runner.run(args.duration)
-    except DivergenceError as exc:
-        diverged = exc.one_line()
-        runner.stop()
+    with recording(lab, args.record, args.force):
+        try:
+            runner.run(args.duration)
+        except DivergenceError as exc:
+            diverged = exc.one_line()
+            runner.stop()
     rot = sim.data.xmat[sim.compiled.root_body].reshape(3, 3)
     tilt = float(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
     height = sim.base_height

@@ -8,7 +8,13 @@ import sys
 import time
 from pathlib import Path
 
-from mexone.cli.common import add_model_options, lab_from_args, options_from_args
+from mexone.cli.common import (
+    add_model_options,
+    add_record_options,
+    lab_from_args,
+    options_from_args,
+    recording,
+)
 from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
@@ -52,6 +58,7 @@ def add_parser(sub) -> None:
     p.add_argument("--explain", action="store_true",
                    help="print how each Gazebo property maps to MuJoCo, then exit")
     add_model_options(p, model_positional=True)
+    add_record_options(p)
     p.set_defaults(run=run)
 
 
@@ -68,7 +75,8 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None) -> 
     print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{args.port}  (Ctrl-C stops)",
           file=sys.stderr)
     try:
-        app.serve_forever(duration)
+        with recording(app.lab, args.record, args.force):
+            app.serve_forever(duration)
     except KeyboardInterrupt:
         pass
     finally:
@@ -106,12 +114,13 @@ def run(args: argparse.Namespace) -> int:
         ctrl = f"{len(lab.controllers.controllers)} controllers" if lab.controllers else "no controllers"
         print(f"simulating {robot.name} ({len(sim.joint_names)} joints, {ctrl}) at real-time "
               f"factor {rtf or 'unlimited'}; Ctrl-C stops", file=sys.stderr)
-    try:
-        sim.run(duration if duration is not None else float("inf"), on_tick=tick, tick=0.01)
-    except DivergenceError as exc:
-        monitor.error = exc.one_line()
-    except KeyboardInterrupt:
-        pass
+    with recording(lab, args.record, args.force):
+        try:
+            sim.run(duration if duration is not None else float("inf"), on_tick=tick, tick=0.01)
+        except DivergenceError as exc:
+            monitor.error = exc.one_line()
+        except KeyboardInterrupt:
+            pass
     if live:
         print(file=sys.stderr)
     summary = monitor.summary()

@@ -1,0 +1,179 @@
+"""Bags a ROS user can open: every topic of a run, stamped with sim time.
+
+``.mcap``: one MCAP file laid out as rosbag2 writes it (ros2msg schemas, CDR payloads), which
+Foxglove, PlotJuggler and ``ros2 bag`` read. ``.bag``: a ROS 1 bag. Messages are serialised by
+``rosbags``; the MCAP container is written by the ``mcap`` library. The writer closes cleanly on
+Ctrl-C or SIGTERM (the CLI turns SIGTERM into KeyboardInterrupt) and flushes a chunk every
+second of sim time, so a stopped run keeps everything up to the stop.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from mexone.bus import msgs
+from mexone.errors import InputError, OutputExistsError
+from mexone.lab import Lab
+
+__all__ = ["BagRecorder", "ROS_NAMES", "to_ros", "typestore_for", "BAG_SUFFIXES"]
+
+BAG_SUFFIXES = (".mcap", ".bag")
+ROS_NAMES = {  # our message class -> ROS interface name as rosbags spells it
+    msgs.Float64: "std_msgs/msg/Float64",
+    msgs.Float64MultiArray: "std_msgs/msg/Float64MultiArray",
+    msgs.JointState: "sensor_msgs/msg/JointState",
+    msgs.Clock: "rosgraph_msgs/msg/Clock",
+    msgs.JointTrajectory: "trajectory_msgs/msg/JointTrajectory",
+    msgs.TFMessage: "tf2_msgs/msg/TFMessage",
+}
+_TF_MSG = "geometry_msgs/TransformStamped[] transforms\n"
+_FLUSH_PERIOD = 1.0  # s of sim time between forced chunk flushes
+
+
+def typestore_for(ros1: bool):
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if "tf2_msgs/msg/TFMessage" not in store.types:
+        store.register(get_types_from_msg(_TF_MSG, "tf2_msgs/msg/TFMessage"))
+    return store
+
+
+def to_ros(msg, store, ros1: bool):
+    """Our dataclass message -> the typestore's class of the same ROS interface."""
+    T = store.types
+
+    def time(t: msgs.Time):
+        return T["builtin_interfaces/msg/Time"](sec=t.secs, nanosec=t.nsecs)
+
+    def header(h: msgs.Header):
+        if ros1:
+            return T["std_msgs/msg/Header"](seq=h.seq, stamp=time(h.stamp), frame_id=h.frame_id)
+        return T["std_msgs/msg/Header"](stamp=time(h.stamp), frame_id=h.frame_id)
+
+    def array(values):
+        return np.asarray(values, dtype=np.float64)
+
+    match msg:
+        case msgs.Float64(data):
+            return T["std_msgs/msg/Float64"](data=float(data))
+        case msgs.Float64MultiArray(data):
+            layout = T["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+            return T["std_msgs/msg/Float64MultiArray"](layout=layout, data=array(data))
+        case msgs.JointState():
+            return T["sensor_msgs/msg/JointState"](
+                header=header(msg.header), name=list(msg.name), position=array(msg.position),
+                velocity=array(msg.velocity), effort=array(msg.effort))
+        case msgs.Clock(clock):
+            return T["rosgraph_msgs/msg/Clock"](clock=time(clock))
+        case msgs.JointTrajectory():
+            duration = T["builtin_interfaces/msg/Duration"]
+            points = [T["trajectory_msgs/msg/JointTrajectoryPoint"](
+                positions=array(p.positions), velocities=array(p.velocities),
+                accelerations=array(p.accelerations), effort=array(p.effort),
+                time_from_start=duration(sec=p.time_from_start.secs,
+                                         nanosec=p.time_from_start.nsecs)) for p in msg.points]
+            return T["trajectory_msgs/msg/JointTrajectory"](
+                header=header(msg.header), joint_names=list(msg.joint_names), points=points)
+        case msgs.TFMessage(transforms):
+            out = []
+            for tf in transforms:
+                vec = T["geometry_msgs/msg/Vector3"](x=tf.translation[0], y=tf.translation[1],
+                                                     z=tf.translation[2])
+                w, x, y, z = tf.rotation
+                quat = T["geometry_msgs/msg/Quaternion"](x=x, y=y, z=z, w=w)
+                out.append(T["geometry_msgs/msg/TransformStamped"](
+                    header=header(tf.header), child_frame_id=tf.child_frame_id,
+                    transform=T["geometry_msgs/msg/Transform"](translation=vec, rotation=quat)))
+            return T["tf2_msgs/msg/TFMessage"](transforms=out)
+    raise TypeError(f"no ROS type for {type(msg).__name__}")
+
+
+class BagRecorder:
+    """Taps every message on the lab's bus and writes it; also asks for /clock and /tf."""
+
+    def __init__(self, lab: Lab, path: Path | str, force: bool = False):
+        self.path = Path(path)
+        suffix = self.path.suffix.lower()
+        if suffix not in BAG_SUFFIXES:
+            raise InputError(f"cannot record to '{suffix or self.path.name}'", file=self.path,
+                             hint="name the bag .mcap (ROS 2) or .bag (ROS 1)")
+        if self.path.exists() and not force:
+            raise OutputExistsError("already exists; nothing was recorded", file=self.path,
+                                    hint="pass --force to overwrite it, or pick another name")
+        if not self.path.parent.is_dir():
+            raise InputError("output folder does not exist", file=self.path)
+        self.lab = lab
+        self.ros1 = suffix == ".bag"
+        self.store = typestore_for(self.ros1)
+        self.counts: dict[str, int] = {}
+        self._connections: dict[str, object] = {}
+        self._last_flush = lab.sim.time
+        self._open()
+        lab.bus.taps.append(self._write)
+        # make the periodic publishers run while we record
+        self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None),
+                      lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None)]
+        self.closed = False
+
+    def _open(self) -> None:
+        if self.ros1:
+            from rosbags.rosbag1 import Writer
+
+            self.path.unlink(missing_ok=True)
+            self.writer = Writer(self.path)
+            self.writer.open()
+        else:
+            from mcap.writer import CompressionType, Writer
+
+            self._file = self.path.open("wb")
+            self.writer = Writer(self._file, compression=CompressionType.NONE)
+            self.writer.start(profile="ros2", library="mexone")
+
+    def _connection(self, topic: str, typename: str):
+        conn = self._connections.get(topic)
+        if conn is None:
+            if self.ros1:
+                conn = self.writer.add_connection(topic, typename, typestore=self.store)
+            else:
+                text, _ = self.store.generate_msgdef(typename, ros_version=2)
+                schema = self.writer.register_schema(typename, "ros2msg", text.encode())
+                conn = self.writer.register_channel(topic, "cdr", schema)
+            self._connections[topic] = conn
+        return conn
+
+    def _write(self, topic: str, msg) -> None:
+        if self.closed:
+            return
+        typename = ROS_NAMES.get(type(msg))
+        if typename is None:
+            return
+        stamp = int(round(self.lab.sim.time * 1e9))
+        ros_msg = to_ros(msg, self.store, self.ros1)
+        conn = self._connection(topic, typename)
+        if self.ros1:
+            self.writer.write(conn, stamp, bytes(self.store.serialize_ros1(ros_msg, typename)))
+        else:
+            data = bytes(self.store.serialize_cdr(ros_msg, typename))
+            seq = self.counts.get(topic, 0)
+            self.writer.add_message(conn, log_time=stamp, data=data, publish_time=stamp,
+                                    sequence=seq)
+            if self.lab.sim.time - self._last_flush >= _FLUSH_PERIOD:
+                self._last_flush = self.lab.sim.time
+                self._file.flush()
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+
+    def close(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        if self._write in self.lab.bus.taps:
+            self.lab.bus.taps.remove(self._write)
+        for sub in self._subs:
+            sub.unregister()
+        if self.ros1:
+            self.writer.close()
+        else:
+            self.writer.finish()
+            self._file.close()
