@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
-import time
 from pathlib import Path
 
+from mexone.bus.ros1 import CLOCK_PERIOD, ROS_INSTALL
 from mexone.cli.common import (
     add_model_options,
     add_record_options,
@@ -15,9 +16,12 @@ from mexone.cli.common import (
     options_from_args,
     recording,
 )
+from mexone.description.loader import load_model
+from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
+from mexone.robots import mex_one
 
 HELP = """\
 Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
@@ -55,6 +59,9 @@ def add_parser(sub) -> None:
                    help="target real-time factor (default 1, or unlimited with --headless; "
                         "0 = unlimited)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.add_argument("--ros", action="store_true",
+                   help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
+                        "services); needs Debian's ROS: " + ROS_INSTALL)
     p.add_argument("--explain", action="store_true",
                    help="print how each Gazebo property maps to MuJoCo, then exit")
     add_model_options(p, model_positional=True)
@@ -62,12 +69,15 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None) -> int:
+def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
     from mexone.gui.app import GuiApp
 
     try:
         app = GuiApp(lambda options: lab_from_args(args, options=options), options_from_args(args),
                      host=args.host, port=args.port, target_rtf=rtf)
+        if bridge is not None:
+            bridge.attach(app.lab, _urdf_text(args, app.lab.sim.robot))
+            app.tick_hooks.append(lambda _sim: bridge.pump())
     except OSError as exc:
         raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
                          hint="pick another --port") from None
@@ -89,40 +99,46 @@ def run(args: argparse.Namespace) -> int:
         for gazebo, mujoco_name, how in GAZEBO_MAPPING:
             print(f"{gazebo}\n    -> {mujoco_name}" + (f": {how}" if how else ""))
         return 0
-    duration = args.duration if args.duration is not None else (5.0 if args.headless else None)
+    headless = args.headless or args.json
+    forever = not headless or args.ros
+    duration = args.duration if args.duration is not None else (None if forever else 5.0)
     if duration is not None and duration <= 0:
         raise InputError(f"--duration {duration:g}: must be > 0")
-    rtf = args.rtf if args.rtf is not None else (0.0 if args.headless else 1.0)
+    rtf = args.rtf if args.rtf is not None else (0.0 if headless and not args.ros else 1.0)
     if rtf < 0:
         raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
-    if not args.headless and not args.json:
-        return _serve_gui(args, rtf, duration)
+    bridge = _connect_ros(args) if args.ros else None
+    try:
+        if not headless:
+            return _serve_gui(args, rtf, duration, bridge)
+        return _run_headless(args, rtf, duration, bridge)
+    finally:
+        if bridge is not None:
+            bridge.shutdown()
+
+
+def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
     lab = lab_from_args(args, target_rtf=rtf or None)
     sim, robot = lab.sim, lab.sim.robot
     monitor = RunMonitor(sim)
-    live = not args.headless and sys.stderr.isatty()
-    last_status = [0.0]
+    if bridge is not None:
+        bridge.attach(lab, _urdf_text(args, robot))
+        print(f"mexone: {robot.name} is on ROS at {os.environ.get('ROS_MASTER_URI', '?')} "
+              f"(namespace {lab.namespace}); Ctrl-C stops", file=sys.stderr)
 
     def tick(s: Simulation) -> None:
         monitor.tick(s)
-        if live and time.perf_counter() - last_status[0] > 0.5:
-            last_status[0] = time.perf_counter()
-            print(f"\rsim time {s.time:9.3f} s   real-time factor {s.rtf.value:5.2f}",
-                  end="", file=sys.stderr, flush=True)
+        if bridge is not None:
+            bridge.pump()
 
-    if not args.headless and not args.json:
-        ctrl = f"{len(lab.controllers.controllers)} controllers" if lab.controllers else "no controllers"
-        print(f"simulating {robot.name} ({len(sim.joint_names)} joints, {ctrl}) at real-time "
-              f"factor {rtf or 'unlimited'}; Ctrl-C stops", file=sys.stderr)
     with recording(lab, args.record, args.force):
         try:
-            sim.run(duration if duration is not None else float("inf"), on_tick=tick, tick=0.01)
+            sim.run(duration if duration is not None else float("inf"), on_tick=tick,
+                    tick=CLOCK_PERIOD if bridge is not None else 0.01)
         except DivergenceError as exc:
             monitor.error = exc.one_line()
         except KeyboardInterrupt:
             pass
-    if live:
-        print(file=sys.stderr)
     summary = monitor.summary()
     if args.json:
         print(json.dumps({k: v for k, v in summary.as_json().items() if k != "rest_time"}
@@ -137,3 +153,25 @@ def run(args: argparse.Namespace) -> int:
             print(f"base height {summary.base_height:.3f} m, fastest link {summary.max_link_speed:.2f}"
                   f" m/s, at rest: {rest}")
     return 1 if summary.diverged else 0
+
+
+def _connect_ros(args: argparse.Namespace):
+    """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
+    put them there and none were given on the command line (the seed's control.launch flow)."""
+    from mexone.bus.ros1 import Ros1Bridge, config_from_param_server
+
+    bridge = Ros1Bridge()
+    if args.controllers is None and not args.no_controllers:
+        robot = load_model(args.model or mex_one.urdf_path())
+        ns = (robot.ros_namespace or robot.name).strip("/")
+        if bridge.rospy.has_param(f"/{ns}"):
+            args.controllers = config_from_param_server(bridge.rospy, ns)
+    return bridge
+
+
+def _urdf_text(args: argparse.Namespace, robot) -> str:
+    """/robot_description: the user's URDF as written, else the model written as URDF."""
+    path = args.model or mex_one.urdf_path()
+    if str(path).endswith(".urdf"):
+        return path.read_text()
+    return write_urdf(robot)

@@ -37,6 +37,7 @@ __all__ = ["GuiApp", "FPS"]
 
 FPS = 30.0  # scene updates per second of wall time
 PLOT_SECONDS = 10.0
+TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
 
 
 class GuiApp:
@@ -58,6 +59,7 @@ class GuiApp:
             maxlen=int(PLOT_SECONDS * FPS))
         self.error: str | None = None
         self._frames = 0
+        self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self._build_gui()
         self.server.initial_camera.position = (1.5, -1.5, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
@@ -81,11 +83,16 @@ class GuiApp:
                 continue
             gate = self.routine.scheduler if self.routine and self.routine.running else None
             try:
-                sim.run(frame, tick=frame, gate=gate)
+                sim.run(frame, tick=min(frame, TICK) if self.tick_hooks else frame, gate=gate,
+                        on_tick=self._tick if self.tick_hooks else None)
             except DivergenceError as exc:
                 self.error = exc.one_line()
                 self._status.content = f"**diverged** — {self.error}. Press *Reset world*."
             self._after_frame()
+
+    def _tick(self, sim) -> None:
+        for hook in self.tick_hooks:
+            hook(sim)
 
     def stop(self) -> None:
         self.stopping.set()
