@@ -141,9 +141,8 @@ def test_a_rospy_sweep_node_follows_sim_time(ros):
 def test_robot_state_publisher_tf_matches_the_simulator(ros):
     rospy, port, _ = ros
     import tf2_ros
-    from std_srvs.srv import Empty
-
     from sensor_msgs.msg import JointState
+    from std_srvs.srv import Empty
 
     rsp = subprocess.Popen([RSP, "joint_states:=/mex_rb/joint_states"], env=ros_env(port),
                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,

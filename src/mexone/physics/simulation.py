@@ -173,8 +173,9 @@ class Simulation:
             tick: float = 0.05, gate: Gate | None = None,
             until: Callable[[], bool] | None = None) -> None:
         """Simulate `duration` s of sim time, paced to target_rtf if set. on_tick(sim) runs every
-        `tick` s of sim time (status lines, GUI frames, monitors), and every 10 ms while paused; `gate` holds the clock for
-        code running in lockstep with sim time (routines); `until()` true ends the run early."""
+        `tick` s of sim time (status lines, GUI frames, monitors) and every 10 ms while paused;
+        `gate` holds the clock for code running in lockstep with sim time (routines); `until()`
+        true ends the run early."""
         half = 0.5 * self.timestep
         end = self.data.time + duration
         next_tick = self.data.time + tick
