@@ -18,7 +18,7 @@ __all__ = ["main", "build_parser"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import check, convert, plot, record, render, run, sim
+    from mexone.cli import bench, check, convert, plot, record, render, run, sim, sweep
 
     parser = argparse.ArgumentParser(
         prog="mexone",
@@ -27,7 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, run, record, plot, render, check, convert):
+    for module in (sim, run, record, plot, render, sweep, check, convert, bench):
         module.add_parser(sub)
     return parser
 

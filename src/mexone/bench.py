@@ -1,0 +1,261 @@
+"""`mexone bench`: what mexone costs and how fast it can go, all measured in one run.
+
+Rows (each a ratio or a rate measured side by side in the same process run, so they hold on a
+noisy machine):
+  overhead       Mex-One with 21 PID controllers and joint states at 50 Hz vs bare mj_step on
+                 the very same compiled model, controls and actuator settings
+  pybullet       the same URDF in PyBullet (extra [peers]): 1 ms steps, 21 joints under its
+                 POSITION_CONTROL motors; step-time ratio, and the no-controller fall side by side
+  cold start     process start to the first simulated millisecond of `mexone sim --headless`
+  parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
+                 controllers run inside MuJoCo, so the controlled robot rolls out in C) and
+                 processes each running a full mexone Lab
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import mujoco
+import numpy as np
+
+from mexone.lab import Lab
+from mexone.physics.monitor import RunMonitor
+from mexone.robots import mex_one
+
+__all__ = ["BenchReport", "run_bench", "format_report"]
+
+
+@dataclass
+class BenchReport:
+    machine: str
+    sim_seconds: float
+    overhead: dict = field(default_factory=dict)
+    pybullet: dict | None = None
+    cold_start_s: float | None = None
+    parallel: list[dict] = field(default_factory=list)
+
+    def as_json(self) -> dict:
+        return asdict(self)
+
+
+def _best(fn, repeats: int) -> float:
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def overhead(sim_seconds: float, repeats: int) -> dict:
+    lab = Lab.create()
+    model = lab.sim.model
+    data = mujoco.MjData(model)
+    steps = round(sim_seconds / model.opt.timestep)
+    ctrl = lab.sim.data.ctrl.copy()
+
+    def bare() -> None:
+        mujoco.mj_resetData(model, data)
+        data.ctrl[:] = ctrl
+        mujoco.mj_step(model, data, steps)
+
+    def ours() -> None:
+        lab.sim.reset()
+        lab.sim.step(steps)
+
+    b, o = _best(bare, repeats), _best(ours, repeats)
+    return {"bare_s_per_sim_s": b / sim_seconds, "mexone_s_per_sim_s": o / sim_seconds,
+            "ratio": o / b}
+
+
+def _fall_mexone(seconds: float) -> dict:
+    lab = Lab.create(controllers=False)
+    monitor = RunMonitor(lab.sim)
+    lab.sim.run(seconds, on_tick=monitor.tick, tick=0.01)
+    s = monitor.summary()
+    return {"rest_time_s": s.rest_time, "base_height_m": s.base_height}
+
+
+def pybullet_compare(sim_seconds: float, repeats: int) -> dict | None:
+    try:
+        import pybullet as pb
+    except ImportError:
+        return None
+    from mexone.description.loader import load_model
+    from mexone.description.urdf import write_urdf
+
+    robot = load_model(mex_one.urdf_path())
+    for link in robot.links.values():
+        link.visuals = []  # PyBullet cannot resolve package:// meshes; physics uses primitives
+    with tempfile.TemporaryDirectory() as tmp:
+        urdf = Path(tmp) / "mex_rb.urdf"
+        urdf.write_text(write_urdf(robot))
+        client = pb.connect(pb.DIRECT)
+        try:
+            return _pybullet_rows(pb, client, str(urdf), robot, sim_seconds, repeats)
+        finally:
+            pb.disconnect(client)
+
+
+def _pybullet_rows(pb, client, urdf: str, robot, sim_seconds: float, repeats: int) -> dict:
+    steps = round(sim_seconds / 0.001)
+
+    def build(controlled: bool):
+        pb.resetSimulation(physicsClientId=client)
+        pb.setTimeStep(0.001, physicsClientId=client)
+        pb.setGravity(0, 0, -9.81, physicsClientId=client)
+        plane = pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=client)
+        pb.createMultiBody(0, plane, physicsClientId=client)
+        body = pb.loadURDF(urdf, [0, 0, 0.6], flags=pb.URDF_USE_SELF_COLLISION,
+                           physicsClientId=client)
+        joints = [j for j in range(pb.getNumJoints(body, physicsClientId=client))
+                  if pb.getJointInfo(body, j, physicsClientId=client)[2] == pb.JOINT_REVOLUTE]
+        names = [pb.getJointInfo(body, j, physicsClientId=client)[1].decode() for j in joints]
+        forces = [robot.joints[n].limit.effort for n in names]
+        if controlled:
+            pb.setJointMotorControlArray(body, joints, pb.POSITION_CONTROL,
+                                         targetPositions=[0.0] * len(joints), forces=forces,
+                                         physicsClientId=client)
+        else:  # PyBullet's default velocity motors lock the joints: switch them off
+            pb.setJointMotorControlArray(body, joints, pb.VELOCITY_CONTROL,
+                                         forces=[0.0] * len(joints), physicsClientId=client)
+        return body, joints
+
+    def run_controlled() -> None:
+        build(True)
+        for _ in range(steps):
+            pb.stepSimulation(physicsClientId=client)
+
+    ours = Lab.create()
+
+    def run_ours() -> None:
+        ours.sim.reset()
+        ours.sim.step(steps)
+
+    pb_time, our_time = _best(run_controlled, repeats), _best(run_ours, repeats)
+    body, _ = build(False)
+    rest, height = None, None
+    for k in range(1, 8001):
+        pb.stepSimulation(physicsClientId=client)
+        if k % 10 == 0:
+            speeds = [np.linalg.norm(pb.getBaseVelocity(body, physicsClientId=client)[0])]
+            speeds += [np.linalg.norm(s[6]) for s in pb.getLinkStates(
+                body, range(pb.getNumJoints(body, physicsClientId=client)), computeLinkVelocity=1,
+                physicsClientId=client)]
+            still = max(speeds) < 0.01
+            rest = (rest if rest is not None else k * 0.001) if still else None
+    height = pb.getBasePositionAndOrientation(body, physicsClientId=client)[0][2]
+    return {"pybullet_s_per_sim_s": pb_time / sim_seconds,
+            "mexone_s_per_sim_s": our_time / sim_seconds, "mexone_speedup": pb_time / our_time,
+            "fall": {"pybullet": {"rest_time_s": rest, "base_height_m": height},
+                     "mexone": _fall_mexone(8.0)}}
+
+
+def cold_start(repeats: int) -> float:
+    cmd = [sys.executable, "-m", "mexone", "sim", "--headless", "--duration", "0.001", "--json"]
+    return _best(lambda: subprocess.run(cmd, capture_output=True, check=True), repeats)
+
+
+_WORKER_LAB: list[Lab] = []  # one Lab per worker process, built on its first task
+
+
+def _lab_worker(seconds: float) -> float:
+    if not _WORKER_LAB:
+        _WORKER_LAB.append(Lab.create())
+    lab = _WORKER_LAB[0]
+    lab.sim.reset()
+    lab.sim.step(round(seconds / lab.sim.timestep))
+    return seconds
+
+
+def parallel(workers: int, sim_seconds: float) -> list[dict]:
+    lab = Lab.create()
+    model = lab.sim.model
+    steps = round(sim_seconds / model.opt.timestep)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.zeros(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, lab.sim.data, state, spec)
+    control = np.tile(lab.sim.data.ctrl, (1, steps, 1))
+    from mujoco import rollout
+
+    rows = []
+    for n in range(1, workers + 1):
+        datas = [mujoco.MjData(model) for _ in range(n)]
+        batch = 2 * n
+        wall = _best(lambda datas=datas, batch=batch: rollout.rollout(
+            [model] * batch, datas, np.tile(state, (batch, 1)), np.tile(control, (batch, 1, 1))), 2)
+        rows.append({"backend": "mujoco.rollout threads", "workers": n,
+                     "robot_s_per_wall_s": batch * sim_seconds / wall})
+    for n in range(1, workers + 1):
+        with ProcessPoolExecutor(n) as pool:
+            list(pool.map(_lab_worker, [0.01] * (4 * n)))  # every worker builds its Lab
+            start = time.perf_counter()
+            list(pool.map(_lab_worker, [sim_seconds] * (2 * n)))
+            wall = time.perf_counter() - start
+        rows.append({"backend": "processes (full Lab)", "workers": n,
+                     "robot_s_per_wall_s": 2 * n * sim_seconds / wall})
+    for row in rows:
+        first = next(r for r in rows if r["backend"] == row["backend"] and r["workers"] == 1)
+        row["efficiency"] = row["robot_s_per_wall_s"] / (row["workers"] * first["robot_s_per_wall_s"])
+    return rows
+
+
+def machine() -> str:
+    cpu = "unknown CPU"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{os.cpu_count()} cores, {cpu}, Python {sys.version.split()[0]}, MuJoCo {mujoco.__version__}"
+
+
+def run_bench(quick: bool = False, progress=None) -> BenchReport:
+    sim_seconds, repeats = (1.0, 2) if quick else (5.0, 5)
+    report = BenchReport(machine(), sim_seconds)
+    steps = [("overhead", lambda: overhead(sim_seconds, repeats)),
+             ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
+             ("cold_start_s", lambda: cold_start(2 if quick else 3)),
+             ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds))]
+    for name, fn in steps:
+        if progress:
+            progress(name)
+        setattr(report, name, fn())
+    return report
+
+
+def format_report(report: BenchReport) -> str:
+    o = report.overhead
+    lines = [f"machine: {report.machine}; {report.sim_seconds:g} s of sim time per measurement",
+             "",
+             f"{'what':<44} {'value':>12}",
+             f"{'bare mj_step, wall s per sim s':<44} {o['bare_s_per_sim_s']:12.4f}",
+             f"{'mexone + 21 PID + joint states, wall s/sim s':<44} {o['mexone_s_per_sim_s']:12.4f}",
+             f"{'overhead ratio (target <= 1.15)':<44} {o['ratio']:12.3f}"]
+    pb = report.pybullet
+    if pb is None:
+        lines.append(f"{'pybullet':<44} {'not installed (pip install mexone[peers])':>12}")
+    else:
+        lines += [f"{'pybullet, wall s per sim s':<44} {pb['pybullet_s_per_sim_s']:12.4f}",
+                  f"{'mexone speed-up over pybullet':<44} {pb['mexone_speedup']:12.2f}"]
+        for who in ("mexone", "pybullet"):
+            fall = pb["fall"][who]
+            rest = "never" if fall["rest_time_s"] is None else f"{fall['rest_time_s']:.2f} s"
+            lines.append(f"{'fall, no controllers: ' + who + ' at rest / height':<44} "
+                         f"{rest:>6} {fall['base_height_m']:5.3f}")
+    lines.append(f"{'cold start (process to 1 ms simulated), s':<44} {report.cold_start_s:12.2f}")
+    for row in report.parallel:
+        label = f"{row['backend']}, {row['workers']} worker(s)"
+        lines.append(f"{label:<44} {row['robot_s_per_wall_s']:8.1f} robot-s/s, "
+                     f"efficiency {row['efficiency']:.2f}")
+    return "\n".join(lines)

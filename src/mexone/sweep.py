@@ -1,0 +1,343 @@
+"""Gain sweeps: the same experiment many times with different PID gains, in parallel.
+
+A trial sets the gains of the swept joints on the full robot (controllers as configured), then
+runs either a step response of one joint or a whole routine, and reports rise time, overshoot,
+settling time, IAE, the largest effort and whether the robot fell. The simulation is
+deterministic, so a trial's numbers do not depend on which worker -- or which backend, local
+processes or a Ray cluster -- ran it.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+from collections.abc import Callable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mexone.control.config import PidGains
+from mexone.errors import InputError
+from mexone.lab import Lab
+
+__all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "run_sweep",
+           "parse_range", "best_row", "best_yaml", "heatmap", "METRICS", "GAIN_KEYS"]
+
+GAIN_KEYS = ("p", "i", "d", "i_clamp")
+METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
+STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
+SETTLE_BAND = 0.02  # of the step
+FALL_TILT = 0.5  # rad
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    joints: tuple[str, ...]  # whose gains are swept; the first one takes the step
+    step: float = 0.5  # rad, step-response mode
+    routine: str | None = None  # routine mode instead of a step
+    duration: float = 2.0  # s of sim time per trial
+    model: str | None = None  # None: built-in Mex-One
+    controllers: str | None = None
+
+    def key(self) -> str:
+        return json.dumps(asdict(self), sort_keys=True)
+
+
+@dataclass(frozen=True)
+class Trial:
+    index: int
+    gains: dict[str, float] = field(default_factory=dict)
+
+
+def parse_range(text: str, name: str) -> np.ndarray:
+    """'40' | '20,40,80' | '10:200:8' (start:stop:count, inclusive, linear)."""
+    try:
+        if ":" in text:
+            start, stop, count = text.split(":")
+            values = np.linspace(float(start), float(stop), int(count))
+        else:
+            values = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        raise InputError(f"--{name} '{text}' is not a value, a list a,b,c or start:stop:count",
+                         hint="e.g. --p 20:200:10") from None
+    if not np.isfinite(values).all() or (values < 0).any() or values.size == 0:
+        raise InputError(f"--{name} '{text}': gains must be finite and >= 0")
+    return values
+
+
+def grid_trials(ranges: dict[str, np.ndarray]) -> list[Trial]:
+    keys = list(ranges)
+    return [Trial(i, {k: float(v) for k, v in zip(keys, combo, strict=True)})
+            for i, combo in enumerate(itertools.product(*(ranges[k] for k in keys)))]
+
+
+def random_trials(ranges: dict[str, np.ndarray], count: int, seed: int = 0) -> list[Trial]:
+    """Uniform in [min, max] of each range (log-uniform would need positive bounds)."""
+    rng = np.random.default_rng(seed)
+    return [Trial(i, {k: float(rng.uniform(v.min(), v.max())) for k, v in ranges.items()})
+            for i in range(count)]
+
+
+# ----- one trial ---------------------------------------------------------------------------------
+_LABS: dict[str, Lab] = {}  # one Lab per spec per worker process: compiling costs more than a trial
+
+
+def _lab(spec: SweepSpec) -> Lab:
+    lab = _LABS.get(spec.key())
+    if lab is None:
+        lab = _LABS[spec.key()] = Lab.create(spec.model, spec.controllers)
+        if lab.controllers is None:
+            raise InputError("the robot has no controllers to tune", hint="give --controllers")
+    lab.sim.reset()
+    lab.controllers.restart()
+    return lab
+
+
+def _apply_gains(lab: Lab, spec: SweepSpec, gains: dict[str, float]) -> np.ndarray:
+    manager = lab.controllers
+    by_joint = manager.by_joint()
+    rows = []
+    for joint in spec.joints:
+        ctrl = by_joint.get(joint)
+        if ctrl is None or not hasattr(ctrl, "gains"):
+            raise InputError(f"joint '{joint}' has no running position controller to tune")
+        base = ctrl.gains[ctrl.joints.index(joint)]
+        clamp = gains.get("i_clamp", max(abs(base.i_clamp_min), abs(base.i_clamp_max)))
+        tuned = PidGains(p=gains.get("p", base.p), i=gains.get("i", base.i),
+                         d=gains.get("d", base.d), i_clamp_min=-clamp, i_clamp_max=clamp,
+                         antiwindup=base.antiwindup)
+        row = manager.hw.rows([joint])
+        manager.bank.set_gains(row, [tuned])
+        rows.append(row[0])
+    manager.reschedule()
+    return np.array(rows)
+
+
+def run_trial(spec: SweepSpec, trial: Trial) -> dict:
+    lab = _lab(spec)
+    sim = lab.sim
+    rows = _apply_gains(lab, spec, trial.gains)
+    start_height = sim.base_height
+    metrics = _routine_trial(lab, spec, rows) if spec.routine else _step_trial(lab, spec, rows[0])
+    rot = sim.data.xmat[sim.compiled.root_body].reshape(3, 3)
+    tilt = math.acos(max(-1.0, min(1.0, rot[2, 2])))
+    metrics["fell"] = bool(tilt > FALL_TILT or sim.base_height < 0.7 * start_height)
+    metrics["max_effort"] = float(metrics["max_effort"])
+    return {"index": trial.index, **trial.gains, **metrics}
+
+
+def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
+    sim, hw = lab.sim, lab.controllers.hw
+    joint = spec.joints[0]
+    start = float(hw.position(np.array([row]))[0])
+    target = float(np.clip(start + spec.step, hw.lower[row], hw.upper[row]))
+    sim.step(round(STEP_AT / sim.timestep))
+    ctrl = lab.controllers.by_joint()[joint]
+    values = ctrl.setpoint.copy()
+    values[ctrl.joints.index(joint)] = target
+    ctrl.set_command(values)
+    n = round((spec.duration - STEP_AT) / sim.timestep)
+    q, effort = np.empty(n), np.empty(n)
+    one = np.array([row])
+    for k in range(n):
+        sim.step(1)
+        q[k] = hw.position(one)[0]
+        effort[k] = hw.effort(one)[0]
+    t = np.arange(1, n + 1) * sim.timestep
+    size = target - start
+    progress = (q - start) / size if size else np.ones(n)
+    return {"rise_time": _rise_time(t, progress), "overshoot": float(max(progress.max() - 1, 0)),
+            "settling_time": _settling(t, progress),
+            "iae": float(np.abs(target - q).sum() * sim.timestep),
+            "max_effort": np.abs(effort).max()}
+
+
+def _rise_time(t: np.ndarray, progress: np.ndarray) -> float | None:
+    low, high = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
+    return float(t[high[0]] - t[low[0]]) if low.size and high.size else None
+
+
+def _settling(t: np.ndarray, progress: np.ndarray) -> float | None:
+    outside = np.flatnonzero(np.abs(progress - 1.0) > SETTLE_BAND)
+    if outside.size == 0:
+        return 0.0
+    return None if outside[-1] == len(t) - 1 else float(t[outside[-1] + 1])
+
+
+def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
+    from mexone.routines.runner import RoutineRunner
+
+    sim, hw, bank = lab.sim, lab.controllers.hw, lab.controllers.bank
+    totals = {"iae": 0.0, "max_effort": 0.0}
+
+    def sample(s) -> None:
+        error = bank.setpoint[rows] - hw.position(rows)
+        totals["iae"] += float(np.abs(error).sum()) * 0.01
+        totals["max_effort"] = max(totals["max_effort"], float(np.abs(hw.effort(rows)).max()))
+
+    timer = sim.add_periodic(0.01, sample)
+    try:
+        runner = RoutineRunner(lab, spec.routine)
+        runner.run(spec.duration)
+        if runner.error:
+            raise InputError(f"routine failed: {runner.error.splitlines()[-1]}")
+    finally:
+        sim.remove_periodic(timer)
+    return {"rise_time": None, "overshoot": None, "settling_time": None, **totals}
+
+
+# ----- many trials ---------------------------------------------------------------------------------
+def _completed(csv_path: Path) -> dict[int, dict]:
+    if not csv_path.exists():
+        return {}
+    with csv_path.open() as handle:
+        return {int(r["index"]): r for r in csv.DictReader(handle)}
+
+
+def run_sweep(spec: SweepSpec, trials: list[Trial], out_csv: Path, workers: int,
+              backend: str = "local", address: str | None = None,
+              progress: Callable[[int], None] | None = None) -> list[dict]:
+    """Run the trials not yet in out_csv (so an interrupted sweep resumes), appending each
+    result as it finishes. Returns every row, finished before or now, in trial order."""
+    done = _completed(out_csv)
+    todo = [t for t in trials if t.index not in done]
+    columns = ["index", *trials[0].gains, *METRICS] if trials else ["index", *METRICS]
+    new_file = not out_csv.exists()
+    with out_csv.open("a", newline="") as handle:
+        writer = csv.DictWriter(handle, columns, extrasaction="ignore")
+        if new_file:
+            writer.writeheader()
+        runner = _ray_results if backend == "ray" else _local_results
+        for row in runner(spec, todo, workers, address):
+            writer.writerow({k: ("" if v is None else v) for k, v in row.items()})
+            handle.flush()
+            done[row["index"]] = row
+            if progress:
+                progress(1)
+    return [done[t.index] for t in trials if t.index in done]
+
+
+def _local_results(spec: SweepSpec, trials: list[Trial], workers: int, _address) -> Iterator[dict]:
+    if workers <= 1:
+        for trial in trials:
+            yield run_trial(spec, trial)
+        return
+    pool = ProcessPoolExecutor(workers)
+    try:
+        pending = {pool.submit(run_trial, spec, t) for t in trials}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in finished:
+                yield future.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
+                 address: str | None) -> Iterator[dict]:
+    try:
+        import ray
+    except ImportError:
+        raise InputError("the ray backend needs Ray", hint="pip install 'mexone[cluster]'") from None
+    started_here = not ray.is_initialized()
+    if started_here:
+        kwargs = {"address": address} if address else {"num_cpus": workers}
+        ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
+    remote = ray.remote(run_trial)
+    try:
+        pending = [remote.remote(spec, t) for t in trials]
+        while pending:
+            finished, pending = ray.wait(pending, num_returns=1)
+            yield ray.get(finished[0])
+    finally:
+        if started_here:
+            ray.shutdown()
+
+
+# ----- results ---------------------------------------------------------------------------------
+def _number(value) -> float:
+    return float("nan") if value in ("", None) else float(value)
+
+
+def _fell(row: dict) -> bool:
+    return str(row["fell"]) in ("True", "true", "1")
+
+
+def best_row(rows: list[dict], metric: str) -> dict | None:
+    """Lowest metric among the runs that did not fall (and reached a value)."""
+    ok = [r for r in rows if not _fell(r) and math.isfinite(_number(r[metric]))]
+    return min(ok, key=lambda r: _number(r[metric])) if ok else None
+
+
+def best_yaml(spec: SweepSpec, row: dict, metric: str, namespace: str, runs: int) -> str:
+    import yaml
+
+    controllers = {}
+    for joint in spec.joints:
+        pid = {k: round(_number(row[k]), 6) for k in ("p", "i", "d") if k in row}
+        if "i_clamp" in row:
+            pid["i_clamp_min"], pid["i_clamp_max"] = -_number(row["i_clamp"]), _number(row["i_clamp"])
+        controllers[f"{joint}_position_controller"] = {"pid": pid}
+    header = (f"# best of {runs} runs by {metric} ({_number(row[metric]):.6g}), from mexone sweep;\n"
+              "# paste over the matching entries of controllers.yaml\n")
+    return header + yaml.safe_dump({namespace.strip("/"): controllers}, sort_keys=False)
+
+
+def heatmap(rows: list[dict], x: str, y: str, metric: str, out: Path, title: str) -> None:
+    """Metric over two gains (the best over any other swept gain); falls hatched in grey."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    xs = sorted({_number(r[x]) for r in rows})
+    ys = sorted({_number(r[y]) for r in rows})
+    grid = np.full((len(ys), len(xs)), np.nan)
+    fell = np.zeros_like(grid, dtype=bool)
+    for r in rows:
+        i, j = ys.index(_number(r[y])), xs.index(_number(r[x]))
+        if _fell(r):
+            fell[i, j] = True
+            continue
+        value = _number(r[metric])
+        if math.isfinite(value) and not value >= grid[i, j]:
+            grid[i, j] = value
+    fig, ax = plt.subplots(figsize=(7.5, 5.5))
+    image = ax.imshow(grid, origin="lower", aspect="auto", cmap="viridis_r",
+                      extent=_extent(xs) + _extent(ys))
+    fig.colorbar(image, ax=ax, label=_METRIC_LABELS.get(metric, metric))
+    for i, j in zip(*np.nonzero(fell), strict=True):
+        ax.add_patch(plt.Rectangle((_edges(xs)[j], _edges(ys)[i]), _edges(xs)[j + 1] - _edges(xs)[j],
+                                   _edges(ys)[i + 1] - _edges(ys)[i], color="0.6", hatch="xx",
+                                   fill=False))
+    if np.isfinite(grid).any():
+        i, j = np.unravel_index(np.nanargmin(grid), grid.shape)
+        ax.plot(xs[j], ys[i], marker="*", color="red", markersize=16, label="best")
+        ax.legend(loc="upper right")
+    ax.set_xlabel(f"{x} gain")
+    ax.set_ylabel(f"{y} gain")
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+_METRIC_LABELS = {"rise_time": "rise time (s)", "overshoot": "overshoot (fraction of the step)",
+                  "settling_time": "settling time (s)", "iae": "IAE (rad s)",
+                  "max_effort": "max effort (N m)"}
+
+
+def _edges(values: list[float]) -> list[float]:
+    if len(values) == 1:
+        return [values[0] - 0.5, values[0] + 0.5]
+    mids = [(a + b) / 2 for a, b in zip(values[:-1], values[1:], strict=True)]
+    return [values[0] - (mids[0] - values[0]), *mids, values[-1] + (values[-1] - mids[-1])]
+
+
+def _extent(values: list[float]) -> list[float]:
+    edges = _edges(values)
+    return [edges[0], edges[-1]]

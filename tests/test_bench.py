@@ -1,0 +1,23 @@
+"""`mexone bench` runs every row and reports them in one JSON object (no timing thresholds:
+the figures go to benchmarks/RESULTS.md, not into assertions)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+
+def test_bench_quick_json():
+    out = subprocess.run([sys.executable, "-m", "mexone", "bench", "--quick", "--json"],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    assert report["overhead"]["ratio"] > 0 and report["cold_start_s"] > 0
+    pybullet = report["pybullet"]
+    assert pybullet is not None, "pybullet (the [peers] extra) is part of the test install"
+    assert pybullet["fall"]["mexone"]["base_height_m"] < 0.5  # both robots fell...
+    assert pybullet["fall"]["pybullet"]["base_height_m"] < 0.5  # ...in both simulators
+    backends = {(r["backend"], r["workers"]) for r in report["parallel"]}
+    assert len(backends) == 2 * (os.cpu_count() or 1)
