@@ -251,8 +251,8 @@ def format_report(report: BenchReport) -> str:
         for who in ("mexone", "pybullet"):
             fall = pb["fall"][who]
             rest = "never" if fall["rest_time_s"] is None else f"{fall['rest_time_s']:.2f} s"
-            lines.append(f"{'fall, no controllers: ' + who + ' at rest / height':<44} "
-                         f"{rest:>6} {fall['base_height_m']:5.3f}")
+            label = f"fall without controllers, {who}: rest at / height"
+            lines.append(f"{label:<52} {rest:>7} / {fall['base_height_m']:.3f} m")
     lines.append(f"{'cold start (process to 1 ms simulated), s':<44} {report.cold_start_s:12.2f}")
     for row in report.parallel:
         label = f"{row['backend']}, {row['workers']} worker(s)"
