@@ -32,4 +32,14 @@ def test_verb_help(verb, capsys):
 
 def test_no_verb_is_a_usage_error():
     out = subprocess.run([shutil.which("mexone")], capture_output=True, text=True)
-    assert out.returncode == 2 and "usage: mexone" in out.stderr
+    assert out.returncode == 2
+    assert out.stderr == ("mexone: the following arguments are required: <verb> "
+                          "(see 'mexone --help')\n")
+
+
+def test_bad_option_value_is_one_line():
+    out = subprocess.run([shutil.which("mexone"), "run", "sweep", "--duration", "-1"],
+                         capture_output=True, text=True)
+    assert out.returncode == 2
+    assert out.stderr == ("mexone: run: argument --duration: -1 must be a finite number > 0 "
+                          "(see 'mexone run --help')\n")

@@ -22,14 +22,16 @@ __all__ = [
 
 
 @dataclass(frozen=True, order=True)
-class Time:
+class _Stamp:
+    """Seconds and nanoseconds, as ROS keeps time."""
+
     secs: int = 0
     nsecs: int = 0
 
-    @staticmethod
-    def from_sec(seconds: float) -> Time:
+    @classmethod
+    def from_sec(cls, seconds: float):
         secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)  # round first: 1.9999999999 -> 2
-        return Time(int(secs), int(nsecs))
+        return cls(int(secs), int(nsecs))
 
     def to_sec(self) -> float:
         return self.secs + self.nsecs * 1e-9
@@ -37,6 +39,14 @@ class Time:
     def to_nsec(self) -> int:
         return self.secs * 1_000_000_000 + self.nsecs
 
+
+@dataclass(frozen=True, order=True)
+class Duration(_Stamp):
+    pass
+
+
+@dataclass(frozen=True, order=True)
+class Time(_Stamp):
     def __add__(self, other: Duration) -> Time:
         return Time.from_sec(self.to_sec() + other.to_sec())
 
@@ -44,20 +54,6 @@ class Time:
         if isinstance(other, Time):
             return Duration.from_sec(self.to_sec() - other.to_sec())
         return Time.from_sec(self.to_sec() - other.to_sec())
-
-
-@dataclass(frozen=True, order=True)
-class Duration:
-    secs: int = 0
-    nsecs: int = 0
-
-    @staticmethod
-    def from_sec(seconds: float) -> Duration:
-        secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)
-        return Duration(int(secs), int(nsecs))
-
-    def to_sec(self) -> float:
-        return self.secs + self.nsecs * 1e-9
 
 
 @dataclass

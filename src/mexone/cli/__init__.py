@@ -17,10 +17,19 @@ from mexone.errors import MexoneError
 __all__ = ["main", "build_parser"]
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a usage mistake is one line that says where to look, not a usage dump."""
+
+    def error(self, message: str):
+        verb = self.prog.removeprefix("mexone").strip()
+        where = f"{verb}: " if verb else ""
+        self.exit(2, f"mexone: {where}{message} (see '{self.prog} --help')\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     from mexone.cli import bench, check, convert, plot, record, render, run, sim, sweep
 
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mexone",
         description="Mex-One humanoid simulation lab: URDF robots on MuJoCo with "
                     "ros_control-style controllers and ROS-named topics.",

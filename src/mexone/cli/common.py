@@ -12,7 +12,18 @@ from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
 
 __all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
-           "add_record_options"]
+           "add_record_options", "positive"]
+
+
+def positive(text: str) -> float:
+    """argparse type: a number > 0 (durations, rates)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text} must be a finite number > 0")
+    return value
 
 
 def add_record_options(p: argparse.ArgumentParser) -> None:

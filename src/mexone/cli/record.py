@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
-from mexone.cli.common import add_model_options, lab_from_args, recording
-from mexone.errors import InputError
+from mexone.cli.common import add_model_options, lab_from_args, positive, recording
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
@@ -22,9 +22,9 @@ def add_parser(sub) -> None:
     p.add_argument("routine", nargs="?",
                    help="routine file or shipped routine (" + ", ".join(shipped_routines()) + ")")
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
-    p.add_argument("-o", "--output", required=True, type=__import__("pathlib").Path,
+    p.add_argument("-o", "--output", required=True, type=Path,
                    metavar="BAG", help="bag to write: .mcap or .bag")
-    p.add_argument("--duration", type=float, default=10.0, metavar="S",
+    p.add_argument("--duration", type=positive, default=10.0, metavar="S",
                    help="seconds of sim time (default 10)")
     p.add_argument("--force", action="store_true", help="overwrite BAG if it exists")
     add_model_options(p)
@@ -32,8 +32,6 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.duration <= 0:
-        raise InputError(f"--duration {args.duration:g}: must be > 0")
     params = parse_param_args(args.params)
     lab = lab_from_args(args)
     runner = RoutineRunner(lab, args.routine, params) if args.routine else None

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from mexone.cli.common import add_model_options, lab_from_args
+from mexone.cli.common import add_model_options, lab_from_args, positive
 from mexone.errors import InputError, OutputExistsError
 from mexone.physics.watchdog import DivergenceError
 from mexone.record.video import VideoWriter, ensure_gl_backend, parse_camera
@@ -26,10 +26,10 @@ def add_parser(sub) -> None:
     p.add_argument("routine", help="routine file or one of: " + ", ".join(shipped_routines()))
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
     p.add_argument("-o", "--output", type=Path, required=True, help="out.mp4 or out.gif")
-    p.add_argument("--duration", type=float, default=6.0, metavar="S",
+    p.add_argument("--duration", type=positive, default=6.0, metavar="S",
                    help="seconds of sim time (default 6)")
     p.add_argument("--camera", default="track", help="track, fixed or azimuth,elevation,distance")
-    p.add_argument("--fps", type=float, default=30.0, help="frames per second (default 30)")
+    p.add_argument("--fps", type=positive, default=30.0, help="frames per second (default 30)")
     p.add_argument("--size", default="640x480", help="WIDTHxHEIGHT (default 640x480)")
     p.add_argument("--force", action="store_true", help="overwrite the output if it exists")
     add_model_options(p)
@@ -45,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
         width, height = (int(v) for v in args.size.lower().split("x"))
     except ValueError:
         raise InputError(f"--size '{args.size}' is not WIDTHxHEIGHT", hint="e.g. 640x480") from None
-    if not (16 <= width <= 3840 and 16 <= height <= 2160) or args.fps <= 0 or args.duration <= 0:
-        raise InputError("--size must be 16x16 to 3840x2160, --fps and --duration > 0")
+    if not (16 <= width <= 3840 and 16 <= height <= 2160):
+        raise InputError(f"--size {args.size}: must be 16x16 to 3840x2160")
     camera = parse_camera(args.camera)
     ensure_gl_backend(sys.argv[1:])
     lab = lab_from_args(args)

@@ -14,6 +14,7 @@ from mexone.cli.common import (
     add_record_options,
     lab_from_args,
     options_from_args,
+    positive,
     recording,
 )
 from mexone.description.loader import load_model
@@ -53,7 +54,7 @@ def add_parser(sub) -> None:
     p.add_argument("--port", type=int, default=8080, help="web GUI port (default 8080)")
     p.add_argument("--host", default="127.0.0.1",
                    help="web GUI address (default 127.0.0.1, this machine only; 0.0.0.0 to share)")
-    p.add_argument("--duration", type=float, metavar="S",
+    p.add_argument("--duration", type=positive, metavar="S",
                    help="seconds of sim time to run (default: 5 headless, else until Ctrl-C)")
     p.add_argument("--rtf", type=float, metavar="R",
                    help="target real-time factor (default 1, or unlimited with --headless; "
@@ -102,8 +103,6 @@ def run(args: argparse.Namespace) -> int:
     headless = args.headless or args.json
     forever = not headless or args.ros
     duration = args.duration if args.duration is not None else (None if forever else 5.0)
-    if duration is not None and duration <= 0:
-        raise InputError(f"--duration {duration:g}: must be > 0")
     rtf = args.rtf if args.rtf is not None else (0.0 if headless and not args.ros else 1.0)
     if rtf < 0:
         raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
