@@ -139,3 +139,22 @@ def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
     for tab in tabs[2:]:
         tab.close()
     assert rtf > 0.9  # real time, target 1.0, with five tabs open and two closed on the way
+
+
+def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
+    if app.lab.sim.paused:
+        app.do(app.lab.sim.resume)
+    app.routine_choice.value = "sweep"
+    app.do(app.start_routine)
+    shoulder = app.lab.sim.joint_names.index("l_shoulder_pitch")
+    assert wait_until(lambda: app.lab.sim.joint_positions()[shoulder] < -0.3, timeout=20)
+    assert "Publishing: " in app.console_view.content
+    app.do(app.stop_routine)
+    assert wait_until(lambda: app.routine is None)
+    assert "sweep.py ended" in app.console_view.content
+
+
+def test_reset_model_returns_home(app):
+    app.do(app.reset_model)
+    assert wait_until(lambda: app.lab.sim.time < 0.5)
+    assert np.abs(app.lab.sim.joint_positions()).max() < 0.05
