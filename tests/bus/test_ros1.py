@@ -241,3 +241,74 @@ def test_without_ros_the_error_says_what_to_install():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert "ROS 1 (rospy) is not installed" in out.stderr
     assert "apt-get install ros-core python3-rospy" in out.stderr
+
+
+def _subscribers(port: int, topic: str) -> list[str]:
+    from mexone.bus.ros1 import import_rospy
+
+    import_rospy()  # puts Debian's ROS packages (rosgraph among them) on the path
+    import rosgraph
+
+    master = rosgraph.Master("/mexone_test_probe", master_uri=f"http://127.0.0.1:{port}")
+    _, subs, _ = master.getSystemState()
+    return next((nodes for name, nodes in subs if name == topic), [])
+
+
+def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path):
+    """The seed's flow: `rosparam load` the YAML, then the simulator reads it from there."""
+    port = free_port()
+    core = start_roscore(port)
+    yaml_file = tmp_path / "configuration.yaml"
+    yaml_file.write_text("""mex_rb:
+  joint_state_controller: {type: joint_state_controller/JointStateController, publish_rate: 50}
+  waist_yaw_position_controller:
+    type: effort_controllers/JointPositionController
+    joint: waist_yaw
+    pid: {p: 150.0, d: 1.5}
+""")
+    subprocess.run(["rosparam", "load", str(yaml_file)], env=ros_env(port), check=True, timeout=60)
+    sim = start_mexone(port)
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
+            time.sleep(0.5)
+        assert _subscribers(port, "/mex_rb/waist_yaw_position_controller/command") == ["/mexone"]
+        assert _subscribers(port, "/mex_rb/l_elbow_position_controller/command") == []
+    finally:
+        stop(sim)
+        stop(core)
+
+
+def test_the_seed_launch_files(tmp_path):
+    """roslaunch model.launch (the simulator) and control.launch (parameters,
+    robot_state_publisher, the sweep node), as the seed's chapter 3 ran them."""
+    port = free_port()
+    core = start_roscore(port)
+    env = ros_env(port) | {"ROS_PACKAGE_PATH": str(mex_one.package_dir().parent)}
+    model = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "model.launch", "headless:=true"],
+                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                             start_new_session=True)
+    control = None
+    try:
+        deadline = time.time() + 90  # as in the seed: the model first, then the control files
+        while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
+            time.sleep(0.5)
+        control = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "control.launch"], env=env,
+                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   start_new_session=True)
+        code = ("import rospy, sys; from sensor_msgs.msg import JointState; "
+                "rospy.init_node('probe'); import time; t = time.time()\n"
+                "while time.time() - t < 90:\n"
+                "    m = rospy.wait_for_message('/mex_rb/joint_states', JointState, timeout=60)\n"
+                "    q = dict(zip(m.name, m.position))\n"
+                "    if q['l_shoulder_pitch'] < -0.5: print('moved'); sys.exit(0)\n"
+                "sys.exit(1)")
+        probe = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True,
+                               text=True, timeout=150)
+        assert probe.returncode == 0 and "moved" in probe.stdout, probe.stderr[-2000:]
+        assert _subscribers(port, "/mex_rb/joint_states")  # robot_state_publisher listens
+    finally:
+        if control is not None:
+            stop(control)
+        stop(model)
+        stop(core)
