@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import mujoco
@@ -35,6 +35,7 @@ class Lab:
     sim: Simulation
     bus: Bus
     controllers: ControllerManager | None
+    _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
 
     @classmethod
     def create(cls, model: RobotModel | Path | str | None = None,
@@ -70,7 +71,7 @@ class Lab:
     def _lazy(self, key: str, listeners: int, rate: float, publish) -> None:
         """Run a publisher only while someone listens: a 1 kHz /clock costs a Python call per
         physics step, which nobody should pay for unless they asked."""
-        timers = self.__dict__.setdefault("_timers", {})
+        timers = self._timers
         if listeners and key not in timers:
             timers[key] = self.sim.add_periodic(1.0 / rate, publish)
         elif not listeners and key in timers:

@@ -211,7 +211,8 @@ class GuiApp:
             raise ValueError("must be >= 0 (0 = unlimited)")
         self.target_rtf = value
         self.lab.sim.target_rtf = value or None
-        self.lab.sim.resume() if not self.lab.sim.paused else None
+        if not self.lab.sim.paused:
+            self.lab.sim.resume()  # restarts the pacing from now at the new rate
 
     # ----- joints -------------------------------------------------------------------------------
     def _build_joints(self) -> None:

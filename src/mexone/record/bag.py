@@ -110,12 +110,12 @@ class BagRecorder:
         self.counts: dict[str, int] = {}
         self._connections: dict[str, object] = {}
         self._last_flush = lab.sim.time
+        self.closed = False
         self._open()
         lab.bus.taps.append(self._write)
         # make the periodic publishers run while we record
         self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None),
                       lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None)]
-        self.closed = False
 
     def _open(self) -> None:
         if self.ros1:
