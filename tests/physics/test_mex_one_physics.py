@@ -237,3 +237,17 @@ def test_convert_to_mjcf_does_not_overwrite(tmp_path):
     target.write_text("mine")
     out = run_cli("convert", str(mex_one.urdf_path()), "-o", str(target))
     assert out.returncode == 2 and target.read_text() == "mine"
+
+
+def test_collada_meshes_load_through_trimesh(tmp_path):
+    """MuJoCo reads no .dae; Gazebo models often use it: the compile step converts it."""
+    import shutil
+
+    arm = tmp_path / "arm"
+    shutil.copytree(ROBOTS / "arm", arm)
+    urdf = (arm / "arm.urdf").read_text().replace("meshes/fore.stl", "meshes/fore.dae")
+    (arm / "arm.urdf").write_text(urdf)
+    sim = Simulation(arm / "arm.urdf")
+    mesh = sim.model.mesh("fore/visual_mesh/0")
+    verts = sim.model.mesh_vert[mesh.vertadr[0]:mesh.vertadr[0] + mesh.vertnum[0]]
+    np.testing.assert_allclose(verts.max(axis=0) - verts.min(axis=0), [0.1, 0.1, 0.3], atol=1e-5)
