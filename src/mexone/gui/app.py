@@ -61,7 +61,8 @@ class GuiApp:
         self._frames = 0
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self._build_gui()
-        self.server.initial_camera.position = (1.5, -1.5, 1.0)
+        self.server.initial_camera.fov = math.radians(45.0)  # a 1 m robot fills half the view
+        self.server.initial_camera.position = (1.6, -1.6, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
 
     # ----- threads ----------------------------------------------------------------------------
