@@ -112,7 +112,3 @@ class Bus:
             tap(name, msg)
         for sub in subs:
             sub.callback(msg)
-
-    def has_subscribers(self, name: str) -> bool:
-        topic = self.topics.get(name)
-        return bool(topic and topic.subscriptions) or bool(self.taps)

@@ -18,9 +18,7 @@ import numpy as np
 from mexone.description.model import Box, Cylinder, Geometry, Mesh, Sphere
 from mexone.errors import ModelError
 
-__all__ = ["resolve_mesh", "load_mesh", "geometry_bounds", "MESH_SUFFIXES"]
-
-MESH_SUFFIXES = (".stl", ".obj", ".dae", ".ply", ".off", ".glb", ".gltf")
+__all__ = ["resolve_mesh", "load_mesh", "geometry_bounds"]
 _PKG_NAME = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
 
 
