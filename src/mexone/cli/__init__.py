@@ -54,7 +54,6 @@ def _setup_logging() -> None:
         handler.setFormatter(_OneLine())
         root.addHandler(handler)
         root.setLevel(logging.WARNING)
-        root.propagate = False
 
 
 def _terminate(_signum, _frame) -> None:
