@@ -119,3 +119,12 @@ def test_bad_ranges():
     with pytest.raises(Exception, match="must be finite and >= 0"):
         parse_range("-1,2", "d")
     assert parse_range("1:3:3", "p").tolist() == [1.0, 2.0, 3.0]
+
+
+def test_routine_mode_scores_a_whole_routine():
+    spec = SweepSpec(("l_shoulder_pitch", "r_shoulder_pitch"), routine="arms", duration=2.0)
+    soft = run_trial(spec, Trial(0, {"p": 20.0, "d": 0.5}))
+    stiff = run_trial(spec, Trial(1, {"p": 150.0, "d": 2.0}))
+    assert soft["fell"] is False and stiff["fell"] is False
+    assert soft["iae"] > stiff["iae"] > 0  # stiffer arms track the routine better
+    assert soft["rise_time"] is None and soft["max_effort"] > 0
