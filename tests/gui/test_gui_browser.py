@@ -149,6 +149,8 @@ def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
     shoulder = app.lab.sim.joint_names.index("l_shoulder_pitch")
     assert wait_until(lambda: app.lab.sim.joint_positions()[shoulder] < -0.3, timeout=20)
     assert "Publishing: " in app.console_view.content
+    slider = app.sliders[("l_shoulder_pitch_position_controller", "l_shoulder_pitch")]
+    assert wait_until(lambda: slider.value < -0.3)  # the slider shows the routine's command
     app.do(app.stop_routine)
     assert wait_until(lambda: app.routine is None)
     assert "sweep.py ended" in app.console_view.content

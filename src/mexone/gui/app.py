@@ -8,6 +8,7 @@ touches the physics.
 
 from __future__ import annotations
 
+import logging
 import math
 import queue
 import threading
@@ -40,6 +41,18 @@ PLOT_SECONDS = 10.0
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
 
 
+class _GuiLog(logging.Handler):
+    """mexone's warnings (a clamped command, what Gazebo 7 did differently) on the page too."""
+
+    def __init__(self, app: GuiApp):
+        super().__init__(logging.WARNING)
+        self.app = app
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.app.console.append(f"[WARN] {record.getMessage()}")
+        self.app.notify("Warning", record.getMessage(), color="yellow")
+
+
 class GuiApp:
     def __init__(self, make_lab: Callable[[CompileOptions], Lab], options: CompileOptions,
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0):
@@ -61,6 +74,7 @@ class GuiApp:
         self._frames = 0
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self._build_gui()
+        logging.getLogger("mexone").addHandler(_GuiLog(self))
         self.server.initial_camera.fov = math.radians(45.0)  # a 1 m robot fills half the view
         self.server.initial_camera.position = (1.6, -1.6, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
@@ -97,6 +111,9 @@ class GuiApp:
 
     def stop(self) -> None:
         self.stopping.set()
+        logger = logging.getLogger("mexone")
+        for handler in [h for h in logger.handlers if isinstance(h, _GuiLog) and h.app is self]:
+            logger.removeHandler(handler)
         if self.routine:
             self.routine.stop()
         self.server.stop()
@@ -112,9 +129,9 @@ class GuiApp:
             except MexoneError as exc:
                 self.notify("Refused", exc.one_line())
 
-    def notify(self, title: str, body: str) -> None:
+    def notify(self, title: str, body: str, color: str = "red") -> None:
         for client in self.server.get_clients().values():
-            client.add_notification(title, body, auto_close_seconds=6.0, color="red")
+            client.add_notification(title, body, auto_close_seconds=6.0, color=color)
 
     # ----- per frame --------------------------------------------------------------------------
     def _after_frame(self) -> None:
@@ -139,6 +156,7 @@ class GuiApp:
                 self._status.content = (f"**sim time** {sim.time:8.3f} s &nbsp; **real-time factor** "
                                         f"{sim.rtf.value:4.2f} &nbsp; ({state})")
             self._update_plots()
+            self._sync_sliders()
         if self.routine and not self.routine.running and self.routine.thread is not None:
             self._routine_done()
 
@@ -219,6 +237,7 @@ class GuiApp:
     def _build_joints(self) -> None:
         gui = self.server.gui
         self.sliders: dict[tuple[str, str], viser.GuiSliderHandle] = {}
+        self._touched: dict[tuple[str, str], float] = {}  # when a person last moved a slider
         manager = self.lab.controllers
         with gui.add_folder("Joints"):
             if manager is None:
@@ -257,16 +276,26 @@ class GuiApp:
                                             step=0.001, initial_value=0.0,
                                             hint=f"{ctrl.name} ({unit})")
         self.sliders[(ctrl.name, joint)] = slider
-        slider.on_update(lambda _e: self.do(lambda: self._send(ctrl.name)))
+
+        def moved(event) -> None:
+            if event.client is not None:  # a person moved it; our own syncs are not commands
+                value = event.target.value  # now: a sync may change the slider before we run
+                self._touched[(ctrl.name, joint)] = time.monotonic()
+                self.do(lambda: self._send(ctrl.name, {joint: value}))
+
+        slider.on_update(moved)
 
     def _to_si(self, ctrl, value: float) -> float:
         degrees = isinstance(ctrl, PositionController) and self.units.value == "deg"
         return math.radians(value) if degrees else value
 
-    def _send(self, name: str) -> None:
+    def _send(self, name: str, moved: dict[str, float] | None = None) -> None:
+        """Command controller `name`: `moved` joints from the person, the rest from sliders."""
         manager = self.lab.controllers
         ctrl = manager.controllers[name]
-        values = [self._to_si(ctrl, self.sliders[(name, j)].value) for j in ctrl.joints]
+        moved = moved or {}
+        values = [self._to_si(ctrl, moved.get(j, self.sliders[(name, j)].value))
+                  for j in ctrl.joints]
         msg = Float64(values[0]) if ctrl.msg_type is Float64 else Float64MultiArray(values)
         self.lab.bus.publish(manager.topic(name), msg)
 
@@ -280,6 +309,21 @@ class GuiApp:
             value = float(ctrl.setpoint[ctrl.joints.index(joint)])
             slider.min, slider.max, slider.step = round(lo * f, 4), round(hi * f, 4), 0.001 * f
             slider.value = value * f
+
+    def _sync_sliders(self) -> None:
+        """Show what the position controllers are commanded, whoever commanded it."""
+        if not getattr(self, "sliders", None):
+            return
+        f = 180.0 / math.pi if self.units.value == "deg" else 1.0
+        now = time.monotonic()
+        for (name, joint), slider in self.sliders.items():
+            ctrl = self.lab.controllers.controllers[name]
+            if now - self._touched.get((name, joint), -1e9) < 1.0:
+                continue  # do not fight a hand on the slider
+            if isinstance(ctrl, PositionController):
+                value = round(float(ctrl.setpoint[ctrl.joints.index(joint)]) * f, 3)
+                if abs(slider.value - value) > 1e-3:
+                    slider.value = value
 
     def home(self) -> None:
         for (name, _joint), slider in self.sliders.items():
