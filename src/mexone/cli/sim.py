@@ -83,7 +83,9 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
         raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
                          hint="pick another --port") from None
     host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
-    print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{args.port}  (Ctrl-C stops)",
+    port = app.server.get_port()  # viser moves on to the next free port if this one is taken
+    note = "" if port == args.port else f" (port {args.port} was taken)"
+    print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
           file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
