@@ -21,37 +21,15 @@ from mexone.description.urdf import read_urdf
 from mexone.errors import InputError
 from mexone.lab import Lab
 
-MASS, LENGTH, RADIUS = 1.0, 0.4, 0.02
-INERTIA = MASS * (3 * RADIUS**2 + LENGTH**2) / 12 + MASS * (LENGTH / 2) ** 2  # about the pivot
+
+@pytest.fixture
+def inertia(turntable) -> float:
+    return turntable[1]
 
 
-def turntable(tmp_path, reduction=1.0, effort=50.0, damping=0.0):
-    """A rod on a vertical axis: gravity exerts no torque, so I q'' = torque exactly."""
-    ixx = MASS * (3 * RADIUS**2 + LENGTH**2) / 12
-    path = tmp_path / "turntable.urdf"
-    path.write_text(f"""<robot name="turntable">
-      <link name="world"/>
-      <joint name="weld" type="fixed"><parent link="world"/><child link="base"/><origin xyz="0 0 0.5"/></joint>
-      <link name="base"/>
-      <joint name="yaw" type="revolute">
-        <parent link="base"/><child link="rod"/><axis xyz="0 0 1"/>
-        <limit lower="-3" upper="3" effort="{effort}" velocity="20"/>
-        <dynamics damping="{damping}" friction="0"/>
-      </joint>
-      <link name="rod">
-        <inertial><origin xyz="{LENGTH / 2} 0 0" rpy="0 1.5707963267948966 0"/><mass value="{MASS}"/>
-          <inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{ixx}" iyz="0" izz="{MASS * RADIUS**2 / 2}"/></inertial>
-      </link>
-      <transmission name="yaw_tx"><type>transmission_interface/SimpleTransmission</type>
-        <joint name="yaw"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-        <actuator name="yaw_motor"><mechanicalReduction>{reduction}</mechanicalReduction></actuator>
-      </transmission>
-    </robot>""")
-    return read_urdf(path)
-
-
-def lab_with(tmp_path, yaml_text: str, **robot) -> Lab:
-    return Lab.create(turntable(tmp_path, **robot), parse_control_config(yaml_text))
+def lab_with(tmp_path, turntable, yaml_text: str, **robot) -> Lab:
+    write, _ = turntable
+    return Lab.create(read_urdf(write(tmp_path, **robot)), parse_control_config(yaml_text))
 
 
 def pid_yaml(p, d, i=0.0, clamp=0.0, antiwindup=False, ctype="effort_controllers/JointPositionController"):
@@ -64,10 +42,10 @@ def pid_yaml(p, d, i=0.0, clamp=0.0, antiwindup=False, ctype="effort_controllers
 """
 
 
-def second_order(t, target, p, d):
+def second_order(t, target, p, d, inertia):
     """I q'' + d q' + p q = p target, from rest at 0."""
-    wn = np.sqrt(p / INERTIA)
-    zeta = d / (2 * np.sqrt(p * INERTIA))
+    wn = np.sqrt(p / inertia)
+    zeta = d / (2 * np.sqrt(p * inertia))
     wd = wn * np.sqrt(1 - zeta**2)
     return target * (1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / np.sqrt(1 - zeta**2)
                                                    * np.sin(wd * t)))
@@ -84,19 +62,19 @@ def step_response(lab, target, seconds=1.5):
 
 
 @pytest.mark.parametrize("reduction", [1.0, 10.0])
-def test_pd_step_response_matches_the_second_order_closed_form(tmp_path, reduction):
+def test_pd_step_response_matches_the_second_order_closed_form(tmp_path, reduction, turntable, inertia):
     p, d = 4.0, 0.15  # zeta ~ 0.27: a visible overshoot to compare
-    lab = lab_with(tmp_path, pid_yaml(p, d), reduction=reduction)
+    lab = lab_with(tmp_path, turntable, pid_yaml(p, d), reduction=reduction)
     t, q = step_response(lab, 0.5)
-    expected = second_order(t, 0.5, p, d)
+    expected = second_order(t, 0.5, p, d, inertia)
     assert np.abs(q - expected).max() < 0.05 * 0.5
     overshoot = q.max() / 0.5 - 1
-    zeta = d / (2 * np.sqrt(p * INERTIA))
+    zeta = d / (2 * np.sqrt(p * inertia))
     assert overshoot == pytest.approx(np.exp(-zeta * np.pi / np.sqrt(1 - zeta**2)), rel=0.05)
 
 
-def test_mechanical_reduction_scales_actuator_effort_and_position(tmp_path):
-    lab = lab_with(tmp_path, pid_yaml(4.0, 0.15), reduction=10.0)
+def test_mechanical_reduction_scales_actuator_effort_and_position(tmp_path, turntable):
+    lab = lab_with(tmp_path, turntable, pid_yaml(4.0, 0.15), reduction=10.0)
     step_response(lab, 0.5, 0.2)
     data, model = lab.sim.data, lab.sim.model
     mujoco.mj_forward(model, data)
@@ -106,18 +84,18 @@ def test_mechanical_reduction_scales_actuator_effort_and_position(tmp_path):
     assert model.actuator_forcerange[0, 1] == pytest.approx(50.0 / 10.0)
 
 
-def _steady_error(tmp_path, clamp, antiwindup=False, disturbance=1.0):
-    lab = lab_with(tmp_path, pid_yaml(10.0, 1.0, i=20.0, clamp=clamp, antiwindup=antiwindup))
+def _steady_error(tmp_path, turntable, clamp, antiwindup=False, disturbance=1.0):
+    lab = lab_with(tmp_path, turntable, pid_yaml(10.0, 1.0, i=20.0, clamp=clamp, antiwindup=antiwindup))
     lab.bus.publish("/turntable/yaw_controller/command", Float64(0.0))
     lab.sim.data.qfrc_applied[0] = disturbance  # a constant load torque on the joint
     lab.sim.step(8000)
     return lab.sim.joint_positions()[0]  # the load pushes it this far
 
 
-def test_integral_clamp_limits_the_integral_term(tmp_path):
-    assert _steady_error(tmp_path, clamp=0.0) == pytest.approx(0.1, rel=1e-3)  # no I in ROS
-    assert _steady_error(tmp_path, clamp=0.5) == pytest.approx((1.0 - 0.5) / 10.0, rel=1e-3)
-    assert abs(_steady_error(tmp_path, clamp=2.0)) < 1e-4  # the integral removes the error
+def test_integral_clamp_limits_the_integral_term(tmp_path, turntable):
+    assert _steady_error(tmp_path, turntable, clamp=0.0) == pytest.approx(0.1, rel=1e-3)  # no I in ROS
+    assert _steady_error(tmp_path, turntable, clamp=0.5) == pytest.approx((1.0 - 0.5) / 10.0, rel=1e-3)
+    assert abs(_steady_error(tmp_path, turntable, clamp=2.0)) < 1e-4  # the integral removes the error
 
 
 def test_antiwindup_against_the_control_toolbox_recurrence():
@@ -140,50 +118,50 @@ def test_antiwindup_against_the_control_toolbox_recurrence():
     assert leave[1] == pytest.approx(0.0, abs=2 * dt)
 
 
-def test_effort_saturates_at_the_urdf_limit(tmp_path):
-    lab = lab_with(tmp_path, """turntable:
+def test_effort_saturates_at_the_urdf_limit(tmp_path, turntable, inertia):
+    lab = lab_with(tmp_path, turntable, """turntable:
   yaw_effort: {type: effort_controllers/JointEffortController, joint: yaw}
 """, effort=2.0)
     lab.bus.publish("/turntable/yaw_effort/command", Float64(100.0))
     lab.sim.step(100)
     assert lab.sim.joint_efforts()[0] == pytest.approx(2.0)
     # q = 1/2 (tau / I) t^2
-    assert lab.sim.joint_positions()[0] == pytest.approx(0.5 * 2.0 / INERTIA * 0.1**2, rel=0.02)
+    assert lab.sim.joint_positions()[0] == pytest.approx(0.5 * 2.0 / inertia * 0.1**2, rel=0.02)
 
 
-def test_velocity_controller_reaches_the_commanded_speed(tmp_path):
-    lab = lab_with(tmp_path, """turntable:
+def test_velocity_controller_reaches_the_commanded_speed(tmp_path, turntable, inertia):
+    lab = lab_with(tmp_path, turntable, """turntable:
   yaw_velocity: {type: effort_controllers/JointVelocityController, joint: yaw, pid: {p: 2.0, d: 0.0}}
 """)
     lab.bus.publish("/turntable/yaw_velocity/command", Float64(1.5))
     lab.sim.step(1000)
     # first order: I v' = p (v_cmd - v): v = v_cmd (1 - exp(-p t / I))
-    expected = 1.5 * (1 - np.exp(-2.0 * 1.0 / INERTIA))
+    expected = 1.5 * (1 - np.exp(-2.0 * 1.0 / inertia))
     assert lab.sim.joint_velocities()[0] == pytest.approx(expected, rel=0.01)
 
 
-def test_ideal_servo_teleports_only_when_asked(tmp_path):
-    lab = lab_with(tmp_path, """turntable:
+def test_ideal_servo_teleports_only_when_asked(tmp_path, turntable):
+    lab = lab_with(tmp_path, turntable, """turntable:
   yaw_controller: {type: position_controllers/JointPositionController, joint: yaw, ideal_servo: true}
 """)
     lab.bus.publish("/turntable/yaw_controller/command", Float64(0.7))
     lab.sim.step(2)
     assert lab.sim.joint_positions()[0] == pytest.approx(0.7)
     with pytest.raises(InputError, match="has no PID gains"):
-        lab_with(tmp_path, """turntable:
+        lab_with(tmp_path, turntable, """turntable:
   yaw_controller: {type: position_controllers/JointPositionController, joint: yaw}
 """)
 
 
-def test_gazebo_differences_are_warned_once(tmp_path, caplog):
+def test_gazebo_differences_are_warned_once(tmp_path, caplog, turntable):
     with caplog.at_level(logging.WARNING, logger="mexone"):
-        lab_with(tmp_path, pid_yaml(2.0, 0.1, i=0.5, ctype="position_controllers/JointPositionController"))
+        lab_with(tmp_path, turntable, pid_yaml(2.0, 0.1, i=0.5, ctype="position_controllers/JointPositionController"))
     text = caplog.text
     assert "Gazebo 7 ignored this pid" in text and "no integral action" in text
 
 
-def test_bad_commands_are_refused_or_clamped_and_never_reach_physics(tmp_path, caplog):
-    lab = lab_with(tmp_path, pid_yaml(4.0, 0.5))
+def test_bad_commands_are_refused_or_clamped_and_never_reach_physics(tmp_path, caplog, turntable):
+    lab = lab_with(tmp_path, turntable, pid_yaml(4.0, 0.5))
     topic = "/turntable/yaw_controller/command"
     with caplog.at_level(logging.WARNING, logger="mexone"):
         lab.bus.publish(topic, Float64(float("nan")))
@@ -196,27 +174,27 @@ def test_bad_commands_are_refused_or_clamped_and_never_reach_physics(tmp_path, c
     assert lab.controllers.controllers["yaw_controller"].setpoint[0] == 3.0
 
 
-def test_wrong_message_type_on_a_command_topic(tmp_path):
-    lab = lab_with(tmp_path, pid_yaml(4.0, 0.5))
+def test_wrong_message_type_on_a_command_topic(tmp_path, turntable):
+    lab = lab_with(tmp_path, turntable, pid_yaml(4.0, 0.5))
     with pytest.raises(InputError, match="carries std_msgs/Float64, not std_msgs/Float64MultiArray"):
         lab.bus.publish("/turntable/yaw_controller/command", Float64MultiArray([1.0]))
 
 
-def test_unknown_joint_and_conflicting_controllers(tmp_path):
+def test_unknown_joint_and_conflicting_controllers(tmp_path, turntable):
     with pytest.raises(InputError, match="names joint 'pitch', which the robot does not have"):
-        lab_with(tmp_path, """turntable:
+        lab_with(tmp_path, turntable, """turntable:
   c: {type: effort_controllers/JointPositionController, joint: pitch, pid: {p: 1}}
 """)
     config = parse_control_config(pid_yaml(4.0, 0.5) + """  yaw_effort: {type: effort_controllers/JointEffortController, joint: yaw}
 """)
     with pytest.raises(InputError, match="joint 'yaw' is driven by 'yaw_controller'"):
-        Lab.create(turntable(tmp_path), config)
+        Lab.create(read_urdf(turntable[0](tmp_path)), config)
 
 
-def test_switch_stop_start_and_list(tmp_path):
+def test_switch_stop_start_and_list(tmp_path, turntable):
     config = parse_control_config(pid_yaml(4.0, 0.5) + """  yaw_effort: {type: effort_controllers/JointEffortController, joint: yaw}
 """)
-    lab = Lab.create(turntable(tmp_path), ControlConfig(config.namespace, {
+    lab = Lab.create(read_urdf(turntable[0](tmp_path)), ControlConfig(config.namespace, {
         k: v for k, v in config.controllers.items() if k != "yaw_effort"}, {}, None))
     manager = lab.controllers
     manager.config = config
@@ -229,8 +207,8 @@ def test_switch_stop_start_and_list(tmp_path):
     assert lab.sim.joint_efforts()[0] == pytest.approx(0.5)
 
 
-def test_trajectory_controller_interpolates(tmp_path):
-    lab = lab_with(tmp_path, """turntable:
+def test_trajectory_controller_interpolates(tmp_path, turntable):
+    lab = lab_with(tmp_path, turntable, """turntable:
   arm_trajectory:
     type: effort_controllers/JointTrajectoryController
     joints: [yaw]
@@ -250,8 +228,8 @@ def test_trajectory_controller_interpolates(tmp_path):
     assert lab.sim.joint_positions()[0] == pytest.approx(0.0, abs=0.01)  # holds the last point
 
 
-def test_group_controller_takes_an_array(tmp_path):
-    lab = lab_with(tmp_path, """turntable:
+def test_group_controller_takes_an_array(tmp_path, turntable):
+    lab = lab_with(tmp_path, turntable, """turntable:
   group: {type: effort_controllers/JointGroupEffortController, joints: [yaw]}
 """)
     lab.bus.publish("/turntable/group/command", Float64MultiArray([0.25]))

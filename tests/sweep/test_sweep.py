@@ -15,43 +15,26 @@ import yaml
 
 from mexone.sweep import SweepSpec, Trial, grid_trials, parse_range, run_sweep, run_trial
 
-TURNTABLE = """<robot name="turntable">
-  <link name="world"/>
-  <joint name="weld" type="fixed"><parent link="world"/><child link="base"/><origin xyz="0 0 0.5"/></joint>
-  <link name="base"/>
-  <joint name="yaw" type="revolute">
-    <parent link="base"/><child link="rod"/><axis xyz="0 0 1"/>
-    <limit lower="-3" upper="3" effort="50" velocity="20"/>
-  </joint>
-  <link name="rod">
-    <inertial><origin xyz="0.2 0 0"/><mass value="1"/>
-      <inertia ixx="0.0001" ixy="0" ixz="0" iyy="0.0134333" iyz="0" izz="0.0134333"/></inertial>
-  </link>
-  <transmission name="t"><type>transmission_interface/SimpleTransmission</type>
-    <joint name="yaw"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
-    <actuator name="m"><mechanicalReduction>1</mechanicalReduction></actuator></transmission>
-</robot>"""
 CONTROLLERS = """turntable:
   joint_state_controller: {type: joint_state_controller/JointStateController, publish_rate: 50}
   yaw_position_controller: {type: effort_controllers/JointPositionController, joint: yaw, pid: {p: 1, d: 0.1}}
 """
-INERTIA = 0.0134333 + 1.0 * 0.2**2
 
 
 @pytest.fixture(scope="module")
-def turntable(tmp_path_factory):
+def spec(tmp_path_factory, turntable):
     folder = tmp_path_factory.mktemp("turntable")
-    (folder / "t.urdf").write_text(TURNTABLE)
     (folder / "c.yaml").write_text(CONTROLLERS)
-    return SweepSpec(("yaw",), step=0.5, duration=4.0, model=str(folder / "t.urdf"),
+    return SweepSpec(("yaw",), step=0.5, duration=4.0, model=str(turntable[0](folder)),
                      controllers=str(folder / "c.yaml"))
 
 
 @pytest.mark.parametrize("p,d", [(4.0, 0.2), (10.0, 0.5)])
-def test_step_metrics_match_the_second_order_closed_form(turntable, p, d):
-    row = run_trial(turntable, Trial(0, {"p": p, "d": d}))
-    zeta = d / (2 * np.sqrt(p * INERTIA))
-    wn = np.sqrt(p / INERTIA)
+def test_step_metrics_match_the_second_order_closed_form(spec, turntable, p, d):
+    inertia = turntable[1]
+    row = run_trial(spec, Trial(0, {"p": p, "d": d}))
+    zeta = d / (2 * np.sqrt(p * inertia))
+    wn = np.sqrt(p / inertia)
     assert row["overshoot"] == pytest.approx(np.exp(-zeta * np.pi / np.sqrt(1 - zeta**2)), rel=0.05)
     # 2% settling of an underdamped second-order system: about 4 / (zeta wn)
     assert row["settling_time"] == pytest.approx(4 / (zeta * wn), rel=0.25)
