@@ -126,10 +126,7 @@ class Rate:
         if now - wake > self.period:
             wake = now
         self.last = wake
-        if wake > now:
-            _wait(wake)
-        else:
-            _wait(now)
+        _wait(max(wake, now))
 
     def remaining(self) -> _msgs.Duration:
         return _msgs.Duration.from_sec(max(0.0, self.last + self.period - current().time))

@@ -150,10 +150,13 @@ def _contact_solref(kp: float, kd: float, mass: float, step: float) -> tuple[flo
     return max(_MIN_STEPS_PER_TIMECONST * step, 1.0 / (_DMAX * zeta * np.sqrt(k))), zeta
 
 
-def _combine(a: GazeboLink, b_kp: float, b_kd: float) -> tuple[float, float]:
-    kp_a = a.kp if a.kp is not None else _GAZEBO_KP
-    kd_a = a.kd if a.kd is not None else _GAZEBO_KD
-    return 1.0 / (1.0 / kp_a + 1.0 / b_kp), kd_a + b_kd
+def _surface(props: GazeboLink) -> tuple[float, float, float, float]:
+    """(mu1, mu2, kp, kd) of a link, Gazebo's defaults where its <gazebo> block is silent."""
+    mu1 = props.mu1 if props.mu1 is not None else _GAZEBO_MU
+    mu2 = props.mu2 if props.mu2 is not None else mu1
+    kp = props.kp if props.kp is not None else _GAZEBO_KP
+    kd = props.kd if props.kd is not None else _GAZEBO_KD
+    return mu1, mu2, kp, kd
 
 
 def _lumps(robot: RobotModel) -> dict[str, str]:
@@ -356,9 +359,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
     props = robot.gazebo_links.get(name, GazeboLink())
     self_collide = bool(props.self_collide) if options.self_collision is None \
         else options.self_collision
-    mu1 = props.mu1 if props.mu1 is not None else _GAZEBO_MU
-    kp = props.kp if props.kp is not None else _GAZEBO_KP
-    kd = props.kd if props.kd is not None else _GAZEBO_KD
+    mu1, _, kp, kd = _surface(props)
     collision_names = []
     for i, col in enumerate(link.collisions):
         geom = body.add_geom(name=f"{name}/collision/{i}")
@@ -414,10 +415,9 @@ def _add_contact_rules(spec, robot: RobotModel, world: World, geoms: dict[str, l
     if world.ground is None:
         return
     for name, names in geoms.items():
-        props = robot.gazebo_links.get(name, GazeboLink())
-        mu1 = props.mu1 if props.mu1 is not None else _GAZEBO_MU
-        mu2 = props.mu2 if props.mu2 is not None else mu1
-        kp, kd = _combine(props, _GAZEBO_KP, _GAZEBO_KD)
+        mu1, mu2, kp, kd = _surface(robot.gazebo_links.get(name, GazeboLink()))
+        # ODE combines a pair: springs in series, dampers summed (the ground has the defaults)
+        kp, kd = 1.0 / (1.0 / kp + 1.0 / _GAZEBO_KP), kd + _GAZEBO_KD
         for geom in names:
             spec.add_pair(name=f"ground/{geom}", geomname1="ground_plane", geomname2=geom,
                           condim=3,

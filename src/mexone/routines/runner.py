@@ -31,7 +31,7 @@ def resolve_routine(name_or_path: str) -> Path:
         return shipped[name_or_path]
     path = Path(name_or_path)
     if not path.is_file():
-        raise InputError(f"no routine '{name_or_path}'", file=None,
+        raise InputError(f"no routine '{name_or_path}'",
                          hint="give a Python file or one of: " + ", ".join(shipped))
     if path.suffix != ".py":
         raise InputError("a routine is a Python file", file=path, hint="name it .py")
