@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +13,7 @@ import numpy as np
 from mexone.bus.msgs import Clock, Header, TFMessage, Time, TransformStamped
 from mexone.bus.topics import Bus
 from mexone.control.config import ControlConfig, load_control_config
+from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
@@ -20,7 +22,7 @@ from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
 from mexone.robots import mex_one
 
-__all__ = ["Lab", "CLOCK_RATE", "TF_RATE"]
+__all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab"]
 
 
 def _conjugate(q: np.ndarray) -> np.ndarray:
@@ -30,11 +32,23 @@ CLOCK_RATE = 1000.0  # Hz of /clock, as gazebo_ros publishes it (only while some
 TF_RATE = 50.0  # Hz of /tf, robot_state_publisher's default (only while someone listens)
 
 
+def robot_namespace(robot: RobotModel, config: ControlConfig | None = None,
+                    override: str | None = None) -> str:
+    """The robot's ROS namespace: the one asked for, else the controller YAML's, else the
+    URDF's gazebo_ros_control robotNamespace, else the robot's name ("/mex_rb")."""
+    for candidate in (override, config.namespace if config else None, robot.ros_namespace,
+                      robot.name):
+        if candidate and candidate.strip("/"):
+            return "/" + candidate.strip("/")
+    return "/robot"
+
+
 @dataclass
 class Lab:
     sim: Simulation
     bus: Bus
     controllers: ControllerManager | None
+    namespace: str
     _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
 
     @classmethod
@@ -42,31 +56,29 @@ class Lab:
                controllers: ControlConfig | Path | str | bool | None = None,
                world: World | None = None, spawn: Spawn = Spawn(),
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
-               control_period: float | None = None) -> Lab:
+               control_period: float | None = None, namespace: str | None = None) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
         for other robots); False: no controllers; a path or ControlConfig: that one."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
-        sim = Simulation(robot, world or default_world(), spawn, options, target_rtf)
-        bus = Bus()
         if controllers is None:
             controllers = mex_one.controllers_path() if builtin else False
-        manager = None
+        config = None
         if controllers is not False:
             config = controllers if isinstance(controllers, ControlConfig) \
                 else load_control_config(controllers)
-            manager = ControllerManager(sim, bus, config, control_period=control_period)
+        edits = [build_actuators] if config is not None else []
+        sim = Simulation(robot, world or default_world(), spawn, options, target_rtf, edits)
+        bus = Bus()
+        ns = robot_namespace(robot, config, namespace)
+        manager = None
+        if config is not None:
+            manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_all()
-        lab = cls(sim, bus, manager)
+        lab = cls(sim, bus, manager, ns)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab
-
-    @property
-    def namespace(self) -> str:
-        if self.controllers:
-            return self.controllers.namespace
-        return "/" + ((self.sim.robot.ros_namespace or "").strip("/") or self.sim.robot.name)
 
     def _lazy(self, key: str, listeners: int, rate: float, publish) -> None:
         """Run a publisher only while someone listens: a 1 kHz /clock costs a Python call per
@@ -78,7 +90,7 @@ class Lab:
             self.sim.remove_periodic(timers.pop(key))
 
     def _publish_clock(self, sim: Simulation) -> None:
-        self.bus.publish("/clock", Clock(Time.from_sec(sim.time)))
+        self.bus.publish("/clock", Clock(Time.from_nsec(sim.time_ns)))
 
     def _publish_tf(self, sim: Simulation) -> None:
         """Every joint's transform (parent -> child link) and world -> the floating base."""
@@ -86,7 +98,7 @@ class Lab:
 
     def transforms(self) -> list[TransformStamped]:
         sim = self.sim
-        stamp = Time.from_sec(sim.time)
+        stamp = Time.from_nsec(sim.time_ns)
         data, bodies = sim.data, sim.compiled.bodies
         out = []
         root = sim.robot.base_link
@@ -105,3 +117,11 @@ class Lab:
             out.append(TransformStamped(Header(0, stamp, joint.parent), joint.child,
                                         tuple(pos), tuple(quat)))
         return out
+
+
+@functools.lru_cache(maxsize=4)
+def cached_lab(model: str | None = None, controllers: str | None = None) -> Lab:
+    """One Lab per (model, controllers) per process, for workers that run many trials (sweeps,
+    benchmarks): compiling costs more than a trial. Callers reset it before each use."""
+    lab = Lab.create(model, controllers)
+    return lab

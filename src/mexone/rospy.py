@@ -11,6 +11,7 @@ and runs with ``mexone run my_routine.py`` (headless, as fast as physics allows)
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Any
 
@@ -80,7 +81,7 @@ def on_shutdown(hook) -> None:
 class Time(_msgs.Time):
     @staticmethod
     def now() -> _msgs.Time:
-        return _msgs.Time.from_sec(current().time)
+        return _msgs.Time.from_nsec(current().lab.sim.time_ns)
 
 
 def Duration(secs: float = 0, nsecs: int = 0) -> _msgs.Duration:  # noqa: N802 - rospy's name
@@ -107,6 +108,8 @@ def _wait(wake: float, ready=None) -> None:
 
 def sleep(duration) -> None:
     seconds = duration.to_sec() if hasattr(duration, "to_sec") else float(duration)
+    if math.isnan(seconds):
+        raise ROSException("rospy.sleep(nan): the duration is not a number")
     _wait(current().time + max(seconds, 0.0))
 
 
@@ -115,8 +118,8 @@ class Rate:
     from now instead of bursting (rospy's behaviour)."""
 
     def __init__(self, hz: float):
-        if hz <= 0:
-            raise ROSException(f"Rate({hz}): the rate must be > 0 Hz")
+        if not (hz > 0 and math.isfinite(hz)):
+            raise ROSException(f"Rate({hz}): the rate must be a finite number > 0 Hz")
         self.period = 1.0 / hz
         self.last = current().time
 
@@ -143,12 +146,24 @@ class Publisher:
                  latch: bool = False, **_ignored: Any):
         self.name = _resolve(name)
         self.data_class = data_class
-        self._bus = current().lab.bus
+        self._context = current()
+        self._bus = self._context.lab.bus
         self._bus.advertise(self.name, data_class)
 
     def publish(self, *args: Any, **kwargs: Any) -> None:
+        ctx = self._context
+        if ctx.abandoned:
+            raise Shutdown
         msg = args[0] if len(args) == 1 and not kwargs and isinstance(args[0], self.data_class) \
             else self.data_class(*args, **kwargs)
+        if self.name not in ctx.warned_topics and self.name.endswith("/command") \
+                and not self.get_num_connections():
+            ctx.warned_topics.add(self.name)
+            manager = ctx.lab.controllers
+            topics = [manager.topic(c.name) for c in manager.controllers.values()
+                      if c.running and c.kind != "state"] if manager else []
+            ctx.log("WARN", f"{self.name} has no subscriber; this robot's command topics are: "
+                            + (", ".join(topics) or "none"))
         self._bus.publish(self.name, msg)
 
     def get_num_connections(self) -> int:
@@ -164,16 +179,19 @@ class Subscriber:
                  queue_size: int | None = None, **_ignored: Any):
         self.name = _resolve(name)
         self.callback = callback
+        ctx = current()
 
-        def deliver(msg):
-            if callback is None:
-                return
+        def run(msg):  # in the routine's thread, while it waits
             if callback_args is None:
                 callback(msg)
             else:
                 callback(msg, callback_args)
 
-        self._sub = current().lab.bus.subscribe(self.name, data_class, deliver)
+        def deliver(msg):  # in the publisher's thread: queue only
+            if callback is not None:
+                ctx.deliver(run, msg)
+
+        self._sub = ctx.lab.bus.subscribe(self.name, data_class, deliver)
 
     def unregister(self) -> None:
         self._sub.unregister()
@@ -182,7 +200,8 @@ class Subscriber:
 def wait_for_message(topic: str, topic_type: type, timeout: float | None = None):
     """The next message on `topic` (sim time timeout, in seconds)."""
     box: list = []
-    sub = current().lab.bus.subscribe(_resolve(topic), topic_type, box.append)
+    ctx = current()
+    sub = ctx.lab.bus.subscribe(_resolve(topic), topic_type, lambda msg: ctx.deliver(box.append, msg))
     try:
         deadline = current().time + (timeout if timeout is not None else float("inf"))
         _wait(deadline, ready=lambda: bool(box))

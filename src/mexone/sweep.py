@@ -20,9 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.control.config import PidGains
+from mexone.control.metrics import settling_time
+from mexone.control.spec import PidGains
 from mexone.errors import InputError
-from mexone.lab import Lab
+from mexone.lab import Lab, cached_lab
+from mexone.physics.monitor import has_fallen
 
 __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "run_sweep",
            "parse_range", "best_row", "best_yaml", "heatmap", "METRICS", "GAIN_KEYS"]
@@ -30,8 +32,6 @@ __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "r
 GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
-SETTLE_BAND = 0.02  # of the step
-FALL_TILT = 0.5  # rad
 
 
 @dataclass(frozen=True)
@@ -83,38 +83,32 @@ def random_trials(ranges: dict[str, np.ndarray], count: int, seed: int = 0) -> l
 
 
 # ----- one trial ---------------------------------------------------------------------------------
-_LABS: dict[str, Lab] = {}  # one Lab per spec per worker process: compiling costs more than a trial
-
-
 def _lab(spec: SweepSpec) -> Lab:
-    lab = _LABS.get(spec.key())
-    if lab is None:
-        lab = _LABS[spec.key()] = Lab.create(spec.model, spec.controllers)
-        if lab.controllers is None:
-            raise InputError("the robot has no controllers to tune", hint="give --controllers")
-    lab.sim.reset()
-    lab.controllers.restart()
+    """This worker's Lab for `spec`, back at home (compiling costs more than a trial)."""
+    lab = cached_lab(spec.model, spec.controllers)
+    if lab.controllers is None:
+        raise InputError("the robot has no controllers to tune", hint="give --controllers")
+    lab.sim.reset()  # controllers restart, holding home, with the configured gains
+    for ctrl in lab.controllers.controllers.values():
+        if ctrl.gains is not None:
+            lab.controllers.set_gains(ctrl.name, [ctrl.pid_for(j) for j in ctrl.joints])
     return lab
 
 
 def _apply_gains(lab: Lab, spec: SweepSpec, gains: dict[str, float]) -> np.ndarray:
     manager = lab.controllers
     by_joint = manager.by_joint()
-    rows = []
     for joint in spec.joints:
         ctrl = by_joint.get(joint)
-        if ctrl is None or not hasattr(ctrl, "gains"):
+        if ctrl is None or ctrl.kind != "position" or ctrl.gains is None:
             raise InputError(f"joint '{joint}' has no running position controller to tune")
         base = ctrl.gains[ctrl.joints.index(joint)]
         clamp = gains.get("i_clamp", max(abs(base.i_clamp_min), abs(base.i_clamp_max)))
         tuned = PidGains(p=gains.get("p", base.p), i=gains.get("i", base.i),
                          d=gains.get("d", base.d), i_clamp_min=-clamp, i_clamp_max=clamp,
                          antiwindup=base.antiwindup)
-        row = manager.hw.rows([joint])
-        manager.bank.set_gains(row, [tuned])
-        rows.append(row[0])
-    manager.reschedule()
-    return np.array(rows)
+        manager.set_gains(ctrl.name, tuned, joints=[joint])
+    return manager.hw.rows(spec.joints)
 
 
 def run_trial(spec: SweepSpec, trial: Trial) -> dict:
@@ -123,23 +117,18 @@ def run_trial(spec: SweepSpec, trial: Trial) -> dict:
     rows = _apply_gains(lab, spec, trial.gains)
     start_height = sim.base_height
     metrics = _routine_trial(lab, spec, rows) if spec.routine else _step_trial(lab, spec, rows[0])
-    rot = sim.data.xmat[sim.compiled.root_body].reshape(3, 3)
-    tilt = math.acos(max(-1.0, min(1.0, rot[2, 2])))
-    metrics["fell"] = bool(tilt > FALL_TILT or sim.base_height < 0.7 * start_height)
+    metrics["fell"] = has_fallen(sim, start_height)
     metrics["max_effort"] = float(metrics["max_effort"])
     return {"index": trial.index, **trial.gains, **metrics}
 
 
 def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
-    sim, hw = lab.sim, lab.controllers.hw
+    sim, hw, manager = lab.sim, lab.controllers.hw, lab.controllers
     joint = spec.joints[0]
     start = float(hw.position(np.array([row]))[0])
     target = float(np.clip(start + spec.step, hw.lower[row], hw.upper[row]))
     sim.step(round(STEP_AT / sim.timestep))
-    ctrl = lab.controllers.by_joint()[joint]
-    values = ctrl.setpoint.copy()
-    values[ctrl.joints.index(joint)] = target
-    ctrl.set_command(values)
+    manager.command(manager.by_joint()[joint].name, {joint: target})
     n = round((spec.duration - STEP_AT) / sim.timestep)
     q, effort = np.empty(n), np.empty(n)
     one = np.array([row])
@@ -151,7 +140,7 @@ def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
     size = target - start
     progress = (q - start) / size if size else np.ones(n)
     return {"rise_time": _rise_time(t, progress), "overshoot": float(max(progress.max() - 1, 0)),
-            "settling_time": _settling(t, progress),
+            "settling_time": settling_time(t, q, target, size),
             "iae": float(np.abs(target - q).sum() * sim.timestep),
             "max_effort": np.abs(effort).max()}
 
@@ -161,21 +150,14 @@ def _rise_time(t: np.ndarray, progress: np.ndarray) -> float | None:
     return float(t[high[0]] - t[low[0]]) if low.size and high.size else None
 
 
-def _settling(t: np.ndarray, progress: np.ndarray) -> float | None:
-    outside = np.flatnonzero(np.abs(progress - 1.0) > SETTLE_BAND)
-    if outside.size == 0:
-        return 0.0
-    return None if outside[-1] == len(t) - 1 else float(t[outside[-1] + 1])
-
-
 def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
     from mexone.routines.runner import RoutineRunner
 
-    sim, hw, bank = lab.sim, lab.controllers.hw, lab.controllers.bank
+    sim, hw, manager = lab.sim, lab.controllers.hw, lab.controllers
     totals = {"iae": 0.0, "max_effort": 0.0}
 
     def sample(s) -> None:
-        error = bank.setpoint[rows] - hw.position(rows)
+        error = manager.setpoints()[rows] - hw.position(rows)
         totals["iae"] += float(np.abs(error).sum()) * 0.01
         totals["max_effort"] = max(totals["max_effort"], float(np.abs(hw.effort(rows)).max()))
 

@@ -169,6 +169,7 @@ def test_bad_commands_are_refused_or_clamped_and_never_reach_physics(tmp_path, c
         lab.sim.step(10)
         assert np.isfinite(lab.sim.data.qpos).all() and np.isfinite(lab.sim.data.ctrl).all()
         lab.bus.publish(topic, Float64(5.0))  # the limit is 3 rad
+        lab.sim.step(1)  # subscribers only buffer: the next control update applies it
     assert "not finite; ignored" in caplog.text
     assert "clamped: yaw 5 -> 3" in caplog.text
     assert lab.controllers.controllers["yaw_controller"].setpoint[0] == 3.0
@@ -221,10 +222,11 @@ def test_trajectory_controller_interpolates(tmp_path, turntable):
         JointTrajectoryPoint(positions=[0.0], velocities=[0.0], time_from_start=Duration.from_sec(3.0)),
     ])
     lab.bus.publish("/turntable/arm_trajectory/command", msg)
+    lab.sim.step(1)  # the update before this step (t = 0) takes the buffered trajectory
     assert traj.sample(0.5)[0][0] == pytest.approx(0.5)  # linear: no velocities given
     assert traj.sample(2.5)[0][0] == pytest.approx(0.5)  # cubic Hermite midpoint
     assert traj.sample(2.25)[0][0] == pytest.approx(1 - (3 * 0.25**2 - 2 * 0.25**3))
-    lab.sim.step(3500)
+    lab.sim.step(3499)
     assert lab.sim.joint_positions()[0] == pytest.approx(0.0, abs=0.01)  # holds the last point
 
 

@@ -12,6 +12,7 @@ import time
 import numpy as np
 import pytest
 
+from mexone.errors import MexoneError
 from mexone.gui.app import GuiApp
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
@@ -114,11 +115,11 @@ def test_collisions_toggle_adds_collision_geometry(app, page):
 
 def test_bad_numbers_are_refused_not_crashing(app):
     gains = app.lab.controllers.controllers["l_knee_position_controller"].gains[0]
-    with pytest.raises(ValueError):
+    with pytest.raises(MexoneError, match="negative p"):
         app._set_gain(app.lab.controllers.controllers["l_knee_position_controller"], "p", -5.0)
     assert app.lab.controllers.controllers["l_knee_position_controller"].gains[0] == gains
-    with pytest.raises(ValueError):
-        app._set_timestep(1.0)
+    with pytest.raises(MexoneError, match="time step 1 s is out of range"):
+        app.lab.sim.set_timestep(1.0)
     assert app.lab.sim.model.opt.timestep == 0.001
 
 

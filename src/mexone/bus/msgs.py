@@ -33,6 +33,11 @@ class _Stamp:
         secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)  # round first: 1.9999999999 -> 2
         return cls(int(secs), int(nsecs))
 
+    @classmethod
+    def from_nsec(cls, nanoseconds: int):
+        secs, nsecs = divmod(int(nanoseconds), 1_000_000_000)
+        return cls(secs, nsecs)
+
     def to_sec(self) -> float:
         return self.secs + self.nsecs * 1e-9
 

@@ -12,6 +12,7 @@ import numpy as np
 from mexone.cli.common import add_model_options, add_record_options, lab_from_args, positive, recording
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
+from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
@@ -25,9 +26,6 @@ to within 2% or 5 mrad), and whether the robot stayed standing.
 Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint.
 
 exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input"""
-
-FALL_TILT = 0.5  # rad: a base tilted more than this (29 degrees) has fallen
-FALL_DROP = 0.7  # ...or one lower than 70% of its starting height
 
 
 def add_parser(sub) -> None:
@@ -67,10 +65,8 @@ def run(args: argparse.Namespace) -> int:
         except DivergenceError as exc:
             diverged = exc.one_line()
             runner.stop()
-    rot = sim.data.xmat[sim.compiled.root_body].reshape(3, 3)
-    tilt = float(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
-    height = sim.base_height
-    fell = bool(tilt > FALL_TILT or height < FALL_DROP * start_height)
+    tilt, height = sim.base_tilt, sim.base_height
+    fell = has_fallen(sim, start_height)
     metrics = recorder.metrics()
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),

@@ -8,7 +8,6 @@ import os
 import sys
 from pathlib import Path
 
-from mexone.bus.ros1 import CLOCK_PERIOD, ROS_INSTALL
 from mexone.cli.common import (
     add_model_options,
     add_record_options,
@@ -23,6 +22,7 @@ from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
 from mexone.robots import mex_one
+from mexone.ros1.bridge import CLOCK_PERIOD, ROS_INSTALL
 
 HELP = """\
 Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
@@ -159,7 +159,7 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
 def _connect_ros(args: argparse.Namespace):
     """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
     put them there and none were given on the command line (the seed's control.launch flow)."""
-    from mexone.bus.ros1 import Ros1Bridge, config_from_param_server
+    from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
 
     bridge = Ros1Bridge()
     if args.controllers is None and not args.no_controllers:

@@ -1,18 +1,16 @@
-"""Control layer: ros_control YAML, control_toolbox PID, ros_controllers types, the manager."""
+"""Control layer: ros_control YAML, the controller types, the hardware interface, the manager."""
 
-from mexone.control.config import (
-    CONTROLLER_TYPES,
-    ControlConfig,
-    ControllerSpec,
-    PidGains,
-    load_control_config,
-    parse_control_config,
-)
-from mexone.control.manager import ControllerInfo, ControllerManager
+from mexone.control.config import load_control_config, parse_control_config
+from mexone.control.controllers import CONTROLLER_TYPES, Controller, ControllerType
+from mexone.control.hardware import SimHardware, build_actuators
+from mexone.control.manager import BEST_EFFORT, STRICT, ControllerInfo, ControllerManager
 from mexone.control.pid import PidArray
+from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 
 __all__ = [
     "CONTROLLER_TYPES",
+    "Controller",
+    "ControllerType",
     "ControlConfig",
     "ControllerSpec",
     "PidGains",
@@ -20,5 +18,9 @@ __all__ = [
     "parse_control_config",
     "ControllerInfo",
     "ControllerManager",
+    "STRICT",
+    "BEST_EFFORT",
+    "SimHardware",
+    "build_actuators",
     "PidArray",
 ]

@@ -8,11 +8,12 @@ level, plus ``gazebo_ros_control/pid_gains/<joint>`` as gazebo_ros_control reads
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import yaml
 
+from mexone.control.controllers import CONTROLLER_TYPES
+from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.errors import InputError
 
 __all__ = [
@@ -23,63 +24,6 @@ __all__ = [
     "load_control_config",
     "parse_control_config",
 ]
-
-# type -> (command kind, hardware interface it claims, single joint?)
-CONTROLLER_TYPES: dict[str, tuple[str, str, bool]] = {
-    "joint_state_controller/JointStateController": ("state", "", False),
-    "position_controllers/JointPositionController": ("position", "PositionJointInterface", True),
-    "velocity_controllers/JointVelocityController": ("velocity", "VelocityJointInterface", True),
-    "effort_controllers/JointPositionController": ("position", "EffortJointInterface", True),
-    "effort_controllers/JointVelocityController": ("velocity", "EffortJointInterface", True),
-    "effort_controllers/JointEffortController": ("effort", "EffortJointInterface", True),
-    "position_controllers/JointGroupPositionController": ("position", "PositionJointInterface", False),
-    "velocity_controllers/JointGroupVelocityController": ("velocity", "VelocityJointInterface", False),
-    "effort_controllers/JointGroupPositionController": ("position", "EffortJointInterface", False),
-    "effort_controllers/JointGroupEffortController": ("effort", "EffortJointInterface", False),
-    "effort_controllers/JointTrajectoryController": ("trajectory", "EffortJointInterface", False),
-    "position_controllers/JointTrajectoryController": ("trajectory", "PositionJointInterface", False),
-}
-
-
-@dataclass(frozen=True)
-class PidGains:
-    """control_toolbox::Pid parameters; i_clamp 0 means no integral action, as in ROS."""
-
-    p: float
-    i: float = 0.0
-    d: float = 0.0
-    i_clamp_min: float = 0.0
-    i_clamp_max: float = 0.0
-    antiwindup: bool = False
-
-
-@dataclass(frozen=True)
-class ControllerSpec:
-    name: str
-    type: str
-    joints: tuple[str, ...] = ()
-    pid: PidGains | None = None
-    publish_rate: float | None = None
-    line: int | None = None
-    gains: dict[str, PidGains] | None = None  # per joint (joint_trajectory_controller's gains:)
-    ideal_servo: bool = False  # teleport the joint as Gazebo 7's position interface did
-    source: Path | None = None
-
-    @property
-    def kind(self) -> str:
-        return CONTROLLER_TYPES[self.type][0]
-
-    @property
-    def interface(self) -> str:
-        return CONTROLLER_TYPES[self.type][1]
-
-
-@dataclass
-class ControlConfig:
-    namespace: str | None
-    controllers: dict[str, ControllerSpec] = field(default_factory=dict)
-    pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
-    source: Path | None = None
 
 
 def load_control_config(path: Path | str) -> ControlConfig:
@@ -161,8 +105,8 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
         raise reader.error(type_node, f"controller '{name}' has unknown type '{ctype}'",
-                           "valid types: " + ", ".join(CONTROLLER_TYPES))
-    kind, _, single = CONTROLLER_TYPES[ctype]
+                           "valid types: " + ", ".join(sorted(CONTROLLER_TYPES)))
+    kind, single = CONTROLLER_TYPES[ctype].kind, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
     if kind != "state":
         if single:

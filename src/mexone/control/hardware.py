@@ -1,42 +1,147 @@
-"""SimHardware: the hardware interface between controllers and the simulated joints.
+"""SimHardware: ros_control's hardware interface on MuJoCo, and the only code that touches actuators.
 
-Every actuated joint has a MuJoCo actuator whose force is affine in the joint state,
-    torque = u + kq * q + kv * qdot            (joint space; the gear is folded in here)
-so a PD law (kq = -p, kv = -d, u = p * setpoint) runs inside MuJoCo's step, with its damping
-integrated implicitly and the URDF effort limit enforced by the actuator's force range.
-Controllers only write u (and kq, kv when they start); Python runs per step only for what MuJoCo
-cannot do (integral terms, finite-difference derivatives, trajectories, ideal servos).
+`build_actuators` edits the MjSpec before the model compiles (as mjlab's actuator configs do) and
+gives every joint with a <transmission> two MuJoCo actuators:
+
+    <joint>     MuJoCo's native PID servo with the P and D terms and a feed-forward input,
+                    torque = kp (q_ref - q) + kd (v_ref - qdot) + ff
+                the D term integrated implicitly, so stiff gains stay stable;
+    <joint>/i   a native PID integral state z (dz/dt = q_ref - q): control_toolbox's I term,
+                    torque = clamp(ki z, i_clamp_min, i_clamp_max)
+                antiwindup clamps z itself to [i_clamp_min/ki, i_clamp_max/ki], as ROS does;
+
+and limits the joint's total actuator torque to the URDF effort limit. Gains, clamps and setpoints
+are model and data fields, so retuning costs nothing and the whole PID runs in C every step.
+
+`read()` copies the joint state into `state`; `write()` sends `command` to MuJoCo. Both run in the
+simulation thread only (the ControllerManager's update). Everything is in joint space: the
+transmission's mechanicalReduction r is folded in here (actuator length = r q, torque = r force).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
+import mujoco
 import numpy as np
 
-from mexone.errors import InputError
+from mexone.description.model import RobotModel
+from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware"]
+__all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "INTEGRAL_SUFFIX",
+           "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
+
+INTEGRAL_SUFFIX = "/i"
+TELEPORT_NONE, TELEPORT_POSITION, TELEPORT_VELOCITY = 0, 1, 2
+_MOTOR_INPUTS = int(mujoco.mjtCtrlInput.mjINPUT_POS | mujoco.mjtCtrlInput.mjINPUT_VEL
+                    | mujoco.mjtCtrlInput.mjINPUT_FF)
+_TINY = 1e-12  # the compiler wants forcerange lo < hi; write() sets the real clamps
+
+
+def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
+    """A physics.compile SpecEdit: the motor and integral actuators of every transmission."""
+    for joint in robot.actuated_joints:
+        reduction = robot.transmission_for(joint.name).mechanical_reduction
+        effort = joint.limit.effort if joint.limit and joint.limit.effort > 0 else 0.0
+        motor = spec.add_actuator(name=joint.name, target=joint.name,
+                                  trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        motor.gear = (reduction, 0, 0, 0, 0, 0)
+        motor.gaintype = mujoco.mjtGain.mjGAIN_PID
+        motor.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        motor.dyntype = mujoco.mjtDyn.mjDYN_NONE
+        motor.gainprm = np.zeros(10)
+        motor.biasprm = np.zeros(10)
+        motor.ctrlspec = _MOTOR_INPUTS
+        motor.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        integral = spec.add_actuator(name=joint.name + INTEGRAL_SUFFIX, target=joint.name,
+                                     trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        integral.gaintype = mujoco.mjtGain.mjGAIN_PID
+        integral.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+        integral.dyntype = mujoco.mjtDyn.mjDYN_PID  # one state: the integral of q_ref - q
+        integral.gainprm = np.r_[1.0, np.zeros(9)]  # ki > 0 at compile time allocates the state
+        integral.biasprm = np.zeros(10)
+        integral.ctrlspec = int(mujoco.mjtCtrlInput.mjINPUT_POS)
+        integral.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+        integral.actearly = True  # the I term uses this step's error, as control_toolbox does
+        integral.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+        integral.forcerange = (-_TINY, _TINY)
+        if effort > 0:
+            motor.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            motor.forcerange = (-effort / abs(reduction), effort / abs(reduction))
+            mj_joint = spec.joint(joint.name)
+            mj_joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            mj_joint.actfrcrange = (-effort, effort)
+
+
+@dataclass
+class JointStates:
+    """The state interfaces, as read at the start of an update (joint space)."""
+
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+@dataclass
+class JointCommands:
+    """The command interfaces controllers write (joint space, one entry per actuated joint)."""
+
+    n: int
+    position: np.ndarray = field(init=False)  # q_ref
+    velocity: np.ndarray = field(init=False)  # v_ref
+    effort: np.ndarray = field(init=False)  # feed-forward torque
+    kp: np.ndarray = field(init=False)
+    kd: np.ndarray = field(init=False)
+    ki: np.ndarray = field(init=False)
+    i_min: np.ndarray = field(init=False)
+    i_max: np.ndarray = field(init=False)
+    antiwindup: np.ndarray = field(init=False)
+    teleport: np.ndarray = field(init=False)  # TELEPORT_*: Gazebo's SetPosition/SetVelocity
+
+    def __post_init__(self) -> None:
+        for name in ("position", "velocity", "effort", "kp", "kd", "ki", "i_min", "i_max"):
+            setattr(self, name, np.zeros(self.n))
+        self.antiwindup = np.zeros(self.n, dtype=bool)
+        self.teleport = np.zeros(self.n, dtype=np.int8)
 
 
 class SimHardware:
     def __init__(self, sim: Simulation):
         self.sim = sim
-        self.joints = list(sim.compiled.actuated)  # actuator order
+        robot, model = sim.robot, sim.model
+        self.joints = [j.name for j in robot.actuated_joints]  # hardware order
         self.index = {name: i for i, name in enumerate(self.joints)}
-        sim_index = {name: i for i, name in enumerate(sim.joint_names)}
-        self.sim_rows = np.array([sim_index[j] for j in self.joints], dtype=int)
-        self.qpos_adr = sim.compiled.qpos_adr[self.sim_rows]
-        self.dof_adr = sim.compiled.dof_adr[self.sim_rows]
-        self.gear = sim.compiled.gear.copy()
-        joints = [sim.robot.joints[j] for j in self.joints]
-        self.lower = np.array([j.limit.lower if j.type in ("revolute", "prismatic") else -np.inf
-                               for j in joints])
-        self.upper = np.array([j.limit.upper if j.type in ("revolute", "prismatic") else np.inf
-                               for j in joints])
+        try:
+            self.motor = np.array([model.actuator(j).id for j in self.joints], dtype=int)
+            self.integral = np.array([model.actuator(j + INTEGRAL_SUFFIX).id for j in self.joints],
+                                     dtype=int)
+        except KeyError:
+            raise ModelError("the model was compiled without mexone's actuators",
+                             hint="build the Simulation with edits=[build_actuators]") from None
+        ids = [model.joint(j).id for j in self.joints]
+        self.qpos_adr = np.array([model.jnt_qposadr[i] for i in ids], dtype=int)
+        self.dof_adr = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
+        self.gear = model.actuator_gear[self.motor, 0].copy()
+        self._ctrl_motor = model.actuator_ctrladr[self.motor]  # [q_ref, v_ref, ff] each
+        self._ctrl_integral = model.actuator_ctrladr[self.integral]
+        self._act_integral = model.actuator_actadr[self.integral]
+        joints = [robot.joints[j] for j in self.joints]
+        limited = [j.type in ("revolute", "prismatic") for j in joints]
+        self.lower = np.array([j.limit.lower if lim else -np.inf for j, lim in zip(joints, limited,
+                                                                                    strict=True)])
+        self.upper = np.array([j.limit.upper if lim else np.inf for j, lim in zip(joints, limited,
+                                                                                   strict=True)])
         self.effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
                                       for j in joints])
-        self.continuous = np.array([j.type == "continuous" for j in joints])
-        self.u = np.zeros(len(self.joints))
+        self.velocity_limit = np.array([j.limit.velocity if j.limit and j.limit.velocity > 0
+                                        else np.inf for j in joints])
+        n = len(self.joints)
+        self.command = JointCommands(n)
+        self.state = JointStates(np.zeros(n), np.zeros(n), np.zeros(n))
+        self._gains_changed = np.zeros(n, dtype=bool)
+        self._integral_reset = np.zeros(n, dtype=bool)
+        self.writes = 0  # write() calls, for tests and benchmarks
 
     def rows(self, names) -> np.ndarray:
         missing = [n for n in names if n not in self.index]
@@ -45,35 +150,73 @@ class SimHardware:
                              "can drive it", hint="add a <transmission> for it to the URDF")
         return np.array([self.index[n] for n in names], dtype=int)
 
-    # ----- state ----------------------------------------------------------------------------
-    def position(self, rows: np.ndarray) -> np.ndarray:
+    # ----- state (reading is safe in the simulation thread at any time) --------------------------
+    def position(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         return self.sim.data.qpos[self.qpos_adr[rows]]
 
-    def velocity(self, rows: np.ndarray) -> np.ndarray:
+    def velocity(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
         return self.sim.data.qvel[self.dof_adr[rows]]
 
-    def effort(self, rows: np.ndarray) -> np.ndarray:
-        """Joint torque the motors applied in the last step."""
-        return self.sim.data.actuator_force[rows] * self.gear[rows]
+    def effort(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Joint torque the motors applied in the last step (after the effort limit)."""
+        return self.sim.data.qfrc_actuator[self.dof_adr[rows]]
 
-    # ----- commands -------------------------------------------------------------------------
-    def set_feedback(self, rows: np.ndarray, kq: np.ndarray, kv: np.ndarray) -> None:
-        """State feedback the actuator applies by itself (joint space)."""
-        g2 = self.gear[rows] ** 2
-        self.sim.model.actuator_biasprm[rows, 1] = kq / g2
-        self.sim.model.actuator_biasprm[rows, 2] = kv / g2
+    def read(self) -> None:
+        self.state.position[:] = self.position()
+        self.state.velocity[:] = self.velocity()
+        self.state.effort[:] = self.effort()
 
-    def set_u(self, rows: np.ndarray, u: np.ndarray) -> None:
-        self.u[rows] = u
-        self.sim.data.ctrl[rows] = u / self.gear[rows]
+    # ----- commands ------------------------------------------------------------------------------
+    def gains_changed(self, rows: np.ndarray) -> None:
+        """Controllers call this after writing kp/kd/ki/clamps: write() sends them to MuJoCo."""
+        self._gains_changed[rows] = True
+
+    def reset_integral(self, rows: np.ndarray) -> None:
+        """The I term restarts from zero at the next write (a controller starting)."""
+        self._integral_reset[rows] = True
 
     def release(self, rows: np.ndarray) -> None:
         """No controller: the motor applies nothing."""
-        self.set_feedback(rows, np.zeros(len(rows)), np.zeros(len(rows)))
-        self.set_u(rows, np.zeros(len(rows)))
+        c = self.command
+        for array in (c.position, c.velocity, c.effort, c.kp, c.kd, c.ki, c.i_min, c.i_max):
+            array[rows] = 0.0
+        c.antiwindup[rows] = False
+        c.teleport[rows] = TELEPORT_NONE
+        self.gains_changed(rows)
+        self.reset_integral(rows)
 
-    def teleport(self, rows: np.ndarray, position: np.ndarray | None, velocity: np.ndarray) -> None:
-        """Ideal servo (Gazebo's SetPosition/SetVelocity): write the state, no force."""
-        if position is not None:
-            self.sim.data.qpos[self.qpos_adr[rows]] = position
-        self.sim.data.qvel[self.dof_adr[rows]] = velocity
+    def write(self) -> None:
+        """Send the commands to MuJoCo: the only place that writes ctrl, act and actuator
+        parameters (and, for ideal servos, qpos/qvel)."""
+        model, data, c, r = self.sim.model, self.sim.data, self.command, self.gear
+        self.writes += 1
+        data.ctrl[self._ctrl_motor] = r * c.position
+        data.ctrl[self._ctrl_motor + 1] = r * c.velocity
+        data.ctrl[self._ctrl_motor + 2] = c.effort / r
+        data.ctrl[self._ctrl_integral] = c.position
+        if self._gains_changed.any():
+            rows = np.flatnonzero(self._gains_changed)
+            self._gains_changed[:] = False
+            motor, integral, r2 = self.motor[rows], self.integral[rows], r[rows] ** 2
+            model.actuator_biasprm[motor, 1] = -c.kp[rows] / r2
+            model.actuator_biasprm[motor, 2] = -c.kd[rows] / r2
+            ki = c.ki[rows]
+            model.actuator_gainprm[integral, 0] = ki
+            model.actuator_forcerange[integral, 0] = c.i_min[rows]
+            model.actuator_forcerange[integral, 1] = c.i_max[rows]
+            wind = c.antiwindup[rows] & (ki > 0)
+            model.actuator_actlimited[integral] = wind
+            with np.errstate(divide="ignore", invalid="ignore"):
+                a, b = c.i_min[rows] / ki, c.i_max[rows] / ki
+            model.actuator_actrange[integral[wind], 0] = np.minimum(a, b)[wind]
+            model.actuator_actrange[integral[wind], 1] = np.maximum(a, b)[wind]
+        if self._integral_reset.any():
+            rows = np.flatnonzero(self._integral_reset)
+            self._integral_reset[:] = False
+            data.act[self._act_integral[rows]] = 0.0
+        teleport = c.teleport
+        if teleport.any():
+            pos = teleport == TELEPORT_POSITION
+            data.qpos[self.qpos_adr[pos]] = c.position[pos]
+            moving = teleport != TELEPORT_NONE
+            data.qvel[self.dof_adr[moving]] = c.velocity[moving]

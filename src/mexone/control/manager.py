@@ -1,30 +1,43 @@
-"""ControllerManager: load, start, stop, switch and list controllers; run their update loop.
+"""ControllerManager: ros_control's controller_manager, and the control loop.
 
-As in ros_control: controllers are configured from the parameter file, claim joints through the
-hardware interface (one running controller per joint), listen on ``/<ns>/<name>/command``, and
-``joint_state_controller`` publishes ``/<ns>/joint_states``. The update runs every control
-period of sim time, and only when a running controller needs it.
+Controllers are loaded from the configuration, claim joints through the hardware interface (one
+running controller per joint), and listen on ``/<ns>/<name>/command``. Subscribers only buffer.
+The loop is ros2_control's read -> update -> write, run by the simulation thread before a step
+whenever it is due (`wake_ns`): when a command is waiting, and every control period while a
+running controller needs its period (trajectories, ideal servos, velocity PIDs with I or D). The
+PIDs themselves run in MuJoCo, so with nothing waiting the loop costs nothing.
+
+    topic --on_command--> controller buffer --update--> hw.command --write--> MuJoCo --mj_step
 """
 
 from __future__ import annotations
 
 import logging
+import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
-from mexone.bus.msgs import Header, JointState, Time
+from mexone.bus.msgs import Float64, Float64MultiArray
 from mexone.bus.topics import Bus, Subscription
-from mexone.control.config import ControlConfig, ControllerSpec
-from mexone.control.controllers import Controller, make_controller
+from mexone.control.controllers import (
+    CONTROLLER_TYPES,
+    Controller,
+    ControllerContext,
+    controller_type,
+)
 from mexone.control.hardware import SimHardware
-from mexone.control.servo import ServoBank
+from mexone.control.notes import gazebo_differences
+from mexone.control.spec import ControlConfig, PidGains
 from mexone.errors import InputError
-from mexone.physics.simulation import Simulation
+from mexone.physics.simulation import NS, Simulation
 
-__all__ = ["ControllerManager", "ControllerInfo", "JointStatePublisher"]
+__all__ = ["ControllerManager", "ControllerInfo", "STRICT", "BEST_EFFORT"]
 
 log = logging.getLogger("mexone.control")
+
+BEST_EFFORT, STRICT = 1, 2  # controller_manager_msgs/SwitchController strictness
 
 
 @dataclass(frozen=True)
@@ -33,195 +46,244 @@ class ControllerInfo:
     type: str
     state: str  # "running" or "stopped"
     joints: tuple[str, ...]
-
-
-class JointStatePublisher:
-    """joint_state_controller: every actuated joint, alphabetical, stamped with sim time,
-    published when last + 1/rate <= t."""
-
-    def __init__(self, spec: ControllerSpec, hw: SimHardware, bus: Bus, topic: str):
-        self.spec, self.hw, self.bus, self.topic = spec, hw, bus, topic
-        self.name = spec.name
-        order = sorted(hw.joints)
-        self.names = order
-        self.rows = np.array([hw.index[j] for j in order], dtype=int)
-        self.period = 1.0 / (spec.publish_rate or 50.0)
-        self.timer = None
-        self.seq = 0
-        self.running = False
-        bus.advertise(topic, JointState)
-
-    def publish(self, sim: Simulation) -> None:
-        self.seq += 1
-        msg = JointState(Header(self.seq, Time.from_sec(sim.time), ""), list(self.names),
-                         self.hw.position(self.rows).tolist(), self.hw.velocity(self.rows).tolist(),
-                         self.hw.effort(self.rows).tolist())
-        self.bus.publish(self.topic, msg)
+    interface: str
 
 
 class ControllerManager:
-    def __init__(self, sim: Simulation, bus: Bus, config: ControlConfig,
-                 namespace: str | None = None, control_period: float | None = None):
-        self.sim, self.bus, self.config = sim, bus, config
-        ns = namespace or config.namespace or (sim.robot.ros_namespace or "").strip("/") \
-            or sim.robot.name
-        self.namespace = "/" + ns.strip("/")
-        self.hw = SimHardware(sim)
-        self.bank = ServoBank(self.hw)
-        self.control_period = control_period or sim.timestep
-        if self.control_period < sim.timestep * (1 - 1e-9):
-            raise InputError(f"control period {self.control_period} s is shorter than the physics "
+    def __init__(self, sim: Simulation, bus: Bus, config: ControlConfig, hw: SimHardware,
+                 namespace: str, control_period: float | None = None):
+        self.sim, self.bus, self.config, self.hw = sim, bus, config, hw
+        self.namespace = namespace
+        self._explicit_period = control_period
+        if control_period is not None and control_period < sim.timestep * (1 - 1e-9):
+            raise InputError(f"control period {control_period} s is shorter than the physics "
                              f"step {sim.timestep} s")
         self.controllers: dict[str, Controller] = {}
-        self.publishers: dict[str, JointStatePublisher] = {}
         self._subs: dict[str, Subscription] = {}
-        self._scheduled = None
-        self._warn_about_gazebo_differences()
+        self._ctx = ControllerContext(sim, hw, bus, namespace, config.pid_gains)
+        self._periodic: list[Controller] = []  # running controllers that need every period
+        self._running: list[Controller] = []
+        self._next_period_ns = 0
+        self.updates = 0
+        self.wake_ns: float = math.inf
+        sim.add_control(self)
+        sim.on_reset(self.restart)
+        sim.on_timestep_change(self.on_timestep_change)
+        sim.watchdog.suspects.append(self._suspect)
+        for spec, _code, note in gazebo_differences(config):
+            log.warning("%s: %s", spec.name, note)
 
-    # ----- loading --------------------------------------------------------------------------
+    # ----- the loop (simulation thread) ------------------------------------------------------------
+    @property
+    def control_period(self) -> float:
+        """The controllers' period: the physics step unless the configuration asked for more."""
+        return max(self._explicit_period or 0.0, self.sim.timestep)
+
+    def update(self, sim: Simulation) -> None:
+        """read -> every running controller's update -> write."""
+        now = sim.time_ns
+        self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
+        if self._periodic:
+            period = round(self.control_period * NS)
+            if now >= self._next_period_ns - sim.timestep * NS / 2:
+                self._next_period_ns = now + period
+            self.wake_ns = self._next_period_ns
+        self.updates += 1
+        self.hw.read()
+        t = now / NS
+        for ctrl in self._running:
+            ctrl.update(t, self.control_period)
+        self.hw.write()
+
+    def _wake(self) -> None:
+        self.wake_ns = -math.inf
+
+    def on_timestep_change(self, timestep: float) -> None:
+        """The physics step changed: the period follows it; the PIDs in MuJoCo already do."""
+        self._next_period_ns = self.sim.time_ns
+        self._wake()
+
+    def _suspect(self) -> str | None:
+        if any(c.kind != "state" for c in self._running):
+            return "controller gains too high for the time step: lower p and d, or the step"
+        return None
+
+    # ----- loading ---------------------------------------------------------------------------------
     def topic(self, name: str) -> str:
         return f"{self.namespace}/{name}/command"
 
-    def load(self, name: str) -> None:
+    def load(self, name: str) -> Controller:
+        """Create controller `name` from the configuration (stopped)."""
+        if name in self.controllers:
+            raise InputError(f"controller '{name}' is already loaded")
         spec = self.config.controllers.get(name)
         if spec is None:
             raise InputError(f"no controller named '{name}' in the configuration",
                              hint="controllers: " + ", ".join(self.config.controllers))
-        if name in self.controllers or name in self.publishers:
-            return
-        if spec.kind == "state":
-            self.publishers[name] = JointStatePublisher(spec, self.hw, self.bus,
-                                                        f"{self.namespace}/joint_states")
-            return
         missing = [j for j in spec.joints if j not in self.sim.robot.joints]
         if missing:
             raise InputError(f"controller '{name}' names joint '{missing[0]}', which the robot "
                              "does not have", file=spec.source, line=spec.line,
                              hint="joints: " + ", ".join(self.hw.joints))
         try:
-            self.controllers[name] = make_controller(spec, self.hw, self.bank, self.config.pid_gains)
+            ctrl = controller_type(spec.type).cls(spec, self._ctx)
         except InputError as exc:
             raise exc.located(spec.source or "<controllers>", spec.line) from None
+        self.controllers[name] = ctrl
+        return ctrl
+
+    def unload(self, name: str) -> None:
+        ctrl = self._get(name)
+        if ctrl.running:
+            raise InputError(f"cannot unload '{name}': it is running", hint="stop it first")
+        del self.controllers[name]
 
     def load_all(self) -> list[str]:
         for name in self.config.controllers:
-            self.load(name)
+            if name not in self.controllers:
+                self.load(name)
         return list(self.config.controllers)
 
-    # ----- running --------------------------------------------------------------------------
+    def _get(self, name: str) -> Controller:
+        ctrl = self.controllers.get(name)
+        if ctrl is None:
+            raise InputError(f"no controller named '{name}' is loaded",
+                             hint="loaded: " + (", ".join(self.controllers) or "none"))
+        return ctrl
+
+    # ----- running ---------------------------------------------------------------------------------
     def start(self, *names: str) -> None:
         self.switch(start=names)
 
     def stop(self, *names: str) -> None:
         self.switch(stop=names)
 
-    def switch(self, start=(), stop=()) -> None:
-        """Stop then start, refusing two running controllers on one joint (ros_control's rule)."""
-        for name in list(start) + list(stop):
-            if name not in self.controllers and name not in self.publishers:
+    def start_all(self) -> None:
+        self.load_all()
+        self.switch(start=[n for n, c in self.controllers.items() if not c.running])
+
+    def switch(self, start: Iterable[str] = (), stop: Iterable[str] = (),
+               strictness: int = STRICT) -> None:
+        """Stop then start, as controller_manager's switch_controller: STRICT refuses the whole
+        switch if a controller is missing or already in the asked state; BEST_EFFORT skips those.
+        Two running controllers on one joint are refused either way."""
+        start, stop = list(start), list(stop)
+        for name in start + stop:
+            if name not in self.controllers and name in self.config.controllers:
                 self.load(name)
+        problems = [f"no controller named '{n}' is loaded" for n in start + stop
+                    if n not in self.controllers]
+        problems += [f"'{n}' is already running" for n in start
+                     if n in self.controllers and self.controllers[n].running and n not in stop]
+        problems += [f"'{n}' is not running" for n in stop
+                     if n in self.controllers and not self.controllers[n].running]
+        if problems and strictness == STRICT:
+            raise InputError("cannot switch controllers: " + "; ".join(problems),
+                             hint="loaded: " + ", ".join(self.controllers))
+        start = [n for n in start if n in self.controllers
+                 and (not self.controllers[n].running or n in stop)]
+        stop = [n for n in stop if n in self.controllers and self.controllers[n].running]
         claimed = {j: c.name for c in self.controllers.values()
                    if c.running and c.name not in stop for j in c.joints}
         for name in start:
-            ctrl = self.controllers.get(name)
-            if ctrl is None or ctrl.running:
-                continue
-            for joint in ctrl.joints:
+            for joint in self.controllers[name].joints:
                 if claimed.get(joint, name) != name:
                     raise InputError(f"cannot start '{name}': joint '{joint}' is driven by "
                                      f"'{claimed[joint]}'", hint="stop that controller first")
                 claimed[joint] = name
+        self.hw.read()
         for name in stop:
-            self._stop(name)
+            ctrl = self.controllers[name]
+            ctrl.running = False
+            ctrl.stopping()
+            sub = self._subs.pop(name, None)
+            if sub is not None:
+                sub.unregister()
+        t = self.sim.time
         for name in start:
-            self._start(name)
-        self.reschedule()
+            ctrl = self.controllers[name]
+            ctrl.starting(t)
+            ctrl.running = True
+            if ctrl.kind != "state":
+                self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
+                                                      self._buffer(ctrl))
+        self._schedule()
+        self.hw.write()
 
-    def _start(self, name: str) -> None:
-        if name in self.publishers:
-            pub = self.publishers[name]
-            if not pub.running:
-                pub.running = True
-                pub.timer = self.sim.add_periodic(pub.period, pub.publish)
-            return
-        ctrl = self.controllers[name]
-        if ctrl.running:
-            return
-        ctrl.start(self.sim.time)
-        self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type, ctrl.command)
+    def _buffer(self, ctrl: Controller):
+        def on_message(msg) -> None:  # the publisher's thread: buffer only
+            if ctrl.on_command(msg):
+                self._wake()
+        return on_message
 
-    def _stop(self, name: str) -> None:
-        if name in self.publishers:
-            pub = self.publishers[name]
-            if pub.running:
-                pub.running = False
-                self.sim.remove_periodic(pub.timer)
-            return
-        ctrl = self.controllers.get(name)
-        if ctrl is None or not ctrl.running:
-            return
-        ctrl.stop()
-        self._subs.pop(name).unregister()
+    def _schedule(self) -> None:
+        self._running = [c for c in self.controllers.values() if c.running]
+        self._periodic = [c for c in self._running if c.periodic]
+        self._next_period_ns = self.sim.time_ns
+        self._wake()
 
     def restart(self) -> None:
         """Stop and start every running controller (after a reset: they hold the new pose)."""
-        running = [c.name for c in self.list() if c.state == "running"]
+        running = [c.name for c in self.controllers.values() if c.running]
         self.switch(stop=running)
         self.switch(start=running)
 
-    def start_all(self) -> None:
-        self.load_all()
-        self.switch(start=list(self.config.controllers))
-
     def list(self) -> list[ControllerInfo]:
-        out = [ControllerInfo(p.name, p.spec.type, "running" if p.running else "stopped", ())
-               for p in self.publishers.values()]
-        out += [ControllerInfo(c.name, c.spec.type, "running" if c.running else "stopped",
-                               tuple(c.joints)) for c in self.controllers.values()]
-        return out
+        return [ControllerInfo(c.name, c.type.name, "running" if c.running else "stopped",
+                               tuple(c.joints), c.interface) for c in self.controllers.values()]
 
-    def reschedule(self) -> None:
-        """(Re)install the per-period update for what the running controllers need now."""
-        active = [c for c in self.controllers.values() if c.running and c.needs_update]
-        self.sim.controllers_active = any(c.running for c in self.controllers.values())
-        if self._scheduled is not None:
-            kind, handle = self._scheduled
-            if kind == "hook":
-                self.sim.remove_hook(handle)
-            else:
-                self.sim.remove_periodic(handle)
-            self._scheduled = None
-        bank = self.bank
-        if not active and not bank.integrating.any():
-            return
-        dt = self.control_period
-
-        def update(sim: Simulation) -> None:
-            for ctrl in active:
-                ctrl.update(sim.time, dt)
-            bank.integrate(dt)
-
-        if abs(dt - self.sim.timestep) < 1e-12:
-            self.sim.add_hook(update)
-            self._scheduled = ("hook", update)
-        else:
-            self._scheduled = ("periodic", self.sim.add_periodic(dt, update))
-        update(self.sim)
+    @staticmethod
+    def list_types() -> list[str]:
+        return list(CONTROLLER_TYPES)
 
     def by_joint(self) -> dict[str, Controller]:
-        return {j: c for c in self.controllers.values() if c.running for j in c.joints}
+        return {j: c for c in self._running for j in c.joints}
 
-    # ----- what Gazebo 7 would have done differently -------------------------------------------
-    def _warn_about_gazebo_differences(self) -> None:
-        for spec in self.config.controllers.values():
-            if spec.type.startswith("position_controllers/") and spec.pid and not spec.ideal_servo:
-                log.warning("%s: Gazebo 7 ignored this pid: block and teleported the joint "
-                            "(SetPosition); mexone applies the PID as a torque, so the joint has "
-                            "real dynamics (ideal_servo: true restores Gazebo's behaviour)",
-                            spec.name)
-            gains = [spec.pid] if spec.pid else []
-            gains += list((spec.gains or {}).values())
-            if any(g.i and not (g.i_clamp_min or g.i_clamp_max) for g in gains):
-                log.warning("%s: i is set but i_clamp_min/i_clamp_max are 0, so there is no "
-                            "integral action (ROS clamps the integral term to 0); set the clamps",
-                            spec.name)
+    # ----- what front ends change and read (simulation thread) -------------------------------------
+    def set_gains(self, name: str, gains: PidGains | Sequence[PidGains],
+                  joints: Sequence[str] | None = None) -> None:
+        """Retune controller `name` live (all its joints, or `joints`); takes effect at once."""
+        ctrl = self._get(name)
+        current = ctrl.gains
+        if current is None:
+            raise InputError(f"controller '{name}' has no PID gains to set")
+        if isinstance(gains, PidGains):
+            gains = [gains] * len(joints if joints is not None else ctrl.joints)
+        for g in gains:
+            problem = g.problem()
+            if problem:
+                raise InputError(f"gains for '{name}': {problem}", hint="use finite gains >= 0")
+        if joints is not None:
+            unknown = [j for j in joints if j not in ctrl.joints]
+            if unknown:
+                raise InputError(f"controller '{name}' does not drive {', '.join(unknown)}",
+                                 hint="its joints: " + ", ".join(ctrl.joints))
+            for joint, g in zip(joints, gains, strict=True):
+                current[ctrl.joints.index(joint)] = g
+            gains = current
+        ctrl.set_gains(list(gains))
+        self._schedule()
+
+    def command(self, name: str, values: dict[str, float] | Sequence[float]) -> None:
+        """Publish a command to controller `name` on its topic, as any node would: `values` per
+        joint (a dict may name some joints; the others keep their setpoint)."""
+        ctrl = self._get(name)
+        if isinstance(values, dict):
+            current = ctrl.setpoint
+            unknown = [j for j in values if j not in ctrl.joints]
+            if unknown:
+                raise InputError(f"controller '{name}' does not drive {', '.join(unknown)}",
+                                 hint="its joints: " + ", ".join(ctrl.joints))
+            values = [values.get(j, current[i]) for i, j in enumerate(ctrl.joints)]
+        values = [float(v) for v in values]
+        msg = Float64(values[0]) if ctrl.msg_type is Float64 else Float64MultiArray(values)
+        self.bus.publish(self.topic(name), msg)
+
+    def setpoints(self) -> np.ndarray:
+        """What every actuated joint is commanded now (hardware order; rad, rad/s or N m as its
+        controller takes commands; 0 without a controller)."""
+        out = np.zeros(len(self.hw.joints))
+        for ctrl in self._running:
+            if ctrl.kind != "state":
+                out[ctrl.rows] = ctrl.setpoint
+        return out

@@ -7,11 +7,11 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from mexone.control.controllers import PositionController
 from mexone.control.manager import ControllerManager
 from mexone.physics.simulation import Simulation
 
-__all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE"]
+__all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE", "settling_time",
+           "settle_band"]
 
 SAMPLE_RATE = 200.0  # Hz: 5 ms resolution for settling times
 SETTLE_BAND = 0.02  # settled when within 2% of the step...
@@ -42,7 +42,7 @@ class TrackingRecorder:
     def sample(self, sim: Simulation) -> None:
         self.t.append(sim.time)
         for ctrl in self.manager.controllers.values():
-            if ctrl.running and isinstance(ctrl, PositionController):
+            if ctrl.running and ctrl.kind in ("position", "trajectory"):
                 q = ctrl.hw.position(ctrl.rows)
                 for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
                     self.rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
@@ -62,15 +62,24 @@ def _metrics(joint: str, data: np.ndarray) -> JointTracking:
         step = sp[start] - sp[start - 1]
         window = (q[start:end] - sp[start]) * np.sign(step)
         overshoot = max(overshoot, float(max(window.max(), 0.0)) / abs(step))
-        band = max(SETTLE_BAND * abs(step), SETTLE_FLOOR)
-        outside = np.flatnonzero(np.abs(q[start:end] - sp[start]) > band)
         if settling is not None:
-            if outside.size == 0:
-                settle = 0.0
-            elif outside[-1] + 1 < end - start:
-                settle = t[start + outside[-1] + 1] - t[start]
-            else:
-                settle = None
+            settle = settling_time(t[start:end] - t[start], q[start:end], sp[start], step)
             settling = None if settle is None else max(settling, settle)
     return JointTracking(joint, float(np.sqrt(np.mean(error**2))), float(np.abs(error).max()),
                          overshoot, settling, len(changes))
+
+
+def settle_band(step: float) -> float:
+    """How close counts as settled after a step: 2% of the step, or 5 mrad if that is larger."""
+    return max(SETTLE_BAND * abs(step), SETTLE_FLOOR)
+
+
+def settling_time(t: np.ndarray, q: np.ndarray, target: float, step: float) -> float | None:
+    """Time (from t[0]'s origin) after which q stays within the settling band of `target`;
+    None if it is still outside at the end."""
+    outside = np.flatnonzero(np.abs(q - target) > settle_band(step))
+    if outside.size == 0:
+        return 0.0
+    if outside[-1] + 1 >= len(t):
+        return None
+    return float(t[outside[-1] + 1])

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mexone.control.config import PidGains
+from mexone.control.spec import PidGains
 
 __all__ = ["PidArray"]
 

@@ -1,44 +1,45 @@
 """GuiApp: `mexone sim`'s web page (viser), what Gazebo's window was to the seed, and more.
 
-The simulation runs in the main thread, paced to the real-time factor; viser serves the page
-from its own thread. Everything a page does to the simulation goes through `self.actions` and
-runs between frames in the simulation thread, so a slow, closed or tenth browser tab never
-touches the physics.
+The simulation runs in the thread that calls `serve_forever`, paced to the real-time factor;
+viser serves the page from its own threads. Everything a page does to the simulation is queued
+(`self.work`) and runs between frames in the simulation thread, so a slow, closed or tenth
+browser tab never touches the physics. Every value a page sends is checked here, on the server:
+a page is not trusted to respect its own widgets' limits (see also gui/security.py).
 """
 
 from __future__ import annotations
 
 import logging
 import math
-import queue
 import threading
 import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import viser
 import viser.uplot as uplot
 
-from mexone.bus.msgs import Float64, Float64MultiArray
-from mexone.control.controllers import (
-    PositionController,
-    TrajectoryController,
-    VelocityController,
-)
-from mexone.errors import MexoneError
+from mexone.control.controllers import Controller
+from mexone.errors import InputError, MexoneError
 from mexone.gui.scene import OVERLAYS, RobotScene
+from mexone.gui.security import guard, warn_if_exposed
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions
+from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
 from mexone.physics.watchdog import DivergenceError
-from mexone.routines.runner import RoutineRunner, shipped_routines
+from mexone.routines.runner import RoutineRunner, routine_choices
 
-__all__ = ["GuiApp", "FPS"]
+__all__ = ["GuiApp", "FPS", "MAX_STEPS"]
 
 FPS = 30.0  # scene updates per second of wall time
 PLOT_SECONDS = 10.0
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
+MAX_STEPS = 100_000  # Step N at most (a page could send anything)
+STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
+MAX_RTF = 100.0
 
 
 class _GuiLog(logging.Handler):
@@ -55,14 +56,17 @@ class _GuiLog(logging.Handler):
 
 class GuiApp:
     def __init__(self, make_lab: Callable[[CompileOptions], Lab], options: CompileOptions,
-                 host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0):
-        self.make_lab = make_lab
+                 host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
+                 routine_dirs: list[Path] | None = None):
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
         self.lab.sim.target_rtf = target_rtf or None
+        self.routine_dirs = routine_dirs
         self.server = viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
-        self.actions: queue.Queue[Callable[[], None]] = queue.Queue()
+        guard(self.server)
+        warn_if_exposed(host, self.server.get_port())
+        self.work = WorkQueue()
         self.stopping = threading.Event()
         self.scene = RobotScene(self.server, self.lab.sim)
         self.scene.build()
@@ -71,6 +75,7 @@ class GuiApp:
         self.history: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(
             maxlen=int(PLOT_SECONDS * FPS))
         self.error: str | None = None
+        self.steps_left = 0  # Step N in progress, a budget per frame
         self._frames = 0
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self._build_gui()
@@ -82,28 +87,45 @@ class GuiApp:
     # ----- threads ----------------------------------------------------------------------------
     def do(self, action: Callable[[], None]) -> None:
         """Run `action` in the simulation thread, between frames."""
-        self.actions.put(action)
+        self.work.put(action)
 
     def serve_forever(self, duration: float | None = None) -> None:
         sim_start = self.lab.sim.time
         while not self.stopping.is_set():
-            self._drain()
+            self.work.drain(on_error=self._refused)
             sim = self.lab.sim
+            sim.work.drain(on_error=self._refused)  # other front ends' work (ROS services)
             if duration is not None and sim.time - sim_start >= duration:
                 break
             frame = (self.target_rtf or 4.0) / FPS
-            if sim.paused or self.error:
+            if self.steps_left and not self.error:
+                self._step_some()
+            elif sim.paused or self.error:
                 time.sleep(1.0 / FPS)
-                self._after_frame()
-                continue
-            gate = self.routine.scheduler if self.routine and self.routine.running else None
-            try:
-                sim.run(frame, tick=min(frame, TICK) if self.tick_hooks else frame, gate=gate,
-                        on_tick=self._tick if self.tick_hooks else None)
-            except DivergenceError as exc:
-                self.error = exc.one_line()
-                self._status.content = f"**diverged** — {self.error}. Press *Reset world*."
+            else:
+                gate = self.routine.scheduler if self.routine and self.routine.running else None
+                try:
+                    sim.run(frame, tick=min(frame, TICK) if self.tick_hooks else frame, gate=gate,
+                            on_tick=self._tick if self.tick_hooks else None)
+                except DivergenceError as exc:
+                    self._diverged(exc)
             self._after_frame()
+
+    def _step_some(self) -> None:
+        """Advance Step N for at most STEP_BUDGET of wall time: Pause or Reset interrupts it."""
+        sim, end = self.lab.sim, time.perf_counter() + STEP_BUDGET
+        try:
+            while self.steps_left and time.perf_counter() < end:
+                n = min(self.steps_left, 100)
+                sim.step(n)
+                self.steps_left -= n
+        except DivergenceError as exc:
+            self._diverged(exc)
+
+    def _diverged(self, exc: DivergenceError) -> None:
+        self.error = exc.one_line()
+        self.steps_left = 0
+        self._status.content = f"**diverged** — {self.error}. Press *Reset world*."
 
     def _tick(self, sim) -> None:
         for hook in self.tick_hooks:
@@ -115,19 +137,13 @@ class GuiApp:
         for handler in [h for h in logger.handlers if isinstance(h, _GuiLog) and h.app is self]:
             logger.removeHandler(handler)
         if self.routine:
-            self.routine.stop()
+            self.routine.stop(join=0.5)
         self.server.stop()
 
-    def _drain(self) -> None:
-        while True:
-            try:
-                action = self.actions.get_nowait()
-            except queue.Empty:
-                return
-            try:
-                action()
-            except MexoneError as exc:
-                self.notify("Refused", exc.one_line())
+    def _refused(self, exc: Exception) -> None:
+        if not isinstance(exc, MexoneError | ValueError):
+            raise exc
+        self.notify("Refused", exc.one_line() if isinstance(exc, MexoneError) else str(exc))
 
     def notify(self, title: str, body: str, color: str = "red") -> None:
         for client in self.server.get_clients().values():
@@ -138,12 +154,11 @@ class GuiApp:
         self._frames += 1
         sim = self.lab.sim
         self.scene.update()
-        hw = self.lab.controllers.hw if self.lab.controllers else None
-        if hw is not None:
-            bank = self.lab.controllers.bank
-            rows = np.arange(len(hw.joints))
-            self.history.append((sim.time, bank.setpoint.copy(), hw.position(rows).copy(),
-                                 hw.effort(rows).copy()))
+        manager = self.lab.controllers
+        if manager is not None:
+            hw = manager.hw
+            self.history.append((sim.time, manager.setpoints(), hw.position().copy(),
+                                 hw.effort().copy()))
         if self.follow.value:
             base = sim.data.xpos[sim.compiled.root_body]
             for client in self.server.get_clients().values():
@@ -157,7 +172,7 @@ class GuiApp:
                                         f"{sim.rtf.value:4.2f} &nbsp; ({state})")
             self._update_plots()
             self._sync_sliders()
-        if self.routine and not self.routine.running and self.routine.thread is not None:
+        if self.routine and not self.routine.running:
             self._routine_done()
 
     # ----- panels -----------------------------------------------------------------------------
@@ -169,55 +184,79 @@ class GuiApp:
             self.play = gui.add_button("Pause", icon=viser.Icon.PLAYER_PAUSE)
             self.play.on_click(lambda _: self.do(self._toggle_pause))
             step = gui.add_button("Step", hint="one physics step")
-            step.on_click(lambda _: self.do(lambda: self.lab.sim.step(1)))
-            self.step_n = gui.add_number("Steps", initial_value=100, min=1, max=100000, step=1)
+            step.on_click(lambda _: self.do(lambda: self.step_n(1)))
+            self.steps = gui.add_number("Steps", initial_value=100, min=1, max=MAX_STEPS, step=1)
+            self._validated(self.steps, lambda v: None, 1, MAX_STEPS, integer=True)
             step_n = gui.add_button("Step N")
-            step_n.on_click(lambda _: self.do(lambda: self.lab.sim.step(int(self.step_n.value))))
+            step_n.on_click(lambda _: self.do(lambda: self.step_n(self.steps.value)))
             gui.add_button("Reset model").on_click(lambda _: self.do(self.reset_model))
             gui.add_button("Reset world").on_click(lambda _: self.do(self.reset_world))
             self.rtf = gui.add_number("Real-time factor", initial_value=self.target_rtf, min=0.0,
-                                      max=100.0, step=0.1, hint="0 = as fast as possible")
-            self._validated(self.rtf, self._set_rtf)
+                                      max=MAX_RTF, step=0.1, hint="0 = as fast as possible")
+            self._validated(self.rtf, self._set_rtf, 0.0, MAX_RTF)
             self.follow = gui.add_checkbox("Follow robot", False)
         with gui.add_folder("View"):
             for overlay in OVERLAYS:
                 box = gui.add_checkbox(overlay, False)
                 box.on_update(lambda e, name=overlay: self.do(
-                    lambda: self.scene.show(name, e.target.value)))
+                    lambda: self.scene.show(name, bool(e.target.value))))
             transparent = gui.add_checkbox("Transparent", False)
-            transparent.on_update(lambda e: self.do(lambda: self.scene.set_transparent(e.target.value)))
+            transparent.on_update(lambda e: self.do(
+                lambda: self.scene.set_transparent(bool(e.target.value))))
             wireframe = gui.add_checkbox("Wireframe", False)
-            wireframe.on_update(lambda e: self.do(lambda: self.scene.set_wireframe(e.target.value)))
+            wireframe.on_update(lambda e: self.do(
+                lambda: self.scene.set_wireframe(bool(e.target.value))))
         self._build_joints()
         self._build_plots()
         self._build_routines()
         self._build_physics()
 
-    def _validated(self, handle, apply: Callable[[float], None]) -> None:
-        """Refuse a bad number with a message and put the last good value back."""
+    def _validated(self, handle, apply: Callable[[float], None], lo: float, hi: float,
+                   integer: bool = False) -> None:
+        """Check a number from the page on the server (a page may send anything): refuse it with
+        a message and put the last good value back, or apply it in the simulation thread."""
         last = [handle.value]
 
         def changed(_event) -> None:
             value = handle.value
-            if value is None or not math.isfinite(float(value)):
+            try:
+                number = float(value)
+                if isinstance(value, bool) or not math.isfinite(number):
+                    raise ValueError
+            except (TypeError, ValueError):
                 handle.value = last[0]
                 self.notify("Refused", f"{handle.label}: '{value}' is not a number")
+                return
+            if not lo <= number <= hi or (integer and number != int(number)):
+                handle.value = last[0]
+                kind = "a whole number" if integer else "a number"
+                self.notify("Refused", f"{handle.label}: {value} must be {kind} from {lo:g} to {hi:g}")
                 return
 
             def act() -> None:
                 try:
-                    apply(float(value))
-                    last[0] = value
+                    apply(number)
+                    last[0] = number
                 except (MexoneError, ValueError) as exc:
                     handle.value = last[0]
-                    self.notify("Refused", f"{handle.label}: {exc}")
+                    self._refused(exc)
 
             self.do(act)
 
         handle.on_update(changed)
 
+    def step_n(self, n: float) -> None:
+        """Gazebo's step button: n physics steps, spread over frames."""
+        n = int(n)
+        if not 1 <= n <= MAX_STEPS:
+            raise InputError(f"Steps: {n} must be from 1 to {MAX_STEPS}")
+        if not self.lab.sim.paused:
+            self._toggle_pause()
+        self.steps_left = n
+
     def _toggle_pause(self) -> None:
         sim = self.lab.sim
+        self.steps_left = 0  # pausing (or playing) interrupts Step N
         if sim.paused:
             sim.resume()
             self.play.label, self.play.icon = "Pause", viser.Icon.PLAYER_PAUSE
@@ -226,8 +265,6 @@ class GuiApp:
             self.play.label, self.play.icon = "Play", viser.Icon.PLAYER_PLAY
 
     def _set_rtf(self, value: float) -> None:
-        if value < 0:
-            raise ValueError("must be >= 0 (0 = unlimited)")
         self.target_rtf = value
         self.lab.sim.target_rtf = value or None
         if not self.lab.sim.paused:
@@ -241,113 +278,95 @@ class GuiApp:
         manager = self.lab.controllers
         with gui.add_folder("Joints"):
             if manager is None:
-                gui.add_markdown("No controllers loaded (`--no-controllers`).")
+                gui.add_markdown("No controllers loaded.")
                 return
             self.units = gui.add_dropdown("Units", ("rad", "deg"), initial_value="rad")
             self.units.on_update(lambda _: self.do(self._rescale_sliders))
             gui.add_button("Home", hint="every position controller to 0").on_click(
                 lambda _: self.do(self.home))
             for ctrl in manager.controllers.values():
-                if isinstance(ctrl, TrajectoryController):
+                if ctrl.kind == "trajectory":
                     gui.add_markdown(f"`{ctrl.name}`: send JointTrajectory messages from a routine")
-                    continue
-                for joint in ctrl.joints:
-                    self._add_slider(ctrl, joint)
+                if ctrl.sliders:
+                    for index, joint in enumerate(ctrl.joints):
+                        self._add_slider(ctrl, index, joint)
         with gui.add_folder("Gains", expand_by_default=False):
             for ctrl in manager.controllers.values():
-                if isinstance(ctrl, PositionController) and not ctrl.ideal:
+                if ctrl.gains is not None and ctrl.kind == "position":
                     self._add_gains(ctrl)
 
-    def _slider_range(self, ctrl, joint: str) -> tuple[float, float, str]:
-        limit = self.lab.sim.robot.joints[joint].limit
-        if isinstance(ctrl, PositionController):
-            if limit and limit.upper > limit.lower:
-                return limit.lower, limit.upper, "rad"
-            return -math.pi, math.pi, "rad"
-        if isinstance(ctrl, VelocityController):
-            v = limit.velocity if limit and limit.velocity > 0 else 5.0
-            return -v, v, "rad/s"
-        e = limit.effort if limit and limit.effort > 0 else 10.0
-        return -e, e, "N m"
+    def _scale(self, ctrl: Controller) -> float:
+        """Slider units per command unit (degrees for angles when asked)."""
+        return 180.0 / math.pi if ctrl.unit == "rad" and self.units.value == "deg" else 1.0
 
-    def _add_slider(self, ctrl, joint: str) -> None:
-        lo, hi, unit = self._slider_range(ctrl, joint)
+    def _add_slider(self, ctrl: Controller, index: int, joint: str) -> None:
+        lo, hi = ctrl.command_range(index)
         slider = self.server.gui.add_slider(f"{joint}", min=round(lo, 4), max=round(hi, 4),
                                             step=0.001, initial_value=0.0,
-                                            hint=f"{ctrl.name} ({unit})")
+                                            hint=f"{ctrl.name} ({ctrl.unit})")
         self.sliders[(ctrl.name, joint)] = slider
 
         def moved(event) -> None:
-            if event.client is not None:  # a person moved it; our own syncs are not commands
-                value = event.target.value  # now: a sync may change the slider before we run
-                self._touched[(ctrl.name, joint)] = time.monotonic()
-                self.do(lambda: self._send(ctrl.name, {joint: value}))
+            if event.client is None:  # our own syncs are not commands
+                return
+            value = event.target.value  # now: a sync may change the slider before we run
+            self._touched[(ctrl.name, joint)] = time.monotonic()
+
+            def send() -> None:
+                number = float(value) / self._scale(ctrl)
+                lo, hi = ctrl.command_range(index)
+                if not (math.isfinite(number) and lo - 1e-9 <= number <= hi + 1e-9):
+                    raise InputError(f"{joint}: {value} is outside {lo:g} to {hi:g} {ctrl.unit}")
+                self.lab.controllers.command(ctrl.name, {joint: number})
+
+            self.do(send)
 
         slider.on_update(moved)
 
-    def _to_si(self, ctrl, value: float) -> float:
-        degrees = isinstance(ctrl, PositionController) and self.units.value == "deg"
-        return math.radians(value) if degrees else value
-
-    def _send(self, name: str, moved: dict[str, float] | None = None) -> None:
-        """Command controller `name`: `moved` joints from the person, the rest from sliders."""
-        manager = self.lab.controllers
-        ctrl = manager.controllers[name]
-        moved = moved or {}
-        values = [self._to_si(ctrl, moved.get(j, self.sliders[(name, j)].value))
-                  for j in ctrl.joints]
-        msg = Float64(values[0]) if ctrl.msg_type is Float64 else Float64MultiArray(values)
-        self.lab.bus.publish(manager.topic(name), msg)
-
     def _rescale_sliders(self) -> None:
+        manager = self.lab.controllers
         for (name, joint), slider in self.sliders.items():
-            ctrl = self.lab.controllers.controllers[name]
-            if not isinstance(ctrl, PositionController):
-                continue
-            lo, hi, _ = self._slider_range(ctrl, joint)
-            f = 180.0 / math.pi if self.units.value == "deg" else 1.0
-            value = float(ctrl.setpoint[ctrl.joints.index(joint)])
+            ctrl = manager.controllers[name]
+            index = ctrl.joints.index(joint)
+            lo, hi = ctrl.command_range(index)
+            f = self._scale(ctrl)
             slider.min, slider.max, slider.step = round(lo * f, 4), round(hi * f, 4), 0.001 * f
-            slider.value = value * f
+            slider.value = float(ctrl.setpoint[index]) * f
 
     def _sync_sliders(self) -> None:
-        """Show what the position controllers are commanded, whoever commanded it."""
-        if not getattr(self, "sliders", None):
+        """Show what the controllers are commanded, whoever commanded it."""
+        if not self.sliders:
             return
-        f = 180.0 / math.pi if self.units.value == "deg" else 1.0
+        manager = self.lab.controllers
         now = time.monotonic()
         for (name, joint), slider in self.sliders.items():
-            ctrl = self.lab.controllers.controllers[name]
             if now - self._touched.get((name, joint), -1e9) < 1.0:
                 continue  # do not fight a hand on the slider
-            if isinstance(ctrl, PositionController):
-                value = round(float(ctrl.setpoint[ctrl.joints.index(joint)]) * f, 3)
-                if abs(slider.value - value) > 1e-3:
-                    slider.value = value
+            ctrl = manager.controllers[name]
+            value = round(float(ctrl.setpoint[ctrl.joints.index(joint)]) * self._scale(ctrl), 3)
+            if abs(slider.value - value) > 1e-3:
+                slider.value = value
 
     def home(self) -> None:
-        for (name, _joint), slider in self.sliders.items():
-            if isinstance(self.lab.controllers.controllers[name], PositionController):
-                slider.value = 0.0
-        for name, ctrl in self.lab.controllers.controllers.items():
-            if isinstance(ctrl, PositionController) and not isinstance(ctrl, TrajectoryController):
-                self._send(name)
+        """Every position controller's joints to 0."""
+        manager = self.lab.controllers
+        for ctrl in manager.controllers.values():
+            if ctrl.running and ctrl.kind == "position":
+                manager.command(ctrl.name, [0.0] * len(ctrl.joints))
 
-    def _add_gains(self, ctrl: PositionController) -> None:
+    def _add_gains(self, ctrl: Controller) -> None:
         gui = self.server.gui
         gains = ctrl.gains[0]
         with gui.add_folder(ctrl.name.replace("_position_controller", ""), expand_by_default=False):
             for key in ("p", "i", "d"):
                 number = gui.add_number(key, initial_value=float(getattr(gains, key)), min=0.0,
                                         step=0.01)
-                self._validated(number, lambda v, c=ctrl, k=key: self._set_gain(c, k, v))
+                self._validated(number, lambda v, c=ctrl, k=key: self._set_gain(c, k, v),
+                                0.0, 1e12)
 
-    def _set_gain(self, ctrl: PositionController, key: str, value: float) -> None:
-        if value < 0:
-            raise ValueError("gains must be >= 0")
-        ctrl.gains = [replace(g, **{key: value}) for g in ctrl.gains]
-        self.lab.controllers.bank.set_gains(ctrl.rows, ctrl.gains)
-        self.lab.controllers.reschedule()
+    def _set_gain(self, ctrl: Controller, key: str, value: float) -> None:
+        gains = [replace(g, **{key: value}) for g in ctrl.gains]
+        self.lab.controllers.set_gains(ctrl.name, gains)
 
     # ----- plots --------------------------------------------------------------------------------
     def _build_plots(self) -> None:
@@ -363,7 +382,7 @@ class GuiApp:
             empty = (np.zeros(1), np.zeros(1), np.zeros(1))
             self.tracking = gui.add_uplot(
                 empty, (uplot.Series(label="t (s)"),
-                        uplot.Series(label="command (rad)", stroke="#1f77b4", width=2),
+                        uplot.Series(label="command", stroke="#1f77b4", width=2),
                         uplot.Series(label="actual (rad)", stroke="#d62728", width=2)),
                 title="command vs actual", aspect=1.6)
             self.effort_plot = gui.add_uplot(
@@ -378,11 +397,14 @@ class GuiApp:
     def _update_plots(self) -> None:
         if self.plot_joint is None or len(self.history) < 2:
             return
-        row = self.lab.controllers.hw.index[self.plot_joint.value]
+        joint = self.plot_joint.value
+        index = self.lab.controllers.hw.index.get(joint)
+        if index is None:
+            return
         t = np.array([h[0] for h in self.history])
-        cmd = np.array([h[1][row] for h in self.history])
-        actual = np.array([h[2][row] for h in self.history])
-        effort = np.array([h[3][row] for h in self.history])
+        cmd = np.array([h[1][index] for h in self.history])
+        actual = np.array([h[2][index] for h in self.history])
+        effort = np.array([h[3][index] for h in self.history])
         self.tracking.data = (t, cmd, actual)
         self.effort_plot.data = (t, cmd - actual, effort)
 
@@ -390,15 +412,21 @@ class GuiApp:
     def _build_routines(self) -> None:
         gui = self.server.gui
         with gui.add_folder("Routines"):
-            self.routine_choice = gui.add_dropdown("Routine", (*shipped_routines(), "file"),
-                                                   initial_value="arms")
-            self.routine_file = gui.add_text("File", initial_value="",
-                                             hint="path of your routine when Routine is 'file'")
+            self.routine_files = routine_choices(self.routine_dirs)
+            names = tuple(self.routine_files)
+            self.routine_choice = gui.add_dropdown("Routine", names, initial_value=names[0],
+                                                   hint="shipped routines and the .py files of "
+                                                        "the folders mexone sim --routines named")
+            gui.add_button("Refresh list").on_click(lambda _: self.do(self._refresh_routines))
             start = gui.add_button("Start", icon=viser.Icon.PLAYER_PLAY)
             start.on_click(lambda _: self.do(self.start_routine))
             stop = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP)
             stop.on_click(lambda _: self.do(self.stop_routine))
             self.console_view = gui.add_markdown("*console: no routine yet*")
+
+    def _refresh_routines(self) -> None:
+        self.routine_files = routine_choices(self.routine_dirs)
+        self.routine_choice.options = tuple(self.routine_files)
 
     def _log(self, level: str, text: str) -> None:
         self.console.append(f"[{level}] [{self.lab.sim.time:.3f}] {text}")
@@ -407,22 +435,25 @@ class GuiApp:
     def start_routine(self) -> None:
         if self.lab.controllers is None:
             raise MexoneError("no controllers loaded: a routine has nothing to command")
-        self.stop_routine()
         choice = self.routine_choice.value
-        target = self.routine_file.value.strip() if choice == "file" else choice
+        path = self.routine_files.get(choice)  # never a path the page made up
+        if path is None:
+            raise InputError(f"'{choice}' is not one of the routines this server offers",
+                             hint="pick one from the list (mexone sim --routines DIR adds a folder)")
+        self.stop_routine()
         self.console.clear()
-        self.routine = RoutineRunner(self.lab, target, log=self._log)
+        self.routine = RoutineRunner(self.lab, path, log=self._log, poll=1.0 / FPS)
         self.routine.start()
         self._log("INFO", f"started {self.routine.path.name}")
 
     def stop_routine(self) -> None:
         if self.routine is not None:
-            self.routine.stop()
+            self.routine.stop(join=0.5)
             self._routine_done()
 
     def _routine_done(self) -> None:
         runner, self.routine = self.routine, None
-        runner.stop()
+        runner.stop(join=0.5)
         if runner.error:
             self._log("ERROR", runner.error.splitlines()[-1])
             self.console_view.content += "\n```\n" + runner.error + "\n```"
@@ -436,48 +467,36 @@ class GuiApp:
         with gui.add_folder("Physics", expand_by_default=False):
             self.gravity = gui.add_vector3("Gravity", initial_value=tuple(model.opt.gravity),
                                            step=0.01)
-            self.gravity.on_update(lambda _: self.do(self._apply_physics))
+            self.gravity.on_update(lambda _: self.do(self._apply_gravity))
             self.timestep = gui.add_number("Time step (s)", initial_value=float(model.opt.timestep),
-                                           min=1e-5, max=0.01, step=0.0001)
-            self._validated(self.timestep, self._set_timestep)
+                                           min=MIN_TIMESTEP, max=MAX_TIMESTEP, step=0.0001)
+            self._validated(self.timestep, self.lab.sim.set_timestep, MIN_TIMESTEP, MAX_TIMESTEP)
             self.self_collide = gui.add_checkbox("Self-collision", self.options.self_collision
                                                  is not False, hint="applies at Reset world")
 
-    def _apply_physics(self) -> None:
-        gravity = np.asarray(self.gravity.value, dtype=float)
-        if not np.isfinite(gravity).all():
-            raise MexoneError("gravity must be three finite numbers")
+    def _apply_gravity(self) -> None:
+        try:
+            gravity = np.asarray(self.gravity.value, dtype=float)
+        except (TypeError, ValueError):
+            gravity = np.full(3, np.nan)
+        if gravity.shape != (3,) or not np.isfinite(gravity).all() or np.abs(gravity).max() > 1000:
+            self.gravity.value = tuple(self.lab.sim.model.opt.gravity)
+            raise InputError("gravity must be three finite numbers within +-1000 m/s^2")
         self.lab.sim.model.opt.gravity[:] = gravity
-
-    def _set_timestep(self, value: float) -> None:
-        if not 1e-5 <= value <= 0.01:
-            raise ValueError("the time step must be between 1e-5 and 0.01 s")
-        self.lab.sim.model.opt.timestep = value
 
     def reset_model(self) -> None:
         """Robot back to its spawn pose at home, sim time 0; controllers restart, holding home."""
         self.stop_routine()
+        self.steps_left = 0
         self.lab.sim.reset()
-        if self.lab.controllers:
-            self.lab.controllers.restart()
-        for slider in getattr(self, "sliders", {}).values():
+        for slider in self.sliders.values():
             slider.value = 0.0
         self.history.clear()
         self.error = None
 
     def reset_world(self) -> None:
-        """Rebuild the world with the Physics panel's settings (self-collision included)."""
-        self.stop_routine()
+        """Reset, with the Physics panel's settings (self-collision included) applied."""
+        self.lab.sim.set_self_collision(None if self.self_collide.value else False)
         self.options = replace(self.options, self_collision=None if self.self_collide.value else False)
-        paused = self.lab.sim.paused
-        self.lab = self.make_lab(self.options)
-        self.lab.sim.target_rtf = self.target_rtf or None
-        self.scene.sim = self.lab.sim
-        self._apply_physics()
-        self._set_timestep(float(self.timestep.value))
-        if paused:
-            self.lab.sim.pause()
-        for slider in getattr(self, "sliders", {}).values():
-            slider.value = 0.0
-        self.history.clear()
-        self.error = None
+        self._apply_gravity()
+        self.reset_model()

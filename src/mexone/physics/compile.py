@@ -7,6 +7,7 @@ Gazebo property we honour is in ``GAZEBO_MAPPING`` (printed by ``mexone sim --ex
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import mujoco
@@ -18,8 +19,8 @@ from mexone.description.transforms import rpy_to_matrix
 from mexone.errors import MexoneError, ModelError, UnsupportedError
 from mexone.physics.world import World, default_world
 
-__all__ = ["Spawn", "CompileOptions", "Compiled", "compile_model", "GAZEBO_MAPPING",
-           "GROUP_VISUAL", "GROUP_COLLISION", "lowest_point"]
+__all__ = ["Spawn", "CompileOptions", "Compiled", "compile_model", "SpecEdit", "GAZEBO_MAPPING",
+           "GROUP_VISUAL", "GROUP_COLLISION", "lowest_point", "collision_bits"]
 
 GROUP_VISUAL = 1  # MuJoCo geom groups: the viewer's toggles for visual and collision geometry
 GROUP_COLLISION = 3
@@ -53,10 +54,13 @@ GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
      "viscous, integrated implicitly (implicitfast)"),
     ("<dynamics friction> / <gazebo> axis/dynamics/friction", "joint frictionloss", "Coulomb"),
     ("<limit lower upper>", "joint range (limited)", "continuous joints unlimited"),
-    ("<limit effort>", "actuator forcerange = effort / mechanicalReduction",
-     "a command can never exceed it; <= 0 means unlimited, as SDF reads -1"),
+    ("<limit effort>", "joint actuatorfrcrange, motor forcerange = effort / mechanicalReduction",
+     "the joint's total actuator torque never exceeds it; <= 0 means unlimited, as SDF reads -1"),
     ("<transmission> mechanicalReduction", "actuator gear",
      "joint effort = gear * actuator effort; joint-space commands are unchanged"),
+    ("<transmission> + ros_control PID", "native PID actuator + integral actuator",
+     "P and D (implicit) in the motor, the I term with control_toolbox's clamps in a second "
+     "actuator; built by the control layer (control/hardware.py)"),
     ("collision <mesh>", "mesh geom", "MuJoCo collides with the mesh's convex hull"),
     ("root link", "free joint", "unless the URDF welds it to a 'world' link"),
     ("world <physics> max_step_size, ode/solver/iters", "option timestep, iterations", ""),
@@ -96,8 +100,6 @@ class Compiled:
     joints: list[str]  # moving joints, in URDF order
     qpos_adr: np.ndarray
     dof_adr: np.ndarray
-    actuated: list[str]  # joints with a transmission (an actuator each, same order)
-    gear: np.ndarray
     bodies: dict[str, int] = field(default_factory=dict)  # link -> body id
     free: bool = True  # the root has a free joint
 
@@ -169,8 +171,14 @@ def _lumps(robot: RobotModel) -> dict[str, str]:
     return lump
 
 
+SpecEdit = Callable[[mujoco.MjSpec, RobotModel], None]
+
+
 def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = Spawn(),
-                  options: CompileOptions = CompileOptions()) -> Compiled:
+                  options: CompileOptions = CompileOptions(), edits: Sequence[SpecEdit] = ()
+                  ) -> Compiled:
+    """The robot and world as a plain MuJoCo model (no actuators); `edits` change the MjSpec
+    before it compiles (the control layer adds its actuators that way, as mjlab's configs do)."""
     world = world or default_world()
     _refuse_what_we_cannot_build(robot, options.fixed_base)
     spec = mujoco.MjSpec()
@@ -221,7 +229,8 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
         geoms_by_link[name] = _add_geoms(spec, body, robot, name, options, world, robot_mass)
 
     _add_contact_rules(spec, robot, world, geoms_by_link, robot_mass)
-    actuated = _add_actuators(spec, robot)
+    for edit in edits:
+        edit(spec, robot)
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -234,8 +243,6 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
         spec=spec, model=model, robot=robot, world=world, spawn=spawn, joints=joints,
         qpos_adr=np.array([model.jnt_qposadr[i] for i in ids], dtype=int),
         dof_adr=np.array([model.jnt_dofadr[i] for i in ids], dtype=int),
-        actuated=actuated,
-        gear=np.array([model.actuator_gear[i, 0] for i in range(model.nu)]),
         bodies={name: model.body(name).id for name in bodies},
         free=free,
     )
@@ -357,8 +364,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
                robot_mass: float) -> list[str]:
     link = robot.links[name]
     props = robot.gazebo_links.get(name, GazeboLink())
-    self_collide = bool(props.self_collide) if options.self_collision is None \
-        else options.self_collision
+    contype, conaffinity = collision_bits(robot, name, options.self_collision)
     mu1, _, kp, kd = _surface(props)
     collision_names = []
     for i, col in enumerate(link.collisions):
@@ -366,8 +372,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
         _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}")
         _set_pose(geom, col.origin.matrix)
         geom.group = GROUP_COLLISION
-        geom.contype = _SELF if self_collide else _PLAIN
-        geom.conaffinity = (_SELF | _PLAIN) if self_collide else _SELF
+        geom.contype, geom.conaffinity = contype, conaffinity
         geom.friction = (mu1, 0.005, 0.0001)
         geom.priority = _friction_priority(mu1)
         geom.solref = _contact_solref(kp, kd, robot_mass, world.step)
@@ -384,6 +389,14 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
             geom.density = 0.0
             geom.rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
     return collision_names
+
+
+def collision_bits(robot: RobotModel, link: str, self_collision: bool | None) -> tuple[int, int]:
+    """(contype, conaffinity) of a link's collision geoms: links collide with each other when
+    either has selfCollide (as Gazebo's ODE spaces do); `self_collision` overrides every link."""
+    props = robot.gazebo_links.get(link, GazeboLink())
+    on = bool(props.self_collide) if self_collision is None else self_collision
+    return (_SELF, _SELF | _PLAIN) if on else (_PLAIN, _SELF)
 
 
 def _friction_priority(mu: float) -> int:
@@ -424,25 +437,3 @@ def _add_contact_rules(spec, robot: RobotModel, world: World, geoms: dict[str, l
                           friction=(min(mu1, world.ground.mu1), min(mu2, world.ground.mu2),
                                     0.005, 0.0001, 0.0001),
                           solref=_contact_solref(kp, kd, robot_mass, world.step))
-
-
-def _add_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> list[str]:
-    """One actuator per transmission; starts as a pure effort motor (gain 1, no bias)."""
-    actuated = []
-    for joint in robot.actuated_joints:
-        tx = robot.transmission_for(joint.name)
-        act = spec.add_actuator(name=joint.name, target=joint.name,
-                                trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        act.gear = (tx.mechanical_reduction, 0, 0, 0, 0, 0)
-        act.gaintype = mujoco.mjtGain.mjGAIN_FIXED
-        act.gainprm = np.r_[1.0, np.zeros(9)]
-        act.biastype = mujoco.mjtBias.mjBIAS_AFFINE
-        act.biasprm = np.zeros(10)
-        act.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
-        effort = joint.limit.effort if joint.limit else 0.0
-        if effort > 0:
-            act.forcelimited = mujoco.mjtLimited.mjLIMITED_TRUE
-            limit = effort / abs(tx.mechanical_reduction)
-            act.forcerange = (-limit, limit)
-        actuated.append(joint.name)
-    return actuated

@@ -10,10 +10,18 @@ import numpy as np
 
 from mexone.physics.simulation import Simulation
 
-__all__ = ["RunMonitor", "RunSummary", "REST_SPEED", "REST_WINDOW"]
+__all__ = ["RunMonitor", "RunSummary", "REST_SPEED", "REST_WINDOW", "has_fallen", "FALL_TILT",
+           "FALL_DROP"]
 
 REST_SPEED = 0.01  # m/s: every link's centre of mass slower than this...
 REST_WINDOW = 0.2  # s: ...for this long of sim time means at rest
+FALL_TILT = 0.5  # rad: a base tilted more than this (29 degrees) has fallen...
+FALL_DROP = 0.7  # ...or one lower than 70% of its starting height
+
+
+def has_fallen(sim: Simulation, start_height: float) -> bool:
+    """The one rule for "the robot fell" (run reports, sweeps, walking)."""
+    return bool(sim.base_tilt > FALL_TILT or sim.base_height < FALL_DROP * start_height)
 
 
 @dataclass

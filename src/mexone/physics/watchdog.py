@@ -8,7 +8,7 @@ misplaced centre of mass, overlarge inertia; or controller gains, or the time st
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
@@ -43,8 +43,11 @@ class Watchdog:
     data: mujoco.MjData
     link_names: dict[int, str]  # body id -> link name
     cause: Callable[[str], str | None] | None = None  # link name -> likely cause
+    # other layers' suspects, asked in order when the model itself is not to blame (the control
+    # layer: "controller gains too high for the time step")
+    suspects: list[Callable[[], str | None]] = field(default_factory=list)
 
-    def check(self, controllers_active: bool = False) -> None:
+    def check(self) -> None:
         data = self.data
         finite = np.isfinite(data.qvel).all() and np.isfinite(data.qpos).all()
         if finite and np.abs(data.qvel).max() < _CHEAP_BOUND:
@@ -63,10 +66,9 @@ class Watchdog:
             what = "has NaN position or velocity"
         name = self.link_names.get(body, self.model.body(body).name)
         cause = self.cause(name) if self.cause else None
-        if cause is None:
-            cause = ("controller gains too high for the time step: lower p and d, or the step"
-                     if controllers_active else
-                     "contact or joint forces too stiff for the time step: lower kp or the step")
+        for suspect in self.suspects:
+            cause = cause or suspect()
+        cause = cause or "contact or joint forces too stiff for the time step: lower kp or the step"
         raise DivergenceError(f"simulation diverged at t = {data.time:.3f} s: link '{name}' {what}",
                               hint=f"likely cause: {cause}")
 

@@ -1,4 +1,8 @@
-"""RoutineRunner: run a routine file (or a shipped routine by name) against a Lab."""
+"""RoutineRunner: run routine files (or shipped routines by name) against a Lab, in lockstep.
+
+One runner holds the routines of one lab (one or several at once, e.g. a balance routine and an
+arm routine) and the Scheduler they share, so their runs stay deterministic.
+"""
 
 from __future__ import annotations
 
@@ -7,17 +11,21 @@ import sys
 import threading
 import traceback
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
+import mexone
 from mexone.errors import InputError
 from mexone.lab import Lab
-from mexone.routines.runtime import RoutineContext, Scheduler, Shutdown, bind
+from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Shutdown, bind
 
-__all__ = ["RoutineRunner", "resolve_routine", "shipped_routines", "parse_param_args"]
+__all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "parse_param_args",
+           "routine_choices"]
 
 _HERE = Path(__file__).resolve().parent
+_PACKAGE = str(Path(mexone.__file__).resolve().parent)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py"}
 
 
@@ -25,10 +33,23 @@ def shipped_routines() -> dict[str, Path]:
     return {name: _HERE / "shipped" / file for name, file in SHIPPED.items()}
 
 
-def resolve_routine(name_or_path: str) -> Path:
+def routine_choices(folders: list[Path] | None = None) -> dict[str, Path]:
+    """The routines a page may start, by name: the shipped ones and the .py files directly in
+    `folders` (default: the current folder). A page picks a name; it never sends a path."""
+    choices: dict[str, Path] = dict(shipped_routines())
+    folders = [Path.cwd()] if folders is None else folders
+    for folder in folders:
+        for path in sorted(Path(folder).glob("*.py")):
+            if path.is_file():
+                name = path.name if len(folders) == 1 else f"{Path(folder).name}/{path.name}"
+                choices.setdefault(name, path.resolve())
+    return choices
+
+
+def resolve_routine(name_or_path: str | Path) -> Path:
     shipped = shipped_routines()
-    if name_or_path in shipped:
-        return shipped[name_or_path]
+    if str(name_or_path) in shipped:
+        return shipped[str(name_or_path)]
     path = Path(name_or_path)
     if not path.is_file():
         raise InputError(f"no routine '{name_or_path}'",
@@ -39,14 +60,20 @@ def resolve_routine(name_or_path: str) -> Path:
 
 
 def parse_param_args(args: list[str]) -> dict[str, object]:
-    """ROS-style `name:=value` arguments; `_name:=v` sets the node's private ~name."""
+    """ROS-style `name:=value` arguments; `_name:=v` sets the node's private ~name. Values are
+    YAML, as rosrun reads them (safe types only)."""
     out = {}
     for arg in args:
         name, sep, text = arg.partition(":=")
         if not sep or not name:
             raise InputError(f"argument '{arg}' is not name:=value",
                              hint="e.g. _joint:=r_elbow for the routine's ~joint parameter")
-        out[name] = yaml.safe_load(text) if text else ""
+        try:
+            out[name] = yaml.safe_load(text) if text else ""
+        except yaml.YAMLError as exc:
+            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise InputError(f"argument '{arg}': the value is not valid YAML ({problem})",
+                             hint="quote strings, e.g. _joint:=r_elbow or _list:='[1, 2]'") from None
     return out
 
 
@@ -58,24 +85,61 @@ def _flatten(prefix: str, value, out: dict) -> None:
         out[prefix] = value
 
 
-class RoutineRunner:
-    """One routine thread in lockstep with the lab's simulation."""
+@dataclass
+class Routine:
+    """One routine thread."""
 
-    def __init__(self, lab: Lab, routine: str | Path, args: dict[str, object] | None = None,
-                 log: Callable[[str, str], None] | None = None):
+    path: Path
+    context: RoutineContext
+    private: dict[str, object]
+    thread: threading.Thread | None = None
+    error: str | None = None
+
+    @property
+    def running(self) -> bool:
+        return self.thread is not None and self.thread.is_alive() and self.context.abandoned is None
+
+
+class RoutineRunner:
+    def __init__(self, lab: Lab, routine: str | Path | None = None,
+                 args: dict[str, object] | None = None,
+                 log: Callable[[str, str], None] | None = None, stall: float = STALL_SECONDS,
+                 poll: float | None = None):
         self.lab = lab
-        self.path = resolve_routine(str(routine))
-        self.scheduler = Scheduler(time=lab.sim.time)
-        self.params: dict[str, object] = {}
+        self.scheduler = Scheduler(time=lab.sim.time, stall=stall)
+        if poll is not None:
+            self.scheduler.poll = poll
+        self.params: dict[str, object] = {}  # the parameter server the routines share
         if lab.controllers and lab.controllers.config.source:
             raw = yaml.safe_load(lab.controllers.config.source.read_text()) or {}
             _flatten("", raw, self.params)
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
-        self.context = RoutineContext(lab, self.scheduler, self.params, self._log)
-        self._private = dict(args or {})
-        self.error: str | None = None
-        self.thread: threading.Thread | None = None
+        self.routines: list[Routine] = []
+        if routine is not None:
+            self.add(routine, args)
+
+    def add(self, routine: str | Path, args: dict[str, object] | None = None) -> Routine:
+        """Another routine to run with the others (started by start())."""
+        path = resolve_routine(routine)
+        context = RoutineContext(self.lab, self.scheduler, self.params, self._log,
+                                 node_name=f"/{path.stem}")
+        entry = Routine(path, context, dict(args or {}))
+        self.routines.append(entry)
+        return entry
+
+    @property
+    def path(self) -> Path:
+        return self.routines[0].path
+
+    @property
+    def error(self) -> str | None:
+        errors = [r.error for r in self.routines if r.error]
+        return "\n".join(errors) or None
+
+    @property
+    def running(self) -> bool:
+        return any(r.running for r in self.routines)
 
     def _log(self, level: str, text: str) -> None:
         self.log_lines.append((self.lab.sim.time, level, text))
@@ -83,55 +147,77 @@ class RoutineRunner:
             self._sink(level, text)
 
     def start(self) -> None:
-        bind(self.context)
-        ready = threading.Event()
-        self.thread = threading.Thread(target=self._main, args=(ready,), daemon=True,
-                                       name=f"routine {self.path.stem}")
-        self.thread.start()
-        ready.wait()
+        """Start every routine not yet started; each holds the clock until it first waits."""
+        for entry in self.routines:
+            if entry.thread is None:
+                ready = threading.Event()
+                entry.thread = threading.Thread(target=self._main, args=(entry, ready), daemon=True,
+                                                name=f"routine {entry.path.stem}")
+                entry.thread.start()
+                ready.wait()
 
-    def _main(self, ready: threading.Event) -> None:
-        self.scheduler.enter()
+    def _main(self, entry: Routine, ready: threading.Event) -> None:
+        from mexone.rospy import ROSInterruptException
+
+        context = entry.context
+        bind(context)
+        self.scheduler.enter(context)
         ready.set()
         argv = sys.argv
         try:
-            name = self.path.stem
-            self.context.node_name = f"/{name}"
-            for key, value in self._private.items():
+            name = entry.path.stem
+            for key, value in entry.private.items():
                 key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
                 self.params[key] = value
-            runpy.run_path(str(self.path), run_name="__main__")
-        except (Shutdown, KeyboardInterrupt):
+            runpy.run_path(str(entry.path), run_name="__main__")
+        except (Shutdown, ROSInterruptException):
             pass
         except SystemExit as exc:
             if exc.code not in (None, 0):
-                self.error = f"routine exited with status {exc.code}"
-        except BaseException:
-            frames = traceback.format_exc().splitlines()
-            # the student's frames matter, not runpy's and ours
-            keep = [i for i, line in enumerate(frames) if str(self.path) in line]
-            start = keep[0] if keep else 0
-            self.error = "\n".join([frames[0], *frames[start:]])
+                entry.error = f"routine exited with status {exc.code}"
+        except BaseException:  # noqa: BLE001 - the student's error, shown as their traceback
+            entry.error = _students_traceback(entry.path)
         finally:
             sys.argv = argv
+            if context.abandoned and not entry.error:
+                entry.error = context.abandoned
             self.scheduler.leave()
-
-    @property
-    def running(self) -> bool:
-        return self.thread is not None and self.thread.is_alive()
+            bind(None)
 
     def run(self, duration: float, on_tick=None, tick: float = 0.05) -> None:
-        """Simulate until the routine ends or `duration` s of sim time pass."""
-        if self.thread is None:
-            self.start()
+        """Simulate until every routine ends or `duration` s of sim time pass (a routine that
+        stops yielding is abandoned after the stall time, with an error)."""
+        self.start()
+        sim = self.lab.sim
+        remaining = duration
         try:
-            self.lab.sim.run(duration, on_tick=on_tick, tick=tick, gate=self.scheduler,
-                             until=lambda: not self.scheduler.active)
+            while remaining > sim.timestep / 2 and self.scheduler.active:
+                remaining -= sim.run(remaining, on_tick=on_tick, tick=tick, gate=self.scheduler,
+                                     until=lambda: not self.scheduler.active)
         finally:
             self.stop()
 
-    def stop(self) -> None:
+    def stop(self, join: float = 1.0) -> None:
+        """Stop every routine (they get ROSInterruptException at their next wait)."""
         self.scheduler.stop()
-        if self.thread is not None:
-            self.thread.join(timeout=5.0)
-        bind(None)
+        for entry in self.routines:
+            if entry.thread is not None:
+                entry.thread.join(timeout=join)
+            if entry.context.abandoned and not entry.error:
+                entry.error = entry.context.abandoned
+
+
+def _students_traceback(path: Path) -> str:
+    """The traceback of the exception being handled, with only the student's frames: not
+    runpy's, not threading's, not mexone's."""
+    exc_type, exc, tb = sys.exc_info()
+    if exc_type is KeyboardInterrupt:
+        exc = KeyboardInterrupt("the routine raised KeyboardInterrupt (only the simulation "
+                                "stops routines)")
+    frames = [f for f in traceback.extract_tb(tb)
+              if f.filename == str(path) or not (f.filename.startswith(_PACKAGE)
+                                                 or f.filename.endswith(("runpy.py", "threading.py"))
+                                                 or "<frozen runpy>" in f.filename)]
+    lines = ["Traceback (most recent call last):\n", *traceback.format_list(frames),
+             *traceback.format_exception_only(type(exc), exc)]
+    return "".join(lines).rstrip()

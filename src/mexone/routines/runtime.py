@@ -1,24 +1,66 @@
 """Routines in lockstep with sim time: the machinery behind ``mexone.rospy``.
 
-A routine runs in its own thread, as a ROS node is its own process. Whenever it waits (Rate.sleep,
-rospy.sleep, wait_for_message, spin) it hands the clock to the simulation, which steps until the
-earliest wake-up and hands it back. So a routine sees sim time exactly as a use_sim_time node sees
-/clock, headless runs are as fast as the physics and deterministic, and GUI runs keep real time.
+A routine runs in its own thread, as a ROS node is its own process; several can run at once.
+Whenever one waits (Rate.sleep, rospy.sleep, wait_for_message, spin) it hands the clock to the
+simulation, which steps until the earliest wake-up and hands it back. Messages for a routine's
+subscribers are queued and delivered in the routine's own thread while it waits, so student code
+never runs in the simulation thread. A headless run is as fast as the physics and deterministic;
+a GUI run keeps real time. A routine that stops yielding (a loop without rate.sleep(), a long
+time.sleep) is abandoned after `stall` seconds of wall time instead of freezing the lab.
 """
 
 from __future__ import annotations
 
+import ctypes
+import math
 import threading
+import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
+from mexone.errors import MexoneError
 from mexone.lab import Lab
 
-__all__ = ["Scheduler", "RoutineContext", "Shutdown", "current", "bind"]
+__all__ = ["Scheduler", "RoutineContext", "Shutdown", "current", "bind", "STALL_SECONDS"]
+
+STALL_SECONDS = 5.0  # wall seconds a routine may compute without yielding to the simulation
+_POLL = 0.05  # wall seconds the simulation waits for routines before returning to its caller
 
 
-class Shutdown(Exception):
-    """The simulation ended while the routine waited (rospy raises ROSInterruptException)."""
+class Shutdown(BaseException):
+    """The simulation ended (or gave up on the routine) while it ran or waited; rospy raises
+    ROSInterruptException. A BaseException, so a routine's `except Exception` cannot swallow it."""
+
+
+@dataclass
+class RoutineContext:
+    """One routine: its lab, its node name and parameters, its mailbox and its log."""
+
+    lab: Lab
+    scheduler: Scheduler
+    params: dict[str, object]
+    log: Callable[[str, str], None]  # (level, text)
+    node_name: str = "/unnamed"
+    shutdown_hooks: list[Callable[[], None]] = field(default_factory=list)
+    shutdown_reason: str | None = None
+    mailbox: deque[tuple[Callable, object]] = field(default_factory=deque)
+    abandoned: str | None = None  # why the simulation stopped waiting for it
+    warned_topics: set[str] = field(default_factory=set)
+
+    @property
+    def time(self) -> float:
+        return self.lab.sim.time
+
+    def deliver(self, callback: Callable, msg: object) -> None:
+        """Queue a message for one of this routine's subscribers (from any thread)."""
+        self.mailbox.append((callback, msg))
+
+    def run_callbacks(self) -> None:
+        """Run queued subscriber callbacks, in the routine's thread."""
+        while self.mailbox:
+            callback, msg = self.mailbox.popleft()
+            callback(msg)
 
 
 @dataclass
@@ -29,55 +71,101 @@ class _Wait:
 
 
 @dataclass
+class _Thread:
+    context: RoutineContext
+    running_since: float | None = None  # wall time it last got the clock (None: it waits)
+    wait: _Wait | None = None
+
+
 class Scheduler:
-    """Implements physics.simulation.Gate for routine threads."""
+    """Implements physics.simulation.Gate for the routine threads of one lab."""
 
-    time: float = 0.0
-    stopped: bool = False
-    _cond: threading.Condition = field(default_factory=threading.Condition)
-    _threads: set[int] = field(default_factory=set)
-    _waits: dict[int, _Wait] = field(default_factory=dict)
+    def __init__(self, time: float = 0.0, stall: float = STALL_SECONDS, poll: float = _POLL):
+        self.time = time
+        self.stall = stall
+        self.poll = poll
+        self.stopped = False
+        self._cond = threading.Condition()
+        self._threads: dict[int, _Thread] = {}
+        self.stalled: list[str] = []  # messages about routines given up on
 
-    # ----- routine side -------------------------------------------------------------------
-    def enter(self) -> None:
+    # ----- routine side ------------------------------------------------------------------------
+    def enter(self, context: RoutineContext) -> None:
         with self._cond:
-            self._threads.add(threading.get_ident())
+            self._threads[threading.get_ident()] = _Thread(context, time.perf_counter())
 
     def leave(self) -> None:
         with self._cond:
-            self._threads.discard(threading.get_ident())
-            self._waits.pop(threading.get_ident(), None)
+            self._threads.pop(threading.get_ident(), None)
             self._cond.notify_all()
 
     def wait(self, wake: float, ready: Callable[[], bool] | None = None) -> None:
-        """Block until sim time reaches `wake` or `ready()` holds (checked by the sim thread)."""
+        """Block until sim time reaches `wake` or `ready()` holds, running this routine's
+        subscriber callbacks as their messages arrive."""
         me = threading.get_ident()
-        with self._cond:
-            if self.stopped:
-                raise Shutdown
-            entry = self._waits[me] = _Wait(wake, ready)
-            self._cond.notify_all()
-            self._cond.wait_for(lambda: entry.released or self.stopped)
-            self._waits.pop(me, None)
-            if self.stopped and not entry.released:
-                raise Shutdown
+        if math.isnan(wake):
+            raise ValueError("cannot wait until a NaN time")
+        while True:
+            with self._cond:
+                entry = self._threads.get(me)
+                if self.stopped or entry is None:
+                    raise Shutdown
+                context = entry.context
+            context.run_callbacks()
+            if (ready is not None and ready()) or self.time >= wake - 1e-9:
+                return
+            with self._cond:
+                if self.stopped or me not in self._threads:
+                    raise Shutdown
+                waiting = entry.wait = _Wait(wake, ready)
+                entry.running_since = None
+                self._cond.notify_all()
+                self._cond.wait_for(lambda w=waiting: w.released or self.stopped
+                                    or me not in self._threads)
+                entry.wait = None
+                entry.running_since = time.perf_counter()
+                if self.stopped or me not in self._threads:
+                    raise Shutdown
 
-    # ----- simulation side (physics.simulation.Gate) -----------------------------------------
-    def horizon(self) -> float:
+    # ----- simulation side (physics.simulation.Gate) -------------------------------------------
+    def _all_waiting(self) -> bool:
+        return self.stopped or all(t.wait is not None and not t.wait.released
+                                   for t in self._threads.values())
+
+    def horizon(self) -> float | None:
         with self._cond:
-            self._cond.wait_for(lambda: self.stopped or all(
-                tid in self._waits and not self._waits[tid].released for tid in self._threads))
-            pending = [w.wake for w in self._waits.values() if not w.released]
-            return min(pending, default=float("inf"))
+            if not self._cond.wait_for(self._all_waiting, timeout=self.poll):
+                self._abandon_stalled()
+                return None
+            now = []
+            for t in self._threads.values():
+                due = t.context.mailbox or (t.wait.ready is not None and t.wait.ready())
+                now.append(self.time if due else t.wait.wake)
+            return min(now, default=math.inf)
 
     def advance(self, sim_time: float) -> None:
         with self._cond:
             self.time = sim_time
-            for wait in self._waits.values():
-                if not wait.released and (sim_time >= wait.wake - 1e-9
-                                          or (wait.ready is not None and wait.ready())):
+            for t in self._threads.values():
+                wait = t.wait
+                if wait is not None and not wait.released and (
+                        sim_time >= wait.wake - 1e-9 or t.context.mailbox
+                        or (wait.ready is not None and wait.ready())):
                     wait.released = True
             self._cond.notify_all()
+
+    def _abandon_stalled(self) -> None:
+        """Give up on routines that have not yielded for `stall` s: the simulation goes on."""
+        now = time.perf_counter()
+        for tid, t in list(self._threads.items()):
+            if t.running_since is not None and now - t.running_since > self.stall:
+                reason = (f"routine did not yield to the simulation for {self.stall:g} s "
+                          "(call rate.sleep())")
+                t.context.abandoned = reason
+                self.stalled.append(reason)
+                del self._threads[tid]
+                _interrupt(tid)
+        self._cond.notify_all()
 
     def stop(self) -> None:
         with self._cond:
@@ -90,33 +178,33 @@ class Scheduler:
             return bool(self._threads)
 
 
-@dataclass
-class RoutineContext:
-    lab: Lab
-    scheduler: Scheduler
-    params: dict[str, object]
-    log: Callable[[str, str], None]  # (level, text)
-    node_name: str = "/unnamed"
-    shutdown_hooks: list[Callable[[], None]] = field(default_factory=list)
-    shutdown_reason: str | None = None
-
-    @property
-    def time(self) -> float:
-        return self.lab.sim.time
+def _interrupt(thread_id: int) -> None:
+    """Raise Shutdown in a routine thread at its next Python instruction (a busy loop ends; a
+    blocking call such as time.sleep ends when it returns)."""
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread_id), ctypes.py_object(Shutdown))
 
 
-_context: RoutineContext | None = None
+_local = threading.local()
+_active: list[RoutineContext] = []  # routines running in this process, for threads they start
 
 
 def bind(context: RoutineContext | None) -> None:
-    global _context
-    _context = context
+    """Make `context` the current routine of this thread (None: unbind)."""
+    if context is None:
+        old = getattr(_local, "context", None)
+        if old in _active:
+            _active.remove(old)
+    else:
+        _active.append(context)
+    _local.context = context
 
 
 def current() -> RoutineContext:
-    if _context is None:
-        from mexone.errors import MexoneError
-
+    """This thread's routine; in a thread the routine started itself, the only routine running."""
+    context = getattr(_local, "context", None)
+    if context is None and len(_active) == 1:
+        context = _active[0]
+    if context is None:
         raise MexoneError("no simulation is running for this routine",
                           hint="run it with 'mexone run FILE' (or from the GUI's Routines panel)")
-    return _context
+    return context

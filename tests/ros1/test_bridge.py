@@ -70,7 +70,7 @@ def ros():
     os.environ.update(ros_env(port))
     core = start_roscore(port)
     sim = start_mexone(port)
-    from mexone.bus.ros1 import import_rospy
+    from mexone.ros1.bridge import import_rospy
 
     rospy = import_rospy()
     from sensor_msgs.msg import JointState
@@ -235,7 +235,7 @@ def test_killing_roscore_keeps_the_simulator_and_its_recording(tmp_path):
 
 
 def test_without_ros_the_error_says_what_to_install():
-    code = ("import mexone.bus.ros1 as r, sys; r._DEBIAN_SITE = '/nonexistent'; "
+    code = ("import mexone.ros1.bridge as r, sys; r._DEBIAN_SITE = '/nonexistent'; "
             "sys.modules.pop('rospy', None); sys.path[:] = [p for p in sys.path "
             "if 'dist-packages' not in p]; r.import_rospy()")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
@@ -244,7 +244,7 @@ def test_without_ros_the_error_says_what_to_install():
 
 
 def _subscribers(port: int, topic: str) -> list[str]:
-    from mexone.bus.ros1 import import_rospy
+    from mexone.ros1.bridge import import_rospy
 
     import_rospy()  # puts Debian's ROS packages (rosgraph among them) on the path
     import rosgraph

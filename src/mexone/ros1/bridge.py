@@ -6,8 +6,8 @@ the controller configuration from the parameter server when none is given (so `r
 /<ns>/joint_states, /clock (sim time, so use_sim_time nodes follow it) and the floating base as
 TF world -> <root>, and offers /gazebo/{pause,unpause}_physics, reset_simulation, reset_world.
 
-rospy callbacks run in rospy's threads; they only queue work, which the simulation thread runs
-between steps (`pump`), so ROS never touches the physics mid-step.
+rospy callbacks run in rospy's threads; they only queue work on the simulation's work queue,
+which the simulation thread runs between steps, so ROS never touches the physics.
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from __future__ import annotations
 import importlib
 import logging
 import os
-import queue
 import sys
 import threading
 from collections.abc import Callable
@@ -23,7 +22,8 @@ from collections.abc import Callable
 import yaml
 
 from mexone.bus import msgs
-from mexone.control.config import ControlConfig, parse_control_config
+from mexone.control.config import parse_control_config
+from mexone.control.spec import ControlConfig
 from mexone.errors import MexoneError
 
 __all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server",
@@ -79,7 +79,6 @@ class Ros1Bridge:
             raise MexoneError(f"no ROS master at {uri}",
                               hint="start roscore, or set ROS_MASTER_URI to where it runs")
         rospy.init_node(node_name, disable_signals=True)
-        self.work: queue.Queue[tuple[Callable[[], None], threading.Event | None]] = queue.Queue()
         self.lab = None
 
     def attach(self, lab, urdf_text: str) -> None:
@@ -103,6 +102,8 @@ class Ros1Bridge:
         self._subs = []
         if lab.controllers:
             for name, ctrl in lab.controllers.controllers.items():
+                if ctrl.kind == "state":
+                    continue
                 topic = lab.controllers.topic(name)
                 self._subs.append(rospy.Subscriber(topic, _ros_class(ctrl.msg_type),
                                                    self._relay(topic)))
@@ -113,52 +114,41 @@ class Ros1Bridge:
             self._services.append(rospy.Service(f"/gazebo/{name}", Empty,
                                                 self._service(action, EmptyResponse)))
         self._tf_timer = lab.sim.add_periodic(0.02, self._publish_base_tf)
-        self._last_clock = -1.0
+        self._last_clock = -1
         self.master_ok = True
         self._watch = threading.Thread(target=self._watch_master, daemon=True)
         self._watch.start()
 
     # ----- ROS -> simulation ------------------------------------------------------------------
     def _relay(self, topic: str):
-        def callback(ros_msg) -> None:
+        def callback(ros_msg) -> None:  # rospy's thread: hand over, in order, to the sim thread
             msg = _from_ros(ros_msg)
-            self.work.put((lambda: self.lab.bus.publish(topic, msg), None))
+            self.lab.sim.work.put(lambda: self.lab.bus.publish(topic, msg))
         return callback
 
     def _service(self, action: Callable[[], None], response):
         def handler(_request):
-            done = threading.Event()
-            self.work.put((action, done))
-            done.wait(timeout=10.0)
+            self.lab.sim.work.call(action, timeout=10.0)
             return response()
         return handler
 
     def _reset(self) -> None:
-        self.lab.sim.reset()
-        if self.lab.controllers:
-            self.lab.controllers.restart()
+        self.lab.sim.reset()  # the controllers restart with it, holding home
+
+    def _stamp(self, nanoseconds: int):
+        return self.rospy.Time(*divmod(nanoseconds, 1_000_000_000))
 
     def pump(self, sim=None) -> None:
-        """Run queued ROS work and publish /clock: call between steps, in the sim thread."""
-        while True:
-            try:
-                action, done = self.work.get_nowait()
-            except queue.Empty:
-                break
-            try:
-                action()
-            finally:
-                if done is not None:
-                    done.set()
-        t = self.lab.sim.time
+        """Publish /clock: call between steps, in the sim thread."""
+        t = self.lab.sim.time_ns
         if t != self._last_clock and not self.rospy.is_shutdown():
             self._last_clock = t
-            self.pub_clock.publish(self._types["Clock"](clock=self.rospy.Time.from_sec(t)))
+            self.pub_clock.publish(self._types["Clock"](clock=self._stamp(t)))
 
     # ----- simulation -> ROS ------------------------------------------------------------------
     def _forward_states(self, msg: msgs.JointState) -> None:
         ros_msg = self._types["JointState"]()
-        ros_msg.header.stamp = self.rospy.Time.from_sec(msg.header.stamp.to_sec())
+        ros_msg.header.stamp = self.rospy.Time(msg.header.stamp.secs, msg.header.stamp.nsecs)
         ros_msg.name, ros_msg.position = list(msg.name), list(msg.position)
         ros_msg.velocity, ros_msg.effort = list(msg.velocity), list(msg.effort)
         self.pub_states.publish(ros_msg)
@@ -169,7 +159,7 @@ class Ros1Bridge:
             return
         body = sim.compiled.root_body
         tf = self._types["TransformStamped"]()
-        tf.header.stamp = self.rospy.Time.from_sec(sim.time)
+        tf.header.stamp = self._stamp(sim.time_ns)
         tf.header.frame_id = "world"
         tf.child_frame_id = sim.robot.base_link
         x, y, z = sim.data.xpos[body]
@@ -203,11 +193,10 @@ class Ros1Bridge:
 
 
 def _ros_class(msg_type: type):
-    from std_msgs.msg import Float64, Float64MultiArray
-    from trajectory_msgs.msg import JointTrajectory
+    """The rospy class of one of mexone's message types (named in msgs.ROS_TYPES)."""
+    from roslib.message import get_message_class
 
-    return {msgs.Float64: Float64, msgs.Float64MultiArray: Float64MultiArray,
-            msgs.JointTrajectory: JointTrajectory}[msg_type]
+    return get_message_class(msgs.ROS_TYPES[msg_type])
 
 
 def _from_ros(ros_msg):

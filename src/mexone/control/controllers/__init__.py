@@ -1,0 +1,34 @@
+"""The ros_controllers types, one module each, and the registry every front end reads.
+
+``CONTROLLER_TYPES`` maps a ros_control type name (what a YAML says) to a ``ControllerType``:
+the class, the hardware interface it claims and whether it takes one joint or a list. The YAML
+loader, ``mexone check``, the GUI and the ROS bridge all read it; a new type is one module here.
+"""
+
+from mexone.control.controllers.base import (
+    CONTROLLER_TYPES,
+    Controller,
+    ControllerContext,
+    ControllerType,
+    controller_type,
+    register,
+)
+from mexone.control.controllers.effort import EffortController
+from mexone.control.controllers.joint_state import JointStateController
+from mexone.control.controllers.position import PositionController
+from mexone.control.controllers.trajectory import TrajectoryController
+from mexone.control.controllers.velocity import VelocityController
+
+__all__ = [
+    "CONTROLLER_TYPES",
+    "Controller",
+    "ControllerContext",
+    "ControllerType",
+    "controller_type",
+    "register",
+    "EffortController",
+    "JointStateController",
+    "PositionController",
+    "TrajectoryController",
+    "VelocityController",
+]

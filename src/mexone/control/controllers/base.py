@@ -1,0 +1,182 @@
+"""Controller: what every ros_control controller type shares, and the registry of types.
+
+A controller claims joints, buffers the latest command from its topic (`on_command`, any thread:
+subscribers only buffer), and in `update` (the simulation thread, inside the manager's
+read -> update -> write loop) turns it into joint commands on the hardware. Front ends read
+what they need from the attributes here (`kind`, `joints`, `setpoint`, `gains`, `unit`,
+`command_range`) and never test classes.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from mexone.bus.msgs import Float64, Float64MultiArray
+from mexone.bus.topics import Bus
+from mexone.control.hardware import SimHardware
+from mexone.control.spec import ControllerSpec, PidGains
+from mexone.errors import InputError
+from mexone.physics.simulation import Simulation
+
+__all__ = ["Controller", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
+           "controller_type"]
+
+log = logging.getLogger("mexone.control")
+
+
+@dataclass(frozen=True)
+class ControllerType:
+    """One ros_control type name: the class that implements it and the interface it claims."""
+
+    name: str  # e.g. "effort_controllers/JointPositionController"
+    cls: type[Controller]
+    interface: str  # hardware_interface it claims, "" for state controllers
+    single_joint: bool  # `joint:` (True) or `joints:` (the JointGroup* and trajectory types)
+
+    @property
+    def kind(self) -> str:
+        return self.cls.kind
+
+
+CONTROLLER_TYPES: dict[str, ControllerType] = {}  # the registry: filled by register()
+
+
+def register(name: str, interface: str, single_joint: bool = True):
+    """Class decorator: `cls` implements ros_control type `name`."""
+
+    def add(cls: type[Controller]) -> type[Controller]:
+        CONTROLLER_TYPES[name] = ControllerType(name, cls, interface, single_joint)
+        return cls
+
+    return add
+
+
+def controller_type(name: str) -> ControllerType:
+    try:
+        return CONTROLLER_TYPES[name]
+    except KeyError:
+        raise InputError(f"unknown controller type '{name}'",
+                         hint="valid types: " + ", ".join(sorted(CONTROLLER_TYPES))) from None
+
+
+@dataclass
+class ControllerContext:
+    """What the manager hands every controller (ros2_control: the node and the interfaces)."""
+
+    sim: Simulation
+    hw: SimHardware
+    bus: Bus
+    namespace: str
+    pid_gains: dict[str, PidGains]  # gazebo_ros_control/pid_gains/<joint>
+
+
+class Controller:
+    kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state
+    unit: ClassVar[str] = ""  # of its commands: rad, rad/s, N m
+    sliders: ClassVar[bool] = True  # a GUI slider per joint makes sense
+
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext):
+        self.spec = spec
+        self.name = spec.name
+        self.type = controller_type(spec.type)
+        self.ctx = ctx
+        self.hw = ctx.hw
+        self.joints = list(spec.joints)
+        self.rows = self.hw.rows(self.joints) if self.joints else np.zeros(0, dtype=int)
+        self.running = False
+        self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
+        self._pending = None  # the latest command, waiting for the next update
+        self._warned: set[str] = set()
+
+    # ----- what front ends read ---------------------------------------------------------------
+    @property
+    def interface(self) -> str:
+        return self.type.interface
+
+    @property
+    def setpoint(self) -> np.ndarray:
+        """What each joint is commanded now, in `unit`."""
+        return np.zeros(len(self.rows))
+
+    @property
+    def gains(self) -> list[PidGains] | None:
+        """PID gains per joint, if this controller has any to tune."""
+        return None
+
+    def set_gains(self, gains: Sequence[PidGains]) -> None:
+        raise InputError(f"{self.name} has no PID gains to set")
+
+    def command_range(self, index: int) -> tuple[float, float]:
+        """The commandable range of joint `index` (for sliders), in `unit`."""
+        return -1.0, 1.0
+
+    @property
+    def periodic(self) -> bool:
+        """Whether update must run every control period (not only when a command arrives)."""
+        return False
+
+    # ----- lifecycle (simulation thread) ------------------------------------------------------
+    def starting(self, t: float) -> None:
+        self._pending = None
+
+    def stopping(self) -> None:
+        self.hw.release(self.rows)
+
+    def update(self, t: float, dt: float) -> None:
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            self.apply(pending, t)
+
+    def apply(self, values, t: float) -> None:
+        """Turn a buffered command into joint commands."""
+
+    # ----- commands (any thread) --------------------------------------------------------------
+    def on_command(self, msg) -> bool:
+        """Check and buffer `msg`; True if there is something for the next update."""
+        values = self.values(msg)
+        if values is None:
+            return False
+        self._pending = values
+        return True
+
+    def values(self, msg) -> np.ndarray | None:
+        """The numbers of a command message, or None (warned once) if it cannot be used."""
+        if isinstance(msg, Float64):
+            values = np.array([msg.data], dtype=float)
+        elif isinstance(msg, Float64MultiArray):
+            values = np.asarray(msg.data, dtype=float)
+        else:
+            raise InputError(f"{self.name} takes {self.msg_type.__name__}, not {type(msg).__name__}")
+        if values.shape != (len(self.rows),):
+            self.warn_once("size", f"command has {values.size} values for {len(self.rows)} joints; "
+                                   "ignored")
+            return None
+        if not np.isfinite(values).all():
+            self.warn_once("nan", f"command {values.tolist()} is not finite; ignored (the "
+                                  "simulation never sees a NaN)")
+            return None
+        return values
+
+    def warn_once(self, key: str, text: str) -> None:
+        if key not in self._warned:
+            self._warned.add(key)
+            log.warning("%s: %s", self.name, text)
+
+    def clamp(self, values: np.ndarray, lower: np.ndarray, upper: np.ndarray, what: str) -> np.ndarray:
+        """values within [lower, upper], warning once (naming the joints) when they were not."""
+        clamped = np.clip(values, lower, upper)
+        if not np.array_equal(clamped, values):
+            bad = np.flatnonzero(clamped != values)
+            parts = [f"{self.joints[i]} {values[i]:g} -> {clamped[i]:g}" for i in bad]
+            self.warn_once(what, f"command beyond the {what}, clamped: {', '.join(parts)}")
+        return clamped
+
+    def pid_for(self, joint: str) -> PidGains | None:
+        """Gains of one joint: the controller's pid:, its gains:, else gazebo_ros_control's."""
+        spec = self.spec
+        return (spec.gains or {}).get(joint) or spec.pid or self.ctx.pid_gains.get(joint)

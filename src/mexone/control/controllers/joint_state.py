@@ -1,0 +1,48 @@
+"""joint_state_controller: every actuated joint, alphabetical, stamped with sim time, on
+/<ns>/joint_states, published when last + 1/publish_rate <= t (50 Hz by default)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mexone.bus.msgs import Header, JointState, Time
+from mexone.control.controllers.base import Controller, register
+from mexone.physics.simulation import Periodic, Simulation
+
+__all__ = ["JointStateController", "DEFAULT_RATE"]
+
+DEFAULT_RATE = 50.0
+
+
+@register("joint_state_controller/JointStateController", "")
+class JointStateController(Controller):
+    kind = "state"
+    sliders = False
+
+    def __init__(self, spec, ctx):
+        super().__init__(spec, ctx)
+        hw = ctx.hw
+        self.names = sorted(hw.joints)
+        self.order = np.array([hw.index[j] for j in self.names], dtype=int)
+        self.period = 1.0 / (spec.publish_rate or DEFAULT_RATE)
+        self.topic = f"{ctx.namespace}/joint_states"
+        self.seq = 0
+        self.timer: Periodic | None = None
+        ctx.bus.advertise(self.topic, JointState)
+
+    def starting(self, t: float) -> None:
+        if self.timer is None:
+            self.timer = self.ctx.sim.add_periodic(self.period, self.publish)
+
+    def stopping(self) -> None:
+        if self.timer is not None:
+            self.ctx.sim.remove_periodic(self.timer)
+            self.timer = None
+
+    def publish(self, sim: Simulation) -> None:
+        self.seq += 1
+        hw, rows = self.hw, self.order
+        msg = JointState(Header(self.seq, Time.from_nsec(sim.time_ns), ""), list(self.names),
+                         hw.position(rows).tolist(), hw.velocity(rows).tolist(),
+                         hw.effort(rows).tolist())
+        self.ctx.bus.publish(self.topic, msg)

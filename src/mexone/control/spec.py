@@ -1,0 +1,79 @@
+"""What a controller YAML says, as plain data: gains, one controller's spec, the whole config.
+
+Kept apart from the YAML reader (config.py) and the controller classes (controllers/) so both can
+use these types without importing each other.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["PidGains", "ControllerSpec", "ControlConfig"]
+
+
+@dataclass(frozen=True)
+class PidGains:
+    """control_toolbox::Pid parameters; i_clamp 0 means no integral action, as in ROS."""
+
+    p: float
+    i: float = 0.0
+    d: float = 0.0
+    i_clamp_min: float = 0.0
+    i_clamp_max: float = 0.0
+    antiwindup: bool = False
+
+    def problem(self) -> str | None:
+        """What is wrong with these gains for a controller, or None (the one rule, used by the
+        manager for live changes and by the YAML checks)."""
+        values = {"p": self.p, "i": self.i, "d": self.d, "i_clamp_min": self.i_clamp_min,
+                  "i_clamp_max": self.i_clamp_max}
+        bad = [k for k, v in values.items() if not math.isfinite(v)]
+        if bad:
+            return f"{', '.join(bad)} not finite"
+        negative = [k for k in ("p", "i", "d") if values[k] < 0]
+        if negative:
+            return f"negative {', '.join(negative)} (a PID gain < 0 pushes away from the setpoint)"
+        if self.i_clamp_min > self.i_clamp_max:
+            return f"i_clamp_min {self.i_clamp_min:g} > i_clamp_max {self.i_clamp_max:g}"
+        return None
+
+    @property
+    def integrates(self) -> bool:
+        """Whether the I term can ever act (ROS: i != 0 and a non-zero clamp)."""
+        return self.i != 0 and (self.i_clamp_min != 0 or self.i_clamp_max != 0)
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    name: str
+    type: str
+    joints: tuple[str, ...] = ()
+    pid: PidGains | None = None
+    publish_rate: float | None = None
+    line: int | None = None
+    gains: dict[str, PidGains] | None = None  # per joint (joint_trajectory_controller's gains:)
+    ideal_servo: bool = False  # teleport the joint as Gazebo 7's position interface did
+    source: Path | None = None
+
+    @property
+    def kind(self) -> str:
+        """position, velocity, effort, trajectory or state (from the controller registry)."""
+        from mexone.control.controllers import controller_type
+
+        return controller_type(self.type).kind
+
+    @property
+    def interface(self) -> str:
+        from mexone.control.controllers import controller_type
+
+        return controller_type(self.type).interface
+
+
+@dataclass
+class ControlConfig:
+    namespace: str | None
+    controllers: dict[str, ControllerSpec] = field(default_factory=dict)
+    pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
+    source: Path | None = None
