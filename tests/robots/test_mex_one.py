@@ -153,3 +153,12 @@ def test_world_has_ground_sun_gravity_and_1ms_step():
     assert float(world.findtext("physics/max_step_size")) == 0.001
     assert world.find("light[@name='sun']") is not None
     assert world.find("model[@name='ground_plane']/link/collision/geometry/plane") is not None
+
+
+def test_the_shipped_empty_world_is_the_default_world():
+    from dataclasses import replace
+
+    from mexone.physics.world import default_world, read_world
+
+    shipped = read_world(mex_one.world_path())
+    assert replace(shipped, source=None) == default_world()

@@ -60,6 +60,7 @@ def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
         integral.biastype = mujoco.mjtBias.mjBIAS_AFFINE
         integral.dyntype = mujoco.mjtDyn.mjDYN_PID  # one state: the integral of q_ref - q
         integral.gainprm = np.r_[1.0, np.zeros(9)]  # ki > 0 at compile time allocates the state
+        integral.dynprm = np.zeros(10)  # dynprm[0] is MuJoCo's own imax: none, the clamps are ours
         integral.biasprm = np.zeros(10)
         integral.ctrlspec = int(mujoco.mjtCtrlInput.mjINPUT_POS)
         integral.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE

@@ -294,12 +294,12 @@ class Simulation:
                 if horizon is None or (until and until()):  # busy, or what it waited for ended us
                     break
                 wait = round(horizon * NS) - self._time_ns if horizon != math.inf else math.inf
-                if wait <= self._step_ns // 2:  # someone wakes now: let it run first
+                if wait <= 0:  # someone wakes now: let it run first
                     gate.advance(self.time)
                     continue
                 n = min(n, self._steps_until_due())
-                if wait != math.inf:
-                    n = min(n, math.ceil(wait / self._step_ns - 0.5))
+                if wait != math.inf:  # up to the first step at or after the wake-up, as rospy
+                    n = min(n, -(-wait // self._step_ns))
             self.step(n)
             done += n * self._step_ns
             if gate is not None:

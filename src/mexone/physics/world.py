@@ -37,9 +37,7 @@ class World:
 
 def default_world() -> World:
     """The built-in empty world (ground plane, sun, gravity, 1 ms step)."""
-    from mexone.robots.mex_one import world_path
-
-    return read_world(world_path())
+    return World()  # Gazebo's empty.world; the shipped worlds/empty.world says the same (tested)
 
 
 def read_world(path: Path | str) -> World:

@@ -177,9 +177,10 @@ class Ros1Bridge:
         while not self.rospy.is_shutdown():
             online = master.is_online()
             if self.master_ok and not online:
-                log.warning("the ROS master at %s is gone: the simulation goes on, but ROS nodes "
-                            "started from now on cannot find it; restart 'mexone sim --ros' once "
-                            "roscore is back", os.environ.get("ROS_MASTER_URI", "?"))
+                log.warning("the ROS master at %s is gone at sim time %.3f s: the simulation goes "
+                            "on, but ROS nodes started from now on cannot find it; restart "
+                            "'mexone sim --ros' once roscore is back",
+                            os.environ.get("ROS_MASTER_URI", "?"), self.lab.sim.time)
             elif online and not self.master_ok:
                 log.warning("the ROS master is back; nodes that registered before it went away "
                             "must be restarted (ROS 1 masters keep no state across restarts)")
