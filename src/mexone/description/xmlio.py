@@ -16,6 +16,7 @@ from defusedxml import EntitiesForbidden, ExternalReferenceForbidden
 from lxml import etree
 
 from mexone.errors import InputError
+from mexone.inputs import read_input
 
 __all__ = ["XmlReader", "describe"]
 
@@ -40,14 +41,7 @@ class XmlReader:
         self.path = Path(path)
         self.label = label or str(path)
         if data is None:
-            try:
-                data = self.path.read_bytes()
-            except FileNotFoundError:
-                raise InputError("no such file", file=self.label, hint="check the path") from None
-            except IsADirectoryError:
-                raise InputError("is a directory, not a model file", file=self.label) from None
-            except OSError as exc:
-                raise InputError(f"cannot read: {exc.strerror}", file=self.label) from None
+            data = read_input(self.path, self.label)
         if not data.strip():
             raise InputError("empty file", file=self.label, hint="expected an XML robot description")
         self.root = self._parse(data)
