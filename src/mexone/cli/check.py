@@ -6,7 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
+from mexone.cli import add_input_limit_option
 from mexone.control.config import load_control_config
+from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree, summary
 from mexone.description.loader import load_model
 from mexone.robots import mex_one
@@ -34,6 +36,7 @@ def add_parser(sub) -> None:
     parser.add_argument("--json", action="store_true",
                         help="print one JSON object: robot, root, links, joints, actuated, mass, "
                              "findings")
+    add_input_limit_option(parser)
     parser.set_defaults(run=run)
 
 
@@ -43,8 +46,9 @@ def run(args: argparse.Namespace) -> int:
         path = mex_one.urdf_path()
         controllers = controllers or mex_one.controllers_path()
     model = load_model(path)
-    config = load_control_config(controllers) if controllers else None
-    findings = check_model(model, config)
+    findings = check_model(model)
+    if controllers:  # the controller rules live in the control layer, above the model's
+        findings += lint_controllers(model, load_control_config(controllers))
     failing = [f for f in findings if f.severity != "info"]
     if args.json:
         print(json.dumps(summary(model, findings), indent=2))

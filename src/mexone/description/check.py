@@ -10,7 +10,6 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,9 +17,6 @@ from mexone.description.findings import Finding
 from mexone.description.meshes import geometry_bounds
 from mexone.description.model import Geometry, Link, Mesh, Pose, RobotModel
 from mexone.errors import MexoneError
-
-if TYPE_CHECKING:  # the control layer sits above this one: only its type is used here
-    from mexone.control.config import ControlConfig
 
 __all__ = ["check_model", "format_tree", "summary", "RULES"]
 
@@ -57,7 +53,6 @@ class Box3:
 @dataclass
 class _Context:
     model: RobotModel
-    controllers: ControlConfig | None
     visual_boxes: dict[str, list[Box3]] = field(default_factory=dict)
     collision_boxes: dict[str, list[Box3]] = field(default_factory=dict)
     mesh_findings: list[Finding] = field(default_factory=list)
@@ -318,38 +313,6 @@ def _rule_transmissions(ctx: _Context) -> Iterator[Finding]:
                           tx.line)
 
 
-def _rule_controllers(ctx: _Context) -> Iterator[Finding]:
-    config = ctx.controllers
-    if config is None:
-        return
-    model = ctx.model
-    for spec in config.controllers.values():
-        element = f'controller "{spec.name}"'
-        for joint in spec.joints:
-            if joint not in model.joints:
-                yield Finding("controller-unknown-joint", "error", element,
-                              f"names joint '{joint}', which the model does not have", spec.line)
-                continue
-            tx = model.transmission_for(joint)
-            if tx is None:
-                yield Finding("controller-no-transmission", "error", element,
-                              f"drives joint '{joint}', which has no <transmission>: "
-                              "gazebo_ros_control will not load it; add one", spec.line)
-            elif spec.interface and not tx.hardware_interface.endswith(spec.interface):
-                yield Finding("controller-interface", "warning", element,
-                              f"{spec.type} claims {spec.interface} but the transmission of "
-                              f"'{joint}' offers {tx.hardware_interface}", spec.line)
-        if spec.type == "position_controllers/JointPositionController" and spec.pid is not None:
-            yield Finding("position-controller-pid", "info", element,
-                          "Gazebo 7 ignored this pid: block and teleported the joint; mexone "
-                          "applies the PID as a torque, so the joint now has real dynamics",
-                          spec.line)
-        if spec.pid is not None and spec.pid.i and not (spec.pid.i_clamp_min or spec.pid.i_clamp_max):
-            yield Finding("pid-integral-unclamped", "warning", element,
-                          f"i: {spec.pid.i:g} without i_clamp_min/max does nothing in ROS "
-                          "(the integral is clamped to 0); add i_clamp_min/i_clamp_max", spec.line)
-
-
 RULES: tuple[Callable[[_Context], Iterator[Finding]], ...] = (
     _rule_tree,
     _rule_names,
@@ -359,12 +322,12 @@ RULES: tuple[Callable[[_Context], Iterator[Finding]], ...] = (
     _rule_joint_placement,
     _rule_joint_values,
     _rule_transmissions,
-    _rule_controllers,
 )
 
 
-def check_model(model: RobotModel, controllers: ControlConfig | None = None) -> list[Finding]:
-    ctx = _Context(model, controllers)
+def check_model(model: RobotModel) -> list[Finding]:
+    """Every model rule's findings (the controller rules are mexone.control.lint's)."""
+    ctx = _Context(model)
     _gather(ctx)
     return [finding for rule in RULES for finding in rule(ctx)]
 
@@ -378,16 +341,20 @@ def format_tree(model: RobotModel) -> str:
                 for name, joints in model.child_joints.items()}
     root = model.root
     lines.append(f"root Link: {root} has {len(children.get(root, []))} child(ren)")
-
-    def visit(link: str, level: int, seen: set[str]) -> None:
-        for i, joint in enumerate(children.get(link, []), start=1):
+    seen = {root}
+    # iterative depth first (a 1000-link chain is deeper than Python's recursion limit)
+    stack = [(iter(enumerate(children.get(root, []), start=1)), 2)]
+    while stack:
+        entries, level = stack[-1]
+        for i, joint in entries:
             if joint.child in seen:
                 continue
             seen.add(joint.child)
             lines.append("  " * level + f"child({i}):  {joint.child}")
-            visit(joint.child, level + 2, seen)
-
-    visit(root, 2, {root})
+            stack.append((iter(enumerate(children.get(joint.child, []), start=1)), level + 2))
+            break
+        else:
+            stack.pop()
     return "\n".join(lines)
 
 
