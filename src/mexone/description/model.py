@@ -28,6 +28,7 @@ __all__ = [
     "Link",
     "Limit",
     "Dynamics",
+    "Mimic",
     "Joint",
     "Transmission",
     "GazeboLink",
@@ -150,6 +151,16 @@ class Dynamics:
     friction: float = 0.0
 
 
+@dataclass(frozen=True)
+class Mimic:
+    """URDF <mimic>: this joint's position = multiplier * joint's position + offset."""
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+    line: int | None = None
+
+
 @dataclass
 class Joint:
     name: str
@@ -161,6 +172,7 @@ class Joint:
     limit: Limit | None = None
     dynamics: Dynamics = Dynamics()
     line: int | None = None
+    mimic: Mimic | None = None
 
     @property
     def moving(self) -> bool:
