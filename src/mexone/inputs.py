@@ -86,10 +86,11 @@ def read_input(path: Path | str, label: str | None = None) -> bytes:
         raise _refuse_kind("a directory", label) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", file=label) from None
+    info = os.fstat(fd)
+    if (kind := _kind(info.st_mode)) is not None:
+        os.close(fd)
+        raise _refuse_kind(kind, label)
     with os.fdopen(fd, "rb") as handle:
-        info = os.fstat(fd)
-        if (kind := _kind(info.st_mode)) is not None:
-            raise _refuse_kind(kind, label)
         limit_mb = input_limit_mb()
         limit = int(limit_mb * 1e6)
         if info.st_size > limit:
