@@ -19,7 +19,8 @@ from mexone.description.model import GazeboLink, Geometry, Inertial, Link, Mesh,
 from mexone.errors import MexoneError
 
 __all__ = ["check_model", "format_tree", "summary", "RULES", "implausible_inertial",
-           "surface_problem", "mimic_problem", "MAX_LINK_MASS", "MAX_MOMENT", "MAX_DENSITY"]
+           "surface_problem", "mimic_problem", "UNSIMULATED_JOINTS", "MAX_LINK_MASS", "MAX_MOMENT",
+           "MAX_DENSITY"]
 
 # Tolerances, each with its reason
 _COM_TOL = 0.002  # m: COM this far outside every geometry box is outside the link
@@ -34,9 +35,9 @@ _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled t
 MAX_LINK_MASS = 1e5  # kg: a 100 t link
 MAX_MOMENT = 1e6  # kg m^2: 100 t at 3 m
 MAX_DENSITY = 1e6  # kg/m^3 of the link's bounding box: 44x osmium
-_UNSIMULATED_JOINTS = {
+UNSIMULATED_JOINTS = {
     "planar": "MuJoCo has no planar joint: build it from two prismatic joints and a revolute one",
-    "floating": "only the root floats (by itself); join inner links with revolute, prismatic or "
+    "floating": "only the root floats, by itself; join inner links with revolute, prismatic or "
                 "fixed joints",
 }
 
@@ -44,22 +45,25 @@ _UNSIMULATED_JOINTS = {
 def implausible_inertial(inertial: Inertial) -> str | None:
     """What makes a mass or inertia impossible for a robot link, or None."""
     if inertial.mass > MAX_LINK_MASS:
-        return (f"mass {inertial.mass:.3g} kg is beyond any robot link's ({MAX_LINK_MASS:g} kg): "
-                "a typo or the wrong unit")
+        return (f"mass {inertial.mass:.3g} kg is beyond any robot link's (at most "
+                f"{MAX_LINK_MASS:.0e} kg): a typo or the wrong unit")
     if (largest := max(abs(v) for v in inertial.inertia)) > MAX_MOMENT:
-        return (f"inertia {largest:.3g} kg m^2 is beyond any robot link's ({MAX_MOMENT:g}): "
-                "a typo or the wrong unit")
+        return (f"inertia {largest:.3g} kg m^2 is beyond any robot link's (at most "
+                f"{MAX_MOMENT:.0e} kg m^2): a typo or the wrong unit")
     return None
 
 
 def surface_problem(props: GazeboLink) -> str | None:
     """Why a link's <gazebo> contact values cannot be simulated, or None."""
-    for name, value, positive in (("mu1", props.mu1, False), ("mu2", props.mu2, False),
-                                  ("kp", props.kp, True), ("kd", props.kd, False),
-                                  ("maxVel", props.max_vel, False), ("minDepth", props.min_depth, False)):
+    for name, value, positive, why in (
+            ("mu1", props.mu1, False, "friction cannot be negative"),
+            ("mu2", props.mu2, False, "friction cannot be negative"),
+            ("kp", props.kp, True, "a contact without stiffness lets the link sink through"),
+            ("kd", props.kd, False, "negative damping adds energy"),
+            ("maxVel", props.max_vel, False, "a speed cannot be negative"),
+            ("minDepth", props.min_depth, False, "a depth cannot be negative")):
         if value is not None and (value <= 0 if positive else value < 0):
-            bound = "> 0" if positive else ">= 0"
-            return f"<{name}> {value:g} must be {bound}: friction and contact stiffness have no negative"
+            return f"<{name}> {value:g} must be {'> 0' if positive else '>= 0'}: {why}"
     return None
 
 
@@ -320,14 +324,14 @@ def _passive_limits(joint, element: str, sdf: bool) -> Iterator[Finding]:
                           f"{what} in {unit}", joint.line)
         elif value == 0:
             yield Finding(code, "warning", element,
-                          f"{what} limit 0 on a joint without transmission: Gazebo clamps every "
-                          f"{what} on it to 0, so nothing can move it there; write the real "
-                          f"{what} in {unit}", joint.line)
+                          f"{what} limit 0 on a joint without transmission says nothing may ever "
+                          f"drive it (Gazebo clamps to it); write the real {what} in {unit}",
+                          joint.line)
 
 
 def _rule_joint_types(ctx: _Context) -> Iterator[Finding]:
     for joint in ctx.model.joints.values():
-        if (why := _UNSIMULATED_JOINTS.get(joint.type)) is not None:
+        if (why := UNSIMULATED_JOINTS.get(joint.type)) is not None:
             yield Finding("joint-unsupported", "error", _element("joint", joint.name),
                           f"is {joint.type}, which mexone sim refuses: {why}", joint.line)
 

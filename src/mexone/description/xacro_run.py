@@ -70,6 +70,16 @@ class _PackageNotFound(Exception):
         self.error = error
 
 
+def _root_cause(exc: BaseException) -> BaseException:
+    """The first of our, memory or recursion errors that xacro wrapped (else exc itself)."""
+    cause, seen = exc, 0
+    while cause is not None and seen < 20:
+        if isinstance(cause, _PackageNotFound | MemoryError | RecursionError):
+            return cause
+        cause, seen = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__, seen + 1
+    return exc
+
+
 def _child(path: str) -> int:
     import resource
 
@@ -95,20 +105,18 @@ def _child(path: str) -> int:
 
     try:
         doc = xacro.process_file(path)
-    except (xacro.XacroException, _PackageNotFound) as exc:
-        cause, seen = exc, 0
-        while cause is not None and not isinstance(cause, _PackageNotFound) and seen < 20:
-            cause, seen = getattr(cause, "exc", None) or cause.__cause__ or cause.__context__, seen + 1
+    except Exception as exc:  # xacro surfaces its users' mistakes as assorted Python errors
+        cause = _root_cause(exc)
         if isinstance(cause, _PackageNotFound):  # the source is fine: the package is not found
             return report(f"xacro: {cause.error.what}", cause.error.hint)
-        return report(f"xacro: {' '.join(str(exc).split())}", _SOURCE_HINT)
-    except MemoryError:
-        return report(f"xacro: ran out of memory ({_MEMORY_LIMIT >> 30} GB)",
-                      "a runaway expression or macro? fix the xacro source")
-    except RecursionError:
-        return report("xacro: macros nest too deeply (Python's recursion limit)",
-                      "a macro that calls itself without end? fix the xacro source")
-    except Exception as exc:  # xacro surfaces its users' mistakes as assorted Python errors
+        if isinstance(cause, MemoryError):
+            return report(f"xacro: ran out of memory ({_MEMORY_LIMIT >> 30} GB)",
+                          "a runaway expression or macro? fix the xacro source")
+        if isinstance(cause, RecursionError):
+            return report("xacro: macros nest too deeply (Python's recursion limit)",
+                          "a macro that calls itself without end? fix the xacro source")
+        if isinstance(exc, xacro.XacroException):
+            return report(f"xacro: {' '.join(str(exc).split())}", _SOURCE_HINT)
         return report(f"xacro: {type(exc).__name__}: {' '.join(str(exc).split())}", _SOURCE_HINT)
     sys.stdout.buffer.write(doc.toxml(encoding="utf-8"))
     return 0

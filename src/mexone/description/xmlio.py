@@ -8,6 +8,7 @@ standard library does not keep.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from xml.etree.ElementTree import ParseError
 
@@ -71,7 +72,11 @@ class XmlReader:
         try:
             root = etree.fromstring(data, parser=parser)
         except etree.XMLSyntaxError as exc:
-            raise self.error(f"malformed XML: {exc.msg}", exc.lineno, "fix the XML syntax") from None
+            if "Excessive depth" in exc.msg:
+                raise self.error("XML nests deeper than 256 elements", exc.lineno,
+                                 "a robot description nests a few levels; is it the right file?") from None
+            msg = re.sub(r", line \d+, column \d+$", "", exc.msg)
+            raise self.error(f"malformed XML: {msg}", exc.lineno, "fix the XML syntax") from None
         docinfo = root.getroottree().docinfo
         if docinfo.system_url or docinfo.public_id:
             raise self.error("external DTD refused", _line_of(data, b"<!DOCTYPE"),

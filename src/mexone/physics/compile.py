@@ -15,7 +15,12 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from mexone.description.check import implausible_inertial, mimic_problem, surface_problem
+from mexone.description.check import (
+    UNSIMULATED_JOINTS,
+    implausible_inertial,
+    mimic_problem,
+    surface_problem,
+)
 from mexone.description.meshes import geometry_bounds, load_mesh, resolve_mesh
 from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel, Sphere
 from mexone.description.transforms import rpy_to_matrix
@@ -299,10 +304,10 @@ def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
         raise ModelError(f"'{robot.name}' has a closed loop", file=robot.source,
                          hint="URDF trees cannot close loops; 'mexone check' names the joint")
     for joint in robot.joints.values():
-        if joint.type in ("floating", "planar"):
+        if joint.type in UNSIMULATED_JOINTS:
             raise UnsupportedError(f"joint '{joint.name}' is {joint.type}, which mexone does not "
                                    "simulate", file=robot.source, line=joint.line,
-                                   hint="use revolute, continuous, prismatic or fixed joints")
+                                   hint=UNSIMULATED_JOINTS[joint.type])
         link = robot.links[joint.child]
         if joint.moving and (link.inertial is None or link.inertial.mass <= 0):
             raise ModelError(f"link '{link.name}' moves (joint '{joint.name}') but has no mass",
@@ -515,7 +520,7 @@ def _add_mimics(spec: mujoco.MjSpec, robot: RobotModel) -> None:
             continue
         spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name=f"mimic/{joint.name}",
                           objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=joint.name, name2=joint.mimic.joint,
-                          data=np.r_[joint.mimic.offset, joint.mimic.multiplier, np.zeros(9)])
+                          data=np.r_[joint.mimic.offset, joint.mimic.multiplier, np.zeros(10)])
 
 
 def _size_for_large_models(spec: mujoco.MjSpec, robot: RobotModel, collision_geoms: int) -> None:
