@@ -89,10 +89,11 @@ class Watchdog:
                               hint=f"likely cause: {cause}")
 
     # ----- energy ---------------------------------------------------------------------------
-    def _energy(self, data: mujoco.MjData) -> float:
+    def _energy(self, data: mujoco.MjData) -> tuple[float, float]:
+        """(potential, kinetic) in J."""
         mujoco.mj_energyPos(self.model, data)
         mujoco.mj_energyVel(self.model, data)
-        return float(data.energy[0] + data.energy[1])
+        return float(data.energy[0]), float(data.energy[1])
 
     def _passive(self) -> bool:
         data = self.data
@@ -100,6 +101,8 @@ class Watchdog:
                     or data.xfrc_applied.any())
 
     def _check_energy(self) -> None:
+        """Kinetic energy beyond what the robot had (or has, as potential energy, however it got
+        there: set_joint_positions may lift an arm) is energy nothing gave it."""
         model, data = self.model, self.data
         key = (tuple(model.opt.gravity), float(model.opt.timestep))
         if data.time < self._last_time or key != self._ceiling_key:  # a reset, or new physics
@@ -108,13 +111,14 @@ class Watchdog:
         if not self._passive():
             self._ceiling = None  # a motor or a push may add energy: measure again once it stops
             return
+        potential, kinetic = self._energy(data)
         if self._ceiling is None:
             if data.time > _START_CHECKS * model.opt.timestep:
-                self._ceiling = self._energy(data)
+                self._ceiling = potential + kinetic
                 return
-            self._ceiling = self._home_energy()  # the run began at home, at rest
-        energy = self._energy(data)
-        gain = energy - self._ceiling  # the ceiling stays: energy held in a contact comes back
+            self._ceiling = sum(self._energy(self._home()))  # the run began at home, at rest
+        self._ceiling = max(self._ceiling, potential)
+        gain = potential + kinetic - self._ceiling
         if gain <= max(1.0, float(model.body_mass.sum()) * _EARTH_G * ENERGY_GAIN_HEIGHT):
             return
         linear, _ = link_speeds(model, data)
@@ -126,13 +130,13 @@ class Watchdog:
             f"motor or force driving it (link '{name}' at z = {data.xipos[body][2]:.2f} m, "
             f"{linear[body]:.3g} m/s)", hint=f"likely cause: {cause}")
 
-    def _home_energy(self) -> float:
-        """Energy where a reset puts the robot: every joint at home, at rest."""
+    def _home(self) -> mujoco.MjData:
+        """Where a reset puts the robot: every joint at home, at rest."""
         scratch = mujoco.MjData(self.model)
         mujoco.mj_kinematics(self.model, scratch)
         mujoco.mj_comPos(self.model, scratch)
         mujoco.mj_crb(self.model, scratch)
-        return self._energy(scratch)
+        return scratch
 
     def _first_nan_body(self) -> int:
         bad = ~np.isfinite(self.data.qvel) | ~np.isfinite(self.data.qacc)
