@@ -159,11 +159,18 @@ def chain_urdf(links: int, lying: bool = False) -> str:
 
 
 def test_check_on_a_1200_link_chain_matches_check_urdf(tmp_path):
-    """check used to die with RecursionError past ~1000 links; its tree is check_urdf's."""
+    """check used to die with RecursionError past ~1000 links; its tree is check_urdf's, and it
+    says what sim will say: MuJoCo cannot nest that deep."""
     (tmp_path / "chain.urdf").write_text(chain_urdf(1200))
     out = mexone("check", "chain.urdf", cwd=tmp_path)
-    assert out.returncode == 0, out.stdout[-500:]
-    assert out.stdout.rstrip().endswith("no problems found")
+    assert out.returncode == 1
+    assert out.stdout.rstrip().splitlines()[-2:] == [
+        '  error: robot "chain": a chain of 1200 links: MuJoCo nests at most 1023 bodies, so mexone sim '
+        "refuses it; weld links together with fewer, longer ones [tree-too-deep]",
+        "1 error(s), 0 warning(s)"]
+    sim = mexone("sim", "--headless", "chain.urdf", cwd=tmp_path)  # MuJoCo took 20 s to say so
+    assert one_line_error(sim) == ("mexone: chain.urdf: 'chain' has a chain of 1200 links; MuJoCo nests at "
+                                   "most 1023 bodies (weld links together with fewer, longer ones)")
     real = subprocess.run(["check_urdf", "chain.urdf"], cwd=tmp_path, capture_output=True, text=True)
     if real.returncode != 0 and not os.environ.get("MEXONE_CI"):
         pytest.skip("check_urdf is not installed")
@@ -184,6 +191,12 @@ def test_sdf_frames_chained_1200_deep(tmp_path):
     out = mexone("convert", "chain.sdf", "-o", "chain.urdf", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert 'xyz="0 0 0.1"' in (tmp_path / "chain.urdf").read_text()
+
+
+def test_check_on_a_1000_link_chain_is_clean(tmp_path):
+    (tmp_path / "chain.urdf").write_text(chain_urdf(1000))
+    out = mexone("check", "chain.urdf", cwd=tmp_path)
+    assert (out.returncode, out.stdout.rstrip().splitlines()[-1]) == (0, "no problems found")
 
 
 def test_a_300_link_chain_lying_on_the_ground_simulates(tmp_path):

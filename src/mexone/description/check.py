@@ -20,7 +20,7 @@ from mexone.errors import MexoneError
 
 __all__ = ["check_model", "format_tree", "summary", "RULES", "implausible_inertial",
            "surface_problem", "mimic_problem", "UNSIMULATED_JOINTS", "MAX_LINK_MASS", "MAX_MOMENT",
-           "MAX_DENSITY"]
+           "MAX_DENSITY", "MAX_DEPTH"]
 
 # Tolerances, each with its reason
 _COM_TOL = 0.002  # m: COM this far outside every geometry box is outside the link
@@ -35,6 +35,7 @@ _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled t
 MAX_LINK_MASS = 1e5  # kg: a 100 t link
 MAX_MOMENT = 1e6  # kg m^2: 100 t at 3 m
 MAX_DENSITY = 1e6  # kg/m^3 of the link's bounding box: 44x osmium
+MAX_DEPTH = 1023  # links in a chain: MuJoCo nests at most 1023 bodies
 UNSIMULATED_JOINTS = {
     "planar": "MuJoCo has no planar joint: build it from two prismatic joints and a revolute one",
     "floating": "only the root floats, by itself; join inner links with revolute, prismatic or "
@@ -411,6 +412,10 @@ def _rule_tree(ctx: _Context) -> Iterator[Finding]:
                           f"link '{joint.child}' is already the child of joint "
                           f"'{parents[joint.child]}': URDF trees cannot close loops", joint.line)
         parents.setdefault(joint.child, joint.name)
+    if model.depth > MAX_DEPTH:
+        yield Finding("tree-too-deep", "error", f'robot "{model.name}"',
+                      f"a chain of {model.depth} links: MuJoCo nests at most {MAX_DEPTH} bodies, so "
+                      "mexone sim refuses it; weld links together with fewer, longer ones", None)
     reachable = {name for root in roots for name in _reach(model, root)}
     if unreached := set(model.links) - reachable:
         yield Finding("loop", "error", f'robot "{model.name}"',

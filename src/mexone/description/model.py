@@ -273,6 +273,15 @@ class RobotModel:
         return order
 
     @cached_property
+    def depth(self) -> int:
+        """Links on the longest path from the root (a 'world' link not counted)."""
+        depths = {self.root: 0 if self.fixed_to_world else 1}
+        for name in self.walk():
+            for joint in self.child_joints.get(name, []):
+                depths.setdefault(joint.child, depths[name] + 1)
+        return max(depths.values(), default=0)
+
+    @cached_property
     def link_frames(self) -> dict[str, np.ndarray]:
         """World transform of every link frame with all joints at zero (the home pose)."""
         frames = {self.root: np.eye(4)}

@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from mexone.description.check import (
+    MAX_DEPTH,
     UNSIMULATED_JOINTS,
     implausible_inertial,
     mimic_problem,
@@ -303,6 +304,10 @@ def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
     if len(children) != len(set(children)):
         raise ModelError(f"'{robot.name}' has a closed loop", file=robot.source,
                          hint="URDF trees cannot close loops; 'mexone check' names the joint")
+    if robot.depth > MAX_DEPTH:
+        raise UnsupportedError(f"'{robot.name}' has a chain of {robot.depth} links; MuJoCo nests at "
+                               f"most {MAX_DEPTH} bodies", file=robot.source,
+                               hint="weld links together with fewer, longer ones")
     for joint in robot.joints.values():
         if joint.type in UNSIMULATED_JOINTS:
             raise UnsupportedError(f"joint '{joint.name}' is {joint.type}, which mexone does not "
