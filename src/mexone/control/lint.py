@@ -68,15 +68,8 @@ def _gains(spec: ControllerSpec) -> Iterator[tuple[str, PidGains]]:
 
 def _pid_findings(config: ControlConfig, element: str, where: str, pid: PidGains,
                   line: int | None) -> Iterator[Finding]:
-    negative = [f"{k} {v:g}" for k, v in (("p", pid.p), ("i", pid.i), ("d", pid.d)) if v < 0]
-    if negative:
-        yield _finding(config, "pid-negative", "error", element,
-                       f"{where}: {', '.join(negative)}: a negative gain pushes away from the "
-                       "target and the joint runs off; gains are >= 0", line)
-    if pid.i_clamp_min > pid.i_clamp_max:
-        yield _finding(config, "pid-clamp-range", "error", element,
-                       f"{where}: i_clamp_min {pid.i_clamp_min:g} > i_clamp_max "
-                       f"{pid.i_clamp_max:g}: swap them", line)
+    if (problem := pid.problem()) is not None:  # the manager refuses the same gains when set live
+        yield _finding(config, "pid-gains", "error", element, f"{where}: {problem}", line)
 
 
 def _rule_pid(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
