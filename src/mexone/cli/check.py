@@ -16,11 +16,17 @@ from mexone.robots import mex_one
 HELP = """\
 Read a robot (URDF, .urdf.xacro or Gazebo SDF), print its kinematic tree the way ROS's
 check_urdf does, then look for the mistakes that make a simulated robot explode or misbehave:
-non-positive masses, impossible or oversized inertias, centres of mass outside the link,
-collision shapes away from the visuals, misplaced joints, missing meshes or meshes in
-millimetres without a 0.001 scale, meaningless effort/velocity limits, duplicated or
-capitalised names, several roots or loops, and (with --controllers) controllers naming joints
-that have no transmission.
+non-positive or implausible masses, impossible or oversized inertias, centres of mass outside
+the link, collision shapes away from the visuals, misplaced joints, missing meshes or meshes in
+millimetres without a 0.001 scale, meaningless effort/velocity limits, negative friction or
+contact stiffness, planar/floating joints and trees deeper than MuJoCo can build, <mimic>
+joints, duplicated or capitalised names, several roots or loops, and (with --controllers)
+controllers naming joints that have no transmission, two controllers on one joint and
+impossible PID gains, each with the YAML's file:line.
+
+Only regular files up to 4 MB are read (--max-input-mb lifts that); xacro gets 10 s
+(MEXONE_XACRO_TIMEOUT) and finds $(find pkg) on ROS_PACKAGE_PATH, above the file, or among
+mexone's robots.
 
 exit status: 0 no errors or warnings, 1 findings, 2 unreadable input"""
 
