@@ -24,7 +24,7 @@ joints, duplicated or capitalised names, several roots or loops, and (with --con
 controllers naming joints that have no transmission, two controllers on one joint and
 impossible PID gains, each with the YAML's file:line.
 
-Only regular files up to 4 MB are read (--max-input-mb lifts that); xacro gets 10 s
+Only regular files up to 4 MB are read (--max-input-mb lifts that); xacro gets 6 s
 (MEXONE_XACRO_TIMEOUT) and finds $(find pkg) on ROS_PACKAGE_PATH, above the file, or among
 mexone's robots.
 

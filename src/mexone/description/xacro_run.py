@@ -20,7 +20,7 @@ from mexone.errors import InputError
 __all__ = ["expand_xacro", "TIMEOUT_ENV", "DEFAULT_TIMEOUT"]
 
 TIMEOUT_ENV = "MEXONE_XACRO_TIMEOUT"
-DEFAULT_TIMEOUT = 10.0  # s: a full PR2 expands in about 3 s
+DEFAULT_TIMEOUT = 6.0  # s: a full PR2 expands in about 3 s; a runaway expression ends within 10 s
 _MEMORY_LIMIT = 2 << 30  # bytes of address space for the child
 _ERROR_TAG = "mexone-xacro-error:"
 _SOURCE_HINT = "fix the xacro source"
