@@ -10,6 +10,7 @@ from lxml import etree
 
 from mexone.cli import main
 from mexone.control.config import parse_control_config
+from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
 from mexone.robots import mex_one
@@ -30,7 +31,8 @@ def broken(tmp_path, edit, name="broken.urdf"):
 
 
 def findings_of(path, controllers=None):
-    return check_model(load_model(path), controllers)
+    model = load_model(path)
+    return check_model(model) + (lint_controllers(model, controllers) if controllers else [])
 
 
 def link(root, name):

@@ -12,6 +12,7 @@ import trimesh
 import yaml
 
 from mexone.control.config import load_control_config
+from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree
 from mexone.description.loader import load_model
 from mexone.description.meshes import load_mesh, resolve_mesh
@@ -142,7 +143,8 @@ def test_controller_yaml_follows_listing_3_17(model):
 
 def test_shipped_model_and_controllers_lint_clean(model):
     config = load_control_config(mex_one.controllers_path())
-    assert [f for f in check_model(model, config) if f.severity != "info"] == []
+    findings = check_model(model) + lint_controllers(model, config)
+    assert [f for f in findings if f.severity != "info"] == []
 
 
 def test_world_has_ground_sun_gravity_and_1ms_step():

@@ -14,7 +14,16 @@ import threading
 
 from mexone.errors import MexoneError
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "add_input_limit_option"]
+
+
+def add_input_limit_option(p: argparse.ArgumentParser) -> None:
+    """--max-input-mb, for the verbs that read a user's model, world or controller YAML."""
+    from mexone.inputs import DEFAULT_LIMIT_MB, LIMIT_ENV
+
+    p.add_argument("--max-input-mb", type=float, metavar="MB",
+                   help=f"refuse input files bigger than this (default {DEFAULT_LIMIT_MB:g} MB, or "
+                        f"${LIMIT_ENV}); only regular files are read")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -71,6 +80,10 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"unrecognized arguments: {' '.join(extra)}")
         args.params += extra
     try:
+        if getattr(args, "max_input_mb", None) is not None:
+            from mexone.inputs import set_input_limit_mb
+
+            set_input_limit_mb(args.max_input_mb)
         return int(args.run(args) or 0)
     except MexoneError as exc:
         print(f"mexone: {exc.one_line()}", file=sys.stderr)

@@ -7,6 +7,7 @@ import sys
 from contextlib import contextmanager
 from pathlib import Path
 
+from mexone.cli import add_input_limit_option
 from mexone.lab import Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
@@ -59,6 +60,7 @@ def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False
     p.add_argument("--no-controllers", action="store_true",
                    help="no controllers: the joints are free (the seed's fall test)")
     p.add_argument("--world", type=Path, help="SDF .world file (default: ground plane, sun, 1 ms)")
+    add_input_limit_option(p)
     p.add_argument("--no-self-collide", action="store_true",
                    help="turn self-collision off for every link (the seed's Fig. 4.8)")
     p.add_argument("--fixed-base", action="store_true",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mexone.cli import add_input_limit_option
 from mexone.description.check import check_model
 from mexone.description.convert import rebase_meshes, write_new_file
 from mexone.description.loader import load_model
@@ -36,6 +37,7 @@ def add_parser(sub) -> None:
     parser.add_argument("-o", "--output", type=Path, required=True, metavar="OUT",
                         help="file to write; its extension picks the format")
     parser.add_argument("--force", action="store_true", help="overwrite OUT if it exists")
+    add_input_limit_option(parser)
     parser.set_defaults(run=run)
 
 

@@ -12,9 +12,11 @@ from pathlib import Path
 
 import yaml
 
+from mexone import yamlio
 from mexone.control.controllers import CONTROLLER_TYPES
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.errors import InputError
+from mexone.inputs import read_input_text
 
 __all__ = [
     "PidGains",
@@ -28,19 +30,12 @@ __all__ = [
 
 def load_control_config(path: Path | str) -> ControlConfig:
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError("no such file", file=path, hint="check the path") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"cannot read: {exc}", file=path) from None
-    return parse_control_config(text, path)
+    return parse_control_config(read_input_text(path), path)
 
 
 class _Reader:
     def __init__(self, path: Path | None):
         self.path = path
-        self.builder = yaml.SafeLoader("")
 
     def error(self, node: yaml.Node, what: str, hint: str | None = None) -> InputError:
         return InputError(what, file=self.path or "<yaml>", line=node.start_mark.line + 1, hint=hint)
@@ -51,7 +46,20 @@ class _Reader:
         return [(str(k.value), k, v) for k, v in node.value]
 
     def value(self, node: yaml.Node):
-        return self.builder.construct_document(node)
+        try:
+            return yamlio.construct(node)
+        except InputError as exc:
+            raise exc.located(self.path or "<yaml>") from None
+
+    def boolean(self, node: yaml.Node, what: str) -> bool:
+        """true/false (and YAML 1.1's yes/no/on/off, as rosparam reads them); never a string:
+        bool('no') is True."""
+        value = self.value(node)
+        if not isinstance(value, bool):
+            quoted = " (quoted, so a string)" if isinstance(value, str) and node.style in ("'", '"') else ""
+            raise self.error(node, f"{what}: '{node.value}'{quoted} is not a boolean",
+                             "write true or false, without quotes")
+        return value
 
     def number(self, node: yaml.Node, what: str) -> float:
         value = self.value(node)
@@ -64,13 +72,7 @@ class _Reader:
 
 def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
     reader = _Reader(path)
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-        raise InputError(f"malformed YAML: {problem}", file=path or "<yaml>",
-                         line=mark.line + 1 if mark else None, hint="fix the YAML syntax") from None
+    root = yamlio.compose(text, path)
     if root is None:
         raise InputError("empty controller file", file=path or "<yaml>",
                          hint="expected the ros_control schema of the seed's Listing 3.17")
@@ -133,9 +135,7 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
                  for joint, _, node in reader.mapping(fields["gains"][1], f"'{name}' gains")}
     ideal = False
     if "ideal_servo" in fields:
-        ideal = reader.value(fields["ideal_servo"][1])
-        if not isinstance(ideal, bool):
-            raise reader.error(fields["ideal_servo"][1], f"'{name}' ideal_servo must be true or false")
+        ideal = reader.boolean(fields["ideal_servo"][1], f"'{name}' ideal_servo")
         if kind not in ("position", "trajectory"):
             raise reader.error(fields["ideal_servo"][1], f"'{name}': ideal_servo is for position "
                                                          "controllers")
@@ -155,7 +155,8 @@ def _pid(reader: _Reader, owner: str, node: yaml.Node) -> PidGains:
         clamp = abs(values.pop("i_clamp"))
         values.setdefault("i_clamp_min", -clamp)
         values.setdefault("i_clamp_max", clamp)
-    antiwindup = bool(reader.value(fields["antiwindup"][1])) if "antiwindup" in fields else False
+    antiwindup = reader.boolean(fields["antiwindup"][1], f"'{owner}' pid antiwindup") \
+        if "antiwindup" in fields else False
     return PidGains(antiwindup=antiwindup, **values)
 
 

@@ -10,19 +10,17 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mexone.description.findings import Finding
 from mexone.description.meshes import geometry_bounds
-from mexone.description.model import Geometry, Link, Mesh, Pose, RobotModel
+from mexone.description.model import GazeboLink, Geometry, Inertial, Link, Mesh, Pose, RobotModel
 from mexone.errors import MexoneError
 
-if TYPE_CHECKING:  # the control layer sits above this one: only its type is used here
-    from mexone.control.config import ControlConfig
-
-__all__ = ["check_model", "format_tree", "summary", "RULES"]
+__all__ = ["check_model", "format_tree", "summary", "RULES", "implausible_inertial",
+           "surface_problem", "mimic_problem", "UNSIMULATED_JOINTS", "MAX_LINK_MASS", "MAX_MOMENT",
+           "MAX_DENSITY", "MAX_DEPTH"]
 
 # Tolerances, each with its reason
 _COM_TOL = 0.002  # m: COM this far outside every geometry box is outside the link
@@ -33,6 +31,41 @@ _JOINT_FAR_MIN = 0.02  # m
 _JOINT_FAR_FRACTION = 0.2
 _MM_EXTENT = 5.0  # m: a robot part whose mesh spans more than this is written in millimetres
 _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled twice
+# Beyond these a value is a typo or a wrong unit, not a robot; `mexone sim` refuses them too
+MAX_LINK_MASS = 1e5  # kg: a 100 t link
+MAX_MOMENT = 1e6  # kg m^2: 100 t at 3 m
+MAX_DENSITY = 1e6  # kg/m^3 of the link's bounding box: 44x osmium
+MAX_DEPTH = 1023  # links in a chain: MuJoCo nests at most 1023 bodies
+UNSIMULATED_JOINTS = {
+    "planar": "MuJoCo has no planar joint: build it from two prismatic joints and a revolute one",
+    "floating": "only the root floats, by itself; join inner links with revolute, prismatic or "
+                "fixed joints",
+}
+
+
+def implausible_inertial(inertial: Inertial) -> str | None:
+    """What makes a mass or inertia impossible for a robot link, or None."""
+    if inertial.mass > MAX_LINK_MASS:
+        return (f"mass {inertial.mass:.3g} kg is beyond any robot link's (at most "
+                f"{MAX_LINK_MASS:.0e} kg): a typo or the wrong unit")
+    if (largest := max(abs(v) for v in inertial.inertia)) > MAX_MOMENT:
+        return (f"inertia {largest:.3g} kg m^2 is beyond any robot link's (at most "
+                f"{MAX_MOMENT:.0e} kg m^2): a typo or the wrong unit")
+    return None
+
+
+def surface_problem(props: GazeboLink) -> str | None:
+    """Why a link's <gazebo> contact values cannot be simulated, or None."""
+    for name, value, positive, why in (
+            ("mu1", props.mu1, False, "friction cannot be negative"),
+            ("mu2", props.mu2, False, "friction cannot be negative"),
+            ("kp", props.kp, True, "a contact without stiffness lets the link sink through"),
+            ("kd", props.kd, False, "negative damping adds energy"),
+            ("maxVel", props.max_vel, False, "a speed cannot be negative"),
+            ("minDepth", props.min_depth, False, "a depth cannot be negative")):
+        if value is not None and (value <= 0 if positive else value < 0):
+            return f"<{name}> {value:g} must be {'> 0' if positive else '>= 0'}: {why}"
+    return None
 
 
 @dataclass(frozen=True)
@@ -57,7 +90,6 @@ class Box3:
 @dataclass
 class _Context:
     model: RobotModel
-    controllers: ControlConfig | None
     visual_boxes: dict[str, list[Box3]] = field(default_factory=dict)
     collision_boxes: dict[str, list[Box3]] = field(default_factory=dict)
     mesh_findings: list[Finding] = field(default_factory=list)
@@ -147,6 +179,10 @@ def _rule_inertial(ctx: _Context) -> Iterator[Finding]:
             yield Finding("mass-nonpositive", "error", element,
                           f"mass {inertial.mass:g} kg: a body needs a positive mass", link.line)
             continue
+        if (problem := implausible_inertial(inertial)) is not None:
+            yield Finding("mass-implausible", "error", element, problem, link.line)
+            continue
+        yield from _density(ctx, link)
         moments = np.linalg.eigvalsh(inertial.tensor)
         if moments[0] <= 0:
             yield Finding("inertia-not-positive", "error", element,
@@ -178,6 +214,18 @@ def _inertia_size(ctx: _Context, link: Link, moments: np.ndarray) -> Iterator[Fi
                       f"{link.inertial.mass:g} kg within {reach:.3f} m can have: the link will spin "
                       "like a flywheel and explode (seed Fig. 4.7); check units and values",
                       link.line)
+
+
+def _density(ctx: _Context, link: Link) -> Iterator[Finding]:
+    aabb = _aabb(ctx.boxes(link.name))
+    if aabb is None:
+        return
+    volume = float(np.prod(np.maximum(aabb[1] - aabb[0], 1e-6)))
+    if (density := link.inertial.mass / volume) > MAX_DENSITY:
+        yield Finding("mass-implausible", "error", _element("link", link.name),
+                      f"{link.inertial.mass:.3g} kg in {volume:.3g} m^3 of geometry is {density:.3g} "
+                      "kg/m^3, over 40x the densest metal: check the mass's unit (kg) or the "
+                      "geometry's scale", link.line)
 
 
 def _com_inside(ctx: _Context, link: Link) -> Iterator[Finding]:
@@ -227,8 +275,15 @@ def _rule_joint_placement(ctx: _Context) -> Iterator[Finding]:
 
 
 # ----- joints, names, tree ---------------------------------------------------------------------
+def _from_sdf(model: RobotModel) -> bool:
+    """SDF writes -1 for 'no effort or velocity limit'; URDF has no such convention."""
+    source = model.source
+    return source is not None and (source.suffix.lower() in (".sdf", ".world") or source.is_dir())
+
+
 def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
     actuated = {j.name for j in ctx.model.actuated_joints}
+    sdf = _from_sdf(ctx.model)
     for joint in ctx.model.joints.values():
         element = _element("joint", joint.name)
         lim = joint.limit
@@ -248,12 +303,84 @@ def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
                               f"velocity limit {lim.velocity:g} on an actuated joint: a simulator "
                               "either ignores it or holds the joint still; set the motor's top "
                               "speed in rad/s", joint.line)
+        elif joint.moving and lim is not None:
+            yield from _passive_limits(joint, element, sdf)
         stated = [joint.dynamics, ctx.model.gazebo_joints.get(joint.name, joint.dynamics)]
         for dyn in dict.fromkeys(stated):
             if dyn.damping < 0 or dyn.friction < 0:
                 yield Finding("dynamics-negative", "error", element,
                               f"damping {dyn.damping:g} / friction {dyn.friction:g}: negative "
                               "values add energy and make the simulation diverge", joint.line)
+
+
+def _passive_limits(joint, element: str, sdf: bool) -> Iterator[Finding]:
+    """Limits of a joint without transmission: nothing drives it, but Gazebo still reads them."""
+    for code, what, value, unit in (("effort-limit", "effort", joint.limit.effort, "N m or N"),
+                                    ("velocity-limit", "velocity", joint.limit.velocity,
+                                     "rad/s or m/s")):
+        if value < 0 and not sdf:
+            yield Finding(code, "error", element,
+                          f"{what} limit {value:g}: URDF limits are magnitudes (Gazebo reads a "
+                          f"negative one as 'none', ros_control as nonsense); write the real "
+                          f"{what} in {unit}", joint.line)
+        elif value == 0:
+            yield Finding(code, "warning", element,
+                          f"{what} limit 0 on a joint without transmission says nothing may ever "
+                          f"drive it (Gazebo clamps to it); write the real {what} in {unit}",
+                          joint.line)
+
+
+def _rule_joint_types(ctx: _Context) -> Iterator[Finding]:
+    for joint in ctx.model.joints.values():
+        if (why := UNSIMULATED_JOINTS.get(joint.type)) is not None:
+            yield Finding("joint-unsupported", "error", _element("joint", joint.name),
+                          f"is {joint.type}, which mexone sim refuses: {why}", joint.line)
+
+
+def _rule_mimic(ctx: _Context) -> Iterator[Finding]:
+    """<mimic> becomes a MuJoCo equality constraint; say so, and what cannot be one."""
+    joints = ctx.model.joints
+    for joint in joints.values():
+        mimic = joint.mimic
+        if mimic is None:
+            continue
+        element = _element("joint", joint.name)
+        if (problem := mimic_problem(ctx.model, joint)) is not None:
+            yield Finding("mimic-invalid", "error", element, problem, mimic.line or joint.line)
+            continue
+        yield Finding("mimic", "info", element,
+                      f"follows '{mimic.joint}' (x {mimic.multiplier:g} + {mimic.offset:g}) through a "
+                      "MuJoCo equality constraint; Gazebo 7 ignored <mimic> without a plugin",
+                      mimic.line or joint.line)
+        if ctx.model.transmission_for(joint.name) is not None:
+            yield Finding("mimic-actuated", "warning", element,
+                          f"has a <transmission> but follows '{mimic.joint}': its motor fights the "
+                          "constraint; drive the joint it mimics instead", joint.line)
+
+
+def mimic_problem(model: RobotModel, joint) -> str | None:
+    """Why a joint's <mimic> cannot be simulated, or None."""
+    mimic, joints = joint.mimic, model.joints
+    if not joint.moving:
+        return f"is {joint.type} and cannot mimic anything"
+    if mimic.joint not in joints:
+        return f"mimics joint '{mimic.joint}', which does not exist"
+    if not joints[mimic.joint].moving:
+        return f"mimics joint '{mimic.joint}', which is {joints[mimic.joint].type}"
+    seen, current = {joint.name}, joints[mimic.joint]
+    while current.mimic is not None and current.mimic.joint in joints:
+        if current.name in seen:
+            return f"mimics '{mimic.joint}', whose <mimic> chain leads back to it"
+        seen.add(current.name)
+        current = joints[current.mimic.joint]
+    return None
+
+
+def _rule_surfaces(ctx: _Context) -> Iterator[Finding]:
+    for name, props in ctx.model.gazebo_links.items():
+        if (problem := surface_problem(props)) is not None:
+            yield Finding("surface-negative", "error", f'<gazebo reference="{name}">', problem,
+                          props.line)
 
 
 def _rule_names(ctx: _Context) -> Iterator[Finding]:
@@ -285,6 +412,10 @@ def _rule_tree(ctx: _Context) -> Iterator[Finding]:
                           f"link '{joint.child}' is already the child of joint "
                           f"'{parents[joint.child]}': URDF trees cannot close loops", joint.line)
         parents.setdefault(joint.child, joint.name)
+    if model.depth > MAX_DEPTH:
+        yield Finding("tree-too-deep", "error", f'robot "{model.name}"',
+                      f"a chain of {model.depth} links: MuJoCo nests at most {MAX_DEPTH} bodies, so "
+                      "mexone sim refuses it; weld links together with fewer, longer ones", None)
     reachable = {name for root in roots for name in _reach(model, root)}
     if unreached := set(model.links) - reachable:
         yield Finding("loop", "error", f'robot "{model.name}"',
@@ -318,38 +449,6 @@ def _rule_transmissions(ctx: _Context) -> Iterator[Finding]:
                           tx.line)
 
 
-def _rule_controllers(ctx: _Context) -> Iterator[Finding]:
-    config = ctx.controllers
-    if config is None:
-        return
-    model = ctx.model
-    for spec in config.controllers.values():
-        element = f'controller "{spec.name}"'
-        for joint in spec.joints:
-            if joint not in model.joints:
-                yield Finding("controller-unknown-joint", "error", element,
-                              f"names joint '{joint}', which the model does not have", spec.line)
-                continue
-            tx = model.transmission_for(joint)
-            if tx is None:
-                yield Finding("controller-no-transmission", "error", element,
-                              f"drives joint '{joint}', which has no <transmission>: "
-                              "gazebo_ros_control will not load it; add one", spec.line)
-            elif spec.interface and not tx.hardware_interface.endswith(spec.interface):
-                yield Finding("controller-interface", "warning", element,
-                              f"{spec.type} claims {spec.interface} but the transmission of "
-                              f"'{joint}' offers {tx.hardware_interface}", spec.line)
-        if spec.type == "position_controllers/JointPositionController" and spec.pid is not None:
-            yield Finding("position-controller-pid", "info", element,
-                          "Gazebo 7 ignored this pid: block and teleported the joint; mexone "
-                          "applies the PID as a torque, so the joint now has real dynamics",
-                          spec.line)
-        if spec.pid is not None and spec.pid.i and not (spec.pid.i_clamp_min or spec.pid.i_clamp_max):
-            yield Finding("pid-integral-unclamped", "warning", element,
-                          f"i: {spec.pid.i:g} without i_clamp_min/max does nothing in ROS "
-                          "(the integral is clamped to 0); add i_clamp_min/i_clamp_max", spec.line)
-
-
 RULES: tuple[Callable[[_Context], Iterator[Finding]], ...] = (
     _rule_tree,
     _rule_names,
@@ -358,13 +457,16 @@ RULES: tuple[Callable[[_Context], Iterator[Finding]], ...] = (
     _rule_collision_matches_visual,
     _rule_joint_placement,
     _rule_joint_values,
+    _rule_joint_types,
+    _rule_mimic,
+    _rule_surfaces,
     _rule_transmissions,
-    _rule_controllers,
 )
 
 
-def check_model(model: RobotModel, controllers: ControlConfig | None = None) -> list[Finding]:
-    ctx = _Context(model, controllers)
+def check_model(model: RobotModel) -> list[Finding]:
+    """Every model rule's findings (the controller rules are mexone.control.lint's)."""
+    ctx = _Context(model)
     _gather(ctx)
     return [finding for rule in RULES for finding in rule(ctx)]
 
@@ -378,16 +480,20 @@ def format_tree(model: RobotModel) -> str:
                 for name, joints in model.child_joints.items()}
     root = model.root
     lines.append(f"root Link: {root} has {len(children.get(root, []))} child(ren)")
-
-    def visit(link: str, level: int, seen: set[str]) -> None:
-        for i, joint in enumerate(children.get(link, []), start=1):
+    seen = {root}
+    # iterative depth first (a 1000-link chain is deeper than Python's recursion limit)
+    stack = [(iter(enumerate(children.get(root, []), start=1)), 2)]
+    while stack:
+        entries, level = stack[-1]
+        for i, joint in entries:
             if joint.child in seen:
                 continue
             seen.add(joint.child)
             lines.append("  " * level + f"child({i}):  {joint.child}")
-            visit(joint.child, level + 2, seen)
-
-    visit(root, 2, {root})
+            stack.append((iter(enumerate(children.get(joint.child, []), start=1)), level + 2))
+            break
+        else:
+            stack.pop()
     return "\n".join(lines)
 
 

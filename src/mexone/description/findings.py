@@ -16,12 +16,15 @@ class Finding:
     element: str  # e.g. 'link "head"' or 'joint "l_knee"'
     message: str  # what is wrong and what to do, one line
     line: int | None = None
+    file: str | None = None  # where line points when it is not the model (a controller YAML)
 
     def as_dict(self) -> dict:
         out = asdict(self)
         out.pop("line")
+        out.pop("file")
         return out
 
     def one_line(self, file: str | None = None) -> str:
+        file = self.file or file
         where = f"{file}:{self.line}: " if file and self.line else ""
         return f"{where}{self.severity}: {self.element}: {self.message} [{self.code}]"

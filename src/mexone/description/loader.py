@@ -7,6 +7,7 @@ from pathlib import Path
 from mexone.description.model import RobotModel
 from mexone.description.sdf import read_sdf
 from mexone.description.urdf import parse_urdf, read_urdf
+from mexone.description.xacro_run import expand_xacro
 from mexone.description.xmlio import XmlReader
 from mexone.errors import InputError
 
@@ -39,17 +40,7 @@ def load_model(path: Path | str) -> RobotModel:
 
 
 def _read_xacro(path: Path) -> RobotModel:
-    import xacro  # imported here: it is slow and only xacro input needs it
-
-    XmlReader(path)  # vets the source (entities refused, syntax errors with lines) before xacro
-    try:
-        doc = xacro.process_file(str(path))
-    except xacro.XacroException as exc:
-        what = " ".join(str(exc).split())
-        raise InputError(f"xacro: {what}", file=path, hint="fix the xacro source") from None
-    except Exception as exc:  # xacro surfaces its users' mistakes as assorted Python errors
-        raise InputError(f"xacro: {type(exc).__name__}: {exc}", file=path,
-                         hint="fix the xacro source") from None
-    expanded = doc.toxml(encoding="utf-8")
+    XmlReader(path)  # vets the source (a regular file, entities refused, syntax errors with lines)
+    expanded = expand_xacro(path)  # in a child process with a time limit
     # line numbers now refer to the expanded document; say so in every message
     return parse_urdf(XmlReader(path, data=expanded, label=f"{path} (after xacro)"), path)

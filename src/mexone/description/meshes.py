@@ -9,45 +9,23 @@ catkin package or Gazebo model folder usually is.
 from __future__ import annotations
 
 import os
-import re
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from mexone.description.model import Box, Cylinder, Geometry, Mesh, Sphere
-from mexone.errors import ModelError
+from mexone.description.packages import require_package
+from mexone.errors import InputError, ModelError
+from mexone.inputs import vet_regular_file
 
 __all__ = ["resolve_mesh", "load_mesh", "geometry_bounds"]
-_PKG_NAME = re.compile(rb"<name>\s*([^<\s]+)\s*</name>")
-
-
-def _package_name(folder: Path) -> str | None:
-    manifest = folder / "package.xml"
-    if not manifest.is_file():
-        return None
-    found = _PKG_NAME.search(manifest.read_bytes())
-    return found.group(1).decode() if found else None
-
-
-def _search_roots(base_dir: Path, env: str) -> list[Path]:
-    roots = [base_dir, *base_dir.parents]
-    roots += [Path(p) for p in os.environ.get(env, "").split(os.pathsep) if p]
-    return roots
-
-
-def _find_package(name: str, base_dir: Path) -> Path | None:
-    for folder in _search_roots(base_dir, "ROS_PACKAGE_PATH"):
-        if _package_name(folder) == name or (folder.name == name and folder.is_dir()):
-            return folder
-        candidate = folder / name
-        if candidate.is_dir():
-            return candidate
-    return None
 
 
 def _find_model(name: str, base_dir: Path) -> Path | None:
-    for folder in _search_roots(base_dir, "GAZEBO_MODEL_PATH"):
+    roots = [base_dir, *base_dir.parents]
+    roots += [Path(p) for p in os.environ.get("GAZEBO_MODEL_PATH", "").split(os.pathsep) if p]
+    for folder in roots:
         if folder.name == name and (folder / "model.config").is_file():
             return folder
         if (folder / name / "model.config").is_file():
@@ -57,16 +35,17 @@ def _find_model(name: str, base_dir: Path) -> Path | None:
 
 def resolve_mesh(filename: str, base_dir: Path) -> Path:
     """The file a mesh reference means; raises ModelError naming what was searched."""
-    for scheme, finder, env in (("package://", _find_package, "ROS_PACKAGE_PATH"),
-                                ("model://", _find_model, "GAZEBO_MODEL_PATH")):
-        if filename.startswith(scheme):
-            name, _, rest = filename[len(scheme):].partition("/")
-            folder = finder(name, base_dir)
-            if folder is None:
-                raise ModelError(f"mesh '{filename}': cannot find '{name}'",
-                                 hint=f"put the model inside that package/model folder or add its "
-                                      f"parent to {env}")
-            return folder / rest
+    if filename.startswith("package://"):
+        name, _, rest = filename[len("package://"):].partition("/")
+        return require_package(name, base_dir, f"mesh '{filename}'") / rest
+    if filename.startswith("model://"):
+        name, _, rest = filename[len("model://"):].partition("/")
+        folder = _find_model(name, base_dir)
+        if folder is None:
+            raise ModelError(f"mesh '{filename}': cannot find model '{name}'",
+                             hint="put the model inside that model folder or add its parent to "
+                                  "GAZEBO_MODEL_PATH")
+        return folder / rest
     if filename.startswith("file://"):
         return Path(filename[len("file://"):])
     path = Path(filename)
@@ -89,8 +68,12 @@ def _load(path: str, mtime: float):
 
 def load_mesh(path: Path):
     """The trimesh.Trimesh in the file's own units (cached; reloaded if the file changes)."""
-    if not path.is_file():
+    if not path.exists():
         raise ModelError(f"mesh file '{path}' does not exist", hint="check the filename and path")
+    try:
+        vet_regular_file(path)
+    except InputError as exc:  # a FIFO would block trimesh forever
+        raise ModelError(f"mesh file '{path}' {exc.what}", hint=exc.hint) from None
     return _load(str(path), path.stat().st_mtime)
 
 

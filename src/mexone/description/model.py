@@ -28,6 +28,7 @@ __all__ = [
     "Link",
     "Limit",
     "Dynamics",
+    "Mimic",
     "Joint",
     "Transmission",
     "GazeboLink",
@@ -150,6 +151,16 @@ class Dynamics:
     friction: float = 0.0
 
 
+@dataclass(frozen=True)
+class Mimic:
+    """URDF <mimic>: this joint's position = multiplier * joint's position + offset."""
+
+    joint: str
+    multiplier: float = 1.0
+    offset: float = 0.0
+    line: int | None = None
+
+
 @dataclass
 class Joint:
     name: str
@@ -161,6 +172,7 @@ class Joint:
     limit: Limit | None = None
     dynamics: Dynamics = Dynamics()
     line: int | None = None
+    mimic: Mimic | None = None
 
     @property
     def moving(self) -> bool:
@@ -259,6 +271,15 @@ class RobotModel:
             order.append(name)
             stack.extend(j.child for j in reversed(self.child_joints.get(name, [])))
         return order
+
+    @cached_property
+    def depth(self) -> int:
+        """Links on the longest path from the root (a 'world' link not counted)."""
+        depths = {self.root: 0 if self.fixed_to_world else 1}
+        for name in self.walk():
+            for joint in self.child_joints.get(name, []):
+                depths.setdefault(joint.child, depths[name] + 1)
+        return max(depths.values(), default=0)
 
     @cached_property
     def link_frames(self) -> dict[str, np.ndarray]:

@@ -26,6 +26,7 @@ from mexone.description.model import (
     Limit,
     Link,
     Mesh,
+    Mimic,
     Pose,
     RobotModel,
     Sphere,
@@ -36,25 +37,37 @@ from mexone.description.urdf import fmt
 from mexone.description.xmlio import XmlReader
 from mexone.errors import UnsupportedError
 
-__all__ = ["read_sdf", "write_sdf"]
+__all__ = ["read_sdf", "write_sdf", "sdf_version"]
 
+_KNOWN_VERSIONS = tuple((1, minor) for minor in (0, *range(2, 13)))  # SDFormat 1.0 .. 1.12
 _UNBOUNDED = 1e15  # SDF writes +-1e16 for "no limit"; anything beyond this is a continuous joint
 _URDF_TYPES = {"revolute": "revolute", "continuous": "continuous", "prismatic": "prismatic",
                "fixed": "fixed"}
 _MODEL_FRAME = ("", "__model__")
+_ENVIRONMENT_MODELS = ("model://ground_plane", "model://sun")
 
 
 # ----- reading ---------------------------------------------------------------------------------
 class _SdfModel:
     """One <model> with a resolver for the poses of its links, joints and frames."""
 
-    def __init__(self, xml: XmlReader, el: etree._Element, version: float):
+    def __init__(self, xml: XmlReader, el: etree._Element, version: tuple[int, int]):
         self.xml, self.el, self.version = xml, el, version
-        self.links = {xml.attr(e, "name"): e for e in el.iterfind("link")}
-        self.joints = {xml.attr(e, "name"): e for e in el.iterfind("joint")}
-        self.frames = {xml.attr(e, "name"): e for e in el.iterfind("frame")}
+        self.links = self._named(el, "link")
+        self.joints = self._named(el, "joint")
+        self.frames = self._named(el, "frame")
         self._cache: dict[str, np.ndarray] = {}
-        self._resolving: set[str] = set()
+
+    def _named(self, el: etree._Element, tag: str) -> dict[str, etree._Element]:
+        """name -> element; sdformat refuses a name used twice, and so do we."""
+        out: dict[str, etree._Element] = {}
+        for child in el.iterfind(tag):
+            name = self.xml.attr(child, "name")
+            if name in out:
+                raise self.xml.fail(child, f"reuses the name of the <{tag}> on line "
+                                           f"{out[name].sourceline}", "names must be unique")
+            out[name] = child
+        return out
 
     def pose(self, el: etree._Element) -> np.ndarray:
         """The element's own <pose> as a matrix (relative to whatever it is relative to)."""
@@ -80,31 +93,37 @@ class _SdfModel:
         # SDF 1.7+ says relative_to; 1.5-1.6 had an experimental frame attribute, '' by default
         return pose.get("relative_to") or pose.get("frame") or default
 
-    def frame_of(self, name: str, line_el: etree._Element) -> np.ndarray:
-        """Model-frame pose of a named link, joint or frame."""
-        if name in _MODEL_FRAME:
-            return np.eye(4)
-        if name in self._cache:
-            return self._cache[name]
-        if name in self._resolving:
-            raise self.xml.fail(line_el, f"pose frames form a cycle through '{name}'")
-        self._resolving.add(name)
+    def _placement(self, name: str, line_el: etree._Element) -> tuple[str, etree._Element]:
+        """(the frame a named link, joint or frame is placed relative to, its element)."""
         if name in self.links:
             el = self.links[name]
-            out = self.frame_of(self._relative_to(el, "__model__"), el) @ self.pose(el)
-        elif name in self.joints:
+            return self._relative_to(el, "__model__"), el
+        if name in self.joints:
             el = self.joints[name]
-            child = self.xml.text(el, "child") or ""
-            out = self.frame_of(self._relative_to(el, child), el) @ self.pose(el)
-        elif name in self.frames:
+            return self._relative_to(el, self.xml.text(el, "child") or ""), el
+        if name in self.frames:
             el = self.frames[name]
-            base = el.get("attached_to") or "__model__"
-            out = self.frame_of(self._relative_to(el, base), el) @ self.pose(el)
-        else:
-            raise self.xml.fail(line_el, f"refers to frame '{name}', which is not in the model")
-        self._resolving.discard(name)
-        self._cache[name] = out
-        return out
+            return self._relative_to(el, el.get("attached_to") or "__model__"), el
+        raise self.xml.fail(line_el, f"refers to frame '{name}', which is not in the model")
+
+    def frame_of(self, name: str, line_el: etree._Element) -> np.ndarray:
+        """Model-frame pose of a named link, joint or frame (iterative: a chain of 1000
+        relative_to frames is deeper than Python's recursion limit)."""
+        chain: list[tuple[str, etree._Element]] = []
+        on_chain: set[str] = set()
+        current, where = name, line_el
+        while current not in _MODEL_FRAME and current not in self._cache:
+            if current in on_chain:
+                raise self.xml.fail(where, f"pose frames form a cycle through '{current}'")
+            on_chain.add(current)
+            base, el = self._placement(current, where)
+            chain.append((current, el))
+            current, where = base, el
+        pose = np.eye(4) if current in _MODEL_FRAME else self._cache[current]
+        for frame, el in reversed(chain):
+            pose = pose @ self.pose(el)
+            self._cache[frame] = pose
+        return pose
 
 
 def _quat_matrix(w: float, x: float, y: float, z: float) -> np.ndarray:
@@ -124,7 +143,7 @@ def read_sdf(path: Path | str) -> RobotModel:
     if root.tag != "sdf":
         raise xml.fail(root, "is not an SDF root: expected <sdf>",
                        "a URDF file must end in .urdf" if root.tag == "robot" else None)
-    version = xml.number(root, root.get("version", "1.6"), "attribute 'version'")
+    version = sdf_version(xml, root)
     models = list(root.iterfind("model")) + list(root.iterfind("world/model"))
     if not models:
         raise xml.fail(root, "holds no <model>", "convert a model.sdf, not a world with includes")
@@ -133,11 +152,29 @@ def read_sdf(path: Path | str) -> RobotModel:
         raise UnsupportedError(f"holds {len(models)} models ({names}); URDF describes one robot",
                                file=path, line=models[1].sourceline,
                                hint="keep the robot's <model> only")
-    sdf = _SdfModel(xml, models[0], version)
     if (nested := models[0].find("model")) is not None:
         raise UnsupportedError("nested <model> cannot be written as URDF", file=path,
                                line=nested.sourceline, hint="merge the nested model's links first")
+    for include in (*models[0].iterfind("include"), *root.iterfind("world/include")):
+        uri = (include.findtext("uri") or "").strip()
+        if include.getparent() is not models[0] and uri in _ENVIRONMENT_MODELS:
+            continue  # a world's ground and sun: the environment, not the robot (see --world)
+        raise UnsupportedError(f"<include> of '{uri}' is not read: mexone does not merge included "
+                               "models into the robot", file=path, line=include.sourceline,
+                               hint="paste the included model's links and joints into this model")
+    sdf = _SdfModel(xml, models[0], version)
     return _to_model(sdf, path)
+
+
+def sdf_version(xml: XmlReader, root: etree._Element) -> tuple[int, int]:
+    """(major, minor) of <sdf version>: '1.10' is after '1.9', which float() gets wrong."""
+    text = root.get("version", "1.6").strip()
+    major, dot, minor = text.partition(".")
+    version = (int(major), int(minor)) if dot and major.isdigit() and minor.isdigit() else None
+    if version not in _KNOWN_VERSIONS:
+        raise xml.fail(root, f"has version '{text}', which is not an SDFormat version (1.0 to 1.12)",
+                       "Gazebo 7 writes 1.6; correct the version attribute")
+    return version
 
 
 def _to_model(sdf: _SdfModel, path: Path) -> RobotModel:
@@ -281,6 +318,7 @@ def _joint(sdf: _SdfModel, el: etree._Element, frames: dict[str, np.ndarray]) ->
         dyn = axis_el.find("dynamics")
         if dyn is not None:
             dynamics = Dynamics(xml.text_number(dyn, "damping", 0.0), xml.text_number(dyn, "friction", 0.0))
+    mimic = _mimic(xml, axis_el) if axis_el is not None else None
     if sdf_type not in _URDF_TYPES:
         raise UnsupportedError(f"joint '{name}' is of type '{sdf_type}', which URDF cannot express",
                                file=xml.label, line=el.sourceline,
@@ -295,7 +333,17 @@ def _joint(sdf: _SdfModel, el: etree._Element, frames: dict[str, np.ndarray]) ->
         limit = Limit(0.0, 0.0, limit.effort, limit.velocity) if limit else None
     origin = Pose.from_matrix(invert(frames[parent]) @ frames[child])
     return Joint(name, urdf_type, parent, child, origin, tuple(float(v) for v in axis), limit,
-                 dynamics, el.sourceline)
+                 dynamics, el.sourceline, mimic)
+
+
+def _mimic(xml: XmlReader, axis_el: etree._Element) -> Mimic | None:
+    """SDF 1.11's <mimic joint=...>: follower = multiplier (leader - reference) + offset."""
+    el = axis_el.find("mimic")
+    if el is None:
+        return None
+    multiplier = xml.text_number(el, "multiplier", 1.0)
+    offset = xml.text_number(el, "offset", 0.0) - multiplier * xml.text_number(el, "reference", 0.0)
+    return Mimic(xml.attr(el, "joint"), multiplier, offset, el.sourceline)
 
 
 def _axis_in_joint_frame(sdf: _SdfModel, axis_el, xyz_el, axis: np.ndarray,
@@ -305,7 +353,7 @@ def _axis_in_joint_frame(sdf: _SdfModel, axis_el, xyz_el, axis: np.ndarray,
     if expressed_in is None:
         use_model = sdf.xml.text_bool(axis_el, "use_parent_model_frame")
         # SDF 1.4 wrote axes in the model frame; 1.5 added the flag, default: the joint frame
-        in_model = use_model if use_model is not None else sdf.version < 1.5
+        in_model = use_model if use_model is not None else sdf.version < (1, 5)
         if not in_model:
             return axis / np.linalg.norm(axis)
         expressed_in = "__model__"
@@ -425,6 +473,10 @@ def _write_joint(el_model: etree._Element, model: RobotModel, joint: Joint) -> N
     if joint.type not in ("revolute", "continuous", "prismatic", "fixed"):
         raise UnsupportedError(f"joint '{joint.name}' of type '{joint.type}' has no SDF export here",
                                file=model.source, line=joint.line)
+    if joint.mimic is not None:
+        raise UnsupportedError(f"joint '{joint.name}' mimics '{joint.mimic.joint}', which SDF 1.6 "
+                               "cannot say (Gazebo 7 ignored <mimic>)", file=model.source,
+                               line=joint.line, hint="convert to URDF or MJCF, which keep it")
     sdf_type = "revolute" if joint.type == "continuous" else joint.type
     el = _sub(el_model, "joint", name=joint.name, type=sdf_type)
     _sub(el, "parent", joint.parent)

@@ -21,6 +21,7 @@ from mexone.description.model import (
     Limit,
     Link,
     Mesh,
+    Mimic,
     Pose,
     RobotModel,
     Sphere,
@@ -153,7 +154,12 @@ def _joint(xml: XmlReader, el: etree._Element) -> Joint:
     dyn = el.find("dynamics")
     if dyn is not None:
         dynamics = Dynamics(xml.float_attr(dyn, "damping", 0.0), xml.float_attr(dyn, "friction", 0.0))
-    return Joint(name, jtype, parent, child, _origin(xml, el), axis, limit, dynamics, el.sourceline)
+    mimic = None
+    if (mim := el.find("mimic")) is not None:
+        mimic = Mimic(xml.attr(mim, "joint"), xml.float_attr(mim, "multiplier", 1.0),
+                      xml.float_attr(mim, "offset", 0.0), mim.sourceline)
+    return Joint(name, jtype, parent, child, _origin(xml, el), axis, limit, dynamics, el.sourceline,
+                 mimic)
 
 
 def _transmission(xml: XmlReader, el: etree._Element) -> Transmission:
@@ -282,6 +288,9 @@ def write_urdf(model: RobotModel, comment: str | None = None) -> str:
         if joint.moving and (joint.dynamics.damping or joint.dynamics.friction):
             _sub(el, "dynamics", damping=fmt(joint.dynamics.damping),
                  friction=fmt(joint.dynamics.friction))
+        if joint.mimic is not None:
+            _sub(el, "mimic", joint=joint.mimic.joint, multiplier=fmt(joint.mimic.multiplier),
+                 offset=fmt(joint.mimic.offset))
     for tx in model.transmissions:
         el = _sub(robot, "transmission", name=tx.name)
         _sub(el, "type", tx.type)

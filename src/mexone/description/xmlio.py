@@ -8,6 +8,7 @@ standard library does not keep.
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 from xml.etree.ElementTree import ParseError
 
@@ -16,6 +17,7 @@ from defusedxml import EntitiesForbidden, ExternalReferenceForbidden
 from lxml import etree
 
 from mexone.errors import InputError
+from mexone.inputs import read_input
 
 __all__ = ["XmlReader", "describe"]
 
@@ -40,14 +42,7 @@ class XmlReader:
         self.path = Path(path)
         self.label = label or str(path)
         if data is None:
-            try:
-                data = self.path.read_bytes()
-            except FileNotFoundError:
-                raise InputError("no such file", file=self.label, hint="check the path") from None
-            except IsADirectoryError:
-                raise InputError("is a directory, not a model file", file=self.label) from None
-            except OSError as exc:
-                raise InputError(f"cannot read: {exc.strerror}", file=self.label) from None
+            data = read_input(self.path, self.label)
         if not data.strip():
             raise InputError("empty file", file=self.label, hint="expected an XML robot description")
         self.root = self._parse(data)
@@ -77,7 +72,11 @@ class XmlReader:
         try:
             root = etree.fromstring(data, parser=parser)
         except etree.XMLSyntaxError as exc:
-            raise self.error(f"malformed XML: {exc.msg}", exc.lineno, "fix the XML syntax") from None
+            if "Excessive depth" in exc.msg:
+                raise self.error("XML nests deeper than 256 elements", exc.lineno,
+                                 "a robot description nests a few levels; is it the right file?") from None
+            msg = re.sub(r", line \d+, column \d+$", "", exc.msg)
+            raise self.error(f"malformed XML: {msg}", exc.lineno, "fix the XML syntax") from None
         docinfo = root.getroottree().docinfo
         if docinfo.system_url or docinfo.public_id:
             raise self.error("external DTD refused", _line_of(data, b"<!DOCTYPE"),

@@ -7,17 +7,28 @@ Gazebo property we honour is in ``GAZEBO_MAPPING`` (printed by ``mexone sim --ex
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from mexone.description.meshes import geometry_bounds, resolve_mesh
+from mexone.description.check import (
+    MAX_DEPTH,
+    UNSIMULATED_JOINTS,
+    implausible_inertial,
+    mimic_problem,
+    surface_problem,
+)
+from mexone.description.meshes import geometry_bounds, load_mesh, resolve_mesh
 from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel, Sphere
 from mexone.description.transforms import rpy_to_matrix
-from mexone.errors import MexoneError, ModelError, UnsupportedError
+from mexone.errors import InputError, MexoneError, ModelError, UnsupportedError
 from mexone.physics.world import World, default_world
+
+_log = logging.getLogger("mexone.physics")
 
 __all__ = ["Spawn", "CompileOptions", "Compiled", "compile_model", "SpecEdit", "GAZEBO_MAPPING",
            "GROUP_VISUAL", "GROUP_COLLISION", "lowest_point", "collision_bits"]
@@ -35,6 +46,12 @@ _GAZEBO_KP = 1e12
 _GAZEBO_KD = 1.0
 _DMAX = 0.95  # MuJoCo's default solimp[1]: the impedance a settled contact reaches
 _MIN_STEPS_PER_TIMECONST = 4  # stiffer contacts chatter: a sliding box hops and slides 25% fast
+_SPAWN_TOLERANCE = 0.001  # m a spawn may start inside the ground (soft contacts settle it)
+# Newton's cost per iteration grows as nv^3: a 900-link chain lying on the ground took 2 s a step;
+# CG takes 0.2 s there and the same as Newton on Mex-One-sized robots (DECISIONS.md)
+_LARGE_NV = 100
+_CONTACTS_PER_GEOM = 4  # a box on a plane touches at its 4 corners
+_MJ_STL_MAX_FACES = 200_000  # MuJoCo's own STL reader refuses more (and ASCII STL)
 
 GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<gazebo> mu1, mu2", "pair/geom friction[0:2]",
@@ -63,6 +80,10 @@ GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
      "actuator; built by the control layer (control/hardware.py)"),
     ("collision <mesh>", "mesh geom", "MuJoCo collides with the mesh's convex hull"),
     ("root link", "free joint", "unless the URDF welds it to a 'world' link"),
+    ("<mimic joint multiplier offset>", "joint equality constraint (polycoef offset, multiplier)",
+     "Gazebo 7 ignored <mimic> without a plugin"),
+    ("spawn inside the ground", "lifted onto it, with a warning",
+     "Gazebo shoots such a robot into the air"),
     ("world <physics> max_step_size, ode/solver/iters", "option timestep, iterations", ""),
     ("Coulomb friction (ODE: pyramid, exact stiction)", "elliptic cone, impratio 10",
      "MuJoCo's soft friction creeps under static load unless impratio is raised"),
@@ -119,9 +140,13 @@ def _set_pose(element, matrix: np.ndarray) -> None:
     element.quat = _quat(matrix[:3, :3])
 
 
-def lowest_point(robot: RobotModel) -> float:
-    """Lowest z of any collision geometry at home, in the root's frame (for standing spawns)."""
+def lowest_point(robot: RobotModel, rotation: np.ndarray | None = None) -> float:
+    """Lowest z of any collision geometry at home, in the root's frame turned by rotation (the
+    spawn's roll, pitch and yaw), for standing spawns."""
     lowest = np.inf
+    turn = np.eye(4)
+    if rotation is not None:
+        turn[:3, :3] = rotation
     for name, frame in robot.link_frames.items():
         for col in robot.links[name].collisions:
             lower, upper = geometry_bounds(col.geometry, robot.base_dir)
@@ -129,7 +154,7 @@ def lowest_point(robot: RobotModel) -> float:
                                 for y in (lower[1], upper[1]) for z in (lower[2], upper[2])])
             if isinstance(col.geometry, Cylinder | Sphere):  # round: the box corners overshoot
                 corners = _round_extremes(col.geometry)
-            points = (frame @ col.origin.matrix @ corners.T)[2]
+            points = (turn @ frame @ col.origin.matrix @ corners.T)[2]
             lowest = min(lowest, float(points.min()))
     return 0.0 if lowest == np.inf else lowest
 
@@ -181,6 +206,8 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     before it compiles (the control layer adds its actuators that way, as mjlab's configs do)."""
     world = world or default_world()
     _refuse_what_we_cannot_build(robot, options.fixed_base)
+    if not np.isfinite([*spawn.xyz, *spawn.rpy]).all():
+        raise InputError(f"spawn pose {(*spawn.xyz, *spawn.rpy)} is not finite", hint="give finite numbers")
     spec = mujoco.MjSpec()
     spec.modelname = robot.name
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
@@ -198,11 +225,7 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     _add_world(spec, world)
     robot_mass = robot.mass or 1.0  # a welded massless root with massless links: nothing moves
 
-    # a robot welded to the world stands where its URDF puts it; a free one on its lowest point
-    lift = -lowest_point(robot) if spawn.on_ground and not robot.fixed_to_world else 0.0
-    placement = np.eye(4)
-    placement[:3, :3] = rpy_to_matrix(spawn.rpy)
-    placement[:3, 3] = np.asarray(spawn.xyz) + np.array([0.0, 0.0, lift])
+    placement = _placement(robot, world, spawn)
 
     bodies: dict[str, mujoco.MjsBody] = {}
     free = not (robot.fixed_to_world or options.fixed_base)
@@ -229,8 +252,11 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
         geoms_by_link[name] = _add_geoms(spec, body, robot, name, options, world, robot_mass)
 
     _add_contact_rules(spec, robot, world, geoms_by_link, robot_mass)
+    _add_mimics(spec, robot)
+    _size_for_large_models(spec, robot, sum(len(g) for g in geoms_by_link.values()))
     for edit in edits:
         edit(spec, robot)
+    _no_second_factorisation(spec)
     try:
         model = spec.compile()
     except ValueError as exc:
@@ -248,6 +274,28 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     )
 
 
+def _placement(robot: RobotModel, world: World, spawn: Spawn) -> np.ndarray:
+    """The root's world pose. A robot welded to the world stands where its URDF puts it; any
+    other on its lowest point (on_ground) or at spawn.xyz, but never inside the ground: ODE and
+    MuJoCo alike push such a robot out at tens of m/s."""
+    rotation = rpy_to_matrix(spawn.rpy)
+    placement = np.eye(4)
+    placement[:3, :3] = rotation
+    placement[:3, 3] = spawn.xyz
+    if robot.fixed_to_world:
+        return placement
+    lowest = lowest_point(robot, rotation)
+    if spawn.on_ground:
+        placement[2, 3] -= lowest
+    if world.ground is not None and any(link.collisions for link in robot.links.values()):
+        depth = world.ground.z - (placement[2, 3] + lowest)
+        if depth > _SPAWN_TOLERANCE:
+            placement[2, 3] += depth
+            _log.warning(f"spawn z {spawn.xyz[2]:g} puts '{robot.name}' {depth:.3f} m inside the ground; "
+                         f"lifted so its lowest point is on the ground (it would be shot into the air)")
+    return placement
+
+
 def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
     if len(robot.roots) != 1:
         raise ModelError(f"'{robot.name}' has {len(robot.roots)} root links "
@@ -257,16 +305,32 @@ def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
     if len(children) != len(set(children)):
         raise ModelError(f"'{robot.name}' has a closed loop", file=robot.source,
                          hint="URDF trees cannot close loops; 'mexone check' names the joint")
+    if robot.depth > MAX_DEPTH:
+        raise UnsupportedError(f"'{robot.name}' has a chain of {robot.depth} links; MuJoCo nests at "
+                               f"most {MAX_DEPTH} bodies", file=robot.source,
+                               hint="weld links together with fewer, longer ones")
     for joint in robot.joints.values():
-        if joint.type in ("floating", "planar"):
+        if joint.type in UNSIMULATED_JOINTS:
             raise UnsupportedError(f"joint '{joint.name}' is {joint.type}, which mexone does not "
                                    "simulate", file=robot.source, line=joint.line,
-                                   hint="use revolute, continuous, prismatic or fixed joints")
+                                   hint=UNSIMULATED_JOINTS[joint.type])
         link = robot.links[joint.child]
         if joint.moving and (link.inertial is None or link.inertial.mass <= 0):
             raise ModelError(f"link '{link.name}' moves (joint '{joint.name}') but has no mass",
                              file=robot.source, line=link.line,
                              hint="give it an <inertial> with mass > 0")
+        if joint.mimic is not None and (problem := mimic_problem(robot, joint)) is not None:
+            raise ModelError(f"joint '{joint.name}' {problem}", file=robot.source,
+                             line=joint.mimic.line or joint.line,
+                             hint="'mexone check' lists every such joint")
+    for link in robot.links.values():
+        if link.inertial is not None and (problem := implausible_inertial(link.inertial)) is not None:
+            raise ModelError(f"link '{link.name}': {problem}", file=robot.source, line=link.line,
+                             hint="'mexone check' lists every implausible link")
+    for name, props in robot.gazebo_links.items():
+        if (problem := surface_problem(props)) is not None:
+            raise ModelError(f"link '{name}': {problem}", file=robot.source, line=props.line,
+                             hint="'mexone check' lists every such value")
     root = robot.links[robot.root]
     if not (robot.fixed_to_world or fixed_base) and (root.inertial is None or root.inertial.mass <= 0):
         raise ModelError(f"floating root link '{root.name}' has no mass", file=robot.source,
@@ -349,15 +413,31 @@ def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name
                          hint="check the filename, or run 'mexone check'")
     mesh = spec.add_mesh(name=name)
     mesh.scale = scale
-    if path.suffix.lower() in (".stl", ".obj", ".msh"):
+    if _mujoco_reads(path):
         mesh.file = str(path)
-    else:  # .dae and the rest: through trimesh, as vertices and faces
-        from mexone.description.meshes import load_mesh
-
-        loaded = load_mesh(path)
+    else:  # .dae, ASCII or huge STL and the rest: through trimesh, as `mexone check` reads them
+        try:
+            loaded = load_mesh(path)
+        except MexoneError as exc:
+            raise ModelError(exc.what, file=robot.source, hint=exc.hint) from None
         mesh.uservert = np.asarray(loaded.vertices, dtype=np.float32).ravel()
         mesh.userface = np.asarray(loaded.faces, dtype=np.int32).ravel()
     return name
+
+
+def _mujoco_reads(path: Path) -> bool:
+    """MuJoCo reads OBJ and binary STL up to 200k faces itself (faster than trimesh)."""
+    suffix = path.suffix.lower()
+    if suffix in (".obj", ".msh"):
+        return True
+    if suffix != ".stl":
+        return False
+    with path.open("rb") as handle:
+        header = handle.read(84)
+    if len(header) < 84:
+        return False
+    faces = int.from_bytes(header[80:84], "little")
+    return 0 < faces <= _MJ_STL_MAX_FACES and path.stat().st_size == 84 + 50 * faces
 
 
 def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions, world: World,
@@ -437,3 +517,37 @@ def _add_contact_rules(spec, robot: RobotModel, world: World, geoms: dict[str, l
                           friction=(min(mu1, world.ground.mu1), min(mu2, world.ground.mu2),
                                     0.005, 0.0001, 0.0001),
                           solref=_contact_solref(kp, kd, robot_mass, world.step))
+
+
+def _add_mimics(spec: mujoco.MjSpec, robot: RobotModel) -> None:
+    """URDF <mimic>: q_follower = offset + multiplier * q_leader, a joint equality constraint."""
+    for joint in robot.joints.values():
+        if joint.mimic is None:
+            continue
+        spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT, name=f"mimic/{joint.name}",
+                          objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=joint.name, name2=joint.mimic.joint,
+                          data=np.r_[joint.mimic.offset, joint.mimic.multiplier, np.zeros(10)])
+
+
+def _no_second_factorisation(spec: mujoco.MjSpec) -> None:
+    """Without actuators (or fluid) the only velocity-dependent force is joint damping, which
+    MuJoCo's Euler also integrates implicitly: implicitfast and Euler compute the same step, but
+    Euler reuses the mass matrix's factorisation when nothing is damped (a 900-link chain: 25 of
+    61 ms a step were the second factorisation)."""
+    if (spec.option.integrator == mujoco.mjtIntegrator.mjINT_IMPLICITFAST and not spec.actuators
+            and spec.option.density == 0 and spec.option.viscosity == 0):
+        spec.option.integrator = mujoco.mjtIntegrator.mjINT_EULER
+
+
+def _size_for_large_models(spec: mujoco.MjSpec, robot: RobotModel, collision_geoms: int) -> None:
+    """Big trees: CG instead of Newton, and an arena for every geom touching the ground at
+    once (MuJoCo's own estimate ran out at 3600 contacts on 900 dofs and aborted the process)."""
+    nv = 6 + sum(j.moving for j in robot.joints.values())
+    if nv <= _LARGE_NV:
+        return
+    spec.option.solver = mujoco.mjtSolver.mjSOL_CG
+    rows = _CONTACTS_PER_GEOM * 3 * collision_geoms + nv  # condim 3, plus joint limits
+    needed = rows * nv * 9  # bytes: the solver's constraint Jacobian, measured
+    if needed > 32 << 20:
+        spec.memory = int(needed * 1.25) + (96 << 20)
+

@@ -10,10 +10,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
+from mexone.description.sdf import sdf_version
 from mexone.description.xmlio import XmlReader
 from mexone.errors import UnsupportedError
 
-__all__ = ["World", "Ground", "read_world", "default_world"]
+__all__ = ["World", "Ground", "read_world", "default_world", "STEP_RANGE"]
+
+# s: below 10 us a second of sim costs minutes; above 10 ms contacts (timeconst >= 4 steps) turn
+# to mush and stiff controllers diverge. Gazebo's default is 1 ms.
+STEP_RANGE = (1e-5, 0.01)
 
 
 @dataclass(frozen=True)
@@ -47,18 +52,28 @@ def read_world(path: Path | str) -> World:
     world = root.find("world") if root.tag == "sdf" else None
     if world is None:
         raise xml.fail(root, "holds no <world>", "a world file is <sdf><world>...</world></sdf>")
+    sdf_version(xml, root)
     values: dict = {"name": world.get("name", "default"), "source": path, "ground": None}
     if (g := world.find("gravity")) is not None:
         values["gravity"] = xml.numbers(g, g.text or "", 3, "value")
     physics = world.find("physics")
     if physics is not None:
         values["step"] = xml.text_number(physics, "max_step_size", 0.001)
-        if values["step"] <= 0:
-            raise xml.fail(physics, "has max_step_size <= 0", "Gazebo's default is 0.001")
+        low, high = STEP_RANGE
+        if not low <= values["step"] <= high:
+            step_el = physics.find("max_step_size")
+            raise xml.fail(step_el, f"{values['step']:g} s is outside the {low:g} to {high:g} s mexone "
+                                    "simulates", "Gazebo's default is 0.001")
         values["real_time_factor"] = xml.text_number(physics, "real_time_factor", 1.0)
+        if values["real_time_factor"] < 0:
+            raise xml.fail(physics.find("real_time_factor"), "must be >= 0 (0: as fast as possible)")
         iters = physics.find("ode/solver/iters")
         if iters is not None:
-            values["iterations"] = int(xml.number(iters, iters.text or "", "value"))
+            count = xml.number(iters, iters.text or "", "value")
+            if count < 1 or count != int(count) or count > 10_000:
+                raise xml.fail(iters, f"{count:g} is not a whole number of iterations from 1 to 10000",
+                               "Gazebo's default is 50")
+            values["iterations"] = int(count)
     for include in world.iterfind("include"):
         uri = (include.findtext("uri") or "").strip()
         if uri == "model://ground_plane":

@@ -1,0 +1,97 @@
+"""lint_controllers(model, config): what `mexone check --controllers` says about a controller YAML.
+
+The rules that need both the robot and its controllers live here, above the description layer
+(which knows nothing of controllers); they yield the same Findings as the model's lint, with
+the YAML's file and line, and the `check` verb prints both lists.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+
+from mexone.control.config import ControlConfig, ControllerSpec, PidGains
+from mexone.description.findings import Finding
+from mexone.description.model import RobotModel
+
+__all__ = ["lint_controllers", "CONTROLLER_RULES"]
+
+Rule = Callable[[RobotModel, ControlConfig], Iterator[Finding]]
+
+
+def _element(spec: ControllerSpec) -> str:
+    return f'controller "{spec.name}"'
+
+
+def _finding(config: ControlConfig, code: str, severity: str, element: str, message: str,
+             line: int | None) -> Finding:
+    return Finding(code, severity, element, message, line,
+                   str(config.source) if config.source is not None else None)
+
+
+def _rule_joints(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
+    for spec in config.controllers.values():
+        for joint in spec.joints:
+            if joint not in model.joints:
+                yield _finding(config, "controller-unknown-joint", "error", _element(spec),
+                               f"names joint '{joint}', which the model does not have", spec.line)
+                continue
+            tx = model.transmission_for(joint)
+            if tx is None:
+                yield _finding(config, "controller-no-transmission", "error", _element(spec),
+                               f"drives joint '{joint}', which has no <transmission>: "
+                               "gazebo_ros_control will not load it; add one", spec.line)
+            elif spec.interface and not tx.hardware_interface.endswith(spec.interface):
+                yield _finding(config, "controller-interface", "warning", _element(spec),
+                               f"{spec.type} claims {spec.interface} but the transmission of "
+                               f"'{joint}' offers {tx.hardware_interface}", spec.line)
+
+
+def _rule_shared_joints(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
+    """ros_control refuses to start a second controller on a claimed joint (resource conflict)."""
+    owner: dict[str, ControllerSpec] = {}
+    for spec in config.controllers.values():
+        for joint in spec.joints:
+            first = owner.setdefault(joint, spec)
+            if first is not spec:
+                yield _finding(config, "controller-joint-shared", "error", _element(spec),
+                               f"drives joint '{joint}', which controller '{first.name}' (line "
+                               f"{first.line}) already drives: ros_control refuses the second "
+                               "(resource conflict); keep one", spec.line)
+
+
+def _gains(spec: ControllerSpec) -> Iterator[tuple[str, PidGains]]:
+    if spec.pid is not None:
+        yield "pid", spec.pid
+    for joint, gains in (spec.gains or {}).items():
+        yield f"gains/{joint}", gains
+
+
+def _pid_findings(config: ControlConfig, element: str, where: str, pid: PidGains,
+                  line: int | None) -> Iterator[Finding]:
+    if (problem := pid.problem()) is not None:  # the manager refuses the same gains when set live
+        yield _finding(config, "pid-gains", "error", element, f"{where}: {problem}", line)
+
+
+def _rule_pid(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
+    for spec in config.controllers.values():
+        element = _element(spec)
+        if spec.type == "position_controllers/JointPositionController" and spec.pid is not None:
+            yield _finding(config, "position-controller-pid", "info", element,
+                           "Gazebo 7 ignored this pid: block and teleported the joint; mexone "
+                           "applies the PID as a torque, so the joint now has real dynamics", spec.line)
+        for where, pid in _gains(spec):
+            yield from _pid_findings(config, element, where, pid, spec.line)
+        if spec.pid is not None and spec.pid.i and not (spec.pid.i_clamp_min or spec.pid.i_clamp_max):
+            yield _finding(config, "pid-integral-unclamped", "warning", element,
+                           f"i: {spec.pid.i:g} without i_clamp_min/max does nothing in ROS "
+                           "(the integral is clamped to 0); add i_clamp_min/i_clamp_max", spec.line)
+    for joint, pid in config.pid_gains.items():
+        yield from _pid_findings(config, f'pid_gains "{joint}"', "gazebo_ros_control/pid_gains",
+                                 pid, None)
+
+
+CONTROLLER_RULES: tuple[Rule, ...] = (_rule_joints, _rule_shared_joints, _rule_pid)
+
+
+def lint_controllers(model: RobotModel, config: ControlConfig) -> list[Finding]:
+    return [finding for rule in CONTROLLER_RULES for finding in rule(model, config)]
