@@ -9,7 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 
-from mexone.control.config import ControlConfig, ControllerSpec, PidGains
+from mexone.control.notes import gazebo_differences
+from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.description.findings import Finding
 from mexone.description.model import RobotModel
 
@@ -74,17 +75,11 @@ def _pid_findings(config: ControlConfig, element: str, where: str, pid: PidGains
 
 def _rule_pid(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
     for spec in config.controllers.values():
-        element = _element(spec)
-        if spec.type == "position_controllers/JointPositionController" and spec.pid is not None:
-            yield _finding(config, "position-controller-pid", "info", element,
-                           "Gazebo 7 ignored this pid: block and teleported the joint; mexone "
-                           "applies the PID as a torque, so the joint now has real dynamics", spec.line)
         for where, pid in _gains(spec):
-            yield from _pid_findings(config, element, where, pid, spec.line)
-        if spec.pid is not None and spec.pid.i and not (spec.pid.i_clamp_min or spec.pid.i_clamp_max):
-            yield _finding(config, "pid-integral-unclamped", "warning", element,
-                           f"i: {spec.pid.i:g} without i_clamp_min/max does nothing in ROS "
-                           "(the integral is clamped to 0); add i_clamp_min/i_clamp_max", spec.line)
+            yield from _pid_findings(config, _element(spec), where, pid, spec.line)
+    for note in gazebo_differences(config):  # what the manager also says when it loads them
+        yield _finding(config, note.code, note.severity, _element(note.spec), note.text,
+                       note.spec.line)
     for joint, pid in config.pid_gains.items():
         yield from _pid_findings(config, f'pid_gains "{joint}"', "gazebo_ros_control/pid_gains",
                                  pid, None)

@@ -70,8 +70,8 @@ class ControllerManager:
         sim.on_reset(self.restart)
         sim.on_timestep_change(self.on_timestep_change)
         sim.watchdog.suspects.append(self._suspect)
-        for spec, _code, note in gazebo_differences(config):
-            log.warning("%s: %s", spec.name, note)
+        for note in gazebo_differences(config):
+            log.warning("%s: %s", note.spec.name, note.text)
 
     # ----- the loop (simulation thread) ------------------------------------------------------------
     @property

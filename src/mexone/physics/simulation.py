@@ -36,7 +36,7 @@ from mexone.physics.compile import (
     collision_bits,
     compile_model,
 )
-from mexone.physics.watchdog import Watchdog, link_speeds
+from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
@@ -258,7 +258,13 @@ class Simulation:
         while remaining > 0:
             self._fire_due()
             chunk = min(remaining, _WATCH_EVERY - self._since_watch, self._steps_until_due())
-            mujoco.mj_step(model, data, chunk)
+            try:
+                mujoco.mj_step(model, data, chunk)
+            except mujoco.FatalError as exc:  # e.g. out of constraint memory: a one-line error
+                raise DivergenceError(f"MuJoCo stopped at t = {self.time:.3f} s: "
+                                      f"{' '.join(str(exc).split())}",
+                                      hint="a model this big or this stiff needs 'mexone check' "
+                                           "and a smaller time step") from None
             self._time_ns += chunk * self._step_ns
             remaining -= chunk
             self._since_watch += chunk

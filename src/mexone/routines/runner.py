@@ -14,9 +14,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 import mexone
+from mexone import yamlio
 from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Shutdown, bind
@@ -69,10 +68,9 @@ def parse_param_args(args: list[str]) -> dict[str, object]:
             raise InputError(f"argument '{arg}' is not name:=value",
                              hint="e.g. _joint:=r_elbow for the routine's ~joint parameter")
         try:
-            out[name] = yaml.safe_load(text) if text else ""
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise InputError(f"argument '{arg}': the value is not valid YAML ({problem})",
+            out[name] = yamlio.load(text) if text else ""
+        except InputError as exc:
+            raise InputError(f"argument '{arg}': the value is not valid YAML ({exc.what})",
                              hint="quote strings, e.g. _joint:=r_elbow or _list:='[1, 2]'") from None
     return out
 
@@ -111,7 +109,7 @@ class RoutineRunner:
             self.scheduler.poll = poll
         self.params: dict[str, object] = {}  # the parameter server the routines share
         if lab.controllers and lab.controllers.config.source:
-            raw = yaml.safe_load(lab.controllers.config.source.read_text()) or {}
+            raw = yamlio.load(lab.controllers.config.source.read_text()) or {}
             _flatten("", raw, self.params)
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
