@@ -31,6 +31,7 @@ GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
 SETTLE_BAND = 0.02  # of the step
+MAX_VALUES = 10_000  # per gain range
 FALL_TILT = 0.5  # rad
 
 
@@ -58,9 +59,14 @@ def parse_range(text: str, name: str) -> np.ndarray:
     try:
         if ":" in text:
             start, stop, count = text.split(":")
+            if not 1 <= int(count) <= MAX_VALUES:
+                raise InputError(f"--{name} '{text}': the count must be 1 to {MAX_VALUES}",
+                                 hint="e.g. --p 20:200:10")
             values = np.linspace(float(start), float(stop), int(count))
         else:
             values = np.array([float(v) for v in text.split(",")])
+            if values.size > MAX_VALUES:
+                raise InputError(f"--{name}: more than {MAX_VALUES} values")
     except ValueError:
         raise InputError(f"--{name} '{text}' is not a value, a list a,b,c or start:stop:count",
                          hint="e.g. --p 20:200:10") from None

@@ -1,7 +1,8 @@
 """`mexone <verb>`: one module per verb, each with `add_parser(subparsers)` and `run(args)`.
 
 Exit codes: 0 ok, 1 findings or failed checks, 2 bad input (one line on stderr, no traceback),
-130 interrupted.
+128 + N stopped by signal N before the verb could finish its work (130 Ctrl-C, 143 SIGTERM); a
+verb that stops cleanly on a signal (a recording closed, a summary printed) exits as it reports.
 """
 
 from __future__ import annotations
@@ -10,8 +11,8 @@ import argparse
 import logging
 import signal
 import sys
-import threading
 
+from mexone import signals
 from mexone.errors import MexoneError
 
 __all__ = ["main", "build_parser"]
@@ -56,28 +57,34 @@ def _setup_logging() -> None:
         root.setLevel(logging.WARNING)
 
 
-def _terminate(_signum, _frame) -> None:
-    raise KeyboardInterrupt  # SIGTERM ends a run like Ctrl-C: recordings close, files stay valid
-
-
 def main(argv: list[str] | None = None) -> int:
-    _setup_logging()
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _terminate)
-    parser = build_parser()
-    args, extra = parser.parse_known_args(argv)
-    if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
-        if not (hasattr(args, "params") and all(":=" in e for e in extra)):
-            parser.error(f"unrecognized arguments: {' '.join(extra)}")
-        args.params += extra
+    # first: a signal during start-up (importing MuJoCo takes a while) is one line and 130/143
+    signals.stop_on_signals()
     try:
+        return _main(argv)
+    except KeyboardInterrupt:  # a late signal that landed in one of _main's handlers
+        return signals.exit_code()
+    finally:
+        signals.ignore_from_now()
+
+
+def _main(argv: list[str] | None) -> int:
+    try:
+        _setup_logging()
+        parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
+            if not (hasattr(args, "params") and all(":=" in e for e in extra)):
+                parser.error(f"unrecognized arguments: {' '.join(extra)}")
+            args.params += extra
         return int(args.run(args) or 0)
     except MexoneError as exc:
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("mexone: interrupted", file=sys.stderr)
-        return 130
+        code = signals.exit_code()
+        print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
+        return code
     except BrokenPipeError:
         return 0
 
