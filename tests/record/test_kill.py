@@ -40,6 +40,10 @@ PERIODS = {CLOCK: 0.001, STATES: 0.02}
 RUNS = 20
 
 
+def _default_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)  # even if pytest runs as a background job
+
+
 @dataclass
 class Stopped:
     mode: str
@@ -55,7 +59,7 @@ def record_and_stop(folder: Path, routine: Path, mode: str, suffix: str, seed: i
     bag = folder / f"{mode}-{seed}{suffix}"
     proc = subprocess.Popen([sys.executable, "-m", "mexone", "record", str(routine), "-o", str(bag),
                              "--duration", "600"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=_default_sigint)
     first = proc.stdout.readline()  # the first message is recorded by now
     if not first.startswith("t="):
         proc.kill()

@@ -58,8 +58,6 @@ def _setup_logging() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    # first: a signal during start-up (importing MuJoCo takes a while) is one line and 130/143
-    signals.stop_on_signals()
     try:
         return _main(argv)
     except KeyboardInterrupt:  # a late signal that landed in one of _main's handlers
@@ -70,8 +68,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     try:
-        _setup_logging()
-        parser = build_parser()
+        # A signal during start-up waits until the verbs have loaded (importing MuJoCo takes a
+        # while, and a KeyboardInterrupt inside a C extension's import becomes an ImportError),
+        # then stops the run here: one line, exit 130/143.
+        with signals.uninterrupted:
+            signals.stop_on_signals()
+            _setup_logging()
+            parser = build_parser()
         args, extra = parser.parse_known_args(argv)
         if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
             if not (hasattr(args, "params") and all(":=" in e for e in extra)):
@@ -82,11 +85,19 @@ def _main(argv: list[str] | None) -> int:
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        code = signals.exit_code()
-        print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
-        return code
+        return _interrupted()
+    except ImportError as exc:  # a verb's lazy import of a C extension, interrupted
+        if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):
+            return _interrupted()
+        raise
     except BrokenPipeError:
         return 0
+
+
+def _interrupted() -> int:
+    code = signals.exit_code()
+    print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":
