@@ -15,13 +15,26 @@ from pathlib import Path
 
 from mexone.errors import InputError, OutputExistsError
 
-__all__ = ["check_output", "replacing", "move_into_place", "write_text", "temporary_path"]
+__all__ = ["usable", "check_output", "replacing", "move_into_place", "write_text", "temporary_path"]
+
+
+def usable(path: Path) -> Path:
+    """A name the OS can look up (missing is fine): too long a name or a loop of links is one
+    line, not an OSError from the first `exists()`."""
+    path = Path(path)
+    try:
+        os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        pass
+    except OSError as exc:
+        raise InputError(f"cannot use this name: {exc.strerror}", file=path) from None
+    return path
 
 
 def check_output(path: Path, force: bool) -> Path:
     """Refuse, before any work, an output that is a folder, in a missing or read-only folder, or
     that exists (without force)."""
-    path = Path(path)
+    path = usable(path)
     if path.is_dir():
         raise InputError("is a folder, not a file", file=path, hint="name a file inside it")
     folder = path.parent

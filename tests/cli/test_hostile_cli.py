@@ -110,6 +110,18 @@ CASES = [
     ("recover-with-routine", ["record", "arms", "--recover", "a.mcap"], "it runs no routine"),
     ("plot-not-a-bag", ["plot", "notbag.mcap", "-o", "p.png"], "not a readable bag"),
     ("plot-missing-bag", ["plot", "nope.mcap", "-o", "p.png"], "nope.mcap: no such file"),
+    ("record-name-too-long", ["record", "-o", "a" * 300 + ".mcap", "--duration", "0.1"],
+     "cannot use this name: File name too long"),
+    ("plot-name-too-long", ["plot", "a.mcap", "-o", "a" * 300 + ".png"], "File name too long"),
+    ("sweep-name-too-long", [*SWEEP, "-o", "a" * 300], "File name too long"),
+    ("recover-name-too-long", ["record", "--recover", "a" * 300 + ".mcap"], "File name too long"),
+    ("record-active-name", ["record", "-o", "x.mcap.active", "--duration", "0.1"],
+     "cannot record to '.active'"),
+    ("param-deep", ["run", "home", "_x:=" + "[" * 3000, "--duration", "0.1"], "nested too deeply"),
+    ("ray-address-local", [*SWEEP, "--address", "10.0.0.5:6379"], "add --backend ray"),
+    ("ray-address-form", [*SWEEP, "--backend", "ray", "--address", "cluster"], "is not HOST:PORT"),
+    ("ray-address-closed", [*SWEEP, "--backend", "ray", "--address", "127.0.0.1:1"],
+     "cannot reach the Ray cluster at 127.0.0.1:1"),
     # --- no verb overwrites a user's file without --force -----------------------------------------
     ("plot-over-file", ["plot", "a.mcap", "-o", "exists.png"], "exists.png: already exists"),
     ("plot-csv-over-file", ["plot", "a.mcap", "-o", "exists.csv"], "exists.csv: already exists"),
@@ -188,7 +200,7 @@ def test_hostile_argument_is_one_line(argv, expected, workspace, capsys, monkeyp
 
 
 def test_case_ids_are_unique():
-    assert len({c[0] for c in CASES}) == len(CASES) >= 80
+    assert len({c[0] for c in CASES}) == len(CASES) >= 90
 
 
 def mexone(*args, timeout=30, **kw):

@@ -104,9 +104,11 @@ def routine_params(texts: list[str]) -> dict[str, object]:
     for text in texts:
         try:
             parse_param_args([text])
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or "not valid YAML"
-            raise InputError(f"parameter '{text}': {problem}",
+        except (yaml.YAMLError, RecursionError) as exc:
+            problem = getattr(exc, "problem", None) or ("nested too deeply" if isinstance(
+                exc, RecursionError) else "not valid YAML")
+            shown = text if len(text) <= 60 else text[:57] + "..."
+            raise InputError(f"parameter '{shown}': {problem}",
                              hint="values are YAML: quote text, e.g. _name:=\"'[x'\"") from None
     return parse_param_args(texts)
 

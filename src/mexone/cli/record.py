@@ -8,7 +8,7 @@ from pathlib import Path
 
 from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording, routine_params
 from mexone.errors import InputError
-from mexone.files import check_output, move_into_place, temporary_path
+from mexone.files import check_output, move_into_place, temporary_path, usable
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines.runner import RoutineRunner, shipped_routines
 
@@ -82,7 +82,7 @@ def recover_bag(bag: Path, output: Path | None, force: bool) -> int:
     if bag_suffix(bag) not in BAG_SUFFIXES:
         raise InputError(f"cannot recover '{bag.suffix or bag.name}' files", file=bag,
                          hint="give the .mcap or .bag that was being recorded")
-    source = killed_recording(bag)
+    source = killed_recording(usable(bag))
     if source is None:
         if bag.is_file() and is_complete(bag):
             print(f"{bag} is complete; nothing to recover")

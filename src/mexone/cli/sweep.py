@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import os
+import socket
 import sys
 from pathlib import Path
 
@@ -14,7 +15,7 @@ from tqdm import tqdm
 from mexone import signals
 from mexone.cli.common import Number
 from mexone.errors import InputError, OutputExistsError
-from mexone.files import check_output, replacing, write_text
+from mexone.files import check_output, replacing, usable, write_text
 from mexone.sweep import (
     GAIN_KEYS,
     METRICS,
@@ -93,6 +94,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.random and size > MAX_TRIALS:
         raise InputError(f"the grid has {size} points, more than {MAX_TRIALS}",
                          hint="fewer values per gain, or --random N")
+    if args.address is not None:
+        _check_ray_address(args.address, args.backend)
     spec = SweepSpec(tuple(args.joint), args.step, args.routine, args.duration, args.model,
                      args.controllers)
     namespace = _check_spec(spec)
@@ -114,6 +117,23 @@ def run(args: argparse.Namespace) -> int:
         return signals.exit_code()
     bar.close()
     return _report(spec, rows, ranges, args, out, len(trials), namespace)
+
+
+def _check_ray_address(address: str, backend: str) -> None:
+    """A cluster that cannot be reached is one line now, not Ray retrying for minutes."""
+    if backend != "ray":
+        raise InputError("--address is the Ray cluster's", hint="add --backend ray")
+    if address == "auto":
+        return
+    host, sep, port = address.removeprefix("ray://").rpartition(":")
+    if not sep or not port.isdigit() or not 0 < int(port) < 65536:
+        raise InputError(f"--address '{address}' is not HOST:PORT", hint="e.g. 10.0.0.5:6379")
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), timeout=5).close()
+    except OSError as exc:
+        raise InputError(f"cannot reach the Ray cluster at {address}: "
+                         f"{exc.strerror or exc}", hint="is `ray start --head` running there?"
+                         ) from None
 
 
 def _check_spec(spec: SweepSpec) -> str:
@@ -138,7 +158,7 @@ def _check_spec(spec: SweepSpec) -> str:
 def _prepare(out: Path, definition: dict, resume: bool, force: bool) -> None:
     """A folder holding a sweep is continued (--resume, same definition), started over (--force:
     all four files go, so no stale heatmap or best gains remain) or left alone."""
-    if out.exists() and not out.is_dir():
+    if usable(out).exists() and not out.is_dir():
         raise InputError("is a file; -o names the folder the sweep writes into", file=out)
     existing = [name for name in OUTPUTS if (out / name).exists()]
     meta = out / "sweep.json"
