@@ -17,8 +17,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 
-__all__ = ["stop_on_signals", "received", "exit_code", "hold", "release", "finishing",
-           "uninterrupted", "ignore_from_now"]
+__all__ = ["stop_on_signals", "exit_code", "hold", "release", "finishing", "uninterrupted",
+           "ignore_from_now"]
 
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
                 if hasattr(signal, name))
@@ -53,7 +53,7 @@ def _on_signal(signum: int, _frame) -> None:
             print(f"mexone: still stopping: closing {state.held[-1]}, one moment "
                   "(kill -9 abandons it)", file=sys.stderr, flush=True)
         return
-    state.raised_at = time.monotonic()  # a signal long after the first: a stop that hangs
+    state.raised_at = time.monotonic()  # the first, or one long after it: a stop that hangs
     raise KeyboardInterrupt
 
 
@@ -77,11 +77,6 @@ def ignore_from_now() -> None:
         for signum in SIGNALS:
             if signal.getsignal(signum) is _on_signal:
                 signal.signal(signum, signal.SIG_IGN)
-
-
-def received() -> int | None:
-    """The first signal that reached the process, if any."""
-    return _state.first
 
 
 def exit_code() -> int:
@@ -114,12 +109,15 @@ class _Uninterrupted:
     """`with signals.uninterrupted:` -- cheap enough for every message a recorder writes (a
     KeyboardInterrupt inside the mcap library's record writing leaves a corrupt record)."""
 
+    def __init__(self, deliver: bool = True):
+        self.deliver = deliver  # False: the caller re-delivers to a library user's handlers
+
     def __enter__(self) -> None:
         _state.finishing += 1
 
     def __exit__(self, *_exc) -> None:
         _state.finishing -= 1
-        if _state.pending is not None:
+        if self.deliver and _state.pending is not None:
             _deliver_pending()
 
 
@@ -139,7 +137,7 @@ def finishing() -> Iterator[None]:
         for signum in swapped:
             signal.signal(signum, _on_signal)
     try:
-        with _Counted() if swapped else uninterrupted:
+        with _Uninterrupted(deliver=not swapped):
             yield
     finally:
         if swapped:
@@ -148,13 +146,3 @@ def finishing() -> Iterator[None]:
             pending, state.pending, state.first = state.pending, None, None
             if pending is not None:
                 signal.raise_signal(pending)  # to the handler the library user had
-
-
-class _Counted:
-    """Counts as finishing without delivering: the caller re-delivers to the user's handlers."""
-
-    def __enter__(self) -> None:
-        _state.finishing += 1
-
-    def __exit__(self, *_exc) -> None:
-        _state.finishing -= 1

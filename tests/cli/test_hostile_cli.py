@@ -223,3 +223,11 @@ def test_port_0_serves_on_a_free_port_and_says_which():
     line = next(x for x in out.stderr.splitlines() if "http://127.0.0.1:" in x)
     port = int(line.split("http://127.0.0.1:")[1].split()[0])
     assert 0 < port < 65536 and "was taken" not in line
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs Linux /dev/full")
+def test_a_full_disk_on_stdout_is_one_line():
+    with open("/dev/full", "w") as full:
+        out = subprocess.run([sys.executable, "-m", "mexone", "check"], stdout=full,
+                             stderr=subprocess.PIPE, text=True, timeout=60)
+    assert (out.returncode, out.stderr) == (2, "mexone: No space left on device\n")

@@ -1,8 +1,9 @@
 """`mexone <verb>`: one module per verb, each with `add_parser(subparsers)` and `run(args)`.
 
-Exit codes: 0 ok, 1 findings or failed checks, 2 bad input (one line on stderr, no traceback),
-128 + N stopped by signal N before the verb could finish its work (130 Ctrl-C, 143 SIGTERM); a
-verb that stops cleanly on a signal (a recording closed, a summary printed) exits as it reports.
+Exit codes: 0 ok, 1 findings or failed checks, 2 bad input or a failing machine such as a full
+disk (one line on stderr, no traceback), 128 + N stopped by signal N before the verb could finish
+its work (130 Ctrl-C, 143 SIGTERM); a verb that stops cleanly on a signal (a recording closed, a
+summary printed) exits as it reports.
 """
 
 from __future__ import annotations
@@ -92,6 +93,10 @@ def _main(argv: list[str] | None) -> int:
         raise
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # the machine, not mexone: a full disk, a vanished folder, stdout gone
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"mexone: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
 
 
 def _interrupted() -> int:
