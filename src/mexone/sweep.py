@@ -31,7 +31,6 @@ GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
 SETTLE_BAND = 0.02  # of the step
-MAX_VALUES = 10_000  # per gain range
 FALL_TILT = 0.5  # rad
 
 
@@ -52,6 +51,9 @@ class SweepSpec:
 class Trial:
     index: int
     gains: dict[str, float] = field(default_factory=dict)
+
+
+MAX_VALUES = 10_000  # per gain range: more is a typo, and a grid of them would never end
 
 
 def parse_range(text: str, name: str) -> np.ndarray:
