@@ -36,8 +36,9 @@ while not rospy.is_shutdown():
     print(f"t={{rospy.get_time():.3f}}", flush=True)
 """
 CLOCK, STATES = "/clock", "/mex_rb/joint_states"
-PERIODS = {CLOCK: 0.001, STATES: 0.02}
+PERIODS = {CLOCK: 0.001, STATES: 0.02, "/tf": 0.02}  # every periodic topic of the run
 RUNS = 20
+STOP_WITHIN = 3.0  # s of sim time: each run is stopped at a random moment this long after the first
 
 
 def _default_sigint() -> None:
@@ -54,17 +55,20 @@ class Stopped:
 
 
 def record_and_stop(folder: Path, routine: Path, mode: str, suffix: str, seed: int) -> Stopped:
-    """Start a recording, wait for the routine's first line, stop it after a random delay."""
+    """Start a recording and stop it when the routine's printed sim time reaches a random moment
+    after its first line (sim time, so a busy machine does not make every stop an early one)."""
     rng = random.Random(seed)
     bag = folder / f"{mode}-{seed}{suffix}"
     proc = subprocess.Popen([sys.executable, "-m", "mexone", "record", str(routine), "-o", str(bag),
                              "--duration", "600"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True, preexec_fn=_default_sigint)
-    first = proc.stdout.readline()  # the first message is recorded by now
-    if not first.startswith("t="):
+    stop_at = rng.uniform(0.0, STOP_WITHIN)  # s of sim time after the first line
+    lines = [proc.stdout.readline()]  # the first message is recorded by now
+    while lines[-1].startswith("t=") and float(lines[-1][2:]) < PRINT_PERIOD + stop_at:
+        lines.append(proc.stdout.readline())
+    if not lines[-1].startswith("t="):
         proc.kill()
-        raise AssertionError(f"{mode}: no first line: {first!r} {proc.communicate()[1]}")
-    time.sleep(rng.uniform(0.0, 1.0))
+        raise AssertionError(f"{mode}: the routine stopped printing: {proc.communicate()[1]}")
     if mode == "sigkill":
         proc.kill()
     elif mode == "sigterm":
@@ -75,7 +79,7 @@ def record_and_stop(folder: Path, routine: Path, mode: str, suffix: str, seed: i
             time.sleep(rng.uniform(0.0, 0.06))
             proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
-    times = [float(line[2:]) for line in [first, *out.splitlines()] if line.startswith("t=")]
+    times = [float(line[2:]) for line in [*lines, *out.splitlines()] if line.startswith("t=")]
     return Stopped(mode, bag, proc.returncode, times[-1], err)
 
 
@@ -157,7 +161,7 @@ def test_mcap_survives_sigint_double_sigint_and_sigkill(tmp_path, echo):
     plan = [(mode, ".mcap") for mode in ("sigint", "double", "sigkill") for _ in range(RUNS)]
     runs = stop_many(tmp_path, echo, plan)
     killed = [r for r in runs if r.mode == "sigkill"]
-    assert max(r.last_printed for r in killed) > 1.0  # some kills came late enough to matter
+    assert sum(r.last_printed > 1.0 for r in killed) >= 5  # kills late enough for the 1 s rule
 
 
 @pytest.mark.slow
