@@ -232,8 +232,9 @@ class BagRecorder:
                     self._file.close()
                 try:
                     move_into_place(self.active, self.path, self.force)
-                except OutputExistsError as exc:
-                    exc.hint = f"the recording is kept as {self.active}"
-                    raise exc.located(self.path) from None
+                except OutputExistsError:
+                    raise OutputExistsError("appeared while recording; it was left alone",
+                                            file=self.path,
+                                            hint=f"the recording is kept as {self.active}") from None
         finally:
             signals.release(str(self.path))
