@@ -53,14 +53,22 @@ class Trial:
     gains: dict[str, float] = field(default_factory=dict)
 
 
+MAX_VALUES = 10_000  # per gain range: more is a typo, and a grid of them would never end
+
+
 def parse_range(text: str, name: str) -> np.ndarray:
     """'40' | '20,40,80' | '10:200:8' (start:stop:count, inclusive, linear)."""
     try:
         if ":" in text:
             start, stop, count = text.split(":")
+            if not 1 <= int(count) <= MAX_VALUES:
+                raise InputError(f"--{name} '{text}': the count must be 1 to {MAX_VALUES}",
+                                 hint="e.g. --p 20:200:10")
             values = np.linspace(float(start), float(stop), int(count))
         else:
             values = np.array([float(v) for v in text.split(",")])
+            if values.size > MAX_VALUES:
+                raise InputError(f"--{name}: more than {MAX_VALUES} values")
     except ValueError:
         raise InputError(f"--{name} '{text}' is not a value, a list a,b,c or start:stop:count",
                          hint="e.g. --p 20:200:10") from None

@@ -41,5 +41,5 @@ def test_bad_option_value_is_one_line():
     out = subprocess.run([shutil.which("mexone"), "run", "sweep", "--duration", "-1"],
                          capture_output=True, text=True)
     assert out.returncode == 2
-    assert out.stderr == ("mexone: run: argument --duration: -1 must be a finite number > 0 "
-                          "(see 'mexone run --help')\n")
+    assert out.stderr == ("mexone: run: argument --duration: -1 must be a finite number >= 0.001 "
+                          "and <= 1e+09; s of sim time (see 'mexone run --help')\n")

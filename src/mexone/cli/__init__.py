@@ -1,7 +1,9 @@
 """`mexone <verb>`: one module per verb, each with `add_parser(subparsers)` and `run(args)`.
 
-Exit codes: 0 ok, 1 findings or failed checks, 2 bad input (one line on stderr, no traceback),
-130 interrupted.
+Exit codes: 0 ok, 1 findings or failed checks, 2 bad input or a failing machine such as a full
+disk (one line on stderr, no traceback), 128 + N stopped by signal N before the verb could finish
+its work (130 Ctrl-C, 143 SIGTERM); a verb that stops cleanly on a signal (a recording closed, a
+summary printed) exits as it reports.
 """
 
 from __future__ import annotations
@@ -10,8 +12,8 @@ import argparse
 import logging
 import signal
 import sys
-import threading
 
+from mexone import signals
 from mexone.errors import MexoneError
 
 __all__ = ["main", "build_parser", "add_input_limit_option"]
@@ -65,21 +67,29 @@ def _setup_logging() -> None:
         root.setLevel(logging.WARNING)
 
 
-def _terminate(_signum, _frame) -> None:
-    raise KeyboardInterrupt  # SIGTERM ends a run like Ctrl-C: recordings close, files stay valid
-
-
 def main(argv: list[str] | None = None) -> int:
-    _setup_logging()
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _terminate)
-    parser = build_parser()
-    args, extra = parser.parse_known_args(argv)
-    if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
-        if not (hasattr(args, "params") and all(":=" in e for e in extra)):
-            parser.error(f"unrecognized arguments: {' '.join(extra)}")
-        args.params += extra
     try:
+        return _main(argv)
+    except KeyboardInterrupt:  # a late signal that landed in one of _main's handlers
+        return signals.exit_code()
+    finally:
+        signals.ignore_from_now()
+
+
+def _main(argv: list[str] | None) -> int:
+    try:
+        # A signal during start-up waits until the verbs have loaded (importing MuJoCo takes a
+        # while, and a KeyboardInterrupt inside a C extension's import becomes an ImportError),
+        # then stops the run here: one line, exit 130/143.
+        with signals.uninterrupted:
+            signals.stop_on_signals()
+            _setup_logging()
+            parser = build_parser()
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
+            if not (hasattr(args, "params") and all(":=" in e for e in extra)):
+                parser.error(f"unrecognized arguments: {' '.join(extra)}")
+            args.params += extra
         if getattr(args, "max_input_mb", None) is not None:
             from mexone.inputs import set_input_limit_mb
 
@@ -89,10 +99,23 @@ def main(argv: list[str] | None = None) -> int:
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("mexone: interrupted", file=sys.stderr)
-        return 130
+        return _interrupted()
+    except ImportError as exc:  # a verb's lazy import of a C extension, interrupted
+        if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):
+            return _interrupted()
+        raise
     except BrokenPipeError:
         return 0
+    except OSError as exc:  # the machine, not mexone: a full disk, a vanished folder, stdout gone
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"mexone: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 2
+
+
+def _interrupted() -> int:
+    code = signals.exit_code()
+    print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

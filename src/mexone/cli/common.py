@@ -3,28 +3,123 @@
 from __future__ import annotations
 
 import argparse
+import ipaddress
+import math
+import socket
 import sys
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
+import yaml
+
 from mexone.cli import add_input_limit_option
+from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
+from mexone.routines.runner import parse_param_args
 
 __all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
-           "add_record_options", "positive"]
+           "add_record_options", "positive", "Number", "DURATION", "host", "check_can_serve",
+           "routine_params", "folder"]
 
 
-def positive(text: str) -> float:
-    """argparse type: a number > 0 (durations, rates)."""
+@dataclass(frozen=True)
+class Number:
+    """argparse type: every number on the command line is checked here, at the edge, so NaN,
+    infinity or a value out of range is one line naming the flag, not a NaN in MuJoCo later."""
+
+    low: float | None = None
+    high: float | None = None
+    low_open: bool = False  # low itself is not allowed
+    integer: bool = False
+    hint: str = ""
+
+    def describe(self) -> str:
+        def text(value: float) -> str:
+            return str(int(value)) if self.integer else f"{value:g}"
+
+        bounds = []
+        if self.low is not None:
+            bounds.append(f"{'>' if self.low_open else '>='} {text(self.low)}")
+        if self.high is not None:
+            bounds.append(f"<= {text(self.high)}")
+        kind = "an integer" if self.integer else "a finite number"
+        return " ".join([kind, " and ".join(bounds)]).strip()
+
+    def __call__(self, text: str) -> float | int:
+        try:
+            value = int(text) if self.integer else float(text)
+        except ValueError:
+            what = "an integer" if self.integer else "a number"
+            raise argparse.ArgumentTypeError(f"'{text}' is not {what}") from None
+        low_fails = self.low is not None and (value <= self.low if self.low_open else value < self.low)
+        if not math.isfinite(value) or low_fails or (self.high is not None and value > self.high):
+            hint = f"; {self.hint}" if self.hint else ""
+            raise argparse.ArgumentTypeError(f"{text} must be {self.describe()}{hint}")
+        return value
+
+
+positive = Number(0.0, low_open=True)  # rates, frames per second
+DURATION = Number(1e-3, 1e9, hint="s of sim time")  # from one 1 ms step to "until Ctrl-C"
+POSITION = Number(-1e4, 1e4, hint="metres")
+ANGLE = Number(-6.3, 6.3, hint="radians, within +-2 pi (1.5708 is 90 degrees)")
+RTF = Number(0.0, hint="0 runs as fast as possible")
+PORT = Number(0, 65535, integer=True, hint="0 picks a free port")
+
+
+def host(text: str) -> str:
+    """argparse type: an IP address or a host name that resolves (checked before viser starts,
+    whose server thread otherwise dies with a traceback and leaves the process hanging)."""
     try:
-        value = float(text)
+        return str(ipaddress.ip_address(text))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not value > 0 or value == float("inf"):
-        raise argparse.ArgumentTypeError(f"{text} must be a finite number > 0")
-    return value
+        pass
+    if not text or text.replace(".", "").isdigit() or text.startswith("-"):
+        raise argparse.ArgumentTypeError(f"'{text}' is not an IP address or host name")
+    try:
+        socket.getaddrinfo(text, None)
+    except (OSError, UnicodeError):
+        raise argparse.ArgumentTypeError(f"'{text}' is not an IP address or a host name "
+                                         "that resolves") from None
+    return text
+
+
+def folder(text: str) -> Path:
+    """argparse type: a folder that exists."""
+    path = Path(text)
+    if not path.is_dir():
+        raise argparse.ArgumentTypeError(f"'{text}' is not a folder")
+    return path
+
+
+def check_can_serve(address: str) -> None:
+    """Refuse an address this machine does not have (e.g. 8.8.8.8) before the GUI starts."""
+    try:
+        infos = socket.getaddrinfo(address, 0, type=socket.SOCK_STREAM)
+        family, _, _, _, sockaddr = infos[0]
+        with socket.socket(family, socket.SOCK_STREAM) as probe:
+            probe.bind(sockaddr)
+    except OSError as exc:
+        raise InputError(f"cannot serve the GUI on --host {address}: {exc.strerror or exc}",
+                         hint="use 127.0.0.1 (this machine), 0.0.0.0 (every network) or an "
+                              "address of this machine") from None
+
+
+def routine_params(texts: list[str]) -> dict[str, object]:
+    """`name:=value` routine parameters; a value YAML cannot read (or a Python tag YAML refuses)
+    is a one-line error naming it."""
+    for text in texts:
+        try:
+            parse_param_args([text])
+        except (yaml.YAMLError, RecursionError) as exc:
+            problem = getattr(exc, "problem", None) or ("nested too deeply" if isinstance(
+                exc, RecursionError) else "not valid YAML")
+            shown = text if len(text) <= 60 else text[:57] + "..."
+            raise InputError(f"parameter '{shown}': {problem}",
+                             hint="values are YAML: quote text, e.g. _name:=\"'[x'\"") from None
+    return parse_param_args(texts)
 
 
 def add_record_options(p: argparse.ArgumentParser) -> None:
@@ -41,14 +136,16 @@ def recording(lab: Lab, path: Path | None, force: bool):
         return
     from mexone.record.bag import BagRecorder
 
-    recorder = BagRecorder(lab, path, force)
+    recorder = None
     try:
+        recorder = BagRecorder(lab, path, force)
         yield recorder
     finally:
-        recorder.close()
-        total = sum(recorder.counts.values())
-        print(f"mexone: recorded {total} messages on {len(recorder.counts)} topics to {path}",
-              file=sys.stderr)
+        if recorder is not None:
+            recorder.close()
+            total = sum(recorder.counts.values())
+            print(f"mexone: recorded {total} messages on {len(recorder.counts)} topics to {path}",
+                  file=sys.stderr)
 
 
 def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False) -> None:
@@ -67,9 +164,9 @@ def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False
                    help="weld the robot's root where it spawns (a robot on a stand)")
     pose = p.add_argument_group("spawn pose (as gazebo_ros spawn_model; z is the height of the "
                                 "robot's lowest point, so 0 stands it on the ground)")
-    for flag, name in (("-x", "x"), ("-y", "y"), ("-z", "z"), ("-R", "roll"), ("-P", "pitch"),
-                       ("-Y", "yaw")):
-        pose.add_argument(flag, dest=name, type=float, default=0.0, metavar=name.upper())
+    for flag, name, kind in (("-x", "x", POSITION), ("-y", "y", POSITION), ("-z", "z", POSITION),
+                             ("-R", "roll", ANGLE), ("-P", "pitch", ANGLE), ("-Y", "yaw", ANGLE)):
+        pose.add_argument(flag, dest=name, type=kind, default=0.0, metavar=name.upper())
 
 
 def options_from_args(args: argparse.Namespace) -> CompileOptions:

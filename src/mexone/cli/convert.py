@@ -7,11 +7,12 @@ from pathlib import Path
 
 from mexone.cli import add_input_limit_option
 from mexone.description.check import check_model
-from mexone.description.convert import rebase_meshes, write_new_file
+from mexone.description.convert import rebase_meshes
 from mexone.description.loader import load_model
 from mexone.description.sdf import write_sdf
 from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
+from mexone.files import check_output, write_text
 from mexone.physics.mjcf import write_mjcf
 
 HELP = """\
@@ -47,9 +48,10 @@ def run(args: argparse.Namespace) -> int:
     if writer is None:
         raise InputError(f"cannot write '{out.suffix or out.name}' files", file=out,
                          hint="name the output .urdf, .sdf or .xml (MJCF)")
+    check_output(out, args.force)
     model = rebase_meshes(load_model(args.input), out.parent)
     text = writer(model)
-    write_new_file(out, text, args.force)
+    write_text(out, text, args.force)
     if out.suffix.lower() == ".sdf" and model.transmissions:
         print(f"note: {len(model.transmissions)} <transmission> blocks are not part of SDF and "
               "were left out; keep the URDF as the source of truth for control")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mexone.errors import InputError, OutputExistsError
+from mexone.errors import InputError
+from mexone.files import check_output, replacing
 from mexone.record.plot import pick_joints, plot_joints, write_csv
 from mexone.record.reader import read_joint_series
 
@@ -13,7 +14,9 @@ HELP = """\
 Plot a recorded bag (.mcap or .bag): for each joint, command vs actual position (rad), then
 tracking error (rad) with effort (N m) on a second axis, against sim time. By default the
 joints a position controller commanded; --joints picks others. An -o ending .csv writes the same
-data as CSV instead (time, joint, command, position, error, velocity, effort)."""
+data as CSV instead (time, joint, command, position, error, velocity, effort). A killed
+recording (BAG.active, or a truncated BAG) is plotted from what can be recovered of it, with a
+note; `mexone record --recover BAG` repairs the file itself."""
 
 
 def add_parser(sub) -> None:
@@ -31,14 +34,14 @@ def run(args: argparse.Namespace) -> int:
     if out.suffix.lower() not in (".png", ".pdf", ".svg", ".csv"):
         raise InputError(f"cannot write '{out.suffix or out.name}'", file=out,
                          hint="name it .png, .pdf, .svg or .csv")
-    if out.exists() and not args.force:
-        raise OutputExistsError("already exists; nothing was written", file=out,
-                                hint="pass --force to overwrite it")
+    check_output(out, args.force)
     joints = pick_joints(read_joint_series(args.bag), args.joints)
-    if out.suffix.lower() == ".csv":
-        rows = write_csv(joints, out)
-        print(f"wrote {out}: {rows} rows for {len(joints)} joints")
-    else:
-        plot_joints(joints, out, f"{args.bag.name}")
-        print(f"wrote {out}: {len(joints)} joints")
+    with replacing(out, args.force) as temporary:
+        if out.suffix.lower() == ".csv":
+            rows = write_csv(joints, temporary)
+        else:
+            plot_joints(joints, temporary, f"{args.bag.name}")
+    what = f"{rows} rows for {len(joints)} joints" if out.suffix.lower() == ".csv" else \
+        f"{len(joints)} joints"
+    print(f"wrote {out}: {what}")
     return 0

@@ -9,12 +9,19 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.cli.common import add_model_options, add_record_options, lab_from_args, positive, recording
+from mexone.cli.common import (
+    DURATION,
+    add_model_options,
+    add_record_options,
+    lab_from_args,
+    recording,
+    routine_params,
+)
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
 from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
-from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
+from mexone.routines.runner import RoutineRunner, shipped_routines
 
 HELP = """\
 Run a control routine (a Python file using `from mexone import rospy`, or a shipped routine:
@@ -33,7 +40,7 @@ def add_parser(sub) -> None:
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("routine", help="routine file, or one of: " + ", ".join(shipped_routines()))
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
-    p.add_argument("--duration", type=positive, default=10.0, metavar="S",
+    p.add_argument("--duration", type=DURATION, default=10.0, metavar="S",
                    help="seconds of sim time at most (default 10; ends earlier if the routine does)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--quiet", action="store_true", help="do not print the routine's log")
@@ -43,7 +50,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    params = parse_param_args(args.params)
+    params = routine_params(args.params)
     lab = lab_from_args(args)
     if lab.controllers is None:
         raise InputError("the robot has no controllers to command",

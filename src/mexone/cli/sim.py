@@ -9,11 +9,16 @@ import sys
 from pathlib import Path
 
 from mexone.cli.common import (
+    DURATION,
+    PORT,
+    RTF,
     add_model_options,
     add_record_options,
+    check_can_serve,
+    folder,
+    host,
     lab_from_args,
     options_from_args,
-    positive,
     recording,
 )
 from mexone.description.loader import load_model
@@ -51,12 +56,17 @@ def add_parser(sub) -> None:
                    help="URDF, .urdf.xacro or SDF model (default: the built-in Mex-One)")
     p.add_argument("--headless", action="store_true",
                    help="no web GUI and no pacing: run, then print a summary")
-    p.add_argument("--port", type=int, default=8080, help="web GUI port (default 8080)")
-    p.add_argument("--host", default="127.0.0.1",
+    p.add_argument("--port", type=PORT, default=8080,
+                   help="web GUI port (default 8080; 0 picks a free one)")
+    p.add_argument("--host", type=host, default="127.0.0.1",
                    help="web GUI address (default 127.0.0.1, this machine only; 0.0.0.0 to share)")
-    p.add_argument("--duration", type=positive, metavar="S",
+    p.add_argument("--routines", type=folder, action="append", metavar="DIR",
+                   help="a folder whose .py files the page may start as routines (repeatable; "
+                        "default: the current folder). The page picks a name from a list; it "
+                        "never sends a path")
+    p.add_argument("--duration", type=DURATION, metavar="S",
                    help="seconds of sim time to run (default: 5 headless, else until Ctrl-C)")
-    p.add_argument("--rtf", type=float, metavar="R",
+    p.add_argument("--rtf", type=RTF, metavar="R",
                    help="target real-time factor (default 1, or unlimited with --headless; "
                         "0 = unlimited)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
@@ -75,7 +85,7 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
 
     try:
         app = GuiApp(lambda options: lab_from_args(args, options=options), options_from_args(args),
-                     host=args.host, port=args.port, target_rtf=rtf)
+                     host=args.host, port=args.port, target_rtf=rtf, routine_dirs=args.routines)
         if bridge is not None:
             bridge.attach(app.lab, _urdf_text(args, app.lab.sim.robot))
             app.tick_hooks.append(lambda _sim: bridge.pump())
@@ -84,7 +94,7 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
                          hint="pick another --port") from None
     host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
     port = app.server.get_port()  # viser moves on to the next free port if this one is taken
-    note = "" if port == args.port else f" (port {args.port} was taken)"
+    note = "" if port == args.port or args.port == 0 else f" (port {args.port} was taken)"
     print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
           file=sys.stderr)
     try:
@@ -106,8 +116,8 @@ def run(args: argparse.Namespace) -> int:
     forever = not headless or args.ros
     duration = args.duration if args.duration is not None else (None if forever else 5.0)
     rtf = args.rtf if args.rtf is not None else (0.0 if headless and not args.ros else 1.0)
-    if rtf < 0:
-        raise InputError(f"--rtf {rtf:g}: must be >= 0 (0 = unlimited)")
+    if not headless:
+        check_can_serve(args.host)
     bridge = _connect_ros(args) if args.ros else None
     try:
         if not headless:

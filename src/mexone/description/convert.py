@@ -8,7 +8,7 @@ from pathlib import Path
 
 from mexone.description.model import Mesh, RobotModel
 
-__all__ = ["rebase_meshes", "write_new_file"]
+__all__ = ["rebase_meshes"]
 
 _SCHEMES = ("package://", "model://", "file://")
 
@@ -28,15 +28,3 @@ def rebase_meshes(model: RobotModel, out_dir: Path) -> RobotModel:
         link.visuals = [replace(v, geometry=rebase(v.geometry)) for v in link.visuals]
         link.collisions = [replace(c, geometry=rebase(c.geometry)) for c in link.collisions]
     return model
-
-
-def write_new_file(path: Path, text: str, force: bool) -> None:
-    """Write text to path, refusing to replace a file the user has unless force is set."""
-    from mexone.errors import InputError, OutputExistsError
-
-    if path.exists() and not force:
-        raise OutputExistsError("already exists; nothing was written", file=path,
-                                hint="pass --force to overwrite it")
-    if not path.parent.is_dir():
-        raise InputError("output folder does not exist", file=path, hint="create the folder first")
-    path.write_text(text)

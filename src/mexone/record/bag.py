@@ -2,9 +2,14 @@
 
 ``.mcap``: one MCAP file laid out as rosbag2 writes it (ros2msg schemas, CDR payloads), which
 Foxglove, PlotJuggler and ``ros2 bag`` read. ``.bag``: a ROS 1 bag. Messages are serialised by
-``rosbags``; the MCAP container is written by the ``mcap`` library. The writer closes cleanly on
-Ctrl-C or SIGTERM (the CLI turns SIGTERM into KeyboardInterrupt) and flushes a chunk every
-second of sim time, so a stopped run keeps everything up to the stop.
+``rosbags``; the MCAP container is written by the ``mcap`` library.
+
+A recording goes to ``BAG.active`` (as ``rosbag record`` does), renamed to BAG when it is closed,
+so a half-written bag never has the name of a finished one and --force replaces an old bag only
+once the new one is complete. Ctrl-C or SIGTERM close it cleanly, and no second signal interrupts
+the closing (`mexone.signals`). A chunk is written to disk every 0.25 s of sim time, so after a
+SIGKILL, a crash or a routine's ``os._exit`` everything older than that is in ``BAG.active`` and
+``mexone record --recover BAG`` (`mexone.record.recover`) rebuilds a valid bag from it.
 """
 
 from __future__ import annotations
@@ -14,11 +19,14 @@ from pathlib import Path
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from mexone import signals
 from mexone.bus import msgs
 from mexone.errors import InputError, OutputExistsError
+from mexone.files import check_output, move_into_place
 from mexone.lab import Lab
 
-__all__ = ["BagRecorder", "ROS_NAMES", "to_ros", "typestore_for", "BAG_SUFFIXES"]
+__all__ = ["BagRecorder", "ROS_NAMES", "to_ros", "typestore_for", "BAG_SUFFIXES", "active_path",
+           "FLUSH_PERIOD"]
 
 BAG_SUFFIXES = (".mcap", ".bag")
 ROS_NAMES = {  # our message class -> ROS interface name as rosbags spells it
@@ -30,7 +38,13 @@ ROS_NAMES = {  # our message class -> ROS interface name as rosbags spells it
     msgs.TFMessage: "tf2_msgs/msg/TFMessage",
 }
 _TF_MSG = "geometry_msgs/TransformStamped[] transforms\n"
-_FLUSH_PERIOD = 1.0  # s of sim time between forced chunk flushes
+FLUSH_PERIOD = 0.25  # s of sim time between chunks written to disk: what a SIGKILL can lose
+_SMALL_CHUNK = 16 * 1024  # bytes: the chunk size where the mcap library cannot flush on demand
+
+
+def active_path(path: Path) -> Path:
+    """Where a recording is written until it is closed (ROS 1's name for it)."""
+    return path.with_name(path.name + ".active")
 
 
 def typestore_for(ros1: bool):
@@ -99,11 +113,18 @@ class BagRecorder:
         if suffix not in BAG_SUFFIXES:
             raise InputError(f"cannot record to '{suffix or self.path.name}'", file=self.path,
                              hint="name the bag .mcap (ROS 2) or .bag (ROS 1)")
-        if self.path.exists() and not force:
+        try:
+            check_output(self.path, force)
+        except OutputExistsError:
             raise OutputExistsError("already exists; nothing was recorded", file=self.path,
-                                    hint="pass --force to overwrite it, or pick another name")
-        if not self.path.parent.is_dir():
-            raise InputError("output folder does not exist", file=self.path)
+                                    hint="pass --force to overwrite it, or pick another name"
+                                    ) from None
+        self.active = active_path(self.path)
+        if self.active.exists() and not force:
+            raise OutputExistsError("a killed recording is still here; nothing was recorded",
+                                    file=self.active, hint=f"'mexone record --recover {self.path}' "
+                                    "rebuilds it; --force discards it")
+        self.force = force
         self.lab = lab
         self.ros1 = suffix == ".bag"
         self.store = typestore_for(self.ros1)
@@ -111,25 +132,50 @@ class BagRecorder:
         self._connections: dict[str, object] = {}
         self._last_flush = lab.sim.time
         self.closed = False
-        self._open()
+        signals.hold(str(self.path))
+        try:
+            self._open()
+        except OSError as exc:
+            signals.release(str(self.path))
+            raise InputError(f"cannot write: {exc.strerror or exc}", file=self.path) from None
+        except BaseException:
+            signals.release(str(self.path))
+            raise
         lab.bus.taps.append(self._write)
         # make the periodic publishers run while we record
         self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None),
                       lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None)]
 
     def _open(self) -> None:
+        self.active.unlink(missing_ok=True)  # only with force: a killed recording discarded
+        try:
+            if self.ros1:
+                from rosbags.rosbag1 import Writer
+
+                self.writer = Writer(self.active)
+                self.writer.open()
+            else:
+                from mcap.writer import CompressionType, Writer
+
+                self._file = self.active.open("xb")
+                can_flush = hasattr(Writer, "flush")
+                self.writer = Writer(self._file, compression=CompressionType.NONE,
+                                     **({} if can_flush else {"chunk_size": _SMALL_CHUNK}))
+                self.writer.start(profile="ros2", library="mexone")
+            self._flush()  # the header is on disk from the start: a killed file is an MCAP
+        except BaseException:
+            self.active.unlink(missing_ok=True)
+            raise
+
+    def _flush(self) -> None:
+        """Write the chunk in progress to the file (the OS keeps it across a SIGKILL)."""
         if self.ros1:
-            from rosbags.rosbag1 import Writer
-
-            self.path.unlink(missing_ok=True)
-            self.writer = Writer(self.path)
-            self.writer.open()
+            self.writer.write_chunk(self.writer.chunks[-1])
+            self.writer.bio.flush()
         else:
-            from mcap.writer import CompressionType, Writer
-
-            self._file = self.path.open("wb")
-            self.writer = Writer(self._file, compression=CompressionType.NONE)
-            self.writer.start(profile="ros2", library="mexone")
+            if hasattr(self.writer, "flush"):
+                self.writer.flush()
+            self._file.flush()
 
     def _connection(self, topic: str, typename: str):
         conn = self._connections.get(topic)
@@ -149,31 +195,46 @@ class BagRecorder:
         typename = ROS_NAMES.get(type(msg))
         if typename is None:
             return
-        stamp = int(round(self.lab.sim.time * 1e9))
+        now = self.lab.sim.time
+        stamp = int(round(now * 1e9))
         ros_msg = to_ros(msg, self.store, self.ros1)
-        conn = self._connection(topic, typename)
         if self.ros1:
-            self.writer.write(conn, stamp, bytes(self.store.serialize_ros1(ros_msg, typename)))
+            data = bytes(self.store.serialize_ros1(ros_msg, typename))
         else:
             data = bytes(self.store.serialize_cdr(ros_msg, typename))
-            seq = self.counts.get(topic, 0)
-            self.writer.add_message(conn, log_time=stamp, data=data, publish_time=stamp,
-                                    sequence=seq)
-            if self.lab.sim.time - self._last_flush >= _FLUSH_PERIOD:
-                self._last_flush = self.lab.sim.time
-                self._file.flush()
-        self.counts[topic] = self.counts.get(topic, 0) + 1
+        with signals.uninterrupted:  # Ctrl-C inside the library's record writing corrupts it
+            conn = self._connection(topic, typename)
+            if self.ros1:
+                self.writer.write(conn, stamp, data)
+            else:
+                self.writer.add_message(conn, log_time=stamp, data=data, publish_time=stamp,
+                                        sequence=self.counts.get(topic, 0))
+            self.counts[topic] = self.counts.get(topic, 0) + 1
+            if not 0 <= now - self._last_flush < FLUSH_PERIOD:  # (a GUI reset turns time back)
+                self._last_flush = now
+                self._flush()
 
     def close(self) -> None:
+        """Finish the bag and rename it into place; no signal interrupts this."""
         if self.closed:
             return
         self.closed = True
-        if self._write in self.lab.bus.taps:
-            self.lab.bus.taps.remove(self._write)
-        for sub in self._subs:
-            sub.unregister()
-        if self.ros1:
-            self.writer.close()
-        else:
-            self.writer.finish()
-            self._file.close()
+        try:
+            with signals.finishing():
+                if self._write in self.lab.bus.taps:
+                    self.lab.bus.taps.remove(self._write)
+                for sub in self._subs:
+                    sub.unregister()
+                if self.ros1:
+                    self.writer.close()
+                else:
+                    self.writer.finish()
+                    self._file.close()
+                try:
+                    move_into_place(self.active, self.path, self.force)
+                except OutputExistsError:
+                    raise OutputExistsError("appeared while recording; it was left alone",
+                                            file=self.path,
+                                            hint=f"the recording is kept as {self.active}") from None
+        finally:
+            signals.release(str(self.path))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -12,6 +14,8 @@ from mexone.errors import InputError
 from mexone.record.bag import typestore_for
 
 __all__ = ["JointSeries", "read_joint_series"]
+
+log = logging.getLogger(__name__)
 
 
 @dataclass
@@ -29,9 +33,30 @@ class JointSeries:
 
 
 def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
+    """The joints of a bag; a killed recording's (BAG.active, or a truncated BAG) is read from a
+    recovered copy, with a one-line note saying how to repair the file itself."""
+    from mexone.record.recover import killed_recording, looks_truncated, recover
+
     path = Path(path)
-    if not path.exists():
+    if path.is_dir() or (path.is_file() and not path.name.endswith(".active")
+                         and not looks_truncated(path)):
+        return _read(path)
+    killed = killed_recording(path)
+    if killed is None:
         raise InputError("no such file", file=path, hint="record one with --record FILE")
+    with tempfile.TemporaryDirectory(prefix="mexone-recover-") as folder:
+        copy = Path(folder) / killed.name.removesuffix(".active")
+        found = recover(killed, copy)
+        bag = killed.with_name(copy.name)
+        log.warning(f"{killed}: an unfinished recording (killed?); read the {found.describe()} "
+                    f"recovered from it; 'mexone record --recover {bag}' repairs it on disk")
+        try:
+            return _read(copy)
+        except InputError as exc:  # about the user's file, not our temporary copy
+            raise InputError(exc.what, file=killed, hint=exc.hint) from None
+
+
+def _read(path: Path) -> dict[str, JointSeries]:
     try:
         reader = AnyReader([path], default_typestore=typestore_for(path.suffix == ".bag"))
         reader.open()

@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from mexone.errors import InputError, MexoneError
 
-__all__ = ["VideoWriter", "Camera", "parse_camera", "pick_gl_backend", "ensure_gl_backend"]
+__all__ = ["VideoWriter", "Camera", "check_video_path", "pick_gl_backend", "ensure_gl_backend"]
 
 VIDEO_SUFFIXES = (".mp4", ".gif")
 
@@ -46,20 +47,15 @@ def ensure_gl_backend(argv: list[str]) -> None:
         os.execve(sys.executable, [sys.executable, "-m", "mexone", *argv], env)
 
 
+@dataclass(frozen=True)
 class Camera:
-    """'track' (follows the robot), 'fixed', or 'azimuth,elevation,distance' in degrees and m."""
+    """Follows the robot (track) or looks at the origin; angles in degrees, distance in m. The CLI
+    parses `--camera track|fixed|azimuth,elevation,distance` into one (and checks the numbers)."""
 
-    def __init__(self, spec: str):
-        self.track = spec == "track"
-        self.azimuth, self.elevation, self.distance = 135.0, -15.0, 2.2
-        if spec not in ("track", "fixed"):
-            try:
-                self.azimuth, self.elevation, self.distance = (float(v) for v in spec.split(","))
-            except ValueError:
-                raise InputError(f"--camera '{spec}' is not track, fixed or "
-                                 "'azimuth,elevation,distance'", hint="e.g. --camera 90,-20,3"
-                                 ) from None
-            self.track = True
+    track: bool = True
+    azimuth: float = 135.0
+    elevation: float = -15.0
+    distance: float = 2.2
 
     def apply(self, cam, data, root_body: int) -> None:
         import mujoco
@@ -71,15 +67,15 @@ class Camera:
             cam.lookat[2] = max(cam.lookat[2], 0.3)
 
 
-def parse_camera(spec: str) -> Camera:
-    return Camera(spec)
+def check_video_path(path: Path) -> None:
+    if path.suffix.lower() not in VIDEO_SUFFIXES:
+        raise InputError(f"cannot write '{path.suffix or path.name}' video", file=path,
+                         hint="name it .mp4 or .gif")
 
 
 class VideoWriter:
     def __init__(self, path: Path, model, fps: float = 30.0, size: tuple[int, int] = (640, 480)):
-        if path.suffix.lower() not in VIDEO_SUFFIXES:
-            raise InputError(f"cannot write '{path.suffix or path.name}' video", file=path,
-                             hint="name it .mp4 or .gif")
+        check_video_path(path)
         import imageio.v2 as imageio
         import mujoco
 
