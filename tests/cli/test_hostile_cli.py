@@ -117,7 +117,7 @@ CASES = [
     ("recover-name-too-long", ["record", "--recover", "a" * 300 + ".mcap"], "File name too long"),
     ("record-active-name", ["record", "-o", "x.mcap.active", "--duration", "0.1"],
      "cannot record to '.active'"),
-    ("param-deep", ["run", "home", "_x:=" + "[" * 3000, "--duration", "0.1"], "nested too deeply"),
+    ("param-deep", ["run", "home", "_x:=" + "[" * 3000, "--duration", "0.1"], "levels deep (the limit is 1000)"),
     ("ray-address-local", [*SWEEP, "--address", "10.0.0.5:6379"], "add --backend ray"),
     ("ray-address-form", [*SWEEP, "--backend", "ray", "--address", "cluster"], "is not HOST:PORT"),
     ("ray-address-closed", [*SWEEP, "--backend", "ray", "--address", "127.0.0.1:1"],

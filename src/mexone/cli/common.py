@@ -11,18 +11,15 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
-
 from mexone.cli import add_input_limit_option
 from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
-from mexone.routines.runner import parse_param_args
 
 __all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
            "add_record_options", "positive", "Number", "DURATION", "host", "check_can_serve",
-           "routine_params", "folder"]
+           "folder"]
 
 
 @dataclass(frozen=True)
@@ -105,21 +102,6 @@ def check_can_serve(address: str) -> None:
         raise InputError(f"cannot serve the GUI on --host {address}: {exc.strerror or exc}",
                          hint="use 127.0.0.1 (this machine), 0.0.0.0 (every network) or an "
                               "address of this machine") from None
-
-
-def routine_params(texts: list[str]) -> dict[str, object]:
-    """`name:=value` routine parameters; a value YAML cannot read (or a Python tag YAML refuses)
-    is a one-line error naming it."""
-    for text in texts:
-        try:
-            parse_param_args([text])
-        except (yaml.YAMLError, RecursionError) as exc:
-            problem = getattr(exc, "problem", None) or ("nested too deeply" if isinstance(
-                exc, RecursionError) else "not valid YAML")
-            shown = text if len(text) <= 60 else text[:57] + "..."
-            raise InputError(f"parameter '{shown}': {problem}",
-                             hint="values are YAML: quote text, e.g. _name:=\"'[x'\"") from None
-    return parse_param_args(texts)
 
 
 def add_record_options(p: argparse.ArgumentParser) -> None:

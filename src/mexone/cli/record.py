@@ -6,11 +6,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording, routine_params
+from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording
 from mexone.errors import InputError
 from mexone.files import check_output, move_into_place, temporary_path, usable
 from mexone.physics.watchdog import DivergenceError
-from mexone.routines.runner import RoutineRunner, shipped_routines
+from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
 HELP = """\
 Run the robot headless for --duration seconds of sim time (with a routine if one is given) and
@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     if args.output is None:
         raise InputError("record needs -o BAG, the bag to write (.mcap or .bag)",
                          hint="e.g. mexone record arms -o arms.mcap")
-    params = routine_params(args.params)
+    params = parse_param_args(args.params)
     lab = lab_from_args(args)
     runner = RoutineRunner(lab, args.routine, params) if args.routine else None
     status = 0

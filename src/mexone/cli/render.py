@@ -8,11 +8,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from mexone.cli.common import DURATION, Number, add_model_options, lab_from_args, routine_params
+from mexone.cli.common import DURATION, Number, add_model_options, lab_from_args
 from mexone.files import check_output, replacing
 from mexone.physics.watchdog import DivergenceError
 from mexone.record.video import Camera, VideoWriter, check_video_path, ensure_gl_backend
-from mexone.routines.runner import RoutineRunner, shipped_routines
+from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
 HELP = """\
 Run a routine headless and film it with MuJoCo's offscreen renderer (EGL, falling back to
@@ -78,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     out: Path = args.output
     check_video_path(out)
     check_output(out, args.force)
-    params = routine_params(args.params)
+    params = parse_param_args(args.params)
     ensure_gl_backend(sys.argv[1:])
     lab = lab_from_args(args)
     runner = RoutineRunner(lab, args.routine, params)

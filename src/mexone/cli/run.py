@@ -15,13 +15,12 @@ from mexone.cli.common import (
     add_record_options,
     lab_from_args,
     recording,
-    routine_params,
 )
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
 from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
-from mexone.routines.runner import RoutineRunner, shipped_routines
+from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
 HELP = """\
 Run a control routine (a Python file using `from mexone import rospy`, or a shipped routine:
@@ -50,7 +49,7 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    params = routine_params(args.params)
+    params = parse_param_args(args.params)
     lab = lab_from_args(args)
     if lab.controllers is None:
         raise InputError("the robot has no controllers to command",

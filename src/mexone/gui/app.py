@@ -75,6 +75,7 @@ class GuiApp:
         self.history: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(
             maxlen=int(PLOT_SECONDS * FPS))
         self.error: str | None = None
+        self.refusals: deque[str] = deque(maxlen=20)  # what the page asked for and was refused
         self.steps_left = 0  # Step N in progress, a budget per frame
         self._frames = 0
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
@@ -143,7 +144,11 @@ class GuiApp:
     def _refused(self, exc: Exception) -> None:
         if not isinstance(exc, MexoneError | ValueError):
             raise exc
-        self.notify("Refused", exc.one_line() if isinstance(exc, MexoneError) else str(exc))
+        self.refuse(exc.one_line() if isinstance(exc, MexoneError) else str(exc))
+
+    def refuse(self, text: str) -> None:
+        self.refusals.append(text)
+        self.notify("Refused", text)
 
     def notify(self, title: str, body: str, color: str = "red") -> None:
         for client in self.server.get_clients().values():
@@ -225,12 +230,12 @@ class GuiApp:
                     raise ValueError
             except (TypeError, ValueError):
                 handle.value = last[0]
-                self.notify("Refused", f"{handle.label}: '{value}' is not a number")
+                self.refuse(f"{handle.label}: '{value}' is not a number")
                 return
             if not lo <= number <= hi or (integer and number != int(number)):
                 handle.value = last[0]
                 kind = "a whole number" if integer else "a number"
-                self.notify("Refused", f"{handle.label}: {value} must be {kind} from {lo:g} to {hi:g}")
+                self.refuse(f"{handle.label}: {value} must be {kind} from {lo:g} to {hi:g}")
                 return
 
             def act() -> None:

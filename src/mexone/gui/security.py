@@ -74,7 +74,11 @@ def guard(server: viser.ViserServer) -> None:
         if connection is None:
             return
         headers = connection.request.headers
-        ok, reason = allowed(headers.get("Origin"), headers.get("Host"))
+        origins, hosts = headers.get_all("Origin"), headers.get_all("Host")
+        if len(origins) > 1 or len(hosts) != 1:
+            ok, reason = False, "several Origin or Host headers"
+        else:
+            ok, reason = allowed(origins[0] if origins else None, hosts[0])
         if not ok:
             log.warning("refused a websocket client: %s", reason)
             await connection.close(1008, "origin not allowed")

@@ -63,15 +63,16 @@ def parse_param_args(args: list[str]) -> dict[str, object]:
     YAML, as rosrun reads them (safe types only)."""
     out = {}
     for arg in args:
+        shown = arg if len(arg) <= 60 else arg[:57] + "..."
         name, sep, text = arg.partition(":=")
         if not sep or not name:
-            raise InputError(f"argument '{arg}' is not name:=value",
+            raise InputError(f"argument '{shown}' is not name:=value",
                              hint="e.g. _joint:=r_elbow for the routine's ~joint parameter")
         try:
             out[name] = yamlio.load(text) if text else ""
         except InputError as exc:
-            raise InputError(f"argument '{arg}': the value is not valid YAML ({exc.what})",
-                             hint="quote strings, e.g. _joint:=r_elbow or _list:='[1, 2]'") from None
+            raise InputError(f"parameter '{shown}': {exc.what}",
+                             hint="values are YAML: quote text, e.g. _name:=\"'[x'\"") from None
     return out
 
 
