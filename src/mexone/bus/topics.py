@@ -86,6 +86,12 @@ class Bus:
                                  hint="use the topic's message type")
             return topic
 
+    def wanted(self, name: str) -> bool:
+        """Whether a message on `name` would reach anyone (a subscriber or a recorder): publishers
+        that cost something skip building messages nobody reads, as ROS transports none."""
+        topic = self.topics.get(name)
+        return bool(self.taps or (topic is not None and topic.subscriptions))
+
     def advertise(self, name: str, msg_type: type) -> Topic:
         topic = self.topic(name, msg_type)
         topic.publishers += 1

@@ -44,7 +44,10 @@ __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue",
 
 NS = 1_000_000_000
 MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.01  # s: what a humanoid lab can sensibly step with
-_WATCH_EVERY = 10  # steps between divergence checks: divergence grows fast, 10 ms catches it
+# steps between divergence checks: a diverging run goes NaN within steps, so 50 ms still names the
+# link that went first; each check is a Python interlude that costs MuJoCo its warm caches
+_WATCH_EVERY = 50
+_FIRST_WATCH = 10  # steps after a reset to the first check: a bad start shows at once
 _LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
                 "inertia-too-large": "its inertia is implausibly large for its mass and size",
                 "inertia-triangle": "its inertia is physically impossible",
@@ -348,7 +351,7 @@ class Simulation:
         self._time_ns = 0
         self.rtf.clear()
         self._pace_origin = None
-        self._since_watch = 0
+        self._since_watch = _WATCH_EVERY - _FIRST_WATCH  # a run's first check comes early
         for timer in self.periodic:
             timer.next_ns = timer.period_ns
         for hook in self._reset_hooks:

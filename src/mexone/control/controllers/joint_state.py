@@ -23,7 +23,8 @@ class JointStateController(Controller):
         super().__init__(spec, ctx)
         hw = ctx.hw
         self.names = sorted(hw.joints)
-        self.order = np.array([hw.index[j] for j in self.names], dtype=int)
+        order = np.array([hw.index[j] for j in self.names], dtype=int)
+        self._qpos, self._dofs = hw.qpos_adr[order], hw.dof_adr[order]
         self.period = 1.0 / (spec.publish_rate or DEFAULT_RATE)
         self.topic = f"{ctx.namespace}/joint_states"
         self.seq = 0
@@ -40,9 +41,12 @@ class JointStateController(Controller):
             self.timer = None
 
     def publish(self, sim: Simulation) -> None:
+        bus = self.ctx.bus
+        if not bus.wanted(self.topic):
+            return
         self.seq += 1
-        hw, rows = self.hw, self.order
+        data = sim.data
         msg = JointState(Header(self.seq, Time.from_nsec(sim.time_ns), ""), list(self.names),
-                         hw.position(rows).tolist(), hw.velocity(rows).tolist(),
-                         hw.effort(rows).tolist())
-        self.ctx.bus.publish(self.topic, msg)
+                         data.qpos[self._qpos].tolist(), data.qvel[self._dofs].tolist(),
+                         data.qfrc_actuator[self._dofs].tolist())
+        bus.publish(self.topic, msg)
