@@ -25,6 +25,7 @@ __all__ = ["Recording", "BasePose", "Command", "read_recording", "regular_times"
 
 MAX_JITTER = 0.025  # s: a stream whose stamps stay this close (RMS) to a regular grid is regular
 _MIN_REGULAR = 10  # messages: fewer say nothing about a rate
+_TAIL = 6.0  # jitter's largest excursion in RMS multiples (Gaussian: 4 in 10 000); a stall is more
 STILL = 1e-6  # m or unit quaternion: a base that moves less than this was on a stand
 
 
@@ -103,8 +104,10 @@ def fit_grid(t: np.ndarray, seq: np.ndarray | None = None) -> Grid | None:
         else:
             k = np.arange(n, dtype=float)
     slope, intercept = np.polyfit(k, t, 1)
-    if slope <= 0 or np.sqrt(np.mean((t - intercept - slope * k) ** 2)) > MAX_JITTER:
-        return None
+    residual = t - intercept - slope * k
+    rms = float(np.sqrt(np.mean(residual**2)))
+    if slope <= 0 or rms > MAX_JITTER or np.max(np.abs(residual)) > _TAIL * rms + 1e-3:
+        return None  # irregular, or regular in another clock (wall-time commands, sim-time bag)
     return Grid(k, float(slope), float(intercept))
 
 

@@ -1,8 +1,8 @@
 """Excite every joint for system identification (`mexone identify`): a multisine per joint.
 
-    mexone record excitation -o hung.mcap --fixed-base -z 0.3 --duration 20    # on a stand
+    mexone record excitation _base:=fixed -o hung.mcap --fixed-base -z 0.3 --duration 20  # stand
     mexone record excitation -o stand.mcap --duration 20                       # standing
-    mexone record excitation _base:=fixed _amplitude:=0.2 ...
+    mexone record excitation _amplitude:=0.2 _seed:=1 ...   # smaller, other phases
 
 What it sends: from the pose the robot is in, 2 s of cosine ramp to a working pose, then around
 it a multisine per joint -- six log-spaced frequencies from _fmin to _fmax Hz (each joint its own,
