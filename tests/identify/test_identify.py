@@ -191,6 +191,7 @@ def test_unknown_joint_and_param_are_one_line(hung, tmp_path, capsys, monkeypatc
     assert code == 2 and "unknown parameter stiffness" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_ctrl_c_keeps_the_best_fit_so_far(hung, tmp_path):
     """Every joint (63 parameters): Ctrl-C a second into the fit -> one line, exit 130, and the
     outputs with the best values evaluated so far."""
