@@ -322,3 +322,27 @@ def test_point_cloud_put_into_the_world_by_real_tf2_lies_on_the_box(kinect_view)
     assert face[:, 1].max() == pytest.approx(BOX_HALF, abs=0.01)
     assert face[:, 2].min() == pytest.approx(eye[2] - BOX_HALF, abs=0.01)
     assert face[:, 2].max() == pytest.approx(eye[2] + BOX_HALF, abs=0.01)
+
+
+def test_a_camera_rendered_in_one_thread_closes_cleanly_from_another(kinect_view):
+    """The GUI renders in the simulation thread and Python may collect the renderer anywhere:
+    EGL refused with EGL_BAD_ACCESS while the context stayed bound to the rendering thread."""
+    import threading
+
+    lab, _, _ = kinect_view
+    camera = lab.sensors.sensors["kinect"]
+    errors: list[BaseException] = []
+
+    def render() -> None:
+        try:
+            camera.render(depth=False)
+        except BaseException as error:  # noqa: BLE001 - reported below
+            errors.append(error)
+
+    thread = threading.Thread(target=render)
+    thread.start()
+    thread.join()
+    camera.close()  # this thread
+    assert not errors and camera.renderer is None
+    assert camera.render(depth=True).shape == (480, 640)  # and a new renderer works here
+    camera.close()
