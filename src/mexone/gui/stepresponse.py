@@ -26,6 +26,7 @@ class StepResponse:
         self.size = 0.5
         self.running: tuple | None = None  # (joint, recorder, t0, start, target, timer)
         self.result: dict | None = None
+        self.started = 0.0
         self.on_start = on_start
         manager = lab.controllers
         joints = tuple(j for j, c in manager.by_joint().items() if c.kind == "position") \
@@ -60,6 +61,7 @@ class StepResponse:
         recorder = TrackingRecorder(sim, manager)
         recorder.sample(sim)  # the setpoint before the step
         manager.command(ctrl.name, {joint: target})
+        self.started = sim.time
         self.running = (joint, recorder, sim.time, start, target)
         self.result = None
         self.view.content = f"*stepping {joint} by {size:g} rad…*"
