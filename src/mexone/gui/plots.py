@@ -153,7 +153,7 @@ class PlotPanel:
         self._shown: list[tuple] = [()] * PANES  # what each pane last drew (skip idle pushes)
         gui = server.gui
         names = tuple(s.name for s in log.signals)
-        with gui.add_folder("Plots"):
+        with gui.add_folder("Plots") as self.folder:
             self.signal = gui.add_dropdown("Signal", names, initial_value=names[0],
                                            hint="what joint_states, the controllers and the "
                                                 "sensors carry")
@@ -234,12 +234,18 @@ class PlotPanel:
             self._shown[i] = key
             series = self._series(i, factor)
             axes = self._axes(i, factor)
-            with self.server.atomic():
-                if plot.series != series:
-                    plot.series = series
-                if plot.axes != axes:
-                    plot.axes = axes
-                plot.data = (t, *(v * factor for v in values))
+            data = (t, *(v * factor for v in values))
+            if plot.series != series or plot.axes != axes:
+                # a new chart, not new options on the old one: the page's uPlot kept its old
+                # y range (and stopped following the data) when series or axes changed under it
+                order = plot.order
+                plot.remove()
+                with self.folder:
+                    plot = self.plots[i] = self.server.gui.add_uplot(
+                        data, series, axes=axes, title=f"pane {i + 1}", aspect=1.6, order=order,
+                        scales={"x": uplot.Scale(time=False), "y": uplot.Scale()})
+            else:
+                plot.data = data
 
     # ----- export (any thread: reads a snapshot) ------------------------------------------------------
     def export(self, client, kind: str) -> None:
