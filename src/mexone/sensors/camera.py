@@ -10,6 +10,7 @@ Nothing is rendered while nobody subscribes to an image, depth or cloud topic.
 
 from __future__ import annotations
 
+import os
 import time
 
 import mujoco
@@ -41,6 +42,22 @@ def cloud_from_depth(depth: np.ndarray, camera) -> np.ndarray:
     u = np.arange(w, dtype=np.float32)[None, :]
     v = np.arange(h, dtype=np.float32)[:, None]
     return np.stack([(u - cx) * depth / f, (v - cy) * depth / f, depth], axis=-1)
+
+
+def _release_gl_context() -> None:
+    """Unbind the renderer's EGL context from this thread after a frame.
+
+    mujoco.Renderer leaves its context current on the thread that rendered, and EGL refuses to
+    make it current anywhere else, so closing (or garbage-collecting) it from another thread
+    failed with EGL_BAD_ACCESS. Unbound, it can be freed from any thread.
+    """
+    if os.environ.get("MUJOCO_GL") != "egl":
+        return
+    from mujoco import egl
+
+    if egl.EGL_DISPLAY is not None:
+        egl.EGL.eglMakeCurrent(egl.EGL_DISPLAY, egl.EGL.EGL_NO_SURFACE, egl.EGL.EGL_NO_SURFACE,
+                               egl.EGL.EGL_NO_CONTEXT)
 
 
 class CameraSensor(Sensor):
@@ -80,6 +97,7 @@ class CameraSensor(Sensor):
         finally:
             if depth:
                 renderer.disable_depth_rendering()
+            _release_gl_context()
         self.render_seconds.append(time.perf_counter() - start)
         if depth:
             image = image.astype(np.float32)
