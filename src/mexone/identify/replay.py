@@ -63,7 +63,9 @@ class Experiment:
         had them: a model field, not a spec one, since MuJoCo allocates the integral state only
         for a gain that is non-zero at compile time."""
         model = (spec or self.spec).compile()
-        model.opt.disableflags = int(self.runtime["disableflags"][0])
+        # the Lab computes its sensors on request (mjDSBL_SENSOR); a rollout needs the pass on
+        model.opt.disableflags = int(self.runtime["disableflags"][0]) & ~int(
+            mujoco.mjtDisableBit.mjDSBL_SENSOR)
         for name, values in self.runtime.items():
             if name != "disableflags":
                 getattr(model, name)[:] = values
