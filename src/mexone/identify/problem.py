@@ -255,7 +255,7 @@ class Problem:
             if not math.isfinite(p.start_rms):
                 p.start_rms = rms
             if rms < self._best[0]:
-                self._best = (rms, np.array(x, dtype=float))
+                self._best = (rms, np.array(x, dtype=float).reshape(-1))  # (n,) or (n, 1)
                 p.best_rms = rms
         if self.on_progress:
             self.on_progress(p)
@@ -285,7 +285,7 @@ class Problem:
                 x = fitted.as_vector()  # the last accepted step, the best point evaluated
                 jac = result.jac
             except KeyboardInterrupt:
-                interrupted, x = True, self._best[1]
+                interrupted, x = True, np.asarray(self._best[1], dtype=float).reshape(-1)
         halfwidth = correlation = None
         scale = np.array([u.scale for u in self.unknowns])
         if intervals and not interrupted and jac is not None and x.size:
