@@ -67,8 +67,8 @@ def test_unreachable_target_reports_the_remaining_error(tmp_path):
 
 
 @pytest.mark.parametrize("direction, impulse", [
-    ((1.0, 0.0, 0.0), 5.0),  # N s at the torso: PD alone survives 3.5, the balance routine 5.5
-    ((0.0, 1.0, 0.0), 7.0),  # sideways it takes a step: PD alone 5.5, the balance routine 8.0
+    ((1.0, 0.0, 0.0), 6.0),  # N s at the torso: PD alone survives 3.5, the balance routine 9.0
+    ((0.0, 1.0, 0.0), 8.0),  # PD alone 5.5, the balance routine 11.0 (both by stepping)
 ])
 def test_balance_routine_survives_a_push_that_fells_pd_alone(direction, impulse):
     assert not survives(PushTrial(direction=direction), impulse)
