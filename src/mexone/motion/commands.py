@@ -30,7 +30,7 @@ from mexone.errors import InputError
 from mexone.motion.ik import FrameError, WholeBodyIK
 from mexone.motion.push import PUSH_SECONDS, apply_wrench
 from mexone.motion.walk import GAIT_YAML, Gait, bent_knees, walk_ticks
-from mexone.msgs import Float64, JointState
+from mexone.msgs import Float64, Imu, JointState
 from mexone.routines.runtime import RoutineContext, current
 
 __all__ = ["reach", "look_at", "push", "walk", "joint_targets", "RATE", "REACHED"]
@@ -203,6 +203,14 @@ def walk(distance: float = 3.0, gait: Gait | str | None = None) -> None:
     for k in range(1, ticks + 1):  # 1 s down into the walking stance
         mover.send({n: standing[n] + (bent[n] - standing[n]) * k / ticks for n in bent})
         rate.sleep()
-    for joints in walk_ticks(ik, qpos, gait, distance):
+    yaw = [0.0]
+
+    def on_imu(msg: Imu) -> None:
+        q = msg.orientation
+        yaw[0] = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+    imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
+    for joints in walk_ticks(ik, qpos, gait, distance, heading=lambda: yaw[0]):
         mover.send(joints)
         rate.sleep()
+    imu.unregister()

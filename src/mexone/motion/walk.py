@@ -7,15 +7,17 @@ the state and the ZMP reference of the next `preview` seconds (the footsteps), s
 starts moving before the ZMP jumps to the next foot. The feet stay flat; the swing foot rises
 `height` on a half sine while it moves on a cosine ease. WholeBodyIK (feet frames + COM +
 upright pelvis) gives the joint positions; the routine sends them to the position
-controllers. Open loop: no sensor feedback while walking (see the README's limits).
+controllers. Open loop but for the heading: the IMU's yaw turns each step's foot against the
+slip of the feet (see the README's limits).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+import mink
 import numpy as np
 import scipy.linalg
 
@@ -26,6 +28,7 @@ from mexone.motion.ik import WholeBodyIK
 __all__ = ["Gait", "preview_gains", "zmp_reference", "bent_knees", "walk_ticks", "GAIT_YAML"]
 
 G = 9.81
+MAX_TURN = 0.05  # rad: the most a step turns to correct the heading
 GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
 
 
@@ -103,6 +106,17 @@ def zmp_reference(gait: Gait, feet: list[np.ndarray], steps: int):
     return np.array(ref), swings
 
 
+def _heading(ik: WholeBodyIK) -> float:
+    """The IK's base yaw (rad); body 1 is the floating base, the world's first child."""
+    rotation = ik.configuration.data.xmat[1].reshape(3, 3)
+    return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _yaw(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
 def bent_knees(ik: WholeBodyIK, qpos: np.ndarray, bend: float) -> np.ndarray:
     """The standing configuration with hips, knees and ankles bent (feet under the hips, the
     pelvis lowered so the soles stay on the ground): where walking starts and ends."""
@@ -115,11 +129,12 @@ def bent_knees(ik: WholeBodyIK, qpos: np.ndarray, bend: float) -> np.ndarray:
     return q
 
 
-def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait,
-               distance: float) -> Iterator[dict[str, float]]:
+def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, distance: float,
+               heading: Callable[[], float] | None = None) -> Iterator[dict[str, float]]:
     """Walk `distance` m straight ahead from the standing configuration `qpos`: the joint
     positions of each control period, planned as they are needed (the first is the bent-knee
-    stance the robot should already be in)."""
+    stance the robot should already be in). `heading`, if given, measures the robot's yaw (rad,
+    from the IMU): each step's foot is turned against it, so slipping feet do not steer."""
     if not (gait.step_length > 0 and distance > 0):
         raise InputError(f"walk: step_length {gait.step_length} and distance {distance} "
                          "must be > 0 m")
@@ -136,6 +151,7 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait,
     summed = np.zeros(2)
     active = iter(swings)
     swing = next(active, None)
+    turn = 0.0  # rad: the IK's heading that is the world's straight ahead (feet slip; it drifts)
     for i in range(len(ref)):
         summed += (c @ x)[0] - ref[i]
         jerk = -k_sum * summed - k_state @ x - k_preview @ padded[i + 1:i + 1 + horizon]
@@ -143,10 +159,17 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait,
         ik.set_com(x[0])
         if swing is not None and i >= swing[0]:
             start, end, foot, origin, target = swing
+            if i == start and heading is not None:
+                # the world's heading less the IK's is the feet's slip: turn the IK's feet back
+                slip = heading() - _heading(ik)
+                turn = float(np.clip(-slip, turn - MAX_TURN, turn + MAX_TURN))
+                if ik.base is not None:
+                    ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, turn)))
             s = min(1.0, (i - start + 1) / (end - start))
             xy = origin + (target - origin) * (1 - np.cos(np.pi * s)) / 2
             ik.set_target(("l_foot", "r_foot")[foot],
-                          [xy[0], xy[1], ground + gait.step_height * np.sin(np.pi * s)], np.eye(3))
+                          [xy[0], xy[1], ground + gait.step_height * np.sin(np.pi * s)],
+                          _yaw(turn))
             if s >= 1.0:
                 swing = next(active, None)
         for _ in range(3):  # a few IK iterations per period: the targets are met, not chased
