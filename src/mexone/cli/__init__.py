@@ -38,7 +38,18 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import bench, check, convert, plot, record, render, run, sim, sweep
+    from mexone.cli import (
+        bench,
+        check,
+        controllers,
+        convert,
+        plot,
+        record,
+        render,
+        run,
+        sim,
+        sweep,
+    )
 
     parser = _Parser(
         prog="mexone",
@@ -47,7 +58,7 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, run, record, plot, render, sweep, check, convert, bench):
+    for module in (sim, run, record, plot, render, sweep, check, convert, controllers, bench):
         module.add_parser(sub)
     return parser
 

@@ -13,6 +13,7 @@ import mujoco
 import numpy as np
 import viser
 
+from mexone.description.materials import display_rgba
 from mexone.description.meshes import load_mesh, resolve_mesh
 from mexone.description.model import Box, Cylinder, Geometry, Mesh, RobotModel, Sphere
 from mexone.physics.simulation import Simulation
@@ -84,7 +85,7 @@ class RobotScene:
             link = robot.links[name]
             for i, vis in enumerate(link.visuals):
                 mesh = _trimesh_of(vis.geometry, robot)
-                rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
+                rgba = display_rgba(robot, name, vis)
                 self.visuals.append(scene.add_mesh_simple(
                     f"/robot/{name}/visual_{i}", mesh.vertices.astype(np.float32), mesh.faces,
                     color=tuple(int(255 * c) for c in rgba[:3]),

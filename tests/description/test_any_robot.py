@@ -1,0 +1,105 @@
+"""Real robot packages load as urdfdom loads them: fixed joints with a zero axis, $(find) and
+package:// through one resolver, named and Gazebo materials, <mimic>."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from mexone.description.loader import load_model
+from mexone.description.materials import display_rgba
+from mexone.physics.compile import compile_model
+
+ENV = {k: v for k, v in os.environ.items() if k != "ROS_PACKAGE_PATH"}
+
+
+def mexone(*args, cwd: Path, env=None):
+    out = subprocess.run([sys.executable, "-m", "mexone", *map(str, args)], cwd=cwd,
+                         capture_output=True, text=True, timeout=120, env={**ENV, **(env or {})})
+    assert "Traceback" not in out.stderr, out.stderr
+    return out
+
+
+def test_fixed_joint_with_zero_axis_loads_as_urdfdom_loads_it(humanoid):
+    text = humanoid.read_text()
+    assert '<joint name="imu_joint" type="fixed">' in text and '<axis xyz="0 0 0"/>' in text
+    robot = load_model(humanoid)
+    assert robot.joints["imu_joint"].type == "fixed"
+    compile_model(robot)  # MuJoCo builds it too
+    tool = shutil.which("check_urdf")
+    if tool is None:
+        pytest.skip("check_urdf not installed (Debian liburdfdom-tools)")
+    assert subprocess.run([tool, str(humanoid)], capture_output=True).returncode == 0
+
+
+def test_a_moving_joint_with_zero_axis_is_still_refused(tmp_path):
+    path = tmp_path / "r.urdf"
+    path.write_text('<robot name="r"><link name="a"><inertial><mass value="1"/><inertia ixx="1" '
+                    'ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link><link name="b">'
+                    '<inertial><mass value="1"/><inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" '
+                    'izz="1"/></inertial></link>\n<joint name="j" type="revolute"><parent link="a"/>'
+                    '<child link="b"/>\n<axis xyz="0 0 0"/><limit lower="-1" upper="1" effort="1" '
+                    'velocity="1"/></joint></robot>')
+    out = mexone("check", "r.urdf", cwd=tmp_path)
+    assert out.returncode == 2 and out.stderr.startswith("mexone: r.urdf:3: <axis> has a zero axis")
+
+
+def test_named_materials_and_gazebo_material_names_colour_the_robot(humanoid):
+    robot = load_model(humanoid)
+    pelvis, head, shank = (robot.links[n].visuals[0] for n in ("pelvis", "head", "l_shank"))
+    assert pelvis.rgba == (0.9, 0.9, 0.9, 1.0)  # <material name="white"/> -> the robot's white
+    assert shank.rgba == (0.2, 0.2, 0.2, 1.0)
+    assert display_rgba(robot, "head", head)[:3] == (1.0, 0.51, 0.05)  # Gazebo/Orange wins
+    model = compile_model(robot).model
+    assert tuple(model.geom("l_shank/visual/0").rgba) == pytest.approx((0.2, 0.2, 0.2, 1.0))
+    assert tuple(model.geom("head/visual/0").rgba[:3]) == pytest.approx((1.0, 0.51, 0.05))
+
+
+def test_an_inline_material_can_be_named_again_later(tmp_path):
+    path = tmp_path / "r.urdf"
+    box = '<geometry><box size="0.1 0.1 0.1"/></geometry>'
+    path.write_text(f'<robot name="r"><link name="a"><visual>{box}<material name="red"><color '
+                    f'rgba="1 0 0 1"/></material></visual><visual>{box}<material name="red"/>'
+                    '</visual></link></robot>')
+    robot = load_model(path)
+    assert [v.rgba for v in robot.links["a"].visuals] == [(1, 0, 0, 1), (1, 0, 0, 1)]
+
+
+def test_package_uris_resolve_without_package_xml_by_folder_name(tmp_path):
+    """A repository without package.xml: package://name is the ancestor folder called name, as
+    Gazebo's model path finds it; the same resolver as $(find name)."""
+    import trimesh
+
+    root = tmp_path / "repo" / "robots" / "biped_description"
+    (root / "meshes").mkdir(parents=True)
+    (root / "urdf").mkdir()
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(root / "meshes" / "part.stl")
+    (root / "urdf" / "r.urdf.xacro").write_text(
+        '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><link name="a"><inertial>'
+        '<mass value="1"/><inertia ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.002"/>'
+        '</inertial><visual><geometry><mesh filename="package://biped_description/meshes/part.stl"/>'
+        '</geometry></visual><collision><geometry>'
+        '<mesh filename="$(find biped_description)/meshes/part.stl"/></geometry></collision>'
+        '</link></robot>')
+    out = mexone("check", "urdf/r.urdf.xacro", cwd=root)
+    assert out.returncode == 0, out.stdout + out.stderr
+    robot = load_model(root / "urdf" / "r.urdf.xacro")
+    assert robot.links["a"].collisions[0].geometry.filename == str(root / "meshes" / "part.stl")
+
+
+def test_ros_package_path_wins_over_the_folders_above(tmp_path, monkeypatch):
+    from mexone.description.packages import find_package
+
+    for where in ("a", "b"):
+        folder = tmp_path / where / "biped_description"
+        folder.mkdir(parents=True)
+        (folder / "package.xml").write_text("<package><name>biped_description</name></package>")
+    near = tmp_path / "b" / "biped_description"
+    assert find_package("biped_description", near) == near
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path / "a"))
+    assert find_package("biped_description", near) == tmp_path / "a" / "biped_description"
