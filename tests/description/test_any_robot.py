@@ -103,3 +103,91 @@ def test_ros_package_path_wins_over_the_folders_above(tmp_path, monkeypatch):
     assert find_package("biped_description", near) == near
     monkeypatch.setenv("ROS_PACKAGE_PATH", str(tmp_path / "a"))
     assert find_package("biped_description", near) == tmp_path / "a" / "biped_description"
+
+
+# ----- check that people trust on real robots ---------------------------------------------------
+def _check(path: Path, *args) -> tuple[int, list[dict]]:
+    import json
+
+    out = mexone("check", path, "--json", *args, cwd=path.parent)
+    return out.returncode, json.loads(out.stdout)["findings"]
+
+
+def _add_links(path: Path, xml: str) -> None:
+    path.write_text(path.read_text().replace("</robot>", xml + "</robot>"))
+
+
+def test_a_1_g_dummy_link_with_its_com_off_is_info_not_an_error(humanoid):
+    _add_links(humanoid, '<link name="logo_link"><inertial><origin xyz="0.3 0 0"/><mass value="0.001"/>'
+                         '<inertia ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7"/></inertial>'
+                         '<visual><geometry><box size="0.05 0.05 0.001"/></geometry></visual></link>'
+                         '<joint name="logo_joint" type="fixed"><parent link="torso"/>'
+                         '<child link="logo_link"/></joint>')
+    code, findings = _check(humanoid)
+    assert code == 0
+    logo = [f for f in findings if f["element"] == 'link "logo_link"']
+    assert [(f["code"], f["severity"]) for f in logo] == [("com-outside", "info")]
+    # the same offset on a heavy link is an error with its file and line
+    humanoid.write_text(humanoid.read_text().replace('<mass value="0.001"/>', '<mass value="5"/>'))
+    code, findings = _check(humanoid)
+    logo = next(f for f in findings if f["element"] == 'link "logo_link"')
+    assert code == 1 and logo["severity"] == "error"
+    assert logo["file"] == str(humanoid) and logo["line"] == humanoid.read_text().count(
+        "\n", 0, humanoid.read_text().index('<link name="logo_link">')) + 1
+
+
+def test_collision_pad_inside_its_visual_is_not_misplaced(humanoid):
+    box = '<inertial><mass value="0.2"/><inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>'
+    _add_links(humanoid, f'<link name="tip">{box}<visual><geometry><box size="0.02 0.02 0.06"/>'
+                         '</geometry></visual><collision><origin xyz="0 0 -0.025"/><geometry><box '
+                         'size="0.018 0.018 0.008"/></geometry></collision></link>'
+                         '<joint name="tip_joint" type="fixed"><parent link="l_hand"/><child link="tip"/>'
+                         '</joint>'
+                         f'<link name="chest">{box}<visual><geometry><box size="0.1 0.1 0.1"/></geometry>'
+                         '</visual><collision><origin xyz="0.04 0 0.03"/><geometry><box '
+                         'size="0.2 0.14 0.18"/></geometry></collision></link>'
+                         '<joint name="chest_joint" type="fixed"><parent link="torso"/>'
+                         '<child link="chest"/></joint>'
+                         f'<link name="away">{box}<visual><geometry><box size="0.05 0.05 0.05"/></geometry>'
+                         '</visual><collision><origin xyz="0.2 0 0.3"/><geometry><box '
+                         'size="0.05 0.05 0.05"/></geometry></collision></link>'
+                         '<joint name="away_joint" type="fixed"><parent link="torso"/>'
+                         '<child link="away"/></joint>')
+    _, findings = _check(humanoid)
+    misplaced = [f["element"] for f in findings if f["code"] == "collision-misplaced"]
+    assert misplaced == ['link "away"']  # the seed's Fig. 4.6 still is
+
+
+def test_capital_names_are_one_summary_line(humanoid):
+    text = humanoid.read_text()
+    for name in ("l_hand", "r_hand", "l_wrist", "r_wrist", "l_forearm"):
+        text = text.replace(f'"{name}"', f'"{name.upper()}"')
+    humanoid.write_text(text)
+    code, findings = _check(humanoid)
+    capitals = [f for f in findings if f["code"] == "name-capitals"]
+    assert code == 0 and len(capitals) == 1 and capitals[0]["severity"] == "info"
+    assert capitals[0]["element"] == "5 links and joints"
+
+
+def test_controller_findings_name_the_yaml_and_its_line(humanoid, tmp_path):
+    (tmp_path / "c.yaml").write_text("biped:\n  knee:\n    type: effort_controllers/JointPositionController\n"
+                                     "    joint: l_knee\n    pid: {p: 10}\n")
+    out = mexone("check", humanoid, "--controllers", tmp_path / "c.yaml", cwd=tmp_path)
+    line = next(x for x in out.stdout.splitlines() if "controller-no-transmission" in x)
+    assert line.strip().startswith(f"{tmp_path / 'c.yaml'}:2: error:")
+    code, findings = _check(humanoid, "--controllers", tmp_path / "c.yaml")
+    found = next(f for f in findings if f["code"] == "controller-no-transmission")
+    assert (found["file"], found["line"]) == (str(tmp_path / "c.yaml"), 2)
+
+
+def test_a_missing_mesh_names_file_and_line_in_check_and_sim(humanoid):
+    humanoid.write_text(humanoid.read_text().replace(
+        '<visual><origin xyz="0 0 0.1"/><geometry><box size="0.16 0.16 0.18"/>',
+        '<visual><origin xyz="0 0 0.1"/>\n<geometry><mesh filename="gone.stl"/>'))
+    line = humanoid.read_text().splitlines().index(
+        next(x for x in humanoid.read_text().splitlines() if "gone.stl" in x)) + 1
+    code, findings = _check(humanoid)
+    missing = next(f for f in findings if f["code"] == "mesh-missing")
+    assert code == 1 and missing["line"] == line - 1  # the <visual> that names it
+    out = mexone("sim", humanoid, "--headless", "--duration", "0.01", cwd=humanoid.parent)
+    assert out.returncode == 2 and out.stderr.startswith(f"mexone: {humanoid}:{line - 1}: mesh file")

@@ -435,7 +435,8 @@ def _add_inertial(body: mujoco.MjsBody, robot: RobotModel, name: str) -> None:
     body.explicitinertial = True
 
 
-def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str) -> None:
+def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str,
+                line: int | None = None) -> None:
     match geometry:
         case Box(size):
             geom.type = mujoco.mjtGeom.mjGEOM_BOX
@@ -448,16 +449,17 @@ def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_nam
             geom.size = (radius, 0, 0)
         case Mesh(filename, scale):
             geom.type = mujoco.mjtGeom.mjGEOM_MESH
-            geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name)
+            geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name, line)
 
 
-def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str) -> str:
+def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str,
+              line: int | None = None) -> str:
     try:
         path = resolve_mesh(filename, robot.base_dir)
     except MexoneError as exc:
-        raise ModelError(f"{exc.what}", file=robot.source, hint=exc.hint) from None
+        raise ModelError(f"{exc.what}", file=robot.source, line=line, hint=exc.hint) from None
     if not path.is_file():
-        raise ModelError(f"mesh file '{path}' does not exist", file=robot.source,
+        raise ModelError(f"mesh file '{path}' does not exist", file=robot.source, line=line,
                          hint="check the filename, or run 'mexone check'")
     mesh = spec.add_mesh(name=name)
     mesh.scale = scale
@@ -467,7 +469,7 @@ def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name
         try:
             loaded = load_mesh(path)
         except MexoneError as exc:
-            raise ModelError(exc.what, file=robot.source, hint=exc.hint) from None
+            raise ModelError(exc.what, file=robot.source, line=line, hint=exc.hint) from None
         mesh.uservert = np.asarray(loaded.vertices, dtype=np.float32).ravel()
         mesh.userface = np.asarray(loaded.faces, dtype=np.int32).ravel()
     return name
@@ -497,7 +499,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
     collision_names = []
     for i, col in enumerate(link.collisions):
         geom = body.add_geom(name=f"{name}/collision/{i}")
-        _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}")
+        _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}", col.line)
         _set_pose(geom, col.origin.matrix)
         geom.group = GROUP_COLLISION
         geom.contype, geom.conaffinity = contype, conaffinity
@@ -510,7 +512,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
     if options.visuals:
         for i, vis in enumerate(link.visuals):
             geom = body.add_geom(name=f"{name}/visual/{i}")
-            _geom_shape(geom, vis.geometry, spec, robot, f"{name}/visual_mesh/{i}")
+            _geom_shape(geom, vis.geometry, spec, robot, f"{name}/visual_mesh/{i}", vis.line)
             _set_pose(geom, vis.origin.matrix)
             geom.group = GROUP_VISUAL
             geom.contype = geom.conaffinity = 0
