@@ -169,3 +169,9 @@ def write_humanoid_package(root: Path, name: str = "biped_description", mesh: bo
 def humanoid(tmp_path) -> Path:
     """The humanoid's URDF inside its own ROS package in tmp_path/ws/src."""
     return write_humanoid_package(tmp_path / "ws" / "src")
+
+
+@pytest.fixture()
+def humanoid_with_mesh(tmp_path) -> Path:
+    """The same, its pelvis drawn by meshes/pelvis.stl named package://biped_description/..."""
+    return write_humanoid_package(tmp_path / "ws" / "src", mesh=True)

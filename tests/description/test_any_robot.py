@@ -191,3 +191,58 @@ def test_a_missing_mesh_names_file_and_line_in_check_and_sim(humanoid):
     assert code == 1 and missing["line"] == line - 1  # the <visual> that names it
     out = mexone("sim", humanoid, "--headless", "--duration", "0.01", cwd=humanoid.parent)
     assert out.returncode == 2 and out.stderr.startswith(f"mexone: {humanoid}:{line - 1}: mesh file")
+
+
+# ----- convert faithfully ----------------------------------------------------------------------
+def test_mjcf_export_to_another_folder_runs_the_same_robot_in_plain_mujoco(tmp_path,
+                                                                          humanoid_with_mesh):
+    import mujoco
+    import numpy as np
+
+    urdf = humanoid_with_mesh
+    (tmp_path / "export").mkdir()
+    out = mexone("convert", urdf, "-o", tmp_path / "export" / "biped.xml", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert "lint error" not in out.stdout
+    text = (tmp_path / "export" / "biped.xml").read_text()
+    assert 'file="../ws/src/biped_description/meshes/pelvis.stl"' in text  # relative to OUT
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "export" / "biped.xml"))  # MuJoCo's loader
+    assert model.nu > 0 and model.nmesh >= 1
+    data = mujoco.MjData(model)
+    start = data.qpos.copy()
+    mujoco.mj_step(model, data, 3000)  # 3 s, no mexone: the actuators hold it by themselves
+    assert abs(data.qpos[2] - start[2]) < 0.01
+    assert np.abs(data.qpos[7:] - start[7:]).max() < 0.02
+
+
+def test_urdf_sdf_urdf_keeps_massless_links_massless(tmp_path, humanoid):
+    from mexone.description.loader import load_model as load
+
+    before = load(humanoid).mass
+    assert mexone("convert", humanoid, "-o", tmp_path / "b.sdf", cwd=tmp_path).returncode == 0
+    out = mexone("convert", tmp_path / "b.sdf", "-o", tmp_path / "b.urdf", cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    after = load(tmp_path / "b.urdf")
+    assert after.mass == pytest.approx(before, abs=1e-9)  # not 1 kg more per frame link
+    assert "imu_link" not in after.links  # merged into torso, as sdformat merges it
+
+
+def test_convert_counts_lint_errors_as_check_does(tmp_path):
+    import trimesh
+
+    src = tmp_path / "src"
+    (src / "meshes").mkdir(parents=True)
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(src / "meshes" / "part.stl")
+    (src / "r.urdf").write_text(
+        '<robot name="r"><link name="a"><inertial><origin xyz="1 0 0"/><mass value="1"/><inertia '
+        'ixx="0.002" ixy="0" ixz="0" iyy="0.002" iyz="0" izz="0.002"/></inertial><visual><geometry>'
+        '<mesh filename="meshes/part.stl"/></geometry></visual><collision><geometry>'
+        '<mesh filename="meshes/part.stl"/></geometry></collision></link></robot>')
+    check = mexone("check", src / "r.urdf", cwd=tmp_path)
+    errors = check.stdout.count(": error: ")
+    assert errors == 1  # the COM one metre away
+    (tmp_path / "out").mkdir()
+    for name in ("r.urdf", "r.sdf", "r.xml"):
+        out = mexone("convert", src / "r.urdf", "-o", tmp_path / "out" / name, cwd=tmp_path)
+        assert out.returncode == 0, out.stderr
+        assert f"; {errors} lint error(s), run 'mexone check {src / 'r.urdf'}'" in out.stdout
