@@ -306,6 +306,10 @@ def _from_sdf(model: RobotModel) -> bool:
     return source is not None and (source.suffix.lower() in (".sdf", ".world") or source.is_dir())
 
 
+def _from_mjcf(model: RobotModel) -> bool:
+    return model.source is not None and model.source.suffix.lower() in (".xml", ".mjcf")
+
+
 def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
     actuated = {j.name for j in ctx.model.actuated_joints}
     sdf = _from_sdf(ctx.model)
@@ -323,12 +327,12 @@ def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
                               "negative limit as 'unlimited', ros_control clamps every command to "
                               "it (the motor then does nothing or the wrong thing); set the "
                               "motor's peak torque in N m", joint.line)
-            if lim.velocity <= 0:
+            if lim.velocity <= 0 and not _from_mjcf(ctx.model):  # MJCF has no velocity limit
                 yield Finding("velocity-limit", "error", element,
                               f"velocity limit {lim.velocity:g} on an actuated joint: a simulator "
                               "either ignores it or holds the joint still; set the motor's top "
                               "speed in rad/s", joint.line)
-        elif joint.moving and lim is not None:
+        elif joint.moving and lim is not None and not _from_mjcf(ctx.model):  # MJCF: no limits
             yield from _passive_limits(joint, element, sdf)
         stated = [joint.dynamics, ctx.model.gazebo_joints.get(joint.name, joint.dynamics)]
         for dyn in dict.fromkeys(stated):
