@@ -21,7 +21,7 @@ from mexone.description.model import Mesh, RobotModel
 
 __all__ = ["TRIANGLE_BUDGET", "display_budgets", "display_mesh", "cache_dir"]
 
-TRIANGLE_BUDGET = 120_000  # per robot: ~5 MB to the page, drawn within a second or two
+TRIANGLE_BUDGET = 80_000  # per robot: ~3 MB to the page, first frame within a second or two
 _MIN_FACES = 200  # no mesh is cut below this (a small part keeps its shape)
 _log = logging.getLogger("mexone.gui")
 

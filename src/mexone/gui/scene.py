@@ -28,6 +28,7 @@ _INERTIA_RGB = (150, 60, 200)
 _JOINT_RGB = (250, 220, 0)
 _CONTACT_RGB = (230, 30, 30)
 _MAX_CONTACTS = 64
+SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
 def _trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | None] | None = None):
@@ -81,8 +82,8 @@ class RobotScene:
         scene.set_up_direction("+z")
         scene.add_grid("/ground", width=20, height=20, cell_size=0.25, section_size=1.0,
                        plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
-        scene.add_light_directional("/sun", color=(255, 250, 240), intensity=2.0, cast_shadow=True,
-                                    wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
+        # the world's sun casts the one shadow (viser's default lights would add a second pass)
+        scene.configure_default_lights(cast_shadow=False)
         scene.add_light_ambient("/ambient", intensity=0.6)
         # sent before the meshes and hidden after them, so every page shows it while they arrive
         loading = self.server.gui.add_markdown("**Loading the robot…**")
@@ -118,6 +119,11 @@ class RobotScene:
                     visible=False))
         self.overlays["Contacts"].append(scene.add_line_segments(
             "/contacts", np.zeros((1, 2, 3)), _CONTACT_RGB, thickness=0.006, visible=False))
+        # a shadow pass draws every triangle again: a browser without a GPU draws a big robot's
+        # first frame in seconds with it, so only a light robot casts a shadow
+        scene.add_light_directional("/sun", color=(255, 250, 240), intensity=2.0,
+                                    cast_shadow=self.triangles <= SHADOW_TRIANGLES,
+                                    wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
         loading.visible = False
         self.update()
 
