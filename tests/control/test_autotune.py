@@ -157,3 +157,29 @@ def test_the_yaml_says_how_each_gain_was_derived(humanoid):
     assert len(blocks) == 25
     for block in blocks:
         assert "bandwidth w =" in block and "p = I w^2 =" in block and "pid: {p:" in block
+
+
+def test_run_warns_when_a_routine_commands_a_topic_nobody_hears(humanoid, tmp_path):
+    """The seed's routine names /mex_rb/...; this robot's controllers listen on /biped/...:
+    'mexone run' says so and lists the topics that would move it, instead of a silent 0."""
+    routine = tmp_path / "wave.py"
+    routine.write_text(
+        "from mexone import rospy\nfrom mexone.msgs import Float64\nrospy.init_node('wave')\n"
+        "pubs = [rospy.Publisher(t, Float64, queue_size=1) for t in\n"
+        "        ('/mex_rb/l_elbow_position_controller/command',\n"
+        "         '/biped/r_elbow_position_controller/command')]\n"
+        "rate = rospy.Rate(10)\nfor _ in range(5):\n"
+        "    for pub in pubs:\n        pub.publish(Float64(-0.4))\n    rate.sleep()\n")
+    args = ("run", routine, "--model", humanoid, "--controllers", "auto", "--duration", "1")
+    out = mexone(*args, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr
+    warnings = [line for line in out.stdout.splitlines() if "has no subscriber" in line]
+    assert len(warnings) == 1  # once, and not for the topic that is heard
+    assert warnings[0].startswith("[WARN] [0.000]: /mex_rb/l_elbow_position_controller/command")
+    assert "command topics are: /biped/waist_yaw_position_controller/command, " in warnings[0]
+    assert warnings[0].count("_position_controller/command") == 26
+    quiet = mexone(*args, "--json", cwd=tmp_path)
+    report = __import__("json").loads(quiet.stdout)
+    assert report["notices"] == [warnings[0].split(": ", 1)[1]]
+    assert quiet.stderr.startswith("mexone: warning: /mex_rb/l_elbow_position_controller/command")
+    assert report["joints"]["r_elbow"]["max_error"] > 0.1  # the heard one moved its joint

@@ -105,6 +105,58 @@ def test_ros_package_path_wins_over_the_folders_above(tmp_path, monkeypatch):
     assert find_package("biped_description", near) == tmp_path / "a" / "biped_description"
 
 
+def _xacro_package(folder: Path, name: str) -> None:
+    """A ROS package in `folder` named `name` (package.xml), with a xacro macro and a mesh."""
+    import trimesh
+
+    (folder / "urdf").mkdir(parents=True)
+    (folder / "meshes").mkdir()
+    (folder / "package.xml").write_text(f"<package format='2'><name>{name}</name></package>")
+    trimesh.creation.box(extents=(0.1, 0.2, 0.3)).export(folder / "meshes" / "part.stl")
+    (folder / "urdf" / "parts.xacro").write_text(
+        '<robot xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:macro name="part" '
+        'params="n"><link name="${n}"><inertial><mass value="1"/><inertia ixx="0.01" ixy="0" '
+        'ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial><visual><geometry><mesh filename='
+        f'"package://{name}/meshes/part.stl"/></geometry></visual></link></xacro:macro></robot>')
+
+
+def _robot_including(name: str) -> str:
+    return ('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+            f'<xacro:include filename="$(find {name})/urdf/parts.xacro"/><xacro:part n="a"/>'
+            '</robot>')
+
+
+def test_xacro_find_walks_up_to_the_package_xml_that_names_the_package(tmp_path):
+    """A ROS 1 checkout: the folder is 'op3_description-master', its package.xml says
+    'op3_description'; $(find op3_description) and package://op3_description find it."""
+    root = tmp_path / "op3_description-master"
+    _xacro_package(root, "op3_description")
+    robot_file = root / "urdf" / "robot.urdf.xacro"
+    robot_file.write_text(_robot_including("op3_description"))
+    out = mexone("check", robot_file, cwd=tmp_path)
+    assert out.returncode == 0, out.stdout + out.stderr
+    robot = load_model(robot_file)
+    assert robot.links["a"].visuals[0].geometry.filename == "package://op3_description/meshes/part.stl"
+    assert compile_model(robot).model.mesh_vertnum.sum() == 8  # the box, found by package://
+
+
+def test_xacro_find_uses_ros_package_path(tmp_path):
+    """The robot's file outside any package; its parts in a workspace on ROS_PACKAGE_PATH."""
+    _xacro_package(tmp_path / "ws" / "src" / "deep" / "parts_pkg", "biped_parts")
+    robot_file = tmp_path / "elsewhere" / "robot.urdf.xacro"
+    robot_file.parent.mkdir()
+    robot_file.write_text(_robot_including("biped_parts"))
+    out = mexone("check", robot_file, cwd=tmp_path)
+    assert out.returncode == 2 and "cannot find package 'biped_parts'" in out.stderr
+    assert "ROS_PACKAGE_PATH (not set)" in out.stderr and out.stderr.count("\n") == 1
+    out = mexone("check", robot_file, cwd=tmp_path,
+                 env={"ROS_PACKAGE_PATH": str(tmp_path / "ws" / "src")})
+    assert out.returncode == 0, out.stdout + out.stderr
+    out = mexone("sim", robot_file, "--headless", "--duration", "0.1", "--no-controllers",
+                 cwd=tmp_path, env={"ROS_PACKAGE_PATH": str(tmp_path / "ws" / "src")})
+    assert out.returncode == 0, out.stdout + out.stderr
+
+
 # ----- check that people trust on real robots ---------------------------------------------------
 def _check(path: Path, *args) -> tuple[int, list[dict]]:
     import json

@@ -78,8 +78,12 @@ def run(args: argparse.Namespace) -> int:
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "base_height": round(height, 6), "tilt": round(tilt, 6),
         "error": runner.error or diverged,
+        "notices": runner.notices,
         "joints": {name: m.as_json() for name, m in sorted(metrics.items())},
     }
+    if not echo:  # echoed with the routine's log otherwise
+        for notice in runner.notices:
+            print(f"mexone: warning: {notice}", file=sys.stderr)
     if args.json:
         print(json.dumps(report, indent=2))
     else:
