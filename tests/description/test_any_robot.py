@@ -157,6 +157,29 @@ def test_xacro_find_uses_ros_package_path(tmp_path):
     assert out.returncode == 0, out.stdout + out.stderr
 
 
+def test_findings_on_a_xacro_robot_carry_no_line_of_the_expanded_document(tmp_path):
+    """xacro's output has other lines than its source: a finding names the element, not a line
+    that points somewhere else in the .xacro."""
+    import json
+
+    root = tmp_path / "op3_description"
+    _xacro_package(root, "op3_description")
+    robot_file = root / "urdf" / "robot.urdf.xacro"
+    robot_file.write_text(_robot_including("op3_description").replace(
+        "</robot>", '<link name="b"><visual><geometry><mesh filename="package://op3_description'
+                    '/meshes/gone.stl"/></geometry></visual></link><joint name="j" type="fixed">'
+                    '<parent link="a"/><child link="b"/></joint></robot>'))
+    out = mexone("check", robot_file, cwd=tmp_path)
+    assert out.returncode == 1
+    missing = [line for line in out.stdout.splitlines() if "[mesh-missing]" in line]
+    assert missing == ['  error: link "b": visual mesh file '
+                       f"'{root / 'meshes' / 'gone.stl'}' does not exist (check the filename and "
+                       "path) [mesh-missing]"]
+    out = mexone("check", robot_file, "--json", cwd=tmp_path)
+    finding = next(f for f in json.loads(out.stdout)["findings"] if f["code"] == "mesh-missing")
+    assert finding["line"] is None and finding["file"] == str(robot_file)
+
+
 # ----- check that people trust on real robots ---------------------------------------------------
 def _check(path: Path, *args) -> tuple[int, list[dict]]:
     import json
