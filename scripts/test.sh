@@ -12,7 +12,8 @@ command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's bro
 # ROS 1 from Debian: the real roscore, rostopic, robot_state_publisher, rospy and tf2 to test against
 ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher python3-std-msgs
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
-              python3-tf2-ros python3-trajectory-msgs python3-geometry-msgs)
+              python3-tf2-ros python3-trajectory-msgs python3-geometry-msgs
+              python3-tf2-sensor-msgs python3-tf2-geometry-msgs)
 dpkg -s "${ros_packages[@]}" >/dev/null 2>&1 || apt_packages+=("${ros_packages[@]}")
 # offscreen rendering for `mexone render`: EGL with Mesa's software driver
 dpkg -s libegl1 libgl1-mesa-dri >/dev/null 2>&1 || apt_packages+=(libegl1 libgl1-mesa-dri)

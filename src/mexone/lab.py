@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,10 +19,11 @@ from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
-from mexone.physics.compile import CompileOptions, Spawn
+from mexone.physics.compile import CompileOptions, Spawn, SpecEdit
 from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
 from mexone.robots import mex_one
+from mexone.sensors import SensorSuite, build_sensors
 
 __all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab", "AUTO", "no_controllers_note"]
 
@@ -50,6 +52,7 @@ class Lab:
     bus: Bus
     controllers: ControllerManager | None
     namespace: str
+    sensors: SensorSuite
     _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
     no_controllers: str | None = None  # why no controller drives the robot, for the GUI and CLI
 
@@ -58,11 +61,13 @@ class Lab:
                controllers: ControlConfig | Path | str | bool | None = None,
                world: World | None = None, spawn: Spawn = Spawn(),
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
-               control_period: float | None = None, namespace: str | None = None) -> Lab:
+               control_period: float | None = None, namespace: str | None = None,
+               edits: Sequence[SpecEdit] = ()) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
         for other robots); False: no controllers; "auto": a position controller per moving joint
         with gains from the robot's physics (control/autotune.py); a path or ControlConfig: that
-        one."""
+        one. `edits` change the MuJoCo spec before it compiles (props in the world for an
+        experiment)."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
         asked = controllers
@@ -78,7 +83,7 @@ class Lab:
         elif controllers is not False:
             config = controllers if isinstance(controllers, ControlConfig) \
                 else load_control_config(controllers)
-        edits = [build_actuators] if config is not None else []
+        edits = [build_sensors, *([build_actuators] if config is not None else []), *edits]
         sim = Simulation(robot, world, spawn, options, target_rtf, edits)
         bus = Bus()
         ns = robot_namespace(robot, config, namespace)
@@ -86,7 +91,7 @@ class Lab:
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_all()
-        lab = cls(sim, bus, manager, ns)
+        lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
         if manager is None:
             lab.no_controllers = no_controllers_note(robot, asked)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
