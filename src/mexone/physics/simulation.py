@@ -178,6 +178,7 @@ class Simulation:
         self._pace_origin: tuple[float, float] | None = None
         self._since_watch = 0
         self._time_ns = 0
+        self._resets = 0
         self._step_ns = round(self.model.opt.timestep * NS)
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
@@ -345,10 +346,11 @@ class Simulation:
     def reset(self) -> None:
         """Back to the spawn pose with every joint at 0 (home) or its initial position (-J), sim
         time 0; timers restart from there and reset hooks run (controllers hold that pose)."""
-        if self.compiled.spawn_key is None:
+        if self.compiled.spawn_key is None:  # pushes (xfrc_applied) end too
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
+        self._resets += 1
         self._efforts[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         self._time_ns = 0
@@ -425,6 +427,31 @@ class Simulation:
         if body is None:
             raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
         return self.data.xpos[body].copy(), self.data.xquat[body].copy()
+
+    def apply_wrench(self, link: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0),
+                     point: Sequence[float] | None = None, duration: float = 0.1) -> None:
+        """Push `link` with a world-frame `force` (N) acting at the world `point` (default: its
+        centre of mass) plus `torque` (N m), for `duration` s of sim time; pushes add up and a
+        reset ends them. Simulation thread only (Gazebo's apply_body_wrench, the GUI's push)."""
+        body = self.compiled.bodies.get(link)
+        if body is None:
+            raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
+        at = self.data.xipos[body] if point is None else np.asarray(point, dtype=float)
+        wrench = np.r_[np.asarray(force, dtype=float), np.asarray(torque, dtype=float)]
+        if wrench.shape != (6,) or at.shape != (3,) or not np.isfinite(np.r_[wrench, at]).all():
+            raise InputError(f"push on '{link}': force, torque and point must be 3 finite numbers each")
+        if not (duration > 0 and math.isfinite(duration)):
+            raise InputError(f"push on '{link}': duration {duration} must be a finite number > 0 s")
+        wrench[3:] += np.cross(at - self.data.xipos[body], wrench[:3])  # moved to the COM
+        self.data.xfrc_applied[body] += wrench
+        start = self._resets
+
+        def release(sim: Simulation) -> None:
+            if sim._resets == start:  # a reset zeroed xfrc_applied already
+                sim.data.xfrc_applied[body] -= wrench
+            sim.remove_periodic(timer)
+
+        timer = self.add_periodic(duration, release)
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
