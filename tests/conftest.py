@@ -68,3 +68,115 @@ def write_turntable(folder: Path, reduction=1.0, effort=50.0, damping=0.0) -> Pa
 def turntable():
     """(write_turntable, its inertia about the pivot), for the controller and sweep tests."""
     return write_turntable, TURNTABLE_INERTIA
+
+
+# ----- a humanoid of our own, laid out as a ROS package (no transmissions) ----------------------
+def _box_inertia(m: float, x: float, y: float, z: float) -> str:
+    return (f'ixx="{m * (y * y + z * z) / 12:.6g}" ixy="0" ixz="0" iyy="{m * (x * x + z * z) / 12:.6g}" '
+            f'iyz="0" izz="{m * (x * x + y * y) / 12:.6g}"')
+
+
+def humanoid_urdf(name: str = "biped", mesh: str | None = None) -> str:
+    """A 25-joint, 52 kg humanoid of boxes (a Unitree look-alike): legs of 6 joints, arms of 5,
+    waist, neck yaw and pitch; no <transmission>; a massless imu_link on a fixed joint with a
+    zero axis, robot-level named materials and a Gazebo material name. `mesh`: the pelvis's
+    visual is that mesh file (package:// or relative) instead of a box."""
+    parts = [f'<robot name="{name}">',
+             '<material name="dark"><color rgba="0.2 0.2 0.2 1"/></material>',
+             '<material name="white"><color rgba="0.9 0.9 0.9 1"/></material>']
+
+    def link(lname: str, m: float, size: tuple, centre=(0, 0, 0), material="dark",
+             collide=False, visual=None) -> None:
+        c = " ".join(f"{v:g}" for v in centre)
+        s = " ".join(f"{v:g}" for v in size)
+        geometry = visual or f'<box size="{s}"/>'
+        parts.append(
+            f'<link name="{lname}"><inertial><origin xyz="{c}"/><mass value="{m}"/>'
+            f'<inertia {_box_inertia(m, *size)}/></inertial>'
+            f'<visual><origin xyz="{c}"/><geometry>{geometry}</geometry><material name="{material}"/>'
+            '</visual>'
+            + (f'<collision><origin xyz="{c}"/><geometry><box size="{s}"/></geometry></collision>'
+               if collide else "") + '</link>')
+
+    def joint(jname: str, parent: str, child: str, xyz, axis, lower, upper, effort) -> None:
+        parts.append(
+            f'<joint name="{jname}" type="revolute"><parent link="{parent}"/><child link="{child}"/>'
+            f'<origin xyz="{" ".join(f"{v:g}" for v in xyz)}"/><axis xyz="{axis}"/>'
+            f'<limit lower="{lower}" upper="{upper}" effort="{effort}" velocity="10"/>'
+            '<dynamics damping="0.5" friction="0.1"/></joint>')
+
+    pelvis_visual = f'<mesh filename="{mesh}"/>' if mesh else None
+    link("pelvis", 8.0, (0.2, 0.25, 0.12), material="white", collide=True, visual=pelvis_visual)
+    link("torso", 12.0, (0.2, 0.3, 0.4), (0, 0, 0.2), "white", collide=True)
+    joint("waist_yaw", "pelvis", "torso", (0, 0, 0.06), "0 0 1", -1.5, 1.5, 80)
+    link("neck", 0.5, (0.05, 0.05, 0.05))
+    joint("neck_yaw", "torso", "neck", (0, 0, 0.42), "0 0 1", -1.5, 1.5, 10)
+    link("head", 3.0, (0.16, 0.16, 0.18), (0, 0, 0.1), "white")
+    joint("neck_pitch", "neck", "head", (0, 0, 0.03), "0 1 0", -0.8, 0.8, 10)
+    parts.append('<link name="imu_link"/><joint name="imu_joint" type="fixed"><parent link="torso"/>'
+                 '<child link="imu_link"/><origin xyz="0 0 0.1"/><axis xyz="0 0 0"/></joint>')
+    parts.append('<gazebo reference="head"><material>Gazebo/Orange</material></gazebo>')
+    for side, y in (("l", 1), ("r", -1)):
+        link(f"{side}_shoulder", 0.5, (0.06, 0.06, 0.06))
+        joint(f"{side}_shoulder_pitch", "torso", f"{side}_shoulder", (0, 0.18 * y, 0.36), "0 1 0",
+              -3, 3, 40)
+        link(f"{side}_shoulder_roll_link", 0.5, (0.06, 0.06, 0.06))
+        joint(f"{side}_shoulder_roll", f"{side}_shoulder", f"{side}_shoulder_roll_link",
+              (0, 0.04 * y, 0), "1 0 0", -1.5, 1.5, 40)
+        link(f"{side}_upper_arm", 1.5, (0.07, 0.07, 0.25), (0, 0, -0.125))
+        joint(f"{side}_shoulder_yaw", f"{side}_shoulder_roll_link", f"{side}_upper_arm", (0, 0, -0.03),
+              "0 0 1", -1.5, 1.5, 20)
+        link(f"{side}_forearm", 1.0, (0.06, 0.06, 0.22), (0, 0, -0.11))
+        joint(f"{side}_elbow", f"{side}_upper_arm", f"{side}_forearm", (0, 0, -0.25), "0 1 0",
+              -2.5, 0, 30)
+        link(f"{side}_hand", 0.4, (0.05, 0.08, 0.1), (0, 0, -0.05))
+        joint(f"{side}_wrist", f"{side}_forearm", f"{side}_hand", (0, 0, -0.22), "0 0 1", -1.5, 1.5, 5)
+        link(f"{side}_hip_yaw_link", 1.0, (0.08, 0.08, 0.06))
+        joint(f"{side}_hip_yaw", "pelvis", f"{side}_hip_yaw_link", (0, 0.1 * y, -0.08), "0 0 1",
+              -0.8, 0.8, 100)
+        link(f"{side}_hip_roll_link", 1.0, (0.08, 0.08, 0.06))
+        joint(f"{side}_hip_roll", f"{side}_hip_yaw_link", f"{side}_hip_roll_link", (0, 0, -0.06),
+              "1 0 0", -0.5, 0.5, 150)
+        link(f"{side}_thigh", 4.0, (0.1, 0.1, 0.35), (0, 0, -0.175))
+        joint(f"{side}_hip_pitch", f"{side}_hip_roll_link", f"{side}_thigh", (0, 0, -0.03), "0 1 0",
+              -2.0, 1.0, 150)
+        link(f"{side}_shank", 3.0, (0.08, 0.08, 0.35), (0, 0, -0.175))
+        joint(f"{side}_knee", f"{side}_thigh", f"{side}_shank", (0, 0, -0.35), "0 1 0", 0, 2.5, 150)
+        link(f"{side}_ankle_link", 0.5, (0.05, 0.05, 0.04))
+        joint(f"{side}_ankle_pitch", f"{side}_shank", f"{side}_ankle_link", (0, 0, -0.35), "0 1 0",
+              -0.8, 0.8, 80)
+        link(f"{side}_foot", 1.2, (0.24, 0.1, 0.04), (0.03, 0, -0.04), collide=True)
+        joint(f"{side}_ankle_roll", f"{side}_ankle_link", f"{side}_foot", (0, 0, -0.02), "1 0 0",
+              -0.4, 0.4, 60)
+    parts.append("</robot>")
+    return "\n".join(parts)
+
+
+def write_humanoid_package(root: Path, name: str = "biped_description", mesh: bool = False) -> Path:
+    """A ROS package root/name with package.xml, urdf/biped.urdf (and meshes/pelvis.stl if
+    `mesh`, named package://name/meshes/pelvis.stl); returns the URDF's path."""
+    folder = root / name
+    (folder / "urdf").mkdir(parents=True)
+    (folder / "package.xml").write_text(f"<package format='2'><name>{name}</name></package>")
+    uri = None
+    if mesh:
+        import trimesh
+
+        (folder / "meshes").mkdir()
+        trimesh.creation.box(extents=(0.2, 0.25, 0.12)).export(folder / "meshes" / "pelvis.stl")
+        uri = f"package://{name}/meshes/pelvis.stl"
+    path = folder / "urdf" / "biped.urdf"
+    path.write_text(humanoid_urdf(mesh=uri))
+    return path
+
+
+@pytest.fixture()
+def humanoid(tmp_path) -> Path:
+    """The humanoid's URDF inside its own ROS package in tmp_path/ws/src."""
+    return write_humanoid_package(tmp_path / "ws" / "src")
+
+
+@pytest.fixture()
+def humanoid_with_mesh(tmp_path) -> Path:
+    """The same, its pelvis drawn by meshes/pelvis.stl named package://biped_description/..."""
+    return write_humanoid_package(tmp_path / "ws" / "src", mesh=True)

@@ -13,6 +13,7 @@ import numpy as np
 
 from mexone.bus.msgs import Clock, Header, TFMessage, Time, TransformStamped
 from mexone.bus.topics import Bus
+from mexone.control.autotune import auto_config, with_transmissions
 from mexone.control.config import ControlConfig, load_control_config
 from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
@@ -24,7 +25,7 @@ from mexone.physics.world import World, default_world
 from mexone.robots import mex_one
 from mexone.sensors import SensorSuite, build_sensors
 
-__all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab"]
+__all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab", "AUTO", "no_controllers_note"]
 
 
 def _conjugate(q: np.ndarray) -> np.ndarray:
@@ -53,6 +54,7 @@ class Lab:
     namespace: str
     sensors: SensorSuite
     _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
+    no_controllers: str | None = None  # why no controller drives the robot, for the GUI and CLI
 
     @classmethod
     def create(cls, model: RobotModel | Path | str | None = None,
@@ -62,18 +64,27 @@ class Lab:
                control_period: float | None = None, namespace: str | None = None,
                edits: Sequence[SpecEdit] = ()) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
-        for other robots); False: no controllers; a path or ControlConfig: that one. `edits`
-        change the MuJoCo spec before it compiles (props in the world for an experiment)."""
+        for other robots); False: no controllers; "auto": a position controller per moving joint
+        with gains from the robot's physics (control/autotune.py); a path or ControlConfig: that
+        one. `edits` change the MuJoCo spec before it compiles (props in the world for an
+        experiment)."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
+        asked = controllers
         if controllers is None:
             controllers = mex_one.controllers_path() if builtin else False
+        world = world or default_world()
         config = None
-        if controllers is not False:
+        if controllers == AUTO:
+            robot = with_transmissions(robot)
+            config = auto_config(robot, world.step, dict(spawn.joints),
+                                 floating=not (robot.fixed_to_world or options.fixed_base),
+                                 namespace=robot_namespace(robot, None, namespace).strip("/"))
+        elif controllers is not False:
             config = controllers if isinstance(controllers, ControlConfig) \
                 else load_control_config(controllers)
         edits = [build_sensors, *([build_actuators] if config is not None else []), *edits]
-        sim = Simulation(robot, world or default_world(), spawn, options, target_rtf, edits)
+        sim = Simulation(robot, world, spawn, options, target_rtf, edits)
         bus = Bus()
         ns = robot_namespace(robot, config, namespace)
         manager = None
@@ -81,6 +92,8 @@ class Lab:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_all()
         lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
+        if manager is None:
+            lab.no_controllers = no_controllers_note(robot, asked)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab
@@ -122,6 +135,21 @@ class Lab:
             out.append(TransformStamped(Header(0, stamp, joint.parent), joint.child,
                                         tuple(pos), tuple(quat)))
         return out
+
+
+AUTO = "auto"  # Lab.create(controllers=AUTO): controllers with gains from the robot's physics
+
+
+def no_controllers_note(robot: RobotModel, asked) -> str:
+    """One line on why nothing drives the robot and what to do about it."""
+    if asked is False:
+        return "No controllers (--no-controllers): the joints are free."
+    if not robot.transmissions:
+        return (f"'{robot.name}' has no <transmission>, so no controllers drive it and it goes "
+                "limp: run with --controllers auto (gains from its physics), or write a YAML with "
+                "'mexone controllers'")
+    return (f"'{robot.name}' has {len(robot.transmissions)} <transmission>s but no controller YAML "
+            "was given: run with --controllers YAML or --controllers auto")
 
 
 @functools.lru_cache(maxsize=4)

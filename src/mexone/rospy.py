@@ -162,8 +162,10 @@ class Publisher:
             manager = ctx.lab.controllers
             topics = [manager.topic(c.name) for c in manager.controllers.values()
                       if c.running and c.kind != "state"] if manager else []
-            ctx.log("WARN", f"{self.name} has no subscriber; this robot's command topics are: "
-                            + (", ".join(topics) or "none"))
+            notice = (f"{self.name} has no subscriber; this robot's command topics are: "
+                      + (", ".join(topics) or "none"))
+            ctx.notices.append(notice)
+            ctx.log("WARN", notice)
         self._bus.publish(self.name, msg)
 
     def get_num_connections(self) -> int:

@@ -174,7 +174,21 @@ def test_mex_one_urdf_sdf_urdf_is_the_same_robot(tmp_path):
     sdf = convert(mex_one.urdf_path(), tmp_path / "mex.sdf")
     again = load_model(convert(sdf, tmp_path / "mex.urdf"))
     original = load_model(mex_one.urdf_path())
+    # SDF has no massless link: the Kinect's optical frames fold into its link, as sdformat
+    # lumps them (the camera still names its frame_id), and the robot weighs what it weighed
+    from mexone.description.convert import merge_massless
+
+    urdf = original
+    original, merged = merge_massless(original)
+    assert sorted(merged) == ["kinect_depth_optical_frame", "kinect_link", "kinect_rgb_optical_frame"]
     assert list(again.links) == list(original.links)
+    assert again.mass == pytest.approx(urdf.mass, abs=1e-9)
+    # the Kinect (on the massless kinect_link) is now on the head, in the same place
+    before = next(s for s in urdf.sensors if s.name == "kinect")
+    after = next(s for s in again.sensors if s.name == "kinect")
+    assert (after.link, after.frame) == ("head", "kinect_depth_optical_frame")
+    np.testing.assert_allclose(again.link_frames["head"] @ after.pose.matrix,
+                               urdf.link_frames["kinect_link"] @ before.pose.matrix, atol=1e-9)
     for name, frame in original.link_frames.items():
         np.testing.assert_allclose(again.link_frames[name], frame, atol=1e-12, err_msg=name)
     for name, joint in original.joints.items():

@@ -14,6 +14,7 @@ from lxml import etree
 
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
+from mexone.lab import Lab
 from mexone.physics import CompileOptions, DivergenceError, Simulation, Spawn
 from mexone.physics.monitor import RunMonitor
 from mexone.robots import mex_one
@@ -167,18 +168,22 @@ def test_any_urdf_floating_quadruped_with_package_meshes():
 def test_mjcf_export_is_the_simulated_robot(tmp_path):
     xml = tmp_path / "mex.xml"
     out = subprocess.run([sys.executable, "-m", "mexone", "convert", str(mex_one.urdf_path()),
-                          "-o", str(xml)], capture_output=True, text=True)
+                          "-o", str(xml), "--controllers", str(mex_one.controllers_path())],
+                         capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
     plain = mujoco.MjModel.from_xml_path(str(xml))
     data = mujoco.MjData(plain)
-    sim = Simulation(mex_one.urdf_path())
+    sim = Lab.create().sim  # with its controllers: the export carries their actuators and gains
+    assert plain.nu == sim.model.nu > 0
     assert (plain.nbody, plain.njnt, plain.nu, plain.npair) == \
         (sim.model.nbody, sim.model.njnt, sim.model.nu, sim.model.npair)
     for field in ("body_mass", "body_inertia", "body_pos", "body_ipos", "jnt_range",
                   "dof_damping", "dof_frictionloss", "geom_size", "geom_friction", "pair_friction",
-                  "pair_solref", "actuator_gear", "actuator_forcerange"):
+                  "pair_solref", "actuator_gear", "actuator_forcerange", "actuator_biasprm"):
         np.testing.assert_allclose(getattr(plain, field), getattr(sim.model, field), rtol=1e-5,
                                    atol=1e-12, err_msg=field)
+    live = sim.model.actuator_gainprm[:, 0] > 0  # integral terms that act (the rest: clamped to 0)
+    np.testing.assert_allclose(plain.actuator_gainprm[live], sim.model.actuator_gainprm[live])
     assert (plain.opt.timestep, plain.opt.cone, plain.opt.impratio, plain.opt.integrator) == \
         (sim.model.opt.timestep, sim.model.opt.cone, sim.model.opt.impratio, sim.model.opt.integrator)
     # the feet touch the ground exactly, and the XML prints 6 digits: start both 1 cm up

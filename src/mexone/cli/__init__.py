@@ -39,7 +39,19 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from mexone.cli import bench, check, convert, identify, plot, record, render, run, sim, sweep
+    from mexone.cli import (
+        bench,
+        check,
+        controllers,
+        convert,
+        identify,
+        plot,
+        record,
+        render,
+        run,
+        sim,
+        sweep,
+    )
 
     parser = _Parser(
         prog="mexone",
@@ -48,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, run, record, plot, render, sweep, identify, check, convert, bench):
+    for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
+                   bench):
         module.add_parser(sub)
     return parser
 

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 from pathlib import Path
 
 from mexone.cli import add_input_limit_option
 from mexone.control.config import load_control_config
 from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree, summary
-from mexone.description.loader import load_model
+from mexone.description.loader import load_model, model_format
 from mexone.robots import mex_one
 
 HELP = """\
@@ -55,6 +56,8 @@ def run(args: argparse.Namespace) -> int:
     findings = check_model(model)
     if controllers:  # the controller rules live in the control layer, above the model's
         findings += lint_controllers(model, load_control_config(controllers))
+    if model_format(path) == "xacro":  # a line of the expanded document is nowhere in the source
+        findings = [f if f.file else replace(f, line=None) for f in findings]
     failing = [f for f in findings if f.severity != "info"]
     if args.json:
         print(json.dumps(summary(model, findings), indent=2))

@@ -11,15 +11,19 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import yaml
+
+from mexone import yamlio
 from mexone.cli import add_input_limit_option
 from mexone.errors import InputError
-from mexone.lab import Lab
+from mexone.inputs import read_input_text
+from mexone.lab import AUTO, Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
 
 __all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
            "add_record_options", "positive", "Number", "DURATION", "host", "check_can_serve",
-           "folder"]
+           "folder", "controllers_arg", "joint_pose_from_args", "add_joint_pose_options"]
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,7 @@ class Number:
 positive = Number(0.0, low_open=True)  # rates, frames per second
 DURATION = Number(1e-3, 1e9, hint="s of sim time")  # from one 1 ms step to "until Ctrl-C"
 POSITION = Number(-1e4, 1e4, hint="metres")
+JOINT_VALUE = Number(-1e4, 1e4, hint="radians or metres")
 ANGLE = Number(-6.3, 6.3, hint="radians, within +-2 pi (1.5708 is 90 degrees)")
 RTF = Number(0.0, hint="0 runs as fast as possible")
 PORT = Number(0, 65535, integer=True, hint="0 picks a free port")
@@ -134,8 +139,10 @@ def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False
     if not model_positional:
         p.add_argument("--model", type=Path,
                        help="URDF, .urdf.xacro or SDF robot (default: the built-in Mex-One)")
-    p.add_argument("--controllers", type=Path, metavar="YAML",
-                   help="ros_control controller YAML (default: the built-in robot's own)")
+    p.add_argument("--controllers", type=controllers_arg, metavar="YAML|auto",
+                   help="ros_control controller YAML (default: the built-in robot's own), or "
+                        "'auto': a position controller on every moving joint, gains from the "
+                        "robot's physics (see 'mexone controllers')")
     p.add_argument("--no-controllers", action="store_true",
                    help="no controllers: the joints are free (the seed's fall test)")
     p.add_argument("--world", type=Path, help="SDF .world file (default: ground plane, sun, 1 ms)")
@@ -149,6 +156,52 @@ def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False
     for flag, name, kind in (("-x", "x", POSITION), ("-y", "y", POSITION), ("-z", "z", POSITION),
                              ("-R", "roll", ANGLE), ("-P", "pitch", ANGLE), ("-Y", "yaw", ANGLE)):
         pose.add_argument(flag, dest=name, type=kind, default=0.0, metavar=name.upper())
+    add_joint_pose_options(pose)
+
+
+def add_joint_pose_options(p) -> None:
+    """-J JOINT VALUE (spawn_model's) and --pose YAML: initial joint positions."""
+    p.add_argument("-J", dest="joint_positions", nargs=2, action="append", default=[],
+                   metavar=("JOINT", "VALUE"),
+                   help="initial position of a joint (rad or m; repeatable), held by the "
+                        "controllers from t = 0")
+    p.add_argument("--pose", type=Path, metavar="YAML",
+                   help="initial joint positions from a YAML mapping 'joint: value' (-J wins)")
+
+
+def controllers_arg(text: str) -> Path | str:
+    """argparse type of --controllers: the word auto, or a YAML file."""
+    return AUTO if text == AUTO else Path(text)
+
+
+def joint_pose_from_args(args: argparse.Namespace) -> tuple[tuple[str, float], ...]:
+    """--pose's positions, then -J's, checked as numbers here (names: when the robot compiles)."""
+    pose: dict[str, float] = {}
+    if getattr(args, "pose", None) is not None:
+        pose.update(read_pose(args.pose))
+    for name, text in getattr(args, "joint_positions", []):
+        try:
+            pose[name] = JOINT_VALUE(text)
+        except argparse.ArgumentTypeError as exc:
+            raise InputError(f"-J {name} {text}: {exc}") from None
+    return tuple(pose.items())
+
+
+def read_pose(path: Path) -> dict[str, float]:
+    """A YAML mapping joint -> position (rad or m), each value checked with its line."""
+    root = yamlio.compose(read_input_text(path), path)
+    if not isinstance(root, yaml.MappingNode):
+        raise InputError("a pose file must map joint names to positions", file=path,
+                         line=root.start_mark.line + 1 if root is not None else None,
+                         hint="e.g. 'l_knee: 0.4' on each line")
+    pose = {}
+    for key, node in root.value:
+        value = yamlio.construct(node)
+        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+            raise InputError(f"position of '{key.value}' is '{node.value}', not a finite number",
+                             file=path, line=node.start_mark.line + 1, hint="radians or metres")
+        pose[str(key.value)] = float(value)
+    return pose
 
 
 def options_from_args(args: argparse.Namespace) -> CompileOptions:
@@ -159,11 +212,15 @@ def options_from_args(args: argparse.Namespace) -> CompileOptions:
 def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None,
                   options: CompileOptions | None = None) -> Lab:
     controllers = False if args.no_controllers else args.controllers
-    return Lab.create(
+    lab = Lab.create(
         model=args.model,
         controllers=controllers,
         world=read_world(args.world) if args.world else default_world(),
-        spawn=Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw)),
+        spawn=Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw),
+                    joints=joint_pose_from_args(args)),
         options=options or options_from_args(args),
         target_rtf=target_rtf,
     )
+    if lab.controllers is None and not args.no_controllers:
+        print(f"mexone: {lab.no_controllers}", file=sys.stderr)
+    return lab

@@ -80,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "base_height": round(height, 6), "tilt": round(tilt, 6),
         "error": runner.error or diverged,
+        "notices": runner.notices,
         # where the base went (walking): along and across its starting heading, turn in degrees
         "distance_x": round(float(x * np.cos(start_pose[2]) + y * np.sin(start_pose[2])), 4),
         "drift_y": round(float(-x * np.sin(start_pose[2]) + y * np.cos(start_pose[2])), 4),
@@ -87,6 +88,9 @@ def run(args: argparse.Namespace) -> int:
         "speed": round(float(np.hypot(x, y) / sim.time), 4) if sim.time > 0 else 0.0,
         "joints": {name: m.as_json() for name, m in sorted(metrics.items())},
     }
+    if not echo:  # echoed with the routine's log otherwise
+        for notice in runner.notices:
+            print(f"mexone: warning: {notice}", file=sys.stderr)
     if args.json:
         print(json.dumps(report, indent=2))
     else:

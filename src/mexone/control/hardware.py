@@ -20,16 +20,19 @@ transmission's mechanicalReduction r is folded in here (actuator length = r q, t
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import mujoco
 import numpy as np
 
+from mexone.control.spec import PidGains
 from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "INTEGRAL_SUFFIX",
+__all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "bake_gains",
+           "INTEGRAL_SUFFIX",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
 INTEGRAL_SUFFIX = "/i"
@@ -73,6 +76,23 @@ def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
             mj_joint = spec.joint(joint.name)
             mj_joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_TRUE
             mj_joint.actfrcrange = (-effort, effort)
+
+
+def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotModel], None]:
+    """A SpecEdit after build_actuators: the controllers' gains written into the actuators, as
+    write() sets them at run time, so an exported MJCF holds its pose by itself (ctrl of the
+    motor: q_ref, v_ref, feed-forward effort; of the integral actuator: q_ref)."""
+
+    def edit(spec: mujoco.MjSpec, robot: RobotModel) -> None:
+        for joint, pid in gains.items():
+            motor, integral = spec.actuator(joint), spec.actuator(joint + INTEGRAL_SUFFIX)
+            r2 = motor.gear[0] ** 2
+            motor.biasprm = np.r_[0.0, -pid.p / r2, -pid.d / r2, np.zeros(7)]
+            if pid.integrates:  # else the I term stays clamped to nothing, as build_actuators left it
+                integral.gainprm = np.r_[pid.i, np.zeros(9)]
+                integral.forcerange = (pid.i_clamp_min, pid.i_clamp_max)
+
+    return edit
 
 
 @dataclass

@@ -31,6 +31,8 @@ _JOINT_FAR_MIN = 0.02  # m
 _JOINT_FAR_FRACTION = 0.2
 _MM_EXTENT = 5.0  # m: a robot part whose mesh spans more than this is written in millimetres
 _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled twice
+_TINY_FRACTION = 0.01  # of the robot's mass: a link this light cannot change how it moves
+_OVERLAP_ENOUGH = 0.5  # of the smaller box's volume: collision and visual share their place
 # Beyond these a value is a typo or a wrong unit, not a robot; `mexone sim` refuses them too
 MAX_LINK_MASS = 1e5  # kg: a 100 t link
 MAX_MOMENT = 1e6  # kg m^2: 100 t at 3 m
@@ -234,9 +236,20 @@ def _com_inside(ctx: _Context, link: Link) -> Iterator[Finding]:
         return
     com = np.asarray(link.inertial.origin.xyz)
     if not any(b.contains(com, _COM_TOL) for b in boxes):
-        yield Finding("com-outside", "error", _element("link", link.name),
-                      f"centre of mass ({', '.join(f'{v:.3f}' for v in com)}) m lies outside the "
-                      "link's geometry: check the <inertial> origin (seed Fig. 4.7)", link.line)
+        where = (f"centre of mass ({', '.join(f'{v:.3f}' for v in com)}) m lies outside the "
+                 "link's geometry")
+        if _tiny(ctx.model, link):  # a 1 g logo or sensor mount: harmless wherever its COM is
+            yield Finding("com-outside", "info", _element("link", link.name),
+                          f"{where}, but at {link.inertial.mass:.3g} kg (under "
+                          f"{_TINY_FRACTION:.0%} of the robot) it cannot matter", link.line)
+        else:
+            yield Finding("com-outside", "error", _element("link", link.name),
+                          f"{where}: check the <inertial> origin (seed Fig. 4.7)", link.line)
+
+
+def _tiny(model: RobotModel, link: Link) -> bool:
+    """A link too light to change how the robot moves (dummy links: logos, sensor mounts)."""
+    return link.inertial is not None and link.inertial.mass < _TINY_FRACTION * model.mass
 
 
 # ----- geometry placement rules ----------------------------------------------------------------
@@ -249,11 +262,23 @@ def _rule_collision_matches_visual(ctx: _Context) -> Iterator[Finding]:
         c_lo, c_hi = _aabb(collisions)
         offset = float(np.linalg.norm((v_lo + v_hi) / 2 - (c_lo + c_hi) / 2))
         allowed = max(_MISMATCH_MIN, _MISMATCH_FRACTION * float(np.linalg.norm(v_hi - v_lo)))
-        if offset > allowed:
+        # a pad inside its fingertip, or a box around a torso, shares the visual's place
+        if offset > allowed and _overlap(v_lo, v_hi, c_lo, c_hi) < _OVERLAP_ENOUGH:
             yield Finding("collision-misplaced", "warning", _element("link", name),
                           f"collision geometry is {offset:.3f} m from the visual geometry: the "
                           "robot will touch things where it looks empty (seed Fig. 4.6); check "
                           "the <collision> origin", ctx.model.links[name].line)
+
+
+def _overlap(a_lo, a_hi, b_lo, b_hi) -> float:
+    """Volume two boxes share, as a fraction of the smaller one (flat boxes count as 1 mm)."""
+    def volume(lo, hi):
+        return float(np.prod(np.maximum(hi - lo, 1e-3)))
+
+    shared_lo, shared_hi = np.maximum(a_lo, b_lo), np.minimum(a_hi, b_hi)
+    if np.any(shared_hi < shared_lo):
+        return 0.0
+    return volume(shared_lo, shared_hi) / min(volume(a_lo, a_hi), volume(b_lo, b_hi))
 
 
 def _rule_joint_placement(ctx: _Context) -> Iterator[Finding]:
@@ -281,6 +306,10 @@ def _from_sdf(model: RobotModel) -> bool:
     return source is not None and (source.suffix.lower() in (".sdf", ".world") or source.is_dir())
 
 
+def _from_mjcf(model: RobotModel) -> bool:
+    return model.source is not None and model.source.suffix.lower() in (".xml", ".mjcf")
+
+
 def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
     actuated = {j.name for j in ctx.model.actuated_joints}
     sdf = _from_sdf(ctx.model)
@@ -298,12 +327,12 @@ def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
                               "negative limit as 'unlimited', ros_control clamps every command to "
                               "it (the motor then does nothing or the wrong thing); set the "
                               "motor's peak torque in N m", joint.line)
-            if lim.velocity <= 0:
+            if lim.velocity <= 0 and not _from_mjcf(ctx.model):  # MJCF has no velocity limit
                 yield Finding("velocity-limit", "error", element,
                               f"velocity limit {lim.velocity:g} on an actuated joint: a simulator "
                               "either ignores it or holds the joint still; set the motor's top "
                               "speed in rad/s", joint.line)
-        elif joint.moving and lim is not None:
+        elif joint.moving and lim is not None and not _from_mjcf(ctx.model):  # MJCF: no limits
             yield from _passive_limits(joint, element, sdf)
         stated = [joint.dynamics, ctx.model.gazebo_joints.get(joint.name, joint.dynamics)]
         for dyn in dict.fromkeys(stated):
@@ -389,12 +418,13 @@ def _rule_names(ctx: _Context) -> Iterator[Finding]:
         yield Finding("name-capitals", "warning", f'robot "{model.name}"',
                       "robot names with capitals break ROS launch (seed 3.3.1); use lower case",
                       None)
-    for kind, table in (("link", model.links), ("joint", model.joints)):
-        for name, item in table.items():
-            if name != name.lower():
-                yield Finding("name-capitals", "warning", _element(kind, name),
-                              "ROS names are lower_case_with_underscores; topics and tools may "
-                              "not find it", item.line)
+    capitals = [item for table in (model.links, model.joints) for name, item in table.items()
+                if name != name.lower()]
+    if capitals:  # style, not physics: one line however many
+        names = ", ".join(item.name for item in capitals[:3]) + (", ..." if len(capitals) > 3 else "")
+        yield Finding("name-capitals", "info", f"{len(capitals)} links and joints",
+                      f"have capitals ({names}); ROS names are lower_case_with_underscores, "
+                      "though tf and ros_control accept these", capitals[0].line)
     yield from model.reader_findings
 
 
@@ -505,5 +535,5 @@ def summary(model: RobotModel, findings: list[Finding]) -> dict:
         "joints": len(model.joints),
         "actuated": len(model.actuated_joints),
         "mass": round(model.mass, 6),
-        "findings": [f.as_dict() for f in findings],
+        "findings": [f.as_dict(str(model.source) if model.source else None) for f in findings],
     }

@@ -18,10 +18,10 @@ class Finding:
     line: int | None = None
     file: str | None = None  # where line points when it is not the model (a controller YAML)
 
-    def as_dict(self) -> dict:
+    def as_dict(self, file: str | None = None) -> dict:
+        """For --json: file (the model's unless the finding names another) and line included."""
         out = asdict(self)
-        out.pop("line")
-        out.pop("file")
+        out["file"] = self.file or file
         return out
 
     def one_line(self, file: str | None = None) -> str:

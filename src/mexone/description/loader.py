@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from mexone.description.mjcf import read_mjcf
 from mexone.description.model import RobotModel
 from mexone.description.sdf import read_sdf
 from mexone.description.urdf import parse_urdf, read_urdf
@@ -13,11 +14,13 @@ from mexone.errors import InputError
 
 __all__ = ["load_model", "model_format", "FORMATS"]
 
-FORMATS = {"urdf": "URDF", "xacro": "URDF with xacro macros", "sdf": "SDF model (Gazebo)"}
+FORMATS = {"urdf": "URDF", "xacro": "URDF with xacro macros", "sdf": "SDF model (Gazebo)",
+           "mjcf": "MJCF (MuJoCo XML)"}
 
 
 def model_format(path: Path) -> str:
-    """'urdf', 'xacro' or 'sdf' from the file name; a Gazebo model folder means its model.sdf."""
+    """'urdf', 'xacro', 'sdf' or 'mjcf' from the file name; a Gazebo model folder means its
+    model.sdf."""
     name = path.name.lower()
     if name.endswith(".xacro"):
         return "xacro"
@@ -25,8 +28,11 @@ def model_format(path: Path) -> str:
         return "urdf"
     if name.endswith((".sdf", ".world")) or path.is_dir():
         return "sdf"
+    if name.endswith((".xml", ".mjcf")):
+        return "mjcf"
     raise InputError(f"unknown model format '{path.suffix or path.name}'", file=path,
-                     hint="expected .urdf, .urdf.xacro/.xacro, .sdf or a Gazebo model folder")
+                     hint="expected .urdf, .urdf.xacro/.xacro, .sdf, a Gazebo model folder or "
+                          "MJCF .xml")
 
 
 def load_model(path: Path | str) -> RobotModel:
@@ -36,6 +42,8 @@ def load_model(path: Path | str) -> RobotModel:
         return read_urdf(path)
     if kind == "sdf":
         return read_sdf(path / "model.sdf" if path.is_dir() else path)
+    if kind == "mjcf":
+        return read_mjcf(path)
     return _read_xacro(path)
 
 

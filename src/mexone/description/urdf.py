@@ -7,9 +7,11 @@ from pathlib import Path
 from lxml import etree
 
 from mexone.description.findings import Finding
+from mexone.description.materials import apply_named_colors
 from mexone.description.model import (
     INERTIA_KEYS,
     JOINT_TYPES,
+    MOVING_JOINT_TYPES,
     Box,
     Collision,
     Cylinder,
@@ -72,7 +74,17 @@ def parse_urdf(xml: XmlReader, source: Path | None = None) -> RobotModel:
         model.transmissions.append(_transmission(xml, el))
     for el in root.iterfind("gazebo"):
         _gazebo(xml, el, model)
+    apply_named_colors(list(model.links.values()), _named_colors(xml, root))
     return model
+
+
+def _named_colors(xml: XmlReader, root: etree._Element) -> dict[str, tuple[float, ...]]:
+    """Robot-level <material name><color rgba/></material>: what visuals may name."""
+    out = {}
+    for el in root.iterfind("material"):
+        if (color := el.find("color")) is not None and el.get("name"):
+            out.setdefault(el.get("name"), xml.vector_attr(color, "rgba", count=4))
+    return out
 
 
 def _keep_first(table: dict, item, kind: str, findings: list[Finding]) -> None:
@@ -145,8 +157,10 @@ def _joint(xml: XmlReader, el: etree._Element) -> Joint:
     axis_el = el.find("axis")
     if axis_el is not None:
         axis = xml.vector_attr(axis_el, "xyz", (1, 0, 0))
-        if not any(axis):
-            raise xml.fail(axis_el, "has a zero axis", "give the rotation axis, e.g. xyz=\"0 0 1\"")
+        if not any(axis):  # urdfdom reads no axis on fixed and floating joints: nor do we
+            if jtype in MOVING_JOINT_TYPES:
+                raise xml.fail(axis_el, "has a zero axis", "give the rotation axis, e.g. xyz=\"0 0 1\"")
+            axis = (1.0, 0.0, 0.0)
     limit = None
     limit_el = el.find("limit")
     if limit_el is not None:

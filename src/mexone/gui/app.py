@@ -321,7 +321,7 @@ class GuiApp:
         manager = self.lab.controllers
         with gui.add_folder("Joints"):
             if manager is None:
-                gui.add_markdown("No controllers loaded.")
+                gui.add_markdown(self.lab.no_controllers or "No controllers loaded.")
                 return
             self.units = gui.add_dropdown("Units", ("rad", "deg"), initial_value="rad")
             self.units.on_update(lambda _: self.do(self._rescale_sliders))

@@ -13,8 +13,10 @@ import mujoco
 import numpy as np
 import viser
 
+from mexone.description.materials import display_rgba
 from mexone.description.meshes import load_mesh, resolve_mesh
 from mexone.description.model import Box, Cylinder, Geometry, Mesh, RobotModel, Sphere
+from mexone.gui.display import display_budgets, display_mesh
 from mexone.physics.simulation import Simulation
 
 __all__ = ["RobotScene", "OVERLAYS", "inertia_box"]
@@ -26,9 +28,11 @@ _INERTIA_RGB = (150, 60, 200)
 _JOINT_RGB = (250, 220, 0)
 _CONTACT_RGB = (230, 30, 30)
 _MAX_CONTACTS = 64
+SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
-def _trimesh_of(geometry: Geometry, robot: RobotModel):
+def _trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | None] | None = None):
+    """A trimesh to draw; meshes named in `budgets` are simplified to their share (display only)."""
     import trimesh
 
     match geometry:
@@ -39,7 +43,9 @@ def _trimesh_of(geometry: Geometry, robot: RobotModel):
         case Sphere(radius):
             return trimesh.creation.icosphere(subdivisions=2, radius=radius)
         case Mesh(filename, scale):
-            mesh = load_mesh(resolve_mesh(filename, robot.base_dir)).copy()
+            path = resolve_mesh(filename, robot.base_dir)
+            faces = (budgets or {}).get(filename)
+            mesh = (display_mesh(path, faces) if faces else load_mesh(path)).copy()
             mesh.apply_scale(scale)
             return mesh
     raise TypeError(geometry)
@@ -68,6 +74,7 @@ class RobotScene:
     sim: Simulation
     links: dict[str, viser.SceneNodeHandle] = field(default_factory=dict)
     visuals: list = field(default_factory=list)
+    triangles: int = 0  # drawn in the robot's visuals, after simplification
     overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
 
     def build(self) -> None:
@@ -75,22 +82,27 @@ class RobotScene:
         scene.set_up_direction("+z")
         scene.add_grid("/ground", width=20, height=20, cell_size=0.25, section_size=1.0,
                        plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
-        scene.add_light_directional("/sun", color=(255, 250, 240), intensity=2.0, cast_shadow=True,
-                                    wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
+        # the world's sun casts the one shadow (viser's default lights would add a second pass)
+        scene.configure_default_lights(cast_shadow=False)
         scene.add_light_ambient("/ambient", intensity=0.6)
+        # sent before the meshes and hidden after them, so every page shows it while they arrive
+        loading = self.server.gui.add_markdown("**Loading the robot…**")
+        budgets = display_budgets(robot)
+        self.triangles = 0
         for name in self.sim.compiled.bodies:
             node = scene.add_frame(f"/robot/{name}", show_axes=False)
             self.links[name] = node
             link = robot.links[name]
             for i, vis in enumerate(link.visuals):
-                mesh = _trimesh_of(vis.geometry, robot)
-                rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
+                mesh = _trimesh_of(vis.geometry, robot, budgets)
+                self.triangles += len(mesh.faces)
+                rgba = display_rgba(robot, name, vis)
                 self.visuals.append(scene.add_mesh_simple(
                     f"/robot/{name}/visual_{i}", mesh.vertices.astype(np.float32), mesh.faces,
                     color=tuple(int(255 * c) for c in rgba[:3]),
                     position=vis.origin.xyz, wxyz=_wxyz(vis.origin.matrix[:3, :3])))
             for i, col in enumerate(link.collisions):
-                mesh = _trimesh_of(col.geometry, robot)
+                mesh = _trimesh_of(col.geometry, robot, budgets)
                 self.overlays["Collisions"].append(scene.add_mesh_simple(
                     f"/robot/{name}/collision_{i}", mesh.vertices.astype(np.float32), mesh.faces,
                     color=_COLLISION_RGB, opacity=0.55, position=col.origin.xyz,
@@ -107,6 +119,12 @@ class RobotScene:
                     visible=False))
         self.overlays["Contacts"].append(scene.add_line_segments(
             "/contacts", np.zeros((1, 2, 3)), _CONTACT_RGB, thickness=0.006, visible=False))
+        # a shadow pass draws every triangle again: a browser without a GPU draws a big robot's
+        # first frame in seconds with it, so only a light robot casts a shadow
+        scene.add_light_directional("/sun", color=(255, 250, 240), intensity=2.0,
+                                    cast_shadow=self.triangles <= SHADOW_TRIANGLES,
+                                    wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
+        loading.visible = False
         self.update()
 
     def _add_inertial(self, name: str, inertial) -> None:

@@ -22,6 +22,8 @@ from mexone.description.check import (
     mimic_problem,
     surface_problem,
 )
+from mexone.description.kinematics import link_frames_at, with_mimics
+from mexone.description.materials import display_rgba
 from mexone.description.meshes import geometry_bounds, load_mesh, resolve_mesh
 from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel, Sphere
 from mexone.description.transforms import rpy_to_matrix
@@ -31,6 +33,7 @@ from mexone.physics.world import World, default_world
 _log = logging.getLogger("mexone.physics")
 
 __all__ = ["Spawn", "CompileOptions", "Compiled", "compile_model", "SpecEdit", "GAZEBO_MAPPING",
+           "initial_positions",
            "GROUP_VISUAL", "GROUP_COLLISION", "lowest_point", "collision_bits"]
 
 GROUP_VISUAL = 1  # MuJoCo geom groups: the viewer's toggles for visual and collision geometry
@@ -51,6 +54,7 @@ _SPAWN_TOLERANCE = 0.001  # m a spawn may start inside the ground (soft contacts
 # CG takes 0.2 s there and the same as Newton on Mex-One-sized robots (DECISIONS.md)
 _LARGE_NV = 100
 _CONTACTS_PER_GEOM = 4  # a box on a plane touches at its 4 corners
+SPAWN_KEY = "spawn"
 _MJ_STL_MAX_FACES = 200_000  # MuJoCo's own STL reader refuses more (and ASCII STL)
 
 GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
@@ -100,6 +104,8 @@ class Spawn:
     xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     on_ground: bool = True
+    # initial joint positions (spawn_model -J): the pose a reset returns to, others at 0
+    joints: tuple[tuple[str, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -125,6 +131,7 @@ class Compiled:
     dof_adr: np.ndarray
     bodies: dict[str, int] = field(default_factory=dict)  # link -> body id
     free: bool = True  # the root has a free joint
+    spawn_key: int | None = None  # keyframe of the initial joint positions, if any were given
 
     @property
     def root_body(self) -> int:
@@ -142,14 +149,15 @@ def _set_pose(element, matrix: np.ndarray) -> None:
     element.quat = _quat(matrix[:3, :3])
 
 
-def lowest_point(robot: RobotModel, rotation: np.ndarray | None = None) -> float:
-    """Lowest z of any collision geometry at home, in the root's frame turned by rotation (the
-    spawn's roll, pitch and yaw), for standing spawns."""
+def lowest_point(robot: RobotModel, rotation: np.ndarray | None = None,
+                 positions: dict[str, float] | None = None) -> float:
+    """Lowest z of any collision geometry at home (or with these joint positions), in the root's
+    frame turned by rotation (the spawn's roll, pitch and yaw), for standing spawns."""
     lowest = np.inf
     turn = np.eye(4)
     if rotation is not None:
         turn[:3, :3] = rotation
-    for name, frame in robot.link_frames.items():
+    for name, frame in link_frames_at(robot, positions).items():
         for col in robot.links[name].collisions:
             lower, upper = geometry_bounds(col.geometry, robot.base_dir)
             corners = np.array([[x, y, z, 1.0] for x in (lower[0], upper[0])
@@ -256,6 +264,7 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     _add_contact_rules(spec, robot, world, geoms_by_link, robot_mass)
     _add_mimics(spec, robot)
     _size_for_large_models(spec, robot, sum(len(g) for g in geoms_by_link.values()))
+    keyed = _add_spawn_key(spec, robot, spawn)
     for edit in edits:
         edit(spec, robot)
     _no_second_factorisation(spec)
@@ -267,12 +276,14 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
 
     joints = [j.name for j in robot.moving_joints]
     ids = [model.joint(j).id for j in joints]
+    spawn_key = _fill_spawn_key(spec, model, robot, spawn) if keyed else None
     return Compiled(
         spec=spec, model=model, robot=robot, world=world, spawn=spawn, joints=joints,
         qpos_adr=np.array([model.jnt_qposadr[i] for i in ids], dtype=int),
         dof_adr=np.array([model.jnt_dofadr[i] for i in ids], dtype=int),
         bodies={name: model.body(name).id for name in bodies},
         free=free,
+        spawn_key=spawn_key,
     )
 
 
@@ -286,7 +297,7 @@ def _placement(robot: RobotModel, world: World, spawn: Spawn) -> np.ndarray:
     placement[:3, 3] = spawn.xyz
     if robot.fixed_to_world:
         return placement
-    lowest = lowest_point(robot, rotation)
+    lowest = lowest_point(robot, rotation, initial_positions(robot, spawn))
     if spawn.on_ground:
         placement[2, 3] -= lowest
     if world.ground is not None and any(link.collisions for link in robot.links.values()):
@@ -296,6 +307,43 @@ def _placement(robot: RobotModel, world: World, spawn: Spawn) -> np.ndarray:
             _log.warning(f"spawn z {spawn.xyz[2]:g} puts '{robot.name}' {depth:.3f} m inside the ground; "
                          f"lifted so its lowest point is on the ground (it would be shot into the air)")
     return placement
+
+
+def initial_positions(robot: RobotModel, spawn: Spawn) -> dict[str, float]:
+    """spawn.joints checked against the robot, with <mimic> followers placed too."""
+    given = dict(spawn.joints)
+    for name, value in given.items():
+        joint = robot.joints.get(name)
+        if joint is None or not joint.moving:
+            moving = ", ".join(j.name for j in robot.moving_joints) or "none"
+            raise InputError(f"initial position for '{name}', which is not a moving joint of "
+                             f"'{robot.name}'", hint=f"moving joints: {moving}")
+        if not np.isfinite(value):
+            raise InputError(f"initial position {value} of '{name}' is not finite")
+        if joint.type in ("revolute", "prismatic") and not (
+                joint.limit.lower - 1e-9 <= value <= joint.limit.upper + 1e-9):
+            raise InputError(f"initial position {value:g} of '{name}' is outside its limits "
+                             f"[{joint.limit.lower:g}, {joint.limit.upper:g}]",
+                             hint="give a value within the joint's <limit>")
+    return with_mimics(robot, given)
+
+
+def _add_spawn_key(spec: mujoco.MjSpec, robot: RobotModel, spawn: Spawn) -> bool:
+    """A keyframe 'spawn' for initial joint positions (MuJoCo's qpos0 is each joint's zero, so
+    the pose cannot go there); Simulation.reset starts from it. Filled in by _fill_spawn_key."""
+    if not initial_positions(robot, spawn):
+        return False
+    spec.add_key(name=SPAWN_KEY)  # unset values default to qpos0
+    return True
+
+
+def _fill_spawn_key(spec: mujoco.MjSpec, model: mujoco.MjModel, robot: RobotModel,
+                    spawn: Spawn) -> int:
+    key = model.key(SPAWN_KEY).id
+    for name, value in initial_positions(robot, spawn).items():
+        model.key_qpos[key, model.jnt_qposadr[model.joint(name).id]] = value
+    spec.key(SPAWN_KEY).qpos = model.key_qpos[key].copy()  # the exported MJCF has it too
+    return key
 
 
 def _refuse_what_we_cannot_build(robot: RobotModel, fixed_base: bool) -> None:
@@ -389,7 +437,8 @@ def _add_inertial(body: mujoco.MjsBody, robot: RobotModel, name: str) -> None:
     body.explicitinertial = True
 
 
-def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str) -> None:
+def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str,
+                line: int | None = None) -> None:
     match geometry:
         case Box(size):
             geom.type = mujoco.mjtGeom.mjGEOM_BOX
@@ -402,16 +451,17 @@ def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_nam
             geom.size = (radius, 0, 0)
         case Mesh(filename, scale):
             geom.type = mujoco.mjtGeom.mjGEOM_MESH
-            geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name)
+            geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name, line)
 
 
-def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str) -> str:
+def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str,
+              line: int | None = None) -> str:
     try:
         path = resolve_mesh(filename, robot.base_dir)
     except MexoneError as exc:
-        raise ModelError(f"{exc.what}", file=robot.source, hint=exc.hint) from None
+        raise ModelError(f"{exc.what}", file=robot.source, line=line, hint=exc.hint) from None
     if not path.is_file():
-        raise ModelError(f"mesh file '{path}' does not exist", file=robot.source,
+        raise ModelError(f"mesh file '{path}' does not exist", file=robot.source, line=line,
                          hint="check the filename, or run 'mexone check'")
     mesh = spec.add_mesh(name=name)
     mesh.scale = scale
@@ -421,7 +471,7 @@ def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name
         try:
             loaded = load_mesh(path)
         except MexoneError as exc:
-            raise ModelError(exc.what, file=robot.source, hint=exc.hint) from None
+            raise ModelError(exc.what, file=robot.source, line=line, hint=exc.hint) from None
         mesh.uservert = np.asarray(loaded.vertices, dtype=np.float32).ravel()
         mesh.userface = np.asarray(loaded.faces, dtype=np.int32).ravel()
     return name
@@ -451,7 +501,7 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
     collision_names = []
     for i, col in enumerate(link.collisions):
         geom = body.add_geom(name=f"{name}/collision/{i}")
-        _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}")
+        _geom_shape(geom, col.geometry, spec, robot, f"{name}/collision_mesh/{i}", col.line)
         _set_pose(geom, col.origin.matrix)
         geom.group = GROUP_COLLISION
         geom.contype, geom.conaffinity = contype, conaffinity
@@ -464,12 +514,12 @@ def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions
     if options.visuals:
         for i, vis in enumerate(link.visuals):
             geom = body.add_geom(name=f"{name}/visual/{i}")
-            _geom_shape(geom, vis.geometry, spec, robot, f"{name}/visual_mesh/{i}")
+            _geom_shape(geom, vis.geometry, spec, robot, f"{name}/visual_mesh/{i}", vis.line)
             _set_pose(geom, vis.origin.matrix)
             geom.group = GROUP_VISUAL
             geom.contype = geom.conaffinity = 0
             geom.density = 0.0
-            geom.rgba = vis.rgba or (0.7, 0.7, 0.72, 1.0)
+            geom.rgba = display_rgba(robot, name, vis)
     return collision_names
 
 

@@ -344,9 +344,12 @@ class Simulation:
         self._pace_origin = None
 
     def reset(self) -> None:
-        """Back to the spawn pose with every joint at 0 (home), sim time 0; timers restart from
-        there and reset hooks run (controllers hold home)."""
-        mujoco.mj_resetData(self.model, self.data)  # pushes (xfrc_applied) end too
+        """Back to the spawn pose with every joint at 0 (home) or its initial position (-J), sim
+        time 0; timers restart from there and reset hooks run (controllers hold that pose)."""
+        if self.compiled.spawn_key is None:  # pushes (xfrc_applied) end too
+            mujoco.mj_resetData(self.model, self.data)
+        else:  # the initial joint positions (-J, --pose)
+            mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
         self._resets += 1
         self._efforts[:] = 0.0
         mujoco.mj_forward(self.model, self.data)

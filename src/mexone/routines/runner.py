@@ -143,6 +143,11 @@ class RoutineRunner:
     def running(self) -> bool:
         return any(r.running for r in self.routines)
 
+    @property
+    def notices(self) -> list[str]:
+        """mexone's warnings about the routines (a command topic nobody subscribes to)."""
+        return [text for r in self.routines for text in r.context.notices]
+
     def _log(self, level: str, text: str) -> None:
         self.log_lines.append((self.lab.sim.time, level, text))
         if self._sink:

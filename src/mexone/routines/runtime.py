@@ -47,6 +47,7 @@ class RoutineContext:
     mailbox: deque[tuple[Callable, object]] = field(default_factory=deque)
     abandoned: str | None = None  # why the simulation stopped waiting for it
     warned_topics: set[str] = field(default_factory=set)
+    notices: list[str] = field(default_factory=list)  # mexone's own warnings (unheard topics)
 
     @property
     def time(self) -> float:

@@ -1,0 +1,76 @@
+"""`mexone controllers ROBOT -o controllers.yaml`: controllers with gains from the robot's physics,
+written as a ros_control YAML and a transmissions xacro a student edits from there."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from mexone.cli import add_input_limit_option
+from mexone.cli.common import add_joint_pose_options, joint_pose_from_args
+from mexone.control.autotune import controllers_yaml, transmissions_xacro, tune
+from mexone.description.loader import load_model
+from mexone.errors import InputError
+from mexone.files import check_output, write_text
+from mexone.lab import robot_namespace
+from mexone.physics.compile import Spawn, initial_positions
+from mexone.physics.world import default_world, read_world
+
+HELP = """\
+Write ros_control controllers for a robot that has none: one
+effort_controllers/JointPositionController per moving joint (joints a <mimic> drives follow
+their leader) and a joint_state_controller, as `mexone sim --controllers auto` runs them.
+
+Gains come from physics, in the standing pose (-J / --pose, else every joint at 0): for each
+joint the inertia it moves about its axis (the links beyond it, or for a leg the rest of the
+robot it lifts), a bandwidth w that the time step (w dt <= 0.1) and the effort limit (an error
+of 0.1 rad saturates it) allow, and p = I w^2, d = 2 I w (critically damped). A comment above
+each controller says how its gains were derived.
+
+Also writes the <transmission> blocks ros_control needs (and the gazebo_ros_control plugin if
+the robot has none) as a xacro to include from the robot's own: OUT's name with
+_transmissions.xacro, or --transmissions. Existing files are not replaced without --force."""
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("controllers", help="write controllers with gains from the robot's physics",
+                       description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("model", type=Path, help="URDF, .urdf.xacro, SDF or MJCF robot")
+    p.add_argument("-o", "--output", type=Path, required=True, metavar="YAML",
+                   help="controller YAML to write")
+    p.add_argument("--transmissions", type=Path, metavar="XACRO",
+                   help="where the transmissions go (default: next to YAML, "
+                        "<name>_transmissions.xacro)")
+    p.add_argument("--world", type=Path, help="SDF .world whose time step the gains are for "
+                                              "(default: 1 ms)")
+    p.add_argument("--fixed-base", action="store_true",
+                   help="the robot is welded where it spawns: no joint lifts the rest of it")
+    p.add_argument("--force", action="store_true", help="overwrite files that exist")
+    add_joint_pose_options(p)
+    add_input_limit_option(p)
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    out: Path = args.output
+    if out.suffix.lower() not in (".yaml", ".yml"):
+        raise InputError(f"'{out}' is not a .yaml file", hint="name the output controllers.yaml")
+    xacro = args.transmissions or out.with_name(f"{out.stem}_transmissions.xacro")
+    check_output(out, args.force)
+    check_output(xacro, args.force)
+    robot = load_model(args.model)
+    world = read_world(args.world) if args.world else default_world()
+    pose = initial_positions(robot, Spawn(joints=joint_pose_from_args(args)))
+    floating = not (robot.fixed_to_world or args.fixed_base)
+    tunings = tune(robot, world.step, pose, floating)
+    if not tunings:
+        raise InputError(f"'{robot.name}' has no moving joint to control", file=args.model)
+    namespace = robot_namespace(robot)
+    write_text(out, controllers_yaml(robot, world.step, namespace, pose, floating,
+                                     source=args.model.name), args.force)
+    write_text(xacro, transmissions_xacro(robot, namespace, out.name), args.force)
+    print(f"wrote {out}: {len(tunings)} position controllers and a joint_state_controller")
+    print(f"wrote {xacro}: include it from {args.model.name} for ros_control's <transmission>s")
+    sag = max(tunings, key=lambda t: t.sag)
+    print(f"standing, the largest steady error is {sag.sag:.2g} at '{sag.joint}'")
+    return 0
