@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -56,9 +57,12 @@ class Lab:
                controllers: ControlConfig | Path | str | bool | None = None,
                world: World | None = None, spawn: Spawn = Spawn(),
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
-               control_period: float | None = None, namespace: str | None = None) -> Lab:
+               control_period: float | None = None, namespace: str | None = None,
+               start: Sequence[str] | None = None) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
-        for other robots); False: no controllers; a path or ControlConfig: that one."""
+        for other robots); False: no controllers; a path or ControlConfig: that one. `start`:
+        the controllers to start (default: every one, except alternatives for joints an earlier
+        one drives, which load stopped); the rest are loaded, stopped."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
         if controllers is None:
@@ -74,7 +78,7 @@ class Lab:
         manager = None
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
-            manager.start_all()
+            manager.start_default(start)
         lab = cls(sim, bus, manager, ns)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
