@@ -166,4 +166,6 @@ def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None,
         spawn=Spawn((args.x, args.y, args.z), (args.roll, args.pitch, args.yaw)),
         options=options or options_from_args(args),
         target_rtf=target_rtf,
+        namespace=getattr(args, "namespace", None),  # sim --namespace
+        start=getattr(args, "start_controllers", None),  # None: every one that does not clash
     )
