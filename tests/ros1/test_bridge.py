@@ -30,8 +30,12 @@ def free_port() -> int:
 
 
 def ros_env(port: int) -> dict:
-    return dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
-                ROS_LOG_DIR=str(Path("/tmp") / f"mexone-roslog-{port}"))
+    """The environment of a ROS user with mexone's packages (spawner, message packages) found."""
+    from mexone.ros1 import interfaces
+
+    return interfaces.environment(dict(
+        os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
+        ROS_LOG_DIR=str(Path("/tmp") / f"mexone-roslog-{port}")))
 
 
 def start_roscore(port: int) -> subprocess.Popen:
@@ -257,7 +261,9 @@ def _subscribers(port: int, topic: str) -> list[str]:
 
 
 def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path):
-    """The seed's flow: `rosparam load` the YAML, then the simulator reads it from there."""
+    """The seed's flow: `rosparam load` the YAML, then the simulator reads it from there; as
+    ros_control does, they load stopped (alternatives for one joint no longer end the sim) and
+    the spawner starts the ones it names."""
     port = free_port()
     core = start_roscore(port)
     yaml_file = tmp_path / "configuration.yaml"
@@ -267,15 +273,28 @@ def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path
     type: effort_controllers/JointPositionController
     joint: waist_yaw
     pid: {p: 150.0, d: 1.5}
+  waist_yaw_effort_controller: {type: effort_controllers/JointEffortController, joint: waist_yaw}
 """)
     subprocess.run(["rosparam", "load", str(yaml_file)], env=ros_env(port), check=True, timeout=60)
     sim = start_mexone(port)
+    topic = "/mex_rb/waist_yaw_position_controller/command"
     try:
-        deadline = time.time() + 60
-        while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
-            time.sleep(0.5)
-        assert _subscribers(port, "/mex_rb/waist_yaw_position_controller/command") == ["/mexone"]
+        out = subprocess.run(["rosservice", "call", "--wait", "/mex_rb/controller_manager/list_controllers"],
+                             env=ros_env(port), capture_output=True, text=True, timeout=90)
+        assert out.stdout.count('state: "stopped"') == 3, out.stdout + out.stderr
+        assert _subscribers(port, topic) == []
+        switch = subprocess.run(
+            ["rosservice", "call", "/mex_rb/controller_manager/switch_controller",
+             "{start_controllers: [joint_state_controller, waist_yaw_position_controller], "
+             "stop_controllers: [], strictness: 2}"], env=ros_env(port), capture_output=True,
+            text=True, timeout=60)
+        assert "ok: True" in switch.stdout, switch.stdout + switch.stderr
+        deadline = time.time() + 30
+        while time.time() < deadline and not _subscribers(port, topic):
+            time.sleep(0.2)
+        assert _subscribers(port, topic) == ["/mexone"]
         assert _subscribers(port, "/mex_rb/l_elbow_position_controller/command") == []
+        assert sim.poll() is None
     finally:
         stop(sim)
         stop(core)
@@ -286,7 +305,8 @@ def test_the_seed_launch_files(tmp_path):
     robot_state_publisher, the sweep node), as the seed's chapter 3 ran them."""
     port = free_port()
     core = start_roscore(port)
-    env = ros_env(port) | {"ROS_PACKAGE_PATH": str(mex_one.package_dir().parent)}
+    env = ros_env(port)
+    env["ROS_PACKAGE_PATH"] += os.pathsep + str(mex_one.package_dir().parent)
     model = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "model.launch", "headless:=true"],
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True)
