@@ -15,6 +15,7 @@ topics are mirrored only while a ROS node subscribes, so nobody pays for what no
 
 from __future__ import annotations
 
+import collections
 import importlib
 import logging
 import os
@@ -29,6 +30,7 @@ from mexone.bus import msgs
 from mexone.control.config import parse_control_config
 from mexone.control.spec import ControlConfig
 from mexone.errors import InputError, MexoneError
+from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
 __all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server",
@@ -43,6 +45,8 @@ _DEBIAN_SITE = "/usr/lib/python3/dist-packages"
 DEFAULT_NODE = "mexone"
 CLOCK_FREQUENCY = 1000.0  # Hz of /clock (gazebo_ros' pub_clock_frequency), in sim AND wall time
 CLOCK_PERIOD = 1.0 / CLOCK_FREQUENCY
+FLAT_OUT_CLOCK = 200.0  # Hz of wall time: /clock's rate when running as fast as possible
+_MAX_STRIDE = 200.0  # at most 200 clock periods of sim time between /clock messages
 _CLOCK_BURST = 20.0  # /clock messages that may go out at once after a pause in wall time (pacing)
 _PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused (Gazebo keeps publishing)
 _NOT_MIRRORED = {"/clock", "/tf"}  # the bridge publishes these itself (see _publish_clock, TF)
@@ -177,6 +181,9 @@ class Ros1Bridge:
         self._mirrors: dict[str, _Mirror] = {}
         self._inbound: dict[str, object] = {}
         self._known_topics = -1
+        self._clock_pending: collections.deque[int] = collections.deque()
+        self._clock_wake = threading.Event()
+        threading.Thread(target=self._clock_loop, name="mexone-clock", daemon=True).start()
         self._last_clock_wall = self._bucket_wall = time.perf_counter()
         self._clock_tokens = _CLOCK_BURST
         self._last_clock_ns = -1
@@ -226,22 +233,46 @@ class Ros1Bridge:
 
     # ----- /clock ------------------------------------------------------------------------------
     def _publish_clock(self, sim) -> None:
-        """Every 1/pub_clock_frequency of sim time, and no more often than that in wall time:
-        at real time the full rate, flat out the same number per wall second (use_sim_time
-        nodes still see time advance in small steps), so /clock no longer costs the run."""
-        now = time.perf_counter()  # a token bucket: pub_clock_frequency tokens per wall second
+        """/clock every 1/pub_clock_frequency of sim time, and no more often than that in wall
+        time; flat out (no target RTF), at most FLAT_OUT_CLOCK a wall second. Every node with
+        use_sim_time (rosout, robot_state_publisher, ...) subscribes, so each message costs a
+        serialisation and a socket write: at 1 kHz per wall second that was 2/3 of a flat-out
+        run. Nodes still see time advance in steps of at most 1/FLAT_OUT_CLOCK wall seconds."""
+        wall_rate = self.clock_frequency if sim.target_rtf else min(self.clock_frequency,
+                                                                    FLAT_OUT_CLOCK)
+        # faster than real time, fire less often in sim time: about wall_rate per wall second
+        stride = min(max(1.0, sim.rtf.value * self.clock_frequency / wall_rate), _MAX_STRIDE)
+        self._clock_timer.period_ns = round(stride * NS / self.clock_frequency)
+        now = time.perf_counter()  # a token bucket: wall_rate tokens per wall second
         self._clock_tokens = min(_CLOCK_BURST, self._clock_tokens
-                                 + (now - self._bucket_wall) * self.clock_frequency)
+                                 + (now - self._bucket_wall) * wall_rate)
         self._bucket_wall = now
         if self._clock_tokens >= 1.0:
             self._clock_tokens -= 1.0
             self._send_clock(sim.time_ns, now)
 
     def _send_clock(self, t_ns: int, wall: float) -> None:
+        """Queue a /clock value: a thread of its own publishes it, because rospy yields the CPU
+        (time.sleep(0)) on every publish to a connected subscriber, which on a busy machine cost
+        the simulation thread a scheduler quantum per message."""
         self._last_clock_wall, self._last_clock_ns = wall, t_ns
-        if self.rospy.is_shutdown():
-            return
-        self.pub_clock.publish(self._types["Clock"](clock=convert.ros_time(t_ns)))
+        pending = self._clock_pending
+        pending.append(t_ns)
+        if len(pending) > _CLOCK_BURST:  # the publisher fell behind: the latest times matter
+            pending.popleft()
+        self._clock_wake.set()
+
+    def _clock_loop(self) -> None:
+        clock_cls = self._types["Clock"]
+        while not self.rospy.is_shutdown():
+            self._clock_wake.wait(0.5)
+            self._clock_wake.clear()
+            while self._clock_pending:
+                try:
+                    t_ns = self._clock_pending.popleft()
+                    self.pub_clock.publish(clock_cls(clock=convert.ros_time(t_ns)))
+                except (IndexError, self.rospy.ROSException):
+                    break
 
     def _after_reset(self) -> None:
         """Sim time is 0 again: say so at once (nodes waiting on /clock see one clean jump)."""
