@@ -7,6 +7,11 @@ from pathlib import Path
 
 import pytest
 
+# Cameras render offscreen; MuJoCo picks its OpenGL platform when it is first imported.
+if not os.environ.get("DISPLAY"):
+    os.environ.setdefault("MUJOCO_GL", "egl")
+    os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
 DATA = Path(__file__).parent / "data"
 IN_CI = os.environ.get("MEXONE_CI") == "1"
 

@@ -127,6 +127,11 @@ def pybullet_compare(sim_seconds: float, repeats: int) -> dict | None:
     robot = load_model(mex_one.urdf_path())
     for link in robot.links.values():
         link.visuals = []  # PyBullet cannot resolve package:// meshes; physics uses primitives
+    frames = [n for n, link in robot.links.items() if link.inertial is None]  # the Kinect's frames:
+    for name in frames:  # PyBullet would give each 1 kg ("No inertial data for link")
+        del robot.links[name]
+    robot.joints = {n: j for n, j in robot.joints.items() if j.child not in frames}
+    robot.sensors = []
     with tempfile.TemporaryDirectory() as tmp:
         urdf = Path(tmp) / "mex_rb.urdf"
         urdf.write_text(write_urdf(robot))

@@ -18,10 +18,11 @@ from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
-from mexone.physics.compile import CompileOptions, Spawn
+from mexone.physics.compile import CompileOptions, Spawn, SpecEdit
 from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
 from mexone.robots import mex_one
+from mexone.sensors import SensorSuite, build_sensors
 
 __all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab"]
 
@@ -50,6 +51,7 @@ class Lab:
     bus: Bus
     controllers: ControllerManager | None
     namespace: str
+    sensors: SensorSuite
     _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
 
     @classmethod
@@ -58,11 +60,12 @@ class Lab:
                world: World | None = None, spawn: Spawn = Spawn(),
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
                control_period: float | None = None, namespace: str | None = None,
-               start: Sequence[str] | None = None) -> Lab:
+               start: Sequence[str] | None = None, edits: Sequence[SpecEdit] = ()) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
         for other robots); False: no controllers; a path or ControlConfig: that one. `start`:
         the controllers to start (default: every one, except alternatives for joints an earlier
-        one drives, which load stopped); the rest are loaded, stopped."""
+        one drives, which load stopped); the rest are loaded, stopped. `edits` change the MuJoCo
+        spec before it compiles (props in the world for an experiment)."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
         if controllers is None:
@@ -71,7 +74,7 @@ class Lab:
         if controllers is not False:
             config = controllers if isinstance(controllers, ControlConfig) \
                 else load_control_config(controllers)
-        edits = [build_actuators] if config is not None else []
+        edits = [build_sensors, *([build_actuators] if config is not None else []), *edits]
         sim = Simulation(robot, world or default_world(), spawn, options, target_rtf, edits)
         bus = Bus()
         ns = robot_namespace(robot, config, namespace)
@@ -79,7 +82,7 @@ class Lab:
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_default(start)
-        lab = cls(sim, bus, manager, ns)
+        lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns))
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab

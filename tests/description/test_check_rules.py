@@ -176,7 +176,7 @@ def test_cli_exit_codes_and_json(tmp_path, capsys):
     assert main(["check", str(path), "--json"]) == 1
     report = json.loads(capsys.readouterr().out)
     assert report["robot"] == "mex_rb" and report["root"] == "pelvis"
-    assert (report["links"], report["joints"], report["actuated"]) == (22, 21, 21)
+    assert (report["links"], report["joints"], report["actuated"]) == (25, 24, 21)  # + Kinect frames
     assert report["mass"] == pytest.approx(15.0)
     assert {"code": "com-outside", "severity": "error", "element": 'link "head"'}.items() <= \
         report["findings"][0].items()

@@ -161,3 +161,17 @@ def test_reset_model_returns_home(app):
     app.do(app.reset_model)
     assert wait_until(lambda: app.lab.sim.time < 0.5)
     assert np.abs(app.lab.sim.joint_positions()).max() < 0.05
+
+
+def test_sensors_panel_shows_the_kinect_and_balance_says_stable(app, page, tmp_path):
+    panel = app.sensor_panel
+    blank = np.asarray(panel.images["kinect"].image).copy()
+    panel.show_camera["kinect"].value = True
+    assert wait_until(lambda: not np.array_equal(np.asarray(panel.images["kinect"].image), blank))
+    assert wait_until(lambda: np.asarray(panel.images["kinect/depth"].image).any())  # the floor
+    assert np.asarray(panel.images["kinect/depth"].image).shape == (240, 320, 3)
+    app.do(lambda: panel.show_balance(True))
+    assert wait_until(lambda: "statically stable**: yes" in app._status.content)
+    assert "🟢" in panel.contact_view.content  # both soles on the ground
+    panel.show_camera["kinect"].value = False
+    app.do(lambda: panel.show_balance(False))

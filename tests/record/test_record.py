@@ -54,6 +54,25 @@ def test_every_published_message_is_in_the_bag(recorded):
     assert list(states[0].name) == sorted(states[0].name)
 
 
+def test_sensor_topics_are_recorded_and_read_back(recorded):
+    """IMU, ankle wrenches, sole contacts and the balance topics, at their rates; no images."""
+    path, published = recorded
+    with AnyReader([path]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        types = {c.topic: c.msgtype for c in reader.connections}
+        contact = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(
+            connections=[c for c in reader.connections if c.topic == "/mex_rb/l_foot_contact"])]
+        imu = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages(
+            connections=[c for c in reader.connections if c.topic == "/mex_rb/imu"])]
+    assert counts["/mex_rb/imu"] == 200 and counts["/mex_rb/l_ankle_ft"] == 200
+    assert counts["/mex_rb/l_foot_contact"] == 100 and counts["/mex_rb/zmp"] == 100
+    assert types["/mex_rb/l_foot_contact"] == "gazebo_msgs/msg/ContactsState"
+    assert types["/mex_rb/support_polygon"] == "geometry_msgs/msg/PolygonStamped"
+    assert not any("kinect" in t for t in counts)  # cameras render for subscribers only
+    assert contact[-1].states[0].collision1_name == "mex_rb::l_foot::l_foot_collision_0"
+    assert np.mean([m.linear_acceleration.z for m in imu[50:]]) == pytest.approx(9.81, abs=0.05)
+
+
 def test_mcap_is_plain_rosbag2_for_the_mcap_library(tmp_path):
     path, published = record_sweep(tmp_path / "sweep.mcap")
     store = get_typestore(Stores.ROS2_HUMBLE)

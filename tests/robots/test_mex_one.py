@@ -57,8 +57,12 @@ def test_real_check_urdf_accepts_it_and_prints_our_tree(model):
 
 def test_21_dof_with_stable_names_axes_and_one_controller_each(model):
     assert model.name == "mex_rb" and model.root == "pelvis" and not model.fixed_to_world
-    assert {j.name for j in model.joints.values()} == JOINTS
-    for joint in model.joints.values():
+    assert {j.name for j in model.moving_joints} == JOINTS
+    fixed = {j.name: j.child for j in model.joints.values() if not j.moving}
+    assert fixed == {"kinect_joint": "kinect_link",  # the Kinect's frames, for TF
+                     "kinect_rgb_optical_frame_joint": "kinect_rgb_optical_frame",
+                     "kinect_depth_optical_frame_joint": "kinect_depth_optical_frame"}
+    for joint in model.moving_joints:
         kind = joint.name.split("_")[-1]
         assert joint.axis == AXES[kind], joint.name
         assert joint.limit.lower < 0 < joint.limit.upper or joint.name.endswith(("knee", "elbow"))
@@ -87,8 +91,12 @@ def test_published_scale_height_and_mass(model):
     assert -min(zs) == pytest.approx(params.PELVIS_HEIGHT, abs=1e-9)  # soles at z = 0
 
 
+FRAMES = {"kinect_link", "kinect_rgb_optical_frame", "kinect_depth_optical_frame"}  # no body
+
+
 def test_every_link_is_physical(model):
-    for link in model.links.values():
+    assert set(model.links) - FRAMES == {p.name for p in params.parts()}
+    for link in (model.links[p.name] for p in params.parts()):
         inertial = link.inertial
         assert inertial.mass > 0
         moments = np.linalg.eigvalsh(inertial.tensor)
@@ -110,7 +118,7 @@ def test_box_inertia_matches_the_closed_form(model):
 
 
 def test_meshes_are_millimetre_stl_matching_the_collisions(model):
-    for link in model.links.values():
+    for link in (model.links[p.name] for p in params.parts()):
         visual = link.visuals[0].geometry
         assert visual.scale == (0.001, 0.001, 0.001)
         assert visual.filename == f"package://mex_rb/meshes/{link.name}.stl"

@@ -17,6 +17,23 @@ __all__ = [
     "JointTrajectory",
     "TransformStamped",
     "TFMessage",
+    "Vector3",
+    "Point",
+    "Point32",
+    "Quaternion",
+    "Wrench",
+    "WrenchStamped",
+    "Imu",
+    "ContactState",
+    "ContactsState",
+    "RegionOfInterest",
+    "Image",
+    "CameraInfo",
+    "PointField",
+    "PointCloud2",
+    "PointStamped",
+    "Polygon",
+    "PolygonStamped",
     "ROS_TYPES",
 ]
 
@@ -121,6 +138,151 @@ class TFMessage:
     transforms: list[TransformStamped] = field(default_factory=list)
 
 
+# ----- geometry and sensors (sensor_msgs, geometry_msgs, gazebo_msgs) ------------------------------
+@dataclass
+class Vector3:
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+
+
+@dataclass
+class Point:
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+
+
+@dataclass
+class Point32:
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+
+
+@dataclass
+class Quaternion:
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    w: float = 1.0
+
+
+@dataclass
+class Wrench:
+    force: Vector3 = field(default_factory=Vector3)
+    torque: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+class WrenchStamped:
+    header: Header = field(default_factory=Header)
+    wrench: Wrench = field(default_factory=Wrench)
+
+
+@dataclass
+class Imu:
+    header: Header = field(default_factory=Header)
+    orientation: Quaternion = field(default_factory=Quaternion)
+    orientation_covariance: list[float] = field(default_factory=lambda: [0.0] * 9)
+    angular_velocity: Vector3 = field(default_factory=Vector3)
+    angular_velocity_covariance: list[float] = field(default_factory=lambda: [0.0] * 9)
+    linear_acceleration: Vector3 = field(default_factory=Vector3)
+    linear_acceleration_covariance: list[float] = field(default_factory=lambda: [0.0] * 9)
+
+
+@dataclass
+class ContactState:
+    info: str = ""
+    collision1_name: str = ""
+    collision2_name: str = ""
+    wrenches: list[Wrench] = field(default_factory=list)
+    total_wrench: Wrench = field(default_factory=Wrench)
+    contact_positions: list[Vector3] = field(default_factory=list)
+    contact_normals: list[Vector3] = field(default_factory=list)
+    depths: list[float] = field(default_factory=list)
+
+
+@dataclass
+class ContactsState:
+    header: Header = field(default_factory=Header)
+    states: list[ContactState] = field(default_factory=list)
+
+
+@dataclass
+class RegionOfInterest:
+    x_offset: int = 0
+    y_offset: int = 0
+    height: int = 0
+    width: int = 0
+    do_rectify: bool = False
+
+
+@dataclass
+class Image:
+    header: Header = field(default_factory=Header)
+    height: int = 0
+    width: int = 0
+    encoding: str = ""
+    is_bigendian: int = 0
+    step: int = 0
+    data: bytes = b""
+
+
+@dataclass
+class CameraInfo:
+    header: Header = field(default_factory=Header)
+    height: int = 0
+    width: int = 0
+    distortion_model: str = "plumb_bob"
+    D: list[float] = field(default_factory=lambda: [0.0] * 5)  # noqa: N815 - ROS field names
+    K: list[float] = field(default_factory=lambda: [0.0] * 9)  # noqa: N815
+    R: list[float] = field(default_factory=lambda: [1.0, 0, 0, 0, 1.0, 0, 0, 0, 1.0])  # noqa: N815
+    P: list[float] = field(default_factory=lambda: [0.0] * 12)  # noqa: N815
+    binning_x: int = 0
+    binning_y: int = 0
+    roi: RegionOfInterest = field(default_factory=RegionOfInterest)
+
+
+@dataclass
+class PointField:
+    INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = 1, 2, 3, 4, 5, 6, 7, 8
+    name: str = ""
+    offset: int = 0
+    datatype: int = 7
+    count: int = 1
+
+
+@dataclass
+class PointCloud2:
+    header: Header = field(default_factory=Header)
+    height: int = 0
+    width: int = 0
+    fields: list[PointField] = field(default_factory=list)
+    is_bigendian: bool = False
+    point_step: int = 0
+    row_step: int = 0
+    data: bytes = b""
+    is_dense: bool = False
+
+
+@dataclass
+class PointStamped:
+    header: Header = field(default_factory=Header)
+    point: Point = field(default_factory=Point)
+
+
+@dataclass
+class Polygon:
+    points: list[Point32] = field(default_factory=list)
+
+
+@dataclass
+class PolygonStamped:
+    header: Header = field(default_factory=Header)
+    polygon: Polygon = field(default_factory=Polygon)
+
+
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
@@ -129,6 +291,14 @@ ROS_TYPES: dict[type, str] = {
     Clock: "rosgraph_msgs/Clock",
     JointTrajectory: "trajectory_msgs/JointTrajectory",
     TFMessage: "tf2_msgs/TFMessage",
+    Imu: "sensor_msgs/Imu",
+    WrenchStamped: "geometry_msgs/WrenchStamped",
+    ContactsState: "gazebo_msgs/ContactsState",
+    Image: "sensor_msgs/Image",
+    CameraInfo: "sensor_msgs/CameraInfo",
+    PointCloud2: "sensor_msgs/PointCloud2",
+    PointStamped: "geometry_msgs/PointStamped",
+    PolygonStamped: "geometry_msgs/PolygonStamped",
 }
 
 

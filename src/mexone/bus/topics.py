@@ -67,6 +67,23 @@ class Bus:
         # topic -> callbacks told the subscriber count when it changes (lazy publishers)
         self.listeners: dict[str, list[Callable[[int], None]]] = {}
 
+    def add_tap(self, tap: Callable[[str, object], None]) -> None:
+        """See every message (a recorder). Lazy publishers hear of it and start."""
+        self.taps.append(tap)
+        self._changed_all()
+
+    def remove_tap(self, tap: Callable[[str, object], None]) -> None:
+        if tap in self.taps:
+            self.taps.remove(tap)
+            self._changed_all()
+
+    def _changed_all(self) -> None:
+        for name in list(self.listeners):
+            topic = self.topics.get(name)
+            count = len(topic.subscriptions) if topic else 0
+            for callback in self.listeners[name]:
+                callback(count)
+
     def on_subscribers(self, name: str, callback: Callable[[int], None]) -> None:
         """Call `callback(count)` whenever the number of subscribers to `name` changes."""
         self.listeners.setdefault(name, []).append(callback)

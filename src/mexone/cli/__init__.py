@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import os
 import signal
 import sys
 
@@ -67,7 +68,16 @@ def _setup_logging() -> None:
         root.setLevel(logging.WARNING)
 
 
+def _offscreen_gl() -> None:
+    """Cameras and videos render offscreen; MuJoCo binds its OpenGL platform when first imported,
+    which the verbs do, so the process chooses it here (EGL without a display)."""
+    if not os.environ.get("MUJOCO_GL") and not os.environ.get("DISPLAY"):
+        os.environ["MUJOCO_GL"] = "egl"
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+
 def main(argv: list[str] | None = None) -> int:
+    _offscreen_gl()
     try:
         return _main(argv)
     except KeyboardInterrupt:  # a late signal that landed in one of _main's handlers

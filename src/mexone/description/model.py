@@ -9,11 +9,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from mexone.description.findings import Finding
 from mexone.description.transforms import make_transform, split_transform
+
+if TYPE_CHECKING:
+    from mexone.description.sensors import SensorSpec
 
 __all__ = [
     "Pose",
@@ -216,6 +220,8 @@ class RobotModel:
     gazebo_joints: dict[str, Dynamics] = field(default_factory=dict)
     # gazebo_ros_control plugin's robotNamespace, e.g. "/mex_rb"; None if no plugin
     ros_namespace: str | None = None
+    # sensors declared the Gazebo way (<gazebo><sensor>, gazebo_ros sensor plugins), in file order
+    sensors: list[SensorSpec] = field(default_factory=list)
     source: Path | None = None
     # What the reader noticed but could still build (duplicated names, dangling references)
     reader_findings: list[Finding] = field(default_factory=list)

@@ -32,6 +32,15 @@ from mexone.description.model import (
     Sphere,
     Visual,
 )
+from mexone.description.sensors import (
+    MODEL_PLUGINS,
+    merge_model_plugin,
+    needs_sensor_element,
+    read_model_plugin,
+    read_sensor,
+    write_model_plugin,
+    write_sensor,
+)
 from mexone.description.transforms import invert, make_transform
 from mexone.description.urdf import fmt
 from mexone.description.xmlio import XmlReader
@@ -280,6 +289,10 @@ def _link(sdf: _SdfModel, el: etree._Element, name: str, to_urdf: np.ndarray,
     if any(v is not None for v in (props.self_collide, props.mu1, props.mu2, props.kp, props.kd,
                                    props.max_vel, props.min_depth, props.material)):
         model.gazebo_links[name] = props
+    for sensor_el in el.iterfind("sensor"):
+        sensor = read_sensor(xml, sensor_el, link=name)
+        sensor.pose = Pose.from_matrix(to_urdf @ sdf.pose(sensor_el))
+        model.sensors.append(sensor)
     return link
 
 
@@ -363,8 +376,13 @@ def _axis_in_joint_frame(sdf: _SdfModel, axis_el, xyz_el, axis: np.ndarray,
 
 
 def _plugins(sdf: _SdfModel, model: RobotModel) -> None:
+    for joint_el in sdf.joints.values():  # force-torque sensors live in their joint
+        for sensor_el in joint_el.iterfind("sensor"):
+            model.sensors.append(read_sensor(sdf.xml, sensor_el, joint=joint_el.get("name")))
     for plugin in sdf.el.iterfind("plugin"):
-        if (ns := plugin.findtext("robotNamespace")) is not None:
+        if (sensor := read_model_plugin(sdf.xml, plugin)) is not None:
+            merge_model_plugin(model.sensors, sensor)
+        elif (ns := plugin.findtext("robotNamespace")) is not None:
             model.ros_namespace = ns.strip()
 
 
@@ -443,6 +461,15 @@ def write_sdf(model: RobotModel) -> str:
                     _sub(mat, "diffuse", rgba)
     for joint in model.joints.values():
         _write_joint(el_model, model, joint)
+    for sensor in model.sensors:
+        if sensor.type == "force_torque":
+            holder = el_model.find(f"joint[@name='{sensor.joint}']")
+        else:
+            holder = el_model.find(f"link[@name='{sensor.link}']")
+        if holder is not None and needs_sensor_element(sensor):
+            write_sensor(holder, sensor, fmt)
+        if sensor.plugin in MODEL_PLUGINS:
+            write_model_plugin(el_model, sensor, fmt)
     if model.ros_namespace is not None:
         plugin = _sub(el_model, "plugin", name="gazebo_ros_control", filename="libgazebo_ros_control.so")
         _sub(plugin, "robotNamespace", model.ros_namespace)

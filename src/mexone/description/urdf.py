@@ -28,6 +28,15 @@ from mexone.description.model import (
     Transmission,
     Visual,
 )
+from mexone.description.sensors import (
+    MODEL_PLUGINS,
+    merge_model_plugin,
+    needs_sensor_element,
+    read_model_plugin,
+    read_sensor,
+    write_model_plugin,
+    write_sensor,
+)
 from mexone.description.xmlio import XmlReader
 
 __all__ = ["read_urdf", "parse_urdf", "write_urdf", "fmt"]
@@ -186,10 +195,18 @@ def _transmission(xml: XmlReader, el: etree._Element) -> Transmission:
 def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
     ref = el.get("reference")
     if ref is None:
-        plugin = el.find("plugin")
-        if plugin is not None and (ns := plugin.findtext("robotNamespace")) is not None:
-            model.ros_namespace = ns.strip()
+        for plugin in el.iterfind("plugin"):
+            if (sensor := read_model_plugin(xml, plugin)) is not None:
+                merge_model_plugin(model.sensors, sensor)
+            elif (ns := plugin.findtext("robotNamespace")) is not None:
+                model.ros_namespace = ns.strip()
         return
+    for sensor in el.iterfind("sensor"):
+        on_link = ref in model.links
+        if not on_link and ref not in model.joints:
+            break  # reported below, with the reference
+        model.sensors.append(read_sensor(xml, sensor, link=ref if on_link else None,
+                                         joint=None if on_link else ref))
     if ref in model.links:
         props = model.gazebo_links.setdefault(ref, GazeboLink(line=el.sourceline))
         collide = xml.text_bool(el, "selfCollide")
@@ -316,6 +333,12 @@ def _write_gazebo(robot: etree._Element, model: RobotModel) -> None:
         dynamics = _sub(_sub(_sub(robot, "gazebo", reference=name), "axis"), "dynamics")
         _sub(dynamics, "damping", fmt(dyn.damping))
         _sub(dynamics, "friction", fmt(dyn.friction))
+    for sensor in model.sensors:
+        holder = sensor.link if sensor.type != "force_torque" else sensor.joint
+        if needs_sensor_element(sensor):
+            write_sensor(_sub(robot, "gazebo", reference=holder), sensor, fmt)
+        if sensor.plugin in MODEL_PLUGINS:
+            write_model_plugin(_sub(robot, "gazebo"), sensor, fmt)
     if model.ros_namespace is not None:
         plugin = _sub(_sub(robot, "gazebo"), "plugin", name="gazebo_ros_control",
                       filename="libgazebo_ros_control.so")

@@ -26,6 +26,7 @@ from mexone.control.controllers import Controller
 from mexone.errors import InputError, MexoneError
 from mexone.gui.scene import OVERLAYS, RobotScene
 from mexone.gui.security import guard, warn_if_exposed
+from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
@@ -70,6 +71,7 @@ class GuiApp:
         self.stopping = threading.Event()
         self.scene = RobotScene(self.server, self.lab.sim)
         self.scene.build()
+        self.sensor_panel: SensorPanel | None = None
         self.routine: RoutineRunner | None = None
         self.console: deque[str] = deque(maxlen=14)
         self.history: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(
@@ -170,12 +172,16 @@ class GuiApp:
                 offset = np.asarray(client.camera.position) - np.asarray(client.camera.look_at)
                 client.camera.look_at = tuple(base)
                 client.camera.position = tuple(base + offset)
+        self.sensor_panel.update(time.monotonic())
         if self._frames % 5 == 0:
             if not self.error:
                 state = "paused" if sim.paused else "running"
+                balance = self.sensor_panel.stability if self.sensor_panel.com_marker.visible else ""
                 self._status.content = (f"**sim time** {sim.time:8.3f} s &nbsp; **real-time factor** "
-                                        f"{sim.rtf.value:4.2f} &nbsp; ({state})")
+                                        f"{sim.rtf.value:4.2f} &nbsp; ({state})"
+                                        + (f"<br>{balance}" if balance else ""))
             self._update_plots()
+            self.sensor_panel.update_plots()
             self._sync_sliders()
         if self.routine and not self.routine.running:
             self._routine_done()
@@ -211,8 +217,13 @@ class GuiApp:
             wireframe = gui.add_checkbox("Wireframe", False)
             wireframe.on_update(lambda e: self.do(
                 lambda: self.scene.set_wireframe(bool(e.target.value))))
+            balance = gui.add_checkbox(BALANCE, False, hint="COM projection (green), ZMP (red), "
+                                                            "support polygon (blue), foot forces")
+            balance.on_update(lambda e: self.do(
+                lambda: self.sensor_panel.show_balance(bool(e.target.value))))
         self._build_joints()
         self._build_plots()
+        self.sensor_panel = SensorPanel(self.server, self.lab)
         self._build_routines()
         self._build_physics()
 

@@ -29,14 +29,7 @@ __all__ = ["BagRecorder", "ROS_NAMES", "to_ros", "typestore_for", "BAG_SUFFIXES"
            "FLUSH_PERIOD"]
 
 BAG_SUFFIXES = (".mcap", ".bag")
-ROS_NAMES = {  # our message class -> ROS interface name as rosbags spells it
-    msgs.Float64: "std_msgs/msg/Float64",
-    msgs.Float64MultiArray: "std_msgs/msg/Float64MultiArray",
-    msgs.JointState: "sensor_msgs/msg/JointState",
-    msgs.Clock: "rosgraph_msgs/msg/Clock",
-    msgs.JointTrajectory: "trajectory_msgs/msg/JointTrajectory",
-    msgs.TFMessage: "tf2_msgs/msg/TFMessage",
-}
+ROS_NAMES = {cls: name.replace("/", "/msg/", 1) for cls, name in msgs.ROS_TYPES.items()}
 _TF_MSG = "geometry_msgs/TransformStamped[] transforms\n"
 FLUSH_PERIOD = 0.25  # s of sim time between chunks written to disk: what a SIGKILL can lose
 _SMALL_CHUNK = 16 * 1024  # bytes: the chunk size where the mcap library cannot flush on demand
@@ -47,10 +40,28 @@ def active_path(path: Path) -> Path:
     return path.with_name(path.name + ".active")
 
 
+_CONTACT_STATE_MSG = """string info
+string collision1_name
+string collision2_name
+geometry_msgs/Wrench[] wrenches
+geometry_msgs/Wrench total_wrench
+geometry_msgs/Vector3[] contact_positions
+geometry_msgs/Vector3[] contact_normals
+float64[] depths
+"""
+_CONTACTS_STATE_MSG = "std_msgs/Header header\ngazebo_msgs/ContactState[] states\n"
+
+
 def typestore_for(ros1: bool):
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    missing = {}
     if "tf2_msgs/msg/TFMessage" not in store.types:
-        store.register(get_types_from_msg(_TF_MSG, "tf2_msgs/msg/TFMessage"))
+        missing |= get_types_from_msg(_TF_MSG, "tf2_msgs/msg/TFMessage")
+    if "gazebo_msgs/msg/ContactsState" not in store.types:  # gazebo_msgs' official definitions
+        missing |= get_types_from_msg(_CONTACT_STATE_MSG, "gazebo_msgs/msg/ContactState")
+        missing |= get_types_from_msg(_CONTACTS_STATE_MSG, "gazebo_msgs/msg/ContactsState")
+    if missing:
+        store.register(missing)
     return store
 
 
@@ -68,6 +79,15 @@ def to_ros(msg, store, ros1: bool):
 
     def array(values):
         return np.asarray(values, dtype=np.float64)
+
+    def vector(v: msgs.Vector3):
+        return T["geometry_msgs/msg/Vector3"](x=v.x, y=v.y, z=v.z)
+
+    def quaternion(q: msgs.Quaternion):
+        return T["geometry_msgs/msg/Quaternion"](x=q.x, y=q.y, z=q.z, w=q.w)
+
+    def wrench(w: msgs.Wrench):
+        return T["geometry_msgs/msg/Wrench"](force=vector(w.force), torque=vector(w.torque))
 
     match msg:
         case msgs.Float64(data):
@@ -101,6 +121,58 @@ def to_ros(msg, store, ros1: bool):
                     header=header(tf.header), child_frame_id=tf.child_frame_id,
                     transform=T["geometry_msgs/msg/Transform"](translation=vec, rotation=quat)))
             return T["tf2_msgs/msg/TFMessage"](transforms=out)
+        case msgs.Imu():
+            return T["sensor_msgs/msg/Imu"](
+                header=header(msg.header), orientation=quaternion(msg.orientation),
+                orientation_covariance=array(msg.orientation_covariance),
+                angular_velocity=vector(msg.angular_velocity),
+                angular_velocity_covariance=array(msg.angular_velocity_covariance),
+                linear_acceleration=vector(msg.linear_acceleration),
+                linear_acceleration_covariance=array(msg.linear_acceleration_covariance))
+        case msgs.WrenchStamped():
+            return T["geometry_msgs/msg/WrenchStamped"](header=header(msg.header),
+                                                        wrench=wrench(msg.wrench))
+        case msgs.ContactsState():
+            states = [T["gazebo_msgs/msg/ContactState"](
+                info=c.info, collision1_name=c.collision1_name, collision2_name=c.collision2_name,
+                wrenches=[wrench(w) for w in c.wrenches], total_wrench=wrench(c.total_wrench),
+                contact_positions=[vector(v) for v in c.contact_positions],
+                contact_normals=[vector(v) for v in c.contact_normals], depths=array(c.depths))
+                for c in msg.states]
+            return T["gazebo_msgs/msg/ContactsState"](header=header(msg.header), states=states)
+        case msgs.PointStamped():
+            return T["geometry_msgs/msg/PointStamped"](
+                header=header(msg.header), point=T["geometry_msgs/msg/Point"](
+                    x=msg.point.x, y=msg.point.y, z=msg.point.z))
+        case msgs.PolygonStamped():
+            points = [T["geometry_msgs/msg/Point32"](x=p.x, y=p.y, z=p.z)
+                      for p in msg.polygon.points]
+            return T["geometry_msgs/msg/PolygonStamped"](
+                header=header(msg.header), polygon=T["geometry_msgs/msg/Polygon"](points=points))
+        case msgs.Image():
+            return T["sensor_msgs/msg/Image"](
+                header=header(msg.header), height=msg.height, width=msg.width,
+                encoding=msg.encoding, is_bigendian=msg.is_bigendian, step=msg.step,
+                data=np.frombuffer(msg.data, dtype=np.uint8))
+        case msgs.CameraInfo():
+            roi = T["sensor_msgs/msg/RegionOfInterest"](
+                x_offset=msg.roi.x_offset, y_offset=msg.roi.y_offset, height=msg.roi.height,
+                width=msg.roi.width, do_rectify=msg.roi.do_rectify)
+            matrices = {"D": msg.D, "K": msg.K, "R": msg.R, "P": msg.P}
+            names = {k: (k if ros1 else k.lower()) for k in matrices}  # ROS 2 spells them d k r p
+            return T["sensor_msgs/msg/CameraInfo"](
+                header=header(msg.header), height=msg.height, width=msg.width,
+                distortion_model=msg.distortion_model, binning_x=msg.binning_x,
+                binning_y=msg.binning_y, roi=roi,
+                **{names[k]: array(v) for k, v in matrices.items()})
+        case msgs.PointCloud2():
+            fields = [T["sensor_msgs/msg/PointField"](name=f.name, offset=f.offset,
+                                                      datatype=f.datatype, count=f.count)
+                      for f in msg.fields]
+            return T["sensor_msgs/msg/PointCloud2"](
+                header=header(msg.header), height=msg.height, width=msg.width, fields=fields,
+                is_bigendian=msg.is_bigendian, point_step=msg.point_step, row_step=msg.row_step,
+                data=np.frombuffer(msg.data, dtype=np.uint8), is_dense=msg.is_dense)
     raise TypeError(f"no ROS type for {type(msg).__name__}")
 
 
@@ -141,10 +213,13 @@ class BagRecorder:
         except BaseException:
             signals.release(str(self.path))
             raise
-        lab.bus.taps.append(self._write)
+        lab.bus.add_tap(self._write)
         # make the periodic publishers run while we record
         self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None),
                       lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None)]
+        sensors = lab.sensors.topics  # every sensor but the cameras' images and clouds
+        self._subs += [lab.bus.subscribe(t, sensors[t], lambda _m: None)
+                       for t in lab.sensors.light_topics]
 
     def _open(self) -> None:
         self.active.unlink(missing_ok=True)  # only with force: a killed recording discarded
@@ -221,8 +296,7 @@ class BagRecorder:
         self.closed = True
         try:
             with signals.finishing():
-                if self._write in self.lab.bus.taps:
-                    self.lab.bus.taps.remove(self._write)
+                self.lab.bus.remove_tap(self._write)
                 for sub in self._subs:
                     sub.unregister()
                 if self.ros1:

@@ -29,14 +29,25 @@ class JointStateController(Controller):
         self.topic = f"{ctx.namespace}/joint_states"
         self.seq = 0
         self.timer: Periodic | None = None
+        self._watching = False
         ctx.bus.advertise(self.topic, JointState)
 
     def starting(self, t: float) -> None:
-        if self.timer is None:
-            self.timer = self.ctx.sim.add_periodic(self.period, self.publish)
+        self.running = True
+        if not self._watching:  # publish only while someone listens (a timer costs a pause)
+            self._watching = True
+            self.ctx.bus.on_subscribers(self.topic, lambda _n: self._listeners_changed())
+        self._listeners_changed()
 
     def stopping(self) -> None:
-        if self.timer is not None:
+        self.running = False
+        self._listeners_changed()
+
+    def _listeners_changed(self) -> None:
+        wanted = self.running and self.ctx.bus.wanted(self.topic)
+        if wanted and self.timer is None:
+            self.timer = self.ctx.sim.add_periodic(self.period, self.publish)
+        elif not wanted and self.timer is not None:
             self.ctx.sim.remove_periodic(self.timer)
             self.timer = None
 

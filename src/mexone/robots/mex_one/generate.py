@@ -9,6 +9,7 @@ geometry; meshes are written in millimetres, like a CAD export, and loaded with 
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -31,6 +32,7 @@ from mexone.description.model import (
     Transmission,
     Visual,
 )
+from mexone.description.sensors import CameraSpec, Noise, SensorSpec
 from mexone.description.urdf import write_urdf
 from mexone.robots.mex_one import params
 
@@ -120,7 +122,49 @@ def build_model() -> RobotModel:
             f"{h.name}_transmission", h.name,
             hardware_interface="hardware_interface/EffortJointInterface",
             actuator=f"{h.name}_motor", mechanical_reduction=1.0))
+    _add_sensors(model)
     return model
+
+
+def _add_sensors(model: RobotModel) -> None:
+    """IMU in the pelvis, force-torque at both ankles, contact on both soles, the Kinect on the
+    head with its link and optical frames (so robot_state_publisher draws them in TF)."""
+    ns = f"/{params.ROBOT_NAME}"
+    model.links["kinect_link"] = Link("kinect_link")
+    model.joints["kinect_joint"] = Joint("kinect_joint", "fixed", "head", "kinect_link",
+                                         Pose(params.KINECT_XYZ))
+    for frame in ("kinect_rgb_optical_frame", "kinect_depth_optical_frame"):
+        model.links[frame] = Link(frame)  # REP-103 optical: z forward, x right, y down
+        model.joints[f"{frame}_joint"] = Joint(f"{frame}_joint", "fixed", "kinect_link", frame,
+                                               Pose(rpy=(-math.pi / 2, 0.0, -math.pi / 2)))
+    gyro = Noise("gaussian", stddev=params.IMU_GYRO_STDDEV)
+    accel = Noise("gaussian", stddev=params.IMU_ACCEL_STDDEV)
+    model.sensors.append(SensorSpec(
+        "imu", "imu", link=params.IMU_LINK, update_rate=params.IMU_RATE,
+        plugin="libgazebo_ros_imu_sensor.so", namespace=ns, topic="imu", frame=params.IMU_LINK,
+        noise={f"{g}/{a}": (gyro if g == "angular_velocity" else accel)
+               for g in ("angular_velocity", "linear_acceleration") for a in "xyz"}))
+    for joint in params.FT_JOINTS:
+        name = joint.replace("_roll", "_ft")
+        model.sensors.append(SensorSpec(
+            name, "force_torque", joint=joint, update_rate=params.FT_RATE,
+            plugin="libgazebo_ros_ft_sensor.so", namespace=ns, topic=name,
+            ft_frame="child", measure_direction="child_to_parent"))
+    for link in params.CONTACT_LINKS:
+        model.sensors.append(SensorSpec(
+            f"{link}_contact", "contact", link=link, update_rate=params.CONTACT_RATE,
+            plugin="libgazebo_ros_bumper.so", namespace=ns, topic=f"{link}_contact",
+            frame="world", collisions=(f"{link}_collision_0",)))
+    low, high = params.KINECT_RANGE
+    model.sensors.append(SensorSpec(
+        "kinect", "depth", link="kinect_link", update_rate=params.KINECT_RATE,
+        plugin="libgazebo_ros_openni_kinect.so", namespace=ns,
+        topics={"image": "kinect/rgb/image_raw", "camera_info": "kinect/rgb/camera_info",
+                "depth": "kinect/depth/image_raw", "depth_camera_info": "kinect/depth/camera_info",
+                "points": "kinect/depth/points"},
+        frame="kinect_depth_optical_frame", range=(low, high),
+        camera=CameraSpec(params.KINECT_WIDTH, params.KINECT_HEIGHT,
+                          math.radians(params.KINECT_HFOV_DEG), 0.05, 8.0)))
 
 
 def controllers_yaml() -> str:

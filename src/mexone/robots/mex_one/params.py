@@ -164,3 +164,21 @@ def hinges() -> list[Hinge]:
 CONTACT_KP = 1.0e6
 CONTACT_KD = 100.0
 JOINT_STATE_RATE = 50.0  # Hz, as the seed's Listing 3.17
+
+# Sensors, declared in the URDF the Gazebo way (see generate.py). Noise values are assumed: a
+# consumer-grade MEMS IMU; Gazebo tutorials' orders of magnitude.
+IMU_LINK = "pelvis"
+IMU_RATE = 100.0  # Hz
+IMU_GYRO_STDDEV = 2.0e-4  # rad/s
+IMU_ACCEL_STDDEV = 1.0e-2  # m/s^2
+FT_JOINTS = ("l_ankle_roll", "r_ankle_roll")  # six-axis sensors between ankle and foot
+FT_RATE = 100.0
+CONTACT_LINKS = ("l_foot", "r_foot")  # the soles
+CONTACT_RATE = 50.0
+# Kinect v1 (published: 640 x 480 RGB and depth at 30 Hz, 57 x 43 degree field of view, depth
+# 0.5-4.5 m), in front of the bar on top of the head
+KINECT_XYZ = (0.034, 0.0, 0.09)  # in the head's frame: just ahead of the bar's front face
+KINECT_WIDTH, KINECT_HEIGHT = 640, 480
+KINECT_HFOV_DEG = 57.0
+KINECT_RANGE = (0.5, 4.5)  # m
+KINECT_RATE = 30.0

@@ -1,0 +1,163 @@
+"""The page's Sensors panel and the View menu's Balance overlay.
+
+Sensors: each camera live (downscaled for the page, rendered a few times a second and only
+while its box is ticked), IMU and foot-force plots, a contact light per sole, force arrows at
+the feet. Balance: the COM's ground projection, the measured ZMP and the support polygon, with
+whether the robot is statically stable. Everything is read in the simulation thread, between
+frames; nothing here writes the simulation.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+import viser
+import viser.uplot as uplot
+
+from mexone.lab import Lab
+from mexone.sensors import CameraSensor, ContactSensor, ForceTorqueSensor, ImuSensor
+
+__all__ = ["SensorPanel", "BALANCE"]
+
+BALANCE = "Balance"  # the View menu's entry
+CAMERA_FPS = 5.0  # images sent to the page per second of wall time
+PAGE_WIDTH = 320  # pixels of a camera image on the page
+NEWTONS_PER_METRE = 500.0  # force arrows: 500 N draws 1 m
+_HISTORY = 300  # plot samples (10 s at 30 frames per second)
+
+
+def _depth_colours(depth: np.ndarray) -> np.ndarray:
+    """Near bright, far dark, nothing (NaN) black."""
+    finite = np.isfinite(depth)
+    out = np.zeros((*depth.shape, 3), dtype=np.uint8)
+    if finite.any():
+        lo, hi = np.nanmin(depth), np.nanmax(depth)
+        level = 1.0 - (depth[finite] - lo) / max(hi - lo, 1e-6)
+        out[finite] = (np.stack([level, 0.6 * level, 0.2 + 0.8 * level], axis=-1) * 255).astype(np.uint8)
+    return out
+
+
+class SensorPanel:
+    def __init__(self, server: viser.ViserServer, lab: Lab):
+        self.server, self.lab = server, lab
+        suite = lab.sensors
+        self.cameras = {n: s for n, s in suite.sensors.items() if isinstance(s, CameraSensor)}
+        self.imus = {n: s for n, s in suite.sensors.items() if isinstance(s, ImuSensor)}
+        self.fts = {n: s for n, s in suite.sensors.items() if isinstance(s, ForceTorqueSensor)}
+        self.contacts = {n: s for n, s in suite.sensors.items() if isinstance(s, ContactSensor)}
+        self.history: deque[tuple] = deque(maxlen=_HISTORY)
+        self.images: dict[str, viser.GuiImageHandle] = {}
+        self.show_camera: dict[str, viser.GuiCheckboxHandle] = {}
+        self._last_image = -1.0
+        self._build_panel()
+        self._build_overlay()
+
+    # ----- panel ---------------------------------------------------------------------------
+    def _build_panel(self) -> None:
+        gui = self.server.gui
+        with gui.add_folder("Sensors", expand_by_default=False):
+            if not self.lab.sensors.sensors:
+                gui.add_markdown("This robot declares no sensors (`<gazebo><sensor>` in its URDF).")
+            for name, camera in self.cameras.items():
+                self.show_camera[name] = gui.add_checkbox(f"{name} camera", False,
+                                                          hint="renders while ticked")
+                h = round(PAGE_WIDTH * camera.camera.height / camera.camera.width)
+                blank = np.zeros((h, PAGE_WIDTH, 3), dtype=np.uint8)
+                self.images[name] = gui.add_image(blank, label=f"{name} (rgb)", format="jpeg",
+                                                  jpeg_quality=70)
+                if camera.spec.type == "depth":
+                    self.images[name + "/depth"] = gui.add_image(blank, label=f"{name} (depth)",
+                                                                 format="jpeg", jpeg_quality=70)
+            self.contact_view = gui.add_markdown("")
+            empty = (np.zeros(1),) * 4
+            self.imu_plot = gui.add_uplot(
+                empty, (uplot.Series(label="t (s)"),
+                        *(uplot.Series(label=f"acc {a} (m/s²)", stroke=c, width=2)
+                          for a, c in zip("xyz", ("#d62728", "#2ca02c", "#1f77b4"), strict=True))),
+                title="IMU linear acceleration", aspect=1.8,
+                scales={"x": uplot.Scale(time=False)}) if self.imus else None
+            self.force_plot = gui.add_uplot(
+                (np.zeros(1),) * (1 + len(self.fts)),
+                (uplot.Series(label="t (s)"),
+                 *(uplot.Series(label=f"{n} Fz (N)", stroke=c, width=2)
+                   for n, c in zip(self.fts, ("#9467bd", "#ff7f0e", "#8c564b", "#17becf"),
+                                   strict=False))),
+                title="force-torque sensors, Fz", aspect=1.8,
+                scales={"x": uplot.Scale(time=False)}) if self.fts else None
+
+    def _build_overlay(self) -> None:
+        scene = self.server.scene
+        self.com_marker = scene.add_icosphere("/balance/com", radius=0.015, color=(40, 180, 60),
+                                              visible=False)
+        self.zmp_marker = scene.add_icosphere("/balance/zmp", radius=0.012, color=(220, 40, 40),
+                                              visible=False)
+        self.polygon = scene.add_line_segments("/balance/support", np.zeros((1, 2, 3), np.float32),
+                                               (40, 90, 220), thickness=4.0, visible=False)
+        self.arrows = scene.add_line_segments("/balance/forces", np.zeros((1, 2, 3), np.float32),
+                                              (250, 140, 20), thickness=6.0, visible=False)
+        self.stability = ""
+
+    def show_balance(self, on: bool) -> None:
+        for handle in (self.com_marker, self.zmp_marker, self.polygon, self.arrows):
+            handle.visible = on
+
+    # ----- per frame (simulation thread) --------------------------------------------------------
+    def update(self, now_wall: float) -> None:
+        sim = self.lab.sim
+        imu = next(iter(self.imus.values()), None)
+        acc = imu.read()[2] if imu else np.zeros(3)
+        forces = [ft.read()[0][2] for ft in self.fts.values()]
+        self.history.append((sim.time, *acc, *forces))
+        if self.com_marker.visible:
+            self._update_balance()
+        if self.contacts:
+            lights = []
+            for sensor in self.contacts.values():
+                states = sensor.contacts()
+                load = sum(w.force.z for s in states for w in s.wrenches)
+                lights.append(f"{'🟢' if states else '⚪'} `{sensor.link}` {load:5.1f} N")
+            self.contact_view.content = " &nbsp; ".join(lights)
+        if now_wall - self._last_image >= 1.0 / CAMERA_FPS:
+            self._last_image = now_wall
+            self._update_images()
+
+    def update_plots(self) -> None:
+        if len(self.history) < 2:
+            return
+        data = np.array(self.history).T
+        t = data[0]
+        if self.imu_plot is not None:
+            self.imu_plot.data = (t, data[1], data[2], data[3])
+        if self.force_plot is not None:
+            self.force_plot.data = (t, *data[4:4 + len(self.fts)])
+
+    def _update_balance(self) -> None:
+        state = self.lab.sensors.balance.state()
+        ground = self.lab.sensors.balance.ground_z + 0.002
+        self.com_marker.position = (state.com[0], state.com[1], ground)
+        if state.zmp is not None:
+            self.zmp_marker.position = (state.zmp[0], state.zmp[1], ground)
+        poly = state.polygon
+        if len(poly) >= 2:
+            ring = np.c_[poly, np.full(len(poly), ground)]
+            self.polygon.points = np.stack([ring, np.roll(ring, -1, axis=0)], axis=1).astype(np.float32)
+        segments = []
+        for ft in self.fts.values():
+            force, _torque, at = ft.parent_on_child_world()
+            segments.append([at, at - force / NEWTONS_PER_METRE])  # what the foot pushes back with
+        if segments:
+            self.arrows.points = np.array(segments, dtype=np.float32)
+        stable = state.statically_stable
+        self.stability = (f"**statically stable**: {'yes' if stable else 'no'} (COM projection "
+                          f"{'inside' if stable else 'outside'} the support polygon)")
+
+    def _update_images(self) -> None:
+        for name, camera in self.cameras.items():
+            if not self.show_camera[name].value:
+                continue
+            step = max(1, camera.camera.width // PAGE_WIDTH)
+            self.images[name].image = camera.render(depth=False)[::step, ::step]
+            if camera.spec.type == "depth":
+                self.images[name + "/depth"].image = _depth_colours(
+                    camera.render(depth=True)[::step, ::step])

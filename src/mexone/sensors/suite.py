@@ -1,0 +1,108 @@
+"""SensorSuite: a robot's sensors in a running simulation, publishing on the bus.
+
+Each sensor runs on a timer at its update rate in sim time (simulation thread), and only while
+someone listens to one of its topics: the timer is added when the first subscriber comes and
+removed when the last one leaves, so declared sensors nobody reads cost nothing per step.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mexone.bus.topics import Bus
+from mexone.physics.compile import lowest_point
+from mexone.physics.simulation import Periodic, Simulation
+from mexone.sensors.balance import RATE as BALANCE_RATE
+from mexone.sensors.balance import Balance
+from mexone.sensors.base import Measure, Sensor
+from mexone.sensors.build import sensor_link
+from mexone.sensors.camera import CameraSensor
+from mexone.sensors.contact import ContactSensor
+from mexone.sensors.force_torque import ForceTorqueSensor
+from mexone.sensors.imu import ImuSensor
+
+__all__ = ["SensorSuite", "SENSOR_CLASSES"]
+
+SENSOR_CLASSES: dict[str, type[Sensor]] = {"imu": ImuSensor, "force_torque": ForceTorqueSensor,
+                                           "contact": ContactSensor, "camera": CameraSensor,
+                                           "depth": CameraSensor}
+_ANKLE_HEIGHT = 0.25  # m: an FT sensor on a leaf link this close above the soles is a foot's
+
+
+class SensorSuite:
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str):
+        self.sim, self.bus = sim, bus
+        self.measure = Measure(sim)
+        self.sensors: dict[str, Sensor] = {}
+        for spec in sim.robot.sensors:
+            if not spec.always_on:
+                continue
+            link = sensor_link(sim.robot, spec)
+            self.sensors[spec.name] = SENSOR_CLASSES[spec.type](spec, sim, bus, namespace,
+                                                                self.measure, link)
+        self.balance = Balance(sim, bus, namespace, self._feet())
+        self._timers: dict[str, Periodic] = {}
+        for name, sensor in self.sensors.items():
+            for output in sensor.outputs:
+                bus.advertise(output.topic, output.type)
+                bus.on_subscribers(output.topic, lambda _n, key=name: self._listeners_changed(key))
+        for topic in self.balance.topics.values():
+            bus.on_subscribers(topic, lambda _n: self._listeners_changed("balance"))
+
+    def _feet(self) -> list[ForceTorqueSensor]:
+        """Force-torque sensors on leaf links near the soles: what the ZMP is measured with."""
+        robot = self.sim.robot
+        lowest = lowest_point(robot)
+        frames = robot.link_frames
+        feet = []
+        for sensor in self.sensors.values():
+            if isinstance(sensor, ForceTorqueSensor) and not robot.child_joints.get(sensor.link) \
+                    and frames[sensor.link][2, 3] - lowest < _ANKLE_HEIGHT:
+                feet.append(sensor)
+        return feet
+
+    @property
+    def topics(self) -> dict[str, type]:
+        """Every topic the sensors can publish, with its message type."""
+        out = {o.topic: o.type for s in self.sensors.values() for o in s.outputs}
+        out |= {t: self.balance.types[k] for k, t in self.balance.topics.items()}
+        return out
+
+    @property
+    def light_topics(self) -> list[str]:
+        """What a recorder asks for: everything but images and clouds."""
+        heavy = {o.topic for s in self.sensors.values() for o in s.outputs if o.heavy}
+        return [t for t in self.topics if t not in heavy]
+
+    def _wanted(self, key: str) -> bool:
+        if key == "balance":
+            return any(self.bus.wanted(t) for t in self.balance.topics.values())
+        sensor = self.sensors[key]
+        return any(sensor.wanted(o) for o in sensor.outputs)
+
+    def _listeners_changed(self, key: str) -> None:
+        wanted, timer = self._wanted(key), self._timers.get(key)
+        if wanted and timer is None:
+            if key == "balance":
+                self._timers[key] = self.sim.add_periodic(1.0 / BALANCE_RATE, self.balance.publish)
+            else:
+                sensor = self.sensors[key]
+                self._timers[key] = self.sim.add_periodic(1.0 / sensor.rate, sensor.publish)
+        elif not wanted and timer is not None:
+            self.sim.remove_periodic(self._timers.pop(key))
+
+    def close(self) -> None:
+        for sensor in self.sensors.values():
+            if isinstance(sensor, CameraSensor):
+                sensor.close()
+
+    def readings(self) -> dict[str, np.ndarray]:
+        """Every sensor's current values as plain arrays, for GUIs and tests."""
+        out: dict[str, np.ndarray] = {}
+        for name, sensor in self.sensors.items():
+            if isinstance(sensor, ImuSensor):
+                quat, gyro, acc = sensor.read()
+                out[name] = np.r_[quat, gyro, acc]
+            elif isinstance(sensor, ForceTorqueSensor):
+                out[name] = np.r_[sensor.read()]
+        return out
