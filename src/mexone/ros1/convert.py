@@ -1,16 +1,21 @@
 """mexone's bus messages <-> rospy messages: one table each way, keyed by the bus class (whose ROS
-type name is `bus.msgs.ROS_TYPES`). The bridge forwards every bus topic whose type has an entry
-in TO_ROS, so a new message type needs only its converter here. Stamps go through integer
-nanoseconds: a float second would put them 1 ns off (robot_state_publisher then drops them)."""
+type name is `bus.msgs.ROS_TYPES`). The bridge forwards every bus topic whose type has a ROS
+name: types whose fields mirror ROS's (the sensors' Imu, WrenchStamped, ContactsState, Image,
+CameraInfo, PointCloud2, PointStamped, PolygonStamped) go field by field (`_generic`), so a new
+message type needs a converter here only when its fields differ from ROS's. Stamps go through
+integer nanoseconds: a float second would put them 1 ns off (robot_state_publisher then drops
+them)."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from typing import Any
 
 from mexone.bus import msgs
 
-__all__ = ["TO_ROS", "FROM_ROS", "ros_class", "to_ros", "from_ros", "ros_time", "bus_time"]
+__all__ = ["TO_ROS", "FROM_ROS", "ros_class", "to_ros", "from_ros", "ros_time", "bus_time",
+           "can_send"]
 
 
 def ros_class(bus_type: type):
@@ -116,8 +121,43 @@ FROM_ROS: dict[str, Callable[[Any], Any]] = {
 }
 
 
+def _generic(m, cls):
+    """A bus message whose fields are ROS's own (names, order, nesting): copied field by field,
+    nested messages built from the ROS class's slot types, stamps exact."""
+    out = cls()
+    for slot, slot_type in zip(cls.__slots__, cls._slot_types, strict=True):
+        setattr(out, slot, _value(getattr(m, slot), slot_type))
+    return out
+
+
+def _value(value, slot_type: str):
+    from roslib.message import get_message_class
+
+    if isinstance(value, msgs.Time):
+        return ros_time(value)
+    if isinstance(value, msgs.Duration):
+        return _ros_duration(value)
+    if dataclasses.is_dataclass(value):
+        return _generic(value, get_message_class(_full_type(slot_type)))
+    if isinstance(value, (list, tuple)):
+        base = slot_type.split("[", 1)[0]
+        if "/" in base or base == "Header":
+            return [_value(v, base) for v in value]
+        return list(value)
+    return value
+
+
+def _full_type(slot_type: str) -> str:
+    return "std_msgs/Header" if slot_type == "Header" else slot_type
+
+
+def can_send(bus_type: type) -> bool:
+    """Whether the bridge can publish this bus type on ROS: a converter, or ROS's own fields."""
+    return bus_type in TO_ROS or (bus_type in msgs.ROS_TYPES and dataclasses.is_dataclass(bus_type))
+
+
 def to_ros(msg, cls):
-    return TO_ROS[type(msg)](msg, cls)
+    return TO_ROS.get(type(msg), _generic)(msg, cls)
 
 
 def from_ros(ros_msg):
