@@ -68,28 +68,14 @@ def start_mexone(port: int, *extra: str) -> subprocess.Popen:
 
 
 @pytest.fixture(scope="module")
-def ros():
-    if not Path(ROSCORE).exists():
-        pytest.skip("Debian ROS 1 is not installed (ros-core, python3-rospy)")
-    port = free_port()
-    os.environ.update(ros_env(port))
-    core = start_roscore(port)
+def ros(ros_master):
+    rospy, port = ros_master
     sim = start_mexone(port)
-    from mexone.ros1.bridge import import_rospy
-
-    rospy = import_rospy()
     from sensor_msgs.msg import JointState
 
-    deadline = time.time() + 60
-    while time.time() < deadline and not rospy.core.is_initialized():
-        try:
-            rospy.init_node("mexone_test", disable_signals=True)
-        except Exception:
-            time.sleep(0.5)
     rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=60)
     yield rospy, port, sim
     stop(sim)
-    stop(core)
 
 
 def joint_states(rospy, timeout=5.0):
@@ -301,8 +287,9 @@ def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path
 
 
 def test_the_seed_launch_files(tmp_path):
-    """roslaunch model.launch (the simulator) and control.launch (parameters,
-    robot_state_publisher, the sweep node), as the seed's chapter 3 ran them."""
+    """roslaunch model.launch (the simulator) and control.launch (parameters, the spawner,
+    robot_state_publisher, the arms routine's node), as the seed's chapters 3 and 4 ran them:
+    both shoulders, both elbows and the neck reach the routine's 30 degrees."""
     port = free_port()
     core = start_roscore(port)
     env = ros_env(port)
@@ -315,7 +302,8 @@ def test_the_seed_launch_files(tmp_path):
         deadline = time.time() + 90  # as in the seed: the model first, then the control files
         while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
             time.sleep(0.5)
-        control = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "control.launch"], env=env,
+        control = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "control.launch",
+                                    "routine:=arms_node.py"], env=env,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                    start_new_session=True)
         code = ("import rospy, sys; from sensor_msgs.msg import JointState; "
@@ -323,7 +311,8 @@ def test_the_seed_launch_files(tmp_path):
                 "while time.time() - t < 90:\n"
                 "    m = rospy.wait_for_message('/mex_rb/joint_states', JointState, timeout=60)\n"
                 "    q = dict(zip(m.name, m.position))\n"
-                "    if q['l_shoulder_pitch'] < -0.5: print('moved'); sys.exit(0)\n"
+                "    if q['l_shoulder_pitch'] < -0.45 and q['r_elbow'] < -0.45 and q['neck_yaw'] > 0.45:\n"
+                "        print('moved'); sys.exit(0)\n"
                 "sys.exit(1)")
         probe = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True,
                                text=True, timeout=150)

@@ -12,9 +12,10 @@ import time
 from pathlib import Path
 
 import pytest
+import yaml
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_bridge import ROSCORE, RSP, free_port, ros_env, start_roscore, stop  # noqa: E402
+from test_bridge import RSP, ros_env, stop  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -26,28 +27,14 @@ def start_sim(port: int, *extra: str, rtf: str = "1") -> subprocess.Popen:
 
 
 @pytest.fixture(scope="module")
-def ros():
-    if not Path(ROSCORE).exists():
-        pytest.skip("Debian ROS 1 is not installed (ros-core, python3-rospy)")
-    port = free_port()
-    os.environ.update(ros_env(port))
-    core = start_roscore(port)
+def ros(ros_master):
+    rospy, port = ros_master
     sim = start_sim(port)
-    from mexone.ros1.bridge import import_rospy
-
-    rospy = import_rospy()
     from sensor_msgs.msg import JointState
 
-    deadline = time.time() + 60
-    while time.time() < deadline and not rospy.core.is_initialized():
-        try:
-            rospy.init_node("mexone_parity_test", disable_signals=True)
-        except Exception:
-            time.sleep(0.5)
     rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=60)
     yield rospy, port, sim
     stop(sim)
-    stop(core)
 
 
 def service(rospy, name: str, kind):
@@ -72,6 +59,27 @@ def wait_sim(rospy, seconds: float) -> None:
         if rospy.wait_for_message("/clock", Clock, timeout=10).clock.to_sec() >= start + seconds:
             return
     raise AssertionError("sim time did not advance")
+
+
+def test_sensor_topics_reach_ros_while_someone_subscribes(ros):
+    """The sensors publish only while someone listens: a ROS subscriber is someone. The IMU at
+    rest reads gravity; the Kinect's cloud comes in its optical frame, points in front of it."""
+    rospy, port, _ = ros
+    from sensor_msgs import point_cloud2
+    from sensor_msgs.msg import PointCloud2
+
+    out = subprocess.run(["rostopic", "echo", "-n1", "/mex_rb/imu"], env=ros_env(port),
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    imu = yaml.safe_load(out.stdout.split("---")[0])
+    assert imu["header"]["frame_id"] == "pelvis"
+    acc = imu["linear_acceleration"]
+    assert acc["z"] == pytest.approx(9.81, abs=0.3) and abs(acc["x"]) < 0.3, acc
+    cloud = rospy.wait_for_message("/mex_rb/kinect/depth/points", PointCloud2, timeout=60)
+    assert cloud.header.frame_id == "kinect_depth_optical_frame"
+    assert cloud.width * cloud.height > 10_000
+    points = list(point_cloud2.read_points(cloud, ("x", "y", "z"), skip_nans=True))
+    assert len(points) > 1000 and all(0.05 < z < 20.0 for _, _, z in points[::97]), points[:3]
 
 
 def test_controller_manager_services_load_switch_and_the_trajectory_action(ros):
@@ -426,3 +434,80 @@ def test_a_second_simulator_needs_its_own_name_and_both_are_commanded(ros):
         assert second.poll() is None and ros[2].poll() is None
     finally:
         stop(second)
+
+
+def test_one_simulator_two_robots_each_with_its_own_controllers(ros):
+    """spawn_urdf_model with a robot_namespace, as gazebo_ros' spawn_model -robot_namespace: the
+    second Mex-One gets a controller manager at /robot2, the spawner starts the controllers
+    from the parameter server there (all of them, so it stands), and each robot follows only
+    its own commands."""
+    rospy, port, _ = ros
+    from controller_manager_msgs.srv import ListControllers
+    from gazebo_msgs.srv import DeleteModel, GetModelState, SpawnModel
+    from geometry_msgs.msg import Pose
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+    from std_srvs.srv import Empty
+
+    from mexone.robots import mex_one
+
+    params = yaml.safe_load(mex_one.controllers_path().read_text())["mex_rb"]
+    rospy.set_param("/robot2", params)
+    pose = Pose()
+    pose.position.y, pose.orientation.w = 1.5, 1.0
+    get_state = service(rospy, "/gazebo/get_model_state", GetModelState)
+    pose.position.z = get_state("mex_rb", "world").pose.position.z
+    service(rospy, "/gazebo/pause_physics", Empty)()  # as spawn_model without -unpause: it
+    spawn = service(rospy, "/gazebo/spawn_urdf_model", SpawnModel)  # stands once controlled
+    answer = spawn("robot2", rospy.get_param("/robot_description"), "/robot2", pose, "world")
+    assert answer.success, answer.status_message
+    clash = spawn("robot3", rospy.get_param("/robot_description"), "/robot2", pose, "world")
+    assert not clash.success and "/robot2" in clash.status_message
+    every = [name for name, value in params.items() if isinstance(value, dict) and "type" in value]
+    spawner = subprocess.Popen(["rosrun", "controller_manager", "spawner", "--namespace", "/robot2",
+                                *every], env=ros_env(port),
+                               stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                               start_new_session=True)
+    try:
+        listed = service(rospy, "/robot2/controller_manager/list_controllers", ListControllers)
+        deadline = time.time() + 60
+        while time.time() < deadline and sum(c.state == "running"
+                                             for c in listed().controller) < len(every):
+            time.sleep(0.2)
+        assert sorted(c.name for c in listed().controller if c.state == "running") == sorted(every)
+        service(rospy, "/gazebo/unpause_physics", Empty)()
+        msg = rospy.wait_for_message("/robot2/joint_states", JointState, timeout=60)
+        assert "l_elbow" in msg.name
+        first = rospy.Publisher("/mex_rb/l_elbow_position_controller/command", Float64, queue_size=1)
+        other = rospy.Publisher("/robot2/l_elbow_position_controller/command", Float64, queue_size=1)
+        neck = rospy.Publisher("/robot2/neck_yaw_position_controller/command", Float64, queue_size=1)
+        deadline = time.time() + 30
+        q1 = q2 = {}
+        while time.time() < deadline:
+            first.publish(Float64(-0.5))
+            other.publish(Float64(-1.0))
+            neck.publish(Float64(0.5))
+            time.sleep(0.5)
+            q1 = joints(rospy)
+            m = rospy.wait_for_message("/robot2/joint_states", JointState, timeout=10)
+            q2 = dict(zip(m.name, m.position, strict=True))
+            if abs(q1["l_elbow"] + 0.5) < 0.03 and abs(q2["l_elbow"] + 1.0) < 0.03 \
+                    and abs(q2["neck_yaw"] - 0.5) < 0.03:
+                break
+        assert q1["l_elbow"] == pytest.approx(-0.5, abs=0.03)
+        assert q1["neck_yaw"] == pytest.approx(0.0, abs=0.03)
+        assert q2["l_elbow"] == pytest.approx(-1.0, abs=0.03)
+        assert q2["neck_yaw"] == pytest.approx(0.5, abs=0.03)
+        first.publish(Float64(0.0))
+        assert get_state("robot2", "world").pose.position.z > 0.5  # standing, held by its own
+    finally:
+        service(rospy, "/gazebo/unpause_physics", Empty)()
+        stop(spawner)
+        assert service(rospy, "/gazebo/delete_model", DeleteModel)("robot2").success
+        rospy.delete_param("/robot2")
+    import rosservice
+
+    deadline = time.time() + 10  # its controller manager went with it
+    while time.time() < deadline and rosservice.get_service_list(namespace="/robot2"):
+        time.sleep(0.2)
+    assert rosservice.get_service_list(namespace="/robot2") == [] and ros[2].poll() is None

@@ -124,7 +124,7 @@ class ControllerManager:
         if spec is None:
             raise InputError(f"no controller named '{name}' in the configuration",
                              hint="controllers: " + ", ".join(self.config.controllers))
-        missing = [j for j in spec.joints if j not in self.sim.robot.joints]
+        missing = [j for j in spec.joints if j not in self.hw.robot.joints]
         if missing:
             raise InputError(f"controller '{name}' names joint '{missing[0]}', which the robot "
                              "does not have", file=spec.source, line=spec.line,
@@ -299,6 +299,14 @@ class ControllerManager:
                 msg = ctrl.state_message(self.control_period)
                 msg.header = Header(self._state_seq, stamp, "")
                 self.bus.publish(topic, msg)
+
+    def close(self) -> None:
+        """Stop every controller and leave the simulation (its robot was deleted)."""
+        self.switch(stop=[c.name for c in self._running])
+        if self._state_timer is not None:
+            self.sim.remove_periodic(self._state_timer)
+            self._state_timer = None
+        self.sim.remove_control(self)
 
     def restart(self) -> None:
         """Stop and start every running controller (after a reset: they hold the new pose)."""

@@ -237,6 +237,13 @@ class Simulation:
     def add_control(self, control: Control) -> None:
         self.controls.append(control)
 
+    def remove_control(self, control: Control) -> None:
+        """Forget a control and the hooks it registered (a deleted robot's controllers)."""
+        if control in self.controls:
+            self.controls.remove(control)
+        for hooks in (self._reset_hooks, self._timestep_hooks, self._model_hooks):
+            hooks[:] = [h for h in hooks if getattr(h, "__self__", None) is not control]
+
     def _fire_due(self) -> None:
         now, half = self._time_ns, self._step_ns // 2
         for timer in list(self.periodic):
@@ -374,15 +381,18 @@ class Simulation:
         self._model_hooks.append(hook)
 
     def add_model(self, robot: RobotModel | Path | str, name: str | None = None,
-                  spawn: Spawn = Spawn(on_ground=False)) -> str:
-        """Add another model (a box, a ball, a second robot without controllers) to the running
-        world, touching the ground and the robot; returns its name. The robot's ids stay."""
+                  spawn: Spawn = Spawn(on_ground=False), edits: Sequence[SpecEdit] = ()) -> str:
+        """Add another model (a box, a ball, a second robot) to the running world, touching the
+        ground and the robot; returns its name. The robot's ids stay. `edits` change its spec
+        before it is attached (a second robot's actuators): then its links keep their own
+        collision rules (selfCollide), as the robot's do."""
         if not isinstance(robot, RobotModel):
             robot = load_model(robot)
         name = name or robot.name
         if name == self.robot.name or name in self.models:
             raise InputError(f"a model named '{name}' already exists", hint="pick another name")
-        self.models[name] = attach_model(self.compiled.spec, robot, name, self.compiled.world, spawn)
+        self.models[name] = attach_model(self.compiled.spec, robot, name, self.compiled.world,
+                                         spawn, edits, touch_all=not edits)
         try:
             self._recompile()
         except ValueError as exc:

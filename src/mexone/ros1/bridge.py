@@ -3,7 +3,8 @@
 It does what gazebo_ros + gazebo_ros_control did for the seed: sets /robot_description, takes
 the controller configuration from the parameter server when none is given (so `rosparam load`
 + the seed's control.launch works), mirrors the in-process topics (every bus topic whose
-message type has a converter in `convert.py`: joint_states, controller states, commands in),
+message type has a ROS name, see `convert.py`: joint_states, controller states, the sensors'
+IMU, force-torque, contacts, cameras and clouds, balance; commands in),
 publishes /clock (sim time, so use_sim_time nodes follow it, also while paused) and the
 floating base as TF world -> <root>, sends mexone's warnings to /rosout, and starts the
 controller manager's services (controller_manager.py) and gazebo_ros' (gazebo.py).
@@ -33,7 +34,7 @@ from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
-__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server",
+__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server", "controllers_at",
            "CLOCK_PERIOD", "DEFAULT_NODE", "CLOCK_FREQUENCY"]
 
 log = logging.getLogger("mexone.ros")
@@ -50,6 +51,7 @@ _MAX_STRIDE = 200.0  # at most 200 clock periods of sim time between /clock mess
 _CLOCK_BURST = 20.0  # /clock messages that may go out at once after a pause in wall time (pacing)
 _PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused (Gazebo keeps publishing)
 _NOT_MIRRORED = {"/clock", "/tf"}  # the bridge publishes these itself (see _publish_clock, TF)
+_HEAVY = (msgs.Image, msgs.PointCloud2)
 
 
 def import_rospy():
@@ -84,6 +86,14 @@ def config_from_param_server(rospy, namespace: str) -> ControlConfig:
     return parse_control_config(yaml.safe_dump({namespace.strip("/"): _controllers_only(params)}))
 
 
+def controllers_at(rospy, namespace: str) -> ControlConfig:
+    """The controllers on the parameter server under /<ns>, possibly none (a robot spawned
+    before its controllers.yaml was loaded: the spawner's load_controller reads them later)."""
+    ns = namespace.strip("/")
+    params = rospy.get_param("/" + ns, {})
+    return parse_control_config(yaml.safe_dump({ns: _controllers_only(params)}))
+
+
 def _controllers_only(params) -> dict:
     """The entries of a namespace that are controllers (a `type:`) or gazebo_ros_control's gains;
     a namespace also holds robot_description, dynamic_reconfigure's values, ..."""
@@ -100,7 +110,9 @@ class _Mirror:
         rospy = bridge.rospy
         self.bridge, self.topic, self.cls = bridge, topic, convert.ros_class(bus_type)
         self.sub = None
-        self.publisher = rospy.Publisher(topic, self.cls, queue_size=100,
+        # images and clouds are MBs each: a subscriber that falls behind gets the latest ones
+        queue = 2 if bus_type in _HEAVY else 100
+        self.publisher = rospy.Publisher(topic, self.cls, queue_size=queue,
                                          subscriber_listener=self._Listener(self))
 
     class _Listener:
@@ -213,7 +225,7 @@ class Ros1Bridge:
         for name, topic in list(bus.topics.items()):
             if name in _NOT_MIRRORED or name in self._mirrors or name in self._inbound:
                 continue
-            if topic.publishers and topic.type in convert.TO_ROS:
+            if topic.publishers and convert.can_send(topic.type):
                 self._mirrors[name] = _Mirror(self, name, topic.type)
             elif topic.subscriptions and convert.FROM_ROS.get(msgs.ROS_TYPES.get(topic.type, "")):
                 self._inbound[name] = self.rospy.Subscriber(name, convert.ros_class(topic.type),

@@ -36,13 +36,15 @@ _GAIN_RANGE = {"p": (0.0, 1e5), "i": (0.0, 1e5), "d": (0.0, 1e4), "i_clamp_min":
 
 
 class ControllerManagerNode:
-    def __init__(self, bridge):
+    """The lab's robot's controller manager, or (`manager`, `ns`) a spawned robot's."""
+
+    def __init__(self, bridge, manager=None, ns: str | None = None):
         from controller_manager_msgs import srv
 
         self.bridge, self.rospy = bridge, bridge.rospy
         self.lab = bridge.lab
-        self.manager = self.lab.controllers
-        self.ns = self.lab.namespace
+        self.manager = manager or self.lab.controllers
+        self.ns = ns or self.lab.namespace
         rospy, base = self.rospy, f"{self.ns}/controller_manager/"
         self.services = [
             rospy.Service(base + "list_controllers", srv.ListControllers, self._list),
@@ -56,6 +58,13 @@ class ControllerManagerNode:
         self.extras: dict[str, list] = {}  # controller -> its reconfigure server, action, ...
         for name in list(self.manager.controllers):
             self._add_extras(name)
+
+    def shutdown(self) -> None:
+        """Take the services down (the robot was deleted)."""
+        for name in list(self.extras):
+            self._remove_extras(name)
+        for service in self.services:
+            service.shutdown()
 
     # ----- services (rospy threads) -------------------------------------------------------------
     def _list(self, _req):
@@ -164,10 +173,14 @@ class ControllerManagerNode:
 
     def _remove_extras(self, name: str) -> None:
         for handle in self.extras.pop(name, []):
-            for method in ("shutdown", "unregister"):
-                if hasattr(handle, method):
-                    getattr(handle, method)()
-                    break
+            # a dynamic_reconfigure Server has no shutdown(): its service and topics go one by one
+            parts = [getattr(handle, a) for a in ("set_service", "descr_topic", "update_topic")
+                     if hasattr(handle, a)] or [handle]
+            for part in parts:
+                for method in ("shutdown", "unregister"):
+                    if hasattr(part, method):
+                        getattr(part, method)()
+                        break
 
     def _reconfigure(self, name: str, gains: PidGains):
         """dynamic_reconfigure server at <ns>/<ctrl>/pid with control_toolbox's parameters."""
@@ -197,7 +210,7 @@ class TrajectoryInterfaces:
         from control_msgs.srv import QueryTrajectoryState
 
         self.node, self.name = node, name
-        self.ctrl = node.manager.controllers[name]
+        self.controller = node.manager.controllers[name]
         base = f"{node.ns}/{name}"
         self.server = actionlib.ActionServer(f"{base}/follow_joint_trajectory",
                                              FollowJointTrajectoryAction, self._goal, self._cancel,
@@ -216,7 +229,7 @@ class TrajectoryInterfaces:
     def _start(self, handle, goal, trajectory, joints) -> None:  # simulation thread
         from control_msgs.msg import FollowJointTrajectoryResult
 
-        order = {j: i for i, j in enumerate(self.ctrl.joints)}
+        order = {j: i for i, j in enumerate(self.controller.joints)}
 
         def tolerance(items, field):
             values = np.zeros(len(order))
@@ -248,7 +261,7 @@ class TrajectoryInterfaces:
                             lambda t, d, v, a, av: self._feedback(handle, joints, t, d, v, a, av))
         sim = self.node.lab.sim
         # validation ends the goal at once (rejected) before it is accepted
-        self.ctrl.execute(trajectory, tg, sim.time)
+        self.controller.execute(trajectory, tg, sim.time)
         if not outcome:
             accepted = True
             handle.set_accepted("")
@@ -257,7 +270,7 @@ class TrajectoryInterfaces:
         from control_msgs.msg import FollowJointTrajectoryFeedback
         from trajectory_msgs.msg import JointTrajectoryPoint
 
-        fb = FollowJointTrajectoryFeedback(joint_names=list(self.ctrl.joints))
+        fb = FollowJointTrajectoryFeedback(joint_names=list(self.controller.joints))
         fb.header.stamp = convert.ros_time(round(t * 1e9))
         fb.desired = JointTrajectoryPoint(positions=list(desired), velocities=list(velocity))
         fb.actual = JointTrajectoryPoint(positions=list(actual), velocities=list(actual_velocity))
@@ -267,7 +280,7 @@ class TrajectoryInterfaces:
 
     def _cancel(self, handle) -> None:
         sim = self.node.lab.sim
-        sim.work.put(lambda: self.ctrl.cancel(sim.time))
+        sim.work.put(lambda: self.controller.cancel(sim.time))
 
     def _query(self, req):
         from control_msgs.srv import QueryTrajectoryStateResponse
@@ -275,8 +288,8 @@ class TrajectoryInterfaces:
         t = req.time.to_sec()
         if not math.isfinite(t):
             return QueryTrajectoryStateResponse()
-        pos, vel, acc = self.node.bridge.call(lambda: self.ctrl.query_state(t))
-        return QueryTrajectoryStateResponse(list(self.ctrl.joints), list(pos), list(vel), list(acc))
+        pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        return QueryTrajectoryStateResponse(list(self.controller.joints), list(pos), list(vel), list(acc))
 
 
 class _ActionHandle:

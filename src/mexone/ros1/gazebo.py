@@ -40,6 +40,8 @@ class GazeboNode:
 
         self.bridge, self.rospy, self.lab = bridge, bridge.rospy, bridge.lab
         rospy, ns = self.rospy, bridge.gazebo_ns
+        self.managers: dict = {}  # spawned robot -> its ControllerManager (simulation thread)
+        self.nodes: dict = {}  # spawned robot -> its ControllerManagerNode (services)
         sim = self.lab.sim
         table: list[tuple[str, type, Callable]] = [
             ("pause_physics", Empty, self._empty(sim.pause)),
@@ -361,24 +363,66 @@ class GazeboNode:
                     robot = _load_text(req.model_xml, Path(tmp) / f"model{suffix}")
                 except (MexoneError, OSError) as exc:
                     return SpawnModelResponse(False, f"cannot read the model: {_text(exc)}")
-                note = ""
-                if robot.transmissions:
-                    note = (" (its transmissions drive nothing here: run another 'mexone sim "
-                            "--ros --name ...' for a second robot with controllers)")
-
-                def add():
-                    self.lab.sim.add_model(robot, name, spawn)
-                    return {"status_message": f"SpawnModel: Successfully spawned entity{note}"}
-                return self._answer(SpawnModelResponse, add)
+                if not robot.transmissions:
+                    def add():
+                        self.lab.sim.add_model(robot, name, spawn)
+                        return {"status_message": "SpawnModel: Successfully spawned entity"}
+                    return self._answer(SpawnModelResponse, add)
+                return self._spawn_robot(req, robot, name, spawn)
         return handler
+
+    def _spawn_robot(self, req, robot, name: str, spawn: Spawn):
+        """A robot with transmissions gets what gazebo_ros_control gives it: a controller manager
+        in its namespace (spawn_model's -robot_namespace, else its URDF's, else its name) with
+        the controllers on the parameter server there, loaded stopped for the spawner."""
+        from gazebo_msgs.srv import SpawnModelResponse
+
+        from mexone.control.hardware import SimHardware, build_actuators
+        from mexone.control.manager import ControllerManager
+        from mexone.ros1.bridge import controllers_at
+        from mexone.ros1.controller_manager import ControllerManagerNode
+
+        ns = "/" + (req.robot_namespace.strip().strip("/") or (robot.ros_namespace or "").strip("/")
+                    or name)
+        taken = {self.lab.namespace} | {m.namespace for m in self.managers.values()}
+        if ns in taken:
+            return SpawnModelResponse(False, f"robot_namespace {ns} is taken by another robot: "
+                                             "spawn it with another -robot_namespace")
+        try:
+            config = controllers_at(self.rospy, ns)
+        except MexoneError as exc:
+            return SpawnModelResponse(False, f"controllers at {ns}: {_text(exc)}")
+
+        def add():
+            sim = self.lab.sim
+            sim.add_model(robot, name, spawn, edits=[build_actuators])
+            try:
+                self.managers[name] = ControllerManager(sim, self.lab.bus, config,
+                                                        SimHardware(sim, robot, f"{name}/"), ns)
+            except MexoneError:
+                sim.remove_model(name)
+                raise
+            return {"status_message": f"SpawnModel: Successfully spawned entity (controller "
+                                      f"manager at {ns}/controller_manager)"}
+        answer = self._answer(SpawnModelResponse, add)
+        if answer.success:
+            self.nodes[name] = ControllerManagerNode(self.bridge, self.managers[name], ns)
+        return answer
 
     def _delete_model(self, req):
         from gazebo_msgs.srv import DeleteModelResponse
 
         def delete():
+            manager = self.managers.pop(req.model_name, None)
+            if manager is not None:  # its controllers stop before its joints go
+                manager.close()
             self.lab.sim.remove_model(req.model_name)
             return {"status_message": f"DeleteModel: successfully deleted model {req.model_name}"}
-        return self._answer(DeleteModelResponse, delete)
+        answer = self._answer(DeleteModelResponse, delete)
+        node = self.nodes.pop(req.model_name, None)
+        if node is not None:
+            node.shutdown()
+        return answer
 
     # ----- topics -------------------------------------------------------------------------------
     def _model_states(self, cls):
