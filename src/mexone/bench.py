@@ -7,6 +7,9 @@ noisy machine):
                  with the full PID (I terms with clamps on all 21 joints)
   pybullet       the same URDF in PyBullet (extra [peers]): 1 ms steps, 21 joints under its
                  POSITION_CONTROL motors; step-time ratio, and the no-controller fall side by side
+  sensors        the PD row again with every light sensor read (pelvis IMU and both ankle FT at
+                 100 Hz, sole contacts at 50 Hz, COM/ZMP/support polygon), and the Kinect's cost
+                 per frame (RGB; depth image + point cloud) rendered offscreen
   cold start     process start to the first simulated millisecond of `mexone sim --headless`
   parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
                  controllers run inside MuJoCo, so the controlled robot rolls out in C) and
@@ -41,6 +44,8 @@ class BenchReport:
     sim_seconds: float
     overhead: dict = field(default_factory=dict)
     overhead_full_pid: dict = field(default_factory=dict)
+    overhead_sensors: dict = field(default_factory=dict)
+    camera: dict = field(default_factory=dict)
     pybullet: dict | None = None
     cold_start_s: float | None = None
     parallel: list[dict] = field(default_factory=list)
@@ -68,7 +73,19 @@ def with_integral_terms(lab: Lab) -> None:
     lab.sim.step(1)  # the update writes the new gains into the actuators
 
 
-def overhead(sim_seconds: float, repeats: int, full_pid: bool = False) -> dict:
+def read_light_sensors(lab: Lab) -> None:
+    """Subscribe to every sensor that is not a camera, so all of them publish."""
+    for sensor in lab.sensors.sensors.values():
+        for output in sensor.outputs:
+            if not output.heavy:
+                lab.bus.subscribe(output.topic, output.type, lambda msg: None)
+    balance = lab.sensors.balance
+    for key, topic in balance.topics.items():
+        lab.bus.subscribe(topic, balance.types[key], lambda msg: None)
+
+
+def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
+             sensors: bool = False) -> dict:
     """mexone's stepping vs bare mj_step on the same model, data layout and controls.
 
     Measured in pairs, bare and mexone back to back in alternating order, in CPU time of this
@@ -76,6 +93,8 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False) -> dict:
     lab = Lab.create()
     if full_pid:
         with_integral_terms(lab)
+    if sensors:
+        read_light_sensors(lab)
     lab.bus.subscribe(f"{lab.namespace}/joint_states", JointState, lambda msg: None)  # 50 Hz, read
     sim = lab.sim
     model = sim.model
@@ -106,6 +125,33 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False) -> dict:
     ratio = float(np.median(np.array(ourses) / np.array(bares)))
     return {"bare_s_per_sim_s": float(np.median(bares)) / sim_seconds,
             "mexone_s_per_sim_s": float(np.median(ourses)) / sim_seconds, "ratio": ratio}
+
+
+def camera_cost(sim_seconds: float) -> dict:
+    """CPU ms per Kinect frame (30 Hz of sim time), RGB alone and depth + cloud, as the extra
+    CPU of a run with those subscribers over the same run without."""
+    lab = Lab.create()
+    sim, kinect = lab.sim, lab.sensors.sensors["kinect"]
+    steps = round(sim_seconds / sim.timestep)
+
+    def run(topics: tuple[str, ...]) -> float:
+        subs = [lab.bus.subscribe(kinect.topics[k], lab.bus.topics[kinect.topics[k]].type,
+                                  lambda msg: None) for k in topics]
+        sim.reset()
+        start = time.thread_time()
+        sim.step(steps)
+        spent = time.thread_time() - start
+        for sub in subs:
+            sub.unregister()
+        return spent
+
+    run(("image", "points"))  # renderer created and warmed up outside the measurement
+    base = run(())
+    frames = sim_seconds * kinect.rate
+    return {"rgb_ms_per_frame": 1e3 * (run(("image",)) - base) / frames,
+            "depth_cloud_ms_per_frame": 1e3 * (run(("points",)) - base) / frames,
+            "width": kinect.camera.width, "height": kinect.camera.height,
+            "gl": os.environ.get("MUJOCO_GL", "default")}
 
 
 def _fall_mexone(seconds: float) -> dict:
@@ -257,6 +303,8 @@ def run_bench(quick: bool = False, progress=None) -> BenchReport:
     report = BenchReport(machine(), sim_seconds)
     steps = [("overhead", lambda: overhead(sim_seconds, repeats)),
              ("overhead_full_pid", lambda: overhead(sim_seconds, repeats, full_pid=True)),
+             ("overhead_sensors", lambda: overhead(sim_seconds, repeats, sensors=True)),
+             ("camera", lambda: camera_cost(min(sim_seconds, 2.0))),
              ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
              ("cold_start_s", lambda: cold_start(2 if quick else 3)),
              ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds))]
@@ -281,6 +329,15 @@ def format_report(report: BenchReport) -> str:
                   f"{'overhead ratio, full PID, I on all (<= 1.10)':<44} {f['ratio']:12.3f}",
                   f"{'full PID vs bare PD model (what I terms cost)':<44} "
                   f"{f['mexone_s_per_sim_s'] / o['bare_s_per_sim_s']:12.3f}"]
+    f = report.overhead_sensors
+    if f:
+        lines.append(f"{'overhead ratio, PD + IMU, 2 FT, 2 contacts, ZMP':<44} {f['ratio']:12.3f}")
+    c = report.camera
+    if c:
+        size = f"{c['width']}x{c['height']}"
+        lines += [f"{f'Kinect {size} RGB, CPU ms per frame':<44} {c['rgb_ms_per_frame']:12.1f}",
+                  f"{'Kinect depth + point cloud, CPU ms per frame':<44} "
+                  f"{c['depth_cloud_ms_per_frame']:12.1f}"]
     pb = report.pybullet
     if pb is None:
         lines.append(f"{'pybullet':<44} {'not installed (pip install mexone[peers])':>12}")

@@ -82,7 +82,7 @@ class Lab:
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_default(start)
-        lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns))
+        lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab

@@ -98,7 +98,8 @@ SPINNER = """<robot name="spinner">
   <gazebo reference="disc">
     <sensor name="disc_imu" type="imu">
       <update_rate>200</update_rate><pose>0.08 0 0 0 0 0</pose>
-      <plugin name="imu" filename="libgazebo_ros_imu_sensor.so"><topicName>disc/imu</topicName></plugin>
+      <plugin name="imu" filename="libgazebo_ros_imu_sensor.so"><robotNamespace>spinner</robotNamespace>
+        <topicName>disc/imu</topicName></plugin>
     </sensor>
   </gazebo>
   <gazebo reference="ft_joint">
@@ -142,7 +143,7 @@ def test_force_torque_on_a_foreign_robot_follows_its_declared_convention(spinner
     against its own weight's moment about the joint (0.5 kg at 0.1 m: +0.49 N m about y is
     what gravity does; the parent supplies the opposite)."""
     spinner.sim.run(1.0)
-    wrenches = collect(spinner, "/spinner/arm/wrench", msgs.WrenchStamped, 0.2)
+    wrenches = collect(spinner, "/arm/wrench", msgs.WrenchStamped, 0.2)
     force = np.mean([[w.wrench.force.x, w.wrench.force.y, w.wrench.force.z] for w in wrenches], axis=0)
     torque = np.mean([[w.wrench.torque.x, w.wrench.torque.y, w.wrench.torque.z] for w in wrenches], axis=0)
     np.testing.assert_allclose(force, [0.0, 0.0, 0.5 * G], atol=0.05)
@@ -220,6 +221,49 @@ def test_sensors_nobody_reads_cost_no_timer():
     assert len(lab.sim.periodic) == 1
     sub.unregister()
     assert lab.sim.periodic == []
+
+
+# ----- a foreign camera, declared as gazebo_ros's tutorials declare it ----------------------------
+CAMSTAND = """<?xml version="1.0"?>
+<robot name="camstand">
+  <link name="base"><inertial><mass value="2"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
+  <link name="camera_link"><inertial><mass value="0.1"/><inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="cam_joint" type="fixed"><parent link="base"/><child link="camera_link"/><origin xyz="0 0 0.5"/></joint>
+  <gazebo reference="camera_link">
+    <sensor type="camera" name="camera1">
+      <update_rate>20.0</update_rate>
+      <camera name="head"><horizontal_fov>1.3962634</horizontal_fov>
+        <image><width>160</width><height>120</height><format>R8G8B8</format></image>
+        <clip><near>0.02</near><far>300</far></clip></camera>
+      <plugin name="camera_controller" filename="libgazebo_ros_camera.so">
+        <alwaysOn>true</alwaysOn><updateRate>0.0</updateRate>
+        <cameraName>rrbot/camera1</cameraName>
+        <imageTopicName>image_raw</imageTopicName>
+        <cameraInfoTopicName>camera_info</cameraInfoTopicName>
+        <frameName>camera_link_optical</frameName>
+      </plugin>
+    </sensor>
+  </gazebo>
+</robot>"""
+
+
+@pytest.mark.parametrize("namespace, prefix", [(None, ""), ("/cell2", "/cell2")])
+def test_a_foreign_camera_publishes_where_gazebo_ros_would(tmp_path, namespace, prefix):
+    """cameraName prefixes the topics; with no robotNamespace the plugin publishes from the root
+    (rrbot's /rrbot/camera1/image_raw), and spawn_model's -robot_namespace moves it all."""
+    path = tmp_path / "camstand.urdf"
+    path.write_text(CAMSTAND)
+    lab = Lab.create(read_urdf(path), False, namespace=namespace)
+    images = collect(lab, f"{prefix}/rrbot/camera1/image_raw", msgs.Image, 0.2)
+    infos = collect(lab, f"{prefix}/rrbot/camera1/camera_info", msgs.CameraInfo, 0.1)
+    assert len(images) == pytest.approx(4, abs=1)  # 20 Hz of sim time
+    assert (images[-1].width, images[-1].height, images[-1].encoding) == (160, 120, "rgb8")
+    assert images[-1].header.frame_id == infos[-1].header.frame_id == "camera_link_optical"
+    fx = 80 / math.tan(1.3962634 / 2)
+    np.testing.assert_allclose(infos[-1].K, [fx, 0, 79.5, 0, fx, 59.5, 0, 0, 1], rtol=1e-6)
+    rgb = np.frombuffer(images[-1].data, dtype=np.uint8).reshape(120, 160, 3)
+    assert rgb[:60].mean() != pytest.approx(rgb[60:].mean(), abs=5)  # sky above, floor below
 
 
 # ----- the Kinect ---------------------------------------------------------------------------------

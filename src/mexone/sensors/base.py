@@ -26,6 +26,19 @@ def topic_name(namespace: str, name: str) -> str:
     return resolve_name(name, namespace)
 
 
+def sensor_namespace(spec: SensorSpec, robot_namespace: str, override: str | None = None) -> str:
+    """Where a sensor's relative topics go, as Gazebo decides: spawn_model's -robot_namespace
+    (`override`) puts every plugin there; else the plugin's own <robotNamespace>; else a
+    gazebo_ros plugin publishes from the root (so rrbot's cameraName "rrbot/camera1" gives
+    /rrbot/camera1/image_raw); a sensor without a plugin (mexone's extension: Gazebo would not
+    publish it) goes in the robot's namespace."""
+    if override and override.strip("/"):
+        return "/" + override.strip("/")
+    if spec.namespace and spec.namespace.strip("/"):
+        return "/" + spec.namespace.strip("/")
+    return "/" if spec.plugin else robot_namespace
+
+
 @dataclass(frozen=True)
 class Output:
     topic: str

@@ -70,8 +70,10 @@ class ForceTorqueSensor(Sensor):
             force, torque = rot.T @ force, rot.T @ torque
         if spec.measure_direction == "child_to_parent":
             force, torque = -force, -torque
-        values = self.noise.apply(np.r_[force, torque])
-        return values[:3], values[3:]
+        if self.noise.active:
+            values = self.noise.apply(np.concatenate((force, torque)))
+            force, torque = values[:3], values[3:]
+        return force, torque
 
     def publish(self, sim) -> None:
         force, torque = self.read()

@@ -33,8 +33,11 @@ class ImuSensor(Sensor):
     def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(w x y z orientation, angular velocity, linear acceleration), noise added."""
         data = self.measure.data()
-        values = self.noise.apply(np.r_[data[self.gyro:self.gyro + 3], data[self.acc:self.acc + 3]])
-        return data[self.quat:self.quat + 4].copy(), values[:3], values[3:]
+        gyro, acc = data[self.gyro:self.gyro + 3], data[self.acc:self.acc + 3]
+        if self.noise.active:
+            values = self.noise.apply(np.concatenate((gyro, acc)))
+            gyro, acc = values[:3], values[3:]
+        return data[self.quat:self.quat + 4].copy(), gyro.copy(), acc.copy()
 
     def publish(self, sim) -> None:
         quat, gyro, acc = self.read()

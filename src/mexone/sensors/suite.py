@@ -14,7 +14,7 @@ from mexone.physics.compile import lowest_point
 from mexone.physics.simulation import Periodic, Simulation
 from mexone.sensors.balance import RATE as BALANCE_RATE
 from mexone.sensors.balance import Balance
-from mexone.sensors.base import Measure, Sensor
+from mexone.sensors.base import Measure, Sensor, sensor_namespace
 from mexone.sensors.build import sensor_link
 from mexone.sensors.camera import CameraSensor
 from mexone.sensors.contact import ContactSensor
@@ -30,7 +30,7 @@ _ANKLE_HEIGHT = 0.25  # m: an FT sensor on a leaf link this close above the sole
 
 
 class SensorSuite:
-    def __init__(self, sim: Simulation, bus: Bus, namespace: str):
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None):
         self.sim, self.bus = sim, bus
         self.measure = Measure(sim)
         self.sensors: dict[str, Sensor] = {}
@@ -38,8 +38,8 @@ class SensorSuite:
             if not spec.always_on:
                 continue
             link = sensor_link(sim.robot, spec)
-            self.sensors[spec.name] = SENSOR_CLASSES[spec.type](spec, sim, bus, namespace,
-                                                                self.measure, link)
+            self.sensors[spec.name] = SENSOR_CLASSES[spec.type](
+                spec, sim, bus, sensor_namespace(spec, namespace, override), self.measure, link)
         self.balance = Balance(sim, bus, namespace, self._feet())
         self._timers: dict[str, Periodic] = {}
         for name, sensor in self.sensors.items():

@@ -5,9 +5,22 @@ from __future__ import annotations
 from importlib.resources import as_file, files
 from pathlib import Path
 
-__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "NAMESPACE"]
+__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "NAMESPACE", "END_EFFECTORS"]
 
 NAMESPACE = "mex_rb"
+
+# Named frames whole-body motion commands (mexone.motion): link and offset (m) in its frame.
+# Hands: the far end of the forearm (its 0.15 m cylinder centred 0.095 m down); feet: the
+# centre of the sole (the 0.03 m sole box centred at (0.02, 0, -0.045)); the camera: the
+# Kinect's body frame (x forward), whose optical axis the head points with look_at.
+END_EFFECTORS: dict[str, tuple[str, tuple[float, float, float]]] = {
+    "l_hand": ("l_forearm", (0.0, 0.0, -0.17)),
+    "r_hand": ("r_forearm", (0.0, 0.0, -0.17)),
+    "l_foot": ("l_foot", (0.02, 0.0, -0.06)),
+    "r_foot": ("r_foot", (0.02, 0.0, -0.06)),
+    "head": ("head", (0.0, 0.0, 0.0)),
+    "camera": ("kinect_link", (0.0, 0.0, 0.0)),
+}
 
 
 def package_dir() -> Path:

@@ -1,0 +1,186 @@
+"""Whole-body motion from a routine, in the rospy style::
+
+    from mexone import rospy
+    from mexone.motion import reach, look_at, push
+
+    rospy.init_node("wave")
+    reach("l_hand", (0.25, 0.15, 0.75))            # world metres; orientation left free
+    reach("r_hand", (0.2, -0.2, 0.6), rpy=(0, -1.57, 0), duration=3.0)
+    look_at((1.0, 0.0, 0.3))
+    push("torso", (5.0, 0.0, 0.0))                 # 5 N s forward, over 0.1 s
+
+reach plans with whole-body IK (mexone.motion.ik: feet held, COM over them) and sends joint
+positions over `duration` through the robot's position-controller topics, as a student's own
+loop would; the controllers do the rest. Then it holds the pose and trims each command by the
+error the joint's PD leaves under gravity (an integral action at the routine's rate) until the
+joints settle. The IK never touches the simulation's data: it starts from a snapshot the
+simulation thread takes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import mink
+import numpy as np
+
+from mexone import rospy
+from mexone.errors import InputError
+from mexone.motion.ik import FrameError, WholeBodyIK
+from mexone.motion.push import PUSH_SECONDS, apply_wrench
+from mexone.msgs import Float64, JointState
+from mexone.routines.runtime import RoutineContext, current
+
+__all__ = ["reach", "look_at", "push", "joint_targets", "RATE", "REACHED"]
+
+RATE = 50.0  # Hz: how often reach sends joint commands (the IK steps at the same period)
+REACHED = (0.005, math.radians(2.0))  # m, rad: closer than this is reached
+_SETTLE = 1.0  # s at most holding the pose after the motion, trimming the commands
+_TRIM_GAIN = 0.3  # share of the joint error added to its command each tick while holding
+_SETTLED = 2e-4  # rad: the joints count as settled when all are this close
+_CORRECTIONS = 2  # passes re-planned from the measured pose after the motion
+_CORRECT_ABOVE = 0.002  # m: a measured error this small is left alone
+_MAX_TRIM = 0.2  # rad: a joint held off its target by more (a collision) is not chased further
+
+
+@dataclass
+class _Mover:
+    """One routine's IK and its joint command topics (made on first use)."""
+
+    context: RoutineContext
+    ik: WholeBodyIK
+    publishers: dict[str, rospy.Publisher]
+    measured: dict[str, float] = field(default_factory=dict)
+    trim: dict[str, float] = field(default_factory=dict)  # added to each command while holding
+    trimmed: set[str] = field(default_factory=set)  # joints trimmed: not the legs that stand
+
+    def snapshot(self) -> np.ndarray:
+        sim = self.context.lab.sim
+        return sim.work.call(lambda: sim.data.qpos.copy())
+
+    def send(self, joints: dict[str, float]) -> None:
+        for name, value in joints.items():
+            pub = self.publishers.get(name)
+            if pub is not None:
+                low, high = self.ik.joint_range(name)
+                pub.publish(Float64(float(np.clip(value + self.trim.get(name, 0.0), low, high))))
+
+    def hold(self, joints: dict[str, float], rate: rospy.Rate) -> None:
+        """Keep sending `joints`, trimming each by what its PD leaves, until they settle."""
+        ticks = int(_SETTLE * RATE)
+        for _ in range(ticks):
+            errors = {n: joints[n] - self.measured[n] for n in self.trimmed if n in self.measured}
+            for name, error in errors.items():
+                trim = self.trim.get(name, 0.0) + _TRIM_GAIN * error
+                self.trim[name] = float(np.clip(trim, -_MAX_TRIM, _MAX_TRIM))
+            self.send(joints)
+            rate.sleep()
+            if errors and max(abs(e) for e in errors.values()) < _SETTLED:
+                break
+
+
+_movers: dict[int, _Mover] = {}
+
+
+def _mover() -> _Mover:
+    context = current()
+    mover = _movers.get(id(context))
+    if mover is not None and mover.context is context:
+        return mover
+    lab = context.lab
+    if lab.controllers is None:
+        raise InputError("this robot has no controllers to move it",
+                         hint="run with the robot's controller YAML (--controllers)")
+    ns = lab.namespace
+    publishers = {}
+    for name, params in rospy.get_param(ns, {}).items():
+        if isinstance(params, dict) and str(params.get("type", "")).endswith("JointPositionController"):
+            publishers[params.get("joint")] = rospy.Publisher(f"{ns}/{name}/command", Float64,
+                                                              queue_size=1)
+    ik = WholeBodyIK.for_sim(lab.sim)
+    mover = _Mover(context, ik, publishers, trimmed=set(publishers) - ik.support_joints())
+
+    def on_state(msg: JointState) -> None:
+        mover.measured.update(zip(msg.name, msg.position, strict=False))
+
+    rospy.Subscriber(f"{ns}/joint_states", JointState, on_state)
+    _movers[id(context)] = mover
+    return mover
+
+
+def _min_jerk(s: float) -> float:
+    return s * s * s * (10 - 15 * s + 6 * s * s)
+
+
+def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
+    """Move `frame` ("l_hand", "r_hand", "l_foot", "head", any link) to world xyz (m) and, if
+    given, roll-pitch-yaw (rad), over `duration` s, feet planted. Returns the IK's remaining
+    error; an unreachable target ends at the closest pose with a one-line warning."""
+    if not (duration > 0 and math.isfinite(duration)):
+        raise InputError(f"reach: duration {duration} must be a finite number > 0 s")
+    mover = _mover()
+    ik = mover.ik
+    ik.reset(mover.snapshot())
+    start, rotation0 = ik.pose(frame)
+    goal = np.asarray(xyz, dtype=float)
+    ik.set_rpy_target(frame, goal, rpy)  # checks the target before anything moves
+    rotation = None if rpy is None else ik.targets[frame].transform_target_to_world.rotation()
+    rate = rospy.Rate(RATE)
+    ticks = max(1, round(duration * RATE))
+    for k in range(1, ticks + 1):
+        s = _min_jerk(k / ticks)
+        if rotation is None:
+            ik.set_target(frame, start + s * (goal - start))
+        else:
+            between = mink.SO3.from_matrix(rotation0).interpolate(rotation, s)
+            ik.set_target(frame, start + s * (goal - start), between.as_matrix())
+        ik.step(1.0 / RATE)
+        mover.send(ik.joint_positions())
+        rate.sleep()
+    ik.converge()
+    mover.hold(ik.joint_positions(), rate)
+    error = ik.error(frame)
+    for _ in range(_CORRECTIONS):  # close the loop on where the frame really is
+        ik.reset(mover.snapshot())
+        ik.set_rpy_target(frame, goal, rpy)
+        if ik.error(frame).position < _CORRECT_ABOVE:
+            break
+        ik.converge()
+        mover.hold(ik.joint_positions(), rate)
+        error = ik.error(frame)
+    if error.position > REACHED[0] or (error.angle is not None and error.angle > REACHED[1]):
+        rospy.logwarn("reach %s: (%.3f, %.3f, %.3f) is out of reach; stopped at the closest pose, "
+                      "%s away", frame, *goal, error)
+    return error
+
+
+def look_at(xyz, duration: float = 1.0) -> None:
+    """Turn the head so the camera looks at world point xyz (m), the rest of the body still."""
+    mover = _mover()
+    ik = mover.ik
+    ik.reset(mover.snapshot())
+    ik.look_at(xyz)
+    rate = rospy.Rate(RATE)
+    for _ in range(max(1, round(duration * RATE))):
+        ik.step(1.0 / RATE)
+        mover.send(ik.joint_positions())
+        rate.sleep()
+
+
+def joint_targets() -> dict[str, float]:
+    """The joint positions the last motion commanded (before trimming)."""
+    return _mover().ik.joint_positions()
+
+
+def push(link: str, impulse_xyz, duration: float = PUSH_SECONDS) -> None:
+    """Push `link` with a world-frame impulse (N s), spread evenly over `duration` s from now
+    (force = impulse / duration at its centre of mass). Returns at once; the push goes on."""
+    impulse = np.asarray(impulse_xyz, dtype=float)
+    if impulse.shape != (3,) or not np.isfinite(impulse).all():
+        raise InputError(f"push on '{link}': the impulse must be three finite numbers (N s)")
+    if not (duration > 0 and math.isfinite(duration)):
+        raise InputError(f"push on '{link}': duration {duration} must be a finite number > 0 s")
+    sim = current().lab.sim
+    force = impulse / duration
+    sim.work.call(lambda: apply_wrench(sim, link, force, duration=duration))
