@@ -137,11 +137,11 @@ def run(args: argparse.Namespace) -> int:
 def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
     lab = lab_from_args(args, target_rtf=rtf or None)
     sim, robot = lab.sim, lab.sim.robot
-    monitor = RunMonitor(sim)
     if bridge is not None:
         bridge.attach(lab, _urdf_text(args, robot))
         print(f"mexone: {robot.name} is on ROS at {os.environ.get('ROS_MASTER_URI', '?')} "
               f"(namespace {lab.namespace}); Ctrl-C stops", file=sys.stderr)
+    monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
 
     def tick(s: Simulation) -> None:
         monitor.tick(s)
