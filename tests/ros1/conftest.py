@@ -6,6 +6,7 @@ talk to it only through subprocesses."""
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -18,12 +19,15 @@ from test_bridge import ROSCORE, free_port, ros_env, start_roscore, stop  # noqa
 
 @pytest.fixture(scope="session")
 def ros_master():
-    """(rospy, port) of the session's master, rospy initialised against it."""
+    """(rospy, port) of the session's master, rospy initialised against it (sim time)."""
     if not Path(ROSCORE).exists():
         pytest.skip("Debian ROS 1 is not installed (ros-core, python3-rospy)")
     port = free_port()
     os.environ.update(ros_env(port))
     core = start_roscore(port)
+    # as gazebo_ros' empty_world.launch: sim time for every node, this test process included
+    subprocess.run(["rosparam", "set", "/use_sim_time", "true"], env=ros_env(port), check=True,
+                   timeout=60, capture_output=True)
     from mexone.ros1.bridge import import_rospy
 
     rospy = import_rospy()

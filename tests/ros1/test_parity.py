@@ -179,7 +179,8 @@ def test_apply_body_wrench_changes_the_base_velocity_by_the_impulse(ros):
     service(rospy, "/gazebo/pause_physics", Empty)()
     try:
         state = ModelState(model_name="mex_rb")
-        state.pose.position.z = 2.0  # in the air: no friction takes part of the impulse
+        state.pose.position.z = 30.0  # in the air: no friction takes part of the impulse (and
+        # the fall stays in the air for 2 s of wall time however late the pause arrives)
         state.pose.orientation.w = 1.0
         assert service(rospy, "/gazebo/set_model_state", SetModelState)(state).success
         wrench = Wrench()
