@@ -175,3 +175,38 @@ def test_sensors_panel_shows_the_kinect_and_balance_says_stable(app, page, tmp_p
     assert "🟢" in panel.contact_view.content  # both soles on the ground
     panel.show_camera["kinect"].value = False
     app.do(lambda: panel.show_balance(False))
+
+
+def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app, page):
+    """uPlot draws its labels on a canvas: read what it formatted from the chart itself."""
+    if app.lab.sim.paused:
+        app.do(app._toggle_pause)
+    app.do(lambda: app.lab.controllers.command("l_elbow_position_controller", {"l_elbow": -1.0}))
+    time.sleep(2.0)
+    app.do(app._toggle_pause)
+    assert wait_until(lambda: app.lab.sim.paused)
+    time.sleep(1.0)
+    script = """() => { const p = window.__viserTestpoints?.uplots?.['PANE'];
+        return p ? [p.chart.axes[0]._values ?? [], p.chart.axes[1]._values ?? [],
+                    p.chart.axes[0].label] : null; }"""
+    shown = []
+
+    def drawn() -> bool:
+        pane = app.plot_panel.plots[0]._impl.uuid  # l_elbow: command and position
+        shown[:] = [page.evaluate(script.replace("PANE", pane))]
+        return bool(shown[0] and any(v.startswith(("-1", "−1")) for v in shown[0][1]))
+    assert wait_until(drawn, timeout=5), shown  # -1 rad has its minus sign
+    x_values, y_values, x_label = shown[0]
+    assert x_label == "sim time (s)"
+    assert all(":" not in v and "/" not in v for v in x_values)  # seconds, not a date
+    float(x_values[-1])
+    assert len(set(y_values)) == len(y_values), y_values  # no label repeated
+    time.sleep(2.0)  # paused: the plot keeps what it had
+    again = page.evaluate("""() => Object.values(window.__viserTestpoints.uplots)
+        .map(p => p.chart.data[0].length)""")
+    assert max(again) > 100
+    field = page.locator("input[value='100']").first  # Steps
+    field.fill("1e9")
+    assert wait_until(lambda: any(r.startswith("Steps: 1000000000 must be") for r in app.refusals))
+    assert wait_until(lambda: page.locator("input[value='100']").count() > 0)
+    app.do(app._toggle_pause)

@@ -70,6 +70,8 @@ def add_parser(sub) -> None:
                    help="target real-time factor (default 1, or unlimited with --headless; "
                         "0 = unlimited)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.add_argument("--paused", action="store_true",
+                   help="the GUI starts paused (and pauses after each reset): watch a fall from t = 0")
     p.add_argument("--ros", action="store_true",
                    help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
                         "services); needs Debian's ROS: " + ROS_INSTALL)
@@ -91,7 +93,8 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
 
     try:
         app = GuiApp(lambda options: lab_from_args(args, options=options), options_from_args(args),
-                     host=args.host, port=args.port, target_rtf=rtf, routine_dirs=args.routines)
+                     host=args.host, port=args.port, target_rtf=rtf, routine_dirs=args.routines,
+                     paused=args.paused)
         if bridge is not None:
             bridge.attach(app.lab, _urdf_text(args, app.lab.sim.robot))
             app.tick_hooks.append(lambda _sim: bridge.pump())

@@ -11,7 +11,7 @@ from mexone.control.manager import ControllerManager
 from mexone.physics.simulation import Simulation
 
 __all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE", "settling_time",
-           "settle_band"]
+           "settle_band", "rise_time"]
 
 SAMPLE_RATE = 200.0  # Hz: 5 ms resolution for settling times
 SETTLE_BAND = 0.02  # settled when within 2% of the step...
@@ -37,7 +37,7 @@ class TrackingRecorder:
         self.manager = manager
         self.t: list[float] = []
         self.rows: dict[str, list[tuple[float, float]]] = {}
-        sim.add_periodic(1.0 / rate, self.sample)
+        self.timer = sim.add_periodic(1.0 / rate, self.sample)
 
     def sample(self, sim: Simulation) -> None:
         self.t.append(sim.time)
@@ -83,3 +83,13 @@ def settling_time(t: np.ndarray, q: np.ndarray, target: float, step: float) -> f
     if outside[-1] + 1 >= len(t):
         return None
     return float(t[outside[-1] + 1])
+
+
+def rise_time(t: np.ndarray, q: np.ndarray, start: float, target: float) -> float | None:
+    """Time (from t[0]'s origin) q takes from 10% to 90% of the way from `start` to `target`;
+    None if it never gets there."""
+    progress = (q - start) / (target - start) if target != start else np.ones_like(q)
+    low, high = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
+    if low.size == 0 or high.size == 0:
+        return None
+    return float(t[high[0]] - t[low[0]])

@@ -20,13 +20,18 @@ from pathlib import Path
 
 import numpy as np
 import viser
-import viser.uplot as uplot
 
 from mexone.control.controllers import Controller
 from mexone.errors import InputError, MexoneError
+from mexone.gui.fields import NumberFields
+from mexone.gui.health import Health
+from mexone.gui.inspector import Inspector
+from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
+from mexone.gui.stepresponse import StepResponse
+from mexone.gui.topics import RecordPanel, TopicsPanel
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
@@ -36,7 +41,6 @@ from mexone.routines.runner import RoutineRunner, routine_choices
 __all__ = ["GuiApp", "FPS", "MAX_STEPS"]
 
 FPS = 30.0  # scene updates per second of wall time
-PLOT_SECONDS = 10.0
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
 MAX_STEPS = 100_000  # Step N at most (a page could send anything)
 STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
@@ -58,12 +62,15 @@ class _GuiLog(logging.Handler):
 class GuiApp:
     def __init__(self, make_lab: Callable[[CompileOptions], Lab], options: CompileOptions,
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
-                 routine_dirs: list[Path] | None = None):
+                 routine_dirs: list[Path] | None = None, paused: bool = False,
+                 record_folder: Path | None = None):
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
         self.lab.sim.target_rtf = target_rtf or None
         self.routine_dirs = routine_dirs
+        self.start_paused = paused
+        self.record_folder = record_folder
         self.server = viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
         guard(self.server)
         warn_if_exposed(host, self.server.get_port())
@@ -74,8 +81,10 @@ class GuiApp:
         self.sensor_panel: SensorPanel | None = None
         self.routine: RoutineRunner | None = None
         self.console: deque[str] = deque(maxlen=14)
-        self.history: deque[tuple[float, np.ndarray, np.ndarray, np.ndarray]] = deque(
-            maxlen=int(PLOT_SECONDS * FPS))
+        self.log = SignalLog(self.lab)
+        self.health = Health(self.lab.sim, self.log)
+        self.fields = NumberFields(self.server.gui, self.refuse)
+        self.follow_offset: dict[int, np.ndarray] = {}  # client -> camera position - robot
         self.error: str | None = None
         self.refusals: deque[str] = deque(maxlen=20)  # what the page asked for and was refused
         self.steps_left = 0  # Step N in progress, a budget per frame
@@ -86,6 +95,8 @@ class GuiApp:
         self.server.initial_camera.fov = math.radians(45.0)  # a 1 m robot fills half the view
         self.server.initial_camera.position = (1.6, -1.6, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
+        if paused:
+            self._toggle_pause()
 
     # ----- threads ----------------------------------------------------------------------------
     def do(self, action: Callable[[], None]) -> None:
@@ -107,9 +118,9 @@ class GuiApp:
                 time.sleep(1.0 / FPS)
             else:
                 gate = self.routine.scheduler if self.routine and self.routine.running else None
+                tick = min(frame, TICK if self.tick_hooks else PLOT_PERIOD)
                 try:
-                    sim.run(frame, tick=min(frame, TICK) if self.tick_hooks else frame, gate=gate,
-                            on_tick=self._tick if self.tick_hooks else None)
+                    sim.run(frame, tick=tick, gate=gate, on_tick=self._tick)
                 except DivergenceError as exc:
                     self._diverged(exc)
             self._after_frame()
@@ -119,20 +130,25 @@ class GuiApp:
         sim, end = self.lab.sim, time.perf_counter() + STEP_BUDGET
         try:
             while self.steps_left and time.perf_counter() < end:
-                n = min(self.steps_left, 100)
-                sim.step(n)
-                self.steps_left -= n
+                sim.step(1)  # a sample after each step: Step N adds N to the plots
+                self.steps_left -= 1
+                self.log.sample()
         except DivergenceError as exc:
             self._diverged(exc)
 
     def _diverged(self, exc: DivergenceError) -> None:
         self.error = exc.one_line()
+        if self.fields.last_change:  # the page knows what the user changed last
+            self.error += f" (the last setting changed on this page: {self.fields.last_change})"
         self.steps_left = 0
         self._status.content = f"**diverged** — {self.error}. Press *Reset world*."
+        self.notify("Diverged", self.error)
 
     def _tick(self, sim) -> None:
         for hook in self.tick_hooks:
             hook(sim)
+        if self.log.due(sim.time):
+            self.log.sample()
 
     def stop(self) -> None:
         self.stopping.set()
@@ -160,31 +176,57 @@ class GuiApp:
     def _after_frame(self) -> None:
         self._frames += 1
         sim = self.lab.sim
+        self.fields.commit()
         self.scene.update()
-        manager = self.lab.controllers
-        if manager is not None:
-            hw = manager.hw
-            self.history.append((sim.time, manager.setpoints(), hw.position().copy(),
-                                 hw.effort().copy()))
+        if self.log.due(sim.time):
+            self.log.sample()  # the first sample, and one after a reset or a single Step
+        for problem in self.health.check():
+            self.notify("Simulation problem", problem, color="orange")
         if self.follow.value:
-            base = sim.data.xpos[sim.compiled.root_body]
-            for client in self.server.get_clients().values():
-                offset = np.asarray(client.camera.position) - np.asarray(client.camera.look_at)
-                client.camera.look_at = tuple(base)
-                client.camera.position = tuple(base + offset)
+            self._follow()
         self.sensor_panel.update(time.monotonic())
+        self.inspector.update()
+        if self.step_response.running:
+            self.step_response.update()
         if self._frames % 5 == 0:
             if not self.error:
-                state = "paused" if sim.paused else "running"
-                balance = self.sensor_panel.stability if self.sensor_panel.com_marker.visible else ""
-                self._status.content = (f"**sim time** {sim.time:8.3f} s &nbsp; **real-time factor** "
-                                        f"{sim.rtf.value:4.2f} &nbsp; ({state})"
-                                        + (f"<br>{balance}" if balance else ""))
-            self._update_plots()
+                self._status.content = self.status_text()
+            self.plot_panel.update()
             self.sensor_panel.update_plots()
             self._sync_sliders()
+            self.record_panel.update()
+        if self._frames % 30 == 0:
+            self.topics_panel.update()
         if self.routine and not self.routine.running:
             self._routine_done()
+
+    def status_text(self) -> str:
+        """The status line: what the simulation is doing, and whatever is wrong with it."""
+        sim = self.lab.sim
+        if sim.paused:
+            state = "**paused** (real-time factor 0)"
+        else:
+            state = f"running at real-time factor {sim.rtf.value:4.2f}"
+        text = f"**sim time** {sim.time:8.3f} s &nbsp; {state}"
+        problems = self.health.problems
+        if problems:
+            text += "<br>⚠ " + "<br>⚠ ".join(problems)
+        if self.sensor_panel.com_marker.visible and self.sensor_panel.stability:
+            text += f"<br>{self.sensor_panel.stability}"
+        return text
+
+    def _follow(self) -> None:
+        """Keep each page's view on the robot: the camera keeps the offset it had when Follow
+        was ticked (the page's own camera reports lag behind a fast robot)."""
+        base = np.array(self.lab.sim.data.xpos[self.lab.sim.compiled.root_body])
+        for client_id, client in self.server.get_clients().items():
+            offset = self.follow_offset.get(client_id)
+            if offset is None:
+                offset = np.asarray(client.camera.position) - np.asarray(client.camera.look_at)
+                self.follow_offset[client_id] = offset
+            with client.atomic():
+                client.camera.look_at = tuple(base)
+                client.camera.position = tuple(base + offset)
 
     # ----- panels -----------------------------------------------------------------------------
     def _build_gui(self) -> None:
@@ -196,24 +238,28 @@ class GuiApp:
             self.play.on_click(lambda _: self.do(self._toggle_pause))
             step = gui.add_button("Step", hint="one physics step")
             step.on_click(lambda _: self.do(lambda: self.step_n(1)))
-            self.steps = gui.add_number("Steps", initial_value=100, min=1, max=MAX_STEPS, step=1)
-            self._validated(self.steps, lambda v: None, 1, MAX_STEPS, integer=True)
+            self.steps = self.fields.add("Steps", 100, 1, MAX_STEPS, lambda v: None, integer=True)
             step_n = gui.add_button("Step N")
-            step_n.on_click(lambda _: self.do(lambda: self.step_n(self.steps.value)))
+            step_n.on_click(lambda _: self.do(lambda: self.step_n(self.fields.held(self.steps)[0])))
             gui.add_button("Reset model").on_click(lambda _: self.do(self.reset_model))
             gui.add_button("Reset world").on_click(lambda _: self.do(self.reset_world))
-            self.rtf = gui.add_number("Real-time factor", initial_value=self.target_rtf, min=0.0,
-                                      max=MAX_RTF, step=0.1, hint="0 = as fast as possible")
-            self._validated(self.rtf, self._set_rtf, 0.0, MAX_RTF)
+            self.rtf = self.fields.add("Real-time factor", self.target_rtf, 0.0, MAX_RTF,
+                                       self._set_rtf, hint="0 = as fast as possible")
             self.follow = gui.add_checkbox("Follow robot", False)
+            self.follow.on_update(lambda _: self.follow_offset.clear())
+            self.paused_after_reset = gui.add_checkbox("Start paused", self.start_paused,
+                                                       hint="after a reset, wait for Play "
+                                                            "(mexone sim --paused)")
         with gui.add_folder("View"):
+            self.overlay_boxes = {}
             for overlay in OVERLAYS:
-                box = gui.add_checkbox(overlay, False)
+                box = self.overlay_boxes[overlay] = gui.add_checkbox(overlay, False)
                 box.on_update(lambda e, name=overlay: self.do(
-                    lambda: self.scene.show(name, bool(e.target.value))))
-            transparent = gui.add_checkbox("Transparent", False)
-            transparent.on_update(lambda e: self.do(
-                lambda: self.scene.set_transparent(bool(e.target.value))))
+                    lambda: self._show_overlay(name, bool(e.target.value))))
+            self.transparent = gui.add_checkbox("Transparent", False,
+                                                hint="on by itself while Center of Mass or "
+                                                     "Inertia shows (they sit inside the links)")
+            self.transparent.on_update(lambda e: self.do(self._update_transparency))
             wireframe = gui.add_checkbox("Wireframe", False)
             wireframe.on_update(lambda e: self.do(
                 lambda: self.scene.set_wireframe(bool(e.target.value))))
@@ -223,43 +269,23 @@ class GuiApp:
                 lambda: self.sensor_panel.show_balance(bool(e.target.value))))
         self._build_joints()
         self._build_plots()
+        self.step_response = StepResponse(self.server, self.lab, self.do, self.fields.add,
+                                          on_start=self._plot_step)
+        self.inspector = Inspector(self.server, self.lab, self.do, self.fields.add)
         self.sensor_panel = SensorPanel(self.server, self.lab)
         self._build_routines()
         self._build_physics()
+        self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
+        self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
+                                        self.record_folder)
 
-    def _validated(self, handle, apply: Callable[[float], None], lo: float, hi: float,
-                   integer: bool = False) -> None:
-        """Check a number from the page on the server (a page may send anything): refuse it with
-        a message and put the last good value back, or apply it in the simulation thread."""
-        last = [handle.value]
+    def _show_overlay(self, name: str, on: bool) -> None:
+        self.scene.show(name, on)
+        self._update_transparency()
 
-        def changed(_event) -> None:
-            value = handle.value
-            try:
-                number = float(value)
-                if isinstance(value, bool) or not math.isfinite(number):
-                    raise ValueError
-            except (TypeError, ValueError):
-                handle.value = last[0]
-                self.refuse(f"{handle.label}: '{value}' is not a number")
-                return
-            if not lo <= number <= hi or (integer and number != int(number)):
-                handle.value = last[0]
-                kind = "a whole number" if integer else "a number"
-                self.refuse(f"{handle.label}: {value} must be {kind} from {lo:g} to {hi:g}")
-                return
-
-            def act() -> None:
-                try:
-                    apply(number)
-                    last[0] = number
-                except (MexoneError, ValueError) as exc:
-                    handle.value = last[0]
-                    self._refused(exc)
-
-            self.do(act)
-
-        handle.on_update(changed)
+    def _update_transparency(self) -> None:
+        inside = any(self.overlay_boxes[k].value for k in ("Center of Mass", "Inertia"))
+        self.scene.set_transparent(bool(self.transparent.value) or inside)
 
     def step_n(self, n: float) -> None:
         """Gazebo's step button: n physics steps, spread over frames."""
@@ -273,6 +299,7 @@ class GuiApp:
     def _toggle_pause(self) -> None:
         sim = self.lab.sim
         self.steps_left = 0  # pausing (or playing) interrupts Step N
+        sim.rtf.clear()  # no stale real-time factor from before
         if sim.paused:
             sim.resume()
             self.play.label, self.play.icon = "Pause", viser.Icon.PLAYER_PAUSE
@@ -375,10 +402,9 @@ class GuiApp:
         gains = ctrl.gains[0]
         with gui.add_folder(ctrl.name.replace("_position_controller", ""), expand_by_default=False):
             for key in ("p", "i", "d"):
-                number = gui.add_number(key, initial_value=float(getattr(gains, key)), min=0.0,
-                                        step=0.01)
-                self._validated(number, lambda v, c=ctrl, k=key: self._set_gain(c, k, v),
-                                0.0, 1e12)
+                self.fields.add(f"{key} ({ctrl.name.replace('_position_controller', '')})",
+                                float(getattr(gains, key)), 0.0, 1e30,
+                                lambda v, c=ctrl, k=key: self._set_gain(c, k, v))
 
     def _set_gain(self, ctrl: Controller, key: str, value: float) -> None:
         gains = [replace(g, **{key: value}) for g in ctrl.gains]
@@ -386,43 +412,18 @@ class GuiApp:
 
     # ----- plots --------------------------------------------------------------------------------
     def _build_plots(self) -> None:
-        gui = self.server.gui
-        manager = self.lab.controllers
-        with gui.add_folder("Plots"):
-            if manager is None:
-                gui.add_markdown("No controllers: nothing to plot.")
-                self.plot_joint = None
-                return
-            joints = manager.hw.joints
-            self.plot_joint = gui.add_dropdown("Joint", tuple(joints), initial_value=joints[0])
-            empty = (np.zeros(1), np.zeros(1), np.zeros(1))
-            self.tracking = gui.add_uplot(
-                empty, (uplot.Series(label="t (s)"),
-                        uplot.Series(label="command", stroke="#1f77b4", width=2),
-                        uplot.Series(label="actual (rad)", stroke="#d62728", width=2)),
-                title="command vs actual", aspect=1.6)
-            self.effort_plot = gui.add_uplot(
-                empty, (uplot.Series(label="t (s)"),
-                        uplot.Series(label="error (rad)", stroke="#2ca02c", width=2),
-                        uplot.Series(label="effort (N m)", stroke="#9467bd", width=2, scale="effort")),
-                title="tracking error and effort", aspect=1.6,
-                scales={"x": uplot.Scale(time=False), "effort": uplot.Scale()},
-                axes=(uplot.Axis(), uplot.Axis(label="rad"),
-                      uplot.Axis(label="N m", side=1, scale="effort")))
+        joint = "l_elbow" if "l_elbow/command" in self.log.index else \
+            self.log.signals[0].name.split("/")[0]
+        defaults = [[f"{joint}/command", f"{joint}/position"], [f"{joint}/effort"]]
+        defaults = [[n for n in pane if n in self.log.index] for pane in defaults]
+        self.plot_panel = PlotPanel(self.server, self.log, self.do, self.refuse, self.fields.add,
+                                    defaults)
 
-    def _update_plots(self) -> None:
-        if self.plot_joint is None or len(self.history) < 2:
-            return
-        joint = self.plot_joint.value
-        index = self.lab.controllers.hw.index.get(joint)
-        if index is None:
-            return
-        t = np.array([h[0] for h in self.history])
-        cmd = np.array([h[1][index] for h in self.history])
-        actual = np.array([h[2][index] for h in self.history])
-        effort = np.array([h[3][index] for h in self.history])
-        self.tracking.data = (t, cmd, actual)
-        self.effort_plot.data = (t, cmd - actual, effort)
+    def _plot_step(self, joint: str) -> None:
+        """The step-response helper shows its joint in pane 1."""
+        names = [n for n in (f"{joint}/command", f"{joint}/position") if n in self.log.index]
+        self.plot_panel.chosen[0] = names
+        self.plot_panel.update(force=True)
 
     # ----- routines -----------------------------------------------------------------------------
     def _build_routines(self) -> None:
@@ -481,23 +482,14 @@ class GuiApp:
         gui = self.server.gui
         model = self.lab.sim.model
         with gui.add_folder("Physics", expand_by_default=False):
-            self.gravity = gui.add_vector3("Gravity", initial_value=tuple(model.opt.gravity),
-                                           step=0.01)
-            self.gravity.on_update(lambda _: self.do(self._apply_gravity))
-            self.timestep = gui.add_number("Time step (s)", initial_value=float(model.opt.timestep),
-                                           min=MIN_TIMESTEP, max=MAX_TIMESTEP, step=0.0001)
-            self._validated(self.timestep, self.lab.sim.set_timestep, MIN_TIMESTEP, MAX_TIMESTEP)
+            self.gravity = self.fields.add("Gravity (m/s²)", [float(g) for g in model.opt.gravity],
+                                           -1000.0, 1000.0, self._apply_gravity, hint="x, y, z")
+            self.timestep = self.fields.add("Time step (s)", float(model.opt.timestep),
+                                            MIN_TIMESTEP, MAX_TIMESTEP, self.lab.sim.set_timestep)
             self.self_collide = gui.add_checkbox("Self-collision", self.options.self_collision
                                                  is not False, hint="applies at Reset world")
 
-    def _apply_gravity(self) -> None:
-        try:
-            gravity = np.asarray(self.gravity.value, dtype=float)
-        except (TypeError, ValueError):
-            gravity = np.full(3, np.nan)
-        if gravity.shape != (3,) or not np.isfinite(gravity).all() or np.abs(gravity).max() > 1000:
-            self.gravity.value = tuple(self.lab.sim.model.opt.gravity)
-            raise InputError("gravity must be three finite numbers within +-1000 m/s^2")
+    def _apply_gravity(self, gravity: list[float]) -> None:
         self.lab.sim.model.opt.gravity[:] = gravity
 
     def reset_model(self) -> None:
@@ -507,12 +499,13 @@ class GuiApp:
         self.lab.sim.reset()
         for slider in self.sliders.values():
             slider.value = 0.0
-        self.history.clear()
+        self.log.clear()
         self.error = None
+        if self.paused_after_reset.value and not self.lab.sim.paused:
+            self._toggle_pause()
 
     def reset_world(self) -> None:
         """Reset, with the Physics panel's settings (self-collision included) applied."""
         self.lab.sim.set_self_collision(None if self.self_collide.value else False)
         self.options = replace(self.options, self_collision=None if self.self_collide.value else False)
-        self._apply_gravity()
         self.reset_model()
