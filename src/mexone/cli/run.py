@@ -56,6 +56,7 @@ def run(args: argparse.Namespace) -> int:
                          hint="give --controllers YAML (the built-in Mex-One has its own)")
     sim = lab.sim
     start_height = sim.base_height
+    start_pose = _base_xy_yaw(sim)
     recorder = TrackingRecorder(sim, lab.controllers)
     echo = not (args.json or args.quiet)
 
@@ -74,10 +75,16 @@ def run(args: argparse.Namespace) -> int:
     tilt, height = sim.base_tilt, sim.base_height
     fell = has_fallen(sim, start_height)
     metrics = recorder.metrics()
+    x, y, yaw = _base_xy_yaw(sim) - start_pose
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "base_height": round(height, 6), "tilt": round(tilt, 6),
         "error": runner.error or diverged,
+        # where the base went (walking): along and across its starting heading, turn in degrees
+        "distance_x": round(float(x * np.cos(start_pose[2]) + y * np.sin(start_pose[2])), 4),
+        "drift_y": round(float(-x * np.sin(start_pose[2]) + y * np.cos(start_pose[2])), 4),
+        "yaw": round(float(np.degrees((yaw + np.pi) % (2 * np.pi) - np.pi)), 2),
+        "speed": round(float(np.hypot(x, y) / sim.time), 4) if sim.time > 0 else 0.0,
         "joints": {name: m.as_json() for name, m in sorted(metrics.items())},
     }
     if args.json:
@@ -91,6 +98,13 @@ def run(args: argparse.Namespace) -> int:
         if diverged:
             print(f"mexone: {diverged}", file=sys.stderr)
     return 1 if runner.error or diverged else 0
+
+
+def _base_xy_yaw(sim) -> np.ndarray:
+    """The base's ground position and heading (rad)."""
+    rot = sim.data.xmat[sim.compiled.root_body].reshape(3, 3)
+    x, y = sim.data.xpos[sim.compiled.root_body][:2]
+    return np.array([x, y, np.arctan2(rot[1, 0], rot[0, 0])])
 
 
 def _print_table(metrics) -> None:

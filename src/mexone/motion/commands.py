@@ -29,10 +29,11 @@ from mexone import rospy
 from mexone.errors import InputError
 from mexone.motion.ik import FrameError, WholeBodyIK
 from mexone.motion.push import PUSH_SECONDS, apply_wrench
-from mexone.msgs import Float64, JointState
+from mexone.motion.walk import GAIT_YAML, Gait, bent_knees, walk_ticks
+from mexone.msgs import Float64, Imu, JointState
 from mexone.routines.runtime import RoutineContext, current
 
-__all__ = ["reach", "look_at", "push", "joint_targets", "RATE", "REACHED"]
+__all__ = ["reach", "look_at", "push", "walk", "joint_targets", "RATE", "REACHED"]
 
 RATE = 50.0  # Hz: how often reach sends joint commands (the IK steps at the same period)
 REACHED = (0.005, math.radians(2.0))  # m, rad: closer than this is reached
@@ -184,3 +185,32 @@ def push(link: str, impulse_xyz, duration: float = PUSH_SECONDS) -> None:
     sim = current().lab.sim
     force = impulse / duration
     sim.work.call(lambda: apply_wrench(sim, link, force, duration=duration))
+
+
+def walk(distance: float = 3.0, gait: Gait | str | None = None) -> None:
+    """Walk `distance` m straight ahead (mexone.motion.walk: ZMP preview control and IK), with
+    the gait of a YAML file (default: the shipped walk.yaml); returns standing, knees bent."""
+    gait = gait if isinstance(gait, Gait) else Gait.load(gait or GAIT_YAML)
+    mover = _mover()
+    qpos = mover.snapshot()
+    ik = mover.ik
+    ik.reset(qpos)
+    standing = ik.joint_positions()
+    ik.reset(bent_knees(ik, qpos, gait.knee_bend))
+    bent = ik.joint_positions()
+    rate = rospy.Rate(1.0 / gait.dt)
+    ticks = round(1.0 / gait.dt)
+    for k in range(1, ticks + 1):  # 1 s down into the walking stance
+        mover.send({n: standing[n] + (bent[n] - standing[n]) * k / ticks for n in bent})
+        rate.sleep()
+    yaw = [0.0]
+
+    def on_imu(msg: Imu) -> None:
+        q = msg.orientation
+        yaw[0] = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+    imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
+    for joints in walk_ticks(ik, qpos, gait, distance, heading=lambda: yaw[0]):
+        mover.send(joints)
+        rate.sleep()
+    imu.unregister()

@@ -550,7 +550,7 @@ class Simulation:
                      point: Sequence[float] | None = None, frame: str = "world",
                      duration: float | None = None, start: float | None = None) -> None:
         """Push a link: `force` (N) and `torque` (N m) expressed in `frame` ("world" or a link),
-        the force acting at `point` in that frame (default: the pushed link's origin), for
+        the force acting at `point` in that frame (default: the pushed link's centre of mass), for
         `duration` s of sim time from `start` (default now; None or < 0: until cleared).
         Several wrenches add up. Simulation thread only."""
         body = self.body_id(link)
@@ -558,10 +558,10 @@ class Simulation:
         values = np.r_[force, torque].astype(float)
         if values.shape != (6,) or not np.isfinite(values).all():
             raise InputError("force and torque must be 3 finite numbers each")
-        if point is None:  # the link's origin, written in the frame's coordinates
+        if point is None:  # the link's centre of mass, written in the frame's coordinates
             rot = np.eye(3) if frame_body < 0 else self.data.xmat[frame_body].reshape(3, 3)
             origin = np.zeros(3) if frame_body < 0 else self.data.xpos[frame_body]
-            point = rot.T @ (self.data.xpos[body] - origin)
+            point = rot.T @ (self.data.xipos[body] - origin)
         point = np.asarray(point, dtype=float)
         if point.shape != (3,) or not np.isfinite(point).all():
             raise InputError("application point must be 3 finite numbers")

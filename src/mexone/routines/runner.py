@@ -25,7 +25,8 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 
 _HERE = Path(__file__).resolve().parent
 _PACKAGE = str(Path(mexone.__file__).resolve().parent)
-SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py"}
+SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
+           "walk": "walk.py"}
 
 
 def shipped_routines() -> dict[str, Path]:
