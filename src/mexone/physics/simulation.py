@@ -367,7 +367,6 @@ class Simulation:
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
-        self._resets += 1
         self._efforts[:] = 0.0
         self.forces = Forces()
         mujoco.mj_forward(self.model, self.data)
