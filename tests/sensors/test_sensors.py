@@ -390,3 +390,23 @@ def test_a_camera_rendered_in_one_thread_closes_cleanly_from_another(kinect_view
     assert not errors and camera.renderer is None
     assert camera.render(depth=True).shape == (480, 640)  # and a new renderer works here
     camera.close()
+
+
+def test_the_kinect_sees_a_model_spawned_into_the_running_world(tmp_path):
+    """gazebo_ros' spawn_urdf_model recompiles the world: the camera must render the new one
+    (its renderer was built on the old model and kept drawing the world without the box)."""
+    lab = Lab.create(options=CompileOptions(fixed_base=True), controllers=False)
+    eye = lab.sim.data.cam_xpos[lab.sim.model.camera("sensor/kinect").id].copy()
+    before = collect(lab, "/mex_rb/kinect/depth/image_raw", msgs.Image, 0.05)[-1]
+    box = tmp_path / "box.urdf"
+    box.write_text('<robot name="box"><link name="box"><inertial><mass value="5"/><inertia ixx="1" '
+                   'iyy="1" izz="1" ixy="0" ixz="0" iyz="0"/></inertial><collision><geometry>'
+                   '<box size="0.4 0.4 3"/></geometry></collision><visual><geometry><box size="0.4 0.4 3"/>'
+                   '</geometry></visual></link></robot>')
+    lab.sim.add_model(box, "box", Spawn(xyz=(eye[0] + 1.7, eye[1], 1.5), on_ground=False))
+    after = collect(lab, "/mex_rb/kinect/depth/image_raw", msgs.Image, 0.05)[-1]
+    centre = (240, 320)
+    depth_before = np.frombuffer(before.data, dtype=np.float32).reshape(480, 640)[centre]
+    depth_after = np.frombuffer(after.data, dtype=np.float32).reshape(480, 640)[centre]
+    assert not depth_before < 1.6  # nothing in front before (floor far away, or NaN)
+    assert depth_after == pytest.approx(1.5, abs=0.01)  # the box's face, 0.2 m before its centre

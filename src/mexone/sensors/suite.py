@@ -41,6 +41,7 @@ class SensorSuite:
             self.sensors[spec.name] = SENSOR_CLASSES[spec.type](
                 spec, sim, bus, sensor_namespace(spec, namespace, override), self.measure, link)
         self.balance = Balance(sim, bus, namespace, self._feet())
+        sim.on_model_change(self.close)  # a spawned model: renderers were built on the old one
         self._timers: dict[str, Periodic] = {}
         for name, sensor in self.sensors.items():
             for output in sensor.outputs:
