@@ -78,6 +78,14 @@ def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
             mj_joint.actfrcrange = (-effort, effort)
 
 
+def set_motor_gain(model: mujoco.MjModel, actuator: int, term: str, value: float) -> None:
+    """Write a p or d gain into a motor actuator of `model` as write() does (the one home of
+    the mapping: MuJoCo's PID servo holds -gain / gear^2 in biasprm), for models that are not a
+    running simulation's, e.g. identification's rollout copies."""
+    gear = model.actuator_gear[actuator, 0]
+    model.actuator_biasprm[actuator, {"p": 1, "d": 2}[term]] = -value / gear**2
+
+
 def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotModel], None]:
     """A SpecEdit after build_actuators: the controllers' gains written into the actuators, as
     write() sets them at run time, so an exported MJCF holds its pose by itself (ctrl of the

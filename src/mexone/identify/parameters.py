@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 from mujoco import sysid
 
+from mexone.control.hardware import set_motor_gain
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
 
@@ -99,10 +100,7 @@ class Unknown:
             body.ipos = ipos
 
     def apply_model(self, model: mujoco.MjModel, value: float) -> None:
-        motor = model.actuator(self.target)
-        gear = model.actuator_gear[motor.id, 0]
-        column = 1 if self.component == "p" else 2
-        model.actuator_biasprm[motor.id, column] = -value / gear**2
+        set_motor_gain(model, model.actuator(self.target).id, self.component, value)
 
 
 def unknowns_for(kinds: list[str], joints: list[str], links: list[str], robot: RobotModel,
