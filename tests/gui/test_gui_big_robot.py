@@ -97,7 +97,7 @@ def test_display_meshes_fit_the_budget_and_are_cached(big_robot, tmp_path, monke
 def _time_to_draw(robot: Path, browser) -> tuple[float, float, int]:
     """(s from the page's load event until every visual of the robot has arrived and the page
     has drawn two frames since, fraction of pixels the robot changes, bytes received until then).
-    is read off the websocket (viser's frames: zstd msgpack); drawing from the page's own
+    Arrival is read off the websocket (viser's frames: zstd msgpack); drawing from the page's own
     animation frames, not from screenshots (which take seconds each in software GL)."""
     import msgspec
     import zstandard
