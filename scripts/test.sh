@@ -13,7 +13,13 @@ command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's bro
 ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher python3-std-msgs
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
               python3-tf2-ros python3-trajectory-msgs python3-geometry-msgs
-              python3-tf2-sensor-msgs python3-tf2-geometry-msgs)
+              python3-tf2-sensor-msgs python3-tf2-geometry-msgs
+              # ROS parity: genpy/gencpp and the definitions mexone's interfaces depend on,
+              # actionlib, dynamic_reconfigure (dynparam), roscpp headers for the compiled client
+              python3-genpy python3-genmsg python3-gencpp ros-std-msgs ros-geometry-msgs
+              ros-trajectory-msgs ros-sensor-msgs ros-actionlib-msgs python3-actionlib
+              python3-actionlib-msgs python3-dynamic-reconfigure python3-rosservice
+              python3-rosbag python3-roslaunch libroscpp-dev libstd-msgs-dev g++)
 dpkg -s "${ros_packages[@]}" >/dev/null 2>&1 || apt_packages+=("${ros_packages[@]}")
 # offscreen rendering for `mexone render`: EGL with Mesa's software driver
 dpkg -s libegl1 libgl1-mesa-dri >/dev/null 2>&1 || apt_packages+=(libegl1 libgl1-mesa-dri)

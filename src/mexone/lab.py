@@ -62,12 +62,13 @@ class Lab:
                world: World | None = None, spawn: Spawn = Spawn(),
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
                control_period: float | None = None, namespace: str | None = None,
-               edits: Sequence[SpecEdit] = ()) -> Lab:
+               start: Sequence[str] | None = None, edits: Sequence[SpecEdit] = ()) -> Lab:
         """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
         for other robots); False: no controllers; "auto": a position controller per moving joint
         with gains from the robot's physics (control/autotune.py); a path or ControlConfig: that
-        one. `edits` change the MuJoCo spec before it compiles (props in the world for an
-        experiment)."""
+        one. `start`: the controllers to start (default: every one, except alternatives for
+        joints an earlier one drives, which load stopped); the rest are loaded, stopped. `edits`
+        change the MuJoCo spec before it compiles (props in the world for an experiment)."""
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
         asked = controllers
@@ -90,7 +91,7 @@ class Lab:
         manager = None
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
-            manager.start_all()
+            manager.start_default(start)
         lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
         if manager is None:
             lab.no_controllers = no_controllers_note(robot, asked)

@@ -188,8 +188,14 @@ def test_unknown_joint_and_conflicting_controllers(tmp_path, turntable):
 """)
     config = parse_control_config(pid_yaml(4.0, 0.5) + """  yaw_effort: {type: effort_controllers/JointEffortController, joint: yaw}
 """)
+    # alternatives for one joint: the first starts, the other loads stopped (was: the sim exited)
+    lab = Lab.create(read_urdf(turntable[0](tmp_path)), config)
+    assert {c.name: c.state for c in lab.controllers.list()} == {
+        "joint_state_controller": "running", "yaw_controller": "running", "yaw_effort": "stopped"}
+    lab.controllers.switch(start=["yaw_effort"], stop=["yaw_controller"])  # one switch swaps them
+    assert lab.controllers.controllers["yaw_effort"].running
     with pytest.raises(InputError, match="joint 'yaw' is driven by 'yaw_controller'"):
-        Lab.create(read_urdf(turntable[0](tmp_path)), config)
+        Lab.create(read_urdf(turntable[0](tmp_path)), config, start=["yaw_controller", "yaw_effort"])
 
 
 def test_switch_stop_start_and_list(tmp_path, turntable):
@@ -237,3 +243,28 @@ def test_group_controller_takes_an_array(tmp_path, turntable):
     lab.bus.publish("/turntable/group/command", Float64MultiArray([0.25]))
     lab.sim.step(5)
     assert lab.sim.joint_efforts()[0] == pytest.approx(0.25)
+
+
+def test_state_topic_publishes_only_while_someone_listens(tmp_path, turntable):
+    """control_msgs/JointControllerState on <ctrl>/state: set point, measured value, error, the
+    torque commanded and the gains, at 100 Hz of sim time, and nothing while nobody listens."""
+    from mexone.bus.msgs import JointControllerState
+
+    lab = Lab.create(read_urdf(turntable[0](tmp_path)), parse_control_config(pid_yaml(4.0, 0.5)))
+    topic = "/turntable/yaw_controller/state"
+    assert lab.bus.topics[topic].count == 0
+    lab.sim.step(100)
+    assert lab.bus.topics[topic].count == 0  # nobody listened: nothing built
+    heard: list[JointControllerState] = []
+    sub = lab.bus.subscribe(topic, JointControllerState, heard.append)
+    lab.controllers.command("yaw_controller", [0.3])
+    lab.sim.step(1000)
+    assert len(heard) == pytest.approx(100, abs=2)
+    last = heard[-1]
+    q = lab.sim.joint_positions()[0]
+    assert last.set_point == 0.3 and last.process_value == pytest.approx(q, abs=1e-3)
+    assert last.error == pytest.approx(0.3 - last.process_value) and (last.p, last.d) == (4.0, 0.5)
+    assert heard[0].command != 0.0  # the torque the PID applied when it started moving
+    sub.unregister()
+    lab.sim.step(100)
+    assert len(heard) == pytest.approx(100, abs=2)

@@ -49,6 +49,8 @@ def test_every_published_message_is_in_the_bag(recorded):
     assert counts["/mex_rb/joint_states"] == 100 and counts["/clock"] == 2000
     assert types["/tf"] == "tf2_msgs/msg/TFMessage"
     assert types["/mex_rb/l_shoulder_pitch_position_controller/command"] == "std_msgs/msg/Float64"
+    assert types["/mex_rb/l_elbow_position_controller/state"] == \
+        "control_msgs/msg/JointControllerState"
     stamps = [s.header.stamp.sec + s.header.stamp.nanosec * 1e-9 for s in states]
     np.testing.assert_allclose(stamps, 0.02 * np.arange(1, 101), atol=1e-9)
     assert list(states[0].name) == sorted(states[0].name)

@@ -30,8 +30,12 @@ def free_port() -> int:
 
 
 def ros_env(port: int) -> dict:
-    return dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
-                ROS_LOG_DIR=str(Path("/tmp") / f"mexone-roslog-{port}"))
+    """The environment of a ROS user with mexone's packages (spawner, message packages) found."""
+    from mexone.ros1 import interfaces
+
+    return interfaces.environment(dict(
+        os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}", ROS_HOSTNAME="127.0.0.1",
+        ROS_LOG_DIR=str(Path("/tmp") / f"mexone-roslog-{port}")))
 
 
 def start_roscore(port: int) -> subprocess.Popen:
@@ -64,28 +68,14 @@ def start_mexone(port: int, *extra: str) -> subprocess.Popen:
 
 
 @pytest.fixture(scope="module")
-def ros():
-    if not Path(ROSCORE).exists():
-        pytest.skip("Debian ROS 1 is not installed (ros-core, python3-rospy)")
-    port = free_port()
-    os.environ.update(ros_env(port))
-    core = start_roscore(port)
+def ros(ros_master):
+    rospy, port = ros_master
     sim = start_mexone(port)
-    from mexone.ros1.bridge import import_rospy
-
-    rospy = import_rospy()
     from sensor_msgs.msg import JointState
 
-    deadline = time.time() + 60
-    while time.time() < deadline and not rospy.core.is_initialized():
-        try:
-            rospy.init_node("mexone_test", disable_signals=True)
-        except Exception:
-            time.sleep(0.5)
     rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=60)
     yield rospy, port, sim
     stop(sim)
-    stop(core)
 
 
 def joint_states(rospy, timeout=5.0):
@@ -133,8 +123,7 @@ def test_a_rospy_sweep_node_follows_sim_time(ros):
     finally:
         stop(node)
         sub.unregister()
-    assert rospy.get_param("/use_sim_time") is True
-    steps = np.diff([t for t, _ in heard[2:25]])
+    steps = np.diff([t for t, _ in heard[2:25]])  # this process runs on sim time (conftest)
     assert np.median(steps) == pytest.approx(0.1, abs=0.005)  # Rate(10) in sim time
     assert min(v for _, v in heard) < -1.0 and q["l_shoulder_pitch"] < -0.5
 
@@ -218,7 +207,10 @@ def test_killing_roscore_keeps_the_simulator_and_its_recording(tmp_path):
     bag = tmp_path / "through.mcap"
     sim = start_mexone(port, "--record", str(bag))
     try:
-        time.sleep(6.0)
+        for line in sim.stderr:  # on the graph (joining takes seconds on a busy machine)
+            if "is on ROS at" in line:
+                break
+        time.sleep(5.0)
         stop(core)  # the master goes away mid-run
         time.sleep(3.0)
         assert sim.poll() is None, sim.stderr.read()
@@ -257,7 +249,9 @@ def _subscribers(port: int, topic: str) -> list[str]:
 
 
 def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path):
-    """The seed's flow: `rosparam load` the YAML, then the simulator reads it from there."""
+    """The seed's flow: `rosparam load` the YAML, then the simulator reads it from there; as
+    ros_control does, they load stopped (alternatives for one joint no longer end the sim) and
+    the spawner starts the ones it names."""
     port = free_port()
     core = start_roscore(port)
     yaml_file = tmp_path / "configuration.yaml"
@@ -267,26 +261,44 @@ def test_controllers_come_from_the_parameter_server_after_rosparam_load(tmp_path
     type: effort_controllers/JointPositionController
     joint: waist_yaw
     pid: {p: 150.0, d: 1.5}
+  waist_yaw_effort_controller: {type: effort_controllers/JointEffortController, joint: waist_yaw}
 """)
     subprocess.run(["rosparam", "load", str(yaml_file)], env=ros_env(port), check=True, timeout=60)
     sim = start_mexone(port)
+    topic = "/mex_rb/waist_yaw_position_controller/command"
     try:
-        deadline = time.time() + 60
-        while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
-            time.sleep(0.5)
-        assert _subscribers(port, "/mex_rb/waist_yaw_position_controller/command") == ["/mexone"]
+        out = subprocess.run(["rosservice", "call", "--wait", "/mex_rb/controller_manager/list_controllers"],
+                             env=ros_env(port), capture_output=True, text=True, timeout=90)
+        assert out.stdout.count('state: "stopped"') == 3, out.stdout + out.stderr
+        assert _subscribers(port, topic) == []
+        switch = subprocess.run(
+            ["rosservice", "call", "/mex_rb/controller_manager/switch_controller",
+             "{start_controllers: [joint_state_controller, waist_yaw_position_controller], "
+             "stop_controllers: [], strictness: 2}"], env=ros_env(port), capture_output=True,
+            text=True, timeout=60)
+        assert "ok: True" in switch.stdout, switch.stdout + switch.stderr
+        deadline = time.time() + 30
+        while time.time() < deadline and not _subscribers(port, topic):
+            time.sleep(0.2)
+        assert _subscribers(port, topic) == ["/mexone"]
         assert _subscribers(port, "/mex_rb/l_elbow_position_controller/command") == []
+        use_sim_time = subprocess.run(["rosparam", "get", "/use_sim_time"], env=ros_env(port),
+                                      capture_output=True, text=True, timeout=60)
+        assert use_sim_time.stdout.strip() == "true"  # set by the simulator, as gazebo_ros' launch
+        assert sim.poll() is None
     finally:
         stop(sim)
         stop(core)
 
 
 def test_the_seed_launch_files(tmp_path):
-    """roslaunch model.launch (the simulator) and control.launch (parameters,
-    robot_state_publisher, the sweep node), as the seed's chapter 3 ran them."""
+    """roslaunch model.launch (the simulator) and control.launch (parameters, the spawner,
+    robot_state_publisher, the arms routine's node), as the seed's chapters 3 and 4 ran them:
+    both shoulders, both elbows and the neck reach the routine's 30 degrees."""
     port = free_port()
     core = start_roscore(port)
-    env = ros_env(port) | {"ROS_PACKAGE_PATH": str(mex_one.package_dir().parent)}
+    env = ros_env(port)
+    env["ROS_PACKAGE_PATH"] += os.pathsep + str(mex_one.package_dir().parent)
     model = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "model.launch", "headless:=true"],
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True)
@@ -295,7 +307,8 @@ def test_the_seed_launch_files(tmp_path):
         deadline = time.time() + 90  # as in the seed: the model first, then the control files
         while time.time() < deadline and not _subscribers(port, "/mex_rb/waist_yaw_position_controller/command"):
             time.sleep(0.5)
-        control = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "control.launch"], env=env,
+        control = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "control.launch",
+                                    "routine:=arms_node.py"], env=env,
                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                                    start_new_session=True)
         code = ("import rospy, sys; from sensor_msgs.msg import JointState; "
@@ -303,7 +316,8 @@ def test_the_seed_launch_files(tmp_path):
                 "while time.time() - t < 90:\n"
                 "    m = rospy.wait_for_message('/mex_rb/joint_states', JointState, timeout=60)\n"
                 "    q = dict(zip(m.name, m.position))\n"
-                "    if q['l_shoulder_pitch'] < -0.5: print('moved'); sys.exit(0)\n"
+                "    if q['l_shoulder_pitch'] < -0.45 and q['r_elbow'] < -0.45 and q['neck_yaw'] > 0.45:\n"
+                "        print('moved'); sys.exit(0)\n"
                 "sys.exit(1)")
         probe = subprocess.run(["/usr/bin/python3", "-c", code], env=env, capture_output=True,
                                text=True, timeout=150)

@@ -300,3 +300,26 @@ ROS_TYPES: dict[type, str] = {
     PointStamped: "geometry_msgs/PointStamped",
     PolygonStamped: "geometry_msgs/PolygonStamped",
 }
+
+
+# ----- controller state (ros_controllers' `state` topics) ------------------------------------
+@dataclass
+class JointControllerState:
+    """control_msgs/JointControllerState: what a single-joint controller aims at and gets."""
+
+    header: Header = field(default_factory=Header)
+    set_point: float = 0.0
+    process_value: float = 0.0
+    process_value_dot: float = 0.0
+    error: float = 0.0
+    time_step: float = 0.0
+    command: float = 0.0
+    p: float = 0.0
+    i: float = 0.0
+    d: float = 0.0
+    i_clamp: float = 0.0
+    antiwindup: bool = False
+
+
+__all__.append("JointControllerState")
+ROS_TYPES[JointControllerState] = "control_msgs/JointControllerState"

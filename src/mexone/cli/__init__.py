@@ -44,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         check,
         controllers,
         convert,
+        identify,
         plot,
         record,
         render,
@@ -59,7 +60,8 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Run 'mexone <verb> --help' for each verb's options.",
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
-    for module in (sim, run, record, plot, render, sweep, check, convert, controllers, bench):
+    for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
+                   bench):
         module.add_parser(sub)
     return parser
 

@@ -220,6 +220,8 @@ def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None,
                     joints=joint_pose_from_args(args)),
         options=options or options_from_args(args),
         target_rtf=target_rtf,
+        namespace=getattr(args, "namespace", None),  # sim --namespace
+        start=getattr(args, "start_controllers", None),  # None: every one that does not clash
     )
     if lab.controllers is None and not args.no_controllers:
         print(f"mexone: {lab.no_controllers}", file=sys.stderr)

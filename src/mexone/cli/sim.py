@@ -27,7 +27,7 @@ from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
 from mexone.robots import mex_one
-from mexone.ros1.bridge import CLOCK_PERIOD, ROS_INSTALL
+from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
 
 HELP = """\
 Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
@@ -75,6 +75,12 @@ def add_parser(sub) -> None:
     p.add_argument("--ros", action="store_true",
                    help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
                         "services); needs Debian's ROS: " + ROS_INSTALL)
+    p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
+                   help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
+                        "/gazebo, another simulator's under /NAME): one per simulator on a master")
+    p.add_argument("--namespace", "-robot_namespace", dest="namespace", type=_ros_name,
+                   metavar="NS", help="the robot's ROS namespace (default: the controller YAML's, "
+                                      "else the URDF's robotNamespace, else the robot's name)")
     p.add_argument("--explain", action="store_true",
                    help="print how each Gazebo property maps to MuJoCo, then exit")
     add_model_options(p, model_positional=True)
@@ -134,11 +140,11 @@ def run(args: argparse.Namespace) -> int:
 def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
     lab = lab_from_args(args, target_rtf=rtf or None)
     sim, robot = lab.sim, lab.sim.robot
-    monitor = RunMonitor(sim)
     if bridge is not None:
         bridge.attach(lab, _urdf_text(args, robot))
         print(f"mexone: {robot.name} is on ROS at {os.environ.get('ROS_MASTER_URI', '?')} "
               f"(namespace {lab.namespace}); Ctrl-C stops", file=sys.stderr)
+    monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
 
     def tick(s: Simulation) -> None:
         monitor.tick(s)
@@ -146,9 +152,9 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
             bridge.pump()
 
     with recording(lab, args.record, args.force):
-        try:
+        try:  # paced: pace every 2 ms of sim time, so /clock flows evenly
             sim.run(duration if duration is not None else float("inf"), on_tick=tick,
-                    tick=CLOCK_PERIOD if bridge is not None else 0.01)
+                    tick=0.002 if bridge is not None and rtf else 0.01)
         except DivergenceError as exc:
             monitor.error = exc.one_line()
         except KeyboardInterrupt:
@@ -172,15 +178,33 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
 def _connect_ros(args: argparse.Namespace):
     """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
     put them there and none were given on the command line (the seed's control.launch flow)."""
+    from mexone.control.spec import ControlConfig
     from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
 
-    bridge = Ros1Bridge()
+    bridge = Ros1Bridge(args.name)
     if args.controllers is None and not args.no_controllers:
         robot = load_model(args.model or mex_one.urdf_path())
-        ns = (robot.ros_namespace or robot.name).strip("/")
-        if bridge.rospy.has_param(f"/{ns}"):
-            args.controllers = config_from_param_server(bridge.rospy, ns)
+        ns = (args.namespace or robot.ros_namespace or robot.name).strip("/")
+        config = config_from_param_server(bridge.rospy, ns) if bridge.rospy.has_param(f"/{ns}") \
+            else None
+        if config is not None and config.controllers:
+            # ros_control: loaded from the parameter server, started by the spawner
+            args.controllers, args.start_controllers = config, []
+        elif args.model is not None and robot.transmissions:
+            # gazebo_ros_control: a controller manager with nothing loaded, for the spawner
+            args.controllers = ControlConfig(ns, {}, config.pid_gains if config else {})
     return bridge
+
+
+def _ros_name(text: str) -> str:
+    """argparse type: a ROS graph name (letters, digits, _ and /, not starting with a digit)."""
+    import re
+
+    name = text.strip("/")
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", name):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a ROS name (letters, digits, _ and /, "
+                                         "not starting with a digit)")
+    return name
 
 
 def _urdf_text(args: argparse.Namespace, robot) -> str:

@@ -128,25 +128,16 @@ class JointCommands:
 
 
 class SimHardware:
-    def __init__(self, sim: Simulation):
-        self.sim = sim
-        robot, model = sim.robot, sim.model
+    """`robot`/`prefix`: a second robot spawned into the world (its MuJoCo names carry the
+    model's prefix, "robot2/"); its controllers see plain joint names, as in its own URDF."""
+
+    def __init__(self, sim: Simulation, robot: RobotModel | None = None, prefix: str = ""):
+        self.sim, self.robot, self.prefix = sim, robot or sim.robot, prefix
+        robot = self.robot
         self.joints = [j.name for j in robot.actuated_joints]  # hardware order
         self.index = {name: i for i, name in enumerate(self.joints)}
-        try:
-            self.motor = np.array([model.actuator(j).id for j in self.joints], dtype=int)
-            self.integral = np.array([model.actuator(j + INTEGRAL_SUFFIX).id for j in self.joints],
-                                     dtype=int)
-        except KeyError:
-            raise ModelError("the model was compiled without mexone's actuators",
-                             hint="build the Simulation with edits=[build_actuators]") from None
-        ids = [model.joint(j).id for j in self.joints]
-        self.qpos_adr = np.array([model.jnt_qposadr[i] for i in ids], dtype=int)
-        self.dof_adr = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
-        self.gear = model.actuator_gear[self.motor, 0].copy()
-        self._ctrl_motor = model.actuator_ctrladr[self.motor]  # [q_ref, v_ref, ff] each
-        self._ctrl_integral = model.actuator_ctrladr[self.integral]
-        self._act_integral = model.actuator_actadr[self.integral]
+        self._bind()
+        sim.on_model_change(self._bind)  # models added or removed: MuJoCo ids may move
         joints = [robot.joints[j] for j in self.joints]
         limited = [j.type in ("revolute", "prismatic") for j in joints]
         self.lower = np.array([j.limit.lower if lim else -np.inf for j, lim in zip(joints, limited,
@@ -163,6 +154,26 @@ class SimHardware:
         self._gains_changed = np.zeros(n, dtype=bool)
         self._integral_reset = np.zeros(n, dtype=bool)
         self.writes = 0  # write() calls, for tests and benchmarks
+
+    def _bind(self) -> None:
+        """MuJoCo ids and addresses of this robot's actuators and joints, by name."""
+        model, pre = self.sim.model, self.prefix
+        if pre and not any(model.actuator(i).name.startswith(pre) for i in range(model.nactuator)):
+            return  # the model was deleted; its manager is closed
+        try:
+            self.motor = np.array([model.actuator(pre + j).id for j in self.joints], dtype=int)
+            self.integral = np.array([model.actuator(pre + j + INTEGRAL_SUFFIX).id
+                                      for j in self.joints], dtype=int)
+        except KeyError:
+            raise ModelError("the model was compiled without mexone's actuators",
+                             hint="build the Simulation with edits=[build_actuators]") from None
+        ids = [model.joint(pre + j).id for j in self.joints]
+        self.qpos_adr = np.array([model.jnt_qposadr[i] for i in ids], dtype=int)
+        self.dof_adr = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
+        self.gear = model.actuator_gear[self.motor, 0].copy()
+        self._ctrl_motor = model.actuator_ctrladr[self.motor]  # [q_ref, v_ref, ff] each
+        self._ctrl_integral = model.actuator_ctrladr[self.integral]
+        self._act_integral = model.actuator_actadr[self.integral]
 
     def rows(self, names) -> np.ndarray:
         missing = [n for n in names if n not in self.index]

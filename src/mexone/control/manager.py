@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mexone.bus.msgs import Float64, Float64MultiArray
+from mexone.bus.msgs import Float64, Float64MultiArray, Header, JointControllerState, Time
 from mexone.bus.topics import Bus, Subscription
 from mexone.control.controllers import (
     CONTROLLER_TYPES,
@@ -29,15 +29,16 @@ from mexone.control.controllers import (
 )
 from mexone.control.hardware import SimHardware
 from mexone.control.notes import gazebo_differences
-from mexone.control.spec import ControlConfig, PidGains
+from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.errors import InputError
-from mexone.physics.simulation import NS, Simulation
+from mexone.physics.simulation import NS, Periodic, Simulation
 
 __all__ = ["ControllerManager", "ControllerInfo", "STRICT", "BEST_EFFORT"]
 
 log = logging.getLogger("mexone.control")
 
 BEST_EFFORT, STRICT = 1, 2  # controller_manager_msgs/SwitchController strictness
+STATE_RATE = 100.0  # Hz of `<ctrl>/state`: ros_controllers publish every 10th update at 1 kHz
 
 
 @dataclass(frozen=True)
@@ -64,6 +65,9 @@ class ControllerManager:
         self._periodic: list[Controller] = []  # running controllers that need every period
         self._running: list[Controller] = []
         self._next_period_ns = 0
+        self._state_topics: set[str] = set()
+        self._state_timer: Periodic | None = None
+        self._state_seq = 0
         self.updates = 0
         self.wake_ns: float = math.inf
         sim.add_control(self)
@@ -120,7 +124,7 @@ class ControllerManager:
         if spec is None:
             raise InputError(f"no controller named '{name}' in the configuration",
                              hint="controllers: " + ", ".join(self.config.controllers))
-        missing = [j for j in spec.joints if j not in self.sim.robot.joints]
+        missing = [j for j in spec.joints if j not in self.hw.robot.joints]
         if missing:
             raise InputError(f"controller '{name}' names joint '{missing[0]}', which the robot "
                              "does not have", file=spec.source, line=spec.line,
@@ -131,6 +135,13 @@ class ControllerManager:
             raise exc.located(spec.source or "<controllers>", spec.line) from None
         self.controllers[name] = ctrl
         return ctrl
+
+    def define(self, spec: ControllerSpec) -> None:
+        """Add or replace the configuration of a controller that is not loaded (ros_control reads
+        it from the parameter server when asked to load)."""
+        if spec.name in self.controllers:
+            raise InputError(f"controller '{spec.name}' is already loaded", hint="unload it first")
+        self.config.controllers[spec.name] = spec
 
     def unload(self, name: str) -> None:
         ctrl = self._get(name)
@@ -161,6 +172,40 @@ class ControllerManager:
     def start_all(self) -> None:
         self.load_all()
         self.switch(start=[n for n, c in self.controllers.items() if not c.running])
+
+    def start_default(self, names: Iterable[str] | None = None) -> list[str]:
+        """Load every configured controller and start `names` (default: all of them in the
+        configuration's order, except one that would drive a joint an earlier one drives: a
+        YAML may hold alternatives for the same joints; those stay loaded, stopped). Returns
+        the controllers left stopped."""
+        self.load_all()
+        if names is not None:
+            self.switch(start=list(names))
+            return [n for n, c in self.controllers.items() if not c.running]
+        claimed: dict[str, str] = {j: c.name for c in self._running for j in c.joints}
+        start, stopped = [], []
+        for name, ctrl in self.controllers.items():
+            if ctrl.running:
+                continue
+            clash = next((claimed[j] for j in ctrl.joints if j in claimed), None)
+            if clash is not None:
+                stopped.append(name)
+                log.warning("%s: loaded stopped, as '%s' already drives its joints; start it with "
+                            "switch_controller (stopping '%s')", name, clash, clash)
+                continue
+            claimed.update({j: name for j in ctrl.joints})
+            start.append(name)
+        self.switch(start=start)
+        return stopped
+
+    def hold(self, joints: Iterable[str]) -> None:
+        """Restart the running controllers of `joints`, so they hold where the joints are now
+        (after set_model_configuration teleported them)."""
+        joints = set(joints)
+        names = [c.name for c in self._running if joints & set(c.joints)]
+        if names:
+            self.switch(stop=names)
+            self.switch(start=names)
 
     def switch(self, start: Iterable[str] = (), stop: Iterable[str] = (),
                strictness: int = STRICT) -> None:
@@ -207,6 +252,8 @@ class ControllerManager:
             if ctrl.kind != "state":
                 self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
                                                       self._buffer(ctrl))
+            if ctrl.has_state:
+                self._watch_state(self.state_topic(name))
         self._schedule()
         self.hw.write()
 
@@ -221,6 +268,45 @@ class ControllerManager:
         self._periodic = [c for c in self._running if c.periodic]
         self._next_period_ns = self.sim.time_ns
         self._wake()
+
+    # ----- `state` topics (published only while someone listens) ---------------------------------
+    def state_topic(self, name: str) -> str:
+        return f"{self.namespace}/{name}/state"
+
+    def _watch_state(self, topic: str) -> None:
+        if topic not in self._state_topics:
+            self._state_topics.add(topic)
+            self.bus.advertise(topic, JointControllerState)
+            self.bus.on_subscribers(topic, lambda _count: self._state_wanted())
+
+    def _state_wanted(self) -> None:
+        """Subscribers changed (simulation thread): run the 100 Hz publisher only if needed."""
+        wanted = any(self.bus.wanted(t) for t in self._state_topics)
+        if wanted and self._state_timer is None:
+            self._state_timer = self.sim.add_periodic(1.0 / STATE_RATE, self._publish_states)
+        elif not wanted and self._state_timer is not None:
+            self.sim.remove_periodic(self._state_timer)
+            self._state_timer = None
+
+    def _publish_states(self, sim: Simulation) -> None:
+        stamp = Time.from_nsec(sim.time_ns)
+        for ctrl in self._running:
+            if not ctrl.has_state:
+                continue
+            topic = self.state_topic(ctrl.name)
+            if self.bus.wanted(topic):
+                self._state_seq += 1
+                msg = ctrl.state_message(self.control_period)
+                msg.header = Header(self._state_seq, stamp, "")
+                self.bus.publish(topic, msg)
+
+    def close(self) -> None:
+        """Stop every controller and leave the simulation (its robot was deleted)."""
+        self.switch(stop=[c.name for c in self._running])
+        if self._state_timer is not None:
+            self.sim.remove_periodic(self._state_timer)
+            self._state_timer = None
+        self.sim.remove_control(self)
 
     def restart(self) -> None:
         """Stop and start every running controller (after a reset: they hold the new pose)."""

@@ -153,6 +153,7 @@ class Limit:
 class Dynamics:
     damping: float = 0.0
     friction: float = 0.0
+    armature: float = 0.0  # kg m^2 (rotor inertia through the gearbox): <dynamics armature="...">
 
 
 @dataclass(frozen=True)

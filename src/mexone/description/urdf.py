@@ -176,7 +176,8 @@ def _joint(xml: XmlReader, el: etree._Element) -> Joint:
     dynamics = Dynamics()
     dyn = el.find("dynamics")
     if dyn is not None:
-        dynamics = Dynamics(xml.float_attr(dyn, "damping", 0.0), xml.float_attr(dyn, "friction", 0.0))
+        dynamics = Dynamics(xml.float_attr(dyn, "damping", 0.0), xml.float_attr(dyn, "friction", 0.0),
+                            xml.float_attr(dyn, "armature", 0.0))
     mimic = None
     if (mim := el.find("mimic")) is not None:
         mimic = Mimic(xml.attr(mim, "joint"), xml.float_attr(mim, "multiplier", 1.0),
@@ -236,7 +237,8 @@ def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
         if dyn is not None:
             base = model.joints[ref].dynamics
             model.gazebo_joints[ref] = Dynamics(xml.text_number(dyn, "damping", base.damping),
-                                                xml.text_number(dyn, "friction", base.friction))
+                                                xml.text_number(dyn, "friction", base.friction),
+                                                base.armature)
     else:
         model.reader_findings.append(Finding(
             "gazebo-unknown-reference", "warning", f'<gazebo reference="{ref}">',
@@ -316,9 +318,10 @@ def write_urdf(model: RobotModel, comment: str | None = None) -> str:
             lim = joint.limit
             _sub(el, "limit", lower=fmt(lim.lower), upper=fmt(lim.upper), effort=fmt(lim.effort),
                  velocity=fmt(lim.velocity))
-        if joint.moving and (joint.dynamics.damping or joint.dynamics.friction):
-            _sub(el, "dynamics", damping=fmt(joint.dynamics.damping),
-                 friction=fmt(joint.dynamics.friction))
+        dyn = joint.dynamics
+        if joint.moving and (dyn.damping or dyn.friction or dyn.armature):
+            _sub(el, "dynamics", damping=fmt(dyn.damping), friction=fmt(dyn.friction),
+                 armature=fmt(dyn.armature) if dyn.armature else None)
         if joint.mimic is not None:
             _sub(el, "mimic", joint=joint.mimic.joint, multiplier=fmt(joint.mimic.multiplier),
                  offset=fmt(joint.mimic.offset))

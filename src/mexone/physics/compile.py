@@ -74,6 +74,8 @@ GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<dynamics damping> / <gazebo> axis/dynamics/damping", "joint damping",
      "viscous, integrated implicitly (implicitfast)"),
     ("<dynamics friction> / <gazebo> axis/dynamics/friction", "joint frictionloss", "Coulomb"),
+    ("<dynamics armature> (as Genesis and Pinocchio read it)", "joint armature",
+     "rotor inertia reflected through the gearbox; Gazebo 7 has none"),
     ("<limit lower upper>", "joint range (limited)", "continuous joints unlimited"),
     ("<limit effort>", "joint actuatorfrcrange, motor forcerange = effort / mechanicalReduction",
      "the joint's total actuator torque never exceeds it; <= 0 means unlimited, as SDF reads -1"),
@@ -418,7 +420,7 @@ def _add_joint(body: mujoco.MjsBody, robot: RobotModel, joint, options: CompileO
     dyn = robot.joint_dynamics(joint.name)
     mj.damping = (dyn.damping, 0.0, 0.0)  # MuJoCo 4: polynomial damping, linear term first
     mj.frictionloss = dyn.friction
-    mj.armature = options.armature
+    mj.armature = dyn.armature + options.armature
 
 
 def _add_inertial(body: mujoco.MjsBody, robot: RobotModel, name: str) -> None:

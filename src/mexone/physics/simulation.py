@@ -28,6 +28,7 @@ from mexone.description.check import check_model
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
+from mexone.physics.attach import attach_model, carry_over, detach_model
 from mexone.physics.compile import (
     Compiled,
     CompileOptions,
@@ -36,6 +37,7 @@ from mexone.physics.compile import (
     collision_bits,
     compile_model,
 )
+from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
 
@@ -167,6 +169,9 @@ class Simulation:
         self._effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
                                        for j in robot.moving_joints])
         self._efforts = np.zeros(len(self.joint_names))
+        self.models: dict[str, str] = {}  # spawned model -> the MuJoCo name of its root body
+        self.forces = Forces()  # timed wrenches and joint efforts (apply_wrench, apply_joint_effort)
+        self._model_hooks: list[Callable[[], None]] = []
         self.periodic: list[Periodic] = []
         self.controls: list[Control] = []
         self.work = WorkQueue()
@@ -178,7 +183,6 @@ class Simulation:
         self._pace_origin: tuple[float, float] | None = None
         self._since_watch = 0
         self._time_ns = 0
-        self._resets = 0
         self._step_ns = round(self.model.opt.timestep * NS)
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
@@ -233,6 +237,13 @@ class Simulation:
     def add_control(self, control: Control) -> None:
         self.controls.append(control)
 
+    def remove_control(self, control: Control) -> None:
+        """Forget a control and the hooks it registered (a deleted robot's controllers)."""
+        if control in self.controls:
+            self.controls.remove(control)
+        for hooks in (self._reset_hooks, self._timestep_hooks, self._model_hooks):
+            hooks[:] = [h for h in hooks if getattr(h, "__self__", None) is not control]
+
     def _fire_due(self) -> None:
         now, half = self._time_ns, self._step_ns // 2
         for timer in list(self.periodic):
@@ -244,10 +255,15 @@ class Simulation:
         for control in self.controls:
             if control.wake_ns <= now + half:
                 control.update(self)
+        forces = self.forces
+        if forces.changed or forces.active:
+            forces.apply(self.data, now, half, self._efforts, self.compiled.dof_adr)
 
     def _steps_until_due(self) -> int:
         soonest = min([t.next_ns for t in self.periodic] + [c.wake_ns for c in self.controls],
                       default=math.inf)
+        if self.forces.changed or self.forces.active:
+            soonest = min(soonest, self.forces.next_change_ns(self._time_ns, self._step_ns))
         if soonest == math.inf:
             return _WATCH_EVERY
         if soonest <= self._time_ns:
@@ -345,13 +361,14 @@ class Simulation:
 
     def reset(self) -> None:
         """Back to the spawn pose with every joint at 0 (home) or its initial position (-J), sim
-        time 0; timers restart from there and reset hooks run (controllers hold that pose)."""
+        time 0; pushes and efforts end; timers restart from there and reset hooks run
+        (controllers hold that pose)."""
         if self.compiled.spawn_key is None:  # pushes (xfrc_applied) end too
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
-        self._resets += 1
         self._efforts[:] = 0.0
+        self.forces = Forces()
         mujoco.mj_forward(self.model, self.data)
         self._time_ns = 0
         self.rtf.clear()
@@ -360,6 +377,57 @@ class Simulation:
         for timer in self.periodic:
             timer.next_ns = timer.period_ns
         for hook in self._reset_hooks:
+            hook()
+
+    # ----- models in the world -------------------------------------------------------------------
+    def on_model_change(self, hook: Callable[[], None]) -> None:
+        """Run `hook()` after a model was added or removed (sim.model and sim.data are new)."""
+        self._model_hooks.append(hook)
+
+    def add_model(self, robot: RobotModel | Path | str, name: str | None = None,
+                  spawn: Spawn = Spawn(on_ground=False), edits: Sequence[SpecEdit] = ()) -> str:
+        """Add another model (a box, a ball, a second robot) to the running world, touching the
+        ground and the robot; returns its name. The robot's ids stay. `edits` change its spec
+        before it is attached (a second robot's actuators): then its links keep their own
+        collision rules (selfCollide), as the robot's do."""
+        if not isinstance(robot, RobotModel):
+            robot = load_model(robot)
+        name = name or robot.name
+        if name == self.robot.name or name in self.models:
+            raise InputError(f"a model named '{name}' already exists", hint="pick another name")
+        self.models[name] = attach_model(self.compiled.spec, robot, name, self.compiled.world,
+                                         spawn, edits, touch_all=not edits)
+        try:
+            self._recompile()
+        except ValueError as exc:
+            del self.models[name]
+            detach_model(self.compiled.spec, name)
+            raise InputError(f"MuJoCo cannot add '{name}': {' '.join(str(exc).split())}") from None
+        return name
+
+    def remove_model(self, name: str) -> None:
+        if name == self.robot.name:
+            raise InputError(f"'{name}' is the simulated robot; it cannot be deleted",
+                             hint="delete models you spawned")
+        if name not in self.models:
+            raise InputError(f"no model named '{name}'", hint="models: " + ", ".join(self.models))
+        detach_model(self.compiled.spec, name)
+        del self.models[name]
+        self._recompile()
+
+    def _recompile(self) -> None:
+        old = self.model
+        model, data = self.compiled.spec.recompile(self.model, self.data)
+        carry_over(old, model)
+        model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
+        self.model = self.compiled.model = model
+        self.data = data
+        mujoco.mj_forward(model, data)
+        suspects = self.watchdog.suspects
+        self.watchdog = Watchdog(model, data, self.watchdog.link_names, self._likely_cause)
+        self.watchdog.suspects.extend(suspects)
+        self.forces = Forces()
+        for hook in self._model_hooks:
             hook()
 
     def set_self_collision(self, on: bool | None) -> None:
@@ -419,39 +487,135 @@ class Simulation:
         self._efforts[given] = np.clip(vec[given], -self._effort_limit[given],
                                        self._effort_limit[given])
         self.data.qfrc_applied[self.compiled.dof_adr] = self._efforts
+        if self.forces.active:
+            self.forces.changed = True  # the timed efforts add to the held ones
 
     # ----- links --------------------------------------------------------------------------------
+    def body_id(self, link: str) -> int:
+        """The MuJoCo body of a robot link, or of any body by its MuJoCo name (spawned models)."""
+        body = self.compiled.bodies.get(link)
+        if body is not None:
+            return body
+        found = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, link) if link else -1
+        if found <= 0:
+            raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
+        return found
+
     def link_pose(self, link: str) -> tuple[np.ndarray, np.ndarray]:
         """World position and (w, x, y, z) quaternion of a link frame."""
-        body = self.compiled.bodies.get(link)
-        if body is None:
-            raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
+        body = self.body_id(link)
         return self.data.xpos[body].copy(), self.data.xquat[body].copy()
 
+    def link_velocity(self, link: str) -> tuple[np.ndarray, np.ndarray]:
+        """Linear velocity of a link frame's origin and angular velocity, both in the world frame."""
+        out = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, self.body_id(link),
+                                 out, 0)
+        return out[3:].copy(), out[:3].copy()
+
+    def set_free_body(self, link: str, position: Sequence[float], quaternion: Sequence[float],
+                      linear: Sequence[float] = (0, 0, 0), angular: Sequence[float] = (0, 0, 0)) -> None:
+        """Teleport a floating body (the robot's base, a spawned model): pose, and linear and angular
+        velocity in the world frame (Gazebo's set_model_state)."""
+        body = self.body_id(link)
+        joint = self.model.body_jntadr[body]
+        if joint < 0 or self.model.jnt_type[joint] != mujoco.mjtJoint.mjJNT_FREE:
+            raise InputError(f"'{link}' is welded to the world or to another link, so it cannot be "
+                             "placed", hint="place the model's floating root link")
+        values = np.r_[position, quaternion, linear, angular].astype(float)
+        if values.shape != (13,) or not np.isfinite(values).all():
+            raise InputError("pose and twist must be 3 + 4 + 3 + 3 finite numbers")
+        quat = values[3:7]
+        if np.linalg.norm(quat) < 1e-9:
+            raise InputError("orientation quaternion is zero", hint="use w = 1 for no rotation")
+        q, v = self.model.jnt_qposadr[joint], self.model.jnt_dofadr[joint]
+        self.data.qpos[q:q + 3] = values[:3]
+        self.data.qpos[q + 3:q + 7] = quat / np.linalg.norm(quat)
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, self.data.qpos[q + 3:q + 7])
+        self.data.qvel[v:v + 3] = values[7:10]
+        self.data.qvel[v + 3:v + 6] = rot.reshape(3, 3).T @ values[10:13]  # MuJoCo: body frame
+        mujoco.mj_forward(self.model, self.data)
+        self.watchdog.forget()
+
+    def _duration_ns(self, duration: float | None, start: float | None) -> tuple[int, float]:
+        """(start, end) in sim ns: from `start` (or now, if earlier or None) for `duration` s;
+        a negative or None duration lasts until cleared, as in Gazebo."""
+        if (duration is not None and math.isnan(duration)) or \
+                (start is not None and not math.isfinite(start)):
+            raise InputError("start time and duration must be numbers",
+                             hint="a duration < 0 lasts until cleared")
+        begin = self._time_ns if start is None else max(self._time_ns, round(start * NS))
+        if duration is None or duration < 0 or duration == math.inf:
+            return begin, FOREVER
+        return begin, begin + round(duration * NS)
+
     def apply_wrench(self, link: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0),
-                     point: Sequence[float] | None = None, duration: float = 0.1) -> None:
-        """Push `link` with a world-frame `force` (N) acting at the world `point` (default: its
-        centre of mass) plus `torque` (N m), for `duration` s of sim time; pushes add up and a
-        reset ends them. Simulation thread only (Gazebo's apply_body_wrench, the GUI's push)."""
-        body = self.compiled.bodies.get(link)
-        if body is None:
-            raise InputError(f"no link named '{link}'", hint="links: " + ", ".join(self.compiled.bodies))
-        at = self.data.xipos[body] if point is None else np.asarray(point, dtype=float)
-        wrench = np.r_[np.asarray(force, dtype=float), np.asarray(torque, dtype=float)]
-        if wrench.shape != (6,) or at.shape != (3,) or not np.isfinite(np.r_[wrench, at]).all():
-            raise InputError(f"push on '{link}': force, torque and point must be 3 finite numbers each")
-        if not (duration > 0 and math.isfinite(duration)):
-            raise InputError(f"push on '{link}': duration {duration} must be a finite number > 0 s")
-        wrench[3:] += np.cross(at - self.data.xipos[body], wrench[:3])  # moved to the COM
-        self.data.xfrc_applied[body] += wrench
-        start = self._resets
+                     point: Sequence[float] | None = None, frame: str = "world",
+                     duration: float | None = None, start: float | None = None) -> None:
+        """Push a link: `force` (N) and `torque` (N m) expressed in `frame` ("world" or a link),
+        the force acting at `point` in that frame (default: the pushed link's centre of mass), for
+        `duration` s of sim time from `start` (default now; None or < 0: until cleared).
+        Several wrenches add up. Simulation thread only."""
+        body = self.body_id(link)
+        frame_body = -1 if frame in ("", "world", "map", "/map") else self.body_id(frame)
+        values = np.r_[force, torque].astype(float)
+        if values.shape != (6,) or not np.isfinite(values).all():
+            raise InputError("force and torque must be 3 finite numbers each")
+        if point is None:  # the link's centre of mass, written in the frame's coordinates
+            rot = np.eye(3) if frame_body < 0 else self.data.xmat[frame_body].reshape(3, 3)
+            origin = np.zeros(3) if frame_body < 0 else self.data.xpos[frame_body]
+            point = rot.T @ (self.data.xipos[body] - origin)
+        point = np.asarray(point, dtype=float)
+        if point.shape != (3,) or not np.isfinite(point).all():
+            raise InputError("application point must be 3 finite numbers")
+        if frame_body < 0:  # a world-frame push stays where it was put on the body
+            frame_body, rot = body, self.data.xmat[body].reshape(3, 3)
+            point = rot.T @ (point - self.data.xpos[body])
+            values = np.r_[rot.T @ values[:3], rot.T @ values[3:]]
+            world_fixed = True
+        else:
+            world_fixed = False
+        begin, end = self._duration_ns(duration, start)
+        wrench = Wrench(body, values[:3], values[3:], point, frame_body, begin, end)
+        if world_fixed:  # force and torque keep their world direction as the body turns
+            wrench = _WorldWrench.of(wrench, self.data)
+        self.forces.wrenches.append(wrench)
+        self.forces.changed = True
 
-        def release(sim: Simulation) -> None:
-            if sim._resets == start:  # a reset zeroed xfrc_applied already
-                sim.data.xfrc_applied[body] -= wrench
-            sim.remove_periodic(timer)
+    def clear_wrenches(self, link: str | None = None) -> int:
+        """Remove the wrenches on `link` (every link if None); returns how many."""
+        return self.forces.clear_body(None if link is None else self.body_id(link))
 
-        timer = self.add_periodic(duration, release)
+    def apply_joint_effort(self, joint: str, effort: float, duration: float | None = None,
+                           start: float | None = None) -> None:
+        """Add `effort` (N m or N) to a joint for `duration` s of sim time (Gazebo's
+        apply_joint_effort); motors and other efforts add to it."""
+        dof = self._dof(joint)
+        if not math.isfinite(effort):
+            raise InputError(f"effort {effort} is not finite")
+        begin, end = self._duration_ns(duration, start)
+        self.forces.efforts.append(JointEffort(dof, float(effort), begin, end))
+        self.forces.changed = True
+
+    def clear_joint_efforts(self, joint: str | None = None) -> int:
+        return self.forces.clear_joint(None if joint is None else self._dof(joint))
+
+    def _dof(self, joint: str) -> int:
+        if joint not in self._index:
+            raise InputError(f"no moving joint named '{joint}'",
+                             hint="joints: " + ", ".join(self.joint_names))
+        return int(self.compiled.dof_adr[self._index[joint]])
+
+    @property
+    def gravity(self) -> np.ndarray:
+        return self.model.opt.gravity.copy()
+
+    def set_gravity(self, gravity: Sequence[float]) -> None:
+        values = np.asarray(gravity, dtype=float)
+        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 1000:
+            raise InputError(f"gravity {list(values)} must be 3 finite numbers within +-1000 m/s^2")
+        self.model.opt.gravity[:] = values
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
@@ -476,3 +640,18 @@ class Simulation:
             return None
         first = suspects[0]
         return f"{first.element} {_LINT_CAUSES[first.code]} (mexone check: {first.code})"
+
+
+class _WorldWrench(Wrench):
+    """A wrench whose force and torque keep their world direction while its point rides the body."""
+
+    @classmethod
+    def of(cls, wrench: Wrench, data: mujoco.MjData) -> _WorldWrench:
+        rot = data.xmat[wrench.body].reshape(3, 3)
+        return cls(wrench.body, rot @ wrench.force, rot @ wrench.torque, wrench.point,
+                   wrench.frame_body, wrench.start_ns, wrench.end_ns)
+
+    def world(self, data: mujoco.MjData) -> np.ndarray:
+        rot = data.xmat[self.body].reshape(3, 3)
+        at = data.xpos[self.body] + rot @ self.point
+        return np.r_[self.force, self.torque + np.cross(at - data.xipos[self.body], self.force)]

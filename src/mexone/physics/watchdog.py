@@ -63,6 +63,11 @@ class Watchdog:
     _last_time: float = field(default=-np.inf, init=False, repr=False)
     _checks: int = field(default=0, init=False, repr=False)
 
+    def forget(self) -> None:
+        """Someone put energy in on purpose (a teleport with a velocity, a new model): measure
+        the ceiling again from now."""
+        self._ceiling = None
+
     def check(self) -> None:
         data = self.data
         self._checks += 1

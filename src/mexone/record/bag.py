@@ -50,6 +50,19 @@ geometry_msgs/Vector3[] contact_normals
 float64[] depths
 """
 _CONTACTS_STATE_MSG = "std_msgs/Header header\ngazebo_msgs/ContactState[] states\n"
+_CONTROLLER_STATE_MSG = """std_msgs/Header header
+float64 set_point
+float64 process_value
+float64 process_value_dot
+float64 error
+float64 time_step
+float64 command
+float64 p
+float64 i
+float64 d
+float64 i_clamp
+bool antiwindup
+"""  # control_msgs 1.5's JointControllerState (ros_controllers' `state` topics)
 
 
 def typestore_for(ros1: bool):
@@ -60,6 +73,8 @@ def typestore_for(ros1: bool):
     if "gazebo_msgs/msg/ContactsState" not in store.types:  # gazebo_msgs' official definitions
         missing |= get_types_from_msg(_CONTACT_STATE_MSG, "gazebo_msgs/msg/ContactState")
         missing |= get_types_from_msg(_CONTACTS_STATE_MSG, "gazebo_msgs/msg/ContactsState")
+    if "control_msgs/msg/JointControllerState" not in store.types:
+        missing |= get_types_from_msg(_CONTROLLER_STATE_MSG, "control_msgs/msg/JointControllerState")
     if missing:
         store.register(missing)
     return store
@@ -140,6 +155,12 @@ def to_ros(msg, store, ros1: bool):
                 contact_normals=[vector(v) for v in c.contact_normals], depths=array(c.depths))
                 for c in msg.states]
             return T["gazebo_msgs/msg/ContactsState"](header=header(msg.header), states=states)
+        case msgs.JointControllerState():
+            values = {k: float(getattr(msg, k)) for k in (
+                "set_point", "process_value", "process_value_dot", "error", "time_step",
+                "command", "p", "i", "d", "i_clamp")}
+            return T["control_msgs/msg/JointControllerState"](
+                header=header(msg.header), antiwindup=bool(msg.antiwindup), **values)
         case msgs.PointStamped():
             return T["geometry_msgs/msg/PointStamped"](
                 header=header(msg.header), point=T["geometry_msgs/msg/Point"](

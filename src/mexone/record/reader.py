@@ -1,9 +1,18 @@
-"""Read a recorded bag back into joint time series (for plots and CSV), with rosbags."""
+"""Read a recorded bag back, with rosbags: the one reader of bags in mexone.
+
+`read_bag` returns what a bag holds for joints -- every JointState message (names in any order,
+header stamps and bag times both kept, so jitter can be judged later), every controller command
+(Float64, Float64MultiArray, JointTrajectory) by topic, and the /tf transforms of the frames
+asked for -- from bags written by mexone or by ROS itself (`rosbag record`, `ros2 bag record`).
+`read_joint_series` turns it into per-joint series for plots and CSV.
+"""
 
 from __future__ import annotations
 
 import logging
 import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -13,9 +22,69 @@ from rosbags.highlevel import AnyReader
 from mexone.errors import InputError
 from mexone.record.bag import typestore_for
 
-__all__ = ["JointSeries", "read_joint_series"]
+__all__ = ["JointSeries", "read_joint_series", "read_bag", "BagContents", "StateMessage",
+           "CommandMessage", "TransformSample", "JOINT_STATE", "COMMAND_TYPES"]
 
 log = logging.getLogger(__name__)
+
+JOINT_STATE = "sensor_msgs/msg/JointState"
+FLOAT64, MULTI, TRAJECTORY = ("std_msgs/msg/Float64", "std_msgs/msg/Float64MultiArray",
+                              "trajectory_msgs/msg/JointTrajectory")
+COMMAND_TYPES = (FLOAT64, MULTI, TRAJECTORY)
+_TF = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+
+
+@dataclass
+class StateMessage:
+    """One JointState as recorded: `t` is the bag's receive time, `stamp` the header's (None when
+    the publisher left it zero); names in the publisher's order."""
+
+    t: float
+    stamp: float | None
+    seq: int | None  # ROS 1 header sequence number (None for ROS 2)
+    topic: str
+    names: tuple[str, ...]
+    position: np.ndarray
+    velocity: np.ndarray  # empty when the driver does not report it
+    effort: np.ndarray
+
+
+@dataclass
+class TrajectoryPoint:
+    positions: np.ndarray
+    velocities: np.ndarray
+    time_from_start: float
+
+
+@dataclass
+class CommandMessage:
+    """One command as recorded. `values`: the Float64 (one value) or Float64MultiArray data;
+    trajectories keep their joints, points and header stamp."""
+
+    t: float
+    msgtype: str
+    values: np.ndarray | None = None
+    joint_names: tuple[str, ...] = ()
+    points: list[TrajectoryPoint] = field(default_factory=list)
+    stamp: float | None = None
+
+
+@dataclass
+class TransformSample:
+    t: float
+    parent: str
+    child: str
+    xyz: np.ndarray
+    quat: np.ndarray  # w, x, y, z
+
+
+@dataclass
+class BagContents:
+    path: Path
+    states: list[StateMessage]
+    commands: dict[str, list[CommandMessage]]  # topic -> messages in bag order
+    transforms: list[TransformSample]
+    topics: dict[str, str]  # every topic -> its message type
 
 
 @dataclass
@@ -32,15 +101,17 @@ class JointSeries:
     command_times: list[float] = field(default_factory=list)
 
 
-def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
-    """The joints of a bag; a killed recording's (BAG.active, or a truncated BAG) is read from a
-    recovered copy, with a one-line note saying how to repair the file itself."""
+@contextmanager
+def _readable(path: Path | str) -> Iterator[Path]:
+    """The bag itself; a killed recording's (BAG.active, or a truncated BAG) recovered into a
+    temporary copy, with a one-line note saying how to repair the file itself."""
     from mexone.record.recover import killed_recording, looks_truncated, recover
 
     path = Path(path)
     if path.is_dir() or (path.is_file() and not path.name.endswith(".active")
                          and not looks_truncated(path)):
-        return _read(path)
+        yield path
+        return
     killed = killed_recording(path)
     if killed is None:
         raise InputError("no such file", file=path, hint="record one with --record FILE")
@@ -51,44 +122,100 @@ def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
         log.warning(f"{killed}: an unfinished recording (killed?); read the {found.describe()} "
                     f"recovered from it; 'mexone record --recover {bag}' repairs it on disk")
         try:
-            return _read(copy)
+            yield copy
         except InputError as exc:  # about the user's file, not our temporary copy
             raise InputError(exc.what, file=killed, hint=exc.hint) from None
 
 
-def _read(path: Path) -> dict[str, JointSeries]:
+def read_bag(path: Path | str, frames: tuple[str, ...] = ()) -> BagContents:
+    """Joint states, commands and the /tf transforms whose child frame is in `frames`."""
+    with _readable(path) as readable:
+        contents = _read(readable, frames)
+    contents.path = Path(path)
+    return contents
+
+
+def _seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def _array(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).ravel()
+
+
+def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
     try:
         reader = AnyReader([path], default_typestore=typestore_for(path.suffix == ".bag"))
         reader.open()
     except Exception as exc:  # rosbags raises its own error types for damaged or foreign files
         raise InputError(f"not a readable bag: {exc}", file=path,
                          hint="give a .mcap or .bag recorded by mexone or ROS") from None
-    states: list[tuple[float, object]] = []
-    commands: dict[str, list[tuple[float, float]]] = {}
+    wanted = {f.strip("/") for f in frames}
+    contents = BagContents(path, [], {}, [], {c.topic: c.msgtype for c in reader.connections})
     try:
         for conn, stamp, raw in reader.messages():
-            if conn.msgtype == "sensor_msgs/msg/JointState":
-                states.append((stamp * 1e-9, reader.deserialize(raw, conn.msgtype)))
-            elif conn.msgtype == "std_msgs/msg/Float64" and conn.topic.endswith(
-                    "_position_controller/command"):
-                joint = conn.topic.rsplit("/", 2)[-2].removesuffix("_position_controller")
-                commands.setdefault(joint, []).append(
-                    (stamp * 1e-9, float(reader.deserialize(raw, conn.msgtype).data)))
+            kind, t = conn.msgtype, stamp * 1e-9
+            if kind == JOINT_STATE:
+                msg = reader.deserialize(raw, kind)
+                header = _seconds(msg.header.stamp)
+                contents.states.append(StateMessage(
+                    t, header if header > 0 else None, getattr(msg.header, "seq", None),
+                    conn.topic, tuple(msg.name), _array(msg.position), _array(msg.velocity),
+                    _array(msg.effort)))
+            elif kind in (FLOAT64, MULTI):
+                msg = reader.deserialize(raw, kind)
+                contents.commands.setdefault(conn.topic, []).append(
+                    CommandMessage(t, kind, _array(msg.data)))
+            elif kind == TRAJECTORY:
+                msg = reader.deserialize(raw, kind)
+                points = [TrajectoryPoint(_array(p.positions), _array(p.velocities),
+                                          _seconds(p.time_from_start)) for p in msg.points]
+                header = _seconds(msg.header.stamp)
+                contents.commands.setdefault(conn.topic, []).append(CommandMessage(
+                    t, kind, joint_names=tuple(msg.joint_names), points=points,
+                    stamp=header if header > 0 else None))
+            elif kind in _TF and wanted:
+                for tf in reader.deserialize(raw, kind).transforms:
+                    if tf.child_frame_id.strip("/") in wanted:
+                        tr, rot = tf.transform.translation, tf.transform.rotation
+                        header = _seconds(tf.header.stamp)
+                        contents.transforms.append(TransformSample(
+                            header if header > 0 else t, tf.header.frame_id.strip("/"),
+                            tf.child_frame_id.strip("/"), np.array([tr.x, tr.y, tr.z]),
+                            np.array([rot.w, rot.x, rot.y, rot.z])))
+    except InputError:
+        raise
+    except Exception as exc:  # a damaged chunk or a message that does not match its type
+        raise InputError(f"cannot read the bag's messages: {exc}", file=path,
+                         hint="'mexone record --recover' repairs a truncated bag") from None
     finally:
         reader.close()
+    return contents
+
+
+def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
+    """Per joint, for plots: the joints of the first JointState message, and each joint's
+    `<joint>_position_controller/command` held between messages."""
+    contents = read_bag(path)
+    states = contents.states
     if not states:
         raise InputError("the bag has no sensor_msgs/JointState messages", file=path,
                          hint="record a run that has a joint_state_controller")
-    names = list(states[0][1].name)
-    t = np.array([s for s, _ in states])
+    names = list(states[0].names)
+    t = np.array([s.stamp if s.stamp is not None else s.t for s in states])
     out = {}
     for i, name in enumerate(names):
-        series = JointSeries(name, t, np.array([m.position[i] for _, m in states]),
-                             np.array([m.velocity[i] for _, m in states]),
-                             np.array([m.effort[i] for _, m in states]))
-        if name in commands:
-            ct = np.array([c for c, _ in commands[name]])
-            cv = np.array([v for _, v in commands[name]])
+        def column(field_name: str, i=i) -> np.ndarray:
+            return np.array([getattr(s, field_name)[i] if len(getattr(s, field_name)) > i
+                             else np.nan for s in states])
+
+        series = JointSeries(name, t, column("position"), column("velocity"), column("effort"))
+        topic = next((topic for topic, msgs in contents.commands.items()
+                      if topic.endswith(f"/{name}_position_controller/command")
+                      and msgs[0].msgtype == FLOAT64), None)
+        if topic is not None:
+            ct = np.array([c.t for c in contents.commands[topic]])
+            cv = np.array([c.values[0] for c in contents.commands[topic]])
             idx = np.searchsorted(ct, t, side="right") - 1
             series.command = np.where(idx >= 0, cv[np.maximum(idx, 0)], 0.0)
             series.command_times = ct.tolist()

@@ -2,21 +2,27 @@
 
 It does what gazebo_ros + gazebo_ros_control did for the seed: sets /robot_description, takes
 the controller configuration from the parameter server when none is given (so `rosparam load`
-+ the seed's control.launch works), subscribes to every controller's command topic, publishes
-/<ns>/joint_states, /clock (sim time, so use_sim_time nodes follow it) and the floating base as
-TF world -> <root>, and offers /gazebo/{pause,unpause}_physics, reset_simulation, reset_world.
++ the seed's control.launch works), mirrors the in-process topics (every bus topic whose
+message type has a ROS name, see `convert.py`: joint_states, controller states, the sensors'
+IMU, force-torque, contacts, cameras and clouds, balance; commands in),
+publishes /clock (sim time, so use_sim_time nodes follow it, also while paused) and the
+floating base as TF world -> <root>, sends mexone's warnings to /rosout, and starts the
+controller manager's services (controller_manager.py) and gazebo_ros' (gazebo.py).
 
 rospy callbacks run in rospy's threads; they only queue work on the simulation's work queue,
-which the simulation thread runs between steps, so ROS never touches the physics.
+which the simulation thread runs between steps, so ROS never touches the physics. Outgoing
+topics are mirrored only while a ROS node subscribes, so nobody pays for what nobody reads.
 """
 
 from __future__ import annotations
 
+import collections
 import importlib
 import logging
 import os
 import sys
 import threading
+import time
 from collections.abc import Callable
 
 import yaml
@@ -24,34 +30,48 @@ import yaml
 from mexone.bus import msgs
 from mexone.control.config import parse_control_config
 from mexone.control.spec import ControlConfig
-from mexone.errors import MexoneError
+from mexone.errors import InputError, MexoneError
+from mexone.physics.simulation import NS
+from mexone.ros1 import convert, interfaces
 
-__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server",
-           "CLOCK_PERIOD"]
+__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server", "controllers_at",
+           "CLOCK_PERIOD", "DEFAULT_NODE", "CLOCK_FREQUENCY"]
 
 log = logging.getLogger("mexone.ros")
 
 ROS_INSTALL = ("apt-get install ros-core python3-rospy python3-rostopic python3-std-msgs "
                "python3-sensor-msgs python3-std-srvs python3-tf2-msgs python3-trajectory-msgs "
-               "ros-robot-state-publisher")
+               "ros-robot-state-publisher python3-actionlib python3-dynamic-reconfigure")
 _DEBIAN_SITE = "/usr/lib/python3/dist-packages"
-CLOCK_PERIOD = 0.001  # s of sim time between /clock messages (gazebo_ros: every step)
+DEFAULT_NODE = "mexone"
+CLOCK_FREQUENCY = 1000.0  # Hz of /clock (gazebo_ros' pub_clock_frequency), in sim AND wall time
+CLOCK_PERIOD = 1.0 / CLOCK_FREQUENCY
+FLAT_OUT_CLOCK = 200.0  # Hz of wall time: /clock's rate when running as fast as possible
+_MAX_STRIDE = 200.0  # at most 200 clock periods of sim time between /clock messages
+_CLOCK_BURST = 20.0  # /clock messages that may go out at once after a pause in wall time (pacing)
+_PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused (Gazebo keeps publishing)
+_NOT_MIRRORED = {"/clock", "/tf"}  # the bridge publishes these itself (see _publish_clock, TF)
+_HEAVY = (msgs.Image, msgs.PointCloud2)
 
 
 def import_rospy():
-    """rospy from the system's ROS (Debian packages), usable from this environment."""
+    """rospy from the system's ROS (Debian packages), usable from this environment, with
+    mexone's generated message packages (gazebo_msgs, controller_manager_msgs, control_msgs)."""
     try:
-        return importlib.import_module("rospy")
+        rospy = importlib.import_module("rospy")
     except ImportError:
-        pass
-    if os.path.isdir(os.path.join(_DEBIAN_SITE, "rospy")) and _DEBIAN_SITE not in sys.path:
-        sys.path.append(_DEBIAN_SITE)  # appended: pip's packages keep precedence
+        if not os.path.isdir(os.path.join(_DEBIAN_SITE, "rospy")):
+            raise MexoneError("ROS 1 (rospy) is not installed",
+                              hint=f"install it with: {ROS_INSTALL}") from None
+        if _DEBIAN_SITE not in sys.path:
+            sys.path.append(_DEBIAN_SITE)  # appended: pip's packages keep precedence
         try:
-            return importlib.import_module("rospy")
+            rospy = importlib.import_module("rospy")
         except ImportError as exc:
             raise MexoneError(f"ROS 1 is installed but rospy fails to import: {exc}",
                               hint=f"reinstall with: {ROS_INSTALL}") from None
-    raise MexoneError("ROS 1 (rospy) is not installed", hint=f"install it with: {ROS_INSTALL}")
+    interfaces.use_generated()
+    return rospy
 
 
 def config_from_param_server(rospy, namespace: str) -> ControlConfig:
@@ -63,105 +83,232 @@ def config_from_param_server(rospy, namespace: str) -> ControlConfig:
         raise MexoneError(f"no controller configuration at {key} on the parameter server",
                           hint="rosparam load your controllers.yaml first, or pass "
                                "--controllers YAML") from None
-    return parse_control_config(yaml.safe_dump({namespace.strip("/"): params}))
+    return parse_control_config(yaml.safe_dump({namespace.strip("/"): _controllers_only(params)}))
+
+
+def controllers_at(rospy, namespace: str) -> ControlConfig:
+    """The controllers on the parameter server under /<ns>, possibly none (a robot spawned
+    before its controllers.yaml was loaded: the spawner's load_controller reads them later)."""
+    ns = namespace.strip("/")
+    params = rospy.get_param("/" + ns, {})
+    return parse_control_config(yaml.safe_dump({ns: _controllers_only(params)}))
+
+
+def _controllers_only(params) -> dict:
+    """The entries of a namespace that are controllers (a `type:`) or gazebo_ros_control's gains;
+    a namespace also holds robot_description, dynamic_reconfigure's values, ..."""
+    if not isinstance(params, dict):
+        return {}
+    return {k: v for k, v in params.items()
+            if (isinstance(v, dict) and "type" in v) or k == "gazebo_ros_control"}
+
+
+class _Mirror:
+    """One bus topic published on ROS while ROS nodes subscribe to it (rospy tells us)."""
+
+    def __init__(self, bridge: Ros1Bridge, topic: str, bus_type: type):
+        rospy = bridge.rospy
+        self.bridge, self.topic, self.cls = bridge, topic, convert.ros_class(bus_type)
+        self.sub = None
+        # images and clouds are MBs each: a subscriber that falls behind gets the latest ones
+        queue = 2 if bus_type in _HEAVY else 100
+        self.publisher = rospy.Publisher(topic, self.cls, queue_size=queue,
+                                         subscriber_listener=self._Listener(self))
+
+    class _Listener:
+        def __init__(self, mirror: _Mirror):
+            self.mirror = mirror
+
+        def peer_subscribe(self, topic_name, topic_publish, peer_publish):
+            self.mirror.bridge.lab.sim.work.put(self.mirror.start)
+
+        def peer_unsubscribe(self, topic_name, num_peers):
+            if num_peers == 0:
+                self.mirror.bridge.lab.sim.work.put(self.mirror.stop)
+
+    def start(self) -> None:  # simulation thread
+        if self.sub is None:
+            bus_type = self.bridge.lab.bus.topics[self.topic].type
+            self.sub = self.bridge.lab.bus.subscribe(self.topic, bus_type, self.forward)
+
+    def stop(self) -> None:  # simulation thread
+        if self.sub is not None and self.publisher.get_num_connections() == 0:
+            self.sub.unregister()
+            self.sub = None
+
+    def forward(self, msg) -> None:
+        self.publisher.publish(convert.to_ros(msg, self.cls))
 
 
 class Ros1Bridge:
     """Connect first (the controller configuration may live on the parameter server), then
     attach the lab."""
 
-    def __init__(self, node_name: str = "mexone"):
+    def __init__(self, node_name: str = DEFAULT_NODE, gazebo_namespace: str | None = None,
+                 clock_frequency: float | None = None):
         self.rospy = rospy = import_rospy()
         import rosgraph
 
         uri = os.environ.get("ROS_MASTER_URI", "http://localhost:11311")
-        if not rosgraph.Master(f"/{node_name}").is_online():
+        master = rosgraph.Master(f"/{node_name}_probe")
+        if not master.is_online():
             raise MexoneError(f"no ROS master at {uri}",
                               hint="start roscore, or set ROS_MASTER_URI to where it runs")
+        if _node_alive(master, f"/{node_name}"):
+            raise InputError(f"a node named /{node_name} already runs on the ROS master at {uri} "
+                             "(another 'mexone sim --ros'?)",
+                             hint="give this simulator another --name (and --namespace)")
         rospy.init_node(node_name, disable_signals=True)
+        self.node_name = node_name
+        # gazebo_ros' services live under its node name, /gazebo; a second simulator under its own
+        self.gazebo_ns = "/" + (gazebo_namespace or ("gazebo" if node_name == DEFAULT_NODE
+                                                     else node_name)).strip("/")
+        if clock_frequency is None:
+            clock_frequency = float(rospy.get_param(f"{self.gazebo_ns}/pub_clock_frequency",
+                                                    CLOCK_FREQUENCY))
+        if not 0 < clock_frequency <= 1e6:
+            raise InputError(f"pub_clock_frequency {clock_frequency} must be > 0 and <= 1e6 Hz")
+        self.clock_frequency = clock_frequency
+        self._rosout = _RosoutHandler()
+        logging.getLogger("mexone").addHandler(self._rosout)
         self.lab = None
+        self.services: list = []
 
     def attach(self, lab, urdf_text: str) -> None:
-        rospy = self.rospy
         from geometry_msgs.msg import TransformStamped
         from rosgraph_msgs.msg import Clock
-        from sensor_msgs.msg import JointState
-        from std_srvs.srv import Empty, EmptyResponse
         from tf2_msgs.msg import TFMessage
 
+        rospy = self.rospy
         self.lab = lab
-        self._types = {"JointState": JointState, "Clock": Clock, "TFMessage": TFMessage,
-                       "TransformStamped": TransformStamped}
-        rospy.set_param("/robot_description", urdf_text)
+        self._direct = True  # until attach returns, this thread is the one that steps the sim
+        self._types = {"Clock": Clock, "TFMessage": TFMessage, "TransformStamped": TransformStamped}
+        rospy.set_param(f"{lab.namespace}/robot_description", urdf_text)
+        if self.node_name == DEFAULT_NODE or not rospy.has_param("/robot_description"):
+            rospy.set_param("/robot_description", urdf_text)
         if not rospy.has_param("/use_sim_time"):
             rospy.set_param("/use_sim_time", True)  # as gazebo_ros' empty_world.launch does
-        ns = lab.namespace
-        self.pub_states = rospy.Publisher(f"{ns}/joint_states", JointState, queue_size=10)
         self.pub_clock = rospy.Publisher("/clock", Clock, queue_size=10)
         self.pub_tf = rospy.Publisher("/tf", TFMessage, queue_size=10)
-        self._subs = []
-        if lab.controllers:
-            for name, ctrl in lab.controllers.controllers.items():
-                if ctrl.kind == "state":
-                    continue
-                topic = lab.controllers.topic(name)
-                self._subs.append(rospy.Subscriber(topic, _ros_class(ctrl.msg_type),
-                                                   self._relay(topic)))
-        lab.bus.subscribe(f"{ns}/joint_states", msgs.JointState, self._forward_states)
-        self._services = []
-        for name, action in (("pause_physics", lab.sim.pause), ("unpause_physics", lab.sim.resume),
-                             ("reset_simulation", self._reset), ("reset_world", self._reset)):
-            self._services.append(rospy.Service(f"/gazebo/{name}", Empty,
-                                                self._service(action, EmptyResponse)))
+        self._mirrors: dict[str, _Mirror] = {}
+        self._inbound: dict[str, object] = {}
+        self._known_topics = -1
+        self._clock_pending: collections.deque[int] = collections.deque()
+        self._clock_wake = threading.Event()
+        threading.Thread(target=self._clock_loop, name="mexone-clock", daemon=True).start()
+        self._last_clock_wall = self._bucket_wall = time.perf_counter()
+        self._clock_tokens = _CLOCK_BURST
+        self._last_clock_ns = -1
+        self._clock_timer = lab.sim.add_periodic(1.0 / self.clock_frequency, self._publish_clock)
         self._tf_timer = lab.sim.add_periodic(0.02, self._publish_base_tf)
-        self._last_clock = -1
+        lab.sim.on_reset(self._after_reset)
+        self.sync_topics()
+        from mexone.ros1.controller_manager import ControllerManagerNode
+        from mexone.ros1.gazebo import GazeboNode
+
+        if lab.controllers is not None:
+            self.services.append(ControllerManagerNode(self))
+        self.services.append(GazeboNode(self))
+        self._direct = False
         self.master_ok = True
         self._watch = threading.Thread(target=self._watch_master, daemon=True)
         self._watch.start()
 
-    # ----- ROS -> simulation ------------------------------------------------------------------
+    # ----- topics ------------------------------------------------------------------------------
+    def sync_topics(self) -> None:
+        """Mirror bus topics that appeared since the last call (simulation thread): advertised
+        ones out to ROS (lazily), subscribed command topics in from ROS."""
+        bus = self.lab.bus
+        if len(bus.topics) == self._known_topics:
+            return
+        self._known_topics = len(bus.topics)
+        for name, topic in list(bus.topics.items()):
+            if name in _NOT_MIRRORED or name in self._mirrors or name in self._inbound:
+                continue
+            if topic.publishers and convert.can_send(topic.type):
+                self._mirrors[name] = _Mirror(self, name, topic.type)
+            elif topic.subscriptions and convert.FROM_ROS.get(msgs.ROS_TYPES.get(topic.type, "")):
+                self._inbound[name] = self.rospy.Subscriber(name, convert.ros_class(topic.type),
+                                                            self._relay(name), queue_size=100)
+
     def _relay(self, topic: str):
         def callback(ros_msg) -> None:  # rospy's thread: hand over, in order, to the sim thread
-            msg = _from_ros(ros_msg)
+            msg = convert.from_ros(ros_msg)
             self.lab.sim.work.put(lambda: self.lab.bus.publish(topic, msg))
         return callback
 
-    def _service(self, action: Callable[[], None], response):
-        def handler(_request):
-            self.lab.sim.work.call(action, timeout=10.0)
-            return response()
-        return handler
+    def call(self, fn: Callable[[], object], timeout: float = 10.0):
+        """Run `fn` in the simulation thread and return its result (for service handlers)."""
+        if self._direct:
+            return fn()
+        return self.lab.sim.work.call(fn, timeout=timeout)
 
-    def _reset(self) -> None:
-        self.lab.sim.reset()  # the controllers restart with it, holding home
+    # ----- /clock ------------------------------------------------------------------------------
+    def _publish_clock(self, sim) -> None:
+        """/clock every 1/pub_clock_frequency of sim time, and no more often than that in wall
+        time; flat out (no target RTF), at most FLAT_OUT_CLOCK a wall second. Every node with
+        use_sim_time (rosout, robot_state_publisher, ...) subscribes, so each message costs a
+        serialisation and a socket write: at 1 kHz per wall second that was 2/3 of a flat-out
+        run. Nodes still see time advance in steps of at most 1/FLAT_OUT_CLOCK wall seconds."""
+        wall_rate = self.clock_frequency if sim.target_rtf else min(self.clock_frequency,
+                                                                    FLAT_OUT_CLOCK)
+        # faster than real time, fire less often in sim time: about wall_rate per wall second
+        stride = min(max(1.0, sim.rtf.value * self.clock_frequency / wall_rate), _MAX_STRIDE)
+        self._clock_timer.period_ns = round(stride * NS / self.clock_frequency)
+        now = time.perf_counter()  # a token bucket: wall_rate tokens per wall second
+        self._clock_tokens = min(_CLOCK_BURST, self._clock_tokens
+                                 + (now - self._bucket_wall) * wall_rate)
+        self._bucket_wall = now
+        if self._clock_tokens >= 1.0:
+            self._clock_tokens -= 1.0
+            self._send_clock(sim.time_ns, now)
 
-    def _stamp(self, nanoseconds: int):
-        return self.rospy.Time(*divmod(nanoseconds, 1_000_000_000))
+    def _send_clock(self, t_ns: int, wall: float) -> None:
+        """Queue a /clock value: a thread of its own publishes it, because rospy yields the CPU
+        (time.sleep(0)) on every publish to a connected subscriber, which on a busy machine cost
+        the simulation thread a scheduler quantum per message."""
+        self._last_clock_wall, self._last_clock_ns = wall, t_ns
+        pending = self._clock_pending
+        pending.append(t_ns)
+        if len(pending) > _CLOCK_BURST:  # the publisher fell behind: the latest times matter
+            pending.popleft()
+        self._clock_wake.set()
+
+    def _clock_loop(self) -> None:
+        clock_cls = self._types["Clock"]
+        while not self.rospy.is_shutdown():
+            self._clock_wake.wait(0.5)
+            self._clock_wake.clear()
+            while self._clock_pending:
+                try:
+                    t_ns = self._clock_pending.popleft()
+                    self.pub_clock.publish(clock_cls(clock=convert.ros_time(t_ns)))
+                except (IndexError, self.rospy.ROSException):
+                    break
+
+    def _after_reset(self) -> None:
+        """Sim time is 0 again: say so at once (nodes waiting on /clock see one clean jump)."""
+        self._send_clock(0, time.perf_counter())
 
     def pump(self, sim=None) -> None:
-        """Publish /clock: call between steps, in the sim thread."""
-        t = self.lab.sim.time_ns
-        if t != self._last_clock and not self.rospy.is_shutdown():
-            self._last_clock = t
-            self.pub_clock.publish(self._types["Clock"](clock=self._stamp(t)))
+        """Call between steps in the simulation thread (the run's on_tick): new topics, and
+        /clock while paused (the periodic publisher runs only while time moves)."""
+        self.sync_topics()
+        lab_sim = self.lab.sim
+        now = time.perf_counter()
+        if lab_sim.paused and now - self._last_clock_wall >= _PAUSED_CLOCK:
+            self._send_clock(lab_sim.time_ns, now)
 
-    # ----- simulation -> ROS ------------------------------------------------------------------
-    def _forward_states(self, msg: msgs.JointState) -> None:
-        ros_msg = self._types["JointState"]()
-        ros_msg.header.stamp = self.rospy.Time(msg.header.stamp.secs, msg.header.stamp.nsecs)
-        ros_msg.name, ros_msg.position = list(msg.name), list(msg.position)
-        ros_msg.velocity, ros_msg.effort = list(msg.velocity), list(msg.effort)
-        self.pub_states.publish(ros_msg)
-
+    # ----- TF ----------------------------------------------------------------------------------
     def _publish_base_tf(self, sim) -> None:
         """World -> floating base; robot_state_publisher adds the links from joint_states."""
-        if not sim.compiled.free:
+        if not sim.compiled.free or self.pub_tf.get_num_connections() == 0:
             return
         body = sim.compiled.root_body
         tf = self._types["TransformStamped"]()
-        tf.header.stamp = self._stamp(sim.time_ns)
+        tf.header.stamp = convert.ros_time(sim.time_ns)
         tf.header.frame_id = "world"
-        tf.child_frame_id = sim.robot.base_link
+        tf.child_frame_id = self._frame(sim.robot.base_link)
         x, y, z = sim.data.xpos[body]
         tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = x, y, z
         w, qx, qy, qz = sim.data.xquat[body]
@@ -169,11 +316,15 @@ class Ros1Bridge:
         rot.w, rot.x, rot.y, rot.z = w, qx, qy, qz
         self.pub_tf.publish(self._types["TFMessage"](transforms=[tf]))
 
-    # ----- lifecycle --------------------------------------------------------------------------
+    def _frame(self, link: str) -> str:
+        """A link's TF frame: robot_state_publisher's tf_prefix is the user's to set."""
+        return link
+
+    # ----- lifecycle ---------------------------------------------------------------------------
     def _watch_master(self) -> None:
         import rosgraph
 
-        master = rosgraph.Master("/mexone_watch")
+        master = rosgraph.Master(f"/{self.node_name}_watch")
         while not self.rospy.is_shutdown():
             online = master.is_online()
             if self.master_ok and not online:
@@ -188,28 +339,40 @@ class Ros1Bridge:
             threading.Event().wait(1.0)
 
     def shutdown(self) -> None:
+        logging.getLogger("mexone").removeHandler(self._rosout)
         if self.lab is not None:
             self.lab.sim.remove_periodic(self._tf_timer)
+            self.lab.sim.remove_periodic(self._clock_timer)
         self.rospy.signal_shutdown("mexone stopped")
 
 
-def _ros_class(msg_type: type):
-    """The rospy class of one of mexone's message types (named in msgs.ROS_TYPES)."""
-    from roslib.message import get_message_class
+class _RosoutHandler(logging.Handler):
+    """mexone's warnings and errors on /rosout too (rqt_console), besides stderr."""
 
-    return get_message_class(msgs.ROS_TYPES[msg_type])
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            from rosgraph_msgs.msg import Log
+            from rospy.impl.rosout import _rosout
+
+            level = Log.ERROR if record.levelno >= logging.ERROR else Log.WARN
+            _rosout(level, record.getMessage(), record.filename, record.lineno, record.funcName)
+        except Exception:  # noqa: BLE001 - logging must never take the simulation down
+            pass
 
 
-def _from_ros(ros_msg):
-    kind = ros_msg._type
-    if kind == "std_msgs/Float64":
-        return msgs.Float64(float(ros_msg.data))
-    if kind == "std_msgs/Float64MultiArray":
-        return msgs.Float64MultiArray([float(v) for v in ros_msg.data])
-    points = [msgs.JointTrajectoryPoint(list(p.positions), list(p.velocities),
-                                        list(p.accelerations), list(p.effort),
-                                        msgs.Duration.from_sec(p.time_from_start.to_sec()))
-              for p in ros_msg.points]
-    header = msgs.Header(ros_msg.header.seq, msgs.Time.from_sec(ros_msg.header.stamp.to_sec()),
-                         ros_msg.header.frame_id)
-    return msgs.JointTrajectory(header, list(ros_msg.joint_names), points)
+def _node_alive(master, name: str) -> bool:
+    """Whether a node of that name is registered and answers (a dead one may be replaced)."""
+    import xmlrpc.client
+
+    try:
+        uri = master.lookupNode(name)
+    except Exception:  # noqa: BLE001 - rosgraph raises its own error types for "unknown"
+        return False
+    try:
+        code, _, _ = xmlrpc.client.ServerProxy(uri).getPid("/mexone_probe")
+        return code == 1
+    except OSError:
+        return False

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import mexone
 from mexone import yamlio
+from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Shutdown, bind
@@ -26,7 +27,7 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 _HERE = Path(__file__).resolve().parent
 _PACKAGE = str(Path(mexone.__file__).resolve().parent)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
-           "walk": "walk.py"}
+           "walk": "walk.py", "excitation": "excitation.py"}
 
 
 def shipped_routines() -> dict[str, Path]:
@@ -113,6 +114,7 @@ class RoutineRunner:
         if lab.controllers and lab.controllers.config.source:
             raw = yamlio.load(lab.controllers.config.source.read_text()) or {}
             _flatten("", raw, self.params)
+        self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
         self.routines: list[Routine] = []

@@ -90,6 +90,8 @@ class Balance:
         self.topics = {"com": f"{namespace}/com", "zmp": f"{namespace}/zmp",
                        "support_polygon": f"{namespace}/support_polygon"}
         self.types = {"com": PointStamped, "zmp": PointStamped, "support_polygon": PolygonStamped}
+        for key, topic in self.topics.items():  # listed, so bridges and GUIs can offer them
+            bus.advertise(topic, self.types[key])
         model = sim.model
         ground = [g for g in range(model.ngeom) if model.geom(g).name == "ground_plane"]
         self.ground = ground[0] if ground else None

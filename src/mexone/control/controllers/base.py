@@ -16,7 +16,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from mexone.bus.msgs import Float64, Float64MultiArray
+from mexone.bus.msgs import Float64, Float64MultiArray, Header, JointControllerState
 from mexone.bus.topics import Bus
 from mexone.control.hardware import SimHardware
 from mexone.control.spec import ControllerSpec, PidGains
@@ -119,6 +119,23 @@ class Controller:
     def periodic(self) -> bool:
         """Whether update must run every control period (not only when a command arrives)."""
         return False
+
+    @property
+    def has_state(self) -> bool:
+        """Whether it publishes control_msgs/JointControllerState on `<name>/state` (the
+        single-joint position and velocity controllers of ros_controllers do)."""
+        return False
+
+    def state_message(self, dt: float) -> JointControllerState:
+        """The controller's `state` message now (simulation thread; stamp set by the caller)."""
+        raise InputError(f"{self.name} publishes no state")
+
+    def _state(self, set_point: float, value: float, value_dot: float, dt: float) -> JointControllerState:
+        row = int(self.rows[0])
+        gains = (self.gains or [PidGains(0.0)])[0]
+        return JointControllerState(Header(), float(set_point), float(value), float(value_dot),
+                                    float(set_point - value), dt, float(self.hw.effort(row)),
+                                    gains.p, gains.i, gains.d, gains.i_clamp_max, gains.antiwindup)
 
     # ----- lifecycle (simulation thread) ------------------------------------------------------
     def starting(self, t: float) -> None:

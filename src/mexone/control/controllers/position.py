@@ -52,6 +52,15 @@ class PositionController(Controller):
     def periodic(self) -> bool:
         return self.ideal
 
+    @property
+    def has_state(self) -> bool:
+        return self.type.single_joint and self.kind == "position"
+
+    def state_message(self, dt: float):
+        row = self.rows[0]
+        return self._state(self.hw.command.position[row], self.hw.position(row),
+                           self.hw.velocity(row), dt)
+
     def command_range(self, index: int) -> tuple[float, float]:
         lo, hi = self.hw.lower[self.rows[index]], self.hw.upper[self.rows[index]]
         return (lo, hi) if np.isfinite(lo) and np.isfinite(hi) and hi > lo else (-math.pi, math.pi)

@@ -1,10 +1,15 @@
 """joint_trajectory_controller: time-parameterised waypoints, linear between positions, cubic
 (Hermite) where the points carry velocities; holds the last point when done. The reference is
-sampled every control period and tracked by the joints' PID servos (in MuJoCo)."""
+sampled every control period and tracked by the joints' PID servos (in MuJoCo).
+
+A trajectory comes from the `command` topic, or as a goal (control_msgs/FollowJointTrajectory,
+served by the ROS bridge) with path and goal tolerances: the goal is checked every control
+period and ends with one of control_msgs' error codes, as joint_trajectory_controller does."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -13,7 +18,29 @@ from mexone.control.controllers.base import register
 from mexone.control.controllers.position import PositionController
 from mexone.errors import InputError
 
-__all__ = ["TrajectoryController"]
+__all__ = ["TrajectoryController", "TrajectoryGoal", "SUCCESSFUL", "INVALID_GOAL", "INVALID_JOINTS",
+           "PATH_TOLERANCE_VIOLATED", "GOAL_TOLERANCE_VIOLATED", "PREEMPTED"]
+
+# control_msgs/FollowJointTrajectoryResult error codes (and PREEMPTED: a newer goal or a cancel)
+SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS = 0, -1, -2
+PATH_TOLERANCE_VIOLATED, GOAL_TOLERANCE_VIOLATED = -4, -5
+PREEMPTED = 1
+FEEDBACK_PERIOD = 0.05  # s of sim time between feedbacks (actionlib's usual 20 Hz)
+
+
+@dataclass
+class TrajectoryGoal:
+    """Tolerances per joint in the controller's joint order (> 0: checked; 0 or < 0: not),
+    and who hears the outcome. The callbacks run in the simulation thread."""
+
+    path_position: np.ndarray
+    goal_position: np.ndarray
+    goal_velocity: np.ndarray
+    goal_time: float  # s after the trajectory's end the goal tolerances may still be met
+    done: Callable[[int, str], None]
+    feedback: Callable[[float, np.ndarray, np.ndarray, np.ndarray, np.ndarray], None] | None = None
+    end: float = 0.0
+    last_feedback: float = field(default=-np.inf)
 
 
 @dataclass
@@ -36,6 +63,7 @@ class TrajectoryController(PositionController):
         super().__init__(spec, ctx)
         self.msg_type = JointTrajectory
         self.segments: list[_Segment] = []
+        self.goal: TrajectoryGoal | None = None
 
     @property
     def periodic(self) -> bool:
@@ -44,6 +72,11 @@ class TrajectoryController(PositionController):
     def starting(self, t: float) -> None:
         super().starting(t)
         self.segments = []
+        self._end_goal(PREEMPTED, "the controller restarted")
+
+    def stopping(self) -> None:
+        self._end_goal(PREEMPTED, "the controller stopped")
+        super().stopping()
 
     def values(self, msg) -> JointTrajectory | None:
         if not isinstance(msg, JointTrajectory):
@@ -55,6 +88,11 @@ class TrajectoryController(PositionController):
         return msg
 
     def apply(self, msg: JointTrajectory, t: float) -> None:
+        """Replace the trajectory (a topic command also ends a goal in progress, as in ROS)."""
+        self._end_goal(PREEMPTED, "replaced by a command on the topic")
+        self._replace(msg, t)
+
+    def _replace(self, msg: JointTrajectory, t: float) -> bool:
         """Replace the trajectory; it starts at its header stamp, or now if that is zero."""
         order = {name: i for i, name in enumerate(msg.joint_names)}
         start = msg.header.stamp.to_sec() or t
@@ -67,7 +105,7 @@ class TrajectoryController(PositionController):
             v = np.array([point.velocities[i] for i in idx], dtype=float) if point.velocities else None
             if not np.isfinite(p).all() or (v is not None and not np.isfinite(v).all()):
                 self.warn_once("nan", "trajectory point is not finite; trajectory ignored")
-                return
+                return False
             p = self.clamp(p, *limits, "joint limits")
             t_point = start + point.time_from_start.to_sec()
             if t_point > t_prev:
@@ -78,6 +116,78 @@ class TrajectoryController(PositionController):
         if not segments:
             segments.append(_Segment(t, t, p_prev, p_prev, None, None))
         self.segments = segments
+        return True
+
+    # ----- goals (FollowJointTrajectory), simulation thread ------------------------------------
+    def execute(self, msg: JointTrajectory, goal: TrajectoryGoal, t: float) -> None:
+        """Start a goal; a goal in progress is preempted. Bad goals end at once with their code."""
+        if not self.running:
+            goal.done(INVALID_GOAL, f"controller '{self.name}' is not running")
+            return
+        if sorted(msg.joint_names) != sorted(self.joints):
+            goal.done(INVALID_JOINTS, f"joints {list(msg.joint_names)} are not this controller's "
+                                      f"{self.joints}")
+            return
+        if not msg.points or any(len(p.positions) != len(msg.joint_names) for p in msg.points):
+            goal.done(INVALID_GOAL, "every point needs one position per joint")
+            return
+        self._end_goal(PREEMPTED, "preempted by a newer goal")
+        if not self._replace(msg, t):
+            goal.done(INVALID_GOAL, "a trajectory point is not finite")
+            return
+        goal.end = self.segments[-1].t1
+        self.goal = goal
+
+    def cancel(self, t: float) -> None:
+        """Cancel the goal in progress and hold where the joints are (as ROS does)."""
+        if self.goal is not None:
+            self._end_goal(PREEMPTED, "canceled")
+            self._hold(t)
+
+    def _hold(self, t: float) -> None:
+        hold = self.hw.state.position[self.rows].copy()
+        self.segments = [_Segment(t, t, hold, hold, None, None)]
+
+    def _end_goal(self, code: int, text: str) -> None:
+        goal, self.goal = self.goal, None
+        if goal is not None:
+            goal.done(code, text)
+
+    def _check_goal(self, t: float, desired: np.ndarray, velocity: np.ndarray) -> None:
+        goal = self.goal
+        actual = self.hw.state.position[self.rows]
+        actual_v = self.hw.state.velocity[self.rows]
+        error = desired - actual
+        if goal.feedback is not None and t - goal.last_feedback >= FEEDBACK_PERIOD:
+            goal.last_feedback = t
+            goal.feedback(t, desired, velocity, actual.copy(), actual_v.copy())
+        if t < goal.end:
+            tol = goal.path_position
+            bad = (tol > 0) & (np.abs(error) > tol)
+            if bad.any():
+                joint = self.joints[int(np.flatnonzero(bad)[0])]
+                self._end_goal(PATH_TOLERANCE_VIOLATED, f"{joint} left its path tolerance")
+                self._hold(t)  # as joint_trajectory_controller does on an abort
+            return
+        pos_ok = (goal.goal_position <= 0) | (np.abs(error) <= goal.goal_position)
+        vel_ok = (goal.goal_velocity <= 0) | (np.abs(actual_v) <= goal.goal_velocity)
+        if (pos_ok & vel_ok).all():
+            self._end_goal(SUCCESSFUL, "")
+        elif t > goal.end + max(goal.goal_time, 0.0):
+            joint = self.joints[int(np.flatnonzero(~(pos_ok & vel_ok))[0])]
+            self._end_goal(GOAL_TOLERANCE_VIOLATED, f"{joint} is not within its goal tolerance "
+                                                    f"{goal.goal_time:g} s after the trajectory's end")
+
+    def query_state(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The reference at sim time t (control_msgs/QueryTrajectoryState): positions, velocities
+        and accelerations (by a central difference)."""
+        if not self.segments:
+            p = self.setpoint
+            return p, np.zeros(len(p)), np.zeros(len(p))
+        h = 1e-4
+        p, v = self.sample(t)
+        acc = (self.sample(t + h)[1] - self.sample(t - h)[1]) / (2 * h)
+        return p, v, acc
 
     def sample(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         for seg in self.segments:
@@ -97,4 +207,7 @@ class TrajectoryController(PositionController):
     def update(self, t: float, dt: float) -> None:
         super().update(t, dt)
         if self.segments:
-            self.follow(*self.sample(t))
+            desired, velocity = self.sample(t)
+            self.follow(desired, velocity)
+            if self.goal is not None:
+                self._check_goal(t, desired, velocity)

@@ -60,6 +60,14 @@ class VelocityController(Controller):
     def periodic(self) -> bool:
         return not self.native
 
+    @property
+    def has_state(self) -> bool:
+        return self.type.single_joint
+
+    def state_message(self, dt: float):
+        row = self.rows[0]
+        return self._state(self.target[0], self.hw.velocity(row), 0.0, dt)
+
     def command_range(self, index: int) -> tuple[float, float]:
         limit = self.hw.velocity_limit[self.rows[index]]
         return (-limit, limit) if np.isfinite(limit) else (-5.0, 5.0)

@@ -1,0 +1,338 @@
+"""ros_control's controller manager on ROS: the services under /<ns>/controller_manager/ with
+controller_manager_msgs' definitions, and per controller what ros_controllers offer beside the
+command topic: a dynamic_reconfigure server `<ctrl>/pid` for PID gains (what `dynparam set` and
+rqt_reconfigure call), and for trajectory controllers the `follow_joint_trajectory` action
+(Debian's actionlib) and the `query_state` service.
+
+Configurations are read from the parameter server when a controller is loaded, as ros_control
+does (`rosparam load`, then the spawner), else from the YAML mexone started with. Bad requests
+answer ok=False and say why on /rosout; the node never falls over."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import numpy as np
+import yaml
+
+from mexone.control.config import parse_control_config
+from mexone.control.controllers.trajectory import (
+    PREEMPTED,
+    SUCCESSFUL,
+    TrajectoryGoal,
+)
+from mexone.control.manager import BEST_EFFORT, STRICT
+from mexone.control.spec import PidGains
+from mexone.errors import MexoneError
+from mexone.ros1 import convert
+
+__all__ = ["ControllerManagerNode", "pid_config_type"]
+
+log = logging.getLogger("mexone.ros")
+_INTERFACE_PREFIX = "hardware_interface::"
+_GAIN_RANGE = {"p": (0.0, 1e5), "i": (0.0, 1e5), "d": (0.0, 1e4), "i_clamp_min": (-1e5, 0.0),
+               "i_clamp_max": (0.0, 1e5)}
+
+
+class ControllerManagerNode:
+    """The lab's robot's controller manager, or (`manager`, `ns`) a spawned robot's."""
+
+    def __init__(self, bridge, manager=None, ns: str | None = None):
+        from controller_manager_msgs import srv
+
+        self.bridge, self.rospy = bridge, bridge.rospy
+        self.lab = bridge.lab
+        self.manager = manager or self.lab.controllers
+        self.ns = ns or self.lab.namespace
+        rospy, base = self.rospy, f"{self.ns}/controller_manager/"
+        self.services = [
+            rospy.Service(base + "list_controllers", srv.ListControllers, self._list),
+            rospy.Service(base + "list_controller_types", srv.ListControllerTypes, self._types),
+            rospy.Service(base + "load_controller", srv.LoadController, self._load),
+            rospy.Service(base + "unload_controller", srv.UnloadController, self._unload),
+            rospy.Service(base + "switch_controller", srv.SwitchController, self._switch),
+            rospy.Service(base + "reload_controller_libraries", srv.ReloadControllerLibraries,
+                          self._reload),
+        ]
+        self.extras: dict[str, list] = {}  # controller -> its reconfigure server, action, ...
+        for name in list(self.manager.controllers):
+            self._add_extras(name)
+
+    def shutdown(self) -> None:
+        """Take the services down (the robot was deleted)."""
+        for name in list(self.extras):
+            self._remove_extras(name)
+        for service in self.services:
+            service.shutdown()
+
+    # ----- services (rospy threads) -------------------------------------------------------------
+    def _list(self, _req):
+        from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
+        from controller_manager_msgs.srv import ListControllersResponse
+
+        infos = self.bridge.call(self.manager.list)
+        return ListControllersResponse([ControllerState(
+            i.name, i.state, i.type,
+            [HardwareInterfaceResources(_INTERFACE_PREFIX + (i.interface or "JointStateInterface"),
+                                        list(i.joints))]) for i in infos])
+
+    def _types(self, _req):
+        from controller_manager_msgs.srv import ListControllerTypesResponse
+
+        types = self.manager.list_types()
+        return ListControllerTypesResponse(types, ["controller_interface::ControllerBase"] * len(types))
+
+    def _load(self, req):
+        from controller_manager_msgs.srv import LoadControllerResponse
+
+        name = req.name
+        try:
+            spec = self._spec_from_parameters(name)
+
+            def load():
+                if spec is not None:
+                    self.manager.define(spec)
+                self.manager.load(name)
+            self.bridge.call(load)
+        except (MexoneError, TimeoutError) as exc:
+            log.error("load_controller %s: %s", name, _text(exc))
+            return LoadControllerResponse(False)
+        self._add_extras(name)
+        return LoadControllerResponse(True)
+
+    def _unload(self, req):
+        from controller_manager_msgs.srv import UnloadControllerResponse
+
+        try:
+            self.bridge.call(lambda: self.manager.unload(req.name))
+        except (MexoneError, TimeoutError) as exc:
+            log.error("unload_controller %s: %s", req.name, _text(exc))
+            return UnloadControllerResponse(False)
+        self._remove_extras(req.name)
+        return UnloadControllerResponse(True)
+
+    def _switch(self, req):
+        from controller_manager_msgs.srv import SwitchControllerResponse
+
+        strictness = req.strictness
+        if strictness not in (BEST_EFFORT, STRICT):
+            log.warning("switch_controller: strictness %d is neither STRICT (2) nor BEST_EFFORT "
+                        "(1); using BEST_EFFORT, as ros_control does", strictness)
+            strictness = BEST_EFFORT
+        start, stop = list(req.start_controllers), list(req.stop_controllers)
+        try:
+            self.bridge.call(lambda: self.manager.switch(start=start, stop=stop,
+                                                         strictness=strictness))
+        except (MexoneError, TimeoutError) as exc:
+            log.error("switch_controller: %s", _text(exc))
+            return SwitchControllerResponse(False)
+        return SwitchControllerResponse(True)
+
+    def _reload(self, req):
+        """Controller types are Python classes: nothing to reload; ros_control refuses while
+        controllers are loaded unless force_kill, which stops and unloads them all."""
+        from controller_manager_msgs.srv import ReloadControllerLibrariesResponse
+
+        loaded = list(self.manager.controllers)
+        if loaded and not req.force_kill:
+            log.error("reload_controller_libraries: controllers are loaded (%s); pass force_kill "
+                      "to stop and unload them", ", ".join(loaded))
+            return ReloadControllerLibrariesResponse(False)
+
+        def kill():
+            self.manager.switch(stop=[n for n, c in self.manager.controllers.items() if c.running])
+            for name in list(self.manager.controllers):
+                self.manager.unload(name)
+        self.bridge.call(kill)
+        for name in loaded:
+            self._remove_extras(name)
+        return ReloadControllerLibrariesResponse(True)
+
+    def _spec_from_parameters(self, name: str):
+        """`/<ns>/<name>` from the parameter server as a ControllerSpec, or None if absent."""
+        key = f"{self.ns}/{name}"
+        if not self.rospy.has_param(key):
+            return None
+        params = self.rospy.get_param(key)
+        ns = self.ns.strip("/")
+        config = parse_control_config(yaml.safe_dump({ns: {name: params}}))
+        return config.controllers[name]
+
+    # ----- what each controller adds ------------------------------------------------------------
+    def _add_extras(self, name: str) -> None:
+        ctrl = self.manager.controllers.get(name)
+        if ctrl is None or name in self.extras:
+            return
+        extras = []
+        if ctrl.gains is not None and len(ctrl.joints) == 1:
+            extras.append(self._reconfigure(name, ctrl.gains[0]))
+        if ctrl.kind == "trajectory":
+            extras += TrajectoryInterfaces(self, name).handles
+        self.extras[name] = extras
+
+    def _remove_extras(self, name: str) -> None:
+        for handle in self.extras.pop(name, []):
+            # a dynamic_reconfigure Server has no shutdown(): its service and topics go one by one
+            parts = [getattr(handle, a) for a in ("set_service", "descr_topic", "update_topic")
+                     if hasattr(handle, a)] or [handle]
+            for part in parts:
+                for method in ("shutdown", "unregister"):
+                    if hasattr(part, method):
+                        getattr(part, method)()
+                        break
+
+    def _reconfigure(self, name: str, gains: PidGains):
+        """dynamic_reconfigure server at <ns>/<ctrl>/pid with control_toolbox's parameters."""
+        from dynamic_reconfigure.server import Server
+
+        def on_change(config, _level):  # rospy thread (and once at start, with the server's values)
+            new = PidGains(float(config["p"]), float(config["i"]), float(config["d"]),
+                           float(config["i_clamp_min"]), float(config["i_clamp_max"]),
+                           bool(config["antiwindup"]))
+            try:
+                self.bridge.call(lambda: self.manager.set_gains(name, new))
+            except (MexoneError, TimeoutError) as exc:
+                log.error("%s/pid: %s", name, _text(exc))
+                current = self.bridge.call(lambda: self.manager.controllers[name].gains[0])
+                config.update(_gain_values(current))
+            return config
+
+        return Server(pid_config_type(gains), on_change, namespace=f"{self.ns}/{name}/pid")
+
+
+class TrajectoryInterfaces:
+    """follow_joint_trajectory (actionlib) and query_state for one trajectory controller."""
+
+    def __init__(self, node: ControllerManagerNode, name: str):
+        import actionlib
+        from control_msgs.msg import FollowJointTrajectoryAction
+        from control_msgs.srv import QueryTrajectoryState
+
+        self.node, self.name = node, name
+        self.controller = node.manager.controllers[name]
+        base = f"{node.ns}/{name}"
+        self.server = actionlib.ActionServer(f"{base}/follow_joint_trajectory",
+                                             FollowJointTrajectoryAction, self._goal, self._cancel,
+                                             auto_start=False)
+        self.server.start()
+        self.query = node.rospy.Service(f"{base}/query_state", QueryTrajectoryState, self._query)
+        self.handles = [_ActionHandle(self.server), self.query]
+
+    def _goal(self, handle) -> None:
+        """actionlib's thread, holding its lock: hand over and return at once."""
+        goal = handle.get_goal()
+        trajectory = convert.trajectory_from_ros(goal.trajectory)
+        joints = list(goal.trajectory.joint_names)
+        self.node.lab.sim.work.put(lambda: self._start(handle, goal, trajectory, joints))
+
+    def _start(self, handle, goal, trajectory, joints) -> None:  # simulation thread
+        from control_msgs.msg import FollowJointTrajectoryResult
+
+        order = {j: i for i, j in enumerate(self.controller.joints)}
+
+        def tolerance(items, field):
+            values = np.zeros(len(order))
+            for tol in items:
+                if tol.name in order:
+                    values[order[tol.name]] = getattr(tol, field)
+            return values
+
+        outcome: list = []
+
+        def done(code: int, text: str) -> None:
+            outcome.append(code)
+            result = FollowJointTrajectoryResult(error_code=code if code != PREEMPTED else 0,
+                                                 error_string=text)
+            if not accepted:
+                handle.set_rejected(result, text)
+            elif code == SUCCESSFUL:
+                handle.set_succeeded(result, text)
+            elif code == PREEMPTED:
+                handle.set_canceled(result, text)
+            else:
+                handle.set_aborted(result, text)
+
+        accepted = False
+        tg = TrajectoryGoal(tolerance(goal.path_tolerance, "position"),
+                            tolerance(goal.goal_tolerance, "position"),
+                            tolerance(goal.goal_tolerance, "velocity"),
+                            goal.goal_time_tolerance.to_sec(), done,
+                            lambda t, d, v, a, av: self._feedback(handle, joints, t, d, v, a, av))
+        sim = self.node.lab.sim
+        # validation ends the goal at once (rejected) before it is accepted
+        self.controller.execute(trajectory, tg, sim.time)
+        if not outcome:
+            accepted = True
+            handle.set_accepted("")
+
+    def _feedback(self, handle, joints, t, desired, velocity, actual, actual_velocity) -> None:
+        from control_msgs.msg import FollowJointTrajectoryFeedback
+        from trajectory_msgs.msg import JointTrajectoryPoint
+
+        fb = FollowJointTrajectoryFeedback(joint_names=list(self.controller.joints))
+        fb.header.stamp = convert.ros_time(round(t * 1e9))
+        fb.desired = JointTrajectoryPoint(positions=list(desired), velocities=list(velocity))
+        fb.actual = JointTrajectoryPoint(positions=list(actual), velocities=list(actual_velocity))
+        fb.error = JointTrajectoryPoint(positions=list(desired - actual),
+                                        velocities=list(velocity - actual_velocity))
+        handle.publish_feedback(fb)
+
+    def _cancel(self, handle) -> None:
+        sim = self.node.lab.sim
+        sim.work.put(lambda: self.controller.cancel(sim.time))
+
+    def _query(self, req):
+        from control_msgs.srv import QueryTrajectoryStateResponse
+
+        t = req.time.to_sec()
+        if not math.isfinite(t):
+            return QueryTrajectoryStateResponse()
+        pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        return QueryTrajectoryStateResponse(list(self.controller.joints), list(pos), list(vel), list(acc))
+
+
+class _ActionHandle:
+    def __init__(self, server):
+        self.server = server
+
+    def shutdown(self) -> None:
+        for attr in ("status_pub", "result_pub", "feedback_pub", "goal_sub", "cancel_sub"):
+            handle = getattr(self.server, attr, None)
+            if handle is not None:
+                handle.unregister()
+
+
+def _gain_values(g: PidGains) -> dict:
+    return {"p": g.p, "i": g.i, "d": g.d, "i_clamp_min": g.i_clamp_min,
+            "i_clamp_max": g.i_clamp_max, "antiwindup": g.antiwindup}
+
+
+def pid_config_type(current: PidGains):
+    """control_toolbox's Parameters config (p, i, d, i_clamp_min, i_clamp_max, antiwindup) as
+    dynamic_reconfigure's generated module would describe it, defaulting to `current`."""
+    from types import SimpleNamespace
+
+    values = _gain_values(current)
+    parameters = []
+    for key, value in values.items():
+        kind = "bool" if key == "antiwindup" else "double"
+        lo, hi = _GAIN_RANGE.get(key, (False, True))
+        parameters.append({"name": key, "type": kind, "default": value, "level": 1,
+                           "description": f"PID {key}", "min": lo, "max": hi,
+                           "srcline": 0, "srcfile": "mexone", "edit_method": "",
+                           "ctype": "bool" if kind == "bool" else "double",
+                           "cconsttype": "const bool" if kind == "bool" else "const double"})
+    description = {"name": "Default", "type": "", "state": True, "cstate": "true", "id": 0,
+                   "parent": 0, "parameters": parameters, "groups": [], "srcline": 0,
+                   "srcfile": "mexone", "class": "DEFAULT", "parentclass": "",
+                   "parentname": "Default", "field": "default", "upper": "DEFAULT", "lower": "groups"}
+    return SimpleNamespace(
+        config_description=description, defaults=dict(values),
+        min={p["name"]: p["min"] for p in parameters}, max={p["name"]: p["max"] for p in parameters},
+        level={p["name"]: 1 for p in parameters}, type={p["name"]: p["type"] for p in parameters},
+        all_level=1)
+
+
+def _text(exc: BaseException) -> str:
+    return exc.one_line() if isinstance(exc, MexoneError) else str(exc) or type(exc).__name__

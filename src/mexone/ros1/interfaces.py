@@ -1,0 +1,125 @@
+"""The ROS 1 interfaces mexone serves that Debian does not package: controller_manager_msgs,
+control_msgs and gazebo_msgs, plus the `controller_manager` package with its `spawner`.
+
+`share/` is a ROS package path (put it on ROS_PACKAGE_PATH): each package's .msg/.srv/.action
+files reproduce the official definitions field for field, so their md5sums equal ROS's and
+clients built against ROS's own packages interoperate. `msgs/` holds their Python classes,
+generated from those files by Debian's genpy (`python -m mexone.ros1.interfaces` regenerates
+them; a test checks they are current); put it on PYTHONPATH for rostopic, rosservice and
+rospy nodes outside mexone. Actions are expanded as actionlib's genaction does.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+__all__ = ["SHARE", "MSGS", "PACKAGES", "generate", "use_generated", "environment",
+           "expand_action"]
+
+HERE = Path(__file__).resolve().parent
+SHARE = HERE / "share"  # a ROS package path
+MSGS = HERE / "msgs"  # generated Python, one top-level package per ROS package
+PACKAGES = ("controller_manager_msgs", "control_msgs", "gazebo_msgs")
+_SYSTEM_SHARE = Path("/usr/share")  # Debian's message definitions (std_msgs, geometry_msgs, ...)
+_DEPENDS = ("std_msgs", "geometry_msgs", "trajectory_msgs", "actionlib_msgs", "sensor_msgs")
+_DEBIAN_SITE = "/usr/lib/python3/dist-packages"
+
+
+def use_generated() -> None:
+    """Make the generated packages importable as `gazebo_msgs`, `control_msgs`, ... (their code
+    imports each other by those names, as every genpy package does)."""
+    if str(MSGS) not in sys.path:
+        sys.path.append(str(MSGS))
+
+
+def environment(env: dict[str, str] | None = None) -> dict[str, str]:
+    """`env` (default: this process's) with mexone's ROS packages on ROS_PACKAGE_PATH and their
+    Python on PYTHONPATH: what rosservice, rostopic, roslaunch and the spawner need."""
+    env = dict(os.environ if env is None else env)
+    for key, path in (("ROS_PACKAGE_PATH", SHARE), ("PYTHONPATH", MSGS)):
+        parts = [p for p in env.get(key, "").split(os.pathsep) if p]
+        if str(path) not in parts:
+            env[key] = os.pathsep.join([*parts, str(path)])
+    return env
+
+
+def expand_action(action: Path, out: Path) -> list[Path]:
+    """The seven messages of an .action file, as actionlib_msgs' genaction writes them."""
+    name = action.stem
+    goal, result, feedback = (part.strip("\n") for part in action.read_text().split("\n---"))
+    texts = {
+        f"{name}Goal": goal,
+        f"{name}Result": result,
+        f"{name}Feedback": feedback,
+        f"{name}ActionGoal": f"Header header\nactionlib_msgs/GoalID goal_id\n{name}Goal goal",
+        f"{name}ActionResult": f"Header header\nactionlib_msgs/GoalStatus status\n{name}Result result",
+        f"{name}ActionFeedback": (f"Header header\nactionlib_msgs/GoalStatus status\n"
+                                  f"{name}Feedback feedback"),
+        f"{name}Action": (f"{name}ActionGoal action_goal\n{name}ActionResult action_result\n"
+                          f"{name}ActionFeedback action_feedback"),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for msg, text in texts.items():
+        path = out / f"{msg}.msg"
+        path.write_text("# generated from " + action.name + " as genaction does\n" + text + "\n")
+        paths.append(path)
+    return paths
+
+
+def _debian_tools():
+    if _DEBIAN_SITE not in sys.path:
+        sys.path.append(_DEBIAN_SITE)
+    import genmsg.command_line  # noqa: F401 - Debian's python3-genmsg
+    import genpy.generate_initpy
+    import genpy.generator
+
+    return genpy
+
+
+def message_dirs(work: Path) -> dict[str, list[str]]:
+    """genmsg's search path: each package's msg folders (actions expanded into `work`)."""
+    search = {pkg: [str(_SYSTEM_SHARE / pkg / "msg")] for pkg in _DEPENDS}
+    for pkg in PACKAGES:
+        dirs = [str(SHARE / pkg / "msg")]
+        actions = sorted((SHARE / pkg / "action").glob("*.action"))
+        if actions:
+            for action in actions:
+                expand_action(action, work / pkg / "msg")
+            dirs.append(str(work / pkg / "msg"))
+        search[pkg] = dirs
+    return search
+
+
+def generate(out: Path = MSGS) -> None:
+    """Generate the Python classes of every package into `out` (replacing what was there)."""
+    genpy = _debian_tools()
+    with tempfile.TemporaryDirectory() as tmp:
+        work = Path(tmp)
+        search = message_dirs(work)
+        for pkg in PACKAGES:
+            target = out / pkg
+            if target.exists():
+                shutil.rmtree(target)
+            msgs = sorted(str(p) for d in search[pkg] for p in Path(d).glob("*.msg"))
+            srvs = sorted(str(p) for p in (SHARE / pkg / "srv").glob("*.srv"))
+            for files, generator, kind in ((msgs, genpy.generator.MsgGenerator(), "msg"),
+                                           (srvs, genpy.generator.SrvGenerator(), "srv")):
+                if not files:
+                    continue
+                code = generator.generate_messages(pkg, files, str(target / kind), search)
+                if code:
+                    raise RuntimeError(f"genpy failed on {pkg}/{kind}")
+                genpy.generate_initpy.write_modules(str(target / kind))
+            (target / "__init__.py").write_text("")
+    for stale in out.rglob("__pycache__"):
+        shutil.rmtree(stale, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    generate()
+    print(f"generated {', '.join(PACKAGES)} into {MSGS}")

@@ -1,0 +1,2 @@
+from ._QueryCalibrationState import *
+from ._QueryTrajectoryState import *

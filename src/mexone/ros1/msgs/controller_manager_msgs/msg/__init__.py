@@ -1,0 +1,4 @@
+from ._ControllerState import *
+from ._ControllerStatistics import *
+from ._ControllersStatistics import *
+from ._HardwareInterfaceResources import *

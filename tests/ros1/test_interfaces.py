@@ -1,0 +1,89 @@
+"""The interfaces mexone serves are ROS's: md5sums equal to the official packages' (the literals
+below are what genmsg computes from the official controller_manager_msgs and gazebo_msgs of
+Noetic and control_msgs 1.5), and the generated Python is what Debian's genpy makes of the
+definitions in mexone/ros1/share today."""
+
+from __future__ import annotations
+
+import filecmp
+import importlib
+from pathlib import Path
+
+import pytest
+
+from mexone.ros1 import interfaces
+
+OFFICIAL_MD5 = {
+    "controller_manager_msgs/ListControllers": "1341feb2e63fa791f855565d0da950d8",
+    "controller_manager_msgs/ListControllerTypes": "c1d4cd11aefa9f97ba4aeb5b33987f4e",
+    "controller_manager_msgs/LoadController": "647e5c54b8d6468952d8d31f1efe96c0",
+    "controller_manager_msgs/UnloadController": "647e5c54b8d6468952d8d31f1efe96c0",
+    "controller_manager_msgs/SwitchController": "b29a7abc673b2c54c14b54e50f8d06a5",
+    "controller_manager_msgs/ReloadControllerLibraries": "40e8c411fd1797d2e2c486018f846040",
+    "gazebo_msgs/GetModelState": "4c515e936d3319c9610c559c60bfc3d4",
+    "gazebo_msgs/SetModelState": "5b3ab0281d4f5445def017e3a2e4a07b",
+    "gazebo_msgs/GetLinkState": "09d6c98cce97b35f7ab9bd70300657ab",
+    "gazebo_msgs/SetLinkState": "8a5146eb66ae4d26b0860b08f3f271be",
+    "gazebo_msgs/ApplyBodyWrench": "585b9f9618aa0581b207e2f2d90866bc",
+    "gazebo_msgs/BodyRequest": "5eade9afe7f232d78005bd0cafeab755",
+    "gazebo_msgs/ApplyJointEffort": "c0039811b8cc919490b3cff748cdf46b",
+    "gazebo_msgs/JointRequest": "0be1351618e1dc030eb7959d9a4902de",
+    "gazebo_msgs/GetWorldProperties": "36bb0f2eccf4d8be971410c22818ba3f",
+    "gazebo_msgs/GetModelProperties": "5717f7bd34ed990fa80e28b3015027a3",
+    "gazebo_msgs/GetPhysicsProperties": "575a5e74786981b7df2e3afc567693a6",
+    "gazebo_msgs/SetPhysicsProperties": "97e2057080558ce4730434b5fae75c91",
+    "gazebo_msgs/SetModelConfiguration": "10e3139d3b669c40afc057d38956fff7",
+    "gazebo_msgs/SpawnModel": "9ed9c82c96abe1a00c3e8cdaeee24413",
+    "gazebo_msgs/DeleteModel": "9ce56b4e9e54616de25d796dc972a262",
+    "gazebo_msgs/ModelStates": "48c080191eb15c41858319b4d8a609c2",
+    "gazebo_msgs/LinkStates": "48c080191eb15c41858319b4d8a609c2",
+    "gazebo_msgs/ModelState": "9330fd35f2fcd82d457e54bd54e10593",
+    "gazebo_msgs/ContactsState": "acbcb1601a8e525bf72509f18e6f668d",
+    "control_msgs/JointControllerState": "987ad85e4756f3aef7f1e5e7fe0595d1",
+    "control_msgs/FollowJointTrajectoryAction": "bc4f9b743838566551c0390c65f1a248",
+    "control_msgs/FollowJointTrajectoryGoal": "69636787b6ecbde4d61d711979bc7ecb",
+    "control_msgs/JointTrajectoryControllerState": "10817c60c2486ef6b33e97dcd87f4474",
+    "control_msgs/QueryTrajectoryState": "ec93cdecbd8062d761aa52b7c90cd44b",
+}
+
+
+def _debian_genpy() -> None:
+    if not Path("/usr/lib/python3/dist-packages/genpy").is_dir():
+        pytest.skip("Debian's python3-genpy is not installed")
+
+
+@pytest.mark.parametrize("ros_type", sorted(OFFICIAL_MD5))
+def test_md5sum_equals_the_official_one(ros_type):
+    _debian_genpy()
+    from mexone.ros1.bridge import import_rospy
+
+    import_rospy()  # genpy, which the generated classes import, is Debian's
+    interfaces.use_generated()
+    pkg, name = ros_type.split("/")
+    kind = "srv" if (interfaces.SHARE / pkg / "srv" / f"{name}.srv").exists() else "msg"
+    cls = getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+    assert cls._md5sum == OFFICIAL_MD5[ros_type]
+    assert cls._type == ros_type
+
+
+def test_the_generated_python_is_current(tmp_path):
+    """Regenerating from share/ with Debian's genpy gives the committed files byte for byte."""
+    _debian_genpy()
+    interfaces.generate(tmp_path)
+    for pkg in interfaces.PACKAGES:
+        fresh = sorted(p.relative_to(tmp_path) for p in (tmp_path / pkg).rglob("*.py"))
+        kept = sorted(p.relative_to(interfaces.MSGS) for p in (interfaces.MSGS / pkg).rglob("*.py"))
+        assert fresh == kept, pkg
+        _, mismatch, errors = filecmp.cmpfiles(tmp_path, interfaces.MSGS, [str(p) for p in fresh],
+                                               shallow=False)
+        assert mismatch == [] and errors == [], (pkg, mismatch, errors)
+
+
+def test_an_action_expands_as_genaction_does(tmp_path):
+    action = tmp_path / "Move.action"
+    action.write_text("float64 target\n---\nint32 code\n---\nfloat64 progress\n")
+    paths = {p.stem: p.read_text() for p in interfaces.expand_action(action, tmp_path / "msg")}
+    assert set(paths) == {"MoveGoal", "MoveResult", "MoveFeedback", "MoveActionGoal",
+                          "MoveActionResult", "MoveActionFeedback", "MoveAction"}
+    assert "actionlib_msgs/GoalID goal_id\nMoveGoal goal" in paths["MoveActionGoal"]
+    assert paths["MoveGoal"].endswith("float64 target\n")
