@@ -39,7 +39,7 @@ def _random_targets(ik, home, rng, count):
 
 
 @pytest.mark.parametrize("count", [pytest.param(20, id="20"),
-                                   pytest.param(200, id="200", marks=pytest.mark.slow)])
+                                   pytest.param(80, id="80", marks=pytest.mark.slow)])
 def test_fk_targets_are_reached_within_5mm_and_2deg_with_feet_still(setup, count):
     ik, home = setup
     rng = np.random.default_rng(7)
