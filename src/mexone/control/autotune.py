@@ -77,16 +77,6 @@ class JointTuning:
 
 
 # ----- the physics ------------------------------------------------------------------------------
-def _subtree(robot: RobotModel, link: str) -> set[str]:
-    out, stack = set(), [link]
-    while stack:
-        name = stack.pop()
-        if name not in out:
-            out.add(name)
-            stack.extend(j.child for j in robot.child_joints.get(name, []))
-    return out
-
-
 def _support(robot: RobotModel, frames: dict[str, np.ndarray]) -> set[str]:
     """Links whose collision geometry reaches the robot's lowest point: what it stands on."""
     lowest: dict[str, float] = {}
@@ -128,13 +118,13 @@ def tune(robot: RobotModel, timestep: float, positions: Mapping[str, float] | No
     support = _support(robot, frames) if floating else set()
     everything = set(frames)
     omega_step = STEP_BANDWIDTH / timestep
-    subtrees = {name: _subtree(robot, name) for name in everything} if support else {}
+    subtrees = {name: set(robot.walk(name)) for name in everything} if support else {}
     gravity = np.array([0.0, 0.0, -_GRAVITY])
     out = []
     for joint in robot.moving_joints:
         if joint.mimic is not None:
             continue
-        distal = _subtree(robot, joint.child)
+        distal = set(robot.walk(joint.child))
         if support and support & distal:  # a leg: it lifts the body, not the other legs
             moved = {name for name in everything - distal
                      if joint.child in subtrees[name] or not subtrees[name] & support}

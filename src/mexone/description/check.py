@@ -446,20 +446,10 @@ def _rule_tree(ctx: _Context) -> Iterator[Finding]:
         yield Finding("tree-too-deep", "error", f'robot "{model.name}"',
                       f"a chain of {model.depth} links: MuJoCo nests at most {MAX_DEPTH} bodies, so "
                       "mexone sim refuses it; weld links together with fewer, longer ones", None)
-    reachable = {name for root in roots for name in _reach(model, root)}
+    reachable = {name for root in roots for name in model.walk(root)}
     if unreached := set(model.links) - reachable:
         yield Finding("loop", "error", f'robot "{model.name}"',
                       f"links {', '.join(sorted(unreached))} form a cycle with no root", None)
-
-
-def _reach(model: RobotModel, start: str) -> list[str]:
-    seen, stack = [], [start]
-    while stack:
-        name = stack.pop()
-        if name not in seen:
-            seen.append(name)
-            stack.extend(j.child for j in model.child_joints.get(name, []))
-    return seen
 
 
 def _rule_transmissions(ctx: _Context) -> Iterator[Finding]:

@@ -265,11 +265,12 @@ class RobotModel:
             return self.child_joints["world"][0].child
         return self.root
 
-    def walk(self) -> list[str]:
-        """Link names depth first from the root, children in file order; each link once."""
+    def walk(self, start: str | None = None) -> list[str]:
+        """Link names depth first from `start` (default: the root), children in file order; each
+        link once: the subtree below `start`."""
         order: list[str] = []
         seen: set[str] = set()
-        stack = [self.root]
+        stack = [self.root if start is None else start]
         while stack:
             name = stack.pop()
             if name in seen:
