@@ -214,6 +214,12 @@ def test_the_gui_stays_responsive_and_stop_works_with_a_stuck_routine(tmp_path):
             time.sleep(0.05)
         assert app.routine is None
         assert app.lab.sim.time > t0 + 0.5  # the simulation went on in real time
+        # and the spinning thread ended: left running it took half the GIL for the rest of the
+        # process (the later GUI tests lost real time in a full run)
+        spinning = [t for t in threading.enumerate() if t.name == "routine spin"]
+        for thread in spinning:
+            thread.join(timeout=5)
+        assert not any(t.is_alive() for t in spinning)
     finally:
         app.stop()
         loop.join(timeout=5)

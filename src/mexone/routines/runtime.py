@@ -169,8 +169,13 @@ class Scheduler:
         self._cond.notify_all()
 
     def stop(self) -> None:
+        """End every routine: those waiting wake to Shutdown; those running their own code (a
+        busy loop that never yields) are interrupted, so no thread spins on after Stop."""
         with self._cond:
             self.stopped = True
+            for tid, t in self._threads.items():
+                if t.running_since is not None:
+                    _interrupt(tid)
             self._cond.notify_all()
 
     @property
