@@ -58,6 +58,23 @@ def shift_joint_keep_body(root):
     etree.SubElement(visual, "origin", xyz="0 0 0.3", rpy="0 0 0")
 
 
+def shift_frame_keep_parts(root, name="l_shoulder_pitch", dy=0.03):
+    """Move a joint's frame 3 cm sideways, its child's parts staying where they were (what the
+    editor's gizmo does): the pivot is now beside the shoulder, off where the parts meet."""
+    el = joint(root, name)
+    x, y, z = (float(v) for v in el.find("origin").get("xyz").split())
+    el.find("origin").set("xyz", f"{x} {y + dy} {z}")
+    child = el.find("child").get("link")
+    holders = list(link(root, child)) + [j for j in root.findall("joint")
+                                         if j.find("parent").get("link") == child]
+    for item in holders:
+        origin = item.find("origin")
+        if origin is None:
+            origin = etree.SubElement(item, "origin", xyz="0 0 0", rpy="0 0 0")
+        x, y, z = (float(v) for v in origin.get("xyz", "0 0 0").split())
+        origin.set("xyz", f"{x} {y - dy} {z}")
+
+
 def garbage_mesh(root, tmp_path):
     (tmp_path / "bad.stl").write_bytes(b"this is not a mesh")
     link(root, "head").find("visual/geometry/mesh").set("filename", "bad.stl")
@@ -81,6 +98,7 @@ CASES = {
     "collision-misplaced": ('link "head"',  # the seed's Fig. 4.6
                             lambda r: link(r, "head").find("collision/origin").set("xyz", "0.2 0 0.3")),
     "joint-misplaced": ('joint "l_elbow"', shift_joint_keep_body),
+    "joint-off-junction": ('joint "l_shoulder_pitch"', shift_frame_keep_parts),
     "mesh-missing": ('link "head"', lambda r: link(r, "head").find("visual/geometry/mesh").set(
         "filename", "package://mex_rb/meshes/nope.stl")),
     "mesh-units": ('link "torso"',

@@ -29,6 +29,10 @@ _MISMATCH_MIN = 0.01  # m: collision/visual centres may differ by this much howe
 _MISMATCH_FRACTION = 0.25  # ...or by this fraction of the visual's diagonal
 _JOINT_FAR_MIN = 0.02  # m
 _JOINT_FAR_FRACTION = 0.2
+# m: a moving joint this much further from its two parts than they are from each other is beside
+# their junction (Mex-One's reconstructed joints sit within 0.025, Gazebo model-editor fixtures
+# within 0.037; a frame moved 3 cm off a Mex-One shoulder or hip gives 0.06)
+_JUNCTION_TOL = 0.045
 _MM_EXTENT = 5.0  # m: a robot part whose mesh spans more than this is written in millimetres
 _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled twice
 _TINY_FRACTION = 0.01  # of the robot's mass: a link this light cannot change how it moves
@@ -84,6 +88,16 @@ class Box3:
                         for z in (self.lower[2], self.upper[2])])
         return pts @ self.pose[:3, :3].T + self.pose[:3, 3]
 
+    def project(self, point: np.ndarray) -> np.ndarray:
+        """The box's point nearest `point` (both in the link frame)."""
+        local = self.pose[:3, :3].T @ (point - self.pose[:3, 3])
+        return self.pose[:3, :3] @ np.clip(local, self.lower, self.upper) + self.pose[:3, 3]
+
+    def distance(self, point: np.ndarray) -> float:
+        """From `point` (link frame) to the box, 0 inside."""
+        local = self.pose[:3, :3].T @ (point - self.pose[:3, 3])
+        return float(np.linalg.norm(np.maximum(0, np.maximum(self.lower - local, local - self.upper))))
+
     def contains(self, point: np.ndarray, tol: float) -> bool:
         local = self.pose[:3, :3].T @ (point - self.pose[:3, 3])
         return bool(np.all(local >= self.lower - tol) and np.all(local <= self.upper + tol))
@@ -105,11 +119,6 @@ def _aabb(boxes: list[Box3]) -> tuple[np.ndarray, np.ndarray] | None:
         return None
     pts = np.vstack([b.corners() for b in boxes])
     return pts.min(axis=0), pts.max(axis=0)
-
-
-def _point_box_distance(point: np.ndarray, aabb: tuple[np.ndarray, np.ndarray]) -> float:
-    lower, upper = aabb
-    return float(np.linalg.norm(np.maximum(0, np.maximum(lower - point, point - upper))))
 
 
 def _element(kind: str, name: str) -> str:
@@ -288,15 +297,43 @@ def _rule_joint_placement(ctx: _Context) -> Iterator[Finding]:
         if parent_box is None or child_box is None:
             continue
         distances = []
-        for aabb, point in ((parent_box, np.asarray(joint.origin.xyz)), (child_box, np.zeros(3))):
+        for link, aabb, point in ((joint.parent, parent_box, np.asarray(joint.origin.xyz)),
+                                  (joint.child, child_box, np.zeros(3))):
             allowed = max(_JOINT_FAR_MIN, _JOINT_FAR_FRACTION * float(np.linalg.norm(aabb[1] - aabb[0])))
-            distances.append((_point_box_distance(point, aabb), allowed))
+            # to the nearest of the link's boxes, not to a box around them all: an L-shaped
+            # link's joint in the empty corner is off the part
+            distances.append((min(b.distance(point) for b in ctx.boxes(link)), allowed))
         if all(d > allowed for d, allowed in distances):
             yield Finding("joint-misplaced", "warning", _element("joint", joint.name),
                           f"joint origin is {distances[0][0]:.3f} m from '{joint.parent}' and "
                           f"{distances[1][0]:.3f} m from '{joint.child}': the link will rotate "
                           "about a point outside the robot (seed Fig. 3.7); check the <origin>",
                           joint.line)
+        elif joint.moving:
+            detour = distances[0][0] + distances[1][0] - _gap(
+                ctx.boxes(joint.parent), ctx.boxes(joint.child), joint.origin.matrix)
+            if detour > _JUNCTION_TOL:
+                yield Finding("joint-off-junction", "warning", _element("joint", joint.name),
+                              f"joint origin is {detour:.3f} m beside where '{joint.parent}' and "
+                              f"'{joint.child}' meet: the pivot is not where the parts join (the "
+                              "seed's well-centred joint); move it onto the hole or face they share",
+                              joint.line)
+
+
+def _gap(parent: list[Box3], child: list[Box3], child_frame: np.ndarray) -> float:
+    """Shortest distance between the two links' boxes (child boxes placed by child_frame in the
+    parent's frame): alternating projections, which converge to it for convex sets."""
+    best = np.inf
+    for a in parent:
+        for b in child:
+            pose = child_frame @ b.pose
+            x = pose[:3, 3]
+            for _ in range(30):
+                p = a.project(x)
+                local = pose[:3, :3].T @ (p - pose[:3, 3])
+                x = pose[:3, :3] @ np.clip(local, b.lower, b.upper) + pose[:3, 3]
+            best = min(best, float(np.linalg.norm(p - x)))
+    return best
 
 
 # ----- joints, names, tree ---------------------------------------------------------------------
