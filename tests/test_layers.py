@@ -12,7 +12,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "mexone"
 CORE = {"errors": 0, "inputs": 0, "yamlio": 0, "files": 0, "description": 1, "robots": 1, "physics": 2,
         "bus": 2, "control": 3, "sensors": 3}
 FRONT_ENDS = {"lab", "routines", "rospy", "msgs", "motion", "gui", "ros1", "record", "sweep", "bench", "cli",
-              "identify",
+              "identify", "editor",
               "signals", "__main__"}
 
 

@@ -30,17 +30,34 @@ def _model(session: EditSession) -> RobotModel:
     return read_urdf(session.folder / "model.urdf")
 
 
+def _placed(session: EditSession, out_dir: Path) -> RobotModel:
+    """The model with mesh paths valid from `out_dir`, and the package:// or model:// URIs an
+    opened model had written back as they were."""
+    model = rebase_meshes(_model(session), out_dir)
+    uris = session.extras.uris
+
+    def back(geometry):
+        if isinstance(geometry, Mesh) and geometry.filename in uris:
+            return replace(geometry, filename=uris[geometry.filename])
+        return geometry
+
+    for link in model.links.values():
+        link.visuals = [replace(v, geometry=back(v.geometry)) for v in link.visuals]
+        link.collisions = [replace(c, geometry=back(c.geometry)) for c in link.collisions]
+    return model
+
+
 def save_urdf(session: EditSession, path: Path, force: bool = False) -> Path:
     check_output(path, force)
-    write_text(path, write_urdf(rebase_meshes(_model(session), path.parent)), force)
+    write_text(path, write_urdf(_placed(session, path.parent)), force)
     return path
 
 
 def save_sdf(session: EditSession, path: Path, force: bool = False) -> Path:
     """SDF 1.6 as `mexone convert` writes it (massless frames merged: SDF has none)."""
     check_output(path, force)
-    model, _merged = merge_massless(_model(session))
-    write_text(path, write_sdf(rebase_meshes(model, path.parent)), force)
+    model, _merged = merge_massless(_placed(session, path.parent))
+    write_text(path, write_sdf(model), force)
     return path
 
 
@@ -96,20 +113,29 @@ _DISPLAY = """<?xml version="1.0"?>
 </launch>
 """
 
-_GAZEBO = """<?xml version="1.0"?>
-<!-- The seed's model.launch + control.launch for this robot: Gazebo (or 'mexone sim --ros'),
-     the robot spawned, its controllers loaded and started: roslaunch {name} gazebo.launch -->
+_CONTROL = """<?xml version="1.0"?>
+<!-- The seed's control.launch for this robot: its controllers onto the parameter server, loaded
+     and started by ros_control's spawner in whatever simulates it (Gazebo with
+     gazebo_ros_control, or mexone sim with its ROS bridge): roslaunch {name} control.launch -->
 <launch>
   <param name="robot_description" textfile="$(find {name})/urdf/{robot}.urdf"/>
-  <include file="$(find gazebo_ros)/launch/empty_world.launch"/>
-  <node name="spawn_model" pkg="gazebo_ros" type="spawn_model" output="screen"
-        args="-urdf -param robot_description -model {robot}"/>
   <rosparam file="$(find {name})/config/controllers.yaml" command="load"/>
   <node name="controller_spawner" pkg="controller_manager" type="spawner" respawn="false"
         output="screen" ns="{ns}" args="{controllers}"/>
   <node name="robot_state_publisher" pkg="robot_state_publisher" type="robot_state_publisher">
     <remap from="/joint_states" to="{ns}/joint_states"/>
   </node>
+</launch>
+"""
+
+_GAZEBO = """<?xml version="1.0"?>
+<!-- The seed's model.launch for this robot: Gazebo's empty world with the robot spawned, then
+     control.launch (needs gazebo_ros): roslaunch {name} gazebo.launch -->
+<launch>
+  <include file="$(find gazebo_ros)/launch/empty_world.launch"/>
+  <include file="$(find {name})/launch/control.launch"/>
+  <node name="spawn_model" pkg="gazebo_ros" type="spawn_model" output="screen"
+        args="-urdf -param robot_description -model {robot}"/>
 </launch>
 """
 
@@ -158,7 +184,8 @@ def save_package(session: EditSession, folder: Path, force: bool = False) -> Pat
         f"urdf/{robot}.urdf": write_urdf(model, comment=_COMMENT),
         "config/controllers.yaml": controllers_text(session),
         "launch/display.launch": _DISPLAY.format(name=name, robot=robot),
-        "launch/gazebo.launch": _GAZEBO.format(name=name, robot=robot, ns=ns, controllers=controllers),
+        "launch/control.launch": _CONTROL.format(name=name, robot=robot, ns=ns, controllers=controllers),
+        "launch/gazebo.launch": _GAZEBO.format(name=name, robot=robot),
     }
     for rel, text in files.items():
         write_text(folder / rel, text, True)

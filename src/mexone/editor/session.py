@@ -84,17 +84,20 @@ class _Extras:
     motors: dict[str, PidGains] = field(default_factory=dict)
     placements: dict[str, list[float]] = field(default_factory=dict)  # root link -> 4x4 row-major
     collision_shapes: dict[str, str] = field(default_factory=dict)  # link -> last fitted shape
+    uris: dict[str, str] = field(default_factory=dict)  # absolute mesh path -> the URI it was
+    typed: list[str] = field(default_factory=list)  # motors whose gains were typed, not auto
 
     def to_json(self) -> str:
         return json.dumps({"label": self.label, "placements": self.placements,
-                           "collision_shapes": self.collision_shapes,
+                           "collision_shapes": self.collision_shapes, "uris": self.uris, "typed": self.typed,
                            "motors": {k: vars(v) for k, v in self.motors.items()}}, indent=1)
 
     @staticmethod
     def from_json(text: str) -> _Extras:
         raw = json.loads(text)
         return _Extras(raw.get("label", ""), {k: PidGains(**v) for k, v in raw.get("motors", {}).items()},
-                       raw.get("placements", {}), raw.get("collision_shapes", {}))
+                       raw.get("placements", {}), raw.get("collision_shapes", {}), raw.get("uris", {}),
+                       raw.get("typed", []))
 
 
 class EditSession:
@@ -123,8 +126,8 @@ class EditSession:
         if source is not None:
             model = load_model(source)
             model = rebase_meshes(model, session.folder)
-            _absolute_uris(model, session.folder)
             extras = _Extras("open " + Path(source).name)
+            extras.uris = _absolute_uris(model, session.folder)
             extras.motors = _auto_gains(model, [t.joint for t in model.transmissions])
         else:
             model = RobotModel(_name(name, "robot name"), {}, {})
@@ -204,6 +207,8 @@ class EditSession:
         extras.label = label
         change(model, extras)
         model = replace(model)
+        # auto gains follow the robot (a joint added below a motor changes what it moves)
+        extras.motors.update(_auto_gains(model, [j for j in extras.motors if j not in extras.typed]))
         self._write_step(self.index + 1, model, extras)
 
     # ----- queries ------------------------------------------------------------------------------
@@ -235,6 +240,7 @@ class EditSession:
             if isinstance(visual.geometry, Mesh):
                 path = resolve_mesh(visual.geometry.filename, self.model.base_dir)
                 mesh = load_mesh(path).copy()
+                mesh.merge_vertices()  # loaded unprocessed: an STL closes only once corners merge
                 mesh.apply_scale(np.asarray(visual.geometry.scale))
                 return mesh, visual.origin.matrix
         return None
@@ -305,7 +311,8 @@ class EditSession:
         props = mass_properties(scaled, max(DEFAULT_DENSITY * solid.volume, 1e-6), np.eye(4))
 
         def change(model: RobotModel, extras: _Extras) -> None:
-            model.links[part.name] = Link(part.name, props.inertial, [Visual(ref, name=f"{part.name}_visual")],
+            model.links[part.name] = Link(part.name, props.inertial,
+                                          [Visual(ref, name=f"{part.name}_visual")],
                                           [Collision(ref, name=f"{part.name}_collision")])
             extras.collision_shapes[part.name] = "mesh"
 
@@ -579,15 +586,17 @@ class EditSession:
 
     # ----- motors -------------------------------------------------------------------------------
     def set_motor(self, joint: str, on: bool = True, gains: PidGains | None = None) -> PidGains | None:
-        """A transmission and a position controller on the joint (gains: the auto gains of
-        `mexone controllers` unless given), or neither. Returns the gains."""
+        """A transmission and a position controller on the joint, or neither. Gains given are
+        kept; otherwise they are the auto gains of `mexone controllers`, recomputed after every
+        edit. Returns the gains."""
         target = self.joint(joint)
         if on and not target.moving:
             raise InputError(f"joint '{joint}' is {target.type}: nothing for a motor to move")
         if gains is not None and (problem := gains.problem()) is not None:
             raise InputError(f"joint '{joint}': {problem}")
+        typed = gains is not None
         if on and gains is None:
-            gains = self.extras.motors.get(joint) or _auto_gains(self.model, [joint]).get(joint)
+            gains = _auto_gains(self.model, [joint]).get(joint)
             if gains is None:
                 raise InputError(f"joint '{joint}' moves nothing with mass: no gains to derive",
                                  hint="give the child link a mass first")
@@ -595,9 +604,13 @@ class EditSession:
         def change(model: RobotModel, extras: _Extras) -> None:
             model.transmissions = [t for t in model.transmissions if t.joint != joint]
             extras.motors.pop(joint, None)
+            if joint in extras.typed:
+                extras.typed.remove(joint)
             if on:
                 model.transmissions.append(Transmission(f"{joint}_tran", joint, actuator=f"{joint}_motor"))
                 extras.motors[joint] = gains
+                if typed:
+                    extras.typed.append(joint)
                 if model.ros_namespace is None:
                     model.ros_namespace = "/" + model.name
         self._edit(f"motor {joint}: {'on' if on else 'off'}", change)
@@ -646,10 +659,12 @@ def _auto_gains(model: RobotModel, joints: list[str]) -> dict[str, PidGains]:
     return {t.joint: t.gains for t in tunings if t.joint in joints}
 
 
-def _absolute_uris(model: RobotModel, folder: Path) -> None:
+def _absolute_uris(model: RobotModel, folder: Path) -> dict[str, str]:
     """package:// and model:// meshes that only resolve from the model's own place (a student's
-    workspace) become absolute paths, so the working folder finds them too."""
+    workspace) become absolute paths, so the working folder finds them too; returns which, so
+    saving can write the URIs back."""
     source_dir = model.base_dir
+    uris: dict[str, str] = {}
 
     def fix(geometry):
         if not isinstance(geometry, Mesh) or not geometry.filename.startswith(("package://", "model://")):
@@ -660,11 +675,14 @@ def _absolute_uris(model: RobotModel, folder: Path) -> None:
         except MexoneError:
             pass
         try:
-            return replace(geometry, filename=str(resolve_mesh(geometry.filename, source_dir).resolve()))
+            path = str(resolve_mesh(geometry.filename, source_dir).resolve())
         except MexoneError:
             return geometry  # check reports it as a missing mesh
+        uris[path] = geometry.filename
+        return replace(geometry, filename=path)
 
     for link in model.links.values():
         link.visuals = [replace(v, geometry=fix(v.geometry)) for v in link.visuals]
         link.collisions = [replace(c, geometry=fix(c.geometry)) for c in link.collisions]
+    return uris
 

@@ -1,8 +1,11 @@
 """Wrote tests/data/editor/arm_*.stl: three plates of a planar arm in millimetres, in the
 assembly frame (as CAD exports an assembly's parts). Needs shapely and mapbox_earcut, which
 mexone does not: run once by hand (PYTHONPATH with both), the STLs are committed."""
-import numpy as np, trimesh
-from shapely.geometry import Point, LineString
+import numpy as np
+import trimesh
+from shapely.geometry import LineString, Point
+
+
 def plate(ends, r, holes, y0, t=20.0):
     outline = LineString(ends).buffer(r, quad_segs=8) if len(ends) > 1 else Point(ends[0]).buffer(r, quad_segs=8)
     for h in holes:
