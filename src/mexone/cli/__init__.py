@@ -44,6 +44,7 @@ def build_parser() -> argparse.ArgumentParser:
         check,
         controllers,
         convert,
+        edit,
         identify,
         plot,
         record,
@@ -61,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
     for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
-                   bench):
+                   bench, edit):
         module.add_parser(sub)
     return parser
 
