@@ -6,6 +6,7 @@ also writes the README's screenshot there (editor.png)."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -162,8 +163,9 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
         page.screenshot(path=str(Path(os.environ["MEXONE_SCREENSHOT_DIR"]) / "editor.png"))
 
     step = session.index  # undo from the page, then a reload finds the same history
+    labels = [json.loads((session.history / f"{i:04d}.json").read_text())["label"] for i in range(step + 1)]
     press(page, editor, "Undo", lambda: session.index == step - 1)
-    assert "elbow" not in session.extras.motors
+    assert "elbow" not in session.extras.motors, labels
     page.reload()
     page.get_by_text("Accept import").wait_for(timeout=30_000)
     assert wait_until(lambda: page.get_by_text(f"history step {step - 1}").count() > 0)

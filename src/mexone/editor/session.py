@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -110,6 +111,7 @@ class EditSession:
         self.model: RobotModel
         self.extras: _Extras
         self._findings: list[Finding] | None = None
+        self._state_cache: dict | None = None
 
     # ----- opening ------------------------------------------------------------------------------
     @classmethod
@@ -137,7 +139,16 @@ class EditSession:
 
     # ----- history ------------------------------------------------------------------------------
     def _state(self) -> dict:
-        return json.loads((self.history / "state.json").read_text())
+        if self._state_cache is None:
+            self._state_cache = json.loads((self.history / "state.json").read_text())
+        return dict(self._state_cache)
+
+    def _save_state(self, state: dict) -> None:
+        """Atomically (a crash or a reader never sees half a file), then remembered."""
+        temporary = self.history / f".state.{os.getpid()}.json"
+        temporary.write_text(json.dumps(state))
+        os.replace(temporary, self.history / "state.json")
+        self._state_cache = dict(state)
 
     def _step_paths(self, index: int) -> tuple[Path, Path]:
         return self.history / f"{index:04d}.urdf", self.history / f"{index:04d}.json"
@@ -151,8 +162,7 @@ class EditSession:
             for old in self._step_paths(first):
                 old.unlink(missing_ok=True)
             first += 1
-        (self.history / "state.json").write_text(json.dumps({"index": index, "top": index,
-                                                             "first": first}))
+        self._save_state({"index": index, "top": index, "first": first})
         self._load(index)
 
     def _load(self, index: int) -> None:
@@ -181,7 +191,7 @@ class EditSession:
     def _move(self, index: int) -> None:
         state = self._state()
         state["index"] = index
-        (self.history / "state.json").write_text(json.dumps(state))
+        self._save_state(state)
         self._load(index)
 
     def undo(self) -> str:

@@ -1,0 +1,127 @@
+"""The editor page's server side: the GUI's Origin guard, values a page sends refused by the
+server, clicks that pick links, findings that select, Simulate handing the model to `mexone
+sim`'s page, and the `mexone edit` verb's errors."""
+
+from __future__ import annotations
+
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import viser
+from websockets.exceptions import ConnectionClosed
+from websockets.sync.client import connect
+
+from mexone.cli import main
+from mexone.editor.app import EditorApp
+from mexone.editor.session import EditSession
+from mexone.robots import mex_one
+
+ARM = Path(__file__).resolve().parents[1] / "data" / "editor"
+
+
+@pytest.fixture(scope="module")
+def app(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("page")
+    (folder / "out").mkdir()
+    session = EditSession.open(folder / "work", name="arm")
+    for link in ("arm_base", "arm_upper"):
+        session.import_part(f"{link}.stl", (ARM / f"{link}.stl").read_bytes())
+    session.fix_to_world("arm_base")
+    editor = EditorApp(session, folder / "out", port=0)
+    yield editor
+    editor.stop()
+
+
+def test_a_page_from_another_origin_is_refused(app):
+    import socket
+
+    port = app.server.get_port()
+    sock = socket.create_connection(("127.0.0.1", port))
+    with connect(f"ws://127.0.0.1:{port}", sock=sock, origin="http://evil.example:8000",
+                 subprotocols=[f"viser-v{viser.__version__}"], open_timeout=10) as ws:
+        with pytest.raises(ConnectionClosed) as closed:
+            for _ in range(50):
+                ws.recv(timeout=3)
+        assert closed.value.rcvd.code == 1008
+
+
+def test_values_a_page_sends_are_checked_by_the_server(app):
+    session = app.session
+    step = session.index
+    app._link.value = "arm_upper"
+    app._select_link("arm_upper")
+    app._mass.value = float("nan")  # a page can send anything its widgets would not
+    assert not app.act("inertia", lambda: session.compute_inertia(app._need_link(), app._mass.value))
+    app._base.value = "../../etc/evil"
+    assert not app.act("save", lambda: app.save("urdf"))
+    assert "refused" in app._status_msg.content
+    assert session.index == step
+    assert not any(app.out_dir.iterdir())
+
+
+def test_clicks_pick_parent_and_child_and_a_finding_selects_its_element(app):
+    app.click_sets = "parent"
+    app._clicked("arm_base")
+    assert app._parent.value == "arm_base" and app.selected_link == "arm_base"
+    app.click_sets = "child"
+    app._clicked("arm_upper")
+    assert app._child.value == "arm_upper"
+    assert any("hole axis" in option for option in app._snap.options)
+    app.click_sets = "select"
+    findings = app.session.findings()  # two roots, for now: the loose upper arm
+    assert any(f.code == "multiple-roots" for f in findings)
+    assert app._finding_buttons
+
+
+def test_simulate_hands_the_model_to_mexone_sims_page(app):
+    session = app.session
+    _snap, point, axis = next(s for s in session.snaps("arm_upper") if s[0].kind == "hole axis"
+                              and abs(s[1][0]) < 1e-6)
+    app.act("joint", lambda: session.add_joint("shoulder", "arm_base", "arm_upper", "revolute", point, axis))
+    app.act("motor", lambda: session.set_motor("shoulder"))
+    assert app.act("simulate", app.simulate)
+    sim_app = app.sim_app
+    assert sim_app is not None and sim_app.lab.controllers is not None
+    assert "http://127.0.0.1:" in app._sim_link.content
+    start = sim_app.lab.sim.time
+    end = time.time() + 20
+    while sim_app.lab.sim.time - start < 0.5 and time.time() < end:
+        time.sleep(0.05)
+    assert sim_app.lab.sim.time - start >= 0.5  # it runs, in its own thread
+    assert abs(sim_app.lab.sim.joint_positions()[0]) < 0.05  # held by the editor's controller
+    app.act("simulate", app._stop_sim)
+    assert app.sim_app is None
+
+
+def test_the_swing_preview_moves_the_drawn_child_only(app):
+    app._select_joint("shoulder")
+    before = np.array(app._nodes["arm_upper"].position)
+    app._swing(0.5)  # q at the top of the range
+    assert np.linalg.norm(np.array(app._nodes["arm_upper"].wxyz) - [1, 0, 0, 0]) > 0.1
+    assert np.allclose(app._nodes["arm_base"].position, app.session.world_frames()["arm_base"][:3, 3])
+    assert app.session.model.joints["shoulder"].origin.xyz == pytest.approx(tuple(before))
+    app.act("view", app._draw)
+
+
+def test_the_edit_verb_says_what_is_wrong_in_one_line(tmp_path, capsys):
+    assert main(["edit", "--out", str(tmp_path / "missing"), "--port", "0"]) == 2
+    err = capsys.readouterr().err
+    assert "missing" in err and "Traceback" not in err
+    assert main(["edit", str(tmp_path / "nope.urdf"), "--port", "0"]) == 2
+
+
+def test_the_edit_verb_opens_mex_one_and_stops(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    code = {}
+    thread = threading.Thread(target=lambda: code.setdefault("rc", main(
+        ["edit", str(mex_one.urdf_path()), "--port", "0", "--duration", "1"])))
+    thread.start()
+    thread.join(timeout=60)
+    assert code.get("rc") == 0
+    assert "editing mex_rb at http://127.0.0.1:" in capsys.readouterr().err
+    assert (tmp_path / ".mexone_edit" / "mex_rb" / "model.urdf").is_file()
+    shutil.rmtree(tmp_path / ".mexone_edit")
