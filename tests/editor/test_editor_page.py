@@ -125,3 +125,45 @@ def test_the_edit_verb_opens_mex_one_and_stops(tmp_path, monkeypatch, capsys):
     assert "editing mex_rb at http://127.0.0.1:" in capsys.readouterr().err
     assert (tmp_path / ".mexone_edit" / "mex_rb" / "model.urdf").is_file()
     shutil.rmtree(tmp_path / ".mexone_edit")
+
+
+def test_a_zipped_folder_of_parts_waits_to_be_accepted_one_by_one(app):
+    import io
+    import zipfile
+    from types import SimpleNamespace
+
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w") as archive:
+        archive.writestr("parts/Fore Arm.STL", (ARM / "arm_fore.stl").read_bytes())
+        archive.writestr("parts/../../evil.stl", (ARM / "arm_base.stl").read_bytes())
+        archive.writestr("parts/readme.txt", "not a part")
+    app._upload._impl.value = SimpleNamespace(name="parts.zip", content=buffer.getvalue())
+    assert app.act("upload", app._received)
+    assert [p.name for p in app.pending] == ["evil", "fore_arm"]
+    assert app.act("discard", app._discard)
+    app._unit.value = "m"  # the page's choice wins over the guess
+    assert app.act("import", app._accept)
+    assert app.session.model.links["fore_arm"].visuals[0].geometry.scale == (1.0, 1.0, 1.0)
+    assert not app.pending and not (app.session.folder.parent / "evil.stl").exists()
+    app.act("undo", app.session.undo)
+    bomb = io.BytesIO()
+    with zipfile.ZipFile(bomb, "w", zipfile.ZIP_DEFLATED) as archive:
+        archive.writestr("big.stl", b"\0" * (65 * 2**20))
+    app._upload._impl.value = SimpleNamespace(name="bomb.zip", content=bomb.getvalue())
+    assert not app.act("upload", app._received)
+    assert "over" in app._status_msg.content
+
+
+def test_the_gizmo_places_a_joint_frame(app):
+    session = app.session
+    app._select_joint("shoulder")
+    frame = session.world_frames()["arm_upper"]
+    app._gizmo.position = frame[:3, 3] + np.array([0.0, 0.0, 0.01])
+    app._gizmo.wxyz = (1.0, 0.0, 0.0, 0.0)
+    assert app.act("frame", app._gizmo_frame)
+    assert session.world_frames()["arm_upper"][:3, 3] == pytest.approx(frame[:3, 3] + [0, 0, 0.01])
+    mesh, origin = session.part_mesh("arm_upper")  # the part did not move with its frame
+    placed = session.world_frames()["arm_upper"] @ origin
+    assert (placed[:3, :3] @ mesh.vertices.T + placed[:3, 3:]).T.min(axis=0) == pytest.approx(
+        [-0.02, 0.01, 0.08], abs=1e-9)
+    app.act("undo", session.undo)

@@ -27,7 +27,7 @@ from mexone.control.spec import PidGains
 from mexone.description.materials import display_rgba
 from mexone.description.model import Box, Cylinder, Dynamics, Limit, Mesh, Pose, Sphere
 from mexone.editor.massprops import SHAPES
-from mexone.editor.parts import UNITS, Part, read_part, safe_name
+from mexone.editor.parts import UNITS, Part, read_parts, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
 from mexone.editor.session import EDIT_TYPES, EditSession, selection_of
 from mexone.errors import MexoneError
@@ -151,7 +151,8 @@ class EditorApp:
             self._show_collisions.on_update(lambda _: self.act("view", self._draw))
             self._status_msg = gui.add_markdown("")
         with gui.add_folder("Import"):
-            self._upload = gui.add_upload_button("Upload part (STL, OBJ, DAE)", mime_type="*/*")
+            self._upload = gui.add_upload_button("Upload part (STL, OBJ, DAE; .zip of a folder)",
+                                                 mime_type="*/*")
             self._upload.on_upload(lambda _: self.act("upload", self._received))
             self._pending = gui.add_markdown("No part waiting.")
             self._unit = gui.add_dropdown("Unit", (GUESS, *UNITS))
@@ -429,9 +430,9 @@ class EditorApp:
     def _received(self) -> None:
         upload = self._upload.value
         taken = set(self.session.model.links) | {p.name for p in self.pending}
-        part = read_part(upload.name, upload.content, taken)
-        self.pending.append(part)
-        self._unit.value = part.guess
+        parts = read_parts(upload.name, upload.content, taken)
+        self.pending += parts
+        self._unit.value = self.pending[0].guess
         self._show_pending()
 
     def _show_pending(self) -> None:
@@ -458,12 +459,16 @@ class EditorApp:
         name = self.session.import_part(f"{part.name}.stl", buffer.getvalue(), unit or part.guess)
         self.pending.pop(0)
         self.selected_link = name
+        if self.pending:
+            self._unit.value = self.pending[0].guess
         self._show_pending()
         self.say(f"imported {name} in {unit or part.guess}")
 
     def _discard(self) -> None:
         if self.pending:
             self.pending.pop(0)
+        if self.pending:
+            self._unit.value = self.pending[0].guess
         self._show_pending()
 
     def _typed_inertial(self) -> None:

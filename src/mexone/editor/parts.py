@@ -12,11 +12,13 @@ import numpy as np
 
 from mexone.errors import InputError
 
-__all__ = ["UNITS", "MESH_TYPES", "Part", "read_part", "guess_unit", "safe_name", "MAX_PART_BYTES"]
+__all__ = ["UNITS", "MESH_TYPES", "Part", "read_part", "read_parts", "guess_unit", "safe_name",
+           "MAX_PART_BYTES", "MAX_ZIP_PARTS"]
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
 MESH_TYPES = ("stl", "obj", "dae")
 MAX_PART_BYTES = 64 * 1024 * 1024  # a 64 MB STL is over a million triangles: simplify it first
+MAX_ZIP_PARTS = 100  # parts in one zipped folder
 # A robot part spans a few centimetres to a metre; the unit that puts it closest to this (in
 # log scale) is the guess. Inches are offered but never guessed: 6 in and 15 cm look alike.
 _TYPICAL_SIZE = 0.15  # m
@@ -80,3 +82,38 @@ def read_part(filename: str, data: bytes, taken=()) -> Part:
         raise InputError(f"'{filename}' is flat in every direction (zero size)",
                          hint="export the solid, not a sketch")
     return Part(safe_name(filename, taken), mesh, guess_unit(extent))
+
+
+def read_parts(filename: str, data: bytes, taken=()) -> list[Part]:
+    """One part, or every STL/OBJ/DAE in a zipped folder of parts (a browser uploads files, not
+    folders). The zip's sizes are checked before anything is unpacked, and it is unpacked in
+    memory: its paths never name a file here."""
+    if not filename.lower().endswith(".zip"):
+        return [read_part(filename, data, taken)]
+    import zipfile
+
+    try:
+        archive = zipfile.ZipFile(io.BytesIO(data))
+        entries = [e for e in archive.infolist() if not e.is_dir()
+                   and e.filename.rsplit(".", 1)[-1].lower() in MESH_TYPES]
+    except (zipfile.BadZipFile, ValueError) as exc:
+        raise InputError(f"'{filename}' is not a readable zip: {exc}",
+                         hint="zip the parts' folder again") from None
+    if not entries:
+        raise InputError(f"'{filename}' holds no STL, OBJ or DAE file", hint="zip the folder of parts")
+    if len(entries) > MAX_ZIP_PARTS or sum(e.file_size for e in entries) > MAX_PART_BYTES:
+        raise InputError(f"'{filename}' unpacks to {len(entries)} parts and "
+                         f"{sum(e.file_size for e in entries) / 1e6:.0f} MB, over {MAX_ZIP_PARTS} parts "
+                         f"or {MAX_PART_BYTES // 2**20} MB", hint="import the parts in smaller groups")
+    parts: list[Part] = []
+    budget = MAX_PART_BYTES  # a header can lie about sizes: count what really unpacks
+    for entry in sorted(entries, key=lambda e: e.filename):
+        names = set(taken) | {p.name for p in parts}
+        with archive.open(entry) as member:
+            content = member.read(budget + 1)
+        budget -= len(content)
+        if budget < 0:
+            raise InputError(f"'{filename}' unpacks to more than {MAX_PART_BYTES // 2**20} MB",
+                             hint="import the parts in smaller groups")
+        parts.append(read_part(entry.filename, content, names))
+    return parts
