@@ -118,9 +118,10 @@ def _rviz(tmp_path: Path, port: int, display: str, view: str) -> subprocess.Pope
     env = ros_env(port)  # mex_rb (meshes for the robot model) found as the README says
     env["ROS_PACKAGE_PATH"] = f"{env['ROS_PACKAGE_PATH']}:{mex_one.package_dir().parent}"
     env.update(DISPLAY=display, LIBGL_ALWAYS_SOFTWARE="1")
-    log = open(Path(os.environ.get("TMPDIR", "/tmp")) / f"mexone-rviz-{view}.log", "w")
-    return subprocess.Popen(["rviz", "-d", str(config)], env=env, stdout=log, stderr=log,
-                            start_new_session=True)
+    log = Path(os.environ.get("TMPDIR", "/tmp")) / f"mexone-rviz-{view}.log"
+    with open(log, "w") as out:  # the child keeps its own copy of the descriptor
+        return subprocess.Popen(["rviz", "-d", str(config)], env=env, stdout=out, stderr=out,
+                                start_new_session=True)
 
 
 def _save(shot: np.ndarray) -> str:
