@@ -21,6 +21,7 @@ from mexone.cli import main
 from mexone.description.urdf import read_urdf
 from mexone.editor.app import EditorApp
 from mexone.editor.session import EditSession
+from mexone.robots import mex_one
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "editor"
 CHROMIUM = shutil.which("chromium")
@@ -52,20 +53,31 @@ def editor(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def page(editor):
+def browser():
     playwright = pytest.importorskip("playwright.sync_api")
     if CHROMIUM is None:
         pytest.skip("Debian chromium is not installed")
     with playwright.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        # software WebGL redraws every pixel after each change: a small page keeps the test fast
-        large = bool(os.environ.get("MEXONE_SCREENSHOT_DIR"))
-        tab = browser.new_page(viewport={"width": 1400, "height": 1000} if large else
-                               {"width": 900, "height": 700})
-        tab.goto(f"http://127.0.0.1:{editor.server.get_port()}")
-        tab.get_by_text("Accept import").wait_for(timeout=30_000)
-        yield tab
-        browser.close()
+        chromium = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+        yield chromium
+        chromium.close()
+
+
+def open_page(browser, app):
+    # software WebGL redraws every pixel after each change: a small page keeps the test fast
+    large = bool(os.environ.get("MEXONE_SCREENSHOT_DIR"))
+    tab = browser.new_page(viewport={"width": 1400, "height": 1000} if large else
+                           {"width": 900, "height": 700})
+    tab.goto(f"http://127.0.0.1:{app.server.get_port()}")
+    tab.get_by_text("Accept import").wait_for(timeout=30_000)
+    return tab
+
+
+@pytest.fixture(scope="module")
+def page(editor, browser):
+    tab = open_page(browser, editor)
+    yield tab
+    tab.close()
 
 
 def choose(tab, label: str, option: str) -> None:
@@ -171,3 +183,33 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
     assert wait_until(lambda: page.get_by_text(f"history step {step - 1}").count() > 0)
     press(page, editor, "Redo", lambda: session.index == step)
     assert "elbow" in session.extras.motors
+
+
+@pytest.mark.slow
+def test_a_mex_one_joint_frame_moved_3cm_is_flagged_on_the_page_and_undo_clears_it(browser, tmp_path):
+    app = EditorApp(EditSession.open(tmp_path / "work", mex_one.urdf_path()), tmp_path, port=0)
+    try:
+        tab = open_page(browser, app)
+        assert "no problems found" in app._checks.content
+        choose(tab, "Joint", "l_shoulder_pitch")
+        assert wait_until(lambda: app.selected_joint == "l_shoulder_pitch")
+        y = app.session.model.joints["l_shoulder_pitch"].origin.xyz[1]
+        row = tab.locator("div.mantine-Flex-root").filter(has=tab.get_by_text("Frame xyz (parent)"))
+        field = row.last.locator("input").nth(1)  # its y
+        field.fill(f"{y + 0.03:.6f}")
+        field.press("Enter")
+        assert wait_until(lambda: abs(app._origin.value[1] - (y + 0.03)) < 1e-6)
+        step = app.session.index
+        press(tab, app, "Place frame (typed)", lambda: app.session.index == step + 1)
+        flagged = tab.get_by_role("button").filter(has_text="joint-off-junction")
+        assert wait_until(lambda: flagged.count() == 1)
+        choose(tab, "Joint", "l_elbow")
+        assert wait_until(lambda: app.selected_joint == "l_elbow")
+        flagged.first.click()  # a finding selects what it is about
+        assert wait_until(lambda: app.selected_joint == "l_shoulder_pitch")
+        press(tab, app, "Undo", lambda: app.session.index == step)
+        assert wait_until(lambda: tab.get_by_text("no problems found").count() > 0)
+        assert flagged.count() == 0
+        tab.close()
+    finally:
+        app.stop()
