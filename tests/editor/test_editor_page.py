@@ -16,6 +16,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from mexone.cli import main
+from mexone.description.model import Box
 from mexone.editor.app import EditorApp
 from mexone.editor.session import EditSession
 from mexone.robots import mex_one
@@ -167,3 +168,20 @@ def test_the_gizmo_places_a_joint_frame(app):
     assert (placed[:3, :3] @ mesh.vertices.T + placed[:3, 3:]).T.min(axis=0) == pytest.approx(
         [-0.02, 0.01, 0.08], abs=1e-9)
     app.act("undo", session.undo)
+
+
+def test_a_fitted_collision_is_edited_by_typing(app):
+    session = app.session
+    app._select_link("arm_base")
+    app.act("fit", lambda: session.fit_collision("arm_base", "box"))
+    size = session.model.links["arm_base"].collisions[0].geometry.size
+    app._col_size.value = (0.05, 0.03, 0.15)
+    app._col_xyz.value = (0.0, 0.0, 0.05)
+    assert app.act("collision", app._edit_collision)
+    col = session.model.links["arm_base"].collisions[0]
+    assert col.geometry.size == (0.05, 0.03, 0.15) and col.origin.xyz == (0.0, 0.0, 0.05)
+    app._col_size.value = (0.05, -1.0, 0.15)  # the server refuses a negative size
+    assert not app.act("collision", app._edit_collision)
+    session.undo()
+    session.undo()
+    assert session.model.links["arm_base"].collisions[0].geometry != Box(size)

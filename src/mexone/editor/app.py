@@ -18,6 +18,7 @@ import logging
 import math
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -172,6 +173,10 @@ class EditorApp:
             self._shape = gui.add_dropdown("Collision", SHAPES, initial_value="cylinder")
             gui.add_button("Fit collision").on_click(lambda _: self.act(
                 "collision", lambda: self.session.fit_collision(self._need_link(), self._shape.value)))
+            self._col_size = gui.add_vector3("Collision size", (0.0, 0.0, 0.0), step=0.001,
+                                             hint="box: x y z; cylinder: radius length; sphere: radius")
+            self._col_xyz = gui.add_vector3("Collision xyz", (0.0, 0.0, 0.0), step=0.001)
+            button("Apply collision size", self._edit_collision)
             self._mu = gui.add_vector3("mu1 mu2 kp", (1.0, 1.0, 1e6), step=0.01)
             self._kd = gui.add_number("kd", 1.0, min=0.0, step=0.1)
             button("Apply surface", lambda: self.session.set_surface(self._need_link(), *self._mu.value,
@@ -255,6 +260,16 @@ class EditorApp:
 
     def _fill_link(self) -> None:
         link = self.session.model.links.get(self.selected_link or "")
+        if link is not None and link.collisions:
+            col = link.collisions[0]
+            self._col_xyz.value = col.origin.xyz
+            match col.geometry:
+                case Box(size):
+                    self._col_size.value = size
+                case Cylinder(radius, length):
+                    self._col_size.value = (radius, length, 0.0)
+                case Sphere(radius):
+                    self._col_size.value = (radius, 0.0, 0.0)
         if link is None or link.inertial is None:
             self._principal.content = ""
             return
@@ -476,6 +491,24 @@ class EditorApp:
         ixy, ixz, iyz = self._products.value
         self.session.set_inertial(self._need_link(), self._mass.value, self._com.value,
                                   (ixx, ixy, ixz, iyy, iyz, izz))
+
+    def _edit_collision(self) -> None:
+        """The first collision shape's size and place, typed (a fitted shape, adjusted)."""
+        link = self._need_link()
+        cols = self.session.link(link).collisions
+        if not cols:
+            raise MexoneError(f"link '{link}' has no collision shape: fit one first")
+        a, b, c = self._col_size.value
+        match cols[0].geometry:
+            case Box():
+                geometry = Box((a, b, c))
+            case Cylinder():
+                geometry = Cylinder(a, b)
+            case Sphere():
+                geometry = Sphere(a)
+            case _:
+                raise MexoneError("a mesh collision has no size to type: fit a shape first")
+        self.session.set_collision(link, 0, geometry, replace(cols[0].origin, xyz=tuple(self._col_xyz.value)))
 
     def _toggle_world(self) -> None:
         link = self._need_link()
