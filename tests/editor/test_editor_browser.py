@@ -195,12 +195,20 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
     step = session.index  # undo from the page, then a reload finds the same history
     labels = [json.loads((session.history / f"{i:04d}.json").read_text())["label"] for i in range(step + 1)]
     press(page, editor, "Undo", lambda: session.index == step - 1)
-    assert "elbow" not in session.extras.motors, labels
+    assert "elbow" not in session.extras.motors, labels[-5:]
     page.reload()
     page.get_by_text("Accept import").wait_for(timeout=30_000)
     assert wait_until(lambda: page.get_by_text(f"history step {step - 1}").count() > 0)
     press(page, editor, "Redo", lambda: session.index == step)
     assert "elbow" in session.extras.motors
+    # Simulate: the same page becomes mexone sim's, then the editor again
+    press(page, editor, "Simulate", lambda: editor.sim_app is not None)
+    page.get_by_role("button", name="Pause").wait_for(timeout=30_000)
+    sim_start = editor.sim_app.lab.sim.time
+    assert wait_until(lambda: editor.sim_app.lab.sim.time > sim_start + 0.2)
+    page.get_by_role("button", name="Back to editing").click()
+    page.get_by_text("Accept import").wait_for(timeout=30_000)
+    assert editor.sim_app is None and session.index == step
 
 
 @pytest.mark.slow

@@ -78,24 +78,28 @@ def test_clicks_pick_parent_and_child_and_a_finding_selects_its_element(app):
     assert app._finding_buttons
 
 
-def test_simulate_hands_the_model_to_mexone_sims_page(app):
+def test_simulate_hands_the_page_to_mexone_sim_and_back(app):
     session = app.session
+    assert not app.act("simulate", app.simulate)  # two roots: sim refuses, the editor stays
+    assert app.sim_app is None and "root" in app._status_msg.content
     _snap, point, axis = next(s for s in session.snaps("arm_upper") if s[0].kind == "hole axis"
                               and abs(s[1][0]) < 1e-6)
     app.act("joint", lambda: session.add_joint("shoulder", "arm_base", "arm_upper", "revolute", point, axis))
     app.act("motor", lambda: session.set_motor("shoulder"))
+    step, joint = session.index, app.selected_joint
     assert app.act("simulate", app.simulate)
     sim_app = app.sim_app
-    assert sim_app is not None and sim_app.lab.controllers is not None
-    assert "http://127.0.0.1:" in app._sim_link.content
+    assert sim_app.server is app.server and sim_app.lab.controllers is not None  # the same page
     start = sim_app.lab.sim.time
     end = time.time() + 20
     while sim_app.lab.sim.time - start < 0.5 and time.time() < end:
         time.sleep(0.05)
     assert sim_app.lab.sim.time - start >= 0.5  # it runs, in its own thread
     assert abs(sim_app.lab.sim.joint_positions()[0]) < 0.05  # held by the editor's controller
-    app.act("simulate", app._stop_sim)
-    assert app.sim_app is None
+    assert app.act("back", app._stop_sim)
+    assert app.sim_app is None and sim_app.stopping.is_set()
+    assert session.index == step and app._joint.value == joint  # the editor, as it was
+    assert "back to editing" in app._status_msg.content
 
 
 def test_the_swing_preview_moves_the_drawn_child_only(app):

@@ -17,8 +17,8 @@ uploaded from the page, units chosen or guessed from their size), give links mas
 computed from their meshes, fitted collision shapes, friction and colour; join them with
 revolute, continuous, prismatic or fixed joints whose frames snap to hole axes, face centres or
 edge midpoints; add motors with controllers (auto gains to start from); watch `mexone check`'s
-findings live; save URDF, SDF, the ros_control YAML or a ROS package; Simulate opens
-`mexone sim`'s page for the model.
+findings live; save URDF, SDF, the ros_control YAML or a ROS package; Simulate turns the page
+into `mexone sim`'s for the model (Back to editing returns).
 
 MODEL (URDF, xacro, SDF, Gazebo model folder or MJCF) is the starting point; without it the
 editor starts empty. The working model and its undo history live in --workdir (default

@@ -8,8 +8,8 @@ chooses, and saves go into the folder the server was started with, under a base 
 may only pick from letters, digits and _. The websocket Origin guard and the loopback default
 are the GUI's (gui/security.py).
 
-Simulate starts `mexone sim`'s page for the current model and its controllers in this process,
-on the next port, and links to it; Stop simulation ends it (see docs/DECISIONS.md).
+Simulate hands the page to `mexone sim`'s GuiApp for the current model and its controllers
+(same server, the editor's panels and scene reset); Back to editing stops it and rebuilds them.
 """
 
 from __future__ import annotations
@@ -116,7 +116,8 @@ class EditorApp:
             except (ValueError, TypeError) as exc:  # a widget value of the wrong shape
                 self.say(f"refused ({what}): {exc}", error=True)
                 return False
-            self.refresh()
+            if self.sim_app is None:  # while simulating, the page is the simulator's
+                self.refresh()
             return True
 
     def say(self, text: str, error: bool = False) -> None:
@@ -227,9 +228,8 @@ class EditorApp:
                 gui.add_button(label).on_click(lambda _, kind=kind: self.act("save", lambda: self.save(kind)))
             gui.add_markdown(f"Files go to `{self.out_dir}` (chosen when the editor started).")
         with gui.add_folder("Simulate"):
-            gui.add_button("Simulate").on_click(lambda _: self.act("simulate", self.simulate))
-            gui.add_button("Stop simulation").on_click(lambda _: self.act("simulate", self._stop_sim))
-            self._sim_link = gui.add_markdown("")
+            button("Simulate", self.simulate, hint="play, pause, push and plot the robot in this "
+                                                    "page; Back to editing returns")
         self._gizmo = self.server.scene.add_transform_controls("/gizmo", scale=0.12, visible=False)
 
     # ----- refreshing -------------------------------------------------------------------------
@@ -241,11 +241,13 @@ class EditorApp:
             self.selected_link = links[0] if links else None
         if self.selected_joint not in model.joints:
             self.selected_joint = joints[-1] if joints else None
-        self._link.options = links or [_NONE]
-        self._link.value = self.selected_link or _NONE
+        selected = self.selected_link, self.selected_joint
+        self._link.options = links or [_NONE]  # (new options may select their first: undo that)
         self._parent.options = [*model.links] or [_NONE]
         self._child.options = [n for n in model.roots if n != "world"] or [_NONE]
         self._joint.options = joints or [_NONE]
+        self.selected_link, self.selected_joint = selected
+        self._link.value = self.selected_link or _NONE
         self._joint.value = self.selected_joint or _NONE
         step = self.session.index
         self._status.content = (f"**{model.name}**: {len(links)} links, {len(joints)} joints, "
@@ -585,30 +587,40 @@ class EditorApp:
         return path
 
     def simulate(self) -> None:
-        """`mexone sim`'s page for the current model and controllers, in this process."""
+        """`mexone sim`'s page for the current model and its controllers, in this page: the
+        editor's panels and scene give way to the simulator's until Back to editing."""
         from mexone.gui.app import GuiApp
         from mexone.lab import Lab
         from mexone.physics.compile import CompileOptions
 
         self._stop_sim()
+        self.swinging.clear()
         folder = self.session.folder / "simulate"
         folder.mkdir(exist_ok=True)
         urdf = save_urdf(self.session, folder / "model.urdf", force=True)
         controllers = self.session.control_config() if self.session.extras.motors else False
-        app = GuiApp(lambda options: Lab.create(urdf, controllers, options=options), CompileOptions(),
-                     host=self.host, port=self.server.get_port() + 1)
-        self.sim_app = app
-        self.sim_thread = threading.Thread(target=app.serve_forever, daemon=True, name="editor-sim")
+        lab = Lab.create(urdf, controllers)  # before the page changes: a model sim refuses stays here
+        self.server.gui.reset()
+        self.server.scene.reset()
+        self._nodes, self._finding_buttons = {}, []
+        back = self.server.gui.add_button("Back to editing", color="green", order=-1.0)
+        back.on_click(lambda _: self.act("back", self._stop_sim))
+        self.sim_app = GuiApp(lambda _options: lab, CompileOptions(), server=self.server)
+        self.sim_thread = threading.Thread(target=self.sim_app.serve_forever, daemon=True,
+                                           name="editor-sim")
         self.sim_thread.start()
-        host = "127.0.0.1" if self.host in ("0.0.0.0", "") else self.host
-        url = f"http://{host}:{app.server.get_port()}"
-        self._sim_link.content = f"Simulating **{self.session.model.name}**: [open {url}]({url})"
-        self.say(f"simulation at {url}")
 
     def _stop_sim(self) -> None:
-        if self.sim_app is not None:
-            self.sim_app.stop()
-            if self.sim_thread is not None:
-                self.sim_thread.join(timeout=5)
-            self.sim_app = None
-            self._sim_link.content = "Simulation stopped."
+        """Back to editing: the simulator stops and the editor's page returns as it was."""
+        if self.sim_app is None:
+            return
+        self.sim_app.stop()
+        if self.sim_thread is not None:
+            self.sim_thread.join(timeout=5)
+        self.sim_app = self.sim_thread = None
+        if not self.stopping.is_set():
+            self.server.gui.reset()
+            self.server.scene.reset()
+            self._nodes, self._finding_buttons = {}, []
+            self._build_gui()
+            self.say("back to editing")

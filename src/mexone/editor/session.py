@@ -162,8 +162,8 @@ class EditSession:
             for old in self._step_paths(first):
                 old.unlink(missing_ok=True)
             first += 1
+        self._load(index)  # then the index: whoever sees the new index sees its model
         self._save_state({"index": index, "top": index, "first": first})
-        self._load(index)
 
     def _load(self, index: int) -> None:
         urdf, meta = self._step_paths(index)
@@ -190,9 +190,9 @@ class EditSession:
 
     def _move(self, index: int) -> None:
         state = self._state()
+        self._load(index)
         state["index"] = index
         self._save_state(state)
-        self._load(index)
 
     def undo(self) -> str:
         """Back one step; returns what was undone."""

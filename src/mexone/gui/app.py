@@ -63,7 +63,9 @@ class GuiApp:
     def __init__(self, make_lab: Callable[[CompileOptions], Lab], options: CompileOptions,
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
-                 record_folder: Path | None = None):
+                 record_folder: Path | None = None, server: viser.ViserServer | None = None):
+        """`server`: draw into that page (guarded by its owner, who stops it) instead of
+        serving one (the model editor's Simulate)."""
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
@@ -71,9 +73,11 @@ class GuiApp:
         self.routine_dirs = routine_dirs
         self.start_paused = paused
         self.record_folder = record_folder
-        self.server = viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
-        guard(self.server)
-        warn_if_exposed(host, self.server.get_port())
+        self.owns_server = server is None
+        self.server = server or viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
+        if self.owns_server:
+            guard(self.server)
+            warn_if_exposed(host, self.server.get_port())
         self.work = WorkQueue()
         self.stopping = threading.Event()
         self.scene = RobotScene(self.server, self.lab.sim)
@@ -157,7 +161,8 @@ class GuiApp:
             logger.removeHandler(handler)
         if self.routine:
             self.routine.stop(join=0.5)
-        self.server.stop()
+        if self.owns_server:
+            self.server.stop()
 
     def _refused(self, exc: Exception) -> None:
         if not isinstance(exc, MexoneError | ValueError):
