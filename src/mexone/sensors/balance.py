@@ -98,7 +98,8 @@ class Balance:
         self.ground_z = float(model.geom_pos[self.ground][2]) if ground else 0.0
         robot_bodies = set(sim.compiled.bodies.values())
         self.robot_geoms = {g for g in range(model.ngeom) if model.geom_bodyid[g] in robot_bodies}
-        self._robot_geom_ids = np.array(sorted(self.robot_geoms), dtype=np.int32)
+        self._robot_geom = np.zeros(model.ngeom, dtype=bool)  # geom id -> the robot's
+        self._robot_geom[sorted(self.robot_geoms)] = True
         # each foot's weight acts at its subtree's centre of mass
         self.foot_bodies = [model.site_bodyid[f.site] for f in feet]
         self.seq = 0
@@ -111,7 +112,7 @@ class Balance:
         if self.ground is not None and data.ncon:
             pairs = data.contact.geom[:data.ncon]  # robot-ground contacts, in one vector test
             on_ground = (pairs == self.ground).any(axis=1) \
-                & np.isin(pairs, self._robot_geom_ids).any(axis=1)
+                & self._robot_geom[pairs].any(axis=1)
             if on_ground.any():
                 polygon = convex_hull(data.contact.pos[:data.ncon][on_ground])
         return BalanceState(com, polygon, self.zmp())

@@ -43,43 +43,51 @@ class ContactSensor(Sensor):
             wanted = set(self.spec.collisions)
             mine = {g for g in mine if self.names[g][1].rsplit("::", 1)[1] in wanted} or mine
         self.geoms = mine
-        self._geom_ids = np.array(sorted(mine), dtype=np.int32)
+        self._mine = np.zeros(self.sim.model.ngeom, dtype=bool)  # geom id -> one of ours
+        self._mine[sorted(mine)] = True
         self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
                                ContactsState)]
 
     def contacts(self) -> list[ContactState]:
+        """Our contacts, grouped by pair of collision elements. Vectorised over MuJoCo's contact
+        arrays: at 50 Hz on two soles this ran once per message in Python per contact point."""
         model, data = self.sim.model, self.sim.data
-        states: dict[tuple[int, int], ContactState] = {}
-        force6 = np.zeros(6)
         ncon = data.ncon
         if ncon == 0:
             return []
-        pairs = data.contact.geom[:ncon]  # one vector test, then Python only for our contacts
-        for i in np.flatnonzero(np.isin(pairs, self._geom_ids).any(axis=1)).tolist():
-            contact = data.contact[i]
-            g1, g2 = int(pairs[i, 0]), int(pairs[i, 1])
-            if g1 in self.geoms:
-                own, other, sign = g1, g2, -1.0  # MuJoCo's force acts on geom2, along the normal
-            elif g2 in self.geoms:
-                own, other, sign = g2, g1, 1.0
-            else:
-                continue
-            mujoco.mj_contactForce(model, data, i, force6)
-            frame = contact.frame.reshape(3, 3)
-            force = sign * (frame.T @ force6[:3])
-            normal = sign * frame[0]
-            state = states.get((own, other))
+        pairs = data.contact.geom[:ncon]
+        ours = self._mine[pairs]  # (ncon, 2)
+        index = np.flatnonzero(ours.any(axis=1))
+        if index.size == 0:
+            return []
+        first = ours[index, 0]  # ours is geom1: MuJoCo's force acts on geom2, along the normal
+        own = np.where(first, pairs[index, 0], pairs[index, 1])
+        other = np.where(first, pairs[index, 1], pairs[index, 0])
+        sign = np.where(first, -1.0, 1.0)
+        local = np.empty((index.size, 6))
+        for row, i in enumerate(index.tolist()):
+            mujoco.mj_contactForce(model, data, i, local[row])
+        frames = data.contact.frame[index].reshape(-1, 3, 3)  # rows: normal, tangents (world)
+        forces = sign[:, None] * np.einsum("kji,kj->ki", frames, local[:, :3])
+        normals = sign[:, None] * frames[:, 0]
+        positions = data.contact.pos[index]
+        depths = np.maximum(-data.contact.dist[index], 0.0)
+        states: dict[tuple[int, int], ContactState] = {}
+        totals: dict[tuple[int, int], np.ndarray] = {}
+        for k, pair in enumerate(zip(own.tolist(), other.tolist(), strict=True)):
+            state = states.get(pair)
             if state is None:
-                state = states[(own, other)] = ContactState(
-                    info=f"Debug: i:({i}/{data.ncon})", collision1_name=self.names[own][1],
-                    collision2_name=self.names.get(other, ("", model.geom(other).name))[1])
-            point = contact.pos
-            state.wrenches.append(Wrench(Vector3(*force.tolist()), Vector3()))
-            state.contact_positions.append(Vector3(*point.tolist()))
-            state.contact_normals.append(Vector3(*normal.tolist()))
-            state.depths.append(float(max(-contact.dist, 0.0)))
-            total = state.total_wrench.force
-            total.x, total.y, total.z = total.x + force[0], total.y + force[1], total.z + force[2]
+                state = states[pair] = ContactState(
+                    info=f"Debug: i:({int(index[k])}/{ncon})", collision1_name=self.names[pair[0]][1],
+                    collision2_name=self.names.get(pair[1], ("", model.geom(pair[1]).name))[1])
+                totals[pair] = np.zeros(3)
+            totals[pair] += forces[k]
+            state.wrenches.append(Wrench(Vector3(*forces[k].tolist()), Vector3()))
+            state.contact_positions.append(Vector3(*positions[k].tolist()))
+            state.contact_normals.append(Vector3(*normals[k].tolist()))
+            state.depths.append(float(depths[k]))
+        for pair, state in states.items():
+            state.total_wrench.force = Vector3(*totals[pair].tolist())
         return list(states.values())
 
     def publish(self, sim) -> None:
