@@ -395,6 +395,9 @@ class PlotPanel:
 
     # ----- drawing (simulation thread, a few times a second) -------------------------------------
     def update(self, force: bool = False) -> None:
+        topics = tuple(sorted(self.log.lab.bus.topics))
+        if topics and tuple(self.topic.options) != topics:  # /clock, /tf appear when listened to
+            self.topic.options = topics
         if self.field_note.content:
             self._list_fields()
         if self.hold and not force:
