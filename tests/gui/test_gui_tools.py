@@ -185,11 +185,11 @@ def test_any_topic_field_is_plotted_and_its_subscribers_are_named(app):
     # who listens: the plot, and on a command topic its controller
     call(app, app.topics_panel.update)
     table = app.topics_panel.table.content
-    row = next(r for r in table.splitlines() if r.startswith(f"| `{imu_topic}`"))
-    assert "mexone GUI (plots)" in row
+    row = next(r for r in table.splitlines() if r.startswith(f"- `{imu_topic}`"))
+    assert "subscribers: mexone GUI (plots)" in row
     row = next(r for r in table.splitlines()
-               if r.startswith("| `/mex_rb/l_elbow_position_controller/command`"))
-    assert "l_elbow_position_controller" in row
+               if r.startswith("- `/mex_rb/l_elbow_position_controller/command`"))
+    assert "subscribers: l_elbow_position_controller" in row
     call(app, lambda: panel._edit("Clear pane"))
 
 

@@ -86,14 +86,14 @@ class TopicsPanel:
         bus, now = self.lab.bus, time.monotonic()
         span = max(now - self._last, 1e-3)
         self._last = now
-        rows = ["| topic | type | pub | subscribers | Hz |", "|---|---|---|---|---|"]
+        rows = []  # a list, not a table: the panel is narrow and the names are long
         for name in sorted(bus.topics):
             topic = bus.topics[name]
             rate = (topic.count - self._counts.get(name, topic.count)) / span
             self._counts[name] = topic.count
             self.rates[name] = rate
-            rows.append(f"| `{name}` | {topic.ros_type} | {topic.publishers} | "
-                        f"{subscriber_names(topic)} | {rate:.0f} |")
+            rows.append(f"- `{name}` {topic.ros_type}, {rate:.0f} Hz, {topic.publishers} pub, "
+                        f"subscribers: {subscriber_names(topic)}")
         self.table.content = "\n".join(rows)
         names = tuple(sorted(bus.topics))
         if names and tuple(self.choice.options) != names:
@@ -110,8 +110,8 @@ def subscriber_names(topic) -> str:
         node = sub.node or "(unnamed)"
         counts[node] = counts.get(node, 0) + 1
     if not counts:
-        return "0"
-    return "<br>".join(f"{node}" + (f" ×{n}" if n > 1 else "") for node, n in sorted(counts.items()))
+        return "none"
+    return ", ".join(f"{node}" + (f" ×{n}" if n > 1 else "") for node, n in sorted(counts.items()))
 
 
 def recording_path(name: str, folder: Path) -> Path:
