@@ -7,7 +7,6 @@ fields against the signal they carry, subscriber names, see-through links, and L
 from __future__ import annotations
 
 import threading
-import time
 from pathlib import Path
 
 import numpy as np

@@ -325,6 +325,9 @@ class GuiApp:
         if self.tick_hooks:
             raise MexoneError("Load: not while joined to ROS (--ros): the ROS graph knows this "
                               "robot", hint="restart mexone sim with the other robot")
+        if self.lab.bus.taps and self.record_panel.recorder is None:
+            raise MexoneError("Load: not while --record records this robot",
+                              hint="stop mexone sim (the bag closes), then open the other robot")
         lab = Lab.create(model=path, controllers=AUTO, world=self.lab.sim.compiled.world,
                          options=self.options, target_rtf=self.target_rtf or None)
         self.stop_routine()

@@ -206,7 +206,8 @@ class Inspector:
                                                (250, 150, 30), shaft_radius=0.006,
                                                head_radius=0.018, head_length=0.05, visible=False)
         self.handle = server.scene.add_transform_controls("/tools/aim_handle", scale=0.25,
-                                                          disable_rotations=True, visible=False)
+                                                          disable_rotations=True, depth_test=False,
+                                                          visible=False)
         self.handle.on_update(self._dragging)
 
     def click(self, origin, direction) -> str | None:
@@ -249,7 +250,8 @@ class Inspector:
     def _length(self) -> float:
         return max(self.impulse * ARROW_METRES_PER_NS, 0.05)
 
-    def _dragging(self, event) -> None:
+    async def _dragging(self, event) -> None:
+        """async: drag updates stay in order (see move.py); it only queues."""
         if event.client is None:
             return
         position = np.asarray(event.target.position, dtype=float)

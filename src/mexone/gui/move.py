@@ -9,6 +9,7 @@ physics takes over. Between drags the gizmo follows the robot.
 
 from __future__ import annotations
 
+import mujoco
 import numpy as np
 import viser
 
@@ -27,7 +28,8 @@ class MoveTool:
                                         hint="a gizmo on the floating base: drag to place it "
                                              "(paused or running)")
         self.enabled.on_update(lambda e: self.do(lambda: self.enable(bool(e.target.value))))
-        self.gizmo = server.scene.add_transform_controls("/tools/move", scale=0.35, visible=False)
+        self.gizmo = server.scene.add_transform_controls("/tools/move", scale=0.35, depth_test=False,
+                                                        visible=False)  # seen through links
         self.gizmo.on_update(self._dragged)
 
     @property
@@ -40,7 +42,7 @@ class MoveTool:
             sim = self.lab.sim
             body = sim.compiled.bodies.get(self.base)
             if body is None or sim.model.body_jntadr[body] < 0 or \
-                    sim.model.jnt_type[sim.model.body_jntadr[body]] != 0:  # mjJNT_FREE
+                    sim.model.jnt_type[sim.model.body_jntadr[body]] != mujoco.mjtJoint.mjJNT_FREE:
                 self.enabled.value = False
                 raise InputError(f"Move: '{self.base}' is fixed to the world, so it cannot be moved",
                                  hint="only a floating robot can be dragged")
@@ -48,7 +50,9 @@ class MoveTool:
         self.holding = None
         self.follow()
 
-    def _dragged(self, event) -> None:
+    async def _dragged(self, event) -> None:
+        """async: viser keeps a drag's start/update/end in order only for async callbacks
+        (an update handled after the end would hold the robot for ever); it only queues."""
         if event.client is None:
             return
         pose = (np.asarray(event.target.position, dtype=float),
@@ -78,6 +82,10 @@ class MoveTool:
         body = sim.compiled.bodies.get(self.base)
         if body is None:
             return
+        position, wxyz = sim.data.xpos[body], sim.data.xquat[body]
+        if np.allclose(self.gizmo.position, position, atol=1e-4) and \
+                np.allclose(self.gizmo.wxyz, wxyz, atol=1e-4):
+            return  # a resting robot sends the page nothing
         with self.server.atomic():
-            self.gizmo.position = tuple(sim.data.xpos[body])
-            self.gizmo.wxyz = tuple(sim.data.xquat[body])
+            self.gizmo.position = tuple(position)
+            self.gizmo.wxyz = tuple(wxyz)
