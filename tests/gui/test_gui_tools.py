@@ -271,6 +271,9 @@ def test_load_opens_another_robot_and_a_bad_file_changes_nothing(app):
     assert wait_until(lambda: app.step_response.result is not None, timeout=20)
     q = lab.sim.joint_positions()[lab.sim.joint_names.index("swing")]
     assert abs(q - 0.3) < 0.05
+    with pytest.raises(Exception, match="fixed to the world"):  # said, not silently ignored
+        call(app, lambda: app.move.enable(True))
+    assert not app.move.gizmo.visible
     # an upload: saved in a temporary folder, never the start folder
     path = save_upload("up.urdf", PENDULUM.replace("pendulum", "uploaded").encode())
     assert path.parent != folder and path.read_text().startswith("<?xml")
