@@ -181,6 +181,16 @@ def test_any_topic_field_is_plotted_and_its_subscribers_are_named(app):
     assert panel.plots[2].visible and len(panel.plots[2].data) == 2
     with pytest.raises(ValueError, match="not a numeric field"):
         call(app, lambda: app.log.add_topic_field(imu_topic, "no/such/field"))
+    # browsing a camera subscribes to it; browsing on lets it go (it stops rendering)
+    image = "/mex_rb/kinect/rgb/image_raw"
+    panel.topic.value = image
+    call(app, panel._browse)
+    assert wait_until(lambda: "height" in panel.field.options, timeout=10)
+    assert "data[0]" not in panel.field.options  # bytes are not numbers to plot
+    panel.topic.value = "/mex_rb/zmp"
+    call(app, panel._browse)
+    assert not app.lab.bus.topics[image].subscriptions
+    assert imu_topic in app.log.watched  # plotted: kept
     # who listens: the plot, and on a command topic its controller
     call(app, app.topics_panel.update)
     table = app.topics_panel.table.content

@@ -154,13 +154,17 @@ class SignalLog:
         self.count = 0  # samples ever taken since the last clear (the ring's write position)
         self.next_sample = 0.0
         self.watched: dict = {}  # topic -> the plots' subscription (lazy publishers start)
+        self.plotted: set[str] = set()  # topics with a field in the log: watched for good
 
     # ----- any topic's numbers (rqt_plot's /topic/field paths) -----------------------------------
     def watch(self, topic: str) -> None:
-        """Subscribe to `topic`, so it publishes and its latest message is kept (simulation thread)."""
+        """Subscribe to `topic`, so it publishes and its latest message is kept (simulation
+        thread); a topic browsed before and never plotted is let go."""
         bus = self.lab.bus
         if topic not in bus.topics:
             raise ValueError(f"Plot: '{topic}' is not a topic on the bus")
+        for other in [t for t in self.watched if t != topic and t not in self.plotted]:
+            self.watched.pop(other).unregister()  # only browsed: a camera stops rendering
         if topic not in self.watched:
             self.watched[topic] = bus.subscribe(topic, bus.topics[topic].type, lambda _m: None,
                                                 node="mexone GUI (plots)")
@@ -173,6 +177,7 @@ class SignalLog:
         if bus_topic.last is None or path not in numeric_fields(bus_topic.last):
             raise ValueError(f"Plot: '{path}' is not a numeric field of {topic}'s messages")
         name = f"{topic}/{path}"
+        self.plotted.add(topic)
         if name in self.index:
             return name
         self.signals.append(Signal(name, ""))
