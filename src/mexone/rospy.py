@@ -193,7 +193,7 @@ class Subscriber:
             if callback is not None:
                 ctx.deliver(run, msg)
 
-        self._sub = ctx.lab.bus.subscribe(self.name, data_class, deliver)
+        self._sub = ctx.lab.bus.subscribe(self.name, data_class, deliver, node=ctx.node_name)
 
     def unregister(self) -> None:
         self._sub.unregister()
@@ -203,7 +203,8 @@ def wait_for_message(topic: str, topic_type: type, timeout: float | None = None)
     """The next message on `topic` (sim time timeout, in seconds)."""
     box: list = []
     ctx = current()
-    sub = ctx.lab.bus.subscribe(_resolve(topic), topic_type, lambda msg: ctx.deliver(box.append, msg))
+    sub = ctx.lab.bus.subscribe(_resolve(topic), topic_type, lambda msg: ctx.deliver(box.append, msg),
+                                node=ctx.node_name)
     try:
         deadline = current().time + (timeout if timeout is not None else float("inf"))
         _wait(deadline, ready=lambda: bool(box))

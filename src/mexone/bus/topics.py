@@ -32,6 +32,7 @@ class Subscription:
     topic: Topic
     callback: Callable[[object], None]
     bus: Bus | None = None
+    node: str = ""  # who listens (a controller, a routine's node, the recorder), for the GUI
 
     def unregister(self) -> None:
         self.topic.remove(self)
@@ -115,9 +116,9 @@ class Bus:
         return topic
 
     def subscribe(self, name: str, msg_type: type, callback: Callable[[object], None],
-                  latched: bool = False) -> Subscription:
+                  latched: bool = False, node: str = "") -> Subscription:
         topic = self.topic(name, msg_type)
-        sub = Subscription(topic, callback, self)
+        sub = Subscription(topic, callback, self, node)
         with topic.lock:
             topic.subscriptions.append(sub)
         self._changed(topic)

@@ -251,7 +251,7 @@ class ControllerManager:
             ctrl.running = True
             if ctrl.kind != "state":
                 self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
-                                                      self._buffer(ctrl))
+                                                      self._buffer(ctrl), node=name)
             if ctrl.has_state:
                 self._watch_state(self.state_topic(name))
         self._schedule()

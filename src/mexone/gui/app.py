@@ -26,13 +26,16 @@ from mexone.errors import InputError, MexoneError
 from mexone.gui.fields import NumberFields
 from mexone.gui.health import Health
 from mexone.gui.inspector import Inspector
+from mexone.gui.load import LoadPanel
+from mexone.gui.move import MoveTool
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
+from mexone.gui.screenshot import Screenshots
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
 from mexone.gui.topics import RecordPanel, TopicsPanel
-from mexone.lab import Lab
+from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
 from mexone.physics.watchdog import DivergenceError
@@ -63,7 +66,8 @@ class GuiApp:
     def __init__(self, make_lab: Callable[[CompileOptions], Lab], options: CompileOptions,
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
-                 record_folder: Path | None = None, server: viser.ViserServer | None = None):
+                 record_folder: Path | None = None, model_folder: Path | None = None,
+                 server: viser.ViserServer | None = None):
         """`server`: draw into that page (guarded by its owner, who stops it) instead of
         serving one (the model editor's Simulate)."""
         self.options = options
@@ -73,6 +77,8 @@ class GuiApp:
         self.routine_dirs = routine_dirs
         self.start_paused = paused
         self.record_folder = record_folder
+        self.model_folder = Path.cwd() if model_folder is None else model_folder  # Load's files
+        self.model_label = self.lab.sim.robot.name
         self.owns_server = server is None
         self.server = server or viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
         if self.owns_server:
@@ -80,27 +86,36 @@ class GuiApp:
             warn_if_exposed(host, self.server.get_port())
         self.work = WorkQueue()
         self.stopping = threading.Event()
-        self.scene = RobotScene(self.server, self.lab.sim)
-        self.scene.build()
         self.sensor_panel: SensorPanel | None = None
         self.routine: RoutineRunner | None = None
         self.console: deque[str] = deque(maxlen=14)
-        self.log = SignalLog(self.lab)
-        self.health = Health(self.lab.sim, self.log)
-        self.fields = NumberFields(self.server.gui, self.refuse)
         self.follow_offset: dict[int, np.ndarray] = {}  # client -> camera position - robot
         self.error: str | None = None
         self.refusals: deque[str] = deque(maxlen=20)  # what the page asked for and was refused
         self.steps_left = 0  # Step N in progress, a budget per frame
         self._frames = 0
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
-        self._build_gui()
+        self.screenshots = Screenshots(self.record_folder or Path.cwd())
+        self.last_screenshot: Path | None = None
+        self._build_all()
+        # one click handler for the page's life: it reaches whichever robot is loaded now
+        self._on_click = self.server.scene.on_click()(lambda e: self.do(
+            lambda: self.inspector.click(e.ray_origin, e.ray_direction)))
         logging.getLogger("mexone").addHandler(_GuiLog(self))
         self.server.initial_camera.fov = math.radians(45.0)  # a 1 m robot fills half the view
         self.server.initial_camera.position = (1.6, -1.6, 1.0)
         self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
         if paused:
             self._toggle_pause()
+
+    def _build_all(self) -> None:
+        """The scene and every panel, for the robot in self.lab (at start and after Load)."""
+        self.scene = RobotScene(self.server, self.lab.sim)
+        self.scene.build()
+        self.log = SignalLog(self.lab)
+        self.health = Health(self.lab.sim, self.log)
+        self.fields = NumberFields(self.server.gui, self.refuse)
+        self._build_gui()
 
     # ----- threads ----------------------------------------------------------------------------
     def do(self, action: Callable[[], None]) -> None:
@@ -161,8 +176,11 @@ class GuiApp:
             logger.removeHandler(handler)
         if self.routine:
             self.routine.stop(join=0.5)
+        self.screenshots.close()
         if self.owns_server:
             self.server.stop()
+        else:  # the page goes back to its owner (the editor) without our click handler
+            self.server.scene.remove_click_callback(self._on_click)
 
     def _refused(self, exc: Exception) -> None:
         if not isinstance(exc, MexoneError | ValueError):
@@ -191,6 +209,7 @@ class GuiApp:
             self._follow()
         self.sensor_panel.update(time.monotonic())
         self.inspector.update()
+        self.move.update()
         if self.step_response.running:
             self.step_response.update()
         if self._frames % 5 == 0:
@@ -255,6 +274,10 @@ class GuiApp:
             self.paused_after_reset = gui.add_checkbox("Start paused", self.start_paused,
                                                        hint="after a reset, wait for Play "
                                                             "(mexone sim --paused)")
+            shot = gui.add_button("Screenshot", icon=viser.Icon.CAMERA,
+                                  hint="a PNG of this view, rendered on the server, saved as "
+                                       "mexone_screenshot_NNN.png in the folder mexone started in")
+            shot.on_click(lambda e: self._screenshot_clicked(e.client))
         with gui.add_folder("View"):
             self.overlay_boxes = {}
             for overlay in OVERLAYS:
@@ -276,13 +299,65 @@ class GuiApp:
         self._build_plots()
         self.step_response = StepResponse(self.server, self.lab, self.do, self.fields.add,
                                           on_start=self._plot_step)
-        self.inspector = Inspector(self.server, self.lab, self.do, self.fields.add)
-        self.sensor_panel = SensorPanel(self.server, self.lab)
+        self.inspector = Inspector(self.server, self.lab, self.do, self.fields,
+                                   joints_shown=lambda: bool(self.overlay_boxes["Joints"].value))
+        with self.inspector.folder:
+            self.move = MoveTool(self.server, self.lab, self.do)
+        self.sensor_panel = SensorPanel(self.server, self.lab, self.log)
         self._build_routines()
         self._build_physics()
         self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
         self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
                                         self.record_folder)
+        self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,
+                                    self.model_label)
+
+    def _screenshot_clicked(self, client) -> None:
+        if client is None:
+            return
+        camera = client.camera
+        view = (np.asarray(camera.position), np.asarray(camera.look_at), float(camera.fov))
+        self.do(lambda: self.screenshot(*view))
+
+    def screenshot(self, position, look_at, fov: float) -> Path:
+        """Simulation thread: render this view offscreen and save a new numbered PNG."""
+        path = self.screenshots.save(self.lab.sim, position, look_at, fov)
+        self.last_screenshot = path
+        self.notify("Screenshot", f"saved {path.name} in {path.parent}", color="green")
+        return path
+
+    # ----- Load: another robot, same server ----------------------------------------------------
+    def load(self, path: Path) -> None:
+        """Simulation thread: open the robot in `path` with controllers from its physics and
+        rebuild the scene and every panel. A file that fails to load changes nothing."""
+        if self.tick_hooks:
+            raise MexoneError("Load: not while joined to ROS (--ros): the ROS graph knows this "
+                              "robot", hint="restart mexone sim with the other robot")
+        if self.lab.bus.taps and self.record_panel.recorder is None:
+            raise MexoneError("Load: not while --record records this robot",
+                              hint="stop mexone sim (the bag closes), then open the other robot")
+        lab = Lab.create(model=path, controllers=AUTO, world=self.lab.sim.compiled.world,
+                         options=self.options, target_rtf=self.target_rtf or None)
+        self.stop_routine()
+        self.record_panel.stop()
+        if self.topics_panel.echo_sub is not None:
+            self.topics_panel.echo_sub.unregister()
+        self.log.close()
+        self.screenshots.close()
+        for camera in self.sensor_panel.cameras.values():
+            if camera.renderer is not None:
+                camera.renderer.close()
+                camera.renderer = None
+        self.lab, self.model_label = lab, path.name
+        self.steps_left, self.error = 0, None
+        self.follow_offset.clear()
+        self.server.scene.reset()
+        self.server.gui.reset()
+        self._build_all()
+        self.notify("Loaded", f"{lab.sim.robot.name} from {path.name} (controllers from its "
+                              "physics)", color="green")
+        if (self.start_paused or self.paused_after_reset.value) and not self.lab.sim.paused:
+            self._toggle_pause()
 
     def _show_overlay(self, name: str, on: bool) -> None:
         self.scene.show(name, on)
@@ -427,8 +502,7 @@ class GuiApp:
     def _plot_step(self, joint: str) -> None:
         """The step-response helper shows its joint in pane 1."""
         names = [n for n in (f"{joint}/command", f"{joint}/position") if n in self.log.index]
-        self.plot_panel.chosen[0] = names
-        self.plot_panel.update(force=True)
+        self.plot_panel.show(0, names)
 
     # ----- routines -----------------------------------------------------------------------------
     def _build_routines(self) -> None:

@@ -3,8 +3,15 @@
 A click on the page sends a ray; the simulation thread casts it into MuJoCo (`mj_ray`, the
 robot's geoms only), so the link and the point hit are the physics' own. Inspecting shows the
 link as its URDF declares it (mass, centre of mass, principal inertia) and as it is now (pose,
-velocity, contacts, the joint above it). Pushing applies an impulse at that point for a short
-time in sim time (`Simulation.apply_wrench`), drawn as an arrow while it acts.
+velocity, contacts, the joint above it). While View > Joints shows the axis arrows, a ray that
+passes within JOINT_PICK of an arrow inspects that joint instead (the arrows sit inside the
+links, so they win over the link around them). Pushing applies an impulse at that point for a
+short time in sim time (`Simulation.apply_wrench`), drawn as an arrow while it acts.
+
+Direction by dragging: with "drag the handle" a click only aims. A gizmo appears at the tail
+of a preview arrow whose head is the clicked point; dragging the gizmo sets the direction (tail
+to head) and, with "magnitude from length", the impulse (ARROW_METRES_PER_NS); *Push* fires it.
+viser's transform gizmo is the one drag widget a page offers that yields a 3D vector.
 """
 
 from __future__ import annotations
@@ -17,11 +24,16 @@ import viser
 
 from mexone.lab import Lab
 
-__all__ = ["Inspector", "CLICK_MODES", "PUSH_DIRECTIONS", "hit", "link_report"]
+__all__ = ["Inspector", "CLICK_MODES", "PUSH_DIRECTIONS", "DRAG", "hit", "joint_hit",
+           "link_report", "joint_report"]
 
 CLICK_MODES = ("inspect", "push")
-PUSH_DIRECTIONS = ("away from the camera", "+x", "-x", "+y", "-y", "+z", "-z")
+DRAG = "drag the handle"
+PUSH_DIRECTIONS = ("away from the camera", DRAG, "+x", "-x", "+y", "-y", "+z", "-z")
 ARROW_METRES_PER_NS = 0.02  # a 40 N s push draws 0.8 m
+MAX_IMPULSE = 1000.0  # N s
+JOINT_ARROW = 0.12  # m: the length View > Joints draws an axis (scene.py)
+JOINT_PICK = 0.02  # m: a click this close to an axis arrow picks the joint
 _AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1),
          "-z": (0, 0, -1)}
 
@@ -46,6 +58,35 @@ def hit(lab: Lab, origin, direction) -> tuple[str, np.ndarray] | None:
     if body not in names:
         return None
     return names[body], origin + distance * direction
+
+
+def joint_hit(lab: Lab, origin, direction, pick: float = JOINT_PICK) -> str | None:
+    """The moving joint whose axis arrow (as View > Joints draws it) the ray passes nearest,
+    within `pick` metres, or None (simulation thread)."""
+    sim = lab.sim
+    origin = np.asarray(origin, dtype=float)
+    d = np.asarray(direction, dtype=float)
+    d = d / np.linalg.norm(d)
+    best, best_gap = None, pick
+    for joint in sim.robot.joints.values():
+        if not joint.moving or joint.child not in sim.compiled.bodies:
+            continue
+        body = sim.compiled.bodies[joint.child]
+        axis = np.asarray(joint.axis, dtype=float)
+        start = sim.data.xpos[body]
+        end = start + sim.data.xmat[body].reshape(3, 3) @ (JOINT_ARROW * axis / np.linalg.norm(axis))
+        gap = _ray_segment_gap(origin, d, start, end)
+        if gap < best_gap:
+            best, best_gap = joint.name, gap
+    return best
+
+
+def _ray_segment_gap(o: np.ndarray, d: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    """Shortest distance between the ray o + t d (t >= 0, |d| = 1) and the segment a-b."""
+    u = b - a
+    samples = np.linspace(0.0, 1.0, 25)[:, None] * u + a  # the arrow is short: sample it
+    t = np.maximum((samples - o) @ d, 0.0)
+    return float(np.min(np.linalg.norm(o + t[:, None] * d - samples, axis=1)))
 
 
 def _fmt(v) -> str:
@@ -88,56 +129,171 @@ def link_report(lab: Lab, link: str) -> str:
     lines.append(f"contacts: {', '.join(sorted(touching)) if touching else 'none'}")
     joint = robot.parent_joint.get(link)
     if joint is not None:
-        text = f"joint above: `{joint.name}` ({joint.type}, parent `{joint.parent}`)"
-        if joint.name in sim.joint_names:
-            i = sim.joint_names.index(joint.name)
-            text += (f": position {sim.joint_positions()[i]:.4g}, velocity "
-                     f"{sim.joint_velocities()[i]:.4g}, effort {sim.joint_efforts()[i]:.4g}")
-        if joint.limit is not None:
-            text += (f"; limits [{joint.limit.lower:g}, {joint.limit.upper:g}], effort "
-                     f"{joint.limit.effort:g}, velocity {joint.limit.velocity:g}")
-        lines.append(text)
+        lines.append(f"joint above: `{joint.name}` ({joint.type}, parent `{joint.parent}`)"
+                     + _joint_state(lab, joint.name))
+    return "<br>".join(lines)
+
+
+def _joint_state(lab: Lab, name: str) -> str:
+    sim, joint = lab.sim, lab.sim.robot.joints[name]
+    text = ""
+    if name in sim.joint_names:
+        i = sim.joint_names.index(name)
+        text += (f": position {sim.joint_positions()[i]:.4g}, velocity "
+                 f"{sim.joint_velocities()[i]:.4g}, effort {sim.joint_efforts()[i]:.4g}")
+    if joint.limit is not None:
+        text += (f"; limits [{joint.limit.lower:g}, {joint.limit.upper:g}], effort "
+                 f"{joint.limit.effort:g}, velocity {joint.limit.velocity:g}")
+    return text
+
+
+def joint_report(lab: Lab, name: str) -> str:
+    """A joint as its URDF says and as it is now, in markdown (simulation thread)."""
+    sim = lab.sim
+    joint = sim.robot.joints[name]
+    body = sim.compiled.bodies[joint.child]
+    axis = np.asarray(joint.axis, dtype=float)
+    world = sim.data.xmat[body].reshape(3, 3) @ (axis / np.linalg.norm(axis))
+    unit = "m" if joint.type == "prismatic" else "rad"
+    lines = [f"**joint** `{name}` ({joint.type}, {unit})",
+             f"parent `{joint.parent}` → child `{joint.child}`",
+             f"axis {_fmt(axis)} in the child frame, {_fmt(world)} in the world, at "
+             f"{_fmt(sim.data.xpos[body])} m",
+             "now" + (_joint_state(lab, name) or ": not simulated (fixed or mimic)")]
+    if joint.limit is None:
+        lines.append("no limits (continuous)")
+    if joint.dynamics.damping or joint.dynamics.friction:
+        lines.append(f"damping {joint.dynamics.damping:g}, friction {joint.dynamics.friction:g}")
     return "<br>".join(lines)
 
 
 class Inspector:
     """The Tools panel: what a click does, the last report, the push settings."""
 
-    def __init__(self, server: viser.ViserServer, lab: Lab, do, number):
-        self.server, self.lab, self.do = server, lab, do
+    def __init__(self, server: viser.ViserServer, lab: Lab, do, fields, joints_shown=lambda: False):
+        self.server, self.lab, self.do, self.fields = server, lab, do, fields
+        self.joints_shown = joints_shown  # View > Joints: the axis arrows can be clicked
         self.impulse, self.duration = 20.0, 0.1
-        self.selected: str | None = None
+        self.selected: tuple[str, str] | None = None  # ("link" | "joint", name)
         self.arrow_until = -1.0
+        self.aim: tuple[str, np.ndarray, np.ndarray] | None = None  # link, local point, head
+        self.dragged: np.ndarray | None = None  # the gizmo's position, tail of the push
         gui = server.gui
-        with gui.add_folder("Tools"):
+        with gui.add_folder("Tools") as self.folder:
             self.mode = gui.add_dropdown("Click does", CLICK_MODES, initial_value="inspect",
-                                         hint="click a link in the 3D view")
+                                         hint="click a link (or, with View > Joints, a joint's "
+                                              "axis arrow) in the 3D view")
             self.direction = gui.add_dropdown("Push direction", PUSH_DIRECTIONS,
-                                              initial_value=PUSH_DIRECTIONS[0])
-            number("Push impulse (N s)", self.impulse, 0.0, 1000.0,
-                   lambda v: setattr(self, "impulse", v))
-            number("Push duration (s)", self.duration, 0.001, 5.0,
-                   lambda v: setattr(self, "duration", v), hint="force = impulse / duration")
+                                              initial_value=PUSH_DIRECTIONS[0],
+                                              hint=f"{DRAG}: a click aims, the gizmo sets the "
+                                                   "direction, Push fires")
+            self.impulse_field = fields.add("Push impulse (N s)", self.impulse, 0.0, MAX_IMPULSE,
+                                            lambda v: setattr(self, "impulse", v))
+            fields.add("Push duration (s)", self.duration, 0.001, 5.0,
+                       lambda v: setattr(self, "duration", v), hint="force = impulse / duration")
+            self.from_length = gui.add_checkbox("Magnitude from length", False,
+                                                hint=f"{DRAG}: the arrow's length sets the "
+                                                     f"impulse ({ARROW_METRES_PER_NS * 100:g} cm "
+                                                     "per N s)")
+            self.fire = gui.add_button("Push", icon=viser.Icon.ARROW_BIG_RIGHT, disabled=True,
+                                       hint=f"fire the aimed push ({DRAG})")
+            self.fire.on_click(lambda _: self.do(self.push_aimed))
             self.report = gui.add_markdown("*click a link to inspect it*")
         self.arrow = server.scene.add_arrows("/tools/push", np.zeros((1, 2, 3), np.float32),
                                              (230, 30, 200), shaft_radius=0.01, head_radius=0.025,
                                              head_length=0.06, visible=False)
-        server.scene.on_click()(lambda e: self.do(
-            lambda: self.click(e.ray_origin, e.ray_direction)))
+        self.preview = server.scene.add_arrows("/tools/aim", np.zeros((1, 2, 3), np.float32),
+                                               (250, 150, 30), shaft_radius=0.006,
+                                               head_radius=0.018, head_length=0.05, visible=False)
+        self.handle = server.scene.add_transform_controls("/tools/aim_handle", scale=0.25,
+                                                          disable_rotations=True, depth_test=False,
+                                                          visible=False)
+        self.handle.on_update(self._dragging)
 
     def click(self, origin, direction) -> str | None:
-        """What a click at this ray does (simulation thread); returns the link hit."""
+        """What a click at this ray does (simulation thread); returns the link (or joint) hit."""
+        if self.mode.value == "inspect" and self.joints_shown():
+            joint = joint_hit(self.lab, origin, direction)
+            if joint is not None:
+                self.selected = ("joint", joint)
+                self.report.content = joint_report(self.lab, joint)
+                return joint
         found = hit(self.lab, origin, direction)
         if found is None:
             return None
         link, point = found
-        if self.mode.value == "push":
+        if self.mode.value == "push" and self.direction.value == DRAG:
+            self.aim_at(link, point, np.asarray(direction, dtype=float))
+        elif self.mode.value == "push":
             d = np.asarray(direction, dtype=float)
             self.push(link, point, _push_direction(self.direction.value, d))
         else:
-            self.selected = link
+            self.selected = ("link", link)
             self.report.content = link_report(self.lab, link)
         return link
+
+    # ----- push by dragging ---------------------------------------------------------------------
+    def aim_at(self, link: str, point, ray) -> None:
+        """A click with "drag the handle": the gizmo at the tail of a preview arrow (simulation
+        thread); it starts away from the camera, as long as the typed impulse says."""
+        sim = self.lab.sim
+        body = sim.compiled.bodies[link]
+        point = np.asarray(point, dtype=float)
+        rot = sim.data.xmat[body].reshape(3, 3)
+        local = rot.T @ (point - sim.data.xpos[body])
+        self.aim = (link, local, point)
+        tail = point - _push_direction("away", np.asarray(ray)) * self._length()
+        self.handle.position = tuple(tail)
+        self.handle.visible = True
+        self._aimed(tail)
+
+    def _length(self) -> float:
+        return max(self.impulse * ARROW_METRES_PER_NS, 0.05)
+
+    async def _dragging(self, event) -> None:
+        """async: drag updates stay in order (see move.py); it only queues."""
+        if event.client is None:
+            return
+        position = np.asarray(event.target.position, dtype=float)
+        self.do(lambda: self._aimed(position))
+
+    def _aimed(self, tail) -> None:
+        """The gizmo moved (simulation thread): redraw the preview, maybe take its length."""
+        if self.aim is None:
+            return
+        tail = np.asarray(tail, dtype=float)
+        if tail.shape != (3,) or not np.isfinite(tail).all():
+            raise ValueError("Push: the handle's position must be three finite numbers")
+        head = self.aim[2]
+        length = float(np.linalg.norm(head - tail))
+        if length < 1e-3:
+            raise ValueError("Push: drag the handle away from the point to give a direction")
+        self.dragged = tail
+        if self.from_length.value:
+            impulse = min(length / ARROW_METRES_PER_NS, MAX_IMPULSE)
+            self.impulse = round(impulse, 2)
+            self.fields.set_held(self.impulse_field, [self.impulse])
+        self.preview.points = np.array([[tail, head]], dtype=np.float32)
+        self.preview.visible = True
+        self.fire.disabled = False
+        self.report.content = (f"aiming at `{self.aim[0]}`: {self.impulse:g} N s along "
+                               f"{_fmt((head - tail) / length)}; press *Push*")
+
+    def push_aimed(self) -> None:
+        """Fire the aimed push at the aimed point where the link is now (simulation thread)."""
+        if self.aim is None or self.dragged is None:
+            raise ValueError(f"Push: nothing aimed (Push direction '{DRAG}', then click a link)")
+        link, local, head = self.aim
+        sim = self.lab.sim
+        body = sim.compiled.bodies[link]
+        point = sim.data.xpos[body] + sim.data.xmat[body].reshape(3, 3) @ local
+        self.push(link, point, head - self.dragged)
+        self.clear_aim()
+
+    def clear_aim(self) -> None:
+        self.aim, self.dragged = None, None
+        self.preview.visible = self.handle.visible = False
+        self.fire.disabled = True
 
     def push(self, link: str, point, direction) -> None:
         """An impulse of `self.impulse` N s along `direction` at `point`, over self.duration."""
@@ -146,7 +302,7 @@ class Inspector:
         sim = self.lab.sim
         sim.apply_wrench(link, direction * self.impulse / self.duration, point=point,
                          duration=self.duration)
-        tail = np.asarray(point) - direction * max(self.impulse * ARROW_METRES_PER_NS, 0.05)
+        tail = np.asarray(point) - direction * self._length()
         self.arrow.points = np.array([[tail, point]], dtype=np.float32)
         self.arrow.visible = True
         self.arrow_until = sim.time + self.duration
@@ -159,7 +315,8 @@ class Inspector:
         if self.arrow.visible and not (0 <= self.lab.sim.time < self.arrow_until):
             self.arrow.visible = False
         if self.selected and self.mode.value == "inspect":
-            self.report.content = link_report(self.lab, self.selected)
+            kind, name = self.selected
+            self.report.content = (link_report if kind == "link" else joint_report)(self.lab, name)
 
 
 def _push_direction(choice: str, ray: np.ndarray) -> np.ndarray:

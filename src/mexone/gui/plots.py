@@ -14,8 +14,10 @@ micro-) units and says so in its axis label: 0.0041 and 0.0042 never both read "
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -26,7 +28,8 @@ import viser.uplot as uplot
 from mexone.lab import Lab
 from mexone.sensors import ForceTorqueSensor, ImuSensor
 
-__all__ = ["SignalLog", "PlotPanel", "PLOT_PERIOD", "MAX_WINDOW", "axis_scale", "PANES"]
+__all__ = ["SignalLog", "PlotPanel", "Pane", "PLOT_PERIOD", "MAX_WINDOW", "axis_scale", "PANES",
+           "numeric_fields", "field_value"]
 
 PLOT_PERIOD = 0.01  # s of sim time between samples while running (100 Hz)
 MAX_WINDOW = 60.0  # s of sim time a pane may show
@@ -48,6 +51,50 @@ def axis_scale(values: np.ndarray) -> float:
     while 0 < span * factor < 0.05 and factor < 1e9:
         factor *= 1e3
     return factor
+
+
+MAX_ITEMS = 32  # array elements offered per field (a Float64MultiArray, joint_states' position)
+_INDEX = re.compile(r"^(\w+)\[(\d+)\]$")
+
+
+def numeric_fields(msg, prefix: str = "") -> list[str]:
+    """rqt_plot's field paths of a message's numbers: "linear_acceleration/z", "position[3]"."""
+    out: list[str] = []
+    if not dataclasses.is_dataclass(msg):
+        return out
+    for f in dataclasses.fields(msg):
+        value, path = getattr(msg, f.name), prefix + f.name
+        if isinstance(value, bool | str | bytes | bytearray | memoryview):
+            continue
+        if isinstance(value, int | float | np.number):
+            out.append(path)
+        elif dataclasses.is_dataclass(value):
+            out += numeric_fields(value, path + "/")
+        elif isinstance(value, list | tuple | np.ndarray):
+            for i, item in enumerate(list(value)[:MAX_ITEMS]):
+                if isinstance(item, bool | str | bytes):
+                    break
+                if isinstance(item, int | float | np.number):
+                    out.append(f"{path}[{i}]")
+                elif dataclasses.is_dataclass(item):
+                    out += numeric_fields(item, f"{path}[{i}]/")
+    return out
+
+
+def field_value(msg, path: str) -> float:
+    """The number at `path` in `msg` (NaN where the message has none: a shorter array)."""
+    value = msg
+    for part in path.split("/"):
+        match = _INDEX.match(part)
+        try:
+            value = getattr(value, match.group(1))[int(match.group(2))] if match \
+                else getattr(value, part)
+        except (AttributeError, IndexError, TypeError):
+            return math.nan
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
 
 
 @dataclass(frozen=True)
@@ -106,6 +153,44 @@ class SignalLog:
         self.values = np.zeros((CAPACITY, len(signals)), dtype=np.float32)
         self.count = 0  # samples ever taken since the last clear (the ring's write position)
         self.next_sample = 0.0
+        self.watched: dict = {}  # topic -> the plots' subscription (lazy publishers start)
+        self.plotted: set[str] = set()  # topics with a field in the log: watched for good
+
+    # ----- any topic's numbers (rqt_plot's /topic/field paths) -----------------------------------
+    def watch(self, topic: str) -> None:
+        """Subscribe to `topic`, so it publishes and its latest message is kept (simulation
+        thread); a topic browsed before and never plotted is let go."""
+        bus = self.lab.bus
+        if topic not in bus.topics:
+            raise ValueError(f"Plot: '{topic}' is not a topic on the bus")
+        for other in [t for t in self.watched if t != topic and t not in self.plotted]:
+            self.watched.pop(other).unregister()  # only browsed: a camera stops rendering
+        if topic not in self.watched:
+            self.watched[topic] = bus.subscribe(topic, bus.topics[topic].type, lambda _m: None,
+                                                node="mexone GUI (plots)")
+
+    def add_topic_field(self, topic: str, path: str) -> str:
+        """A new signal "<topic>/<path>": the field of the topic's latest message, sampled with
+        the rest (held between messages); earlier rows read NaN. Returns its name."""
+        self.watch(topic)
+        bus_topic = self.lab.bus.topics[topic]
+        if bus_topic.last is None or path not in numeric_fields(bus_topic.last):
+            raise ValueError(f"Plot: '{path}' is not a numeric field of {topic}'s messages")
+        name = f"{topic}/{path}"
+        self.plotted.add(topic)
+        if name in self.index:
+            return name
+        self.signals.append(Signal(name, ""))
+        self.index[name] = len(self.signals) - 1
+        self._readers.append(lambda: np.array([field_value(bus_topic.last, path)]))
+        self.values = np.concatenate((self.values, np.full((CAPACITY, 1), np.nan, np.float32)),
+                                     axis=1)
+        return name
+
+    def close(self) -> None:
+        for sub in self.watched.values():
+            sub.unregister()
+        self.watched.clear()
 
     def clear(self) -> None:
         self.count, self.next_sample = 0, 0.0
@@ -140,17 +225,81 @@ class SignalLog:
         return t[keep], self.values[order[keep]][:, cols].T.astype(float)
 
 
+class Pane:
+    """One uPlot chart of some of the log's signals over the last `seconds` of sim time (the
+    one plot implementation: the Plots panel's panes and the Sensors panel's charts)."""
+
+    def __init__(self, server: viser.ViserServer, log: SignalLog, folder, title: str,
+                 names: list[str], aspect: float = 1.6):
+        self.server, self.log, self.folder, self.title, self.aspect = server, log, folder, title, aspect
+        self.names = list(names)
+        self._shown: tuple = ()  # what the pane last drew (skip idle pushes)
+        shown = self.names or ["(nothing)"]
+        self.plot = server.gui.add_uplot((np.zeros(1),) * (1 + len(shown)), self._series(1.0),
+                                         title=title, aspect=aspect,
+                                         scales={"x": uplot.Scale(time=False), "y": uplot.Scale()},
+                                         visible=bool(self.names))
+
+    def _series(self, factor: float) -> tuple:
+        names = self.names or ["(nothing)"]
+        return (uplot.Series(label="sim time (s)"),
+                *(uplot.Series(label=self.label(n, factor), stroke=_COLOURS[k % len(_COLOURS)],
+                               width=2, scale="y") for k, n in enumerate(names)))
+
+    def label(self, name: str, factor: float) -> str:
+        sig = self.log.signals[self.log.index[name]] if name in self.log.index else None
+        unit = f" ({_PREFIX[factor]}{sig.unit})" if sig and sig.unit else \
+            (f" ({_PREFIX[factor].strip()})" if factor != 1.0 else "")
+        return name + unit
+
+    def _axes(self, factor: float) -> tuple:
+        units = sorted({self.log.signals[self.log.index[n]].unit for n in self.names} - {""})
+        label = _PREFIX[factor] + (", ".join(units) or "value")
+        return (uplot.Axis(label="sim time (s)", size=40),
+                uplot.Axis(label=label, size=70, scale="y"))
+
+    def changed(self) -> None:
+        self._shown = ()
+
+    def update(self, seconds: float) -> None:
+        """Draw the last `seconds` if anything new arrived (simulation thread)."""
+        plot = self.plot
+        plot.visible = bool(self.names)
+        if not self.names:
+            return
+        key = (self.log.count, seconds, tuple(self.names), len(self.log.signals))
+        if key == self._shown:
+            return  # nothing new (paused): leave the page's zoom alone
+        t, values = self.log.window(seconds, self.names)
+        if t.size < 2:
+            return
+        factor = axis_scale(values)
+        self._shown = key
+        series, axes = self._series(factor), self._axes(factor)
+        data = (t, *(v * factor for v in values))
+        if plot.series != series or plot.axes != axes:
+            # a new chart, not new options on the old one: the page's uPlot kept its old
+            # y range (and stopped following the data) when series or axes changed under it
+            order = plot.order
+            plot.remove()
+            with self.folder:
+                self.plot = self.server.gui.add_uplot(
+                    data, series, axes=axes, title=self.title, aspect=self.aspect, order=order,
+                    scales={"x": uplot.Scale(time=False), "y": uplot.Scale()})
+        else:
+            plot.data = data
+
+
 class PlotPanel:
-    """Panes of chosen signals over a window of sim time (uPlot, zoomable; double-click resets)."""
+    """Panes of chosen signals over a window of sim time (uPlot, zoomable; double-click resets):
+    the robot's own signals, and any numeric field of any topic on the bus."""
 
     def __init__(self, server: viser.ViserServer, log: SignalLog, do: Callable, refuse: Callable,
                  number: Callable, defaults: list[list[str]]):
         self.server, self.log, self.do, self.refuse = server, log, do, refuse
         self.seconds = 10.0
-        self.chosen: list[list[str]] = [list(d) for d in defaults] + [[] for _ in range(PANES)]
-        self.chosen = self.chosen[:PANES]
+        chosen = ([list(d) for d in defaults] + [[] for _ in range(PANES)])[:PANES]
         self.hold = False
-        self._shown: list[tuple] = [()] * PANES  # what each pane last drew (skip idle pushes)
         gui = server.gui
         names = tuple(s.name for s in log.signals)
         with gui.add_folder("Plots") as self.folder:
@@ -161,6 +310,15 @@ class PlotPanel:
                                          initial_value="pane 1")
             add = gui.add_button_group("", ("Add", "Remove", "Clear pane"))
             add.on_click(lambda e: self.do(lambda v=e.target.value: self._edit(v)))
+            with gui.add_folder("Any topic", expand_by_default=False):
+                topics = tuple(sorted(log.lab.bus.topics)) or ("(none)",)
+                self.topic = gui.add_dropdown("Topic", topics, initial_value=topics[0],
+                                              hint="picking one subscribes to it")
+                self.topic.on_update(lambda _: self.do(self._browse))
+                self.field = gui.add_dropdown("Field", ("(pick a topic)",),
+                                              hint="numeric fields of its latest message")
+                gui.add_button("Add field to pane").on_click(lambda _: self.do(self._add_field))
+                self.field_note = gui.add_markdown("")
             self.window_field = number("Window (s)", self.seconds, 0.1, MAX_WINDOW,
                                        self._set_window, hint="sim seconds shown")
             self.hold_box = gui.add_checkbox("Hold", False, hint="freeze the panes while the "
@@ -168,84 +326,89 @@ class PlotPanel:
             self.hold_box.on_update(lambda e: setattr(self, "hold", bool(e.target.value)))
             exports = gui.add_button_group("Export", ("CSV", "PNG"))
             exports.on_click(lambda e: self.export(e.client, e.target.value))
-            self.plots = [self._add_pane(i) for i in range(PANES)]
+            self.panes = [Pane(server, log, self.folder, f"pane {i + 1}", chosen[i])
+                          for i in range(PANES)]
 
-    def _add_pane(self, i: int) -> viser.GuiUplotHandle:
-        names = self.chosen[i] or ["(nothing)"]
-        return self.server.gui.add_uplot((np.zeros(1),) * (1 + len(names)), self._series(i, 1.0),
-                                         title=f"pane {i + 1}", aspect=1.6,
-                                         scales={"x": uplot.Scale(time=False), "y": uplot.Scale()},
-                                         visible=bool(self.chosen[i]))
+    @property
+    def chosen(self) -> list[list[str]]:
+        return [pane.names for pane in self.panes]
 
-    def _series(self, i: int, factor: float) -> tuple:
-        names = self.chosen[i] or ["(nothing)"]
-        return (uplot.Series(label="sim time (s)"),
-                *(uplot.Series(label=self._label(n, factor), stroke=_COLOURS[k % len(_COLOURS)],
-                               width=2, scale="y") for k, n in enumerate(names)))
+    @property
+    def plots(self) -> list[viser.GuiUplotHandle]:
+        return [pane.plot for pane in self.panes]
 
-    def _label(self, name: str, factor: float) -> str:
-        sig = self.log.signals[self.log.index[name]] if name in self.log.index else None
-        unit = f" ({_PREFIX[factor]}{sig.unit})" if sig and sig.unit else \
-            (f" ({_PREFIX[factor].strip()})" if factor != 1.0 else "")
-        return name + unit
-
-    def _axes(self, i: int, factor: float) -> tuple:
-        units = sorted({self.log.signals[self.log.index[n]].unit for n in self.chosen[i]} - {""})
-        label = _PREFIX[factor] + (", ".join(units) or "value")
-        return (uplot.Axis(label="sim time (s)", size=40),
-                uplot.Axis(label=label, size=70, scale="y"))
+    def show(self, i: int, names: list[str]) -> None:
+        self.panes[i].names = list(names)
+        self.panes[i].changed()
+        self.update(force=True)
 
     # ----- edits (simulation thread) ----------------------------------------------------------
+    def _pane_index(self) -> int:
+        return int(self.pane.value.split()[-1]) - 1
+
     def _edit(self, action: str) -> None:
-        i = int(self.pane.value.split()[-1]) - 1
+        pane = self.panes[self._pane_index()]
         name = self.signal.value
         if name not in self.log.index:  # a page may send anything
             raise ValueError(f"'{name}' is not a signal this robot has")
-        if action == "Add" and name not in self.chosen[i]:
-            self.chosen[i].append(name)
-        elif action == "Remove" and name in self.chosen[i]:
-            self.chosen[i].remove(name)
+        if action == "Add" and name not in pane.names:
+            pane.names.append(name)
+        elif action == "Remove" and name in pane.names:
+            pane.names.remove(name)
         elif action == "Clear pane":
-            self.chosen[i].clear()
-        self._shown[i] = ()
+            pane.names.clear()
+        pane.changed()
+        self.update(force=True)
+
+    def _browse(self) -> None:
+        """The Topic dropdown moved: subscribe, list the fields once a message is there."""
+        name = self.topic.value
+        if name not in self.log.lab.bus.topics:
+            raise ValueError(f"Plot: '{name}' is not a topic on the bus")
+        self.log.watch(name)
+        self._list_fields()
+
+    def _list_fields(self) -> None:
+        topic = self.log.lab.bus.topics.get(self.topic.value)
+        if topic is None:
+            return
+        paths = numeric_fields(topic.last) if topic.last is not None else []
+        if paths:
+            if tuple(self.field.options) != tuple(paths):
+                self.field.options = tuple(paths)
+            self.field_note.content = ""
+        else:
+            self.field_note.content = f"*waiting for a message on `{topic.name}`…*"
+
+    def _add_field(self) -> None:
+        topic, path = self.topic.value, self.field.value
+        name = self.log.add_topic_field(topic, path)  # checks both against the bus
+        pane = self.panes[self._pane_index()]
+        if name not in pane.names:
+            pane.names.append(name)
+        names = tuple(s.name for s in self.log.signals)
+        if tuple(self.signal.options) != names:
+            self.signal.options = names
+        pane.changed()
         self.update(force=True)
 
     def _set_window(self, seconds: float) -> None:
         self.seconds = seconds
-        self._shown = [()] * PANES
+        for pane in self.panes:
+            pane.changed()
         self.update(force=True)
 
     # ----- drawing (simulation thread, a few times a second) -------------------------------------
     def update(self, force: bool = False) -> None:
+        topics = tuple(sorted(self.log.lab.bus.topics))
+        if topics and tuple(self.topic.options) != topics:  # /clock, /tf appear when listened to
+            self.topic.options = topics
+        if self.field_note.content:
+            self._list_fields()
         if self.hold and not force:
             return
-        for i, plot in enumerate(self.plots):
-            names = self.chosen[i]
-            plot.visible = bool(names)
-            if not names:
-                continue
-            key = (self.log.count, self.seconds, tuple(names))
-            if key == self._shown[i]:
-                continue  # nothing new (paused): leave the page's zoom alone
-            t, values = self.log.window(self.seconds, names)
-            if t.size < 2:
-                continue
-            factor = axis_scale(values)
-            self._shown[i] = key
-            series = self._series(i, factor)
-            axes = self._axes(i, factor)
-            data = (t, *(v * factor for v in values))
-            if plot.series != series or plot.axes != axes:
-                # a new chart, not new options on the old one: the page's uPlot kept its old
-                # y range (and stopped following the data) when series or axes changed under it
-                order = plot.order
-                plot.remove()
-                with self.folder:
-                    plot = self.plots[i] = self.server.gui.add_uplot(
-                        data, series, axes=axes, title=f"pane {i + 1}", aspect=1.6, order=order,
-                        scales={"x": uplot.Scale(time=False), "y": uplot.Scale()})
-            else:
-                plot.data = data
+        for pane in self.panes:
+            pane.update(self.seconds)
 
     # ----- export (any thread: reads a snapshot) ------------------------------------------------------
     def export(self, client, kind: str) -> None:
@@ -274,7 +437,7 @@ class PlotPanel:
         for ax, names in zip(axes[:, 0], panes, strict=True):
             t, values = self.log.window(self.seconds, names)
             for name, v in zip(names, values, strict=True):
-                ax.plot(t, v, label=self._label(name, 1.0))
+                ax.plot(t, v, label=self.panes[0].label(name, 1.0))
             ax.set_xlabel("sim time (s)")
             ax.legend(fontsize=7)
             ax.grid(alpha=0.3)

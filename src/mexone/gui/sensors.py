@@ -1,20 +1,19 @@
 """The page's Sensors panel and the View menu's Balance overlay.
 
 Sensors: each camera live (downscaled for the page, rendered a few times a second and only
-while its box is ticked), IMU and foot-force plots, a contact light per sole, force arrows at
-the feet. Balance: the COM's ground projection, the measured ZMP and the support polygon, with
-whether the robot is statically stable. Everything is read in the simulation thread, between
+while its box is ticked), IMU and foot-force plots (panes of the Plots panel's kind, over the
+same SignalLog), a contact light per sole, force arrows at the feet. Balance: the COM's
+ground projection, the measured ZMP and the support polygon, with whether the robot is
+statically stable. Everything is read in the simulation thread, between
 frames; nothing here writes the simulation.
 """
 
 from __future__ import annotations
 
-from collections import deque
-
 import numpy as np
 import viser
-import viser.uplot as uplot
 
+from mexone.gui.plots import Pane, SignalLog
 from mexone.lab import Lab
 from mexone.sensors import CameraSensor, ContactSensor, ForceTorqueSensor, ImuSensor
 
@@ -24,7 +23,7 @@ BALANCE = "Balance"  # the View menu's entry
 CAMERA_FPS = 5.0  # images sent to the page per second of wall time
 PAGE_WIDTH = 320  # pixels of a camera image on the page
 NEWTONS_PER_METRE = 500.0  # force arrows: 500 N draws 1 m
-_HISTORY = 300  # plot samples (10 s at 30 frames per second)
+WINDOW = 10.0  # s of sim time the sensor plots show
 
 
 def _depth_colours(depth: np.ndarray) -> np.ndarray:
@@ -39,14 +38,13 @@ def _depth_colours(depth: np.ndarray) -> np.ndarray:
 
 
 class SensorPanel:
-    def __init__(self, server: viser.ViserServer, lab: Lab):
-        self.server, self.lab = server, lab
+    def __init__(self, server: viser.ViserServer, lab: Lab, log: SignalLog):
+        self.server, self.lab, self.log = server, lab, log
         suite = lab.sensors
         self.cameras = {n: s for n, s in suite.sensors.items() if isinstance(s, CameraSensor)}
         self.imus = {n: s for n, s in suite.sensors.items() if isinstance(s, ImuSensor)}
         self.fts = {n: s for n, s in suite.sensors.items() if isinstance(s, ForceTorqueSensor)}
         self.contacts = {n: s for n, s in suite.sensors.items() if isinstance(s, ContactSensor)}
-        self.history: deque[tuple] = deque(maxlen=_HISTORY)
         self.images: dict[str, viser.GuiImageHandle] = {}
         self.show_camera: dict[str, viser.GuiCheckboxHandle] = {}
         self._last_image = -1.0
@@ -56,7 +54,7 @@ class SensorPanel:
     # ----- panel ---------------------------------------------------------------------------
     def _build_panel(self) -> None:
         gui = self.server.gui
-        with gui.add_folder("Sensors", expand_by_default=False):
+        with gui.add_folder("Sensors", expand_by_default=False) as folder:
             if not self.lab.sensors.sensors:
                 gui.add_markdown("This robot declares no sensors (`<gazebo><sensor>` in its URDF).")
             for name, camera in self.cameras.items():
@@ -70,21 +68,14 @@ class SensorPanel:
                     self.images[name + "/depth"] = gui.add_image(blank, label=f"{name} (depth)",
                                                                  format="jpeg", jpeg_quality=70)
             self.contact_view = gui.add_markdown("")
-            empty = (np.zeros(1),) * 4
-            self.imu_plot = gui.add_uplot(
-                empty, (uplot.Series(label="t (s)"),
-                        *(uplot.Series(label=f"acc {a} (m/s²)", stroke=c, width=2)
-                          for a, c in zip("xyz", ("#d62728", "#2ca02c", "#1f77b4"), strict=True))),
-                title="IMU linear acceleration", aspect=1.8,
-                scales={"x": uplot.Scale(time=False)}) if self.imus else None
-            self.force_plot = gui.add_uplot(
-                (np.zeros(1),) * (1 + len(self.fts)),
-                (uplot.Series(label="t (s)"),
-                 *(uplot.Series(label=f"{n} Fz (N)", stroke=c, width=2)
-                   for n, c in zip(self.fts, ("#9467bd", "#ff7f0e", "#8c564b", "#17becf"),
-                                   strict=False))),
-                title="force-torque sensors, Fz", aspect=1.8,
-                scales={"x": uplot.Scale(time=False)}) if self.fts else None
+            imu = next(iter(self.imus), None)
+            self.panes = []
+            if imu is not None:
+                self.panes.append(Pane(self.server, self.log, folder, f"{imu}: linear acceleration",
+                                       [f"{imu}/linear_acceleration/{a}" for a in "xyz"], 1.8))
+            if self.fts:
+                self.panes.append(Pane(self.server, self.log, folder, "force-torque sensors, Fz",
+                                       [f"{n}/force/z" for n in self.fts], 1.8))
 
     def _build_overlay(self) -> None:
         scene = self.server.scene
@@ -104,11 +95,6 @@ class SensorPanel:
 
     # ----- per frame (simulation thread) --------------------------------------------------------
     def update(self, now_wall: float) -> None:
-        sim = self.lab.sim
-        imu = next(iter(self.imus.values()), None)
-        acc = imu.read()[2] if imu else np.zeros(3)
-        forces = [ft.read()[0][2] for ft in self.fts.values()]
-        self.history.append((sim.time, *acc, *forces))
         if self.com_marker.visible:
             self._update_balance()
         if self.contacts:
@@ -123,14 +109,8 @@ class SensorPanel:
             self._update_images()
 
     def update_plots(self) -> None:
-        if len(self.history) < 2:
-            return
-        data = np.array(self.history).T
-        t = data[0]
-        if self.imu_plot is not None:
-            self.imu_plot.data = (t, data[1], data[2], data[3])
-        if self.force_plot is not None:
-            self.force_plot.data = (t, *data[4:4 + len(self.fts)])
+        for pane in self.panes:
+            pane.update(WINDOW)
 
     def _update_balance(self) -> None:
         state = self.lab.sensors.balance.state()

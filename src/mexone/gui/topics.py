@@ -20,7 +20,7 @@ from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.record.bag import BAG_SUFFIXES, BagRecorder
 
-__all__ = ["TopicsPanel", "RecordPanel", "echo_text", "recording_path"]
+__all__ = ["TopicsPanel", "RecordPanel", "echo_text", "recording_path", "subscriber_names"]
 
 _ECHO_CHARS = 1500
 
@@ -77,7 +77,8 @@ class TopicsPanel:
             self.echo_sub = None
         topic = self.lab.bus.topics.get(self.choice.value)  # never a name the page made up
         if self.echoing.value and topic is not None:
-            self.echo_sub = self.lab.bus.subscribe(topic.name, topic.type, lambda _msg: None)
+            self.echo_sub = self.lab.bus.subscribe(topic.name, topic.type, lambda _msg: None,
+                                                   node="mexone GUI (echo)")
         self.echo_view.content = ""
 
     def update(self) -> None:
@@ -85,14 +86,14 @@ class TopicsPanel:
         bus, now = self.lab.bus, time.monotonic()
         span = max(now - self._last, 1e-3)
         self._last = now
-        rows = ["| topic | type | pub | sub | Hz |", "|---|---|---|---|---|"]
+        rows = []  # a list, not a table: the panel is narrow and the names are long
         for name in sorted(bus.topics):
             topic = bus.topics[name]
             rate = (topic.count - self._counts.get(name, topic.count)) / span
             self._counts[name] = topic.count
             self.rates[name] = rate
-            rows.append(f"| `{name}` | {topic.ros_type} | {topic.publishers} | "
-                        f"{len(topic.subscriptions)} | {rate:.0f} |")
+            rows.append(f"- `{name}` {topic.ros_type}, {rate:.0f} Hz, {topic.publishers} pub, "
+                        f"subscribers: {subscriber_names(topic)}")
         self.table.content = "\n".join(rows)
         names = tuple(sorted(bus.topics))
         if names and tuple(self.choice.options) != names:
@@ -100,6 +101,17 @@ class TopicsPanel:
         topic = bus.topics.get(self.choice.value)
         if self.echoing.value and topic is not None and topic.last is not None:
             self.echo_view.content = f"```\n{echo_text(topic.last)}\n```"
+
+
+def subscriber_names(topic) -> str:
+    """Who listens, as `rostopic info` lists them: each node once, with a count if several."""
+    counts: dict[str, int] = {}
+    for sub in list(topic.subscriptions):
+        node = sub.node or "(unnamed)"
+        counts[node] = counts.get(node, 0) + 1
+    if not counts:
+        return "none"
+    return ", ".join(f"{node}" + (f" ×{n}" if n > 1 else "") for node, n in sorted(counts.items()))
 
 
 def recording_path(name: str, folder: Path) -> Path:

@@ -236,10 +236,11 @@ class BagRecorder:
             raise
         lab.bus.add_tap(self._write)
         # make the periodic publishers run while we record
-        self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None),
-                      lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None)]
+        node = f"recorder ({self.path.name})"
+        self._subs = [lab.bus.subscribe("/clock", msgs.Clock, lambda _m: None, node=node),
+                      lab.bus.subscribe("/tf", msgs.TFMessage, lambda _m: None, node=node)]
         sensors = lab.sensors.topics  # every sensor but the cameras' images and clouds
-        self._subs += [lab.bus.subscribe(t, sensors[t], lambda _m: None)
+        self._subs += [lab.bus.subscribe(t, sensors[t], lambda _m: None, node=node)
                        for t in lab.sensors.light_topics]
 
     def _open(self) -> None:

@@ -129,7 +129,8 @@ class _Mirror:
     def start(self) -> None:  # simulation thread
         if self.sub is None:
             bus_type = self.bridge.lab.bus.topics[self.topic].type
-            self.sub = self.bridge.lab.bus.subscribe(self.topic, bus_type, self.forward)
+            self.sub = self.bridge.lab.bus.subscribe(self.topic, bus_type, self.forward,
+                                                     node="ROS 1 bridge")
 
     def stop(self) -> None:  # simulation thread
         if self.sub is not None and self.publisher.get_num_connections() == 0:
