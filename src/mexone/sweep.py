@@ -31,13 +31,14 @@ __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "r
 
 GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
+DEFAULT_STEP = 0.5  # rad
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
 
 
 @dataclass(frozen=True)
 class SweepSpec:
     joints: tuple[str, ...]  # whose gains are swept; the first one takes the step
-    step: float = 0.5  # rad, step-response mode
+    step: float = 0.5  # rad, step-response mode (the CLI's default: DEFAULT_STEP toward room)
     routine: str | None = None  # routine mode instead of a step
     duration: float = 2.0  # s of sim time per trial
     model: str | None = None  # None: built-in Mex-One
@@ -130,13 +131,24 @@ def run_trial(spec: SweepSpec, trial: Trial) -> dict:
     return {"index": trial.index, **trial.gains, **metrics}
 
 
+def _home_and_limits(lab: Lab, joint: str) -> tuple[float, float, float]:
+    hw = lab.controllers.hw
+    row = int(hw.rows((joint,))[0])
+    return float(hw.position(np.array([row]))[0]), float(hw.lower[row]), float(hw.upper[row])
+
+
+def toward_room(lab: Lab, spec: SweepSpec) -> float:
+    """The step's size, signed toward the first joint's farther limit from home (l_elbow's
+    home sits 0.1 rad below its upper limit: its default step goes down)."""
+    start, lower, upper = _home_and_limits(lab, spec.joints[0])
+    return abs(spec.step) if upper - start >= start - lower else -abs(spec.step)
+
+
 def step_target(lab: Lab, spec: SweepSpec) -> float:
     """Where the step sends the first joint from its home; a step the joint's limits would
     clip to (nearly) nothing is refused: its metrics would measure nothing."""
-    hw, joint = lab.controllers.hw, spec.joints[0]
-    row = int(hw.rows((joint,))[0])
-    start = float(hw.position(np.array([row]))[0])
-    lower, upper = float(hw.lower[row]), float(hw.upper[row])
+    joint = spec.joints[0]
+    start, lower, upper = _home_and_limits(lab, joint)
     target = float(np.clip(start + spec.step, lower, upper))
     if abs(target - start) < 0.5 * abs(spec.step):
         room = upper - start if spec.step > 0 else lower - start

@@ -123,3 +123,16 @@ def test_a_step_beyond_the_joint_limits_is_refused_before_any_run(tmp_path):
     assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
     assert "leaves its limits" in refused.stderr and "at most +0.100 rad" in refused.stderr
     assert not out.exists()
+
+
+def test_the_default_step_goes_toward_the_joints_room(tmp_path):
+    """Without --step, l_elbow (home 0.1 rad under its upper limit) steps 0.5 rad down."""
+    out = tmp_path / "sweep"
+    done = subprocess.run([sys.executable, "-m", "mexone", "sweep", "--joint", "l_elbow",
+                           "--p", "50", "--duration", "0.5", "--workers", "1", "-o", str(out)],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads((out / "sweep.json").read_text())["spec"]["step"] == -0.5
+    row = next(csv.DictReader((out / "sweep.csv").open()))
+    # a 0.5 rad response was measured (the step clipped to 0.1 rad scored 0.0033 here)
+    assert float(row["iae"]) > 0.008 and float(row["rise_time"]) > 0

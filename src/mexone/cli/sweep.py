@@ -8,6 +8,7 @@ import math
 import os
 import socket
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from tqdm import tqdm
@@ -17,6 +18,7 @@ from mexone.cli.common import Number
 from mexone.errors import InputError, OutputExistsError
 from mexone.files import check_output, replacing, usable, write_text
 from mexone.sweep import (
+    DEFAULT_STEP,
     GAIN_KEYS,
     METRICS,
     SweepSpec,
@@ -28,6 +30,7 @@ from mexone.sweep import (
     random_trials,
     run_sweep,
     step_target,
+    toward_room,
 )
 
 OUTPUTS = ("sweep.csv", "sweep.json", "heatmap.png", "best_gains.yaml")
@@ -41,9 +44,10 @@ WORKERS = Number(1, 256, integer=True)
 HELP = """\
 Sweep PID gains of one or more joints on the full robot and measure each run: rise time
 (10-90%), overshoot, settling time (2%), IAE, the largest effort, and whether the robot fell.
-Each trial is either a step response of the first --joint (by --step rad, after 0.1 s) or a
-whole routine (--routine). Gains are given as a value, a list (a,b,c) or a range
-start:stop:count; --random N draws N points uniformly in the ranges instead of the grid.
+Each trial is either a step response of the first --joint (by --step rad, after 0.1 s; by
+default 0.5 rad toward the farther of its limits from home) or a whole routine (--routine).
+Gains are given as a value, a list (a,b,c) or a range start:stop:count; --random N draws N
+points uniformly in the ranges instead of the grid.
 
 Runs go to every local core (--workers) with a progress bar, or to a Ray cluster with
 --backend ray [--address ADDR] (a local Ray instance without --address). The simulation is
@@ -63,7 +67,8 @@ def add_parser(sub) -> None:
     for key in GAIN_KEYS:
         p.add_argument(f"--{key.replace('_', '-')}", dest=key, metavar="RANGE",
                        help=f"{key} values: v | a,b,c | start:stop:count")
-    p.add_argument("--step", type=STEP, default=0.5, help="step size in rad (default 0.5)")
+    p.add_argument("--step", type=STEP, help="step size in rad (default 0.5 toward the joint's "
+                                             "farther limit from home)")
     p.add_argument("--routine", help="run this routine instead of a step response")
     p.add_argument("--duration", type=TRIAL_DURATION, default=2.0, metavar="S",
                    help="sim seconds per run (default 2)")
@@ -97,9 +102,9 @@ def run(args: argparse.Namespace) -> int:
                          hint="fewer values per gain, or --random N")
     if args.address is not None:
         _check_ray_address(args.address, args.backend)
-    spec = SweepSpec(tuple(args.joint), args.step, args.routine, args.duration, args.model,
-                     args.controllers)
-    namespace = _check_spec(spec)
+    spec = SweepSpec(tuple(args.joint), DEFAULT_STEP if args.step is None else args.step,
+                     args.routine, args.duration, args.model, args.controllers)
+    spec, namespace = _check_spec(spec, step_given=args.step is not None)
     trials = random_trials(ranges, args.random, args.seed) if args.random else grid_trials(ranges)
     out: Path = args.output
     definition = {"spec": json.loads(spec.key()), "ranges": {k: v.tolist() for k, v in ranges.items()},
@@ -137,10 +142,11 @@ def _check_ray_address(address: str, backend: str) -> None:
                          ) from None
 
 
-def _check_spec(spec: SweepSpec) -> str:
+def _check_spec(spec: SweepSpec, step_given: bool) -> tuple[SweepSpec, str]:
     """Load the robot, its controllers and the routine once here, so a typo is one line before
-    any worker starts (not a progress bar and an error from each worker). Returns the
-    controllers' namespace, which best_gains.yaml is written under."""
+    any worker starts (not a progress bar and an error from each worker). Returns the spec
+    (the default step turned toward the joint's farther limit) and the controllers' namespace,
+    which best_gains.yaml is written under."""
     from mexone.lab import Lab
     from mexone.routines.runner import resolve_routine
 
@@ -154,8 +160,10 @@ def _check_spec(spec: SweepSpec) -> str:
         raise InputError(f"no running controller moves joint {', '.join(missing)}",
                          hint="controlled joints: " + ", ".join(sorted(lab.controllers.by_joint())))
     if not spec.routine:
+        if not step_given:
+            spec = replace(spec, step=toward_room(lab, spec))
         step_target(lab, spec)
-    return lab.namespace
+    return spec, lab.namespace
 
 
 def _prepare(out: Path, definition: dict, resume: bool, force: bool) -> None:
