@@ -5,6 +5,7 @@ A front end: it drives the robot through the controllers' topics, as a student's
 """
 
 from mexone.motion.commands import (
+    follow_goals,
     joint_targets,
     look_at,
     push,
@@ -18,4 +19,5 @@ from mexone.motion.ik import FrameError, WholeBodyIK
 from mexone.motion.push import apply_wrench
 
 __all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "walk_seconds", "joint_targets",
+           "follow_goals",
            "WholeBodyIK", "FrameError", "Frame", "frames_for", "apply_wrench"]

@@ -38,11 +38,11 @@ from mexone.motion.walk import (
     plan_phases,
     walk_ticks,
 )
-from mexone.msgs import Float64, Imu, JointState, Twist
+from mexone.msgs import Float64, Imu, JointState, PoseStamped, Twist
 from mexone.routines.runtime import RoutineContext, current
 
-__all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "walk_seconds", "step_from_twist",
-           "joint_targets", "RATE", "REACHED"]
+__all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "follow_goals", "GOAL_FRAMES",
+           "walk_seconds", "step_from_twist", "joint_targets", "RATE", "REACHED"]
 
 RATE = 50.0  # Hz: how often reach sends joint commands (the IK steps at the same period)
 REACHED = (0.005, math.radians(2.0))  # m, rad: closer than this is reached
@@ -167,6 +167,42 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     return error
 
 
+GOAL_FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot", "head")
+WORLD_FRAMES = ("", "world", "map", "odom")  # frame_ids a goal may be given in (all the world)
+
+
+def follow_goals(frames=GOAL_FRAMES, duration: float = 1.0) -> None:
+    """Reach each geometry_msgs/PoseStamped arriving on /<ns>/<frame>/goal (world frame; a zero
+    quaternion, rospy's default, leaves the orientation free), one after another, each over
+    `duration` s. Returns never (until the routine is stopped)."""
+    ns = current().lab.namespace
+    pending: list[tuple[str, PoseStamped]] = []
+    for frame in frames:
+        rospy.Subscriber(f"{ns}/{frame}/goal", PoseStamped,
+                         lambda msg, f=frame: pending.append((f, msg)))
+    while not rospy.is_shutdown():
+        if not pending:
+            rospy.sleep(1.0 / RATE)
+            continue
+        frame, msg = pending.pop(0)
+        if msg.header.frame_id.lstrip("/") not in WORLD_FRAMES:
+            rospy.logwarn("goal for %s in frame '%s' ignored: give it in the world frame "
+                          "(frame_id '' or 'world')", frame, msg.header.frame_id)
+            continue
+        p, q = msg.pose.position, msg.pose.orientation
+        norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
+        rpy = None
+        if norm > 1e-9:
+            x, y, z, w = q.x / norm, q.y / norm, q.z / norm, q.w / norm
+            rpy = (math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                   math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))),
+                   math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        try:
+            reach(frame, (p.x, p.y, p.z), rpy, duration)
+        except InputError as exc:
+            rospy.logwarn("goal for %s ignored: %s", frame, exc.what)
+
+
 def look_at(xyz, duration: float = 1.0) -> None:
     """Turn the head so the camera looks at world point xyz (m), the rest of the body still."""
     mover = _mover()
@@ -278,18 +314,17 @@ def _walk(source, gait: Gait) -> None:
     for k in range(1, ticks + 1):  # down into the walking stance
         mover.send({n: standing[n] + (bent[n] - standing[n]) * k / ticks for n in bent})
         rate.sleep()
-    yaw = [None]
+    attitude = [(0.0, 0.0, 0.0)]  # the pelvis's roll, pitch, yaw (rad) from the IMU
 
     def on_imu(msg: Imu) -> None:
         q = msg.orientation
-        yaw[0] = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-
-    def heading() -> float:
-        return yaw[0] if yaw[0] is not None else 0.0
+        attitude[0] = (math.atan2(2 * (q.w * q.x + q.y * q.z), 1 - 2 * (q.x * q.x + q.y * q.y)),
+                       math.asin(max(-1.0, min(1.0, 2 * (q.w * q.y - q.z * q.x)))),
+                       math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
     try:
-        for joints in walk_ticks(ik, qpos, gait, source, heading=heading):
+        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0]):
             mover.send(joints)
             rate.sleep()
     finally:

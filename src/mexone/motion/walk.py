@@ -12,9 +12,10 @@ the state and the ZMP reference of the next `preview` seconds (the footsteps, pl
 ahead), so the COM starts moving before the ZMP jumps to the next foot. The feet stay flat; the
 swing foot rises `step_height` on a half sine while it moves (and turns) on a cosine ease.
 WholeBodyIK (feet frames + COM + upright pelvis) gives the joint positions; the routine sends
-them to the position controllers. Open loop but for the heading: at each step the IMU's yaw
-against the plan's is the feet's slip, and the plan still ahead turns about the stance foot to
-cancel it (see the README's limits).
+them to the position controllers. Open loop but for the IMU: at each step its yaw against the
+plan's is the feet's slip, and the plan still ahead turns about the stance foot to cancel it;
+and each period the ankles take back a share of the pelvis's measured tilt, so the soles stay
+flat on the ground (tilted onto an edge a foot loses its grip and spins; see the README).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ class Gait:
     dt: float = 0.01            # s, control period
     preview: float = 1.6        # s of ZMP reference the COM looks ahead
     stand: float = 1.0          # s standing before the first step and after the last
+    flat_feet: float = 0.3      # share of the pelvis's measured tilt the ankles take back
     course: tuple[tuple[str, float], ...] = COURSE  # what `mexone run walk` walks
 
     @classmethod
@@ -103,8 +105,11 @@ def parse_course(value, where: str = "course") -> tuple[tuple[str, float], ...]:
 
 def course_steps(gait: Gait, course: Iterable[tuple[str, float]]) -> Iterator[tuple[str, np.ndarray]]:
     """Each step's body motion (dx, dy, dyaw; m, m, rad in the body's frame) walking `course`,
-    as even steps no longer than the gait's, labelled with their leg's name."""
-    for leg, amount in course:
+    as even steps no longer than the gait's, labelled with their leg's name; None between legs
+    (the feet come side by side and stand a period: each leg starts from a square stance)."""
+    for i, (leg, amount) in enumerate(course):
+        if i:
+            yield None
         most, index = {"forward": (gait.step_length, 0), "sideways": (gait.side_step, 1),
                        "turn": (gait.turn_step, 2)}[leg]
         amount = math.radians(amount) if leg == "turn" else amount
@@ -189,6 +194,7 @@ class FootstepPlanner:
         self.next_foot = 0
         self.n_double = round(gait.double_support * gait.period / gait.dt)
         self.n_single = round((1 - gait.double_support) * gait.period / gait.dt)
+        self._last_zmp = self._middle()
         self._extend(self._middle(), round(gait.stand / gait.dt))
 
     def __iter__(self) -> Iterator[PlanTick]:
@@ -197,7 +203,9 @@ class FootstepPlanner:
                 self._plan_next()
             if not self.ticks:
                 return
-            yield self.ticks.popleft()
+            tick = self.ticks.popleft()
+            self._last_zmp = tick.zmp.copy()
+            yield tick
 
     def _middle(self) -> np.ndarray:
         return (self.feet[0][:2] + self.feet[1][:2]) / 2
@@ -206,12 +214,14 @@ class FootstepPlanner:
         self.ticks.extend(PlanTick(np.array(zmp, dtype=float), leg=leg) for _ in range(n))
 
     def _zmp_now(self) -> np.ndarray:
-        return self.ticks[-1].zmp if self.ticks else self._middle()
+        """The ZMP reference at the end of the plan so far (walked or not)."""
+        return self.ticks[-1].zmp.copy() if self.ticks else self._last_zmp
 
     def _plan_next(self) -> None:
         item = next(self.source, END)
         if item is END or item is None:
-            if not self.standing:  # feet side by side, then the ZMP between them
+            if not self.standing:  # both feet onto the body's pose, then the ZMP between them
+                self._step(np.zeros(3), "stop")
                 self._step(np.zeros(3), "stop")
                 start, middle = self._zmp_now(), self._middle()
                 for i in range(self.n_double):
@@ -239,6 +249,8 @@ class FootstepPlanner:
         if apart < abs(self.width):  # the first step of a sideways leg by the trailing foot
             target[:2] += across * np.sign(side) * (abs(self.width) - apart)
         self.body = compose(self.body, motion)
+        if leg == "stop":  # square under the body, standing's width apart
+            target = compose(self.body, (0.0, side, 0.0))
         start, foot = self._zmp_now(), self.feet[stance][:2].copy()
         for i in range(self.n_double):
             self._extend(start + (foot - start) * (i + 1) / self.n_double, 1, leg)
@@ -313,14 +325,15 @@ def nominal_feet(width: float = 0.12) -> list[np.ndarray]:
 
 
 def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
-               heading: Callable[[], float] | None = None,
+               imu: Callable[[], tuple[float, float, float]] | None = None,
                on_plan: Callable[[PlanTick, np.ndarray], None] | None = None
                ) -> Iterator[dict[str, float]]:
     """Walk the body motions of `source` (course_steps, or a cmd_vel's) from the standing
     configuration `qpos`: the joint positions of each control period, planned as they are
-    needed (the first is the bent-knee stance the robot should already be in). `heading`, if
-    given, measures the robot's yaw (rad, from the IMU): at each step the plan ahead turns
-    against its difference from the IK's, so slipping feet do not steer. `on_plan(tick, com)`
+    needed (the first is the bent-knee stance the robot should already be in). `imu`, if
+    given, measures the pelvis's roll, pitch, yaw (rad): at each step the plan ahead turns
+    against the yaw's difference from the IK's, so slipping feet do not steer, and the ankles
+    take back `flat_feet` of the tilt. `on_plan(tick, com)`
     sees each period's plan (for drawing it)."""
     ik.reset(bent_knees(ik, qpos, gait.knee_bend))
     names = ("l_foot", "r_foot")
@@ -368,11 +381,18 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
             ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, yaw)))
         for _ in range(3):  # a few IK iterations per period: the targets are met, not chased
             ik.step(gait.dt)
-        if heading is not None:
-            slips.append(_wrap(heading() - _heading(ik)))
+        joints = ik.joint_positions()
+        if imu is not None:
+            roll, pitch, yaw = imu()
+            slips.append(_wrap(yaw - _heading(ik)))
+            # the legs tilt with the pelvis and lift the soles' edges: the feet lose grip and
+            # spin; the ankles turn them back toward flat by a share of the tilt
+            for side in "lr":
+                joints[f"{side}_ankle_pitch"] -= gait.flat_feet * pitch
+                joints[f"{side}_ankle_roll"] -= gait.flat_feet * roll
         if on_plan is not None:
             on_plan(tick, x[0].copy())
-        yield ik.joint_positions()
+        yield joints
 
 
 def plan_phases(gait: Gait, source: Iterable) -> tuple[float, list[tuple[str, float, float]]]:

@@ -28,7 +28,8 @@ _HERE = Path(__file__).resolve().parent
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
 _PACKAGE = str(Path(mexone.__file__).resolve().parent)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
-           "walk": "walk.py", "excitation": "excitation.py"}
+           "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
+           "reach_goals": "reach_goals.py"}
 
 
 def shipped_routines() -> dict[str, Path]:
