@@ -199,3 +199,26 @@ def test_course_timing_is_planned():
     # 10 steps forward, 2 to square the feet, a period standing, 4 turning, 2 more, at 0.4 s
     # each, each stop then moving the ZMP between the feet (0.08 s); 1 s standing at each end
     assert seconds == pytest.approx(1.0 + 12 * 0.4 + 0.08 + 0.4 + 6 * 0.4 + 0.08 + 1.0)
+
+
+def test_the_gui_walk_pad_sends_cmd_vel():
+    from mexone.gui.walkpad import PAD, WalkPad
+    from mexone.msgs import Twist
+
+    viser = pytest.importorskip("viser")
+    lab = Lab.create(controllers=False)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        pad = WalkPad(server, lab, lambda action: action())
+        got = []
+        lab.bus.subscribe(pad.topic, Twist, got.append)
+        lab.sim.run(0.3)
+        assert got == []  # nothing held, nothing sent
+        pad.set(PAD["Turn left"])
+        lab.sim.run(0.5)
+        assert len(got) == 5 and got[-1].angular.z == PAD["Turn left"][2]
+        pad.set(PAD["Stop"])
+        lab.sim.run(0.5)
+        assert len(got) == 6 and got[-1].angular.z == 0.0 and got[-1].linear.x == 0.0
+    finally:
+        server.stop()

@@ -32,6 +32,7 @@ from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
 from mexone.gui.topics import RecordPanel, TopicsPanel
+from mexone.gui.walkpad import WalkPad
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
@@ -278,6 +279,7 @@ class GuiApp:
         self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
         self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
                                         self.record_folder)
+        self.walk_pad = WalkPad(self.server, self.lab, self.do)
 
     def _show_overlay(self, name: str, on: bool) -> None:
         self.scene.show(name, on)
