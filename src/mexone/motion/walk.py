@@ -39,6 +39,7 @@ __all__ = ["Gait", "preview_gains", "FootstepPlanner", "PlanTick", "Swing", "ben
 
 G = 9.81
 MAX_CORRECTION = 0.05  # rad: the most one step turns the plan to cancel the feet's slip
+IK_ITERATIONS = 2  # IK steps (QPs) per control period: most of walking's CPU (1: turns overshoot 6 deg)
 CORRECTION_GAIN = 0.3  # share of the measured slip one step cancels
 SLIP_WINDOW = 2.0  # steps the slip is averaged over
 GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
@@ -379,7 +380,7 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
         if ik.base is not None:
             yaw = (standing[0][2] + standing[1][2]) / 2
             ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, yaw)))
-        for _ in range(3):  # a few IK iterations per period: the targets are met, not chased
+        for _ in range(IK_ITERATIONS):  # the targets are met, not chased
             ik.step(gait.dt)
         joints = ik.joint_positions()
         if imu is not None:
