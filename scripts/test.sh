@@ -21,6 +21,8 @@ ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher 
               python3-actionlib-msgs python3-dynamic-reconfigure python3-rosservice
               python3-rosbag python3-roslaunch libroscpp-dev libstd-msgs-dev g++)
 dpkg -s "${ros_packages[@]}" >/dev/null 2>&1 || apt_packages+=("${ros_packages[@]}")
+# the real rviz under a virtual X server (tests/ros1/test_rviz.py)
+dpkg -s rviz xvfb xauth >/dev/null 2>&1 || apt_packages+=(rviz xvfb xauth)
 # offscreen rendering for `mexone render`: EGL with Mesa's software driver
 dpkg -s libegl1 libgl1-mesa-dri >/dev/null 2>&1 || apt_packages+=(libegl1 libgl1-mesa-dri)
 if ((${#apt_packages[@]})); then

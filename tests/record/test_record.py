@@ -111,6 +111,30 @@ def test_plot_png_and_csv(recorded, tmp_path):
     assert all(r["command_rad"] == "" for r in knee)  # no command was sent to the knee
 
 
+def test_plot_topic_fields_as_rqt_plot_names_them(recorded, tmp_path):
+    """`--topics` takes rqt_plot's paths: a field, a sub-message or a whole topic."""
+    path, _ = recorded
+    table = tmp_path / "imu.csv"
+    out = mexone("plot", str(path), "-o", str(table), "--topics",
+                 "/mex_rb/imu/linear_acceleration/z", "/mex_rb/l_ankle_ft/wrench/force")
+    assert out.returncode == 0, out.stderr
+    rows = list(csv.DictReader(table.open()))
+    fields = {r["field"] for r in rows}
+    assert fields == {"/mex_rb/imu/linear_acceleration/z"} | {
+        f"/mex_rb/l_ankle_ft/wrench/force/{c}" for c in "xyz"}
+    acc = [r for r in rows if r["field"].endswith("acceleration/z")]
+    times = np.array([float(r["time_s"]) for r in acc])
+    np.testing.assert_allclose(np.diff(times), 0.01, atol=1e-6)  # 100 Hz of header stamps
+    assert len(acc) == 200
+    # the pelvis barely moves while the arms sweep: proper acceleration ~ +g, up
+    assert np.median([float(r["value"]) for r in acc]) == pytest.approx(9.81, abs=0.2)
+    png = tmp_path / "imu.png"
+    out = mexone("plot", str(path), "-o", str(png), "--topics", "/mex_rb/imu", "/mex_rb/zmp")
+    assert out.returncode == 0 and "13 fields" in out.stdout, out.stdout + out.stderr  # 10 + 3
+    out = mexone("plot", str(path), "-o", str(tmp_path / "x.png"), "--topics", "/mex_rb/imu/foo")
+    assert out.returncode == 2 and out.stderr.count("\n") == 1 and "/mex_rb/imu/foo" in out.stderr
+
+
 def test_render_mp4_and_gif(tmp_path):
     import imageio.v3 as iio
 

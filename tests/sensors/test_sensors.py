@@ -178,6 +178,24 @@ def test_contacts_name_both_soles_and_clear_when_a_foot_lifts():
     assert collect(lab, "/mex_rb/r_foot_contact", msgs.ContactsState, 0.1)[-1].states != []
 
 
+def test_sole_contact_forces_carry_the_whole_weight():
+    """Standing free and still, the ground's forces on the two soles (as the bumpers report
+    them, point by point and in total) hold up the whole robot: m g up, nothing sideways."""
+    lab = Lab.create()
+    lab.sim.run(1.0)
+    weight = float(lab.sim.model.body_subtreemass[lab.sim.compiled.root_body]) * 9.81
+    total, points = np.zeros(3), np.zeros(3)
+    for side in ("l", "r"):
+        for state in collect(lab, f"/mex_rb/{side}_foot_contact", msgs.ContactsState, 0.1)[-1].states:
+            f = state.total_wrench.force
+            total += (f.x, f.y, f.z)
+            points += np.sum([(w.force.x, w.force.y, w.force.z) for w in state.wrenches], axis=0)
+            assert all(n.z > 0.99 for n in state.contact_normals)  # the floor's normal, up
+    np.testing.assert_allclose(total, points, atol=1e-9)  # the total is the sum of its points
+    assert total[2] == pytest.approx(weight, rel=0.02)
+    assert np.hypot(total[0], total[1]) < 0.02 * weight
+
+
 def test_centre_of_pressure_follows_the_com_as_statics_predicts():
     """Standing, the ZMP measured by the ankle sensors is the COM's ground projection (on
     average: the robot sways on its ankles); leaning on the ankles moves both forward alike."""

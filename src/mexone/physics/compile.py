@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import mujoco
@@ -133,8 +134,9 @@ class Compiled:
     free: bool = True  # the root has a free joint
     spawn_key: int | None = None  # keyframe of the initial joint positions, if any were given
 
-    @property
+    @cached_property
     def root_body(self) -> int:
+        """Cached: sensors ask at every message, and the robot is fixed once compiled."""
         return self.bodies[self.robot.base_link]
 
 

@@ -1,4 +1,5 @@
-"""Plots and CSV of a recorded run: command vs actual, tracking error and effort per joint."""
+"""Plots and CSV of a recorded run: command vs actual, tracking error and effort per joint; or
+any numeric fields of any topics (rqt_plot's topic paths), one pane per message field group."""
 
 from __future__ import annotations
 
@@ -6,9 +7,9 @@ import csv
 from pathlib import Path
 
 from mexone.errors import InputError
-from mexone.record.reader import JointSeries
+from mexone.record.reader import FieldSeries, JointSeries
 
-__all__ = ["plot_joints", "write_csv", "pick_joints"]
+__all__ = ["plot_joints", "write_csv", "pick_joints", "plot_fields", "write_fields_csv"]
 
 
 def pick_joints(series: dict[str, JointSeries], wanted: list[str] | None) -> list[JointSeries]:
@@ -67,5 +68,42 @@ def write_csv(joints: list[JointSeries], out: Path) -> int:
                 err = "" if s.command is None else f"{s.command[k] - s.position[k]:.9g}"
                 writer.writerow([f"{t:.6f}", s.name, cmd, f"{s.position[k]:.9g}", err,
                                  f"{s.velocity[k]:.9g}", f"{s.effort[k]:.9g}"])
+                rows += 1
+    return rows
+
+
+def plot_fields(series: list[FieldSeries], out: Path, title: str) -> None:
+    """One pane per group of sibling fields (x, y, z of a vector together), in sim time."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    groups: dict[str, list[FieldSeries]] = {}
+    for s in series:
+        groups.setdefault(s.path.rsplit("/", 1)[0], []).append(s)
+    fig, axes = plt.subplots(len(groups), 1, figsize=(12, 2.4 * len(groups) + 0.6),
+                             squeeze=False, sharex=True)
+    for ax, (group, members) in zip(axes[:, 0], groups.items(), strict=True):
+        for s in members:
+            ax.plot(s.t, s.values, label=s.path.rsplit("/", 1)[1], linewidth=1.0)
+        ax.set_ylabel(group, fontsize=8)
+        ax.legend(loc="upper right", fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("sim time (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def write_fields_csv(series: list[FieldSeries], out: Path) -> int:
+    rows = 0
+    with out.open("w", newline="") as handle:
+        writer = csv.writer(handle)
+        writer.writerow(["time_s", "field", "value"])
+        for s in series:
+            for t, value in zip(s.t.tolist(), s.values.tolist(), strict=True):
+                writer.writerow([f"{t:.6f}", s.path, f"{value:.9g}"])
                 rows += 1
     return rows

@@ -22,8 +22,8 @@ from rosbags.highlevel import AnyReader
 from mexone.errors import InputError
 from mexone.record.bag import typestore_for
 
-__all__ = ["JointSeries", "read_joint_series", "read_bag", "BagContents", "StateMessage",
-           "CommandMessage", "TransformSample", "JOINT_STATE", "COMMAND_TYPES"]
+__all__ = ["JointSeries", "read_joint_series", "FieldSeries", "read_field_series", "read_bag",
+           "BagContents", "StateMessage", "CommandMessage", "TransformSample", "JOINT_STATE", "COMMAND_TYPES"]
 
 log = logging.getLogger(__name__)
 
@@ -143,13 +143,18 @@ def _array(values) -> np.ndarray:
     return np.asarray(values, dtype=float).ravel()
 
 
-def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
+def _open(path: Path) -> AnyReader:
     try:
         reader = AnyReader([path], default_typestore=typestore_for(path.suffix == ".bag"))
         reader.open()
     except Exception as exc:  # rosbags raises its own error types for damaged or foreign files
         raise InputError(f"not a readable bag: {exc}", file=path,
                          hint="give a .mcap or .bag recorded by mexone or ROS") from None
+    return reader
+
+
+def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
+    reader = _open(path)
     wanted = {f.strip("/") for f in frames}
     contents = BagContents(path, [], {}, [], {c.topic: c.msgtype for c in reader.connections})
     try:
@@ -221,3 +226,79 @@ def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
             series.command_times = ct.tolist()
         out[name] = series
     return out
+
+
+@dataclass
+class FieldSeries:
+    """One numeric field of one topic over time: `/mex_rb/imu/linear_acceleration/z`."""
+
+    path: str
+    t: np.ndarray
+    values: np.ndarray
+
+
+def _numeric_leaves(msg, prefix: str) -> Iterator[tuple[str, float]]:
+    """(field path, value) for every scalar number in a message, as rqt_plot offers them;
+    headers, strings and lists of messages are skipped, numeric arrays give one path per
+    element."""
+    if isinstance(msg, bool):
+        return
+    if isinstance(msg, int | float | np.integer | np.floating):
+        yield prefix, float(msg)
+        return
+    if isinstance(msg, np.ndarray) and msg.dtype.kind in "iuf":
+        for k, value in enumerate(msg.ravel().tolist()):
+            yield f"{prefix}/{k}", float(value)
+        return
+    fields = getattr(msg, "__dataclass_fields__", None)
+    if fields is None:
+        return
+    for name in fields:
+        if name in ("header", "__msgtype__"):
+            continue
+        yield from _numeric_leaves(getattr(msg, name), f"{prefix}/{name}")
+
+
+def read_field_series(path: Path | str, wanted: list[str]) -> list[FieldSeries]:
+    """rqt_plot's topic paths: `/topic` (all its numeric fields) or `/topic/field/sub` (one
+    field or a subtree). Time is the header stamp when the message has one, else the bag's."""
+    with _readable(path) as readable:
+        reader = _open(readable)
+        try:
+            topics = {c.topic: c for c in reader.connections}
+            picks: dict[str, list[str]] = {}  # topic -> the field prefixes asked for
+            for item in wanted:
+                item = "/" + item.strip("/")
+                topic = max((t for t in topics if item == t or item.startswith(t + "/")),
+                            key=len, default=None)
+                if topic is None:
+                    raise InputError(f"the bag has no topic for '{item}'", file=path,
+                                     hint="topics: " + ", ".join(sorted(topics)))
+                picks.setdefault(topic, []).append(item[len(topic):])
+            series: dict[str, tuple[list[float], list[float]]] = {}
+            conns = [topics[t] for t in picks]
+            for conn, stamp, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                header = getattr(msg, "header", None)
+                t = _seconds(header.stamp) if header is not None else stamp * 1e-9
+                for field_path, value in _numeric_leaves(msg, conn.topic):
+                    sub = field_path[len(conn.topic):]
+                    if any((sub == p or sub.startswith(p + "/")) if p
+                           else "covariance" not in sub  # a whole topic: no matrices
+                           for p in picks[conn.topic]):
+                        times, values = series.setdefault(field_path, ([], []))
+                        times.append(t)
+                        values.append(value)
+        except InputError:
+            raise
+        except Exception as exc:
+            raise InputError(f"cannot read the bag's messages: {exc}", file=path,
+                             hint="'mexone record --recover' repairs a truncated bag") from None
+        finally:
+            reader.close()
+    missing = [w for w in wanted if not any(p == "/" + w.strip("/") or p.startswith(
+        "/" + w.strip("/") + "/") for p in series)]
+    if missing:
+        raise InputError(f"no numeric field at {', '.join(missing)} in the bag", file=path,
+                         hint="give a topic or a field path such as /mex_rb/imu/linear_acceleration/z")
+    return [FieldSeries(p, np.array(t), np.array(v)) for p, (t, v) in series.items()]

@@ -35,7 +35,7 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def convex_hull(points: np.ndarray) -> np.ndarray:
     """2-D convex hull, counter-clockwise (Andrew's monotone chain)."""
-    pts = sorted({(float(x), float(y)) for x, y in np.asarray(points)[:, :2]})
+    pts = sorted({(p[0], p[1]) for p in np.asarray(points, dtype=float).tolist()})
     if len(pts) < 3:
         return np.array(pts).reshape(-1, 2)
 
@@ -98,7 +98,7 @@ class Balance:
         self.ground_z = float(model.geom_pos[self.ground][2]) if ground else 0.0
         robot_bodies = set(sim.compiled.bodies.values())
         self.robot_geoms = {g for g in range(model.ngeom) if model.geom_bodyid[g] in robot_bodies}
-        self._robot_geom_ids = np.array(sorted(self.robot_geoms), dtype=np.int32)
+        self._robot_geom = [g in self.robot_geoms for g in range(model.ngeom)]  # id -> robot's
         # each foot's weight acts at its subtree's centre of mass
         self.foot_bodies = [model.site_bodyid[f.site] for f in feet]
         self.seq = 0
@@ -109,11 +109,11 @@ class Balance:
         com = data.subtree_com[sim.compiled.root_body].copy()
         polygon = np.zeros((0, 2))
         if self.ground is not None and data.ncon:
-            pairs = data.contact.geom[:data.ncon]  # robot-ground contacts, in one vector test
-            on_ground = (pairs == self.ground).any(axis=1) \
-                & np.isin(pairs, self._robot_geom_ids).any(axis=1)
-            if on_ground.any():
-                polygon = convex_hull(data.contact.pos[:data.ncon][on_ground])
+            ground, robot = self.ground, self._robot_geom
+            on_ground = [i for i, (g1, g2) in enumerate(data.contact.geom[:data.ncon].tolist())
+                         if (g1 == ground and robot[g2]) or (g2 == ground and robot[g1])]
+            if on_ground:
+                polygon = convex_hull(data.contact.pos[on_ground])
         return BalanceState(com, polygon, self.zmp())
 
     def zmp(self) -> np.ndarray | None:

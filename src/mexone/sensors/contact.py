@@ -43,43 +43,55 @@ class ContactSensor(Sensor):
             wanted = set(self.spec.collisions)
             mine = {g for g in mine if self.names[g][1].rsplit("::", 1)[1] in wanted} or mine
         self.geoms = mine
-        self._geom_ids = np.array(sorted(mine), dtype=np.int32)
+        self._mine_list = [g in mine for g in range(self.sim.model.ngeom)]  # geom id -> ours
+        self._force6 = np.zeros(6)
         self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
                                ContactsState)]
 
     def contacts(self) -> list[ContactState]:
+        """Our contacts, grouped by pair of collision elements. MuJoCo's contact arrays are
+        read once each and the few contacts of one sole handled in plain Python: at a handful
+        of points per sole, per-point numpy calls cost more than the arithmetic."""
         model, data = self.sim.model, self.sim.data
-        states: dict[tuple[int, int], ContactState] = {}
-        force6 = np.zeros(6)
         ncon = data.ncon
         if ncon == 0:
             return []
-        pairs = data.contact.geom[:ncon]  # one vector test, then Python only for our contacts
-        for i in np.flatnonzero(np.isin(pairs, self._geom_ids).any(axis=1)).tolist():
-            contact = data.contact[i]
-            g1, g2 = int(pairs[i, 0]), int(pairs[i, 1])
-            if g1 in self.geoms:
-                own, other, sign = g1, g2, -1.0  # MuJoCo's force acts on geom2, along the normal
-            elif g2 in self.geoms:
-                own, other, sign = g2, g1, 1.0
-            else:
-                continue
-            mujoco.mj_contactForce(model, data, i, force6)
-            frame = contact.frame.reshape(3, 3)
-            force = sign * (frame.T @ force6[:3])
-            normal = sign * frame[0]
-            state = states.get((own, other))
+        mine = self._mine_list
+        picked = [(i, g1, g2) for i, (g1, g2) in enumerate(data.contact.geom[:ncon].tolist())
+                  if mine[g1] or mine[g2]]
+        if not picked:
+            return []
+        index = [i for i, _, _ in picked]
+        frames = data.contact.frame[index].tolist()  # rows: normal, two tangents (world)
+        positions = data.contact.pos[index].tolist()
+        dists = data.contact.dist[index].tolist()
+        local = self._force6
+        states: dict[tuple[int, int], ContactState] = {}
+        totals: dict[tuple[int, int], list[float]] = {}
+        for k, (i, g1, g2) in enumerate(picked):
+            # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
+            own, other, sign = (g1, g2, -1.0) if mine[g1] else (g2, g1, 1.0)
+            mujoco.mj_contactForce(model, data, i, local)
+            fn, t1, t2 = local[0] * sign, local[1] * sign, local[2] * sign
+            f = frames[k]
+            force = [fn * f[0] + t1 * f[3] + t2 * f[6], fn * f[1] + t1 * f[4] + t2 * f[7],
+                     fn * f[2] + t1 * f[5] + t2 * f[8]]
+            pair = (own, other)
+            state = states.get(pair)
             if state is None:
-                state = states[(own, other)] = ContactState(
-                    info=f"Debug: i:({i}/{data.ncon})", collision1_name=self.names[own][1],
-                    collision2_name=self.names.get(other, ("", model.geom(other).name))[1])
-            point = contact.pos
-            state.wrenches.append(Wrench(Vector3(*force.tolist()), Vector3()))
-            state.contact_positions.append(Vector3(*point.tolist()))
-            state.contact_normals.append(Vector3(*normal.tolist()))
-            state.depths.append(float(max(-contact.dist, 0.0)))
-            total = state.total_wrench.force
-            total.x, total.y, total.z = total.x + force[0], total.y + force[1], total.z + force[2]
+                state = states[pair] = ContactState(
+                    info=f"Debug: i:({i}/{ncon})", collision1_name=self.names[own][1],
+                    collision2_name=self.names[other][1] if other in self.names
+                    else model.geom(other).name)
+                totals[pair] = [0.0, 0.0, 0.0]
+            total = totals[pair]
+            total[0], total[1], total[2] = total[0] + force[0], total[1] + force[1], total[2] + force[2]
+            state.wrenches.append(Wrench(Vector3(*force), Vector3()))
+            state.contact_positions.append(Vector3(*positions[k]))
+            state.contact_normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
+            state.depths.append(max(-dists[k], 0.0))
+        for pair, state in states.items():
+            state.total_wrench.force = Vector3(*totals[pair])
         return list(states.values())
 
     def publish(self, sim) -> None:
