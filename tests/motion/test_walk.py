@@ -195,7 +195,8 @@ def test_course_timing_is_planned():
     gait = Gait()
     seconds, phases = plan_phases(gait, course_steps(gait, [("forward", 0.6), ("turn", 45.0)]))
     legs = [leg for leg, _, _ in phases]
-    assert legs == ["forward", "stop", "turn", "stop"]
+    assert legs == ["forward", "turn"]
+    assert phases[0][2] == pytest.approx(1.0 + 12 * 0.4 + 0.08)  # forward ends standing
     # 10 steps forward, 2 to square the feet, a period standing, 4 turning, 2 more, at 0.4 s
     # each, each stop then moving the ZMP between the feet (0.08 s); 1 s standing at each end
     assert seconds == pytest.approx(1.0 + 12 * 0.4 + 0.08 + 0.4 + 6 * 0.4 + 0.08 + 1.0)
@@ -222,3 +223,26 @@ def test_the_gui_walk_pad_sends_cmd_vel():
         assert len(got) == 6 and got[-1].angular.z == 0.0 and got[-1].linear.x == 0.0
     finally:
         server.stop()
+
+
+def test_mexone_run_walk_reports_each_leg_and_ends_with_the_routine():
+    import json
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-m", "mexone", "run", "walk", "--json",
+                          "_course:=[[forward, 0.3], [turn, 30]]"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    gait = Gait.load()
+    seconds, _ = plan_phases(gait, course_steps(gait, [("forward", 0.3), ("turn", 30.0)]))
+    # no --duration: the run lasted what the routine declared (1 s bending, the plan, 5 s)
+    assert report["sim_time"] == pytest.approx(1.0 + seconds + 5.0, abs=0.02)
+    assert report["fell"] is False and report["error"] is None
+    legs = {p["leg"]: p for p in report["phases"]}
+    assert list(legs) == ["forward", "turn"]
+    assert 0.25 < legs["forward"]["distance_x"] < 0.45 and abs(legs["forward"]["drift_y"]) < 0.05
+    assert report["speed"] == legs["forward"]["speed"] > 0.1
+    assert abs(legs["turn"]["yaw"] - 30) < 8 and abs(report["yaw"] - 30) < 8
+    assert {"distance_x", "drift_y", "yaw", "fell", "speed"} <= set(report)

@@ -169,7 +169,7 @@ class PlanTick:
     zmp: np.ndarray
     swing: Swing | None = None
     progress: float = 0.0
-    leg: str | None = None  # the course leg (or "stop") this period walks; None: standing
+    leg: str | None = None  # the course leg this period walks (its closing steps too); None: standing
 
 
 END = object()
@@ -193,6 +193,7 @@ class FootstepPlanner:
         self.standing = True
         self.ended = False
         self.next_foot = 0
+        self.last_leg: str | None = None
         self.n_double = round(gait.double_support * gait.period / gait.dt)
         self.n_single = round((1 - gait.double_support) * gait.period / gait.dt)
         self._last_zmp = self._middle()
@@ -222,11 +223,12 @@ class FootstepPlanner:
         item = next(self.source, END)
         if item is END or item is None:
             if not self.standing:  # both feet onto the body's pose, then the ZMP between them
-                self._step(np.zeros(3), "stop")
-                self._step(np.zeros(3), "stop")
+                leg = self.last_leg or "stop"
+                self._step(np.zeros(3), leg, close=True)  # part of the leg they end
+                self._step(np.zeros(3), leg, close=True)
                 start, middle = self._zmp_now(), self._middle()
                 for i in range(self.n_double):
-                    self._extend(start + (middle - start) * (i + 1) / self.n_double, 1, "stop")
+                    self._extend(start + (middle - start) * (i + 1) / self.n_double, 1, leg)
                 self.standing = True
             n = round((self.gait.stand if item is END else self.gait.period) / self.gait.dt)
             self._extend(self._middle(), n)
@@ -235,7 +237,7 @@ class FootstepPlanner:
         leg, motion = item
         self._step(np.asarray(motion, dtype=float), leg)
 
-    def _step(self, motion: np.ndarray, leg: str) -> None:
+    def _step(self, motion: np.ndarray, leg: str, close: bool = False) -> None:
         swing = self.next_foot
         stance = 1 - swing
         side = self.width / 2 if swing == 0 else -self.width / 2
@@ -250,7 +252,7 @@ class FootstepPlanner:
         if apart < abs(self.width):  # the first step of a sideways leg by the trailing foot
             target[:2] += across * np.sign(side) * (abs(self.width) - apart)
         self.body = compose(self.body, motion)
-        if leg == "stop":  # square under the body, standing's width apart
+        if close:  # square under the body, standing's width apart
             target = compose(self.body, (0.0, side, 0.0))
         start, foot = self._zmp_now(), self.feet[stance][:2].copy()
         for i in range(self.n_double):
@@ -261,6 +263,7 @@ class FootstepPlanner:
         self.feet[swing] = target
         self.next_foot = stance
         self.standing = False
+        self.last_leg = leg
 
     def turn_ahead(self, angle: float, pivot) -> None:
         """Turn everything still ahead (ZMP, footsteps not yet begun, the body) by `angle` rad
