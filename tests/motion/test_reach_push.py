@@ -110,3 +110,37 @@ def test_posestamped_goal_on_the_bus_moves_the_hand(tmp_path):
     # a goal in another frame is refused, in one line, and moves nothing
     warnings = [text for _, level, text in runner.log_lines if level == "WARN"]
     assert len(warnings) == 1 and "frame 'l_forearm' ignored" in warnings[0]
+
+
+def test_gui_ik_handle_moves_the_hand():
+    """The page's IK handles: a hand handle dropped 8 cm forward of the hand brings the hand
+    there through the controllers (within PD's sag under gravity: no trimming, unlike reach)."""
+    viser = pytest.importorskip("viser")
+    from mexone.gui.handles import FRAMES, IkHandles
+
+    lab = Lab.create()
+    sim = lab.sim
+    sim.run(0.3)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        handles = IkHandles(server, lab, lambda action: action())
+        handles.show(True)
+        assert set(handles.handles) == {*FRAMES, "gaze"}
+        position, rotation = handles.ik.pose("l_hand")
+        target = position + np.array([0.08, 0.0, 0.05])
+        quat = np.zeros(4)
+        import mujoco
+        mujoco.mju_mat2Quat(quat, rotation.ravel())
+        joints, error = handles.solve(sim.data.qpos.copy(), "l_hand", target, quat)
+        assert error.position < 0.002
+        feet = {f: sim.link_pose(f)[0] for f in ("l_foot", "r_foot")}
+        handles.send(joints, error)
+        sim.run(2.0)
+        forearm, q = sim.link_pose("l_forearm")
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q)
+        hand = forearm + rot.reshape(3, 3) @ np.array([0.0, 0.0, -0.17])
+        assert np.linalg.norm(hand - target) < 0.02
+        assert max(np.linalg.norm(sim.link_pose(f)[0] - p) for f, p in feet.items()) < 0.005
+    finally:
+        server.stop()

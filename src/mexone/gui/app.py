@@ -24,6 +24,7 @@ import viser
 from mexone.control.controllers import Controller
 from mexone.errors import InputError, MexoneError
 from mexone.gui.fields import NumberFields
+from mexone.gui.handles import IkHandles
 from mexone.gui.health import Health
 from mexone.gui.inspector import Inspector
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
@@ -280,6 +281,7 @@ class GuiApp:
         self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
                                         self.record_folder)
         self.walk_pad = WalkPad(self.server, self.lab, self.do)
+        self.ik_handles = IkHandles(self.server, self.lab, self.do)
 
     def _show_overlay(self, name: str, on: bool) -> None:
         self.scene.show(name, on)
