@@ -8,8 +8,8 @@ noisy machine):
   pybullet       the same URDF in PyBullet (extra [peers]): 1 ms steps, 21 joints under its
                  POSITION_CONTROL motors; step-time ratio, and the no-controller fall side by side
   sensors        the PD row again with every light sensor read (pelvis IMU and both ankle FT at
-                 100 Hz, sole contacts at 50 Hz, COM/ZMP/support polygon), and the Kinect's cost
-                 per frame (RGB; depth image + point cloud) rendered offscreen
+                 100 Hz, sole contacts at 50 Hz), then also COM/ZMP/support polygon at 50 Hz;
+                 and the Kinect's cost per frame (RGB; depth image + point cloud) offscreen
   cold start     process start to the first simulated millisecond of `mexone sim --headless`
   parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
                  controllers run inside MuJoCo, so the controlled robot rolls out in C) and
@@ -45,6 +45,7 @@ class BenchReport:
     overhead: dict = field(default_factory=dict)
     overhead_full_pid: dict = field(default_factory=dict)
     overhead_sensors: dict = field(default_factory=dict)
+    overhead_balance: dict = field(default_factory=dict)
     camera: dict = field(default_factory=dict)
     pybullet: dict | None = None
     cold_start_s: float | None = None
@@ -73,19 +74,22 @@ def with_integral_terms(lab: Lab) -> None:
     lab.sim.step(1)  # the update writes the new gains into the actuators
 
 
-def read_light_sensors(lab: Lab) -> None:
-    """Subscribe to every sensor that is not a camera, so all of them publish."""
+def read_light_sensors(lab: Lab, balance_topics: bool = False) -> None:
+    """Subscribe to every sensor that is not a camera, so all of them publish; and to the
+    COM/ZMP/support polygon topics if asked."""
     for sensor in lab.sensors.sensors.values():
         for output in sensor.outputs:
             if not output.heavy:
                 lab.bus.subscribe(output.topic, output.type, lambda msg: None)
+    if not balance_topics:
+        return
     balance = lab.sensors.balance
     for key, topic in balance.topics.items():
         lab.bus.subscribe(topic, balance.types[key], lambda msg: None)
 
 
 def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
-             sensors: bool = False) -> dict:
+             sensors: bool = False, balance: bool = False) -> dict:
     """mexone's stepping vs bare mj_step on the same model, data layout and controls.
 
     Measured in pairs, bare and mexone back to back in alternating order, in CPU time of this
@@ -94,7 +98,7 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
     if full_pid:
         with_integral_terms(lab)
     if sensors:
-        read_light_sensors(lab)
+        read_light_sensors(lab, balance)
     lab.bus.subscribe(f"{lab.namespace}/joint_states", JointState, lambda msg: None)  # 50 Hz, read
     sim = lab.sim
     model = sim.model
@@ -304,6 +308,8 @@ def run_bench(quick: bool = False, progress=None) -> BenchReport:
     steps = [("overhead", lambda: overhead(sim_seconds, repeats)),
              ("overhead_full_pid", lambda: overhead(sim_seconds, repeats, full_pid=True)),
              ("overhead_sensors", lambda: overhead(sim_seconds, repeats, sensors=True)),
+             ("overhead_balance", lambda: overhead(sim_seconds, repeats, sensors=True,
+                                                   balance=True)),
              ("camera", lambda: camera_cost(min(sim_seconds, 2.0))),
              ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
              ("cold_start_s", lambda: cold_start(2 if quick else 3)),
@@ -331,7 +337,10 @@ def format_report(report: BenchReport) -> str:
                   f"{f['mexone_s_per_sim_s'] / o['bare_s_per_sim_s']:12.3f}"]
     f = report.overhead_sensors
     if f:
-        lines.append(f"{'overhead ratio, PD + IMU, 2 FT, 2 contacts, ZMP':<44} {f['ratio']:12.3f}")
+        lines.append(f"{'overhead ratio, PD + IMU, 2 FT, 2 contacts':<44} {f['ratio']:12.3f}")
+    f = report.overhead_balance
+    if f:
+        lines.append(f"{'overhead ratio, the same + COM, ZMP, polygon':<44} {f['ratio']:12.3f}")
     c = report.camera
     if c:
         size = f"{c['width']}x{c['height']}"

@@ -130,11 +130,27 @@ def run_trial(spec: SweepSpec, trial: Trial) -> dict:
     return {"index": trial.index, **trial.gains, **metrics}
 
 
+def step_target(lab: Lab, spec: SweepSpec) -> float:
+    """Where the step sends the first joint from its home; a step the joint's limits would
+    clip to (nearly) nothing is refused: its metrics would measure nothing."""
+    hw, joint = lab.controllers.hw, spec.joints[0]
+    row = int(hw.rows((joint,))[0])
+    start = float(hw.position(np.array([row]))[0])
+    lower, upper = float(hw.lower[row]), float(hw.upper[row])
+    target = float(np.clip(start + spec.step, lower, upper))
+    if abs(target - start) < 0.5 * abs(spec.step):
+        room = upper - start if spec.step > 0 else lower - start
+        raise InputError(f"--step {spec.step:g} rad from {joint}'s home ({start:.3f} rad) leaves "
+                         f"its limits [{lower:.3f}, {upper:.3f}]",
+                         hint=f"give a step of at most {room:+.3f} rad")
+    return target
+
+
 def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
     sim, hw, manager = lab.sim, lab.controllers.hw, lab.controllers
     joint = spec.joints[0]
     start = float(hw.position(np.array([row]))[0])
-    target = float(np.clip(start + spec.step, hw.lower[row], hw.upper[row]))
+    target = step_target(lab, spec)
     sim.step(round(STEP_AT / sim.timestep))
     manager.command(manager.by_joint()[joint].name, {joint: target})
     n = round((spec.duration - STEP_AT) / sim.timestep)

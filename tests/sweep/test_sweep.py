@@ -111,3 +111,15 @@ def test_routine_mode_scores_a_whole_routine():
     assert soft["fell"] is False and stiff["fell"] is False
     assert soft["iae"] > stiff["iae"] > 0  # stiffer arms track the routine better
     assert soft["rise_time"] is None and soft["max_effort"] > 0
+
+
+def test_a_step_beyond_the_joint_limits_is_refused_before_any_run(tmp_path):
+    """l_elbow's home is 0.1 rad from its upper limit: a +5 rad step would be clipped to that
+    and score a near-perfect IAE for doing nothing; the sweep refuses it, creating no files."""
+    out = tmp_path / "sweep"
+    refused = subprocess.run([sys.executable, "-m", "mexone", "sweep", "--joint", "l_elbow",
+                              "--p", "10,50", "--step", "5", "-o", str(out)],
+                             capture_output=True, text=True, timeout=120)
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1, refused.stderr
+    assert "leaves its limits" in refused.stderr and "at most +0.100 rad" in refused.stderr
+    assert not out.exists()

@@ -27,6 +27,7 @@ from mexone.sweep import (
     parse_range,
     random_trials,
     run_sweep,
+    step_target,
 )
 
 OUTPUTS = ("sweep.csv", "sweep.json", "heatmap.png", "best_gains.yaml")
@@ -152,6 +153,8 @@ def _check_spec(spec: SweepSpec) -> str:
     if missing:
         raise InputError(f"no running controller moves joint {', '.join(missing)}",
                          hint="controlled joints: " + ", ".join(sorted(lab.controllers.by_joint())))
+    if not spec.routine:
+        step_target(lab, spec)
     return lab.namespace
 
 

@@ -228,8 +228,10 @@ class Ros1Bridge:
             if topic.publishers and convert.can_send(topic.type):
                 self._mirrors[name] = _Mirror(self, name, topic.type)
             elif topic.subscriptions and convert.FROM_ROS.get(msgs.ROS_TYPES.get(topic.type, "")):
+                # commands: ask publishers for TCP_NODELAY (no Nagle batching of small messages)
                 self._inbound[name] = self.rospy.Subscriber(name, convert.ros_class(topic.type),
-                                                            self._relay(name), queue_size=100)
+                                                            self._relay(name), queue_size=100,
+                                                            tcp_nodelay=True)
 
     def _relay(self, topic: str):
         def callback(ros_msg) -> None:  # rospy's thread: hand over, in order, to the sim thread
