@@ -77,3 +77,70 @@ def test_balance_routine_survives_a_push_that_fells_pd_alone(direction, impulse)
 
 def test_pd_alone_survives_a_small_push():  # the comparison is not with a broken robot
     assert survives(PushTrial(direction=(1.0, 0.0, 0.0)), 2.0)
+
+
+GOAL = """
+from mexone import rospy
+from mexone.msgs import Header, Point, Pose, PoseStamped, Quaternion
+rospy.init_node("goal")
+pub = rospy.Publisher("/mex_rb/l_hand/goal", PoseStamped, queue_size=1)
+rospy.sleep(0.5)
+pub.publish(PoseStamped(Header(frame_id="world"),
+                        Pose(Point(0.25, 0.2, 0.75), Quaternion(0.0, 0.0, 0.0, 0.0))))
+pub.publish(PoseStamped(Header(frame_id="l_forearm"), Pose(Point(0.0, 0.0, 0.0))))
+"""
+
+
+def test_posestamped_goal_on_the_bus_moves_the_hand(tmp_path):
+    lab = Lab.create()
+    sim = lab.sim
+    sim.run(0.3)
+    path = tmp_path / "goal.py"
+    path.write_text(GOAL)
+    runner = RoutineRunner(lab, "reach_goals")
+    runner.add(path)
+    runner.run(6.0)
+    assert runner.error is None
+    position, quat = sim.link_pose("l_forearm")
+    rot = np.zeros(9)
+    import mujoco
+    mujoco.mju_quat2Mat(rot, quat)
+    hand = position + rot.reshape(3, 3) @ np.array([0.0, 0.0, -0.17])
+    assert np.linalg.norm(hand - (0.25, 0.2, 0.75)) < 0.005
+    # a goal in another frame is refused, in one line, and moves nothing
+    warnings = [text for _, level, text in runner.log_lines if level == "WARN"]
+    assert len(warnings) == 1 and "frame 'l_forearm' ignored" in warnings[0]
+
+
+def test_gui_ik_handle_moves_the_hand():
+    """The page's IK handles: a hand handle dropped 8 cm forward of the hand brings the hand
+    there through the controllers (within PD's sag under gravity: no trimming, unlike reach)."""
+    viser = pytest.importorskip("viser")
+    from mexone.gui.handles import FRAMES, IkHandles
+
+    lab = Lab.create()
+    sim = lab.sim
+    sim.run(0.3)
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        handles = IkHandles(server, lab, lambda action: action())
+        handles.show(True)
+        assert set(handles.handles) == {*FRAMES, "gaze"}
+        position, rotation = handles.ik.pose("l_hand")
+        target = position + np.array([0.08, 0.0, 0.05])
+        quat = np.zeros(4)
+        import mujoco
+        mujoco.mju_mat2Quat(quat, rotation.ravel())
+        joints, error = handles.solve(sim.data.qpos.copy(), "l_hand", target, quat)
+        assert error.position < 0.002
+        feet = {f: sim.link_pose(f)[0] for f in ("l_foot", "r_foot")}
+        handles.send(joints, error)
+        sim.run(2.0)
+        forearm, q = sim.link_pose("l_forearm")
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, q)
+        hand = forearm + rot.reshape(3, 3) @ np.array([0.0, 0.0, -0.17])
+        assert np.linalg.norm(hand - target) < 0.02
+        assert max(np.linalg.norm(sim.link_pose(f)[0] - p) for f, p in feet.items()) < 0.005
+    finally:
+        server.stop()

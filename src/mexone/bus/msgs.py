@@ -34,6 +34,9 @@ __all__ = [
     "PointStamped",
     "Polygon",
     "PolygonStamped",
+    "Twist",
+    "Pose",
+    "PoseStamped",
     "ROS_TYPES",
 ]
 
@@ -283,6 +286,26 @@ class PolygonStamped:
     polygon: Polygon = field(default_factory=Polygon)
 
 
+@dataclass
+class Twist:
+    """A velocity: linear m/s and angular rad/s (cmd_vel: x forward, y left, z turn left)."""
+
+    linear: Vector3 = field(default_factory=Vector3)
+    angular: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass
+class Pose:
+    position: Point = field(default_factory=Point)
+    orientation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass
+class PoseStamped:
+    header: Header = field(default_factory=Header)
+    pose: Pose = field(default_factory=Pose)
+
+
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
@@ -299,6 +322,8 @@ ROS_TYPES: dict[type, str] = {
     PointCloud2: "sensor_msgs/PointCloud2",
     PointStamped: "geometry_msgs/PointStamped",
     PolygonStamped: "geometry_msgs/PolygonStamped",
+    Twist: "geometry_msgs/Twist",
+    PoseStamped: "geometry_msgs/PoseStamped",
 }
 
 

@@ -62,8 +62,9 @@ def add_parser(sub) -> None:
     p.add_argument("routine", help="routine file or one of: " + ", ".join(shipped_routines()))
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
     p.add_argument("-o", "--output", type=Path, required=True, help="out.mp4 or out.gif")
-    p.add_argument("--duration", type=DURATION, default=6.0, metavar="S",
-                   help="seconds of sim time (default 6)")
+    p.add_argument("--duration", type=DURATION, default=None, metavar="S",
+                   help="seconds of sim time (default: the routine's ~duration if it sets one, "
+                        "else 6)")
     p.add_argument("--camera", type=camera, default=Camera(),
                    help="track, fixed or azimuth,elevation,distance")
     p.add_argument("--fps", type=FPS, default=30.0, help="frames per second (default 30)")
@@ -86,7 +87,8 @@ def run(args: argparse.Namespace) -> int:
     status = 0
     with replacing(out, args.force) as temporary:
         video = VideoWriter(temporary, lab.sim.model, args.fps, args.size)
-        bar = tqdm(total=round(args.duration * args.fps), unit="frame",
+        total = round(args.duration * args.fps) if args.duration is not None else None
+        bar = tqdm(total=total, unit="frame",
                    desc=f"rendering {out.name}")
 
         def frame(sim) -> None:
@@ -95,7 +97,8 @@ def run(args: argparse.Namespace) -> int:
 
         try:
             frame(lab.sim)
-            runner.run(args.duration - 1.0 / args.fps, on_tick=frame, tick=1.0 / args.fps)
+            length = None if args.duration is None else args.duration - 1.0 / args.fps
+            runner.run(length, on_tick=frame, tick=1.0 / args.fps, default=6.0 - 1.0 / args.fps)
         except DivergenceError as exc:
             print(f"mexone: {exc.one_line()}")
             status = 1

@@ -22,6 +22,8 @@ from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
+TRACK_PERIOD = 0.02  # s between samples of the base's pose (for the routine's phases)
+
 HELP = """\
 Run a control routine (a Python file using `from mexone import rospy`, or a shipped routine:
 sweep, arms, home) against the robot with its controllers, headless and as fast as the physics
@@ -39,8 +41,9 @@ def add_parser(sub) -> None:
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("routine", help="routine file, or one of: " + ", ".join(shipped_routines()))
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
-    p.add_argument("--duration", type=DURATION, default=10.0, metavar="S",
-                   help="seconds of sim time at most (default 10; ends earlier if the routine does)")
+    p.add_argument("--duration", type=DURATION, default=None, metavar="S",
+                   help="seconds of sim time at most (default: the routine's ~duration if it "
+                        "sets one, else 10; ends earlier if the routine does)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--quiet", action="store_true", help="do not print the routine's log")
     add_model_options(p)
@@ -65,6 +68,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{level}] [{sim.time:.3f}]: {text}")
 
     runner = RoutineRunner(lab, args.routine, params, log)
+    track: list[np.ndarray] = []  # (t, x, y, yaw) of the base, for the routine's phases
+    sim.add_periodic(TRACK_PERIOD, lambda s: track.append(np.array([s.time, *_base_xy_yaw(s)])))
     diverged = None
     with recording(lab, args.record, args.force):
         try:
@@ -76,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
     fell = has_fallen(sim, start_height)
     metrics = recorder.metrics()
     x, y, yaw = _base_xy_yaw(sim) - start_pose
+    phases = _phases(runner.params.get(f"/{Path(runner.path).stem}/phases"),
+                     [np.array([0.0, *start_pose]), *track])
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "base_height": round(height, 6), "tilt": round(tilt, 6),
@@ -85,7 +92,10 @@ def run(args: argparse.Namespace) -> int:
         "distance_x": round(float(x * np.cos(start_pose[2]) + y * np.sin(start_pose[2])), 4),
         "drift_y": round(float(-x * np.sin(start_pose[2]) + y * np.cos(start_pose[2])), 4),
         "yaw": round(float(np.degrees((yaw + np.pi) % (2 * np.pi) - np.pi)), 2),
-        "speed": round(float(np.hypot(x, y) / sim.time), 4) if sim.time > 0 else 0.0,
+        # a routine's phases (walk: its course's legs): the first's speed, else the average
+        "speed": phases[0]["speed"] if phases else
+        (round(float(np.hypot(x, y) / sim.time), 4) if sim.time > 0 else 0.0),
+        "phases": phases,
         "joints": {name: m.as_json() for name, m in sorted(metrics.items())},
     }
     if not echo:  # echoed with the routine's log otherwise
@@ -95,6 +105,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(report, indent=2))
     else:
         _print_table(metrics)
+        for p in phases:
+            print(f"{p['leg']:<10} {p['seconds']:6.2f} s: {p['distance_x']:+.3f} m ahead, "
+                  f"{p['drift_y']:+.3f} m aside, turned {p['yaw']:+.1f} deg, {p['speed']:.3f} m/s")
         print(f"{'fell over' if fell else 'stayed standing'}: base height {height:.3f} m, "
               f"tilt {np.degrees(tilt):.1f} deg after {sim.time:.2f} s")
         if runner.error:
@@ -102,6 +115,35 @@ def run(args: argparse.Namespace) -> int:
         if diverged:
             print(f"mexone: {diverged}", file=sys.stderr)
     return 1 if runner.error or diverged else 0
+
+
+def _phases(declared, track: list[np.ndarray]) -> list[dict]:
+    """Where the base went in each phase a routine declared in its ~phases parameter
+    ([[name, start s, end s], ...]): along and across its heading at the phase's start."""
+    if not isinstance(declared, list) or len(track) < 2:
+        return []
+    samples = np.array(track)
+    out = []
+    for item in declared:
+        if not (isinstance(item, list | tuple) and len(item) == 3):
+            continue
+        name, start, end = item
+        if not (isinstance(start, int | float) and isinstance(end, int | float) and end > start):
+            continue
+        if start > samples[-1, 0]:
+            break  # the run ended first
+        a = samples[np.argmin(np.abs(samples[:, 0] - start))]
+        b = samples[np.argmin(np.abs(samples[:, 0] - end))]
+        dx, dy = b[1:3] - a[1:3]
+        c, s = np.cos(a[3]), np.sin(a[3])
+        turn = (b[3] - a[3] + np.pi) % (2 * np.pi) - np.pi
+        seconds = float(b[0] - a[0])
+        out.append({"leg": str(name), "start": round(float(a[0]), 3), "seconds": round(seconds, 3),
+                    "distance_x": round(float(c * dx + s * dy), 4),
+                    "drift_y": round(float(-s * dx + c * dy), 4),
+                    "yaw": round(float(np.degrees(turn)), 2),
+                    "speed": round(float(np.hypot(dx, dy) / seconds), 4) if seconds > 0 else 0.0})
+    return out
 
 
 def _base_xy_yaw(sim) -> np.ndarray:

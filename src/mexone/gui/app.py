@@ -24,6 +24,7 @@ import viser
 from mexone.control.controllers import Controller
 from mexone.errors import InputError, MexoneError
 from mexone.gui.fields import NumberFields
+from mexone.gui.handles import IkHandles
 from mexone.gui.health import Health
 from mexone.gui.inspector import Inspector
 from mexone.gui.load import LoadPanel
@@ -35,6 +36,7 @@ from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
 from mexone.gui.topics import RecordPanel, TopicsPanel
+from mexone.gui.walkpad import WalkPad
 from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
@@ -311,6 +313,8 @@ class GuiApp:
                                         self.record_folder)
         self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,
                                     self.model_label)
+        self.walk_pad = WalkPad(self.server, self.lab, self.do)
+        self.ik_handles = IkHandles(self.server, self.lab, self.do)
 
     def _screenshot_clicked(self, client) -> None:
         if client is None:

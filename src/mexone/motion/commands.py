@@ -29,11 +29,20 @@ from mexone import rospy
 from mexone.errors import InputError
 from mexone.motion.ik import FrameError, WholeBodyIK
 from mexone.motion.push import PUSH_SECONDS, apply_wrench
-from mexone.motion.walk import GAIT_YAML, Gait, bent_knees, walk_ticks
-from mexone.msgs import Float64, Imu, JointState
+from mexone.motion.walk import (
+    GAIT_YAML,
+    Gait,
+    bent_knees,
+    course_steps,
+    parse_course,
+    plan_phases,
+    walk_ticks,
+)
+from mexone.msgs import Float64, Imu, JointState, PoseStamped, Twist
 from mexone.routines.runtime import RoutineContext, current
 
-__all__ = ["reach", "look_at", "push", "walk", "joint_targets", "RATE", "REACHED"]
+__all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "follow_goals", "GOAL_FRAMES",
+           "walk_seconds", "step_from_twist", "joint_targets", "RATE", "REACHED"]
 
 RATE = 50.0  # Hz: how often reach sends joint commands (the IK steps at the same period)
 REACHED = (0.005, math.radians(2.0))  # m, rad: closer than this is reached
@@ -42,6 +51,8 @@ _TRIM_GAIN = 0.3  # share of the joint error added to its command each tick whil
 _SETTLED = 2e-4  # rad: the joints count as settled when all are this close
 _CORRECTIONS = 2  # passes re-planned from the measured pose after the motion
 _CORRECT_ABOVE = 0.002  # m: a measured error this small is left alone
+BEND_SECONDS = 1.0  # s to bend the knees into the walking stance before the first step
+CMD_VEL_TIMEOUT = 0.5  # s: a cmd_vel older than this stops the walk (its sender is gone)
 _MAX_TRIM = 0.2  # rad: a joint held off its target by more (a collision) is not chased further
 
 
@@ -156,6 +167,42 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     return error
 
 
+GOAL_FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot", "head")
+WORLD_FRAMES = ("", "world", "map", "odom")  # frame_ids a goal may be given in (all the world)
+
+
+def follow_goals(frames=GOAL_FRAMES, duration: float = 1.0) -> None:
+    """Reach each geometry_msgs/PoseStamped arriving on /<ns>/<frame>/goal (world frame; a zero
+    quaternion, rospy's default, leaves the orientation free), one after another, each over
+    `duration` s. Returns never (until the routine is stopped)."""
+    ns = current().lab.namespace
+    pending: list[tuple[str, PoseStamped]] = []
+    for frame in frames:
+        rospy.Subscriber(f"{ns}/{frame}/goal", PoseStamped,
+                         lambda msg, f=frame: pending.append((f, msg)))
+    while not rospy.is_shutdown():
+        if not pending:
+            rospy.sleep(1.0 / RATE)
+            continue
+        frame, msg = pending.pop(0)
+        if msg.header.frame_id.lstrip("/") not in WORLD_FRAMES:
+            rospy.logwarn("goal for %s in frame '%s' ignored: give it in the world frame "
+                          "(frame_id '' or 'world')", frame, msg.header.frame_id)
+            continue
+        p, q = msg.pose.position, msg.pose.orientation
+        norm = math.sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w)
+        rpy = None
+        if norm > 1e-9:
+            x, y, z, w = q.x / norm, q.y / norm, q.z / norm, q.w / norm
+            rpy = (math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y)),
+                   math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x)))),
+                   math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+        try:
+            reach(frame, (p.x, p.y, p.z), rpy, duration)
+        except InputError as exc:
+            rospy.logwarn("goal for %s ignored: %s", frame, exc.what)
+
+
 def look_at(xyz, duration: float = 1.0) -> None:
     """Turn the head so the camera looks at world point xyz (m), the rest of the body still."""
     mover = _mover()
@@ -187,10 +234,74 @@ def push(link: str, impulse_xyz, duration: float = PUSH_SECONDS) -> None:
     sim.work.call(lambda: apply_wrench(sim, link, force, duration=duration))
 
 
-def walk(distance: float = 3.0, gait: Gait | str | None = None) -> None:
-    """Walk `distance` m straight ahead (mexone.motion.walk: ZMP preview control and IK), with
-    the gait of a YAML file (default: the shipped walk.yaml); returns standing, knees bent."""
+def _walking_course(course, gait: Gait) -> tuple:
+    if course is None:
+        return gait.course
+    if isinstance(course, int | float) and not isinstance(course, bool):
+        if not (course > 0 and math.isfinite(course)):
+            raise InputError(f"walk: distance {course} must be a finite number > 0 m")
+        return (("forward", float(course)),)
+    return parse_course(course, "walk")
+
+
+def walk_seconds(course=None, gait: Gait | str | None = None) -> float:
+    """How long walk(course, gait) takes (s of sim time): it is planned, so known beforehand."""
     gait = gait if isinstance(gait, Gait) else Gait.load(gait or GAIT_YAML)
+    seconds, _ = plan_phases(gait, course_steps(gait, _walking_course(course, gait)))
+    return BEND_SECONDS + seconds
+
+
+def walk(course=None, gait: Gait | str | None = None) -> None:
+    """Walk a course: a distance (m straight ahead) or legs [["forward", 3.0], ["turn", 90],
+    ["sideways", -1.0]] (m, degrees, m; left positive), default the gait's (walk.yaml:
+    3 m, a quarter turn left, 1 m to the right). mexone.motion.walk plans it: footsteps, ZMP
+    preview control, IK. Returns standing, knees bent. The legs' times go to the ~phases
+    parameter, so `mexone run` reports each."""
+    gait = gait if isinstance(gait, Gait) else Gait.load(gait or GAIT_YAML)
+    legs = _walking_course(course, gait)
+    _, phases = plan_phases(gait, course_steps(gait, legs))
+    start = rospy.get_time() + BEND_SECONDS
+    rospy.set_param("~phases", [[leg, round(start + a, 6), round(start + b, 6)] for leg, a, b in phases])
+    _walk(course_steps(gait, legs), gait)
+
+
+def walk_cmd_vel(gait: Gait | str | None = None, topic: str | None = None) -> None:
+    """Walk as geometry_msgs/Twist on `topic` (default /<ns>/cmd_vel) says: linear.x forward,
+    linear.y left (m/s), angular.z turn left (rad/s), each step as long as the gait allows; a
+    zero Twist (or none for 0.5 s) stands. Returns never (until the routine is stopped). A
+    command takes effect when the plan reaches it: `preview` s (walk.yaml) later."""
+    gait = gait if isinstance(gait, Gait) else Gait.load(gait or GAIT_YAML)
+    last = {"msg": Twist(), "stamp": -math.inf}
+
+    def on_twist(msg: Twist) -> None:
+        last["msg"], last["stamp"] = msg, rospy.get_time()
+
+    rospy.Subscriber(topic or f"{current().lab.namespace}/cmd_vel", Twist, on_twist)
+
+    def steps():
+        while True:
+            msg = last["msg"] if rospy.get_time() - last["stamp"] < CMD_VEL_TIMEOUT else Twist()
+            yield step_from_twist(gait, msg.linear.x, msg.linear.y, msg.angular.z)
+
+    _walk(steps(), gait)
+
+
+def step_from_twist(gait: Gait, vx: float, vy: float, wz: float):
+    """One step's body motion (leg, (dx, dy, dyaw)) for a velocity command, each part clipped
+    to the gait's largest step; None (stand) for a command too small to step."""
+    motion = np.array([vx, vy, wz], dtype=float) * gait.period
+    if not np.isfinite(motion).all():
+        return None
+    motion = np.clip(motion, -np.array([gait.step_length, gait.side_step, gait.turn_step]),
+                     np.array([gait.step_length, gait.side_step, gait.turn_step]))
+    if np.all(np.abs(motion) < 1e-3):
+        return None
+    leg = ("forward", "sideways", "turn")[int(np.argmax(np.abs(motion) / np.array(
+        [gait.step_length, gait.side_step, gait.turn_step])))]
+    return leg, motion
+
+
+def _walk(source, gait: Gait) -> None:
     mover = _mover()
     qpos = mover.snapshot()
     ik = mover.ik
@@ -199,18 +310,22 @@ def walk(distance: float = 3.0, gait: Gait | str | None = None) -> None:
     ik.reset(bent_knees(ik, qpos, gait.knee_bend))
     bent = ik.joint_positions()
     rate = rospy.Rate(1.0 / gait.dt)
-    ticks = round(1.0 / gait.dt)
-    for k in range(1, ticks + 1):  # 1 s down into the walking stance
+    ticks = round(BEND_SECONDS / gait.dt)
+    for k in range(1, ticks + 1):  # down into the walking stance
         mover.send({n: standing[n] + (bent[n] - standing[n]) * k / ticks for n in bent})
         rate.sleep()
-    yaw = [0.0]
+    attitude = [(0.0, 0.0, 0.0)]  # the pelvis's roll, pitch, yaw (rad) from the IMU
 
     def on_imu(msg: Imu) -> None:
         q = msg.orientation
-        yaw[0] = math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+        attitude[0] = (math.atan2(2 * (q.w * q.x + q.y * q.z), 1 - 2 * (q.x * q.x + q.y * q.y)),
+                       math.asin(max(-1.0, min(1.0, 2 * (q.w * q.y - q.z * q.x)))),
+                       math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
-    for joints in walk_ticks(ik, qpos, gait, distance, heading=lambda: yaw[0]):
-        mover.send(joints)
-        rate.sleep()
-    imu.unregister()
+    try:
+        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0]):
+            mover.send(joints)
+            rate.sleep()
+    finally:
+        imu.unregister()

@@ -1,19 +1,28 @@
 """Walking, planned: footsteps, the centre of mass by ZMP preview control (Kajita et al. 2003),
 swing-foot arcs, and whole-body IK turning them into joint positions, one control period apart.
 
+Footsteps come from body motions, one per step (forward, sideways, turn: a course's legs or a
+cmd_vel Twist): the body's pose advances by the step's motion and the swinging foot lands
+beside the pose half way there, so feet alternate ahead/aside of each other as in human gait
+(the first step is a half step; a stop brings the feet side by side).
+
 The COM follows the linear inverted pendulum at a constant height z (the "cart-table"): the
 zero moment point is p = x - (z/g) x''. Preview control picks the COM's jerk each period from
-the state and the ZMP reference of the next `preview` seconds (the footsteps), so the COM
-starts moving before the ZMP jumps to the next foot. The feet stay flat; the swing foot rises
-`height` on a half sine while it moves on a cosine ease. WholeBodyIK (feet frames + COM +
-upright pelvis) gives the joint positions; the routine sends them to the position
-controllers. Open loop but for the heading: the IMU's yaw turns each step's foot against the
-slip of the feet (see the README's limits).
+the state and the ZMP reference of the next `preview` seconds (the footsteps, planned that far
+ahead), so the COM starts moving before the ZMP jumps to the next foot. The feet stay flat; the
+swing foot rises `step_height` on a half sine while it moves (and turns) on a cosine ease.
+WholeBodyIK (feet frames + COM + upright pelvis) gives the joint positions; the routine sends
+them to the position controllers. Open loop but for the IMU: at each step its yaw against the
+plan's is the feet's slip, and the plan still ahead turns about the stance foot to cancel it;
+and each period the ankles take back a share of the pelvis's measured tilt, so the soles stay
+flat on the ground (tilted onto an edge a foot loses its grip and spins; see the README).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import math
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -25,18 +34,26 @@ from mexone import yamlio
 from mexone.errors import InputError
 from mexone.motion.ik import WholeBodyIK
 
-__all__ = ["Gait", "preview_gains", "zmp_reference", "bent_knees", "walk_ticks", "GAIT_YAML"]
+__all__ = ["Gait", "preview_gains", "FootstepPlanner", "PlanTick", "Swing", "bent_knees",
+           "walk_ticks", "course_steps", "GAIT_YAML", "LEGS", "COURSE"]
 
 G = 9.81
-MAX_TURN = 0.05  # rad: the most a step turns to correct the heading
+MAX_CORRECTION = 0.05  # rad: the most one step turns the plan to cancel the feet's slip
+IK_ITERATIONS = 2  # IK steps (QPs) per control period: most of walking's CPU (1: turns overshoot 6 deg)
+CORRECTION_GAIN = 0.3  # share of the measured slip one step cancels
+SLIP_WINDOW = 2.0  # steps the slip is averaged over
 GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
+LEGS = ("forward", "sideways", "turn")  # a course's legs: metres, metres (left +), degrees (left +)
+COURSE = (("forward", 3.0), ("turn", 90.0))  # the issue's course, but its 1 m sideways (unstable)
 
 
 @dataclass(frozen=True)
 class Gait:
     """The walking parameters a student edits (routines/shipped/walk.yaml)."""
 
-    step_length: float = 0.06   # m, forward per step
+    step_length: float = 0.06   # m, forward per step at most
+    side_step: float = 0.025    # m, sideways per step at most
+    turn_step: float = 0.2      # rad, turn per step at most
     step_height: float = 0.03   # m, swing foot's highest lift
     period: float = 0.4         # s per step
     double_support: float = 0.2  # share of the period both feet are down
@@ -44,6 +61,8 @@ class Gait:
     dt: float = 0.01            # s, control period
     preview: float = 1.6        # s of ZMP reference the COM looks ahead
     stand: float = 1.0          # s standing before the first step and after the last
+    flat_feet: float = 0.3      # share of the pelvis's measured tilt the ankles take back
+    course: tuple[tuple[str, float], ...] = COURSE  # what `mexone run walk` walks
 
     @classmethod
     def load(cls, path: Path | str = GAIT_YAML) -> Gait:
@@ -53,10 +72,54 @@ class Gait:
             extra = sorted(set(raw) - known) if isinstance(raw, dict) else raw
             raise InputError(f"{path}: unknown gait parameter(s) {extra}",
                              hint="parameters: " + ", ".join(sorted(known)))
-        gait = cls(**{k: float(v) for k, v in raw.items()})
-        if not (gait.period > 0 and 0 <= gait.double_support < 1 and gait.dt > 0):
-            raise InputError(f"{path}: period and dt must be > 0, double_support in [0, 1)")
+        values = {}
+        for key, value in raw.items():
+            if key == "course":
+                values[key] = parse_course(value, str(path))
+            elif isinstance(value, bool) or not isinstance(value, int | float) \
+                    or not math.isfinite(value):
+                raise InputError(f"{path}: {key} is {value!r}, not a number")
+            else:
+                values[key] = float(value)
+        gait = cls(**values)
+        if not (gait.period > 0 and 0 <= gait.double_support < 1 and gait.dt > 0
+                and gait.step_length > 0 and gait.side_step > 0 and gait.turn_step > 0):
+            raise InputError(f"{path}: period, dt, step_length, side_step and turn_step must be > 0, "
+                             "double_support in [0, 1)")
         return gait
+
+
+def parse_course(value, where: str = "course") -> tuple[tuple[str, float], ...]:
+    """[[forward, 3.0], [turn, 90], [sideways, -1.0]]: legs walked one after the other."""
+    hint = "a list of [leg, amount]: forward m, sideways m (left +), turn degrees (left +)"
+    if not isinstance(value, list | tuple):
+        raise InputError(f"{where}: the course is {value!r}", hint=hint)
+    out = []
+    for item in value:
+        if not (isinstance(item, list | tuple) and len(item) == 2 and item[0] in LEGS
+                and isinstance(item[1], int | float) and not isinstance(item[1], bool)
+                and math.isfinite(item[1])):
+            raise InputError(f"{where}: course leg {item!r} is not [leg, amount]", hint=hint)
+        out.append((str(item[0]), float(item[1])))
+    return tuple(out)
+
+
+def course_steps(gait: Gait, course: Iterable[tuple[str, float]]) -> Iterator[tuple[str, np.ndarray]]:
+    """Each step's body motion (dx, dy, dyaw; m, m, rad in the body's frame) walking `course`,
+    as even steps no longer than the gait's, labelled with their leg's name; None between legs
+    (the feet come side by side and stand a period: each leg starts from a square stance)."""
+    for i, (leg, amount) in enumerate(course):
+        if i:
+            yield None
+        most, index = {"forward": (gait.step_length, 0), "sideways": (gait.side_step, 1),
+                       "turn": (gait.turn_step, 2)}[leg]
+        amount = math.radians(amount) if leg == "turn" else amount
+        n = math.ceil(abs(amount) / most - 1e-9)
+        motion = np.zeros(3)
+        if n:
+            motion[index] = amount / n
+        for _ in range(n):
+            yield leg, motion
 
 
 def preview_gains(z: float, dt: float, horizon: int):
@@ -82,34 +145,160 @@ def preview_gains(z: float, dt: float, horizon: int):
     return a, b, c, k[0, 0], k[0, 1:], preview
 
 
-def zmp_reference(gait: Gait, feet: list[np.ndarray], steps: int):
-    """ZMP reference (ticks, 2) and the swings (start tick, end tick, foot, from, to): stand
-    between the feet, then `steps` steps, left first, the first and last half as long."""
-    dt, ref, swings = gait.dt, [], []
-    feet = [f.copy() for f in feet]
-    ref += [(feet[0] + feet[1]) / 2] * round(gait.stand / dt)
-    n_double = round(gait.double_support * gait.period / dt)
-    n_single = round((1 - gait.double_support) * gait.period / dt)
-    for k in range(steps):
-        swing, stance = k % 2, 1 - k % 2
-        target = feet[swing].copy()
-        reach = gait.step_length / 2 if k in (0, steps - 1) else gait.step_length
-        target[0] = feet[stance][0] + (reach if k < steps - 1 else 0.0)
-        start = ref[-1]
-        ref += [start + (feet[stance] - start) * (i + 1) / n_double for i in range(n_double)]
-        swings.append((len(ref), len(ref) + n_single, swing, feet[swing].copy(), target))
-        ref += [feet[stance].copy()] * n_single
-        feet[swing] = target
-    start, middle = ref[-1], (feet[0] + feet[1]) / 2
-    ref += [start + (middle - start) * (i + 1) / n_double for i in range(n_double)]
-    ref += [middle] * round(gait.stand / dt)
-    return np.array(ref), swings
+def compose(pose: np.ndarray, motion) -> np.ndarray:
+    """pose (x, y, yaw) moved by `motion` given in its own frame."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    return np.array([pose[0] + c * motion[0] - s * motion[1],
+                     pose[1] + s * motion[0] + c * motion[1], pose[2] + motion[2]])
+
+
+@dataclass
+class Swing:
+    """One foot's step: from `origin` to `target` (x, y, yaw), both planned poses."""
+
+    foot: int  # 0 left, 1 right
+    origin: np.ndarray
+    target: np.ndarray
+    started: bool = False
+
+
+@dataclass
+class PlanTick:
+    """One control period of the plan: the ZMP reference, the swing under way (and how far)."""
+
+    zmp: np.ndarray
+    swing: Swing | None = None
+    progress: float = 0.0
+    leg: str | None = None  # the course leg this period walks (its closing steps too); None: standing
+
+
+END = object()
+
+
+class FootstepPlanner:
+    """The plan, a period at a time, `lookahead` periods ahead of the one walked: footsteps from
+    a source of body motions (each a step, None: stand a period; its end: stop and stand)."""
+
+    def __init__(self, gait: Gait, feet: list[np.ndarray], source: Iterable, lookahead: int = 0):
+        self.gait = gait
+        self.feet = [np.array(f, dtype=float) for f in feet]  # the last planned pose of each
+        yaw = (self.feet[0][2] + self.feet[1][2]) / 2
+        middle = (self.feet[0][:2] + self.feet[1][:2]) / 2
+        self.body = np.array([*middle, yaw])
+        across = self.feet[0][:2] - self.feet[1][:2]
+        self.width = float(-math.sin(yaw) * across[0] + math.cos(yaw) * across[1])
+        self.source = iter(source)
+        self.lookahead = lookahead
+        self.ticks: deque[PlanTick] = deque()
+        self.standing = True
+        self.ended = False
+        self.next_foot = 0
+        self.last_leg: str | None = None
+        self.n_double = round(gait.double_support * gait.period / gait.dt)
+        self.n_single = round((1 - gait.double_support) * gait.period / gait.dt)
+        self._last_zmp = self._middle()
+        self._extend(self._middle(), round(gait.stand / gait.dt))
+
+    def __iter__(self) -> Iterator[PlanTick]:
+        while True:
+            while not self.ended and len(self.ticks) <= self.lookahead:
+                self._plan_next()
+            if not self.ticks:
+                return
+            tick = self.ticks.popleft()
+            self._last_zmp = tick.zmp.copy()
+            yield tick
+
+    def _middle(self) -> np.ndarray:
+        return (self.feet[0][:2] + self.feet[1][:2]) / 2
+
+    def _extend(self, zmp, n: int, leg: str | None = None) -> None:
+        self.ticks.extend(PlanTick(np.array(zmp, dtype=float), leg=leg) for _ in range(n))
+
+    def _zmp_now(self) -> np.ndarray:
+        """The ZMP reference at the end of the plan so far (walked or not)."""
+        return self.ticks[-1].zmp.copy() if self.ticks else self._last_zmp
+
+    def _plan_next(self) -> None:
+        item = next(self.source, END)
+        if item is END or item is None:
+            if not self.standing:  # both feet onto the body's pose, then the ZMP between them
+                leg = self.last_leg or "stop"
+                self._step(np.zeros(3), leg, close=True)  # part of the leg they end
+                self._step(np.zeros(3), leg, close=True)
+                start, middle = self._zmp_now(), self._middle()
+                for i in range(self.n_double):
+                    self._extend(start + (middle - start) * (i + 1) / self.n_double, 1, leg)
+                self.standing = True
+            n = round((self.gait.stand if item is END else self.gait.period) / self.gait.dt)
+            self._extend(self._middle(), n)
+            self.ended = item is END
+            return
+        leg, motion = item
+        self._step(np.asarray(motion, dtype=float), leg)
+
+    def _step(self, motion: np.ndarray, leg: str, close: bool = False) -> None:
+        swing = self.next_foot
+        stance = 1 - swing
+        side = self.width / 2 if swing == 0 else -self.width / 2
+        # sideways, the leading foot steps out twice the motion and the trailing one closes in:
+        # the feet never come closer than at standing (their edges are 4 cm apart there)
+        lateral = motion[1] * (2.0 if motion[1] * side > 0 else 1.0)
+        half = compose(self.body, (motion[0] / 2, 0.0, motion[2] / 2))
+        target = compose(half, (0.0, side + lateral, 0.0))
+        stance_pose = self.feet[stance]
+        across = np.array([-math.sin(target[2]), math.cos(target[2])])
+        apart = float(np.dot(target[:2] - stance_pose[:2], across)) * np.sign(side)
+        if apart < abs(self.width):  # the first step of a sideways leg by the trailing foot
+            target[:2] += across * np.sign(side) * (abs(self.width) - apart)
+        self.body = compose(self.body, motion)
+        if close:  # square under the body, standing's width apart
+            target = compose(self.body, (0.0, side, 0.0))
+        start, foot = self._zmp_now(), self.feet[stance][:2].copy()
+        for i in range(self.n_double):
+            self._extend(start + (foot - start) * (i + 1) / self.n_double, 1, leg)
+        step = Swing(swing, self.feet[swing], target)
+        for i in range(self.n_single):
+            self.ticks.append(PlanTick(foot.copy(), step, (i + 1) / self.n_single, leg))
+        self.feet[swing] = target
+        self.next_foot = stance
+        self.standing = False
+        self.last_leg = leg
+
+    def turn_ahead(self, angle: float, pivot) -> None:
+        """Turn everything still ahead (ZMP, footsteps not yet begun, the body) by `angle` rad
+        about the ground point `pivot`: the stance foot, which stays."""
+        c, s = math.cos(angle), math.sin(angle)
+        rot = np.array([[c, -s], [s, c]])
+        pivot = np.asarray(pivot, dtype=float)[:2]
+        turned: set[int] = set()
+
+        def turn(pose: np.ndarray, with_yaw: bool) -> None:
+            if id(pose) in turned:
+                return
+            turned.add(id(pose))
+            pose[:2] = pivot + rot @ (pose[:2] - pivot)
+            if with_yaw:
+                pose[2] += angle
+
+        for tick in self.ticks:
+            turn(tick.zmp, False)
+            if tick.swing is not None and not tick.swing.started:
+                turn(tick.swing.target, True)
+        for pose in (*self.feet, self.body):
+            if any(t.swing is not None and t.swing.target is pose for t in self.ticks) \
+                    or pose is self.body:
+                turn(pose, True)
 
 
 def _heading(ik: WholeBodyIK) -> float:
     """The IK's base yaw (rad); body 1 is the floating base, the world's first child."""
     rotation = ik.configuration.data.xmat[1].reshape(3, 3)
     return float(np.arctan2(rotation[1, 0], rotation[0, 0]))
+
+
+def _wrap(angle: float) -> float:
+    return (angle + math.pi) % (2 * math.pi) - math.pi
 
 
 def _yaw(angle: float) -> np.ndarray:
@@ -129,49 +318,96 @@ def bent_knees(ik: WholeBodyIK, qpos: np.ndarray, bend: float) -> np.ndarray:
     return q
 
 
-def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, distance: float,
-               heading: Callable[[], float] | None = None) -> Iterator[dict[str, float]]:
-    """Walk `distance` m straight ahead from the standing configuration `qpos`: the joint
-    positions of each control period, planned as they are needed (the first is the bent-knee
-    stance the robot should already be in). `heading`, if given, measures the robot's yaw (rad,
-    from the IMU): each step's foot is turned against it, so slipping feet do not steer."""
-    if not (gait.step_length > 0 and distance > 0):
-        raise InputError(f"walk: step_length {gait.step_length} and distance {distance} "
-                         "must be > 0 m")
+def _foot_pose(ik: WholeBodyIK, foot: str) -> np.ndarray:
+    position, rotation = ik.pose(foot)
+    return np.array([position[0], position[1], math.atan2(rotation[1, 0], rotation[0, 0])])
+
+
+def nominal_feet(width: float = 0.12) -> list[np.ndarray]:
+    """Feet side by side at the origin, facing +x: a plan's timing does not depend on where."""
+    return [np.array([0.0, width / 2, 0.0]), np.array([0.0, -width / 2, 0.0])]
+
+
+def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
+               imu: Callable[[], tuple[float, float, float]] | None = None,
+               on_plan: Callable[[PlanTick, np.ndarray], None] | None = None
+               ) -> Iterator[dict[str, float]]:
+    """Walk the body motions of `source` (course_steps, or a cmd_vel's) from the standing
+    configuration `qpos`: the joint positions of each control period, planned as they are
+    needed (the first is the bent-knee stance the robot should already be in). `imu`, if
+    given, measures the pelvis's roll, pitch, yaw (rad): at each step the plan ahead turns
+    against the yaw's difference from the IK's, so slipping feet do not steer, and the ankles
+    take back `flat_feet` of the tilt. `on_plan(tick, com)`
+    sees each period's plan (for drawing it)."""
     ik.reset(bent_knees(ik, qpos, gait.knee_bend))
-    feet = [ik.pose(f)[0] for f in ("l_foot", "r_foot")]
-    ground = feet[0][2]
-    steps = max(2, int(np.ceil(distance / gait.step_length)) + 1)
-    ref, swings = zmp_reference(gait, [f[:2] for f in feet], steps)
+    names = ("l_foot", "r_foot")
+    feet = [_foot_pose(ik, f) for f in names]
+    ground = ik.pose(names[0])[0][2]
     horizon = round(gait.preview / gait.dt)
+    planner = FootstepPlanner(gait, feet, source, lookahead=horizon + 1)
     a, b, c, k_sum, k_state, k_preview = preview_gains(ik.com()[2] - ground, gait.dt, horizon)
-    padded = np.vstack([ref, np.repeat(ref[-1:], horizon + 1, axis=0)])
     x = np.zeros((3, 2))  # the COM's position, velocity, acceleration in x and y
     x[0] = ik.com()[:2]
     summed = np.zeros(2)
-    active = iter(swings)
-    swing = next(active, None)
-    turn = 0.0  # rad: the IK's heading that is the world's straight ahead (feet slip; it drifts)
-    for i in range(len(ref)):
-        summed += (c @ x)[0] - ref[i]
-        jerk = -k_sum * summed - k_state @ x - k_preview @ padded[i + 1:i + 1 + horizon]
+    correction = 0.0  # rad the plan has turned against the feet's slip
+    standing = [f.copy() for f in feet]  # each foot's pose while it is down
+    slips: deque[float] = deque(maxlen=int(SLIP_WINDOW * round(gait.period / gait.dt)) or 1)
+    for tick in planner:
+        ahead = [t.zmp for t in list(planner.ticks)[:horizon]]
+        ahead += [ahead[-1] if ahead else tick.zmp] * (horizon - len(ahead))
+        summed += (c @ x)[0] - tick.zmp
+        jerk = -k_sum * summed - k_state @ x - k_preview @ np.array(ahead)
         x = a @ x + b @ jerk[None, :]
         ik.set_com(x[0])
-        if swing is not None and i >= swing[0]:
-            start, end, foot, origin, target = swing
-            if i == start and heading is not None:
-                # the world's heading less the IK's is the feet's slip: turn the IK's feet back
-                slip = heading() - _heading(ik)
-                turn = float(np.clip(-slip, turn - MAX_TURN, turn + MAX_TURN))
-                if ik.base is not None:
-                    ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, turn)))
-            s = min(1.0, (i - start + 1) / (end - start))
-            xy = origin + (target - origin) * (1 - np.cos(np.pi * s)) / 2
-            ik.set_target(("l_foot", "r_foot")[foot],
-                          [xy[0], xy[1], ground + gait.step_height * np.sin(np.pi * s)],
-                          _yaw(turn))
+        swing = tick.swing
+        if swing is not None:
+            if not swing.started:
+                swing.started = True
+                if slips:
+                    # the world's heading less the IK's, over the last two steps (the pelvis
+                    # yaws to and fro with each swing), is the feet's slip: turn the plan back
+                    slip = float(np.mean(slips))
+                    turn = float(np.clip(CORRECTION_GAIN * (-slip - correction),
+                                         -MAX_CORRECTION, MAX_CORRECTION))
+                    correction += turn
+                    planner.turn_ahead(turn, standing[1 - swing.foot])
+            s = tick.progress
+            ease = (1 - np.cos(np.pi * s)) / 2
+            pose = swing.origin + (swing.target - swing.origin) * ease
+            ik.set_target(names[swing.foot], [pose[0], pose[1], ground + gait.step_height *
+                                              np.sin(np.pi * s)], _yaw(pose[2]))
             if s >= 1.0:
-                swing = next(active, None)
-        for _ in range(3):  # a few IK iterations per period: the targets are met, not chased
+                standing[swing.foot] = swing.target.copy()
+            else:
+                standing[swing.foot] = pose
+        if ik.base is not None:
+            yaw = (standing[0][2] + standing[1][2]) / 2
+            ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, yaw)))
+        for _ in range(IK_ITERATIONS):  # the targets are met, not chased
             ik.step(gait.dt)
-        yield ik.joint_positions()
+        joints = ik.joint_positions()
+        if imu is not None:
+            roll, pitch, yaw = imu()
+            slips.append(_wrap(yaw - _heading(ik)))
+            # the legs tilt with the pelvis and lift the soles' edges: the feet lose grip and
+            # spin; the ankles turn them back toward flat by a share of the tilt
+            for side in "lr":
+                joints[f"{side}_ankle_pitch"] -= gait.flat_feet * pitch
+                joints[f"{side}_ankle_roll"] -= gait.flat_feet * roll
+        if on_plan is not None:
+            on_plan(tick, x[0].copy())
+        yield joints
+
+
+def plan_phases(gait: Gait, source: Iterable) -> tuple[float, list[tuple[str, float, float]]]:
+    """How long walking `source` takes (s, from the first period) and its legs' spans
+    (leg, start s, end s): the plan's timing, which corrections never change."""
+    phases: list[list] = []
+    n = 0
+    for n, tick in enumerate(FootstepPlanner(gait, nominal_feet(), source), start=1):
+        if tick.leg is not None:
+            if phases and phases[-1][0] == tick.leg and phases[-1][2] == (n - 1) * gait.dt:
+                phases[-1][2] = n * gait.dt
+            else:
+                phases.append([tick.leg, (n - 1) * gait.dt, n * gait.dt])
+    return n * gait.dt, [(leg, round(a, 6), round(b, 6)) for leg, a, b in phases]

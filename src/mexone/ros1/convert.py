@@ -121,6 +121,27 @@ FROM_ROS: dict[str, Callable[[Any], Any]] = {
 }
 
 
+def _generic_from_ros(ros, bus_type: type):
+    """A ROS message into the bus class whose fields are ROS's own (the reverse of _generic):
+    each field takes the type of the bus class's default for it."""
+    default = bus_type()
+    values = {}
+    for f in dataclasses.fields(bus_type):
+        value, like = getattr(ros, f.name), getattr(default, f.name)
+        if isinstance(like, msgs.Time):
+            values[f.name] = bus_time(value)
+        elif dataclasses.is_dataclass(like):
+            values[f.name] = _generic_from_ros(value, type(like))
+        else:
+            values[f.name] = type(like)(value)
+    return bus_type(**values)
+
+
+# geometry commands ROS nodes may send (cmd_vel, goals): fields as ROS's, copied generically
+for _bus in (msgs.Twist, msgs.PoseStamped):
+    FROM_ROS[msgs.ROS_TYPES[_bus]] = lambda r, _b=_bus: _generic_from_ros(r, _b)
+
+
 def _generic(m, cls):
     """A bus message whose fields are ROS's own (names, order, nesting): copied field by field,
     nested messages built from the ROS class's slot types, stamps exact."""

@@ -25,9 +25,11 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
            "routine_choices"]
 
 _HERE = Path(__file__).resolve().parent
+DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
 _PACKAGE = str(Path(mexone.__file__).resolve().parent)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
-           "walk": "walk.py", "excitation": "excitation.py"}
+           "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
+           "reach_goals": "reach_goals.py"}
 
 
 def shipped_routines() -> dict[str, Path]:
@@ -191,11 +193,18 @@ class RoutineRunner:
             self.scheduler.leave()
             bind(None)
 
-    def run(self, duration: float, on_tick=None, tick: float = 0.05) -> None:
+    def run(self, duration: float | None, on_tick=None, tick: float = 0.05,
+            default: float = DEFAULT_DURATION) -> None:
         """Simulate until every routine ends or `duration` s of sim time pass (a routine that
-        stops yielding is abandoned after the stall time, with an error)."""
+        stops yielding is abandoned after the stall time, with an error). duration None: as
+        long as the routines declare (declared_duration), else `default` s."""
         self.start()
         sim = self.lab.sim
+        if duration is None:
+            # each routine runs to its first wait (served meanwhile): by then it has declared
+            while self.scheduler.active and self.scheduler.horizon() is None:
+                sim.work.drain()
+            duration = self.declared_duration() or default
         remaining = duration
         try:
             while remaining > sim.timestep / 2 and self.scheduler.active:
@@ -203,6 +212,17 @@ class RoutineRunner:
                                      until=lambda: not self.scheduler.active)
         finally:
             self.stop()
+
+    def declared_duration(self) -> float | None:
+        """The longest ~duration (s of sim time) the routines set themselves, e.g.
+        rospy.set_param("~duration", 40.0) before they first wait: how long `mexone run` runs
+        them when not told (walk sets its course's length)."""
+        declared = []
+        for entry in self.routines:
+            value = self.params.get(f"/{entry.path.stem}/duration")
+            if isinstance(value, int | float) and not isinstance(value, bool) and 0 < value < 1e9:
+                declared.append(float(value))
+        return max(declared, default=None)
 
     def stop(self, join: float = 1.0) -> None:
         """Stop every routine (they get ROSInterruptException at their next wait)."""

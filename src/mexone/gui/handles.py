@@ -1,0 +1,112 @@
+"""IK drag handles: viser transform controls on the hands (position), the feet (pose) and a gaze
+target; moving one solves whole-body IK (mexone.motion: the other feet held, the COM over them) from the
+robot's measured pose and sends the joint positions to the position controllers, as the
+Joints sliders do. The IK runs in a worker thread on its own model copy; only the simulation
+thread reads the state (a snapshot) and publishes the commands.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import mujoco
+import numpy as np
+import viser
+
+from mexone.lab import Lab
+from mexone.motion.ik import WholeBodyIK
+
+__all__ = ["IkHandles", "FRAMES", "POSED", "GAZE"]
+
+FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot")
+POSED = ("l_foot", "r_foot")  # handles that turn too; a hand's orientation is left to the IK
+GAZE = "gaze"  # a point the head's camera looks at
+SOLVE_ITERATIONS = 150  # IK steps per drop (converge stops earlier when it settles)
+
+
+class IkHandles:
+    def __init__(self, server: viser.ViserServer, lab: Lab, do):
+        self.server, self.lab, self.do = server, lab, do
+        self.ik: WholeBodyIK | None = None
+        self.lock = threading.Lock()  # the IK's own data: the worker's and show()'s
+        self.handles: dict[str, object] = {}
+        self.latest: tuple[str, np.ndarray, np.ndarray] | None = None
+        self.wake = threading.Event()
+        with server.gui.add_folder("IK handles", expand_by_default=False):
+            box = server.gui.add_checkbox("Show handles", False,
+                                          hint="drag a hand, a foot or the gaze target: "
+                                               "whole-body IK moves the robot there")
+            box.on_update(lambda e: self.do(lambda: self.show(bool(e.target.value))))
+            self.status = server.gui.add_markdown("")
+        threading.Thread(target=self._work, daemon=True, name="ik handles").start()
+
+    def show(self, on: bool) -> None:
+        """Add (at the frames' present poses) or remove the handles (simulation thread)."""
+        for handle in self.handles.values():
+            handle.remove()
+        self.handles.clear()
+        if not on or self.lab.controllers is None:
+            return
+        with self.lock:
+            if self.ik is None:
+                self.ik = WholeBodyIK.for_sim(self.lab.sim)
+            self.ik.reset(self.lab.sim.data.qpos.copy())
+            poses = {frame: self.ik.pose(frame) for frame in FRAMES}
+        for frame, (position, rotation) in poses.items():
+            quat = np.zeros(4)
+            mujoco.mju_mat2Quat(quat, rotation.ravel())
+            self._add(frame, position, quat, rotations=frame in POSED)
+        self._add(GAZE, np.array([1.0, 0.0, 0.3]), np.array([1.0, 0.0, 0.0, 0.0]), rotations=False)
+
+    def _add(self, name: str, position, wxyz, rotations: bool) -> None:
+        handle = self.server.scene.add_transform_controls(
+            f"/ik_handles/{name}", scale=0.12, position=tuple(position), wxyz=tuple(wxyz),
+            disable_rotations=not rotations)
+        handle.on_update(lambda e, n=name: self.drag(n, e.target.position, e.target.wxyz))
+        self.handles[name] = handle
+
+    def drag(self, frame: str, position, wxyz) -> None:
+        """A handle moved (viser's thread): solve for the latest pose, dropping stale ones."""
+        self.latest = (frame, np.asarray(position, dtype=float), np.asarray(wxyz, dtype=float))
+        self.wake.set()
+
+    def _work(self) -> None:
+        while True:
+            self.wake.wait()
+            self.wake.clear()
+            job, self.latest = self.latest, None
+            if job is None or self.ik is None:
+                continue
+            sim = self.lab.sim
+            try:
+                qpos = sim.work.call(lambda s=sim: s.data.qpos.copy())
+            except Exception:  # noqa: BLE001 - the lab is closing
+                return
+            joints, error = self.solve(qpos, *job)
+            self.do(lambda j=joints, e=error: self.send(j, e))
+
+    def solve(self, qpos: np.ndarray, frame: str, position: np.ndarray, wxyz: np.ndarray):
+        """Joint positions putting `frame` at the pose (or the camera looking at `position`)."""
+        with self.lock:
+            self.ik.reset(qpos)
+            if frame == GAZE:
+                self.ik.look_at(position)
+            elif frame in POSED:
+                rotation = np.zeros(9)
+                mujoco.mju_quat2Mat(rotation, wxyz / np.linalg.norm(wxyz))
+                self.ik.set_target(frame, position, rotation.reshape(3, 3))
+            else:  # the arms have too few joints for every orientation at every position
+                self.ik.set_target(frame, position)
+            self.ik.converge(iterations=SOLVE_ITERATIONS)
+            error = None if frame == GAZE else self.ik.error(frame)
+            return self.ik.joint_positions(), error
+
+    def send(self, joints: dict[str, float], error=None) -> None:
+        """Command every position controller's joints (simulation thread)."""
+        manager = self.lab.controllers
+        for ctrl in manager.controllers.values():
+            if ctrl.kind == "position":
+                command = {j: joints[j] for j in ctrl.joints if j in joints}
+                if command:
+                    manager.command(ctrl.name, command)
+        self.status.content = "" if error is None else f"IK: {error} from the handle"
