@@ -6,6 +6,7 @@ to pixels), so the cloud's nearest pixels must form the pillar's front face."""
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import subprocess
@@ -17,7 +18,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-from test_bridge import RSP, ros_env, stop  # noqa: E402
+from test_bridge import RSP, free_port, ros_env, start_roscore, stop  # noqa: E402
 from test_parity import start_sim  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -143,29 +144,51 @@ def _wait_for_cloud(display: str, timeout: float = 120.0) -> np.ndarray:
     raise AssertionError(f"rviz never drew the Kinect's cloud (screen: {_save(shot)})")
 
 
+def _ros(port: int, *command: str, timeout: float = 60) -> str:
+    """A ROS command-line tool against this module's master; its output (one line on failure)."""
+    try:
+        done = subprocess.run(command, env=ros_env(port), capture_output=True, text=True,
+                              timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise AssertionError(f"{' '.join(command[:3])} timed out after {timeout} s") from None
+    assert done.returncode == 0, f"{' '.join(command[:3])}: {done.stderr.strip()[-500:]}"
+    return done.stdout
+
+
 @pytest.fixture(scope="module")
-def scene(ros_master, tmp_path_factory):
+def scene(tmp_path_factory):
+    """A master of its own (nothing left by other modules: registrations, TF, sim time) with
+    the sim, robot_state_publisher and a pillar spawned as a gazebo_ros user would."""
     if not shutil.which("rviz") or not shutil.which("Xvfb"):
         pytest.skip("Debian's rviz and xvfb are not installed")
-    rospy, port = ros_master
-    sim = start_sim(port)
-    from gazebo_msgs.srv import SpawnModel
-    from geometry_msgs.msg import Pose
-    from sensor_msgs.msg import JointState
-
-    rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=60)
-    # robot_state_publisher reads robot_description once at start: only after the sim set it
-    rsp = subprocess.Popen([RSP, "joint_states:=/mex_rb/joint_states"], env=ros_env(port),
-                           stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-    rospy.wait_for_service("/gazebo/spawn_urdf_model", timeout=30)
-    pose = Pose()
-    pose.position.x, pose.position.z, pose.orientation.w = PILLAR_X, 1.0, 1.0
-    assert rospy.ServiceProxy("/gazebo/spawn_urdf_model", SpawnModel)(
-        "pillar", PILLAR, "", pose, "world").success
-    xvfb, display = _display()
-    yield tmp_path_factory.mktemp("rviz"), port, display
-    for proc in (rsp, sim, xvfb):
-        stop(proc)
+    port = free_port()
+    core = start_roscore(port)
+    sim = rsp = xvfb = None
+    try:
+        _ros(port, "rosparam", "set", "/use_sim_time", "true")
+        sim = start_sim(port)
+        try:
+            _ros(port, "rostopic", "echo", "-n", "1", "--noarr", "/mex_rb/joint_states/header",
+                 timeout=90)
+        except AssertionError as exc:
+            stop(sim)
+            raise AssertionError(f"{exc}; the sim said: {sim.stderr.read()[-800:]}") from None
+        # robot_state_publisher reads robot_description once at start: only after the sim set it
+        rsp = subprocess.Popen([RSP, "joint_states:=/mex_rb/joint_states"], env=ros_env(port),
+                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                               start_new_session=True)
+        request = {"model_name": "pillar", "model_xml": PILLAR, "robot_namespace": "",
+                   "initial_pose": {"position": {"x": PILLAR_X, "y": 0.0, "z": 1.0},
+                                    "orientation": {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}},
+                   "reference_frame": "world"}
+        assert "success: True" in _ros(port, "rosservice", "call", "--wait",
+                                       "/gazebo/spawn_urdf_model", json.dumps(request))
+        xvfb, display = _display()
+        yield tmp_path_factory.mktemp("rviz"), port, display
+    finally:
+        for proc in (rsp, sim, xvfb, core):
+            if proc is not None:
+                stop(proc)
 
 
 def test_rviz_draws_the_robot_and_the_kinect_cloud_on_the_pillar(scene):
