@@ -32,6 +32,7 @@ from mexone.motion.push import PUSH_SECONDS, apply_wrench
 from mexone.motion.walk import (
     GAIT_YAML,
     Gait,
+    Measured,
     bent_knees,
     course_steps,
     parse_course,
@@ -64,6 +65,7 @@ class _Mover:
     ik: WholeBodyIK
     publishers: dict[str, rospy.Publisher]
     measured: dict[str, float] = field(default_factory=dict)
+    velocities: dict[str, float] = field(default_factory=dict)
     trim: dict[str, float] = field(default_factory=dict)  # added to each command while holding
     trimmed: set[str] = field(default_factory=set)  # joints trimmed: not the legs that stand
 
@@ -115,6 +117,7 @@ def _mover() -> _Mover:
 
     def on_state(msg: JointState) -> None:
         mover.measured.update(zip(msg.name, msg.position, strict=False))
+        mover.velocities.update(zip(msg.name, msg.velocity, strict=False))
 
     rospy.Subscriber(f"{ns}/joint_states", JointState, on_state)
     _movers[id(context)] = mover
@@ -315,16 +318,21 @@ def _walk(source, gait: Gait) -> None:
         mover.send({n: standing[n] + (bent[n] - standing[n]) * k / ticks for n in bent})
         rate.sleep()
     attitude = [(0.0, 0.0, 0.0)]  # the pelvis's roll, pitch, yaw (rad) from the IMU
+    gyro = [np.zeros(3)]  # its angular velocity (rad/s, pelvis frame)
 
     def on_imu(msg: Imu) -> None:
         q = msg.orientation
         attitude[0] = (math.atan2(2 * (q.w * q.x + q.y * q.z), 1 - 2 * (q.x * q.x + q.y * q.y)),
                        math.asin(max(-1.0, min(1.0, 2 * (q.w * q.y - q.z * q.x)))),
                        math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z)))
+        w = msg.angular_velocity
+        gyro[0] = np.array([w.x, w.y, w.z])
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
     try:
-        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0]):
+        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
+                                  measured=lambda: Measured(mover.measured, mover.velocities,
+                                                            *attitude[0][:2], gyro[0])):
             mover.send(joints)
             rate.sleep()
     finally:

@@ -12,10 +12,15 @@ the state and the ZMP reference of the next `preview` seconds (the footsteps, pl
 ahead), so the COM starts moving before the ZMP jumps to the next foot. The feet stay flat; the
 swing foot rises `step_height` on a half sine while it moves (and turns) on a cosine ease.
 WholeBodyIK (feet frames + COM + upright pelvis) gives the joint positions; the routine sends
-them to the position controllers. Open loop but for the IMU: at each step its yaw against the
-plan's is the feet's slip, and the plan still ahead turns about the stance foot to cancel it;
-and each period the ankles take back a share of the pelvis's measured tilt, so the soles stay
-flat on the ground (tilted onto an edge a foot loses its grip and spins; see the README).
+them to the position controllers. Closed by what the robot senses (IMU, encoders): at each
+step the IMU's yaw against the plan's is the feet's slip, and the plan still ahead turns about
+the stance foot to cancel it; each period the ankles take back a share of the pelvis's measured
+tilt, so the soles stay flat on the ground (tilted onto an edge a foot loses its grip and spins;
+see the README); and at each lift-off the centre of mass measured relative to the stance foot
+(encoders, IMU attitude and gyro through the model's kinematics) gives the capture point's
+error against the plan's: the swing foot lands that much further and the plan ahead moves with
+it (Pratt et al. 2006). Without that, sidesteps sway wider each step until the robot tips: the
+real COM lags the plan's weight shift by 1-3 cm and its sway is not the plan's.
 """
 
 from __future__ import annotations
@@ -35,16 +40,19 @@ from mexone.errors import InputError
 from mexone.motion.ik import WholeBodyIK
 
 __all__ = ["Gait", "preview_gains", "FootstepPlanner", "PlanTick", "Swing", "bent_knees",
-           "walk_ticks", "course_steps", "GAIT_YAML", "LEGS", "COURSE"]
+           "walk_ticks", "course_steps", "Measured", "ComEstimate", "GAIT_YAML", "LEGS", "COURSE"]
 
 G = 9.81
 MAX_CORRECTION = 0.05  # rad: the most one step turns the plan to cancel the feet's slip
 IK_ITERATIONS = 2  # IK steps (QPs) per control period: most of walking's CPU (1: turns overshoot 6 deg)
 CORRECTION_GAIN = 0.3  # share of the measured slip one step cancels
 SLIP_WINDOW = 2.0  # steps the slip is averaged over
+BIAS_SHARE = 0.2  # share of each landing's capture-point error its foot's running mean takes
+MAX_STEP_SHIFT = 0.04  # m: the most one landing moves against the COM's error
+MIN_APART = 0.10  # m between the feet's centres at least (Mex-One's soles are 0.08 m wide)
 GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
 LEGS = ("forward", "sideways", "turn")  # a course's legs: metres, metres (left +), degrees (left +)
-COURSE = (("forward", 3.0), ("turn", 90.0))  # the issue's course, but its 1 m sideways (unstable)
+COURSE = (("forward", 3.0), ("turn", 90.0), ("sideways", -1.0))  # the issue's course
 
 
 @dataclass(frozen=True)
@@ -62,6 +70,7 @@ class Gait:
     preview: float = 1.6        # s of ZMP reference the COM looks ahead
     stand: float = 1.0          # s standing before the first step and after the last
     flat_feet: float = 0.3      # share of the pelvis's measured tilt the ankles take back
+    step_feedback: float = 1.0  # share of the measured capture-point error each landing takes
     course: tuple[tuple[str, float], ...] = COURSE  # what `mexone run walk` walks
 
     @classmethod
@@ -265,6 +274,38 @@ class FootstepPlanner:
         self.standing = False
         self.last_leg = leg
 
+    def shift_ahead(self, delta, swing: Swing) -> None:
+        """Move everything from `swing`'s landing on (its target, the footsteps after it, the
+        ZMP; the ZMP's shift onto it ramps in over the double support) by `delta` (m, x y):
+        the stance foot and the ZMP on it stay."""
+        delta = np.asarray(delta, dtype=float)[:2]
+        moved: set[int] = set()
+
+        def move(pose: np.ndarray, share: float = 1.0) -> None:
+            if id(pose) not in moved:
+                moved.add(id(pose))
+                pose[:2] += share * delta
+
+        move(swing.target)
+        after, ramp = False, 0
+        for tick in self.ticks:
+            if not after:
+                after = tick.swing is not swing
+            if not after:
+                continue
+            if tick.swing is None and ramp < self.n_double:
+                ramp += 1
+                move(tick.zmp, ramp / self.n_double)
+                continue
+            ramp = self.n_double
+            move(tick.zmp)
+            if tick.swing is not None and not tick.swing.started:
+                move(tick.swing.target)
+        for pose in (*self.feet, self.body):
+            if any(t.swing is not None and t.swing.target is pose for t in self.ticks) \
+                    or pose is self.body or pose is swing.target:
+                move(pose)
+
     def turn_ahead(self, angle: float, pivot) -> None:
         """Turn everything still ahead (ZMP, footsteps not yet begun, the body) by `angle` rad
         about the ground point `pivot`: the stance foot, which stays."""
@@ -318,6 +359,59 @@ def bent_knees(ik: WholeBodyIK, qpos: np.ndarray, bend: float) -> np.ndarray:
     return q
 
 
+@dataclass
+class Measured:
+    """What the robot senses of itself: joint positions and velocities (encoders), the
+    pelvis's roll, pitch (IMU attitude) and angular velocity (gyro, its own frame)."""
+
+    positions: dict[str, float]
+    velocities: dict[str, float]
+    roll: float
+    pitch: float
+    gyro: np.ndarray
+
+
+class ComEstimate:
+    """The centre of mass's position and velocity relative to a foot (m, m/s; x y in the IK's
+    heading) from what the robot senses: forward kinematics and Jacobians on a data of the
+    IK's own model. Relative to a foot, so no position sensor is needed."""
+
+    def __init__(self, ik: WholeBodyIK, names: tuple[str, str]):
+        import mujoco
+        self._mj = mujoco
+        self.ik = ik
+        self.data = mujoco.MjData(ik.model)
+        self.sites = [ik.model.site(ik.frames[n].site).id for n in names]
+        model = ik.model
+        self.dof_adr = np.array([model.jnt_dofadr[model.joint(j).id] for j in ik.joint_names])
+        self.jac_com = np.zeros((3, model.nv))
+        self.jac_foot = np.zeros((3, model.nv))
+
+    def relative(self, sensed: Measured, foot: int) -> tuple[np.ndarray, np.ndarray]:
+        mj, data, ik, model = self._mj, self.data, self.ik, self.ik.model
+        data.qpos[:] = ik.configuration.q
+        data.qvel[:] = 0.0
+        for name, adr, dof in zip(ik.joint_names, ik.qpos_adr, self.dof_adr, strict=True):
+            data.qpos[adr] = sensed.positions.get(name, data.qpos[adr])
+            data.qvel[dof] = sensed.velocities.get(name, 0.0)
+        c, s = math.cos(sensed.roll), math.sin(sensed.roll)
+        rx = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+        c, s = math.cos(sensed.pitch), math.sin(sensed.pitch)
+        ry = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+        quat = np.empty(4)
+        mj.mju_mat2Quat(quat, (_yaw(_heading(ik)) @ ry @ rx).ravel())
+        data.qpos[3:7] = quat
+        data.qvel[3:6] = sensed.gyro  # the free joint's angular velocity is in the body's frame
+        mj.mj_kinematics(model, data)
+        mj.mj_comPos(model, data)
+        mj.mj_jacSubtreeCom(model, data, self.jac_com, 1)
+        site = self.sites[foot]
+        mj.mj_jacSite(model, data, self.jac_foot, None, site)
+        position = data.subtree_com[1][:2] - data.site_xpos[site][:2]
+        velocity = ((self.jac_com - self.jac_foot) @ data.qvel)[:2]
+        return position, velocity
+
+
 def _foot_pose(ik: WholeBodyIK, foot: str) -> np.ndarray:
     position, rotation = ik.pose(foot)
     return np.array([position[0], position[1], math.atan2(rotation[1, 0], rotation[0, 0])])
@@ -330,6 +424,7 @@ def nominal_feet(width: float = 0.12) -> list[np.ndarray]:
 
 def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
                imu: Callable[[], tuple[float, float, float]] | None = None,
+               measured: Callable[[], Measured] | None = None,
                on_plan: Callable[[PlanTick, np.ndarray], None] | None = None
                ) -> Iterator[dict[str, float]]:
     """Walk the body motions of `source` (course_steps, or a cmd_vel's) from the standing
@@ -337,8 +432,10 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
     needed (the first is the bent-knee stance the robot should already be in). `imu`, if
     given, measures the pelvis's roll, pitch, yaw (rad): at each step the plan ahead turns
     against the yaw's difference from the IK's, so slipping feet do not steer, and the ankles
-    take back `flat_feet` of the tilt. `on_plan(tick, com)`
-    sees each period's plan (for drawing it)."""
+    take back `flat_feet` of the tilt. `measured`, if given, senses joints and pelvis at each
+    lift-off: the landing moves by `step_feedback` of the capture point's error (less its
+    running mean: a steady lean is not chased). `on_plan(tick, com)` sees each period's plan
+    (for drawing it)."""
     ik.reset(bent_knees(ik, qpos, gait.knee_bend))
     names = ("l_foot", "r_foot")
     feet = [_foot_pose(ik, f) for f in names]
@@ -352,6 +449,10 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
     correction = 0.0  # rad the plan has turned against the feet's slip
     standing = [f.copy() for f in feet]  # each foot's pose while it is down
     slips: deque[float] = deque(maxlen=int(SLIP_WINDOW * round(gait.period / gait.dt)) or 1)
+    estimate = ComEstimate(ik, names) if measured is not None else None
+    omega = math.sqrt(G / (ik.com()[2] - ground))
+    bias = np.zeros((2, 2))  # each foot's landings' steady capture-point error (running mean)
+    landings = [0, 0]
     for tick in planner:
         ahead = [t.zmp for t in list(planner.ticks)[:horizon]]
         ahead += [ahead[-1] if ahead else tick.zmp] * (horizon - len(ahead))
@@ -371,6 +472,32 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
                                          -MAX_CORRECTION, MAX_CORRECTION))
                     correction += turn
                     planner.turn_ahead(turn, standing[1 - swing.foot])
+                if estimate is not None and gait.step_feedback:
+                    got = estimate.relative(measured(), 1 - swing.foot)
+                    # the capture point's error against the plan's: the foot lands that
+                    # much further (Pratt et al. 2006), and the plan after it moves along
+                    planned = x[0] - standing[1 - swing.foot][:2]
+                    error = got[0] - planned + (got[1] - x[1]) / omega
+                    # a steady error (the real robot leans or lags a little, step after
+                    # step) is left alone: correcting it would walk shorter than planned
+                    # (the mean of each foot's landings so far, then a running mean; a
+                    # foot's first landing only starts it)
+                    landings[swing.foot] += 1
+                    steady = bias[swing.foot].copy() if landings[swing.foot] > 1 else error
+                    share = max(BIAS_SHARE, 1.0 / landings[swing.foot])
+                    bias[swing.foot] = steady + share * (error - steady)
+                    shift = gait.step_feedback * (error - steady)
+                    size = float(np.linalg.norm(shift))
+                    if size > MAX_STEP_SHIFT:
+                        shift *= MAX_STEP_SHIFT / size
+                    # ...but never so far in that the feet touch
+                    yaw = swing.target[2]
+                    across = np.array([-math.sin(yaw), math.cos(yaw)]) * (1 - 2 * swing.foot)
+                    apart = float(np.dot(swing.target[:2] + shift
+                                         - standing[1 - swing.foot][:2], across))
+                    if apart < MIN_APART:
+                        shift += across * (MIN_APART - apart)
+                    planner.shift_ahead(shift, swing)
             s = tick.progress
             ease = (1 - np.cos(np.pi * s)) / 2
             pose = swing.origin + (swing.target - swing.origin) * ease
