@@ -30,9 +30,13 @@ def main() -> None:
     parser.add_argument("--no-sensors", action="store_true", help="only what walking reads")
     parser.add_argument("--ik-iterations", type=int, default=None,
                         help=f"IK steps per control period (default {walk.IK_ITERATIONS})")
+    parser.add_argument("--ik-every", type=int, default=None,
+                        help=f"control periods per IK solve (default {walk.IK_EVERY})")
     args = parser.parse_args()
     if args.ik_iterations is not None:
         walk.IK_ITERATIONS = args.ik_iterations
+    if args.ik_every is not None:
+        walk.IK_EVERY = args.ik_every
     lab = Lab.create()
     sim = lab.sim
     start_height = sim.base_height

@@ -88,6 +88,36 @@ def test_turn_and_sidestep_footsteps():
         assert np.linalg.norm(feet[0][:2] - feet[1][:2]) >= 0.12 - 1e-9
 
 
+def test_a_landing_moved_by_the_step_feedback_carries_the_plan_after_it():
+    gait = Gait()
+    planner = FootstepPlanner(gait, nominal_feet(), course_steps(gait, [("sideways", -0.2)]),
+                              lookahead=200)
+    ticks = iter(planner)
+    tick = next(ticks)
+    while tick.swing is None:
+        tick = next(ticks)
+    swing, stance = tick.swing, planner.ticks[0].zmp.copy()  # the ZMP is on the stance foot
+    before = [(t.zmp.copy(), None if t.swing is None else t.swing.target.copy())
+              for t in planner.ticks]
+    landing = swing.target.copy()
+    delta = np.array([0.01, -0.03])
+    planner.shift_ahead(delta, swing)
+    assert swing.target[:2] == pytest.approx(landing[:2] + delta)
+    after = list(planner.ticks)
+    n_single = sum(1 for t in after if t.swing is swing)
+    # the rest of this swing keeps the ZMP on the stance foot; the double support then ramps
+    # the shift in; every later ZMP and footstep has moved by all of it
+    for t in after[:n_single]:
+        assert t.zmp == pytest.approx(stance)
+    for i, t in enumerate(after[n_single:n_single + planner.n_double]):
+        share = (i + 1) / planner.n_double
+        assert t.zmp == pytest.approx(before[n_single + i][0] + share * delta)
+    for t, (zmp, target) in list(zip(after, before, strict=True))[n_single + planner.n_double:]:
+        assert t.zmp == pytest.approx(zmp + delta)
+        if target is not None and t.swing is not swing:
+            assert t.swing.target[:2] == pytest.approx(target[:2] + delta)
+
+
 def _walk(edits=(), course=None, duration=None):
     """Walk (the shipped routine; its course by default) headless; the base's pose sampled."""
     lab = Lab.create(edits=edits)

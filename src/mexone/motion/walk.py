@@ -44,7 +44,8 @@ __all__ = ["Gait", "preview_gains", "FootstepPlanner", "PlanTick", "Swing", "ben
 
 G = 9.81
 MAX_CORRECTION = 0.05  # rad: the most one step turns the plan to cancel the feet's slip
-IK_ITERATIONS = 2  # IK steps (QPs) per control period: most of walking's CPU (1: turns overshoot 6 deg)
+IK_ITERATIONS = 2  # IK steps (QPs) per solve: most of walking's CPU (1: turns overshoot 6 deg)
+IK_EVERY = 1  # control periods per IK solve (50 Hz), the joint targets interpolated between
 CORRECTION_GAIN = 0.3  # share of the measured slip one step cancels
 SLIP_WINDOW = 2.0  # steps the slip is averaged over
 BIAS_SHARE = 0.2  # share of each landing's capture-point error its foot's running mean takes
@@ -453,7 +454,8 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
     omega = math.sqrt(G / (ik.com()[2] - ground))
     bias = np.zeros((2, 2))  # each foot's landings' steady capture-point error (running mean)
     landings = [0, 0]
-    for tick in planner:
+    before, after = None, None  # the IK's last two solutions
+    for n, tick in enumerate(planner):
         ahead = [t.zmp for t in list(planner.ticks)[:horizon]]
         ahead += [ahead[-1] if ahead else tick.zmp] * (horizon - len(ahead))
         summed += (c @ x)[0] - tick.zmp
@@ -510,9 +512,13 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
         if ik.base is not None:
             yaw = (standing[0][2] + standing[1][2]) / 2
             ik.base.set_target(mink.SE3.from_rotation(mink.SO3.from_rpy_radians(0.0, 0.0, yaw)))
-        for _ in range(IK_ITERATIONS):  # the targets are met, not chased
-            ik.step(gait.dt)
-        joints = ik.joint_positions()
+        if n % IK_EVERY == 0:  # the IK solves every IK_EVERY periods; between, interpolated
+            for _ in range(IK_ITERATIONS):  # the targets are met, not chased
+                ik.step(gait.dt * IK_EVERY)
+            solved = ik.joint_positions()
+            before, after = after or solved, solved
+        share = 1.0 + (n % IK_EVERY) / IK_EVERY  # on time: the last step carried on
+        joints = {name: before[name] + share * (after[name] - before[name]) for name in after}
         if imu is not None:
             roll, pitch, yaw = imu()
             slips.append(_wrap(yaw - _heading(ik)))
