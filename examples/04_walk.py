@@ -2,8 +2,8 @@
 
     python examples/04_walk.py [out_dir]
 
-The shipped walk routine (`mexone run walk` walks its full course: 3 m and the turn) with a
-shorter course; the figures are ground truth from the simulation, the CSV is t, x, y, yaw.
+The shipped walk routine (`mexone run walk` walks its full course: 3 m, the turn, 1 m sideways)
+with a shorter course; the figures are ground truth from the simulation, the CSV is t, x, y, yaw.
 """
 
 import math
