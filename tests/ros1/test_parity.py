@@ -287,6 +287,9 @@ def test_clock_is_published_while_paused(ros):
 
     service(rospy, "/gazebo/pause_physics", Empty)()
     try:
+        # this process already listens to /clock (sim time): let clocks sent before the pause
+        # drain from its connection before taking the paused one
+        time.sleep(0.3)
         first = rospy.wait_for_message("/clock", Clock, timeout=5).clock
         time.sleep(0.5)
         again = rospy.wait_for_message("/clock", Clock, timeout=5).clock  # what hung before

@@ -23,14 +23,30 @@ def pick_joints(series: dict[str, JointSeries], wanted: list[str] | None) -> lis
     return commanded or list(series.values())[:4]
 
 
-def plot_joints(joints: list[JointSeries], out: Path, title: str) -> None:
+def _panes(rows: int, columns: int, height: float):
+    """A figure of rows x columns panes sharing the time axis (Agg: no display needed)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(joints), 2, figsize=(12, 2.8 * len(joints) + 0.6),
-                             squeeze=False, sharex=True)
+    return plt.subplots(rows, columns, figsize=(12, height * rows + 0.6), squeeze=False,
+                        sharex=True)
+
+
+def _save(fig, axes, out: Path, title: str) -> None:
+    import matplotlib.pyplot as plt
+
+    for ax in axes[-1]:
+        ax.set_xlabel("sim time (s)")
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def plot_joints(joints: list[JointSeries], out: Path, title: str) -> None:
+    fig, axes = _panes(len(joints), 2, 2.8)
     for row, s in zip(axes, joints, strict=True):
         left, right = row
         if s.command is not None:
@@ -48,12 +64,7 @@ def plot_joints(joints: list[JointSeries], out: Path, title: str) -> None:
         effort_axis.set_ylabel("effort (N m)")
         handles = right.get_legend_handles_labels()[0] + effort_axis.get_legend_handles_labels()[0]
         right.legend(handles, [h.get_label() for h in handles], loc="upper right", fontsize=8)
-    for ax in axes[-1]:
-        ax.set_xlabel("sim time (s)")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    _save(fig, axes, out, title)
 
 
 def write_csv(joints: list[JointSeries], out: Path) -> int:
@@ -74,27 +85,17 @@ def write_csv(joints: list[JointSeries], out: Path) -> int:
 
 def plot_fields(series: list[FieldSeries], out: Path, title: str) -> None:
     """One pane per group of sibling fields (x, y, z of a vector together), in sim time."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     groups: dict[str, list[FieldSeries]] = {}
     for s in series:
         groups.setdefault(s.path.rsplit("/", 1)[0], []).append(s)
-    fig, axes = plt.subplots(len(groups), 1, figsize=(12, 2.4 * len(groups) + 0.6),
-                             squeeze=False, sharex=True)
+    fig, axes = _panes(len(groups), 1, 2.4)
     for ax, (group, members) in zip(axes[:, 0], groups.items(), strict=True):
         for s in members:
             ax.plot(s.t, s.values, label=s.path.rsplit("/", 1)[1], linewidth=1.0)
         ax.set_ylabel(group, fontsize=8)
         ax.legend(loc="upper right", fontsize=8)
         ax.grid(alpha=0.3)
-    axes[-1, 0].set_xlabel("sim time (s)")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
+    _save(fig, axes, out, title)
 
 
 def write_fields_csv(series: list[FieldSeries], out: Path) -> int:
