@@ -37,6 +37,8 @@ __all__ = [
     "Twist",
     "Pose",
     "PoseStamped",
+    "PoseArray",
+    "Path",
     "ROS_TYPES",
 ]
 
@@ -306,6 +308,22 @@ class PoseStamped:
     pose: Pose = field(default_factory=Pose)
 
 
+@dataclass
+class PoseArray:
+    """geometry_msgs/PoseArray: poses in one frame (a walk's footsteps)."""
+
+    header: Header = field(default_factory=Header)
+    poses: list[Pose] = field(default_factory=list)
+
+
+@dataclass
+class Path:
+    """nav_msgs/Path: a path as stamped poses (a walk's planned ZMP and COM), as rviz draws it."""
+
+    header: Header = field(default_factory=Header)
+    poses: list[PoseStamped] = field(default_factory=list)
+
+
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
@@ -324,6 +342,8 @@ ROS_TYPES: dict[type, str] = {
     PolygonStamped: "geometry_msgs/PolygonStamped",
     Twist: "geometry_msgs/Twist",
     PoseStamped: "geometry_msgs/PoseStamped",
+    PoseArray: "geometry_msgs/PoseArray",
+    Path: "nav_msgs/Path",
 }
 
 

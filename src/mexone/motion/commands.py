@@ -33,13 +33,26 @@ from mexone.motion.walk import (
     GAIT_YAML,
     Gait,
     Measured,
+    WalkPlan,
     bent_knees,
     course_steps,
     parse_course,
     plan_phases,
     walk_ticks,
 )
-from mexone.msgs import Float64, Imu, JointState, PoseStamped, Twist
+from mexone.msgs import (
+    Float64,
+    Header,
+    Imu,
+    JointState,
+    Path,
+    Point,
+    Pose,
+    PoseArray,
+    PoseStamped,
+    Quaternion,
+    Twist,
+)
 from mexone.routines.runtime import RoutineContext, current
 
 __all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "follow_goals", "GOAL_FRAMES",
@@ -304,6 +317,40 @@ def step_from_twist(gait: Gait, vx: float, vy: float, wz: float):
     return leg, motion
 
 
+PLAN_TOPICS = {"footsteps": PoseArray, "zmp_plan": Path, "com_plan": Path}  # under /<ns>/walk/
+
+
+def _plan_publisher():
+    """Publish each WalkPlan on /<ns>/walk/footsteps (geometry_msgs/PoseArray: the soles'
+    centres, facing their way), /<ns>/walk/zmp_plan (on the ground) and /<ns>/walk/com_plan
+    (nav_msgs/Path, at the COM's height, stamped when planned): what rviz and the GUI draw."""
+    ns = current().lab.namespace
+    pubs = {k: rospy.Publisher(f"{ns}/walk/{k}", t, queue_size=1, latch=True)
+            for k, t in PLAN_TOPICS.items()}
+    seq = [0]
+
+    def publish(plan: WalkPlan) -> None:
+        seq[0] += 1
+        now = rospy.Time.now()
+        ground, height = float(plan.ground), float(plan.com_height)
+        header = Header(seq[0], now, "world")
+
+        def path(points, z: float) -> Path:
+            return Path(header, [PoseStamped(Header(seq[0], now + rospy.Duration(i * plan.dt),
+                                                    "world"),
+                                             Pose(Point(float(p[0]), float(p[1]), z)))
+                                 for i, p in enumerate(points)])
+
+        pubs["footsteps"].publish(PoseArray(header, [
+            Pose(Point(float(x), float(y), ground),
+                 Quaternion(0.0, 0.0, float(math.sin(yaw / 2)), float(math.cos(yaw / 2))))
+            for x, y, yaw in plan.footsteps]))
+        pubs["zmp_plan"].publish(path(plan.zmp, ground))
+        pubs["com_plan"].publish(path(plan.com, height))
+
+    return publish
+
+
 def _walk(source, gait: Gait) -> None:
     mover = _mover()
     qpos = mover.snapshot()
@@ -332,7 +379,8 @@ def _walk(source, gait: Gait) -> None:
     try:
         for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
                                   measured=lambda: Measured(mover.measured, mover.velocities,
-                                                            *attitude[0][:2], gyro[0])):
+                                                            *attitude[0][:2], gyro[0]),
+                                  on_replan=_plan_publisher()):
             mover.send(joints)
             rate.sleep()
     finally:

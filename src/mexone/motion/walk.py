@@ -40,7 +40,8 @@ from mexone.errors import InputError
 from mexone.motion.ik import WholeBodyIK
 
 __all__ = ["Gait", "preview_gains", "FootstepPlanner", "PlanTick", "Swing", "bent_knees",
-           "walk_ticks", "course_steps", "Measured", "ComEstimate", "GAIT_YAML", "LEGS", "COURSE"]
+           "walk_ticks", "course_steps", "Measured", "ComEstimate", "GAIT_YAML", "LEGS", "COURSE",
+           "WalkPlan", "com_rollout", "DRAWN_STEPS"]
 
 G = 9.81
 MAX_CORRECTION = 0.05  # rad: the most one step turns the plan to cancel the feet's slip
@@ -54,6 +55,7 @@ MIN_APART = 0.10  # m between the feet's centres at least (Mex-One's soles are 0
 GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
 LEGS = ("forward", "sideways", "turn")  # a course's legs: metres, metres (left +), degrees (left +)
 COURSE = (("forward", 3.0), ("turn", 90.0), ("sideways", -1.0))  # the issue's course
+DRAWN_STEPS = 40  # footsteps already walked that a WalkPlan keeps (cmd_vel walks for ever)
 
 
 @dataclass(frozen=True)
@@ -153,6 +155,41 @@ def preview_gains(z: float, dt: float, horizon: int):
         preview[j] = (inv @ bb.T @ x).item()
         x = closed.T @ x
     return a, b, c, k[0, 0], k[0, 1:], preview
+
+
+def _preview_step(x: np.ndarray, summed: np.ndarray, ref, ahead: np.ndarray, gains):
+    """One control period of preview control: the COM's next state (position, velocity,
+    acceleration; x y) and summed ZMP error, for the reference `ref` now and `ahead` after it."""
+    a, b, c, k_sum, k_state, k_preview = gains
+    summed = summed + (c @ x)[0] - ref
+    jerk = -k_sum * summed - k_state @ x - k_preview @ ahead
+    return a @ x + b @ jerk[None, :], summed
+
+
+def com_rollout(x: np.ndarray, summed: np.ndarray, refs, horizon: int, gains) -> np.ndarray:
+    """The COM positions (n, 2) preview control will give over the ZMP references `refs` (the
+    plan's periods ahead, the last one held after them) from the state `x`: the planned path."""
+    refs = np.asarray(refs, dtype=float).reshape(-1, 2)
+    padded = np.vstack([refs, np.repeat(refs[-1:], horizon, axis=0)])
+    out = np.empty((len(refs), 2))
+    for j in range(len(refs)):
+        x, summed = _preview_step(x, summed, refs[j], padded[j + 1:j + 1 + horizon], gains)
+        out[j] = x[0]
+    return out
+
+
+@dataclass
+class WalkPlan:
+    """The plan as it stands, for drawing (world frame, m): the footsteps (x, y, yaw; the last
+    DRAWN_STEPS walked, then those planned), the ZMP reference and the COM preview control
+    gives, each a control period apart from now to the end of what is planned."""
+
+    footsteps: list[np.ndarray]
+    zmp: np.ndarray  # (n, 2)
+    com: np.ndarray  # (n, 2)
+    ground: float    # the soles' height
+    com_height: float  # the cart-table's constant COM height
+    dt: float        # s between the paths' points
 
 
 def compose(pose: np.ndarray, motion) -> np.ndarray:
@@ -426,7 +463,8 @@ def nominal_feet(width: float = 0.12) -> list[np.ndarray]:
 def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
                imu: Callable[[], tuple[float, float, float]] | None = None,
                measured: Callable[[], Measured] | None = None,
-               on_plan: Callable[[PlanTick, np.ndarray], None] | None = None
+               on_plan: Callable[[PlanTick, np.ndarray], None] | None = None,
+               on_replan: Callable[[WalkPlan], None] | None = None
                ) -> Iterator[dict[str, float]]:
     """Walk the body motions of `source` (course_steps, or a cmd_vel's) from the standing
     configuration `qpos`: the joint positions of each control period, planned as they are
@@ -436,14 +474,16 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
     take back `flat_feet` of the tilt. `measured`, if given, senses joints and pelvis at each
     lift-off: the landing moves by `step_feedback` of the capture point's error (less its
     running mean: a steady lean is not chased). `on_plan(tick, com)` sees each period's plan
-    (for drawing it)."""
+    (for drawing it); `on_replan(plan)` the plan ahead when it changes: at the start and at each
+    lift-off (after the corrections), when the step's landing is settled and new ones planned."""
     ik.reset(bent_knees(ik, qpos, gait.knee_bend))
     names = ("l_foot", "r_foot")
     feet = [_foot_pose(ik, f) for f in names]
     ground = ik.pose(names[0])[0][2]
     horizon = round(gait.preview / gait.dt)
     planner = FootstepPlanner(gait, feet, source, lookahead=horizon + 1)
-    a, b, c, k_sum, k_state, k_preview = preview_gains(ik.com()[2] - ground, gait.dt, horizon)
+    com_height = ik.com()[2]
+    gains = preview_gains(com_height - ground, gait.dt, horizon)
     x = np.zeros((3, 2))  # the COM's position, velocity, acceleration in x and y
     x[0] = ik.com()[:2]
     summed = np.zeros(2)
@@ -455,17 +495,18 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
     bias = np.zeros((2, 2))  # each foot's landings' steady capture-point error (running mean)
     landings = [0, 0]
     before, after = None, None  # the IK's last two solutions
+    walked: deque[np.ndarray] = deque((f.copy() for f in feet), maxlen=DRAWN_STEPS)
     for n, tick in enumerate(planner):
         ahead = [t.zmp for t in list(planner.ticks)[:horizon]]
         ahead += [ahead[-1] if ahead else tick.zmp] * (horizon - len(ahead))
-        summed += (c @ x)[0] - tick.zmp
-        jerk = -k_sum * summed - k_state @ x - k_preview @ np.array(ahead)
-        x = a @ x + b @ jerk[None, :]
+        x, summed = _preview_step(x, summed, tick.zmp, np.array(ahead), gains)
         ik.set_com(x[0])
         swing = tick.swing
+        replanned = n == 0
         if swing is not None:
             if not swing.started:
                 swing.started = True
+                replanned = True
                 if slips:
                     # the world's heading less the IK's, over the last two steps (the pelvis
                     # yaws to and fro with each swing), is the feet's slip: turn the plan back
@@ -500,6 +541,7 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
                     if apart < MIN_APART:
                         shift += across * (MIN_APART - apart)
                     planner.shift_ahead(shift, swing)
+                walked.append(swing.target.copy())  # where it lands: settled now
             s = tick.progress
             ease = (1 - np.cos(np.pi * s)) / 2
             pose = swing.origin + (swing.target - swing.origin) * ease
@@ -529,7 +571,23 @@ def walk_ticks(ik: WholeBodyIK, qpos: np.ndarray, gait: Gait, source: Iterable,
                 joints[f"{side}_ankle_roll"] -= gait.flat_feet * roll
         if on_plan is not None:
             on_plan(tick, x[0].copy())
+        if replanned and on_replan is not None:
+            on_replan(_plan_now(planner, walked, tick, x, summed, horizon, gains, ground,
+                                com_height, gait.dt))
         yield joints
+
+
+def _plan_now(planner: FootstepPlanner, walked, tick: PlanTick, x, summed, horizon: int, gains,
+              ground: float, com_height: float, dt: float) -> WalkPlan:
+    ahead, seen = [], set()
+    for t in planner.ticks:
+        if t.swing is not None and not t.swing.started and id(t.swing) not in seen:
+            seen.add(id(t.swing))
+            ahead.append(t.swing.target.copy())
+    refs = [t.zmp for t in planner.ticks]
+    com = com_rollout(x, summed, refs, horizon, gains) if refs else np.zeros((0, 2))
+    return WalkPlan([*walked, *ahead], np.array([tick.zmp, *refs]),
+                    np.vstack([x[0], com]), ground, com_height, dt)
 
 
 def plan_phases(gait: Gait, source: Iterable) -> tuple[float, list[tuple[str, float, float]]]:

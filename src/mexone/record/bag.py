@@ -104,6 +104,13 @@ def to_ros(msg, store, ros1: bool):
     def wrench(w: msgs.Wrench):
         return T["geometry_msgs/msg/Wrench"](force=vector(w.force), torque=vector(w.torque))
 
+    def pose(p: msgs.Pose):
+        position = T["geometry_msgs/msg/Point"](x=p.position.x, y=p.position.y, z=p.position.z)
+        return T["geometry_msgs/msg/Pose"](position=position, orientation=quaternion(p.orientation))
+
+    def pose_stamped(p: msgs.PoseStamped):
+        return T["geometry_msgs/msg/PoseStamped"](header=header(p.header), pose=pose(p.pose))
+
     match msg:
         case msgs.Float64(data):
             return T["std_msgs/msg/Float64"](data=float(data))
@@ -170,6 +177,17 @@ def to_ros(msg, store, ros1: bool):
                       for p in msg.polygon.points]
             return T["geometry_msgs/msg/PolygonStamped"](
                 header=header(msg.header), polygon=T["geometry_msgs/msg/Polygon"](points=points))
+        case msgs.Twist():
+            return T["geometry_msgs/msg/Twist"](linear=vector(msg.linear),
+                                                angular=vector(msg.angular))
+        case msgs.PoseStamped():
+            return pose_stamped(msg)
+        case msgs.PoseArray():
+            return T["geometry_msgs/msg/PoseArray"](header=header(msg.header),
+                                                    poses=[pose(p) for p in msg.poses])
+        case msgs.Path():
+            return T["nav_msgs/msg/Path"](header=header(msg.header),
+                                          poses=[pose_stamped(p) for p in msg.poses])
         case msgs.Image():
             return T["sensor_msgs/msg/Image"](
                 header=header(msg.header), height=msg.height, width=msg.width,
