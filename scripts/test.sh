@@ -14,6 +14,7 @@ ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher 
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
               python3-tf2-ros python3-trajectory-msgs python3-geometry-msgs
               python3-tf2-sensor-msgs python3-tf2-geometry-msgs
+              python3-nav-msgs ros-nav-msgs  # a walk's planned paths (nav_msgs/Path)
               # ROS parity: genpy/gencpp and the definitions mexone's interfaces depend on,
               # actionlib, dynamic_reconfigure (dynparam), roscpp headers for the compiled client
               python3-genpy python3-genmsg python3-gencpp ros-std-msgs ros-geometry-msgs

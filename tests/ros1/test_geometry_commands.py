@@ -49,3 +49,25 @@ def test_pose_stamped_from_ros(geometry):
     assert bus.header == msgs.Header(7, msgs.Time(3, 500), "world")
     assert bus.pose == msgs.Pose(msgs.Point(0.25, 0.2, 0.75), msgs.Quaternion(0.0, 0.0, 0.0, 1.0))
     assert convert.ros_class(msgs.PoseStamped)._md5sum == "d3812c3cbc69362b77dc0b19b345f8f5"
+
+
+def test_the_walk_plan_types_are_ros_own(geometry):
+    """Footsteps and planned paths go to ROS as geometry_msgs/PoseArray and nav_msgs/Path
+    (rviz's PoseArray and Path displays), field for field."""
+    from mexone.ros1 import convert
+
+    assert convert.ros_class(msgs.PoseArray)._md5sum == "916c28c5764443f268b296bb671b9d97"
+    assert convert.ros_class(msgs.Path)._md5sum == "6227e2b7e9cce15051f669a5e197bbf7"
+    header = msgs.Header(2, msgs.Time(4, 7), "world")
+    pose = msgs.Pose(msgs.Point(0.05, 0.06, 0.0), msgs.Quaternion(0.0, 0.0, 0.6, 0.8))
+    assert convert.can_send(msgs.PoseArray) and convert.can_send(msgs.Path)
+    steps = convert.to_ros(msgs.PoseArray(header, [pose]), convert.ros_class(msgs.PoseArray))
+    assert steps.header.frame_id == "world" and (steps.header.stamp.secs, steps.header.stamp.nsecs) == (4, 7)
+    assert (steps.poses[0].position.y, steps.poses[0].orientation.z) == (0.06, 0.6)
+    path = convert.to_ros(msgs.Path(header, [msgs.PoseStamped(header, pose)] * 2),
+                          convert.ros_class(msgs.Path))
+    assert len(path.poses) == 2 and path.poses[1].pose.orientation.w == 0.8
+    assert path.poses[1].header.stamp.nsecs == 7
+    buffer = __import__("io").BytesIO()
+    path.serialize(buffer)  # what rospy sends: the types are complete
+    assert len(buffer.getvalue()) > 0
