@@ -289,3 +289,16 @@ def test_load_opens_another_robot_and_a_bad_file_changes_nothing(app):
     assert path.parent != folder and path.read_text().startswith("<?xml")
     call(app, lambda: app.load(path))
     assert app.lab.sim.robot.name == "uploaded"
+
+
+def test_the_walk_plan_overlay_belongs_to_the_robot_loaded(app):
+    """View > Walk plan: built with the page's panels (Load builds it anew on the new lab);
+    shown, it asks for the measured ZMP; hidden, it stops asking."""
+    view = app.walk_plan
+    assert view.lab is app.lab
+    zmp = f"{app.lab.namespace}/zmp"
+    call(app, lambda: view.show(True))
+    assert all(node.visible for node in view.nodes.values()) and app.lab.bus.wanted(zmp)
+    call(app, lambda: view.show(False))
+    assert not any(node.visible for node in view.nodes.values())
+    assert not app.lab.bus.wanted(zmp) or app.lab.bus.taps

@@ -69,14 +69,28 @@ def test_the_open_loop_plan_is_the_planners_and_the_com_path_comes_true():
     assert coms[-1] == pytest.approx(plans[-1][1].zmp[-1], abs=2e-3)
 
 
-def test_the_walk_routine_publishes_its_plan_once_a_step():
+@pytest.fixture(scope="module")
+def walked():
+    """The shipped walk routine over SHORT, every plan message kept; the GUI's overlay built
+    on the same bus before the walk, as a page would be."""
+    viser = pytest.importorskip("viser")
+    from mexone.gui.walkplan import WalkPlanView
+
     lab = Lab.create()
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    view = WalkPlanView(server, lab)
     got = {"footsteps": [], "zmp_plan": [], "com_plan": []}
     for key, kind in (("footsteps", PoseArray), ("zmp_plan", Path), ("com_plan", Path)):
         lab.bus.subscribe(f"/mex_rb/walk/{key}", kind, got[key].append)
     runner = RoutineRunner(lab, "walk", {"_course": [list(leg) for leg in SHORT]})
     runner.run(None)  # the course's length, as the routine declares it
     assert runner.error is None
+    yield lab, got, view
+    server.stop()
+
+
+def test_the_walk_routine_publishes_its_plan_once_a_step(walked):
+    lab, got, _ = walked
     assert lab.bus.topics["/mex_rb/walk/footsteps"].ros_type == "geometry_msgs/PoseArray"
     assert lab.bus.topics["/mex_rb/walk/com_plan"].ros_type == "nav_msgs/Path"
     # published when the plan changes: at the start and at each of the 4 lift-offs, not a tick
@@ -114,3 +128,39 @@ def test_the_walk_routine_publishes_its_plan_once_a_step():
     assert com.poses[0].pose.position.z > 0.4 and abs(zmp.poses[0].pose.position.z) < 0.01
     step = com.poses[1].header.stamp.to_sec() - com.poses[0].header.stamp.to_sec()
     assert step == pytest.approx(0.01, abs=1e-9)
+
+
+def test_the_gui_overlay_draws_the_plan_and_the_measured_zmp(walked):
+    lab, got, view = walked
+    nodes = view.nodes
+    # hidden, it only kept the latest messages: nothing drawn, /zmp not asked for
+    assert not any(n.visible for n in nodes.values())
+    assert view.latest["footsteps"] is got["footsteps"][-1]
+    assert len(nodes["footsteps"].points) == 1
+    assert not lab.bus.wanted("/mex_rb/zmp") or lab.bus.taps
+    view.show(True)  # the View menu's toggle (simulation thread)
+    assert all(n.visible for n in nodes.values())
+    steps = got["footsteps"][-1].poses
+    outlines = nodes["footsteps"].points
+    assert outlines.shape == (4 * len(steps), 2, 3)
+    for i, pose in enumerate(steps):  # each sole's outline is centred on its footstep
+        centre = outlines[4 * i:4 * i + 4, 0].mean(axis=0)
+        assert centre[:2] == pytest.approx((pose.position.x, pose.position.y), abs=1e-6)
+        side = np.linalg.norm(outlines[4 * i, 1] - outlines[4 * i, 0])
+        assert side == pytest.approx(0.08, abs=1e-6) or side == pytest.approx(0.16, abs=1e-6)
+    com = got["com_plan"][-1].poses
+    drawn = nodes["com_plan"].points
+    assert drawn.shape == (len(com) - 1, 2, 3)
+    assert drawn[-1, 1] == pytest.approx((com[-1].pose.position.x, com[-1].pose.position.y,
+                                          com[-1].pose.position.z), abs=1e-6)
+    assert nodes["zmp_plan"].points.shape == (len(got["zmp_plan"][-1].poses) - 1, 2, 3)
+    # the measured ZMP: asked for while shown (50 Hz, as the balance topics), between the feet
+    assert lab.bus.wanted("/mex_rb/zmp")
+    lab.sim.run(0.5)
+    view.update()
+    trail = nodes["zmp"].points
+    assert 24 <= len(trail) + 1 <= 26
+    middle = np.mean([[p.position.x, p.position.y] for p in steps[-2:]], axis=0)
+    assert np.abs(trail[:, 0, :2] - middle).max() < 0.04
+    view.show(False)
+    assert not any(n.visible for n in nodes.values()) and not lab.bus.wanted("/mex_rb/zmp")

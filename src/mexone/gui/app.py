@@ -37,6 +37,7 @@ from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
 from mexone.gui.topics import RecordPanel, TopicsPanel
 from mexone.gui.walkpad import WalkPad
+from mexone.gui.walkplan import WALK_PLAN, WalkPlanView
 from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
@@ -212,6 +213,7 @@ class GuiApp:
         self.sensor_panel.update(time.monotonic())
         self.inspector.update()
         self.move.update()
+        self.walk_plan.update()
         if self.step_response.running:
             self.step_response.update()
         if self._frames % 5 == 0:
@@ -297,6 +299,10 @@ class GuiApp:
                                                             "support polygon (blue), foot forces")
             balance.on_update(lambda e: self.do(
                 lambda: self.sensor_panel.show_balance(bool(e.target.value))))
+            walk_plan = gui.add_checkbox(WALK_PLAN, False, hint="a walk's footsteps (blue), "
+                                         "planned ZMP (orange) and COM (green), measured ZMP (red)")
+            walk_plan.on_update(lambda e: self.do(
+                lambda: self.walk_plan.show(bool(e.target.value))))
         self._build_joints()
         self._build_plots()
         self.step_response = StepResponse(self.server, self.lab, self.do, self.fields.add,
@@ -314,6 +320,7 @@ class GuiApp:
         self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,
                                     self.model_label)
         self.walk_pad = WalkPad(self.server, self.lab, self.do)
+        self.walk_plan = WalkPlanView(self.server, self.lab)
         self.ik_handles = IkHandles(self.server, self.lab, self.do)
 
     def _screenshot_clicked(self, client) -> None:
@@ -347,6 +354,7 @@ class GuiApp:
         if self.topics_panel.echo_sub is not None:
             self.topics_panel.echo_sub.unregister()
         self.log.close()
+        self.walk_plan.close()
         self.screenshots.close()
         for camera in self.sensor_panel.cameras.values():
             if camera.renderer is not None:
