@@ -324,12 +324,14 @@ def _plan_publisher():
     """Publish each WalkPlan on /<ns>/walk/footsteps (geometry_msgs/PoseArray: the soles'
     centres, facing their way), /<ns>/walk/zmp_plan (on the ground) and /<ns>/walk/com_plan
     (nav_msgs/Path, at the COM's height, stamped when planned): what rviz and the GUI draw."""
-    ns = current().lab.namespace
-    pubs = {k: rospy.Publisher(f"{ns}/walk/{k}", t, queue_size=1, latch=True)
+    lab = current().lab
+    pubs = {k: rospy.Publisher(f"{lab.namespace}/walk/{k}", t, queue_size=1, latch=True)
             for k, t in PLAN_TOPICS.items()}
     seq = [0]
 
     def publish(plan: WalkPlan) -> None:
+        if not any(lab.bus.wanted(p.name) for p in pubs.values()):
+            return  # nobody draws or records it: the COM path is not worked out
         seq[0] += 1
         now = rospy.Time.now()
         ground, height = float(plan.ground), float(plan.com_height)

@@ -28,7 +28,8 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
+from functools import cached_property
 from pathlib import Path
 
 import mink
@@ -182,14 +183,23 @@ def com_rollout(x: np.ndarray, summed: np.ndarray, refs, horizon: int, gains) ->
 class WalkPlan:
     """The plan as it stands, for drawing (world frame, m): the footsteps (x, y, yaw; the last
     DRAWN_STEPS walked, then those planned), the ZMP reference and the COM preview control
-    gives, each a control period apart from now to the end of what is planned."""
+    gives, each a control period apart from now to the end of what is planned. The COM is
+    worked out when first read (a few ms): a plan nobody draws costs nothing."""
 
     footsteps: list[np.ndarray]
     zmp: np.ndarray  # (n, 2)
-    com: np.ndarray  # (n, 2)
     ground: float    # the soles' height
     com_height: float  # the cart-table's constant COM height
     dt: float        # s between the paths' points
+    state: tuple = field(repr=False, default=())  # the preview's (x, summed, horizon, gains)
+
+    @cached_property
+    def com(self) -> np.ndarray:
+        """(n, 2), the first now."""
+        x, summed, horizon, gains = self.state
+        if len(self.zmp) < 2:
+            return x[0][None, :].copy()
+        return np.vstack([x[0], com_rollout(x, summed, self.zmp[1:], horizon, gains)])
 
 
 def compose(pose: np.ndarray, motion) -> np.ndarray:
@@ -584,10 +594,9 @@ def _plan_now(planner: FootstepPlanner, walked, tick: PlanTick, x, summed, horiz
         if t.swing is not None and not t.swing.started and id(t.swing) not in seen:
             seen.add(id(t.swing))
             ahead.append(t.swing.target.copy())
-    refs = [t.zmp for t in planner.ticks]
-    com = com_rollout(x, summed, refs, horizon, gains) if refs else np.zeros((0, 2))
-    return WalkPlan([*walked, *ahead], np.array([tick.zmp, *refs]),
-                    np.vstack([x[0], com]), ground, com_height, dt)
+    zmp = np.array([tick.zmp, *(t.zmp for t in planner.ticks)])
+    return WalkPlan([*walked, *ahead], zmp, ground, com_height, dt,
+                    (x.copy(), summed.copy(), horizon, gains))
 
 
 def plan_phases(gait: Gait, source: Iterable) -> tuple[float, list[tuple[str, float, float]]]:
