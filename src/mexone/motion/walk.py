@@ -162,7 +162,7 @@ def _preview_step(x: np.ndarray, summed: np.ndarray, ref, ahead: np.ndarray, gai
     """One control period of preview control: the COM's next state (position, velocity,
     acceleration; x y) and summed ZMP error, for the reference `ref` now and `ahead` after it."""
     a, b, c, k_sum, k_state, k_preview = gains
-    summed = summed + (c @ x)[0] - ref
+    summed = summed + ((c @ x)[0] - ref)  # the order walking always summed in
     jerk = -k_sum * summed - k_state @ x - k_preview @ ahead
     return a @ x + b @ jerk[None, :], summed
 
