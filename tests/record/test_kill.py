@@ -37,7 +37,7 @@ while not rospy.is_shutdown():
 """
 CLOCK, STATES = "/clock", "/mex_rb/joint_states"
 PERIODS = {CLOCK: 0.001, STATES: 0.02, "/tf": 0.02}  # every periodic topic of the run
-RUNS = 20
+RUNS = 10  # per stop mode (the 20-run figures of the trust issue are in its note; the suite's budget)
 STOP_WITHIN = 3.0  # s of sim time: each run is stopped at a random moment this long after the first
 
 
@@ -161,7 +161,7 @@ def test_mcap_survives_sigint_double_sigint_and_sigkill(tmp_path, echo):
     plan = [(mode, ".mcap") for mode in ("sigint", "double", "sigkill") for _ in range(RUNS)]
     runs = stop_many(tmp_path, echo, plan)
     killed = [r for r in runs if r.mode == "sigkill"]
-    assert sum(r.last_printed > 1.0 for r in killed) >= 5  # kills late enough for the 1 s rule
+    assert sum(r.last_printed > 1.0 for r in killed) >= 3  # kills late enough for the 1 s rule
 
 
 @pytest.mark.slow
