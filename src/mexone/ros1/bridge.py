@@ -192,6 +192,7 @@ class Ros1Bridge:
         self.pub_clock = rospy.Publisher("/clock", Clock, queue_size=10)
         self.pub_tf = rospy.Publisher("/tf", TFMessage, queue_size=10)
         self._mirrors: dict[str, _Mirror] = {}
+        self._unsendable: set[str] = set()  # topics whose ROS message package is missing
         self._inbound: dict[str, object] = {}
         self._known_topics = -1
         self._clock_pending: collections.deque[int] = collections.deque()
@@ -227,6 +228,15 @@ class Ros1Bridge:
             if name in _NOT_MIRRORED or name in self._mirrors or name in self._inbound:
                 continue
             if topic.publishers and convert.can_send(topic.type):
+                if convert.ros_class(topic.type) is None:  # its package is not installed
+                    if name not in self._unsendable:
+                        self._unsendable.add(name)
+                        ros_type = msgs.ROS_TYPES[topic.type]
+                        log.warning("%s (%s) is not published on ROS: this ROS has no %s "
+                                    "(apt install python3-%s)", name, ros_type,
+                                    ros_type.split("/")[0],
+                                    ros_type.split("/")[0].replace("_", "-"))
+                    continue
                 self._mirrors[name] = _Mirror(self, name, topic.type)
             elif topic.subscriptions and convert.FROM_ROS.get(msgs.ROS_TYPES.get(topic.type, "")):
                 # commands: ask publishers for TCP_NODELAY (no Nagle batching of small messages)
