@@ -71,3 +71,28 @@ def test_the_walk_plan_types_are_ros_own(geometry):
     buffer = __import__("io").BytesIO()
     path.serialize(buffer)  # what rospy sends: the types are complete
     assert len(buffer.getvalue()) > 0
+
+
+def test_a_topic_whose_ros_package_is_missing_is_skipped_with_a_warning(monkeypatch, caplog):
+    """A ROS without nav_msgs still bridges everything else; the walk plan's Path topics are
+    named once, with the package to install (sync_topics on a bare bridge: no master needed)."""
+    from types import SimpleNamespace
+
+    from mexone.bus.topics import Bus
+    from mexone.ros1 import bridge, convert
+
+    monkeypatch.setattr(convert, "ros_class", lambda bus_type: None)
+    bus = Bus()
+    bus.advertise("/mex_rb/walk/com_plan", msgs.Path)
+    fake = SimpleNamespace(lab=SimpleNamespace(bus=bus), _known_topics=-1, _mirrors={},
+                           _inbound={}, _unsendable=set())
+    with caplog.at_level("WARNING", logger="mexone.ros"):
+        bridge.Ros1Bridge.sync_topics(fake)
+        bus.advertise("/mex_rb/walk/zmp_plan", msgs.Path)
+        bridge.Ros1Bridge.sync_topics(fake)
+        bridge.Ros1Bridge.sync_topics(fake)
+    assert fake._mirrors == {}
+    assert fake._unsendable == {"/mex_rb/walk/com_plan", "/mex_rb/walk/zmp_plan"}
+    warnings = [r.getMessage() for r in caplog.records]
+    assert len(warnings) == 2
+    assert "nav_msgs/Path" in warnings[0] and "python3-nav-msgs" in warnings[0]
