@@ -297,8 +297,10 @@ def test_the_walk_plan_overlay_belongs_to_the_robot_loaded(app):
     view = app.walk_plan
     assert view.lab is app.lab
     zmp = f"{app.lab.namespace}/zmp"
-    call(app, lambda: view.show(True))
+    app.walk_plan_box.value = True  # the View menu's box, as a click sets it
+    call(app, lambda: None)  # its handler has run in the simulation thread
     assert all(node.visible for node in view.nodes.values()) and app.lab.bus.wanted(zmp)
-    call(app, lambda: view.show(False))
+    app.walk_plan_box.value = False
+    call(app, lambda: None)
     assert not any(node.visible for node in view.nodes.values())
     assert not app.lab.bus.wanted(zmp) or app.lab.bus.taps

@@ -299,9 +299,10 @@ class GuiApp:
                                                             "support polygon (blue), foot forces")
             balance.on_update(lambda e: self.do(
                 lambda: self.sensor_panel.show_balance(bool(e.target.value))))
-            walk_plan = gui.add_checkbox(WALK_PLAN, False, hint="a walk's footsteps (blue), "
-                                         "planned ZMP (orange) and COM (green), measured ZMP (red)")
-            walk_plan.on_update(lambda e: self.do(
+            self.walk_plan_box = gui.add_checkbox(
+                WALK_PLAN, False, hint="a walk's footsteps (blue), planned ZMP (orange) and COM "
+                                       "(green), measured ZMP (red)")
+            self.walk_plan_box.on_update(lambda e: self.do(
                 lambda: self.walk_plan.show(bool(e.target.value))))
         self._build_joints()
         self._build_plots()
