@@ -299,8 +299,10 @@ def test_the_walk_plan_overlay_belongs_to_the_robot_loaded(app):
     zmp = f"{app.lab.namespace}/zmp"
     app.walk_plan_box.value = True  # the View menu's box, as a click sets it
     call(app, lambda: None)  # its handler has run in the simulation thread
-    assert all(node.visible for node in view.nodes.values()) and app.lab.bus.wanted(zmp)
+    assert view.visible and app.lab.bus.wanted(zmp)
+    # no walk: nothing planned, so no node shows (an empty one would be a zero-length line)
+    assert not any(view.nodes[k].visible for k in ("footsteps", "zmp_plan", "com_plan"))
     app.walk_plan_box.value = False
     call(app, lambda: None)
-    assert not any(node.visible for node in view.nodes.values())
+    assert not view.visible and not any(node.visible for node in view.nodes.values())
     assert not app.lab.bus.wanted(zmp) or app.lab.bus.taps

@@ -131,6 +131,8 @@ def test_the_walk_routine_publishes_its_plan_once_a_step(walked):
 
 
 def test_the_gui_overlay_draws_the_plan_and_the_measured_zmp(walked):
+    from mexone.gui.walkplan import MIN_SEGMENT, PATH_STRIDE
+
     lab, got, view = walked
     nodes = view.nodes
     # hidden, it only kept the latest messages: nothing drawn, /zmp not asked for
@@ -139,7 +141,8 @@ def test_the_gui_overlay_draws_the_plan_and_the_measured_zmp(walked):
     assert len(nodes["footsteps"].points) == 1
     assert not lab.bus.wanted("/mex_rb/zmp") or lab.bus.taps
     view.show(True)  # the View menu's toggle (simulation thread)
-    assert all(n.visible for n in nodes.values())
+    assert all(nodes[k].visible for k in ("footsteps", "zmp_plan", "com_plan"))
+    assert not nodes["zmp"].visible  # nothing measured yet: hidden, not a zero-length line
     steps = got["footsteps"][-1].poses
     outlines = nodes["footsteps"].points
     assert outlines.shape == (4 * len(steps), 2, 3)
@@ -150,16 +153,25 @@ def test_the_gui_overlay_draws_the_plan_and_the_measured_zmp(walked):
         assert side == pytest.approx(0.08, abs=1e-6) or side == pytest.approx(0.16, abs=1e-6)
     com = got["com_plan"][-1].poses
     drawn = nodes["com_plan"].points
-    assert drawn.shape == (len(com) - 1, 2, 3)
-    assert drawn[-1, 1] == pytest.approx((com[-1].pose.position.x, com[-1].pose.position.y,
-                                          com[-1].pose.position.z), abs=1e-6)
-    assert nodes["zmp_plan"].points.shape == (len(got["zmp_plan"][-1].poses) - 1, 2, 3)
+    # every 4th point (and the last) joined, repeated points left out: no
+    # segment of zero length, which a browser draws across the whole view
+    for node in (nodes["com_plan"], nodes["zmp_plan"], nodes["footsteps"]):
+        assert np.linalg.norm(node.points[:, 1] - node.points[:, 0], axis=1).min() > MIN_SEGMENT
+    assert len(drawn) <= len(com) // PATH_STRIDE + 1
+    assert drawn[0, 0] == pytest.approx((com[0].pose.position.x, com[0].pose.position.y,
+                                         com[0].pose.position.z), abs=1e-6)
+    ends = np.array([[p.pose.position.x, p.pose.position.y] for p in com[::PATH_STRIDE] + com[-1:]])
+    assert np.linalg.norm(ends - drawn[-1, 1, :2], axis=1).min() < 1e-6
+    zmp_plan = np.array([[p.pose.position.x, p.pose.position.y] for p in got["zmp_plan"][-1].poses])
+    for point in nodes["zmp_plan"].points[:, 0, :2]:  # drawn through the planned points
+        assert np.linalg.norm(zmp_plan - point, axis=1).min() < 1e-6
     # the measured ZMP: asked for while shown (50 Hz, as the balance topics), between the feet
     assert lab.bus.wanted("/mex_rb/zmp")
     lab.sim.run(0.5)
     view.update()
     trail = nodes["zmp"].points
-    assert 24 <= len(trail) + 1 <= 26
+    assert nodes["zmp"].visible and 2 <= len(trail) + 1 <= 26  # 50 Hz, repeats left out
+    assert all(n.thickness_units == "screen" for n in nodes.values())  # pixels, not metres
     middle = np.mean([[p.position.x, p.position.y] for p in steps[-2:]], axis=0)
     assert np.abs(trail[:, 0, :2] - middle).max() < 0.04
     view.show(False)

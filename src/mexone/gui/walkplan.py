@@ -20,11 +20,14 @@ from mexone.bus.msgs import Path, PointStamped, PoseArray
 from mexone.lab import Lab
 from mexone.sensors.balance import RATE as BALANCE_RATE
 
-__all__ = ["WalkPlanView", "WALK_PLAN", "SOLE", "TRAIL"]
+__all__ = ["WalkPlanView", "WALK_PLAN", "SOLE", "TRAIL", "PATH_STRIDE", "polyline"]
 
 WALK_PLAN = "Walk plan"  # the View menu's entry
 SOLE = (0.16, 0.08)  # m, Mex-One's sole (length, width): a footstep's outline
 TRAIL = round(5.0 * BALANCE_RATE)  # measured ZMP points kept: its last 5 s
+MIN_SEGMENT = 1e-5  # m: shorter segments (a point repeated) are not drawn
+PATH_STRIDE = 4  # a path's points drawn: every 4th (40 ms apart; a browser without a GPU
+# draws thick lines slowly, and the paths are smooth at that scale)
 _LIFT = 0.003  # m above the ground, so the lines are not hidden in the grid
 _FOOT_RGB, _ZMP_RGB, _COM_RGB, _MEASURED_RGB = (40, 90, 220), (230, 140, 20), (40, 170, 70), (220, 30, 30)
 _EMPTY = np.zeros((1, 2, 3), np.float32)
@@ -40,14 +43,19 @@ def sole_outlines(poses) -> np.ndarray:
         ring = corners @ np.array([[c, s], [-s, c]]) + (x, y)
         ring = np.c_[ring, np.full(4, z + _LIFT)]
         out.extend(zip(ring, np.roll(ring, -1, axis=0), strict=True))
-    return np.array(out, np.float32) if out else _EMPTY
+    return np.array(out, np.float32) if out else None
 
 
 def polyline(points: np.ndarray) -> np.ndarray:
-    """Consecutive points as line segments."""
+    """Consecutive points as line segments, repeated points left out: the browser draws a
+    zero-length thick segment as a quad across the whole view (the planned ZMP stands still on
+    each stance foot), which also takes a GPU-less browser seconds a frame."""
     points = np.asarray(points, np.float32).reshape(-1, 3)
+    if len(points):
+        moved = np.r_[True, np.linalg.norm(np.diff(points, axis=0), axis=1) > MIN_SEGMENT]
+        points = points[moved]
     if len(points) < 2:
-        return _EMPTY
+        return None
     return np.stack([points[:-1], points[1:]], axis=1)
 
 
@@ -70,15 +78,28 @@ class WalkPlanView:
         scene = server.scene
         self.nodes = {
             "footsteps": scene.add_line_segments("/walk_plan/footsteps", _EMPTY, _FOOT_RGB,
-                                                 thickness=3.0, visible=False),
+                                                 thickness=3.0, thickness_units="screen", visible=False),
             "zmp_plan": scene.add_line_segments("/walk_plan/zmp_plan", _EMPTY, _ZMP_RGB,
-                                                thickness=3.0, visible=False),
+                                                thickness=3.0, thickness_units="screen", visible=False),
             "com_plan": scene.add_line_segments("/walk_plan/com_plan", _EMPTY, _COM_RGB,
-                                                thickness=3.0, visible=False),
+                                                thickness=3.0, thickness_units="screen", visible=False),
             "zmp": scene.add_line_segments("/walk_plan/zmp_measured", _EMPTY, _MEASURED_RGB,
-                                           thickness=2.0, visible=False),
+                                           thickness=2.0, thickness_units="screen", visible=False),
         }
         self.visible = False
+        self.filled: set[str] = set()  # nodes with something to draw (an empty one is hidden)
+
+    def _draw(self, key: str, points: np.ndarray | None) -> None:
+        """Points to a node, or hide it: a placeholder segment of zero length would show as a
+        quad across the view."""
+        node = self.nodes[key]
+        if points is None:
+            self.filled.discard(key)
+            node.visible = False
+            return
+        node.points = points
+        self.filled.add(key)
+        node.visible = self.visible
 
     def _keep(self, key: str, msg) -> None:
         self.latest[key] = msg  # one assignment: drawn later, in the simulation thread
@@ -90,15 +111,16 @@ class WalkPlanView:
     def show(self, on: bool) -> None:
         """Simulation thread: show or hide; the measured ZMP is listened to while shown."""
         self.visible = on
-        for node in self.nodes.values():
-            node.visible = on
         if on and self._zmp_sub is None:
             self.trail.clear()
+            self.filled.discard("zmp")
             self._zmp_sub = self.lab.bus.subscribe(self.topics["zmp"], PointStamped,
                                                    self._measured, node="gui")
         elif not on and self._zmp_sub is not None:
             self._zmp_sub.unregister()
             self._zmp_sub = None
+        for key, node in self.nodes.items():
+            node.visible = on and key in self.filled
         if on:
             self.drawn.clear()
             self._trail_drawn = -1
@@ -125,9 +147,10 @@ class WalkPlanView:
                                         for p in msg.poses])
             else:
                 lift = _LIFT if key == "zmp_plan" else 0.0
+                poses = msg.poses[::PATH_STRIDE] + msg.poses[-1:]  # the end point kept
                 points = polyline([(p.pose.position.x, p.pose.position.y,
-                                    p.pose.position.z + lift) for p in msg.poses])
-            self.nodes[key].points = points
+                                    p.pose.position.z + lift) for p in poses])
+            self._draw(key, points)
         if self.trail and self._received != self._trail_drawn:
             self._trail_drawn = self._received
-            self.nodes["zmp"].points = polyline([(x, y, z + _LIFT) for x, y, z in list(self.trail)])
+            self._draw("zmp", polyline([(x, y, z + _LIFT) for x, y, z in list(self.trail)]))
