@@ -135,8 +135,8 @@ def test_refused_numbers_get_a_message_and_the_field_shows_the_server_value(app)
         assert wait_until(lambda m=message: any(r.startswith(m) for r in app.refusals)), text
         assert knee_p.value == f"{held[0]:.10g}"
     typed(app, app.steps, "1e3")  # scientific notation is a number
-    assert wait_until(lambda: app.fields.held(app.steps) == [1000.0])
-    assert app.steps.value == "1000"
+    # the server takes the value, then shows it in the field (a moment later on a loaded machine)
+    assert wait_until(lambda: app.fields.held(app.steps) == [1000.0] and app.steps.value == "1000")
 
 
 def test_a_huge_gain_shows_on_the_status_line_within_a_second(app):
