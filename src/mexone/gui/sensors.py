@@ -84,9 +84,11 @@ class SensorPanel:
         self.zmp_marker = scene.add_icosphere("/balance/zmp", radius=0.012, color=(220, 40, 40),
                                               visible=False)
         self.polygon = scene.add_line_segments("/balance/support", np.zeros((1, 2, 3), np.float32),
-                                               (40, 90, 220), thickness=4.0, visible=False)
+                                               (40, 90, 220), thickness=4.0, thickness_units="screen",
+                                               visible=False)
         self.arrows = scene.add_line_segments("/balance/forces", np.zeros((1, 2, 3), np.float32),
-                                              (250, 140, 20), thickness=6.0, visible=False)
+                                              (250, 140, 20), thickness=6.0, thickness_units="screen",
+                                              visible=False)
         self.stability = ""
 
     def show_balance(self, on: bool) -> None:
