@@ -22,6 +22,8 @@ from mexone.record.bag import BAG_SUFFIXES, BagRecorder
 
 __all__ = ["TopicsPanel", "RecordPanel", "echo_text", "recording_path", "subscriber_names"]
 
+RATE_WINDOW = 0.5  # s of wall time a rate is counted over, at least (rostopic hz: a window)
+
 _ECHO_CHARS = 1500
 
 
@@ -85,13 +87,16 @@ class TopicsPanel:
         """Once a second or so (simulation thread)."""
         bus, now = self.lab.bus, time.monotonic()
         span = max(now - self._last, 1e-3)
-        self._last = now
+        fresh = span >= RATE_WINDOW  # two updates close together would count next to nothing
+        if fresh:
+            self._last = now
         rows = []  # a list, not a table: the panel is narrow and the names are long
         for name in sorted(bus.topics):
             topic = bus.topics[name]
-            rate = (topic.count - self._counts.get(name, topic.count)) / span
-            self._counts[name] = topic.count
-            self.rates[name] = rate
+            if fresh or name not in self.rates:
+                self.rates[name] = (topic.count - self._counts.get(name, topic.count)) / span
+                self._counts[name] = topic.count
+            rate = self.rates[name]
             rows.append(f"- `{name}` {topic.ros_type}, {rate:.0f} Hz, {topic.publishers} pub, "
                         f"subscribers: {subscriber_names(topic)}")
         self.table.content = "\n".join(rows)
