@@ -26,26 +26,13 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "motion"))
 
-from test_ik import ARMS  # noqa: E402 - the tests' workspace, one home for it
+from test_ik import ARMS, _random_targets  # noqa: E402 - the tests' workspace and sampler
 
 from mexone.lab import Lab  # noqa: E402
 from mexone.motion.ik import WholeBodyIK  # noqa: E402
 
 POSITION, ANGLE, FEET = 0.005, np.radians(2.0), 0.001  # m, rad, m: the issue's thresholds
 ITERATIONS = 600  # IK steps at most per target, as the tests
-
-
-def targets(ik: WholeBodyIK, home: np.ndarray, rng, count: int, ranges: dict):
-    """(frame, position, rotation) of a hand by FK of random arm joints within `ranges`."""
-    out = []
-    for _ in range(count):
-        q = home.copy()
-        for joint, (low, high) in ranges.items():
-            q[ik.qpos_adr[ik.joint_names.index(joint)]] = rng.uniform(low, high)
-        ik.configuration.update(q)
-        side = str(rng.choice(["l_hand", "r_hand"]))
-        out.append((side, *ik.pose(side)))
-    return out
 
 
 def measure(ik: WholeBodyIK, home: np.ndarray, goals) -> dict:
@@ -83,7 +70,7 @@ def main() -> int:
     full = {j: tuple(float(v) for v in model.jnt_range[model.joint(j).id]) for j in ARMS}
     results = {}
     for name, ranges in (("workspace", ARMS), ("full", full)):
-        goals = targets(ik, home, np.random.default_rng(args.seed), args.count, ranges)
+        goals = _random_targets(ik, home, np.random.default_rng(args.seed), args.count, ranges)
         results[name] = measure(ik, home, goals)
     if args.json:
         print(json.dumps(results, indent=2))

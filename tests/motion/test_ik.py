@@ -25,12 +25,13 @@ def setup():
     return WholeBodyIK.for_sim(lab.sim), home
 
 
-def _random_targets(ik, home, rng, count):
-    """Hand poses by forward kinematics of random arm configurations within the limits."""
+def _random_targets(ik, home, rng, count, ranges=None):
+    """Hand poses by forward kinematics of random arm configurations within `ranges` (default
+    the tests' workspace, ARMS)."""
     out = []
     for _ in range(count):
         q = home.copy()
-        for joint, (low, high) in ARMS.items():
+        for joint, (low, high) in (ARMS if ranges is None else ranges).items():
             q[ik.qpos_adr[ik.joint_names.index(joint)]] = rng.uniform(low, high)
         ik.configuration.update(q)
         side = rng.choice(["l_hand", "r_hand"])

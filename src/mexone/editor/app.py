@@ -26,13 +26,13 @@ import viser
 
 from mexone.control.spec import PidGains
 from mexone.description.materials import display_rgba
-from mexone.description.model import Box, Cylinder, Dynamics, Limit, Mesh, Pose, Sphere
+from mexone.description.model import Box, Cylinder, Dynamics, Limit, Pose, Sphere
 from mexone.editor.massprops import SHAPES
 from mexone.editor.parts import UNITS, Part, read_parts, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
 from mexone.editor.session import EDIT_TYPES, EditSession, selection_of
 from mexone.errors import MexoneError
-from mexone.gui.scene import _wxyz
+from mexone.gui.scene import _wxyz, trimesh_of
 from mexone.gui.security import guard, warn_if_exposed
 
 __all__ = ["EditorApp"]
@@ -43,25 +43,6 @@ _COLLISION_RGB = (224, 140, 60)
 _MAX_FINDING_BUTTONS = 12
 _NONE = "(none)"
 GUESS = "guess from size"
-
-
-def _geometry_mesh(geometry, base_dir: Path):
-    import trimesh
-
-    from mexone.description.meshes import load_mesh, resolve_mesh
-
-    match geometry:
-        case Box(size):
-            return trimesh.creation.box(extents=size)
-        case Cylinder(radius, length):
-            return trimesh.creation.cylinder(radius=radius, height=length, sections=24)
-        case Sphere(radius):
-            return trimesh.creation.icosphere(subdivisions=2, radius=radius)
-        case Mesh(filename, scale):
-            mesh = load_mesh(resolve_mesh(filename, base_dir)).copy()
-            mesh.apply_scale(scale)
-            return mesh
-    raise TypeError(geometry)
 
 
 class EditorApp:
@@ -363,7 +344,7 @@ class EditorApp:
             selected = name == self.selected_link
             for i, vis in enumerate(link.visuals):
                 try:
-                    mesh = _geometry_mesh(vis.geometry, model.base_dir)
+                    mesh = trimesh_of(vis.geometry, model)
                 except MexoneError:
                     continue  # the checks panel says the mesh is missing
                 rgba = display_rgba(model, name, vis)
@@ -375,7 +356,7 @@ class EditorApp:
             if show_collisions:
                 for i, col in enumerate(link.collisions):
                     try:
-                        mesh = _geometry_mesh(col.geometry, model.base_dir)
+                        mesh = trimesh_of(col.geometry, model)
                     except MexoneError:
                         continue
                     scene.add_mesh_simple(f"/model/{name}/collision_{i}", mesh.vertices, mesh.faces,

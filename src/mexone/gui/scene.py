@@ -19,7 +19,7 @@ from mexone.description.model import Box, Cylinder, Geometry, Mesh, RobotModel, 
 from mexone.gui.display import display_budgets, display_mesh
 from mexone.physics.simulation import Simulation
 
-__all__ = ["RobotScene", "OVERLAYS", "inertia_box"]
+__all__ = ["RobotScene", "OVERLAYS", "inertia_box", "trimesh_of"]
 
 OVERLAYS = ("Center of Mass", "Inertia", "Joints", "Collisions", "Contacts")
 _COLLISION_RGB = (224, 140, 60)
@@ -31,7 +31,7 @@ _MAX_CONTACTS = 64
 SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
-def _trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | None] | None = None):
+def trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | None] | None = None):
     """A trimesh to draw; meshes named in `budgets` are simplified to their share (display only)."""
     import trimesh
 
@@ -94,7 +94,7 @@ class RobotScene:
             self.links[name] = node
             link = robot.links[name]
             for i, vis in enumerate(link.visuals):
-                mesh = _trimesh_of(vis.geometry, robot, budgets)
+                mesh = trimesh_of(vis.geometry, robot, budgets)
                 self.triangles += len(mesh.faces)
                 rgba = display_rgba(robot, name, vis)
                 self.visuals.append(scene.add_mesh_simple(
@@ -102,7 +102,7 @@ class RobotScene:
                     color=tuple(int(255 * c) for c in rgba[:3]),
                     position=vis.origin.xyz, wxyz=_wxyz(vis.origin.matrix[:3, :3])))
             for i, col in enumerate(link.collisions):
-                mesh = _trimesh_of(col.geometry, robot, budgets)
+                mesh = trimesh_of(col.geometry, robot, budgets)
                 self.overlays["Collisions"].append(scene.add_mesh_simple(
                     f"/robot/{name}/collision_{i}", mesh.vertices.astype(np.float32), mesh.faces,
                     color=_COLLISION_RGB, opacity=0.55, position=col.origin.xyz,
