@@ -1,6 +1,7 @@
 """The Topics panel (rostopic list / hz / echo) and Record (rosbag record) on the page.
 
-Rates are messages per wall second over the last refresh, as `rostopic hz` counts them. Many
+Rates are messages per second of simulation time over the last refresh, as `rostopic hz` counts
+them under /use_sim_time (so a 50 Hz topic reads 50 Hz whatever the real-time factor). Many
 topics publish only while someone listens (joint_states, /tf, sensors): echoing one subscribes
 to it, so it starts. A recording goes to a new file in the folder mexone was started in; an
 existing file is never replaced (the BagRecorder refuses it), and the page only ever sends a
@@ -22,7 +23,7 @@ from mexone.record.bag import BAG_SUFFIXES, BagRecorder
 
 __all__ = ["TopicsPanel", "RecordPanel", "echo_text", "recording_path", "subscriber_names"]
 
-RATE_WINDOW = 0.5  # s of wall time a rate is counted over, at least (rostopic hz: a window)
+RATE_WINDOW = 0.5  # s of wall time between two counts, at least (rostopic hz: a window)
 
 _ECHO_CHARS = 1500
 
@@ -61,6 +62,7 @@ class TopicsPanel:
         self.server, self.lab, self.do = server, lab, do
         self._counts: dict[str, int] = {}
         self._last = time.monotonic()
+        self._last_sim = lab.sim.time
         self.rates: dict[str, float] = {}
         self.echo_sub = None
         gui = server.gui
@@ -85,16 +87,21 @@ class TopicsPanel:
 
     def update(self) -> None:
         """Once a second or so (simulation thread)."""
-        bus, now = self.lab.bus, time.monotonic()
-        span = max(now - self._last, 1e-3)
-        fresh = span >= RATE_WINDOW  # two updates close together would count next to nothing
-        if fresh:
-            self._last = now
+        bus, now, sim_now = self.lab.bus, time.monotonic(), self.lab.sim.time
+        span = sim_now - self._last_sim
+        # two updates close together would count next to nothing; a paused simulation publishes
+        # nothing, so the rates shown stay those of the last window it ran in; a reset starts anew
+        fresh = now - self._last >= RATE_WINDOW and span > 0
+        restart = fresh or span < 0
+        if restart:
+            self._last, self._last_sim = now, sim_now
         rows = []  # a list, not a table: the panel is narrow and the names are long
         for name in sorted(bus.topics):
             topic = bus.topics[name]
-            if fresh or name not in self.rates:
-                self.rates[name] = (topic.count - self._counts.get(name, topic.count)) / span
+            if fresh and name in self._counts:
+                self.rates[name] = (topic.count - self._counts[name]) / span
+            self.rates.setdefault(name, 0.0)
+            if restart or name not in self._counts:
                 self._counts[name] = topic.count
             rate = self.rates[name]
             rows.append(f"- `{name}` {topic.ros_type}, {rate:.0f} Hz, {topic.publishers} pub, "
