@@ -27,7 +27,7 @@ import numpy as np
 
 from mexone import rospy
 from mexone.errors import InputError
-from mexone.motion.ik import FrameError, WholeBodyIK
+from mexone.motion.ik import REACHED, FrameError, WholeBodyIK
 from mexone.motion.push import PUSH_SECONDS, apply_wrench
 from mexone.motion.walk import (
     GAIT_YAML,
@@ -59,7 +59,6 @@ __all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "follow_goals", "
            "walk_seconds", "step_from_twist", "joint_targets", "RATE", "REACHED"]
 
 RATE = 50.0  # Hz: how often reach sends joint commands (the IK steps at the same period)
-REACHED = (0.005, math.radians(2.0))  # m, rad: closer than this is reached
 _SETTLE = 1.0  # s at most holding the pose after the motion, trimming the commands
 _TRIM_GAIN = 0.3  # share of the joint error added to its command each tick while holding
 _SETTLED = 2e-4  # rad: the joints count as settled when all are this close
@@ -67,6 +66,8 @@ _CORRECTIONS = 2  # passes re-planned from the measured pose after the motion
 _CORRECT_ABOVE = 0.002  # m: a measured error this small is left alone
 BEND_SECONDS = 1.0  # s to bend the knees into the walking stance before the first step
 CMD_VEL_TIMEOUT = 0.5  # s: a cmd_vel older than this stops the walk (its sender is gone)
+_SWING_SPEED = 1.5  # rad/s: the fastest a joint turns moving to a restarted IK's solution
+_MIN_JERK_PEAK = 1.875  # a minimum-jerk move's peak speed over its mean speed
 _MAX_TRIM = 0.2  # rad: a joint held off its target by more (a collision) is not chased further
 
 
@@ -143,19 +144,24 @@ def _min_jerk(s: float) -> float:
 
 def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     """Move `frame` ("l_hand", "r_hand", "l_foot", "head", any link) to world xyz (m) and, if
-    given, roll-pitch-yaw (rad), over `duration` s, feet planted. Returns the IK's remaining
-    error; an unreachable target ends at the closest pose with a one-line warning."""
+    given, roll-pitch-yaw (rad), over `duration` s, feet planted. Returns the remaining error,
+    measured; an unreachable target ends at the closest pose with a one-line warning, as does a
+    frame the body could not carry to a reachable one. A target the straight path cannot
+    reach from here (another local minimum of the IK) is solved with restarts and reached by a
+    move in joint space, at most _SWING_SPEED per joint."""
     if not (duration > 0 and math.isfinite(duration)):
         raise InputError(f"reach: duration {duration} must be a finite number > 0 s")
     mover = _mover()
     ik = mover.ik
-    ik.reset(mover.snapshot())
+    snapshot = mover.snapshot()
+    ik.reset(snapshot)
+    initial = ik.joint_positions()
     start, rotation0 = ik.pose(frame)
     goal = np.asarray(xyz, dtype=float)
     ik.set_rpy_target(frame, goal, rpy)  # checks the target before anything moves
     rotation = None if rpy is None else ik.targets[frame].transform_target_to_world.rotation()
-    rate = rospy.Rate(RATE)
     ticks = max(1, round(duration * RATE))
+    path = []  # planned whole before anything moves: the joints at each tick
     for k in range(1, ticks + 1):
         s = _min_jerk(k / ticks)
         if rotation is None:
@@ -164,9 +170,23 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
             between = mink.SO3.from_matrix(rotation0).interpolate(rotation, s)
             ik.set_target(frame, start + s * (goal - start), between.as_matrix())
         ik.step(1.0 / RATE)
-        mover.send(ik.joint_positions())
-        rate.sleep()
+        path.append(ik.joint_positions())
     ik.converge()
+    if not ik.error(frame).reached:  # the straight path ends in another local minimum
+        ik.reset(snapshot)
+        ik.set_rpy_target(frame, goal, rpy)
+        ik.solve(frame)  # fresh starts of the arm: the closest pose there is
+        after = ik.joint_positions()
+        # there in joint space (no collision check: see README), slowly enough not to throw the
+        # body: a restart can flip a shoulder by 4 rad
+        swing = max(abs(after[n] - initial[n]) for n in after)
+        moves = max(ticks, round(_MIN_JERK_PEAK * swing / _SWING_SPEED * RATE))
+        path = [{n: initial[n] + _min_jerk(k / moves) * (after[n] - initial[n]) for n in after}
+                for k in range(1, moves + 1)]
+    rate = rospy.Rate(RATE)
+    for joints in path:
+        mover.send(joints)
+        rate.sleep()
     mover.hold(ik.joint_positions(), rate)
     error = ik.error(frame)
     for _ in range(_CORRECTIONS):  # close the loop on where the frame really is
@@ -177,7 +197,15 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
         ik.converge()
         mover.hold(ik.joint_positions(), rate)
         error = ik.error(frame)
-    if error.position > REACHED[0] or (error.angle is not None and error.angle > REACHED[1]):
+    planned = error
+    ik.reset(mover.snapshot())
+    ik.set_rpy_target(frame, goal, rpy)
+    error = ik.error(frame)  # where the frame really is
+    if not error.reached and planned.reached:
+        rospy.logwarn("reach %s: stopped %s short of (%.3f, %.3f, %.3f): the body did not follow "
+                      "the IK (a collision, a foot slipping or tipping, a joint at its effort "
+                      "limit)", frame, error, *goal)
+    elif not error.reached:
         rospy.logwarn("reach %s: (%.3f, %.3f, %.3f) is out of reach; stopped at the closest pose, "
                       "%s away", frame, *goal, error)
     return error

@@ -25,7 +25,8 @@ from mexone.errors import InputError
 from mexone.motion.frames import Frame, frames_for
 from mexone.physics.simulation import Simulation
 
-__all__ = ["WholeBodyIK", "FrameError", "FEET_COST", "SOLVER"]
+__all__ = ["WholeBodyIK", "FrameError", "FEET_COST", "SOLVER", "REACHED", "RESTARTS",
+           "reachable_targets"]
 
 SOLVER = "daqp"  # mink's default QP back end (installed with it)
 FEET_COST = 100.0  # a planted foot outweighs a hand 100:1 (position, m) and orientation (rad)
@@ -36,6 +37,8 @@ POSTURE_COST = 1e-3  # a weak pull to the starting posture: picks one of many so
 WAIST_POSTURE_COST = 0.1
 BASE_COST = 1.0  # the pelvis stays upright (orientation only)
 DAMPING = 1e-3  # Levenberg-Marquardt damping: bounded steps near singular poses
+REACHED = (0.005, np.radians(2.0))  # m, rad: a frame closer than this to its target reached it
+RESTARTS = 16  # fresh starts `solve` tries at most when the first one stops short
 
 
 @dataclass(frozen=True)
@@ -45,6 +48,11 @@ class FrameError:
     frame: str
     position: float
     angle: float | None
+
+    @property
+    def reached(self) -> bool:
+        """Within REACHED of the target (the orientation too, if it was given)."""
+        return self.position <= REACHED[0] and (self.angle is None or self.angle <= REACHED[1])
 
     def __str__(self) -> str:
         text = f"{self.position * 1000:.1f} mm"
@@ -104,12 +112,8 @@ class WholeBodyIK:
         through (an integral on them fights the whole body's balance)."""
         model, out = self.model, set()
         for foot in self.feet:
-            body = model.site_bodyid[model.site(self.frames[foot].site).id]
-            while body > 0:
-                for j in range(model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body]):
-                    out.add(model.joint(j).name)
-                body = model.body_parentid[body]
-        return out & set(self.joint_names)
+            out |= self._chain_joints(model.site_bodyid[model.site(self.frames[foot].site).id])
+        return {model.joint(j).name for j in out} & set(self.joint_names)
 
     # ----- state ---------------------------------------------------------------------------------
     def reset(self, qpos: np.ndarray) -> None:
@@ -218,6 +222,51 @@ class WholeBodyIK:
                 return i + 1
         return iterations
 
+    def solve(self, frame: str, iterations: int = 600, restarts: int = RESTARTS,
+              seed: int = 0) -> FrameError:
+        """Converge on the targets set; if `frame` is still short of its own, start again from
+        random positions (within limits) of the joints that carry it, legs and planted feet
+        kept, and keep the closest result. Differential IK only descends from where it starts:
+        a hand target behind the back, or one needing the elbow the other way, can stop in
+        another local minimum (random restarts are TRAC-IK's cure). Deterministic per seed."""
+        start = self.configuration.q.copy()
+        chain = self._carrying(frame)
+        rng = np.random.default_rng(seed)
+        best_q, best = None, None
+        for attempt in range(restarts + 1):
+            q = start.copy()
+            if attempt:
+                for adr, (low, high) in chain:
+                    q[adr] = rng.uniform(low, high)
+            self.configuration.update(q)
+            self.converge(iterations=iterations)
+            error = self.error(frame)
+            if best is None or _worse(best, error):
+                best_q, best = self.configuration.q.copy(), error
+            if best.reached:
+                break
+        self.configuration.update(best_q)
+        return best
+
+    def _carrying(self, frame: str) -> list[tuple[int, tuple[float, float]]]:
+        """(qpos address, range) of the limited hinge joints between the base and `frame`, not
+        on the chain of a foot still held."""
+        model = self.model
+        held = set()
+        for foot in self.held:
+            held |= self._chain_joints(model.site_bodyid[model.site(self.frames[foot].site).id])
+        joints = self._chain_joints(model.site_bodyid[model.site(self._frame(frame).site).id])
+        return [(int(model.jnt_qposadr[j]), tuple(float(v) for v in model.jnt_range[j]))
+                for j in sorted(joints - held)
+                if model.jnt_limited[j] and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+
+    def _chain_joints(self, body: int) -> set[int]:
+        model, out = self.model, set()
+        while body > 0:
+            out.update(range(model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body]))
+            body = model.body_parentid[body]
+        return out
+
     def error(self, frame: str) -> FrameError:
         task = self.targets.get(frame) or self.held.get(frame)
         if task is None:
@@ -230,3 +279,34 @@ class WholeBodyIK:
             relative = target.rotation().as_matrix().T @ rotation
             angle = float(np.arccos(np.clip((np.trace(relative) - 1) / 2, -1.0, 1.0)))
         return FrameError(frame, distance, angle)
+
+
+def reachable_targets(ik: WholeBodyIK, qpos: np.ndarray, count: int,
+                      frames: tuple[str, ...] = ("l_hand", "r_hand"),
+                      seed: int = 0) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """`count` (frame, xyz, rotation) poses reachable by construction: forward kinematics of
+    `qpos` with the joints that carry one frame alone (for the hands: the arms, not the waist
+    they share) drawn uniformly within their limits, the frame drawn among `frames`. Leaves the
+    IK's configuration at the last sample: `reset` it before solving."""
+    rng = np.random.default_rng(seed)
+    carrying = {frame: dict(ik._carrying(frame)) for frame in frames}
+    own = {frame: [(adr, span) for adr, span in chain.items()
+                   if not any(adr in carrying[other] for other in frames if other != frame)]
+           for frame, chain in carrying.items()}
+    out = []
+    for _ in range(count):
+        frame = frames[int(rng.integers(len(frames)))]
+        q = np.asarray(qpos, dtype=float).copy()
+        for adr, (low, high) in own[frame]:
+            q[adr] = rng.uniform(low, high)
+        ik.configuration.update(q)
+        out.append((frame, *ik.pose(frame)))
+    return out
+
+
+def _worse(than: FrameError, error: FrameError) -> bool:
+    """Whether `than` is a worse result than `error`: reached first, then the nearer (an angle
+    weighs as the arc it sweeps 0.1 m out, about a hand's length)."""
+    if than.reached != error.reached:
+        return error.reached
+    return error.position + 0.1 * (error.angle or 0.0) < than.position + 0.1 * (than.angle or 0.0)
