@@ -11,11 +11,13 @@ import numpy as np
 
 from mexone.cli.common import (
     DURATION,
+    RTF,
     add_model_options,
     add_record_options,
     lab_from_args,
     recording,
 )
+from mexone.cli.ros import add_ros_options, connect_ros, urdf_text
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
 from mexone.physics.monitor import has_fallen
@@ -33,6 +35,10 @@ to within 2% or 5 mrad), and whether the robot stayed standing.
 
 Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint.
 
+With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and the run keeps
+real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
+reach_goals the /<ns>/<frame>/goal poses) and see what it publishes (the walk's plan).
+
 exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input"""
 
 
@@ -46,6 +52,9 @@ def add_parser(sub) -> None:
                         "sets one, else 10; ends earlier if the routine does)")
     p.add_argument("--json", action="store_true", help="print the report as one JSON object")
     p.add_argument("--quiet", action="store_true", help="do not print the routine's log")
+    p.add_argument("--rtf", type=RTF, metavar="R",
+                   help="target real-time factor (default: unlimited, or 1 with --ros)")
+    add_ros_options(p)
     add_model_options(p)
     add_record_options(p)
     p.set_defaults(run=run)
@@ -53,7 +62,17 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = parse_param_args(args.params)
-    lab = lab_from_args(args)
+    bridge = connect_ros(args) if args.ros else None
+    try:
+        return _run(args, params, bridge)
+    finally:
+        if bridge is not None:
+            bridge.shutdown()
+
+
+def _run(args: argparse.Namespace, params: dict, bridge) -> int:
+    rtf = args.rtf if args.rtf is not None else (1.0 if bridge is not None else 0.0)
+    lab = lab_from_args(args, target_rtf=rtf or None)
     if lab.controllers is None:
         raise InputError("the robot has no controllers to command",
                          hint="give --controllers YAML (the built-in Mex-One has its own)")
@@ -68,14 +87,22 @@ def run(args: argparse.Namespace) -> int:
             print(f"[{level}] [{sim.time:.3f}]: {text}")
 
     runner = RoutineRunner(lab, args.routine, params, log)
+    on_tick, tick = None, 0.05
+    if bridge is not None:
+        bridge.attach(lab, urdf_text(args, sim.robot))
+        print(f"mexone: {sim.robot.name} is on ROS (namespace {lab.namespace}); Ctrl-C stops",
+              file=sys.stderr)
+        on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
     track: list[np.ndarray] = []  # (t, x, y, yaw) of the base, for the routine's phases
     sim.add_periodic(TRACK_PERIOD, lambda s: track.append(np.array([s.time, *_base_xy_yaw(s)])))
     diverged = None
     with recording(lab, args.record, args.force):
         try:
-            runner.run(args.duration)
+            runner.run(args.duration, on_tick=on_tick, tick=tick)
         except DivergenceError as exc:
             diverged = exc.one_line()
+            runner.stop()
+        except KeyboardInterrupt:
             runner.stop()
     tilt, height = sim.base_tilt, sim.base_height
     fell = has_fallen(sim, start_height)

@@ -21,13 +21,10 @@ from mexone.cli.common import (
     options_from_args,
     recording,
 )
-from mexone.description.loader import load_model
-from mexone.description.urdf import write_urdf
+from mexone.cli.ros import add_ros_options, connect_ros, urdf_text
 from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
-from mexone.robots import mex_one
-from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
 
 HELP = """\
 Simulate a robot on MuJoCo the way Gazebo 7 + gazebo_ros_control would: gravity, contacts
@@ -72,15 +69,7 @@ def add_parser(sub) -> None:
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     p.add_argument("--paused", action="store_true",
                    help="the GUI starts paused (and pauses after each reset): watch a fall from t = 0")
-    p.add_argument("--ros", action="store_true",
-                   help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
-                        "services); needs Debian's ROS: " + ROS_INSTALL)
-    p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
-                   help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
-                        "/gazebo, another simulator's under /NAME): one per simulator on a master")
-    p.add_argument("--namespace", "-robot_namespace", dest="namespace", type=_ros_name,
-                   metavar="NS", help="the robot's ROS namespace (default: the controller YAML's, "
-                                      "else the URDF's robotNamespace, else the robot's name)")
+    add_ros_options(p)
     p.add_argument("--explain", action="store_true",
                    help="print how each Gazebo property maps to MuJoCo, then exit")
     add_model_options(p, model_positional=True)
@@ -96,7 +85,7 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
                      host=args.host, port=args.port, target_rtf=rtf, routine_dirs=args.routines,
                      paused=args.paused)
         if bridge is not None:
-            bridge.attach(app.lab, _urdf_text(args, app.lab.sim.robot))
+            bridge.attach(app.lab, urdf_text(args, app.lab.sim.robot))
             app.tick_hooks.append(lambda _sim: bridge.pump())
     except OSError as exc:
         raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
@@ -127,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
     rtf = args.rtf if args.rtf is not None else (0.0 if headless and not args.ros else 1.0)
     if not headless:
         check_can_serve(args.host)
-    bridge = _connect_ros(args) if args.ros else None
+    bridge = connect_ros(args) if args.ros else None
     try:
         if not headless:
             return _serve_gui(args, rtf, duration, bridge)
@@ -141,7 +130,7 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
     lab = lab_from_args(args, target_rtf=rtf or None)
     sim, robot = lab.sim, lab.sim.robot
     if bridge is not None:
-        bridge.attach(lab, _urdf_text(args, robot))
+        bridge.attach(lab, urdf_text(args, robot))
         print(f"mexone: {robot.name} is on ROS at {os.environ.get('ROS_MASTER_URI', '?')} "
               f"(namespace {lab.namespace}); Ctrl-C stops", file=sys.stderr)
     monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
@@ -173,43 +162,3 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
             print(f"base height {summary.base_height:.3f} m, fastest link {summary.max_link_speed:.2f}"
                   f" m/s, at rest: {rest}")
     return 1 if summary.diverged else 0
-
-
-def _connect_ros(args: argparse.Namespace):
-    """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
-    put them there and none were given on the command line (the seed's control.launch flow)."""
-    from mexone.control.spec import ControlConfig
-    from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
-
-    bridge = Ros1Bridge(args.name)
-    if args.controllers is None and not args.no_controllers:
-        robot = load_model(args.model or mex_one.urdf_path())
-        ns = (args.namespace or robot.ros_namespace or robot.name).strip("/")
-        config = config_from_param_server(bridge.rospy, ns) if bridge.rospy.has_param(f"/{ns}") \
-            else None
-        if config is not None and config.controllers:
-            # ros_control: loaded from the parameter server, started by the spawner
-            args.controllers, args.start_controllers = config, []
-        elif args.model is not None and robot.transmissions:
-            # gazebo_ros_control: a controller manager with nothing loaded, for the spawner
-            args.controllers = ControlConfig(ns, {}, config.pid_gains if config else {})
-    return bridge
-
-
-def _ros_name(text: str) -> str:
-    """argparse type: a ROS graph name (letters, digits, _ and /, not starting with a digit)."""
-    import re
-
-    name = text.strip("/")
-    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", name):
-        raise argparse.ArgumentTypeError(f"'{text}' is not a ROS name (letters, digits, _ and /, "
-                                         "not starting with a digit)")
-    return name
-
-
-def _urdf_text(args: argparse.Namespace, robot) -> str:
-    """/robot_description: the user's URDF as written, else the model written as URDF."""
-    path = args.model or mex_one.urdf_path()
-    if str(path).endswith(".urdf"):
-        return path.read_text()
-    return write_urdf(robot)

@@ -1,0 +1,64 @@
+"""The --ros options of `mexone sim` and `mexone run`: join the ROS 1 graph as gazebo_ros does."""
+
+from __future__ import annotations
+
+import argparse
+
+from mexone.description.loader import load_model
+from mexone.description.urdf import write_urdf
+from mexone.robots import mex_one
+from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
+
+__all__ = ["add_ros_options", "connect_ros", "urdf_text"]
+
+
+def add_ros_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--ros", action="store_true",
+                   help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
+                        "services); needs Debian's ROS: " + ROS_INSTALL)
+    p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
+                   help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
+                        "/gazebo, another simulator's under /NAME): one per simulator on a master")
+    p.add_argument("--namespace", "-robot_namespace", dest="namespace", type=_ros_name,
+                   metavar="NS", help="the robot's ROS namespace (default: the controller YAML's, "
+                                      "else the URDF's robotNamespace, else the robot's name)")
+
+
+def connect_ros(args: argparse.Namespace):
+    """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
+    put them there and none were given on the command line (the seed's control.launch flow)."""
+    from mexone.control.spec import ControlConfig
+    from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
+
+    bridge = Ros1Bridge(args.name)
+    if args.controllers is None and not args.no_controllers:
+        robot = load_model(args.model or mex_one.urdf_path())
+        ns = (args.namespace or robot.ros_namespace or robot.name).strip("/")
+        config = config_from_param_server(bridge.rospy, ns) if bridge.rospy.has_param(f"/{ns}") \
+            else None
+        if config is not None and config.controllers:
+            # ros_control: loaded from the parameter server, started by the spawner
+            args.controllers, args.start_controllers = config, []
+        elif args.model is not None and robot.transmissions:
+            # gazebo_ros_control: a controller manager with nothing loaded, for the spawner
+            args.controllers = ControlConfig(ns, {}, config.pid_gains if config else {})
+    return bridge
+
+
+def _ros_name(text: str) -> str:
+    """argparse type: a ROS graph name (letters, digits, _ and /, not starting with a digit)."""
+    import re
+
+    name = text.strip("/")
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", name):
+        raise argparse.ArgumentTypeError(f"'{text}' is not a ROS name (letters, digits, _ and /, "
+                                         "not starting with a digit)")
+    return name
+
+
+def urdf_text(args: argparse.Namespace, robot) -> str:
+    """/robot_description: the user's URDF as written, else the model written as URDF."""
+    path = args.model or mex_one.urdf_path()
+    if str(path).endswith(".urdf"):
+        return path.read_text()
+    return write_urdf(robot)
