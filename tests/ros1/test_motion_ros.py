@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 import pytest
+from test_bridge import ros_env, stop
 
 from mexone.robots.mex_one import END_EFFECTORS
-from test_bridge import ros_env, stop
 
 
 def start_run(port: int, routine: str, *extra: str) -> subprocess.Popen:
