@@ -5,7 +5,6 @@ several routines at once, and a routine that stops yielding cannot freeze the la
 from __future__ import annotations
 
 import ast
-import socket
 import subprocess
 import sys
 import threading
@@ -15,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import free_port
 from mexone.bus.msgs import Float64
 from mexone.control import parse_control_config
 from mexone.control.hardware import SimHardware
@@ -23,12 +23,6 @@ from mexone.lab import Lab
 from mexone.routines.runner import RoutineRunner
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "mexone"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def test_only_the_simulation_thread_writes_the_actuators(monkeypatch):

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import trimesh
 
+import helpers
 from mexone.cli import main
 from mexone.description.urdf import read_urdf
 from mexone.editor.app import EditorApp
@@ -26,20 +27,11 @@ from mexone.lab import Lab
 from mexone.robots import mex_one
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "editor"
-CHROMIUM = shutil.which("chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 MASSES = {"arm_base": "1", "arm_upper": "0.5", "arm_fore": "0.3"}
 
 
 def wait_until(predicate, timeout=15.0) -> bool:
-    end = time.time() + timeout
-    while time.time() < end:
-        if predicate():
-            return True
-        time.sleep(0.1)
-    return False
+    return helpers.wait_until(predicate, timeout)
 
 
 @pytest.fixture(scope="module")
@@ -56,13 +48,8 @@ def editor(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
-    playwright = pytest.importorskip("playwright.sync_api")
-    if CHROMIUM is None:
-        pytest.skip("Debian chromium is not installed")
-    with playwright.sync_playwright() as p:
-        chromium = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+    with helpers.chromium() as chromium:
         yield chromium
-        chromium.close()
 
 
 def open_page(browser, app):

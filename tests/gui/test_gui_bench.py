@@ -6,13 +6,13 @@ an independent mcap reader, the step helper against `mexone run`'s metrics."""
 from __future__ import annotations
 
 import math
-import socket
 import threading
 import time
 
 import numpy as np
 import pytest
 
+from helpers import free_port, wait_until
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import OutputExistsError
 from mexone.gui.app import GuiApp
@@ -21,12 +21,6 @@ from mexone.gui.topics import TopicsPanel
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
 from mexone.physics.monitor import has_fallen
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -38,15 +32,6 @@ def app(tmp_path_factory):
     yield gui
     gui.stop()
     thread.join(timeout=5)
-
-
-def wait_until(predicate, timeout=10.0) -> bool:
-    end = time.time() + timeout
-    while time.time() < end:
-        if predicate():
-            return True
-        time.sleep(0.02)
-    return False
 
 
 def call(app, fn):

@@ -4,7 +4,6 @@ robot drawn within 3 s of page load in a real browser, a loading indicator until
 from __future__ import annotations
 
 import re
-import shutil
 import threading
 import time
 from pathlib import Path
@@ -12,16 +11,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import chromium
 from mexone.description.loader import load_model
 from mexone.gui.app import GuiApp
 from mexone.gui.display import TRIANGLE_BUDGET, display_budgets
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
 
-CHROMIUM = shutil.which("chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
 FACES_PER_PART = 20_480  # an icosphere of 5 subdivisions: 1 MB of binary STL per part
 
 
@@ -159,17 +155,10 @@ def _pixels(tab) -> np.ndarray:
 
 @pytest.mark.slow
 def test_a_big_robot_is_drawn_within_3_s_of_page_load(big_robot):
-    playwright = pytest.importorskip("playwright.sync_api")
-    if CHROMIUM is None:
-        pytest.skip("Debian chromium is not installed")
     plain = big_robot.with_name("boxes.urdf")
-    with playwright.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        try:
-            base, base_changed, _ = _time_to_draw(plain, browser)
-            drawn, changed, sent = _time_to_draw(big_robot, browser)
-        finally:
-            browser.close()
+    with chromium() as browser:
+        base, base_changed, _ = _time_to_draw(plain, browser)
+        drawn, changed, sent = _time_to_draw(big_robot, browser)
     print(f"boxes drawn {base:.2f} s after the load event, meshes {drawn:.2f} s "
           f"({sent / 1e6:.1f} MB sent); pixels changed {base_changed:.3f} / {changed:.3f}")
     assert base_changed > 0.005 and changed > 0.005, "the robot is not on the page"

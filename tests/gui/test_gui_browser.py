@@ -4,29 +4,17 @@ moves its joint, the Collisions toggle adds the collision shapes; bad input is r
 from __future__ import annotations
 
 import io
-import shutil
-import socket
 import threading
 import time
 
 import numpy as np
 import pytest
 
+from helpers import chromium, free_port, wait_until
 from mexone.errors import MexoneError
 from mexone.gui.app import GuiApp
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
-
-CHROMIUM = shutil.which("chromium")
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--use-gl=angle", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")
@@ -42,33 +30,19 @@ def app():
 
 @pytest.fixture(scope="module")
 def page(app):
-    playwright = pytest.importorskip("playwright.sync_api")
-    if CHROMIUM is None:
-        pytest.skip("Debian chromium is not installed")
-    with playwright.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+    with chromium() as browser:
         tab = browser.new_page(viewport={"width": 1280, "height": 800})
         tab.goto(f"http://127.0.0.1:{app.server.get_port()}")
         tab.wait_for_selector("canvas", timeout=30_000)
         tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
         time.sleep(3.0)  # meshes arrive and the first frames render
         yield tab
-        browser.close()
 
 
 def pixels(tab) -> np.ndarray:
     from PIL import Image
 
     return np.asarray(Image.open(io.BytesIO(tab.screenshot())).convert("RGB"), dtype=np.int16)
-
-
-def wait_until(predicate, timeout=10.0) -> bool:
-    end = time.time() + timeout
-    while time.time() < end:
-        if predicate():
-            return True
-        time.sleep(0.1)
-    return False
 
 
 def test_the_page_draws_the_robot(app, page):

@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import chromium, free_port, wait_until
 from mexone.gui.app import GuiApp
 from mexone.gui.inspector import DRAG, JOINT_ARROW
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
 
-from .test_gui_browser import ARGS, CHROMIUM, free_port, wait_until
 from .test_gui_tools import PENDULUM
 
 WIDTH, HEIGHT = 1280, 800
@@ -44,11 +44,7 @@ def app(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def page(app):
-    playwright = pytest.importorskip("playwright.sync_api")
-    if CHROMIUM is None:
-        pytest.skip("Debian chromium is not installed")
-    with playwright.sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
+    with chromium() as browser:
         tab = browser.new_page(viewport={"width": WIDTH, "height": HEIGHT})
         tab.goto(f"http://127.0.0.1:{app.server.get_port()}")
         tab.wait_for_selector("canvas", timeout=30_000)
@@ -59,7 +55,6 @@ def page(app):
         if close.count():
             close.first.click()
         yield tab
-        browser.close()
 
 
 def _drawn(tab) -> bool:

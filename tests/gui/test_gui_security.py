@@ -16,16 +16,11 @@ import viser
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
+from helpers import free_port
 from mexone.gui.app import MAX_STEPS, GuiApp
 from mexone.gui.security import allowed
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 @pytest.fixture(scope="module")

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from helpers import free_port, wait_until
 from mexone.gui.app import GuiApp
 from mexone.gui.inspector import ARROW_METRES_PER_NS, DRAG, JOINT_ARROW
 from mexone.gui.load import save_upload
@@ -20,7 +21,7 @@ from mexone.lab import Lab
 from mexone.physics import CompileOptions
 from mexone.physics.monitor import has_fallen
 
-from .test_gui_bench import call, free_port, wait_until
+from .test_gui_bench import call
 
 
 @pytest.fixture(scope="module")
