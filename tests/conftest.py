@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,12 @@ import pytest
 if not os.environ.get("DISPLAY"):
     os.environ.setdefault("MUJOCO_GL", "egl")
     os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+
+# A run started in the background by a shell (`bash .ci/run &`) inherits SIGINT ignored, and so
+# would every mexone process the tests start (exec keeps an ignored signal ignored): the Ctrl-C
+# tests would see their SIGINT dropped. A handled signal is reset to the default on exec.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 DATA = Path(__file__).parent / "data"
 IN_CI = os.environ.get("MEXONE_CI") == "1"
