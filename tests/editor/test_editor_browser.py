@@ -120,8 +120,9 @@ def on_screen(tab, app, point) -> tuple[float, float]:
 
 
 def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
-    """Grab the joint gizmo's x arrow with the mouse, pull it along x to about the hole and let
-    go; then the joint frame must sit exactly on the hole's axis, the axis along the hole."""
+    """Grab the joint gizmo's x arrow with the mouse, pull it along x to 8 mm short of the hole
+    and let go; then the joint frame must sit exactly on the hole's axis, the axis along the hole
+    (panning the view first if the part is under the control panel)."""
     session, joint = editor.session, editor.selected_joint
     start = session.world_frames()[session.joint(joint).child][:3, 3]
     assert wait_until(lambda: editor._gizmo.visible and np.allclose(editor._gizmo.position, start))
@@ -137,7 +138,8 @@ def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
         assert wait_until(lambda: np.linalg.norm(np.array(camera.look_at) - look_at) > 0.1)
     time.sleep(1.0)  # the gizmo (and the panned camera) arrive on the page and the server
     handle = np.array([0.6 * editor._gizmo.scale, 0.0, 0.0])  # its x arrow, along +x from the centre
-    grab, to = np.array(on_screen(tab, editor, start + handle)), np.array(on_screen(tab, editor, hole + handle))
+    aim = hole + [0.008, 0.0, 0.0]  # 8 mm short of the hole's centre, 3 mm off its rim: the magnet's job
+    grab, to = np.array(on_screen(tab, editor, start + handle)), np.array(on_screen(tab, editor, aim + handle))
     assert 0 < grab[0] < 0.5 * tab.viewport_size["width"] and 0 < to[0] < grab[0], (grab, to)
     step = session.index
     tab.mouse.move(*grab)
@@ -148,6 +150,8 @@ def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
     assert wait_until(lambda: f"{joint} snapped to hole axis" in editor._status_msg.content), \
         (editor.messages, editor._gizmo.position)
     assert session.index == step + 1  # one step: one undo takes it back
+    let_go = float(editor.messages[0].split("let go ")[1].split(" mm")[0])
+    assert 4.0 < let_go < 12.0, editor.messages[0]  # dropped near, not on, the hole
     frame = session.world_frames()[session.joint(joint).child]
     np.testing.assert_allclose(frame[:3, 3], hole, atol=1e-6)  # exactly on it, not near it
     np.testing.assert_allclose(frame[:3, :3] @ session.joint(joint).axis, (0.0, -1.0, 0.0), atol=1e-6)

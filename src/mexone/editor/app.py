@@ -192,7 +192,9 @@ class EditorApp:
             self._origin = gui.add_vector3("Frame xyz (parent)", (0.0, 0.0, 0.0), step=0.001)
             self._origin_rpy = gui.add_vector3("Frame rpy", (0.0, 0.0, 0.0), step=0.01)
             button("Place frame (typed)", self._typed_frame)
-            button("Place frame at gizmo", self._gizmo_frame)
+            button("Place frame at gizmo", self._gizmo_frame,
+                   hint=f"let go within {SNAP_RADIUS * 1000:g} mm of a snap of the child and the frame "
+                        "snaps there by itself; dropped elsewhere, this puts the frame at the gizmo")
             button("Snap frame to selected snap", self._snap_frame)
             self._swing_box = gui.add_checkbox("Swing preview", False)
             self._swing_box.on_update(lambda _: self._set_swing(self._swing_box.value))
