@@ -1,6 +1,7 @@
 """The editor page in a real headless Chromium, driven only through the page: three STL parts in
 millimetres uploaded, units guessed, masses and inertias, collision cylinders, two revolute
-joints snapped to hole axes, motors, saved; the saved files judged by check_urdf and `mexone
+joints snapped to hole axes (the elbow's by dragging its gizmo with the mouse and letting it go
+by the hole), motors, saved; the saved files judged by check_urdf and `mexone
 check`; a refused overwrite; undo; the history after a reload. With MEXONE_SCREENSHOT_DIR set it
 also writes the README's screenshot there (editor.png)."""
 
@@ -101,6 +102,62 @@ def enter(field, value: str, arrived) -> None:
     raise AssertionError(f"{field} never reached the server as {value}")
 
 
+def on_screen(tab, app, point) -> tuple[float, float]:
+    """Where the page's camera draws a world point (three.js: vertical fov, +z up here)."""
+    cam = next(iter(app.server.get_clients().values())).camera
+    width, height = tab.viewport_size["width"], tab.viewport_size["height"]
+    eye, target = np.asarray(cam.position), np.asarray(cam.look_at)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    d = np.asarray(point) - eye
+    depth = d @ forward
+    half = np.tan(cam.fov / 2)
+    x = (d @ right) / (depth * half * width / height)
+    y = (d @ up) / (depth * half)
+    return (x + 1) / 2 * width, (1 - y) / 2 * height
+
+
+def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
+    """Grab the joint gizmo's x arrow with the mouse, pull it along x to 8 mm short of the hole
+    and let go; then the joint frame must sit exactly on the hole's axis, the axis along the hole
+    (panning the view first if the part is under the control panel)."""
+    session, joint = editor.session, editor.selected_joint
+    start = session.world_frames()[session.joint(joint).child][:3, 3]
+    assert wait_until(lambda: editor._gizmo.visible and np.allclose(editor._gizmo.position, start))
+    camera = next(iter(editor.server.get_clients().values())).camera
+    if on_screen(tab, editor, start)[0] > 0.4 * tab.viewport_size["width"]:
+        # the part is under the control panel: pan the view (right-drag) as a user would
+        look_at = np.array(camera.look_at)
+        tab.mouse.move(300, 600)
+        tab.mouse.down(button="right")
+        for k in range(1, 9):
+            tab.mouse.move(300 - 30 * k, 600)
+        tab.mouse.up(button="right")
+        assert wait_until(lambda: np.linalg.norm(np.array(camera.look_at) - look_at) > 0.1)
+    time.sleep(1.0)  # the gizmo (and the panned camera) arrive on the page and the server
+    handle = np.array([0.6 * editor._gizmo.scale, 0.0, 0.0])  # its x arrow, along +x from the centre
+    aim = hole + [0.008, 0.0, 0.0]  # 8 mm short of the hole's centre, 3 mm off its rim: the magnet's job
+    grab, to = np.array(on_screen(tab, editor, start + handle)), np.array(on_screen(tab, editor, aim + handle))
+    assert 0 < grab[0] < 0.5 * tab.viewport_size["width"] and 0 < to[0] < grab[0], (grab, to)
+    step = session.index
+    tab.mouse.move(*grab)
+    tab.mouse.down()
+    for k in range(1, 9):
+        tab.mouse.move(*(grab + (to - grab) * k / 8))
+    tab.mouse.up()
+    assert wait_until(lambda: f"{joint} snapped to hole axis" in editor._status_msg.content), \
+        (editor.messages, editor._gizmo.position)
+    assert session.index == step + 1  # one step: one undo takes it back
+    let_go = float(editor.messages[0].split("let go ")[1].split(" mm")[0])
+    assert 4.0 < let_go < 12.0, editor.messages[0]  # dropped near, not on, the hole
+    frame = session.world_frames()[session.joint(joint).child]
+    np.testing.assert_allclose(frame[:3, 3], hole, atol=1e-6)  # exactly on it, not near it
+    np.testing.assert_allclose(frame[:3, :3] @ session.joint(joint).axis, (0.0, -1.0, 0.0), atol=1e-6)
+    assert wait_until(lambda: np.allclose(editor._gizmo.position, hole, atol=1e-6))  # the gizmo jumped
+
+
 @pytest.mark.slow
 def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
     session = editor.session
@@ -124,14 +181,18 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
         press(page, editor, "Fit collision",
               lambda link=link: session.extras.collision_shapes.get(link) == "cylinder")
 
-    for name, parent, child, hole in (("shoulder", "arm_base", "arm_upper", "hole axis (0.0, 10.0, 100.0)"),
-                                      ("elbow", "arm_upper", "arm_fore", "hole axis (150.0, 10.0, 100.0)")):
+    # the shoulder from the snap list; the elbow put on a face, then its gizmo dragged with the
+    # mouse to the hole and let go: the magnet puts the frame on the hole's axis
+    for name, parent, child, snap in (("shoulder", "arm_base", "arm_upper", "hole axis (0.0, 10.0, 100.0)"),
+                                      ("elbow", "arm_upper", "arm_fore", "face centre (211.1, -10.0, 100.0)")):
         choose(page, "Parent", parent)
         choose(page, "Child", child)
         assert wait_until(lambda child=child: editor._child.value == child)
-        choose(page, "Snap on child", hole)
+        choose(page, "Snap on child", snap)
         enter(text_field(page, "New joint name"), name, lambda name=name: editor._jname.value == name)
         press(page, editor, "Add joint", lambda name=name: name in session.model.joints)
+        if name == "elbow":
+            drag_gizmo_onto(page, editor, np.array([0.15, -0.01, 0.1]))  # the hole's front end
         press(page, editor, "Auto gains", lambda name=name: name in session.extras.motors)
 
     frames = session.world_frames()  # the frames sit on the holes' axes
@@ -151,7 +212,7 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
     saved = read_urdf(out / "arm.urdf")
     assert [t.joint for t in saved.transmissions] == ["shoulder", "elbow"]
     assert saved.links["arm_fore"].inertial.mass == pytest.approx(0.3)
-    assert np.allclose(saved.joints["elbow"].origin.xyz, (0.15, 0.0, 0.0))
+    assert np.allclose(saved.joints["elbow"].origin.xyz, (0.15, -0.02, 0.0))  # front end of the bore
 
     for link, mass in MASSES.items():  # trimesh's inertia for that mesh and mass
         mesh = trimesh.load(DATA / f"{link}.stl")

@@ -19,6 +19,7 @@ from mexone.description.urdf import read_urdf, write_urdf
 from mexone.editor.parts import guess_unit, read_part, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
 from mexone.editor.session import EditSession
+from mexone.editor.snapping import SNAP_RADIUS, Snap, nearest_snap
 from mexone.errors import InputError, OutputExistsError
 from mexone.lab import Lab
 from mexone.robots import mex_one
@@ -197,6 +198,51 @@ def test_history_survives_a_restart_and_undo_redo_walk_it(arm, tmp_path):
     again.undo()
     again.set_joint("elbow", type="fixed")  # a new edit drops the redo branch
     assert not again.can_redo
+
+
+def test_the_nearest_snap_within_the_radius_wins_and_none_beyond_it():
+    face = Snap("face centre", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), 1e-4)
+    edge = Snap("edge midpoint", (0.01, 0.0, 0.0), (1.0, 0.0, 0.0), 0.02)
+    hole = Snap("hole axis", (0.1, 0.0, 0.0), (0.0, 1.0, 0.0), 0.005)
+    rim = Snap("edge midpoint", (0.1049, 0.0, 0.0), (0.0, 0.0, 1.0), 0.002)  # on the hole's rim
+    candidates = [(s, np.array(s.point), np.array(s.axis)) for s in (face, edge, hole, rim)]
+    assert nearest_snap(candidates, (0.004, 0.0, 0.0)) == 0
+    assert nearest_snap(candidates, (0.006, 0.003, 0.0)) == 1
+    assert nearest_snap(candidates, (0.0, 0.0, SNAP_RADIUS * 0.99)) == 0
+    assert nearest_snap(candidates, (0.0, 0.0, -SNAP_RADIUS * 1.01)) is None  # beyond: nothing
+    assert nearest_snap(candidates, (0.05, 0.0, 0.0)) is None
+    # a drop in a hole's mouth takes the hole, even right by a midpoint of its rim
+    assert nearest_snap(candidates, (0.1045, 0.0, 0.0)) == 2
+    assert nearest_snap(candidates, (0.1 + 0.005 + 0.014, 0.0, 0.0)) == 2  # 14 mm off its rim
+    assert nearest_snap(candidates, (0.1 + 0.005 + 0.016, 0.0, 0.0)) is None
+    assert nearest_snap(candidates[3:], (0.1045, 0.0, 0.0)) == 0  # the rim alone: reachable
+    assert nearest_snap(candidates, (0.1, 0.014, 0.0)) == 2  # 14 mm along the axis
+    assert nearest_snap(candidates, (0.1, 0.016, 0.0)) is None
+    assert nearest_snap(candidates, (0.0, 0.0, 0.01), radius=0.005) is None
+
+
+def test_a_gizmo_dropped_by_a_hole_snaps_the_joint_frame_onto_its_axis(tmp_path):
+    session = EditSession.open(tmp_path / "work", name="two")
+    for link in ("arm_upper", "arm_fore"):
+        path = DATA / "editor" / f"{link}.stl"
+        session.import_part(path.name, path.read_bytes())
+    session.fix_to_world("arm_upper")
+    face = next((p, a) for s, p, a in session.snaps("arm_fore") if s.kind == "face centre")
+    session.add_joint("elbow", "arm_upper", "arm_fore", "revolute", *face)
+    step, origin = session.index, session.joint("elbow").origin
+    far = face[0] + np.array([0.0, -0.05, 0.0])  # 5 cm in front of the face: no snap
+    assert session.snap_joint_near("elbow", far) is None
+    assert session.index == step and session.joint("elbow").origin == origin
+    hole = np.array([0.15, -0.01, 0.1])  # the forearm's hole, front end; axis -y
+    snap = session.snap_joint_near("elbow", hole + [0.003, -0.004, 0.002])
+    assert snap.kind == "hole axis" and session.index == step + 1  # one undoable step
+    frame = session.world_frames()["arm_fore"]
+    np.testing.assert_allclose(frame[:3, 3], hole, atol=1e-9)
+    np.testing.assert_allclose(frame[:3, :3] @ session.joint("elbow").axis, (0.0, -1.0, 0.0), atol=1e-9)
+    with pytest.raises(InputError, match="not finite"):
+        session.snap_joint_near("elbow", (np.nan, 0.0, 0.0))
+    session.undo()
+    assert session.joint("elbow").origin == origin
 
 
 def test_units_and_names_of_imported_parts():

@@ -112,6 +112,40 @@ def test_the_swing_preview_moves_the_drawn_child_only(app):
     app.act("view", app._draw)
 
 
+def test_the_gizmo_let_go_away_from_every_snap_stays_and_by_a_hole_snaps(app):
+    import asyncio
+    from types import SimpleNamespace
+
+    session = app.session
+    app._select_joint("shoulder")
+    step, origin = session.index, session.joint("shoulder").origin
+
+    def let_go(at) -> None:  # what viser calls at a drag's end, with the pose it was let go at
+        app._gizmo.position = at
+        event = SimpleNamespace(phase="end", client=object(), target=app._gizmo)
+        messages = list(app.messages)
+        asyncio.run(app._gizmo_moved(event))
+        end = time.time() + 10
+        while app.messages == messages and time.time() < end:
+            time.sleep(0.02)
+
+    free = np.array([0.3, -0.2, 0.3])  # far from the upper arm
+    let_go(free)
+    assert "no snap within 15 mm" in app._status_msg.content
+    assert session.index == step and session.joint("shoulder").origin == origin
+    assert np.allclose(app._gizmo.position, free)  # it stays where it was dropped
+    let_go((np.nan, 0.0, 0.0))
+    assert "refused" in app._status_msg.content and session.index == step
+    hole = np.array([0.0, 0.03, 0.1])  # the upper arm's bore, back end
+    let_go(hole + [0.004, 0.002, -0.003])
+    assert "shoulder snapped to hole axis (0.0, 30.0, 100.0)" in app._status_msg.content
+    assert session.index == step + 1
+    frame = session.world_frames()["arm_upper"]
+    assert np.allclose(frame[:3, 3], hole, atol=1e-9) and np.allclose(app._gizmo.position, hole)
+    assert np.allclose(frame[:3, :3] @ session.joint("shoulder").axis, (0.0, 1.0, 0.0), atol=1e-9)
+    assert app.act("undo", session.undo) and session.joint("shoulder").origin == origin
+
+
 def test_the_edit_verb_says_what_is_wrong_in_one_line(tmp_path, capsys):
     assert main(["edit", "--out", str(tmp_path / "missing"), "--port", "0"]) == 2
     err = capsys.readouterr().err

@@ -10,6 +10,10 @@ are the GUI's (gui/security.py).
 
 Simulate hands the page to `mexone sim`'s GuiApp for the current model and its controllers
 (same server, the editor's panels and scene reset); Back to editing stops it and rebuilds them.
+
+The joint gizmo is magnetic: a drag's end arrives on viser's event loop and is handed to a thread
+that runs it as one edit (the lock, the session's checks): near a snap candidate of the joint's
+child the frame goes there, else the gizmo stays where it was let go.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from mexone.editor.massprops import SHAPES
 from mexone.editor.parts import UNITS, Part, read_parts, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
 from mexone.editor.session import EDIT_TYPES, EditSession, selection_of
+from mexone.editor.snapping import SNAP_RADIUS
 from mexone.errors import MexoneError
 from mexone.gui.scene import _wxyz, trimesh_of
 from mexone.gui.security import guard, warn_if_exposed
@@ -86,8 +91,9 @@ class EditorApp:
         self._stop_sim()
         self.server.stop()
 
-    def act(self, what: str, action) -> bool:
-        """Run one edit under the lock; a refused one is said on the page, never raised."""
+    def act(self, what: str, action, redraw: bool = True) -> bool:
+        """Run one edit under the lock; a refused one is said on the page, never raised.
+        redraw=False: the action refreshes the page itself if it changed anything."""
         with self.lock:
             try:
                 action()
@@ -97,7 +103,7 @@ class EditorApp:
             except (ValueError, TypeError) as exc:  # a widget value of the wrong shape
                 self.say(f"refused ({what}): {exc}", error=True)
                 return False
-            if self.sim_app is None:  # while simulating, the page is the simulator's
+            if redraw and self.sim_app is None:  # while simulating, the page is the simulator's
                 self.refresh()
             return True
 
@@ -186,7 +192,9 @@ class EditorApp:
             self._origin = gui.add_vector3("Frame xyz (parent)", (0.0, 0.0, 0.0), step=0.001)
             self._origin_rpy = gui.add_vector3("Frame rpy", (0.0, 0.0, 0.0), step=0.01)
             button("Place frame (typed)", self._typed_frame)
-            button("Place frame at gizmo", self._gizmo_frame)
+            button("Place frame at gizmo", self._gizmo_frame,
+                   hint=f"let go within {SNAP_RADIUS * 1000:g} mm of a snap of the child and the frame "
+                        "snaps there by itself; dropped elsewhere, this puts the frame at the gizmo")
             button("Snap frame to selected snap", self._snap_frame)
             self._swing_box = gui.add_checkbox("Swing preview", False)
             self._swing_box.on_update(lambda _: self._set_swing(self._swing_box.value))
@@ -212,6 +220,7 @@ class EditorApp:
             button("Simulate", self.simulate, hint="play, pause, push and plot the robot in this "
                                                     "page; Back to editing returns")
         self._gizmo = self.server.scene.add_transform_controls("/gizmo", scale=0.12, visible=False)
+        self._gizmo.on_update(self._gizmo_moved)
 
     # ----- refreshing -------------------------------------------------------------------------
     def refresh(self) -> None:
@@ -531,6 +540,33 @@ class EditorApp:
         world[:3, 3] = self._gizmo.position
         parent = self.session.world_frames()[joint.parent]
         self.session.move_joint_frame(joint.name, Pose.from_matrix(np.linalg.inv(parent) @ world))
+
+    async def _gizmo_moved(self, event) -> None:
+        """A drag's end (async: viser keeps a drag's phases in order only for async callbacks):
+        the pose it was let go at goes to a thread of its own, as every edit does, so the page's
+        messages keep flowing while the session writes its step."""
+        if event.phase != "end" or event.client is None:
+            return
+        at = np.array(event.target.position, dtype=float)
+        threading.Thread(target=self.act, args=("gizmo", lambda: self._dropped(at), False),
+                         daemon=True, name="editor-gizmo").start()
+
+    def _dropped(self, at: np.ndarray) -> None:
+        """The magnet: let go within SNAP_RADIUS of a snap candidate of the selected joint's
+        child, the joint's frame goes there at once (one undoable step; the gizmo follows);
+        further away the gizmo stays where it was dropped for "Place frame at gizmo"."""
+        if self.sim_app is not None or self.selected_joint is None:
+            return
+        joint = self.selected_joint
+        snap = self.session.snap_joint_near(joint, at)
+        x, y, z = (1000 * v for v in at)
+        if snap is None:
+            self.say(f"gizmo at ({x:.1f}, {y:.1f}, {z:.1f}) mm: no snap within "
+                     f"{SNAP_RADIUS * 1000:g} mm; Place frame at gizmo puts {joint}'s frame there")
+            return
+        self.refresh()
+        off = np.linalg.norm(self.session.world_frames()[self.session.joint(joint).child][:3, 3] - at)
+        self.say(f"{joint} snapped to {snap.label} (let go {off * 1000:.1f} mm from it)")
 
     def _snap_frame(self) -> None:
         joint = self.session.joint(self._need_joint())

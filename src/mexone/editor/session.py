@@ -44,7 +44,7 @@ from mexone.description.model import (
 from mexone.description.urdf import read_urdf, write_urdf
 from mexone.editor.massprops import MassProperties, fit_collisions, mass_properties
 from mexone.editor.parts import UNITS, read_part
-from mexone.editor.snapping import Snap, snap_points
+from mexone.editor.snapping import SNAP_RADIUS, Snap, nearest_snap, snap_points
 from mexone.errors import InputError, MexoneError
 from mexone.physics.world import default_world
 
@@ -556,7 +556,8 @@ class EditSession:
 
     def snap_joint(self, name: str, snap_index: int) -> Snap:
         """Move the joint's frame onto a snap candidate of its child's mesh (parts stay), its
-        axis along the candidate's."""
+        axis along the candidate's: one edit, one undo. The frame keeps the child's orientation,
+        so a URDF reads `axis 0 1 0` for a hole along y, not a rotated frame."""
         joint = self.joint(name)
         snaps = self.snaps(joint.child)
         if not 0 <= snap_index < len(snaps):
@@ -566,9 +567,29 @@ class EditSession:
         parent, child = frames[joint.parent], frames[joint.child]
         joint_world = child.copy()
         joint_world[:3, 3] = point
-        self.move_joint_frame(name, Pose.from_matrix(np.linalg.inv(parent) @ joint_world))
-        self.set_joint(name, axis=self.world_frames()[joint.child][:3, :3].T @ axis)
+        new = Pose.from_matrix(np.linalg.inv(parent) @ joint_world)
+        shift = np.linalg.inv(new.matrix) @ joint.origin.matrix
+        local_axis = child[:3, :3].T @ (axis / np.linalg.norm(axis))
+
+        def change(model: RobotModel, _extras: _Extras) -> None:
+            target = model.joints[name]
+            target.origin = new
+            _reexpress(model, target.child, shift)
+            target.axis = tuple(float(v) for v in local_axis)
+
+        self._edit(f"joint {name}: frame snapped to {snap.label}", change)
         return snap
+
+    def snap_joint_near(self, name: str, at, radius: float = SNAP_RADIUS) -> Snap | None:
+        """The dropped gizmo's magnet: snap the joint's frame to the candidate of its child's
+        mesh nearest `at` (the editor's world) within `radius`; None (nothing changed) when
+        every candidate is further."""
+        joint = self.joint(name)
+        at = np.array(_finite(at, "gizmo position"))
+        if len(at) != 3:
+            raise InputError(f"gizmo position {tuple(at)} must be three numbers")
+        index = nearest_snap(self.snaps(joint.child), at, radius)
+        return None if index is None else self.snap_joint(name, index)
 
     def remove_joint(self, name: str) -> None:
         joint = self.joint(name)
