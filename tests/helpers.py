@@ -9,6 +9,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
+import numpy as np
 import pytest
 
 CHROMIUM = shutil.which("chromium")
@@ -47,3 +48,21 @@ def chromium() -> Iterator:
             yield browser
         finally:
             browser.close()
+
+
+def on_screen(tab, server, point) -> tuple[float, float]:
+    """Where the first page's camera draws a world point on `tab`, in CSS pixels (three.js: a
+    vertical field of view, +z up in viser's world): for mouse clicks and drags in the canvas."""
+    cam = next(iter(server.get_clients().values())).camera
+    width, height = tab.viewport_size["width"], tab.viewport_size["height"]
+    eye, target = np.asarray(cam.position), np.asarray(cam.look_at)
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    d = np.asarray(point) - eye
+    depth = d @ forward
+    half = np.tan(cam.fov / 2)
+    x = (d @ right) / (depth * half * width / height)
+    y = (d @ up) / (depth * half)
+    return (x + 1) / 2 * width, (1 - y) / 2 * height

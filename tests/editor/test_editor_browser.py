@@ -102,23 +102,6 @@ def enter(field, value: str, arrived) -> None:
     raise AssertionError(f"{field} never reached the server as {value}")
 
 
-def on_screen(tab, app, point) -> tuple[float, float]:
-    """Where the page's camera draws a world point (three.js: vertical fov, +z up here)."""
-    cam = next(iter(app.server.get_clients().values())).camera
-    width, height = tab.viewport_size["width"], tab.viewport_size["height"]
-    eye, target = np.asarray(cam.position), np.asarray(cam.look_at)
-    forward = (target - eye) / np.linalg.norm(target - eye)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    d = np.asarray(point) - eye
-    depth = d @ forward
-    half = np.tan(cam.fov / 2)
-    x = (d @ right) / (depth * half * width / height)
-    y = (d @ up) / (depth * half)
-    return (x + 1) / 2 * width, (1 - y) / 2 * height
-
-
 def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
     """Grab the joint gizmo's x arrow with the mouse, pull it along x to 8 mm short of the hole
     and let go; then the joint frame must sit exactly on the hole's axis, the axis along the hole
@@ -127,7 +110,7 @@ def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
     start = session.world_frames()[session.joint(joint).child][:3, 3]
     assert wait_until(lambda: editor._gizmo.visible and np.allclose(editor._gizmo.position, start))
     camera = next(iter(editor.server.get_clients().values())).camera
-    if on_screen(tab, editor, start)[0] > 0.4 * tab.viewport_size["width"]:
+    if helpers.on_screen(tab, editor.server, start)[0] > 0.4 * tab.viewport_size["width"]:
         # the part is under the control panel: pan the view (right-drag) as a user would
         look_at = np.array(camera.look_at)
         tab.mouse.move(300, 600)
@@ -139,7 +122,7 @@ def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
     time.sleep(1.0)  # the gizmo (and the panned camera) arrive on the page and the server
     handle = np.array([0.6 * editor._gizmo.scale, 0.0, 0.0])  # its x arrow, along +x from the centre
     aim = hole + [0.008, 0.0, 0.0]  # 8 mm short of the hole's centre, 3 mm off its rim: the magnet's job
-    grab, to = np.array(on_screen(tab, editor, start + handle)), np.array(on_screen(tab, editor, aim + handle))
+    grab, to = np.array(helpers.on_screen(tab, editor.server, start + handle)), np.array(helpers.on_screen(tab, editor.server, aim + handle))
     assert 0 < grab[0] < 0.5 * tab.viewport_size["width"] and 0 < to[0] < grab[0], (grab, to)
     step = session.index
     tab.mouse.move(*grab)
@@ -264,7 +247,7 @@ def test_a_mex_one_joint_frame_moved_3cm_is_flagged_on_the_page_and_undo_clears_
     app = EditorApp(EditSession.open(tmp_path / "work", mex_one.urdf_path()), tmp_path, port=0)
     try:
         tab = open_page(browser, app)
-        assert "no problems found" in app._checks.content
+        assert wait_until(lambda: "no problems found" in app._checks.content)
         choose(tab, "Joint", "l_shoulder_pitch")
         assert wait_until(lambda: app.selected_joint == "l_shoulder_pitch")
         y = app.session.model.joints["l_shoulder_pitch"].origin.xyz[1]

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import chromium, free_port, wait_until
+from helpers import chromium, free_port, on_screen, wait_until
 from mexone.gui.app import GuiApp
 from mexone.gui.inspector import DRAG, JOINT_ARROW
 from mexone.lab import Lab
@@ -73,22 +73,6 @@ def client(app):
     return next(iter(app.server.get_clients().values()))
 
 
-def on_screen(app, point) -> tuple[float, float]:
-    """Where the page's camera draws a world point (three.js: vertical fov, +z up here)."""
-    cam = client(app).camera
-    eye, target = np.asarray(cam.position), np.asarray(cam.look_at)
-    forward = (target - eye) / np.linalg.norm(target - eye)
-    right = np.cross(forward, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    up = np.cross(right, forward)
-    d = np.asarray(point) - eye
-    depth = d @ forward
-    half = np.tan(cam.fov / 2)
-    x = (d @ right) / (depth * half * WIDTH / HEIGHT)
-    y = (d @ up) / (depth * half)
-    return (x + 1) / 2 * WIDTH, (1 - y) / 2 * HEIGHT
-
-
 def shoot(tab, name: str, reveal=None) -> None:
     """A README picture, when asked for (MEXONE_SCREENSHOT_DIR)."""
     if not SHOTS:
@@ -115,7 +99,7 @@ def test_a_click_in_the_page_inspects_the_link_under_the_mouse(app, page):
     paused_fresh(app)
     sim = app.lab.sim
     torso = sim.data.xipos[sim.compiled.bodies["torso"]]
-    page.mouse.click(*on_screen(app, torso))
+    page.mouse.click(*on_screen(page, app.server, torso))
     mass = sim.robot.links["torso"].inertial.mass
     assert wait_until(lambda: f"mass {mass:.6g} kg (URDF)" in app.inspector.report.content,
                       timeout=15), app.inspector.report.content
@@ -132,7 +116,7 @@ def test_a_click_on_a_joint_axis_arrow_inspects_the_joint(app, page):
     body = sim.compiled.bodies[joint.child]
     tip = sim.data.xpos[body] + sim.data.xmat[body].reshape(3, 3) @ (
         0.7 * JOINT_ARROW * np.asarray(joint.axis) / np.linalg.norm(joint.axis))
-    page.mouse.click(*on_screen(app, tip))
+    page.mouse.click(*on_screen(page, app.server, tip))
     assert wait_until(lambda: "**joint** `r_knee`" in app.inspector.report.content, timeout=15), \
         app.inspector.report.content
     report = app.inspector.report.content
@@ -150,12 +134,12 @@ def test_the_push_handle_is_dragged_with_the_mouse(app, page):
     tools.mode.value, tools.direction.value = "push", DRAG
     sim = app.lab.sim
     torso = sim.data.xipos[sim.compiled.bodies["torso"]]
-    page.mouse.click(*on_screen(app, torso))
+    page.mouse.click(*on_screen(page, app.server, torso))
     assert wait_until(lambda: tools.aim is not None and tools.dragged is not None, timeout=15)
     start = tools.dragged.copy()
     time.sleep(1.0)  # the gizmo arrives on the page
     # grab the gizmo's z arrow (its handle sits along +z from the centre) and pull it up
-    grab = on_screen(app, start + np.array([0.0, 0.0, 0.6 * 0.25]))
+    grab = on_screen(page, app.server, start + np.array([0.0, 0.0, 0.6 * 0.25]))
     page.mouse.move(*grab)
     page.mouse.down()
     for k in range(1, 6):
@@ -167,9 +151,9 @@ def test_the_push_handle_is_dragged_with_the_mouse(app, page):
     assert direction[2] < -0.1  # pulled up behind: the push now points down into the robot
     # then its x arrow, along +x on the screen: the tail moves that way in the world
     lifted = tools.dragged.copy()
-    grab = np.array(on_screen(app, lifted + np.array([0.6 * 0.25, 0.0, 0.0])))
-    along = np.array(on_screen(app, lifted + np.array([0.5, 0.0, 0.0]))) - \
-        np.array(on_screen(app, lifted))
+    grab = np.array(on_screen(page, app.server, lifted + np.array([0.6 * 0.25, 0.0, 0.0])))
+    along = np.array(on_screen(page, app.server, lifted + np.array([0.5, 0.0, 0.0]))) - \
+        np.array(on_screen(page, app.server, lifted))
     along /= np.linalg.norm(along)
     page.mouse.move(*grab)
     page.mouse.down()
@@ -193,7 +177,7 @@ def test_the_move_gizmo_lifts_the_robot_with_the_mouse(app, page):
     page.get_by_text("Move the robot").click()
     assert wait_until(lambda: move.enabled.value and move.gizmo.visible, timeout=10)
     time.sleep(1.0)  # the gizmo arrives on the page
-    grab = on_screen(app, before + np.array([0.0, 0.0, 0.6 * 0.35]))  # its z arrow
+    grab = on_screen(page, app.server, before + np.array([0.0, 0.0, 0.6 * 0.35]))  # its z arrow
     page.mouse.move(*grab)
     page.mouse.down()
     for k in range(1, 6):
