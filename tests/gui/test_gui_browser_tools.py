@@ -195,21 +195,35 @@ def test_the_move_gizmo_lifts_the_robot_with_the_mouse(app, page):
     assert wait_until(lambda: not move.gizmo.visible, timeout=10)
 
 
-def test_screenshot_button_saves_a_png_on_the_server(app, page):
+def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, page):
     from PIL import Image
 
     paused_fresh(app)
     folder = app.screenshots.folder
+    camera = client(app).camera
     page.get_by_role("button", name="Screenshot").click()
     first = folder / "mexone_screenshot_001.png"
     assert wait_until(first.exists, timeout=30)
     assert wait_until(lambda: app.last_screenshot == first, timeout=10)
-    image = np.asarray(Image.open(first).convert("RGB"), dtype=np.int16)
-    assert image.shape == (720, 1280, 3)
-    # the page's view: the robot in the middle, dark against the light floor
-    assert (image[200:520, 540:740].sum(axis=2) < 250).mean() > 0.01
+    plain = np.asarray(Image.open(first).convert("RGB"), dtype=np.int16)
+    # the page's picture (its canvas' size, not MuJoCo's 1280 x 720): the robot in the middle,
+    # dark against the light floor
+    height, width = plain.shape[:2]
+    assert (height, width) == (camera.image_height, camera.image_width)
+    middle = plain[height // 4: 3 * height // 4, width // 3: 2 * width // 3]
+    assert (middle.sum(axis=2) < 250).mean() > 0.01
+    # an overlay only the page draws: the links' centres of mass, blue spheres
+    page.get_by_text("Center of Mass", exact=True).click()
+    assert wait_until(lambda: all(h.visible for h in app.scene.overlays["Center of Mass"]))
+    time.sleep(1.0)  # the page draws them
     page.get_by_role("button", name="Screenshot").click()
-    assert wait_until((folder / "mexone_screenshot_002.png").exists, timeout=30)
+    second = folder / "mexone_screenshot_002.png"
+    assert wait_until(second.exists, timeout=30)
+    assert wait_until(lambda: app.last_screenshot == second, timeout=10)
+    marked = np.asarray(Image.open(second).convert("RGB"), dtype=np.int16)
+    page.get_by_text("Center of Mass", exact=True).click()
+    blue = lambda im: ((im[..., 2] - np.maximum(im[..., 0], im[..., 1])) > 80).sum()  # noqa: E731
+    assert blue(marked) > blue(plain) + 50, (blue(marked), blue(plain))
 
 
 def test_follow_robot_keeps_it_in_view_after_a_jump_and_a_reset(app, page):

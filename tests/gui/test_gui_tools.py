@@ -17,6 +17,7 @@ from helpers import free_port, wait_until
 from mexone.gui.app import GuiApp
 from mexone.gui.inspector import ARROW_METRES_PER_NS, DRAG, JOINT_ARROW
 from mexone.gui.load import save_upload
+from mexone.gui.screenshot import page_picture
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
 from mexone.physics.monitor import has_fallen
@@ -156,6 +157,40 @@ def test_screenshot_saves_numbered_pngs_and_never_overwrites(app):
     assert robot.shape == (720, 1280, 3)
     centre = (slice(260, 460), slice(540, 740))  # the robot stands in the middle of the view
     assert np.abs(robot[centre] - empty[centre]).sum(axis=2).mean() > 30
+
+
+def test_a_page_that_sends_no_picture_gets_mujocos_render(app):
+    """The Screenshot button asks the page for its own picture; a page that times out (or sends
+    a blank one: no WebGL) still gets a PNG, MuJoCo's render of its view."""
+    class SilentCamera:
+        def get_render(self, *args, **kwargs):
+            raise TimeoutError("no frame")
+
+    class BlankCamera:
+        def get_render(self, height, width, **kwargs):
+            return np.zeros((height, width, 4), dtype=np.uint8)  # transparent everywhere
+
+    fresh(app, paused=True)
+    base = app.lab.sim.data.xpos[app.lab.sim.compiled.root_body].copy()
+    view = (base + np.array([1.6, -1.6, 0.4]), base, np.radians(45.0))
+    for camera in (SilentCamera(), BlankCamera()):
+        before = app.last_screenshot
+        client = type("Client", (), {"camera": camera})()
+        app._page_screenshot(client, (400, 600), view)
+        assert wait_until(lambda b=before: app.last_screenshot not in (None, b), timeout=20)
+        assert Image.open(app.last_screenshot).size == (1280, 720)  # MuJoCo's, not the page's
+
+
+def test_a_page_picture_is_put_on_white_and_a_blank_one_refused():
+    rgba = np.zeros((2, 3, 4), dtype=np.uint8)
+    assert page_picture(rgba) is None and page_picture(None) is None
+    rgba[0, 0] = (0, 0, 200, 255)  # opaque blue
+    rgba[1, 2] = (100, 0, 0, 128)  # half-transparent red
+    picture = page_picture(rgba)
+    assert picture.shape == (2, 3, 3) and picture.dtype == np.uint8
+    assert picture[0, 0].tolist() == [0, 0, 200]
+    assert picture[0, 1].tolist() == [255, 255, 255]
+    assert picture[1, 2].tolist() == [177, 127, 127]  # 100 a + 255 (1 - a), a = 128 / 255
 
 
 # ----- plots of any topic, subscriber names, one plot implementation ---------------------------------

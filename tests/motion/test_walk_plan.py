@@ -176,3 +176,25 @@ def test_the_gui_overlay_draws_the_plan_and_the_measured_zmp(walked):
     assert np.abs(trail[:, 0, :2] - middle).max() < 0.04
     view.show(False)
     assert not any(n.visible for n in nodes.values()) and not lab.bus.wanted("/mex_rb/zmp")
+
+
+def test_a_listener_who_comes_while_the_robot_stands_gets_the_plan():
+    """rviz opened after `walk_cmd_vel` started, before any command: the plan made at the start
+    (nobody listened then, so it was not sent) arrives at the next tick; one message, not one a
+    tick: the plan has not changed."""
+    lab = Lab.create()
+    runner = RoutineRunner(lab, "walk_cmd_vel")
+    got: list[PoseArray] = []
+
+    def late(sim) -> None:
+        if sim.time >= 2.0 and not got and not late.subscribed:
+            late.subscribed = True
+            lab.bus.subscribe("/mex_rb/walk/footsteps", PoseArray, got.append)
+    late.subscribed = False
+    runner.run(3.0, on_tick=late)
+    assert runner.error is None
+    assert len(got) == 1
+    # standing: the two soles, where they stand
+    soles = sorted((p.position.y for p in got[0].poses))
+    l_sole = lab.sim.link_pose(END_EFFECTORS["l_foot"][0])[0]
+    assert len(soles) >= 2 and soles[-1] == pytest.approx(l_sole[1], abs=0.03)

@@ -31,7 +31,7 @@ from mexone.gui.load import LoadPanel
 from mexone.gui.move import MoveTool
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
-from mexone.gui.screenshot import Screenshots
+from mexone.gui.screenshot import Screenshots, page_picture
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
@@ -46,11 +46,14 @@ from mexone.routines.runner import RoutineRunner, routine_choices
 
 __all__ = ["GuiApp", "FPS", "MAX_STEPS"]
 
+log = logging.getLogger(__name__)
+
 FPS = 30.0  # scene updates per second of wall time
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
 MAX_STEPS = 100_000  # Step N at most (a page could send anything)
 STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
 MAX_RTF = 100.0
+PAGE_RENDER_SECONDS = 10.0  # a page that sends no picture by then gets MuJoCo's render instead
 
 
 class _GuiLog(logging.Handler):
@@ -279,7 +282,8 @@ class GuiApp:
                                                        hint="after a reset, wait for Play "
                                                             "(mexone sim --paused)")
             shot = gui.add_button("Screenshot", icon=viser.Icon.CAMERA,
-                                  hint="a PNG of this view, rendered on the server, saved as "
+                                  hint="a PNG of this view as the page draws it (MuJoCo's render "
+                                       "if the page sends none), saved as "
                                        "mexone_screenshot_NNN.png in the folder mexone started in")
             shot.on_click(lambda e: self._screenshot_clicked(e.client))
         with gui.add_folder("View"):
@@ -329,11 +333,30 @@ class GuiApp:
             return
         camera = client.camera
         view = (np.asarray(camera.position), np.asarray(camera.look_at), float(camera.fov))
-        self.do(lambda: self.screenshot(*view))
+        size = (int(camera.image_height), int(camera.image_width))
+        # asking the page blocks until it answers: never in viser's or the simulation's thread
+        threading.Thread(target=self._page_screenshot, args=(client, size, view), daemon=True,
+                         name="screenshot").start()
+
+    def _page_screenshot(self, client, size: tuple[int, int], view) -> None:
+        """The page's own picture if it sends one, else MuJoCo's render of the same view."""
+        picture = None
+        if min(size) > 0:
+            try:
+                picture = page_picture(client.camera.get_render(
+                    *size, transport_format="png", timeout=PAGE_RENDER_SECONDS))
+            except Exception as exc:  # noqa: BLE001 - a closed or silent page: use the fallback
+                log.info("screenshot: the page sent no picture (%s); rendering it here", exc)
+        if picture is None:
+            self.do(lambda: self.screenshot(*view))
+        else:
+            self.do(lambda: self._saved(self.screenshots.write(picture)))
 
     def screenshot(self, position, look_at, fov: float) -> Path:
         """Simulation thread: render this view offscreen and save a new numbered PNG."""
-        path = self.screenshots.save(self.lab.sim, position, look_at, fov)
+        return self._saved(self.screenshots.save(self.lab.sim, position, look_at, fov))
+
+    def _saved(self, path: Path) -> Path:
         self.last_screenshot = path
         self.notify("Screenshot", f"saved {path.name} in {path.parent}", color="green")
         return path

@@ -1,8 +1,10 @@
-"""Screenshot: a PNG of the scene, rendered on the server by MuJoCo's offscreen renderer.
+"""Screenshot: a PNG of what the pressing page shows, saved on the server.
 
-The page's own canvas cannot be read from Python, and a headless browser may draw nothing
-worth saving, so the picture is MuJoCo's (EGL, as cameras and `mexone render` use it) from
-the pressing page's camera: same eye, target and vertical field of view. Files are
+First choice is the page's own picture, overlays, plots' markers and gizmos included: viser
+asks that browser to render its view and send it back (`get_render`). A browser that does not
+answer in time or sends a blank picture (a headless one without WebGL) gets MuJoCo's offscreen
+render instead (EGL, as cameras and `mexone render` use it) from the same eye, target and
+vertical field of view: the robot and the world, no overlays. Files are
 `mexone_screenshot_NNN.png` in the folder mexone was started in, created exclusively ('xb'),
 so an existing file is never replaced, whoever made it.
 """
@@ -19,7 +21,7 @@ from mexone.errors import MexoneError
 from mexone.physics.simulation import Simulation
 from mexone.sensors.camera import _release_gl_context
 
-__all__ = ["Screenshots", "camera_from_view", "next_free"]
+__all__ = ["Screenshots", "camera_from_view", "next_free", "page_picture"]
 
 PREFIX = "mexone_screenshot_"
 MAX_FILES = 10_000
@@ -36,6 +38,22 @@ def camera_from_view(position, look_at) -> tuple[np.ndarray, float, float, float
     azimuth = math.degrees(math.atan2(forward[1], forward[0]))
     elevation = math.degrees(math.asin(max(-1.0, min(1.0, forward[2] / distance))))
     return target, distance, azimuth, elevation
+
+
+def page_picture(rgba: np.ndarray | None) -> np.ndarray | None:
+    """A page's render (h, w, 4 RGBA, transparent where nothing is drawn) on the page's white,
+    as (h, w, 3) uint8; None if it shows nothing (all one colour: no WebGL)."""
+    if rgba is None or rgba.ndim != 3 or rgba.shape[2] not in (3, 4) or rgba.size == 0:
+        return None
+    rgba = np.asarray(rgba, dtype=np.float32)
+    rgb = rgba[..., :3]
+    if rgba.shape[2] == 4:
+        alpha = rgba[..., 3:4] / 255.0
+        rgb = rgb * alpha + 255.0 * (1.0 - alpha)
+    picture = np.clip(np.rint(rgb), 0, 255).astype(np.uint8)
+    if (picture == picture[0, 0]).all():
+        return None
+    return picture
 
 
 def next_free(folder: Path) -> Path:
@@ -85,9 +103,12 @@ class Screenshots:
 
     def save(self, sim: Simulation, position, look_at, fov: float) -> Path:
         """Render and write a new numbered PNG; returns its path (simulation thread)."""
+        return self.write(self.render(sim, position, look_at, fov))
+
+    def write(self, image: np.ndarray) -> Path:
+        """Write an (h, w, 3) uint8 picture as the next numbered PNG; returns its path."""
         from PIL import Image
 
-        image = self.render(sim, position, look_at, fov)
         self.folder.mkdir(parents=True, exist_ok=True)
         while True:
             path = next_free(self.folder)

@@ -348,37 +348,49 @@ def step_from_twist(gait: Gait, vx: float, vy: float, wz: float):
 PLAN_TOPICS = {"footsteps": PoseArray, "zmp_plan": Path, "com_plan": Path}  # under /<ns>/walk/
 
 
-def _plan_publisher():
+class _PlanPublisher:
     """Publish each WalkPlan on /<ns>/walk/footsteps (geometry_msgs/PoseArray: the soles'
     centres, facing their way), /<ns>/walk/zmp_plan (on the ground) and /<ns>/walk/com_plan
-    (nav_msgs/Path, at the COM's height, stamped when planned): what rviz and the GUI draw."""
-    lab = current().lab
-    pubs = {k: rospy.Publisher(f"{lab.namespace}/walk/{k}", t, queue_size=1, latch=True)
-            for k, t in PLAN_TOPICS.items()}
-    seq = [0]
+    (nav_msgs/Path, at the COM's height, stamped when planned): what rviz and the GUI draw.
+    Only while someone listens (else the COM path is not worked out); the topics latch, and a
+    listener who comes while the plan stands still (a robot standing) gets it at the next tick."""
 
-    def publish(plan: WalkPlan) -> None:
-        if not any(lab.bus.wanted(p.name) for p in pubs.values()):
-            return  # nobody draws or records it: the COM path is not worked out
-        seq[0] += 1
-        now = rospy.Time.now()
+    def __init__(self):
+        lab = self.lab = current().lab
+        self.pubs = {k: rospy.Publisher(f"{lab.namespace}/walk/{k}", t, queue_size=1, latch=True)
+                     for k, t in PLAN_TOPICS.items()}
+        self.seq = 0
+        self.last: WalkPlan | None = None
+        self.sent = False  # the last plan was published (the latch holds it for newcomers)
+
+    def __call__(self, plan: WalkPlan) -> None:
+        self.last, self.sent = plan, False
+        self.catch_up()
+
+    def catch_up(self) -> None:
+        """Publish the last plan if it went unheard and someone listens now (each tick)."""
+        if self.sent or self.last is None or \
+                not any(self.lab.bus.wanted(p.name) for p in self.pubs.values()):
+            return
+        self.sent = True
+        plan = self.last
+        self.seq += 1
+        seq, now = self.seq, rospy.Time.now()
         ground, height = float(plan.ground), float(plan.com_height)
-        header = Header(seq[0], now, "world")
+        header = Header(seq, now, "world")
 
         def path(points, z: float) -> Path:
-            return Path(header, [PoseStamped(Header(seq[0], now + rospy.Duration(i * plan.dt),
+            return Path(header, [PoseStamped(Header(seq, now + rospy.Duration(i * plan.dt),
                                                     "world"),
                                              Pose(Point(float(p[0]), float(p[1]), z)))
                                  for i, p in enumerate(points)])
 
-        pubs["footsteps"].publish(PoseArray(header, [
+        self.pubs["footsteps"].publish(PoseArray(header, [
             Pose(Point(float(x), float(y), ground),
                  Quaternion(0.0, 0.0, float(math.sin(yaw / 2)), float(math.cos(yaw / 2))))
             for x, y, yaw in plan.footsteps]))
-        pubs["zmp_plan"].publish(path(plan.zmp, ground))
-        pubs["com_plan"].publish(path(plan.com, height))
-
-    return publish
+        self.pubs["zmp_plan"].publish(path(plan.zmp, ground))
+        self.pubs["com_plan"].publish(path(plan.com, height))
 
 
 def _walk(source, gait: Gait) -> None:
@@ -406,12 +418,14 @@ def _walk(source, gait: Gait) -> None:
         gyro[0] = np.array([w.x, w.y, w.z])
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
+    plans = _PlanPublisher()
     try:
         for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
                                   measured=lambda: Measured(mover.measured, mover.velocities,
                                                             *attitude[0][:2], gyro[0]),
-                                  on_replan=_plan_publisher()):
+                                  on_replan=plans):
             mover.send(joints)
+            plans.catch_up()
             rate.sleep()
     finally:
         imu.unregister()
