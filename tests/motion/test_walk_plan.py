@@ -195,6 +195,6 @@ def test_a_listener_who_comes_while_the_robot_stands_gets_the_plan():
     assert runner.error is None
     assert len(got) == 1
     # standing: the two soles, where they stand
-    soles = sorted((p.position.y for p in got[0].poses))
+    soles = sorted(p.position.y for p in got[0].poses)
     l_sole = lab.sim.link_pose(END_EFFECTORS["l_foot"][0])[0]
     assert len(soles) >= 2 and soles[-1] == pytest.approx(l_sole[1], abs=0.03)
