@@ -76,6 +76,15 @@ def choose(tab, label: str, option: str) -> None:
     tab.get_by_role("option").filter(has_text=option).first.click()
 
 
+def selected(app, kind: str, name: str) -> bool:
+    """The page's selection of a link or joint reached the server and its fields are filled
+    (the selection fills them under the edit lock: typing before that is overwritten)."""
+    if not wait_until(lambda: getattr(app, f"selected_{kind}") == name):
+        return False
+    with app.lock:
+        return getattr(app, f"selected_{kind}") == name
+
+
 def text_field(tab, label: str):
     """viser's text inputs are not tied to their labels (ids differ): the input beside it."""
     row = tab.locator("div.mantine-Flex-root").filter(has=tab.get_by_text(label, exact=True))
@@ -156,7 +165,7 @@ def test_build_the_arm_from_the_page_and_save_it(editor, page, tmp_path):
     press(page, editor, "Fix to world / free", lambda: session.model.fixed_to_world)
     for link, mass in MASSES.items():  # the link inspector
         choose(page, "Link", link)
-        assert wait_until(lambda link=link: editor.selected_link == link)
+        assert selected(editor, "link", link)
         type_number(page, "Mass (kg)", mass, lambda mass=mass: editor._mass.value == float(mass))
         press(page, editor, "Compute COM + inertia from mesh",
               lambda link=link, mass=mass: session.model.links[link].inertial.mass == float(mass))
@@ -249,17 +258,20 @@ def test_a_mex_one_joint_frame_moved_3cm_is_flagged_on_the_page_and_undo_clears_
         tab = open_page(browser, app)
         assert wait_until(lambda: "no problems found" in app._checks.content)
         choose(tab, "Joint", "l_shoulder_pitch")
-        assert wait_until(lambda: app.selected_joint == "l_shoulder_pitch")
-        y = app.session.model.joints["l_shoulder_pitch"].origin.xyz[1]
+        assert selected(app, "joint", "l_shoulder_pitch")
+        x, y, z = app.session.model.joints["l_shoulder_pitch"].origin.xyz
         row = tab.locator("div.mantine-Flex-root").filter(has=tab.get_by_text("Frame xyz (parent)"))
-        field = row.last.locator("input").nth(1)  # its y
-        enter(field, f"{y + 0.03:.6f}", lambda: abs(app._origin.value[1] - (y + 0.03)) < 1e-6)
+        fields = [row.last.locator("input").nth(i) for i in range(3)]
+        # the page shows this joint's frame (typing before would send the last joint's x and z)
+        assert wait_until(lambda: [float(f.input_value() or "nan") for f in fields] == [x, y, z])
+        enter(fields[1], f"{y + 0.03:.6f}",
+              lambda: np.allclose(app._origin.value, (x, y + 0.03, z), atol=1e-6))
         step = app.session.index
         press(tab, app, "Place frame (typed)", lambda: app.session.index == step + 1)
         flagged = tab.get_by_role("button").filter(has_text="joint-off-junction")
-        assert wait_until(lambda: flagged.count() == 1)
+        assert wait_until(lambda: flagged.count() == 1), app._checks.content
         choose(tab, "Joint", "l_elbow")
-        assert wait_until(lambda: app.selected_joint == "l_elbow")
+        assert selected(app, "joint", "l_elbow")
         flagged.first.click()  # a finding selects what it is about
         assert wait_until(lambda: app.selected_joint == "l_shoulder_pitch")
         press(tab, app, "Undo", lambda: app.session.index == step)

@@ -388,18 +388,30 @@ class EditorApp:
                 self._update_snaps()
             self._select_link(link)
 
+    # A selection fills the widgets from the model under the edit lock, and counts as made only
+    # once they show it: an edit clicked meanwhile (Place frame (typed)) reads what the page shows.
     def _select_link(self, name: str) -> None:
-        if name in self.session.model.links and name != self.selected_link:
-            self.selected_link = name
-            self._link.value = name
-            self._fill_link()
-            self._draw()
+        with self.lock:
+            if name in self.session.model.links and name != self.selected_link:
+                self._link.value = name
+                previous, self.selected_link = self.selected_link, name
+                try:
+                    self._fill_link()
+                    self._draw()
+                except BaseException:
+                    self.selected_link = previous
+                    raise
 
     def _select_joint(self, name: str) -> None:
-        if name in self.session.model.joints:
-            self.selected_joint = name
-            self._joint.value = name
-            self._fill_joint()
+        with self.lock:
+            if name in self.session.model.joints:
+                self._joint.value = name
+                previous, self.selected_joint = self.selected_joint, name
+                try:
+                    self._fill_joint()
+                except BaseException:
+                    self.selected_joint = previous
+                    raise
 
     def _set_swing(self, on: bool) -> None:
         if on:
