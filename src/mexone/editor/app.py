@@ -388,30 +388,22 @@ class EditorApp:
                 self._update_snaps()
             self._select_link(link)
 
-    # A selection fills the widgets from the model under the edit lock, and counts as made only
-    # once they show it: an edit clicked meanwhile (Place frame (typed)) reads what the page shows.
+    # A selection fills the widgets under the edit lock: an edit clicked meanwhile (Place frame
+    # (typed)) waits for it and reads what the page shows.
     def _select_link(self, name: str) -> None:
         with self.lock:
             if name in self.session.model.links and name != self.selected_link:
+                self.selected_link = name
                 self._link.value = name
-                previous, self.selected_link = self.selected_link, name
-                try:
-                    self._fill_link()
-                    self._draw()
-                except BaseException:
-                    self.selected_link = previous
-                    raise
+                self._fill_link()
+                self._draw()
 
     def _select_joint(self, name: str) -> None:
         with self.lock:
             if name in self.session.model.joints:
+                self.selected_joint = name
                 self._joint.value = name
-                previous, self.selected_joint = self.selected_joint, name
-                try:
-                    self._fill_joint()
-                except BaseException:
-                    self.selected_joint = previous
-                    raise
+                self._fill_joint()
 
     def _set_swing(self, on: bool) -> None:
         if on:

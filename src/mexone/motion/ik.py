@@ -110,10 +110,8 @@ class WholeBodyIK:
     def support_joints(self) -> set[str]:
         """Joints on the chains from the base to the feet: the ones the ground closes a loop
         through (an integral on them fights the whole body's balance)."""
-        model, out = self.model, set()
-        for foot in self.feet:
-            out |= self._chain_joints(model.site_bodyid[model.site(self.frames[foot].site).id])
-        return {model.joint(j).name for j in out} & set(self.joint_names)
+        out = set().union(*(self._chain_joints(foot) for foot in self.feet))
+        return {self.model.joint(j).name for j in out} & set(self.joint_names)
 
     # ----- state ---------------------------------------------------------------------------------
     def reset(self, qpos: np.ndarray) -> None:
@@ -241,7 +239,7 @@ class WholeBodyIK:
             self.configuration.update(q)
             self.converge(iterations=iterations)
             error = self.error(frame)
-            if best is None or _worse(best, error):
+            if best is None or _better(error, best):
                 best_q, best = self.configuration.q.copy(), error
             if best.reached:
                 break
@@ -252,16 +250,16 @@ class WholeBodyIK:
         """(qpos address, range) of the limited hinge joints between the base and `frame`, not
         on the chain of a foot still held."""
         model = self.model
-        held = set()
-        for foot in self.held:
-            held |= self._chain_joints(model.site_bodyid[model.site(self.frames[foot].site).id])
-        joints = self._chain_joints(model.site_bodyid[model.site(self._frame(frame).site).id])
+        held = set().union(*(self._chain_joints(foot) for foot in self.held))
+        joints = self._chain_joints(frame)
         return [(int(model.jnt_qposadr[j]), tuple(float(v) for v in model.jnt_range[j]))
                 for j in sorted(joints - held)
                 if model.jnt_limited[j] and model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
 
-    def _chain_joints(self, body: int) -> set[int]:
+    def _chain_joints(self, frame: str) -> set[int]:
+        """Ids of the joints between the base and the named frame's body."""
         model, out = self.model, set()
+        body = model.site_bodyid[model.site(self._frame(frame).site).id]
         while body > 0:
             out.update(range(model.body_jntadr[body], model.body_jntadr[body] + model.body_jntnum[body]))
             body = model.body_parentid[body]
@@ -304,9 +302,9 @@ def reachable_targets(ik: WholeBodyIK, qpos: np.ndarray, count: int,
     return out
 
 
-def _worse(than: FrameError, error: FrameError) -> bool:
-    """Whether `than` is a worse result than `error`: reached first, then the nearer (an angle
+def _better(error: FrameError, than: FrameError) -> bool:
+    """Whether `error` is a better result than `than`: reached first, then the nearer (an angle
     weighs as the arc it sweeps 0.1 m out, about a hand's length)."""
-    if than.reached != error.reached:
+    if error.reached != than.reached:
         return error.reached
     return error.position + 0.1 * (error.angle or 0.0) < than.position + 0.1 * (than.angle or 0.0)
