@@ -54,6 +54,7 @@ MAX_STEPS = 100_000  # Step N at most (a page could send anything)
 STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
 MAX_RTF = 100.0
 PAGE_RENDER_SECONDS = 10.0  # a page that sends no picture by then gets MuJoCo's render instead
+MAX_PAGE_RENDER = 4096  # px a side at most asked of a page for a screenshot
 
 
 class _GuiLog(logging.Handler):
@@ -333,7 +334,8 @@ class GuiApp:
             return
         camera = client.camera
         view = (np.asarray(camera.position), np.asarray(camera.look_at), float(camera.fov))
-        size = (int(camera.image_height), int(camera.image_width))
+        # the page reports its canvas size: a page could claim any, so at most MAX_PAGE_RENDER
+        size = tuple(min(int(v), MAX_PAGE_RENDER) for v in (camera.image_height, camera.image_width))
         # asking the page blocks until it answers: never in viser's or the simulation's thread
         threading.Thread(target=self._page_screenshot, args=(client, size, view), daemon=True,
                          name="screenshot").start()
