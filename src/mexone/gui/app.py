@@ -184,6 +184,7 @@ class GuiApp:
         if self.routine:
             self.routine.stop(join=0.5)
         self.screenshots.close()
+        self.ik_handles.close()
         if self.owns_server:
             self.server.stop()
         else:  # the page goes back to its owner (the editor) without our click handler
@@ -381,6 +382,7 @@ class GuiApp:
             self.topics_panel.echo_sub.unregister()
         self.log.close()
         self.walk_plan.close()
+        self.ik_handles.close(join=0)  # this is the simulation thread, which its worker may await
         self.screenshots.close()
         for camera in self.sensor_panel.cameras.values():
             if camera.renderer is not None:

@@ -22,6 +22,7 @@ FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot")
 POSED = ("l_foot", "r_foot")  # handles that turn too; a hand's orientation is left to the IK
 GAZE = "gaze"  # a point the head's camera looks at
 SOLVE_ITERATIONS = 150  # IK steps per drop (converge stops earlier when it settles)
+ANSWER_SECONDS = 10.0  # a simulation thread silent this long has stopped: the worker ends
 
 
 class IkHandles:
@@ -32,13 +33,26 @@ class IkHandles:
         self.handles: dict[str, object] = {}
         self.latest: tuple[str, np.ndarray, np.ndarray] | None = None
         self.wake = threading.Event()
+        self.closing = threading.Event()
+        self._answered = threading.Event()  # the simulation thread handed over its pose
         with server.gui.add_folder("IK handles", expand_by_default=False):
             box = server.gui.add_checkbox("Show handles", False,
                                           hint="drag a hand, a foot or the gaze target: "
                                                "whole-body IK moves the robot there")
             box.on_update(lambda e: self.do(lambda: self.show(bool(e.target.value))))
             self.status = server.gui.add_markdown("")
-        threading.Thread(target=self._work, daemon=True, name="ik handles").start()
+        self.thread = threading.Thread(target=self._work, daemon=True, name="ik handles")
+        self.thread.start()
+
+    def close(self, join: float = 5.0) -> None:
+        """Stop the worker (the page stops, or Load replaces the robot): it ends after the solve
+        in progress, if any, without sending it. From the simulation thread pass join=0: the
+        worker may be waiting for that thread."""
+        self.closing.set()
+        self._answered.set()
+        self.wake.set()
+        if join > 0 and threading.current_thread() is not self.thread:
+            self.thread.join(timeout=join)
 
     def show(self, on: bool) -> None:
         """Add (at the frames' present poses) or remove the handles (simulation thread)."""
@@ -74,16 +88,34 @@ class IkHandles:
         while True:
             self.wake.wait()
             self.wake.clear()
+            if self.closing.is_set():
+                return
             job, self.latest = self.latest, None
             if job is None or self.ik is None:
                 continue
-            sim = self.lab.sim
-            try:
-                qpos = sim.work.call(lambda s=sim: s.data.qpos.copy())
-            except Exception:  # noqa: BLE001 - the lab is closing
+            qpos = self._measured()
+            if qpos is None:
                 return
             joints, error = self.solve(qpos, *job)
+            if self.closing.is_set():
+                return
             self.do(lambda j=joints, e=error: self.send(j, e))
+
+    def _measured(self) -> np.ndarray | None:
+        """The robot's pose from the simulation thread, or None once closing (a stopped
+        simulation thread never answers: close() wakes this wait)."""
+        sim, box = self.lab.sim, []
+        answered = self._answered
+        answered.clear()
+        if self.closing.is_set():  # close() set it before the clear above
+            return None
+
+        def snapshot() -> None:
+            box.append(sim.data.qpos.copy())
+            answered.set()
+        sim.work.put(snapshot)
+        answered.wait(timeout=ANSWER_SECONDS)
+        return None if self.closing.is_set() or not box else box[0]
 
     def solve(self, qpos: np.ndarray, frame: str, position: np.ndarray, wxyz: np.ndarray):
         """Joint positions putting `frame` at the pose (or the camera looking at `position`)."""
