@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import signal
+import threading
+import time
 from pathlib import Path
 
 import pytest
@@ -31,6 +33,72 @@ def pytest_runtest_makereport(item, call):
         report.outcome = "failed"
         reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else report.longrepr
         report.longrepr = f"skipped in CI (MEXONE_CI=1), which must run everything: {reason}"
+
+
+# ----- no thread left behind -----------------------------------------------------------------------
+# A thread a test (or a fixture of its module) starts must end by that scope's teardown: a
+# leaked simulation, viser or IK thread keeps running in every later test, costs them CPU and
+# can touch their state. Threads a session-scoped fixture starts (rospy's) live for the session.
+THREAD_GRACE = 5.0  # s for the threads of a closed server or lab to notice and end
+_session_threads: set[threading.Thread] = set()
+_suspects: dict[threading.Thread, str] = {}  # thread -> the test that saw it start
+_THREADS_BEFORE = pytest.StashKey[set]()
+# the session's rospy node (tests/ros1/conftest.py): its registration manager, TCPROS server,
+# XML-RPC server and /rosout publisher start when it first needs them and live as long as the
+# process, as in any node
+_NODE_MACHINERY = ("rospy.impl.registration", "rospy.impl.tcpros_base", "rosgraph.xmlrpc")
+
+
+def _for_the_session(thread: threading.Thread) -> bool:
+    owner = getattr(getattr(thread, "_target", None), "__self__", None)
+    if type(owner).__name__ == "QueuedConnection":  # a publisher's queue to one subscriber
+        return getattr(getattr(owner, "_connection", None), "name", None) == "/rosout"
+    return thread in _session_threads or type(owner).__module__.startswith(_NODE_MACHINERY)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_fixture_setup(fixturedef, request):
+    before = set(threading.enumerate())
+    try:
+        return (yield)
+    finally:
+        if fixturedef.scope == "session":
+            _session_threads.update(set(threading.enumerate()) - before)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    item.stash[_THREADS_BEFORE] = set(threading.enumerate())
+    return (yield)
+
+
+def _leaked(threads) -> list[threading.Thread]:
+    """The threads still alive after THREAD_GRACE s in all (each joined, so no fixed wait)."""
+    end = time.monotonic() + THREAD_GRACE
+    for thread in threads:
+        thread.join(timeout=max(0.0, end - time.monotonic()))
+    return [t for t in threads if t.is_alive()]
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item, nextitem):
+    result = yield
+    new = set(threading.enumerate()) - item.stash.get(_THREADS_BEFORE, set())
+    # a thread started outside `threading` (by C code) cannot be joined nor told to be finished
+    new = {t for t in new if not isinstance(t, threading._DummyThread)}
+    for thread in new:
+        _suspects.setdefault(thread, item.nodeid)
+    # a module-scoped fixture's threads may live until its module ends; then each must be gone
+    module = getattr(item, "module", None)
+    if nextitem is None or getattr(nextitem, "module", None) is not module:
+        suspects = dict(_suspects)
+        _suspects.clear()
+        left = _leaked([t for t in suspects if not _for_the_session(t)])
+        if left:
+            names = ", ".join(f"'{t.name}' (started in {suspects[t]})" for t in left)
+            raise AssertionError(f"{len(left)} thread(s) left behind after {item.path.name}"
+                                 f"'s teardown: {names}")
+    return result
 
 
 @pytest.fixture(scope="session")
