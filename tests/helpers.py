@@ -66,3 +66,21 @@ def on_screen(tab, server, point) -> tuple[float, float]:
     x = (d @ right) / (depth * half * width / height)
     y = (d @ up) / (depth * half)
     return (x + 1) / 2 * width, (1 - y) / 2 * height
+
+
+def run_cli(argv: list[str], capsys, monkeypatch) -> tuple[int, str, str]:
+    """`mexone ARGV` in this process (the CLI's `main`): exit code, stdout, stderr. A corpus of
+    cases then costs one import of the verbs, not a Python start-up per case."""
+    import logging
+
+    from mexone import signals
+    from mexone.cli import main
+
+    monkeypatch.setattr(signals, "stop_on_signals", lambda: None)  # pytest keeps its handlers
+    logging.getLogger("mexone").handlers.clear()  # log to this test's captured stderr
+    try:
+        code = main(argv)
+    except SystemExit as exc:
+        code = exc.code
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
