@@ -2,31 +2,39 @@
 
 Each file in tests/data/findings is small and self-contained; expected.yaml holds the exact
 finding lines (file:line: severity: element: message [code]) and, for URDFs, sim's verdict.
+The verbs run in-process (the CLI's `main`): one import, not a Python start-up per case.
 """
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 import yaml
 
+from helpers import run_cli
+from mexone.cli import build_parser
+
 FINDINGS = Path(__file__).parents[1] / "data" / "findings"
 EXPECTED = yaml.safe_load((FINDINGS / "expected.yaml").read_text())
-ENV = {k: v for k, v in os.environ.items() if k != "ROS_PACKAGE_PATH"}
 
 
-def mexone(*args: str) -> subprocess.CompletedProcess:
-    start = time.monotonic()
-    out = subprocess.run([sys.executable, "-m", "mexone", *args], cwd=FINDINGS, capture_output=True,
-                         text=True, timeout=60, env=ENV)
-    assert time.monotonic() - start < 10, f"{args} took over 10 s"
-    assert "Traceback" not in out.stderr
-    return out
+@pytest.fixture()
+def mexone(capsys, monkeypatch):
+    """`mexone ARGS` in the corpus's folder, without the machine's ROS_PACKAGE_PATH."""
+    monkeypatch.chdir(FINDINGS)
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    build_parser()  # the verbs' imports, once, before any case's clock starts
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        start = time.monotonic()
+        code, stdout, stderr = run_cli(list(args), capsys, monkeypatch)
+        assert time.monotonic() - start < 10, f"{args} took over 10 s"
+        assert "Traceback" not in stderr
+        return subprocess.CompletedProcess(args, code, stdout, stderr)
+    return run
 
 
 def test_corpus_is_complete():
@@ -35,7 +43,7 @@ def test_corpus_is_complete():
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_check_reports_exactly_these_findings(name):
+def test_check_reports_exactly_these_findings(name, mexone):
     expected = EXPECTED[name]
     out = mexone("check", "--controllers", name) if name.endswith(".yaml") else mexone("check", name)
     found = [line.strip() for line in out.stdout.splitlines()
@@ -46,7 +54,7 @@ def test_check_reports_exactly_these_findings(name):
 
 
 @pytest.mark.parametrize("name", sorted(n for n, e in EXPECTED.items() if "sim" in e))
-def test_sim_agrees_with_check(name):
+def test_sim_agrees_with_check(name, mexone):
     expected = EXPECTED[name]["sim"]
     out = mexone("sim", "--headless", "--duration", "0.05", name)
     if expected == 0:
