@@ -68,19 +68,30 @@ def on_screen(tab, server, point) -> tuple[float, float]:
     return (x + 1) / 2 * width, (1 - y) / 2 * height
 
 
-def run_cli(argv: list[str], capsys, monkeypatch) -> tuple[int, str, str]:
-    """`mexone ARGV` in this process (the CLI's `main`): exit code, stdout, stderr. A corpus of
-    cases then costs one import of the verbs, not a Python start-up per case."""
+
+def run_cli(argv: list, cwd=None, env: dict[str, str] | None = None) -> tuple[int, str, str]:
+    """`mexone ARGV` in this process (the CLI's `main`), in folder `cwd`, without the machine's
+    ROS_PACKAGE_PATH (plus `env`): exit code, stdout, stderr. A corpus of cases then costs one
+    import of the verbs, not a Python start-up per case."""
+    import io
     import logging
+    from contextlib import redirect_stderr, redirect_stdout
 
     from mexone import signals
     from mexone.cli import main
 
-    monkeypatch.setattr(signals, "stop_on_signals", lambda: None)  # pytest keeps its handlers
-    logging.getLogger("mexone").handlers.clear()  # log to this test's captured stderr
-    try:
-        code = main(argv)
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
+    with pytest.MonkeyPatch.context() as patch, redirect_stdout(io.StringIO()) as out, \
+            redirect_stderr(io.StringIO()) as err:
+        patch.setattr(signals, "stop_on_signals", lambda: None)  # pytest keeps its handlers
+        if cwd is not None:
+            patch.chdir(cwd)
+        patch.delenv("ROS_PACKAGE_PATH", raising=False)
+        for key, value in (env or {}).items():
+            patch.setenv(key, value)
+        logging.getLogger("mexone").handlers.clear()  # log to `err`
+        try:
+            code = main([str(a) for a in argv])
+        except SystemExit as exc:
+            code = exc.code
+        logging.getLogger("mexone").handlers.clear()
+    return code, out.getvalue(), err.getvalue()

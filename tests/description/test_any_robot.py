@@ -3,26 +3,23 @@ package:// through one resolver, named and Gazebo materials, <mimic>."""
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
+from helpers import run_cli
 from mexone.description.loader import load_model
 from mexone.description.materials import display_rgba
 from mexone.physics.compile import compile_model
 
-ENV = {k: v for k, v in os.environ.items() if k != "ROS_PACKAGE_PATH"}
 
-
-def mexone(*args, cwd: Path, env=None):
-    out = subprocess.run([sys.executable, "-m", "mexone", *map(str, args)], cwd=cwd,
-                         capture_output=True, text=True, timeout=120, env={**ENV, **(env or {})})
-    assert "Traceback" not in out.stderr, out.stderr
-    return out
+def mexone(*args, cwd: Path, env=None) -> subprocess.CompletedProcess:
+    """`mexone ARGS` in-process (one import of the verbs, not a Python start-up per call)."""
+    code, stdout, stderr = run_cli(list(args), cwd=cwd, env=env)
+    assert "Traceback" not in stderr, stderr
+    return subprocess.CompletedProcess(args, code, stdout, stderr)
 
 
 def test_fixed_joint_with_zero_axis_loads_as_urdfdom_loads_it(humanoid):

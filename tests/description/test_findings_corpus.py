@@ -21,20 +21,14 @@ FINDINGS = Path(__file__).parents[1] / "data" / "findings"
 EXPECTED = yaml.safe_load((FINDINGS / "expected.yaml").read_text())
 
 
-@pytest.fixture()
-def mexone(capsys, monkeypatch):
+def mexone(*args: str) -> subprocess.CompletedProcess:
     """`mexone ARGS` in the corpus's folder, without the machine's ROS_PACKAGE_PATH."""
-    monkeypatch.chdir(FINDINGS)
-    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
     build_parser()  # the verbs' imports, once, before any case's clock starts
-
-    def run(*args: str) -> subprocess.CompletedProcess:
-        start = time.monotonic()
-        code, stdout, stderr = run_cli(list(args), capsys, monkeypatch)
-        assert time.monotonic() - start < 10, f"{args} took over 10 s"
-        assert "Traceback" not in stderr
-        return subprocess.CompletedProcess(args, code, stdout, stderr)
-    return run
+    start = time.monotonic()
+    code, stdout, stderr = run_cli(list(args), cwd=FINDINGS)
+    assert time.monotonic() - start < 10, f"{args} took over 10 s"
+    assert "Traceback" not in stderr
+    return subprocess.CompletedProcess(args, code, stdout, stderr)
 
 
 def test_corpus_is_complete():
@@ -43,7 +37,7 @@ def test_corpus_is_complete():
 
 
 @pytest.mark.parametrize("name", sorted(EXPECTED))
-def test_check_reports_exactly_these_findings(name, mexone):
+def test_check_reports_exactly_these_findings(name):
     expected = EXPECTED[name]
     out = mexone("check", "--controllers", name) if name.endswith(".yaml") else mexone("check", name)
     found = [line.strip() for line in out.stdout.splitlines()
@@ -54,7 +48,7 @@ def test_check_reports_exactly_these_findings(name, mexone):
 
 
 @pytest.mark.parametrize("name", sorted(n for n, e in EXPECTED.items() if "sim" in e))
-def test_sim_agrees_with_check(name, mexone):
+def test_sim_agrees_with_check(name):
     expected = EXPECTED[name]["sim"]
     out = mexone("sim", "--headless", "--duration", "0.05", name)
     if expected == 0:
