@@ -3,15 +3,14 @@ initial joint positions (-J, --pose), and what a robot without controllers says.
 
 from __future__ import annotations
 
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
+from helpers import run_cli
 from mexone.control.autotune import STEP_BANDWIDTH, controllers_yaml, tune
 from mexone.control.config import load_control_config
 from mexone.description.loader import load_model
@@ -22,14 +21,13 @@ CROUCH = {"l_hip_pitch": -0.3, "l_knee": 0.6, "l_ankle_pitch": -0.3,
           "r_hip_pitch": -0.3, "r_knee": 0.6, "r_ankle_pitch": -0.3,
           "l_elbow": -0.5, "r_elbow": -0.5}
 J_CROUCH = [arg for name, value in CROUCH.items() for arg in ("-J", name, str(value))]
-ENV = {k: v for k, v in os.environ.items() if k != "ROS_PACKAGE_PATH"}
 
 
-def mexone(*args, cwd: Path, env=None):
-    out = subprocess.run([sys.executable, "-m", "mexone", *map(str, args)], cwd=cwd,
-                         capture_output=True, text=True, timeout=120, env={**ENV, **(env or {})})
-    assert "Traceback" not in out.stderr, out.stderr
-    return out
+def mexone(*args, cwd: Path, env=None) -> subprocess.CompletedProcess:
+    """`mexone ARGS` in-process (one import of the verbs, not a Python start-up per call)."""
+    code, stdout, stderr = run_cli(list(args), cwd=cwd, env=env)
+    assert "Traceback" not in stderr, stderr
+    return subprocess.CompletedProcess(args, code, stdout, stderr)
 
 
 def test_the_fixture_is_a_real_humanoid(humanoid):
