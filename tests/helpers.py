@@ -95,3 +95,10 @@ def run_cli(argv: list, cwd=None, env: dict[str, str] | None = None) -> tuple[in
             code = exc.code
         logging.getLogger("mexone").handlers.clear()
     return code, out.getvalue(), err.getvalue()
+
+
+def wait_frames(app, frames: int, timeout: float = 20.0) -> bool:
+    """Until a GuiApp's simulation thread has finished `frames` more frames: "nothing changes
+    while paused" is then shown over loop iterations that ran, not over a guessed wall time."""
+    start = app._frames
+    return wait_until(lambda: app._frames >= start + frames, timeout=timeout)

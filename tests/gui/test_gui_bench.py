@@ -12,7 +12,7 @@ import time
 import numpy as np
 import pytest
 
-from helpers import free_port, wait_until
+from helpers import free_port, wait_frames, wait_until
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import OutputExistsError
 from mexone.gui.app import GuiApp
@@ -59,7 +59,7 @@ def test_pause_keeps_the_plot_history_and_step_n_adds_n_samples(app):
     call(app, app._toggle_pause)
     before = app.log.count
     t_before, _ = app.log.window(10.0, ["l_elbow/position"])
-    time.sleep(1.5)  # paused: nothing is added, nothing is lost
+    assert wait_frames(app, 20)  # paused: nothing is added, nothing is lost
     assert app.log.count == before
     t_after, _ = app.log.window(10.0, ["l_elbow/position"])
     np.testing.assert_array_equal(t_before, t_after)
@@ -284,7 +284,7 @@ def test_start_paused_holds_after_a_reset(app):
     app.paused_after_reset.value = True
     call(app, app.reset_model)
     assert app.lab.sim.paused
-    time.sleep(0.3)
+    assert wait_frames(app, 8)
     assert app.lab.sim.time == 0.0
     app.paused_after_reset.value = False
     fresh(app)

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from helpers import chromium, free_port, wait_until
+from helpers import chromium, free_port, wait_frames, wait_until
 from mexone.errors import MexoneError
 from mexone.gui.app import GuiApp
 from mexone.lab import Lab
@@ -60,7 +60,7 @@ def test_pause_stops_sim_time(app, page):
     page.get_by_role("button", name="Pause").click()
     assert wait_until(lambda: app.lab.sim.paused)
     frozen = app.lab.sim.time
-    time.sleep(0.7)
+    assert wait_frames(app, 15)
     assert app.lab.sim.time == frozen
     page.get_by_role("button", name="Play").click()
     assert wait_until(lambda: app.lab.sim.time > frozen + 0.2)

@@ -16,7 +16,7 @@ import viser
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from helpers import free_port
+from helpers import free_port, wait_until
 from mexone.gui.app import MAX_STEPS, GuiApp
 from mexone.gui.security import allowed
 from mexone.lab import Lab
@@ -108,11 +108,12 @@ def test_a_same_origin_client_cannot_start_a_file_it_names(app):
     with client(app, f"http://127.0.0.1:{port}") as ws:
         join(ws)
         send(ws, app.routine_choice, str(app.evil))
-        time.sleep(0.5)
+        wait_until(lambda: app.routine_choice.value == str(app.evil), timeout=5)
         start = next(h for h in app.server.gui._gui_input_handle_from_uuid.values()
                      if getattr(h, "label", None) == "Start")
         send(ws, start, True)
-        time.sleep(1.5)
+        refused = "is not one of the routines this server offers"
+        assert wait_until(lambda: any(refused in r for r in app.refusals))
     assert app.routine is None or app.routine.path != app.evil
     assert not app.evil.with_name(app.evil.name + ".ran").exists()
     assert any("is not one of the routines this server offers" in r for r in app.refusals)
