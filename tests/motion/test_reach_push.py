@@ -126,6 +126,7 @@ def test_gui_ik_handle_moves_the_hand():
     sim = lab.sim
     sim.run(0.3)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    handles = None
     try:
         handles = IkHandles(server, lab, lambda action: action())
         handles.show(True)
@@ -147,4 +148,6 @@ def test_gui_ik_handle_moves_the_hand():
         assert np.linalg.norm(hand - target) < 0.02
         assert max(np.linalg.norm(sim.link_pose(f)[0] - p) for f, p in feet.items()) < 0.005
     finally:
+        if handles is not None:
+            handles.close()  # its worker thread ends with it
         server.stop()
