@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from lxml import etree
 
+import helpers
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
 from mexone.lab import Lab
@@ -195,9 +196,10 @@ def test_mjcf_export_is_the_simulated_robot(tmp_path):
     np.testing.assert_allclose(data.qpos, sim.data.qpos, atol=1e-6)
 
 
-def run_cli(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "mexone", *args], capture_output=True, text=True,
-                          cwd=cwd, timeout=120)
+def run_cli(*args, cwd=None) -> subprocess.CompletedProcess:
+    """`mexone ARGS` in-process (one import of the verbs, not a Python start-up per call)."""
+    code, stdout, stderr = helpers.run_cli(list(args), cwd=cwd)
+    return subprocess.CompletedProcess(args, code, stdout, stderr)
 
 
 def test_sim_headless_json():
