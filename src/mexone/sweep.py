@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.control.metrics import settling_time
-from mexone.control.spec import PidGains
+from mexone.control.metrics import overshoot, rise_time, settling_time
+from mexone.control.spec import PidGains, controller_name
 from mexone.errors import InputError
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import has_fallen
@@ -173,17 +173,10 @@ def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
         q[k] = hw.position(one)[0]
         effort[k] = hw.effort(one)[0]
     t = np.arange(1, n + 1) * sim.timestep
-    size = target - start
-    progress = (q - start) / size if size else np.ones(n)
-    return {"rise_time": _rise_time(t, progress), "overshoot": float(max(progress.max() - 1, 0)),
-            "settling_time": settling_time(t, q, target, size),
+    return {"rise_time": rise_time(t, q, start, target), "overshoot": overshoot(q, start, target),
+            "settling_time": settling_time(t, q, target, target - start),
             "iae": float(np.abs(target - q).sum() * sim.timestep),
             "max_effort": np.abs(effort).max()}
-
-
-def _rise_time(t: np.ndarray, progress: np.ndarray) -> float | None:
-    low, high = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
-    return float(t[high[0]] - t[low[0]]) if low.size and high.size else None
 
 
 def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
@@ -299,7 +292,7 @@ def best_yaml(spec: SweepSpec, row: dict, metric: str, namespace: str, runs: int
         pid = {k: round(_number(row[k]), 6) for k in ("p", "i", "d") if k in row}
         if "i_clamp" in row:
             pid["i_clamp_min"], pid["i_clamp_max"] = -_number(row["i_clamp"]), _number(row["i_clamp"])
-        controllers[f"{joint}_position_controller"] = {"pid": pid}
+        controllers[controller_name(joint)] = {"pid": pid}
     header = (f"# best of {runs} runs by {metric} ({_number(row[metric]):.6g}), from mexone sweep;\n"
               "# paste over the matching entries of controllers.yaml\n")
     return header + yaml.safe_dump({namespace.strip("/"): controllers}, sort_keys=False)

@@ -10,7 +10,21 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["PidGains", "ControllerSpec", "ControlConfig"]
+__all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
+           "POSITION_SUFFIX"]
+
+POSITION_SUFFIX = "_position_controller"
+
+
+def controller_name(joint: str) -> str:
+    """The position controller of one joint, named as the seed's YAML names it."""
+    return joint + POSITION_SUFFIX
+
+
+def joint_label(controller: str) -> str:
+    """A controller's name without that convention's suffix (l_knee_position_controller ->
+    l_knee), for labels; other names unchanged."""
+    return controller.removesuffix(POSITION_SUFFIX)
 
 
 @dataclass(frozen=True)

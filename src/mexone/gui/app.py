@@ -22,6 +22,7 @@ import numpy as np
 import viser
 
 from mexone.control.controllers import Controller
+from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
 from mexone.gui.fields import NumberFields
 from mexone.gui.handles import IkHandles
@@ -518,9 +519,10 @@ class GuiApp:
     def _add_gains(self, ctrl: Controller) -> None:
         gui = self.server.gui
         gains = ctrl.gains[0]
-        with gui.add_folder(ctrl.name.replace("_position_controller", ""), expand_by_default=False):
+        label = joint_label(ctrl.name)
+        with gui.add_folder(label, expand_by_default=False):
             for key in ("p", "i", "d"):
-                self.fields.add(f"{key} ({ctrl.name.replace('_position_controller', '')})",
+                self.fields.add(f"{key} ({label})",
                                 float(getattr(gains, key)), 0.0, 1e30,
                                 lambda v, c=ctrl, k=key: self._set_gain(c, k, v))
 
