@@ -176,14 +176,13 @@ class Ros1Bridge:
         self.services: list = []
 
     def attach(self, lab, urdf_text: str) -> None:
-        from geometry_msgs.msg import TransformStamped
         from rosgraph_msgs.msg import Clock
         from tf2_msgs.msg import TFMessage
 
         rospy = self.rospy
         self.lab = lab
         self._direct = True  # until attach returns, this thread is the one that steps the sim
-        self._types = {"Clock": Clock, "TFMessage": TFMessage, "TransformStamped": TransformStamped}
+        self._types = {"Clock": Clock, "TFMessage": TFMessage}
         rospy.set_param(f"{lab.namespace}/robot_description", urdf_text)
         if self.node_name == DEFAULT_NODE or not rospy.has_param("/robot_description"):
             rospy.set_param("/robot_description", urdf_text)
@@ -317,21 +316,9 @@ class Ros1Bridge:
         """World -> floating base; robot_state_publisher adds the links from joint_states."""
         if not sim.compiled.free or self.pub_tf.get_num_connections() == 0:
             return
-        body = sim.compiled.root_body
-        tf = self._types["TransformStamped"]()
-        tf.header.stamp = convert.ros_time(sim.time_ns)
-        tf.header.frame_id = "world"
-        tf.child_frame_id = self._frame(sim.robot.base_link)
-        x, y, z = sim.data.xpos[body]
-        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = x, y, z
-        w, qx, qy, qz = sim.data.xquat[body]
-        rot = tf.transform.rotation
-        rot.w, rot.x, rot.y, rot.z = w, qx, qy, qz
-        self.pub_tf.publish(self._types["TFMessage"](transforms=[tf]))
-
-    def _frame(self, link: str) -> str:
-        """A link's TF frame: robot_state_publisher's tf_prefix is the user's to set."""
-        return link
+        # robot_state_publisher's tf_prefix is the user's to set: frames are the links' names
+        base = msgs.TFMessage([self.lab.base_transform()])
+        self.pub_tf.publish(convert.to_ros(base, self._types["TFMessage"]))
 
     # ----- lifecycle ---------------------------------------------------------------------------
     def _watch_master(self) -> None:
