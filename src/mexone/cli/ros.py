@@ -29,7 +29,8 @@ def connect_ros(args: argparse.Namespace):
     """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
     put them there and none were given on the command line (the seed's control.launch flow)."""
     from mexone.control.spec import ControlConfig
-    from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
+    from mexone.ros1.bridge import Ros1Bridge
+    from mexone.ros1.params import config_from_param_server
 
     bridge = Ros1Bridge(args.name)
     if args.controllers is None and not args.no_controllers:

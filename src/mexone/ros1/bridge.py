@@ -25,17 +25,13 @@ import threading
 import time
 from collections.abc import Callable
 
-import yaml
-
 from mexone.bus import msgs
-from mexone.control.config import parse_control_config
-from mexone.control.spec import ControlConfig
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
-__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server", "controllers_at",
-           "CLOCK_PERIOD", "DEFAULT_NODE", "CLOCK_FREQUENCY"]
+__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "CLOCK_PERIOD", "DEFAULT_NODE",
+           "CLOCK_FREQUENCY"]
 
 log = logging.getLogger("mexone.ros")
 
@@ -72,35 +68,6 @@ def import_rospy():
                               hint=f"reinstall with: {ROS_INSTALL}") from None
     interfaces.use_generated()
     return rospy
-
-
-def config_from_param_server(rospy, namespace: str) -> ControlConfig:
-    """The controller configuration a `rosparam load` of the seed's YAML put under /<ns>."""
-    key = "/" + namespace.strip("/")
-    try:
-        params = rospy.get_param(key)
-    except KeyError:
-        raise MexoneError(f"no controller configuration at {key} on the parameter server",
-                          hint="rosparam load your controllers.yaml first, or pass "
-                               "--controllers YAML") from None
-    return parse_control_config(yaml.safe_dump({namespace.strip("/"): _controllers_only(params)}))
-
-
-def controllers_at(rospy, namespace: str) -> ControlConfig:
-    """The controllers on the parameter server under /<ns>, possibly none (a robot spawned
-    before its controllers.yaml was loaded: the spawner's load_controller reads them later)."""
-    ns = namespace.strip("/")
-    params = rospy.get_param("/" + ns, {})
-    return parse_control_config(yaml.safe_dump({ns: _controllers_only(params)}))
-
-
-def _controllers_only(params) -> dict:
-    """The entries of a namespace that are controllers (a `type:`) or gazebo_ros_control's gains;
-    a namespace also holds robot_description, dynamic_reconfigure's values, ..."""
-    if not isinstance(params, dict):
-        return {}
-    return {k: v for k, v in params.items()
-            if (isinstance(v, dict) and "type" in v) or k == "gazebo_ros_control"}
 
 
 class _Mirror:

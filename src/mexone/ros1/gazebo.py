@@ -380,8 +380,8 @@ class GazeboNode:
         from mexone.control.hardware import SimHardware, build_actuators
         from mexone.control.manager import ControllerManager
         from mexone.lab import robot_namespace
-        from mexone.ros1.bridge import controllers_at
         from mexone.ros1.controller_manager import ControllerManagerNode
+        from mexone.ros1.params import controllers_at
 
         ns = robot_namespace(robot, None, req.robot_namespace, name)  # its YAML is found there
         taken = {self.lab.namespace} | {m.namespace for m in self.managers.values()}
