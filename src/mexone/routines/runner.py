@@ -166,8 +166,6 @@ class RoutineRunner:
                 ready.wait()
 
     def _main(self, entry: Routine, ready: threading.Event) -> None:
-        from mexone.rospy import ROSInterruptException
-
         context = entry.context
         bind(context)
         self.scheduler.enter(context)
@@ -179,7 +177,7 @@ class RoutineRunner:
                 key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
                 self.params[key] = value
             runpy.run_path(str(entry.path), run_name="__main__")
-        except (Shutdown, ROSInterruptException):
+        except Shutdown:  # rospy's ROSInterruptException is one
             pass
         except SystemExit as exc:
             if exc.code not in (None, 0):
