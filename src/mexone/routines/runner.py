@@ -170,7 +170,6 @@ class RoutineRunner:
         bind(context)
         self.scheduler.enter(context)
         ready.set()
-        argv = sys.argv
         try:
             name = entry.path.stem
             for key, value in entry.private.items():
@@ -185,7 +184,6 @@ class RoutineRunner:
         except BaseException:  # noqa: BLE001 - the student's error, shown as their traceback
             entry.error = _students_traceback(entry.path)
         finally:
-            sys.argv = argv
             if context.abandoned and not entry.error:
                 entry.error = context.abandoned
             self.scheduler.leave()
