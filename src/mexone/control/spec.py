@@ -91,3 +91,5 @@ class ControlConfig:
     controllers: dict[str, ControllerSpec] = field(default_factory=dict)
     pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
     source: Path | None = None
+    # the file as `rosparam load` puts it on the parameter server (routines' get_param reads it)
+    parameters: dict = field(default_factory=dict, compare=False, repr=False)

@@ -113,9 +113,8 @@ class RoutineRunner:
         if poll is not None:
             self.scheduler.poll = poll
         self.params: dict[str, object] = {}  # the parameter server the routines share
-        if lab.controllers and lab.controllers.config.source:
-            raw = yamlio.load(lab.controllers.config.source.read_text()) or {}
-            _flatten("", raw, self.params)
+        if lab.controllers:  # the controller YAML, as it was read
+            _flatten("", lab.controllers.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
