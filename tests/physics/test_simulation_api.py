@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+from mexone.control.hardware import SimHardware, build_actuators
 from mexone.errors import InputError
 from mexone.physics import Simulation
 from mexone.robots import mex_one
@@ -42,20 +43,22 @@ def test_set_positions_and_read_back(sim):
     assert quat[0] == pytest.approx(np.cos(0.25))  # yawed by 0.5 rad
 
 
-def test_efforts_are_clamped_to_the_urdf_limit(sim):
-    sim.reset()
-    sim.apply_efforts({"l_knee": 1000.0})
+def test_efforts_are_clamped_to_the_urdf_limit():
+    """The effort a joint's motor gives (an effort controller's command) stops at the URDF limit."""
+    sim = Simulation(mex_one.urdf_path(), edits=[build_actuators])
+    hw = SimHardware(sim)
+    hw.command.effort[hw.rows(["l_knee"])] = 1000.0
+    hw.write()
     sim.step(1)
     knee = sim.joint_names.index("l_knee")
     assert sim.joint_efforts()[knee] == pytest.approx(25.0)  # params: 25 N m knees
-    sim.apply_efforts(np.zeros(21))
 
 
 def test_bad_joint_and_effort_are_refused(sim):
     with pytest.raises(InputError, match="no moving joint named 'l_wing'"):
-        sim.apply_efforts({"l_wing": 1.0})
+        sim.apply_joint_effort("l_wing", 1.0)
     with pytest.raises(InputError, match="not finite"):
-        sim.apply_efforts({"l_knee": float("nan")})
+        sim.apply_joint_effort("l_knee", float("nan"))
     with pytest.raises(InputError, match="no link named"):
         sim.link_pose("tail")
 

@@ -166,9 +166,6 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.joint_names = list(self.compiled.joints)
         self._index = {name: i for i, name in enumerate(self.joint_names)}
-        self._effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
-                                       for j in robot.moving_joints])
-        self._efforts = np.zeros(len(self.joint_names))
         self.models: dict[str, str] = {}  # spawned model -> the MuJoCo name of its root body
         self.forces = Forces()  # timed wrenches and joint efforts (apply_wrench, apply_joint_effort)
         self._model_hooks: list[Callable[[], None]] = []
@@ -257,7 +254,7 @@ class Simulation:
                 control.update(self)
         forces = self.forces
         if forces.changed or forces.active:
-            forces.apply(self.data, now, half, self._efforts, self.compiled.dof_adr)
+            forces.apply(self.data, now, half)
 
     def _steps_until_due(self) -> int:
         soonest = min([t.next_ns for t in self.periodic] + [c.wake_ns for c in self.controls],
@@ -367,7 +364,6 @@ class Simulation:
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
-        self._efforts[:] = 0.0
         self.forces = Forces()
         mujoco.mj_forward(self.model, self.data)
         self._time_ns = 0
@@ -479,16 +475,6 @@ class Simulation:
         self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
-
-    def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
-        """Joint-space efforts pushed straight onto the joints (Gazebo's Joint::SetForce, clamped to
-        the URDF effort limit as Gazebo clamps it), held until changed. Motors add to them."""
-        vec, given = self._vector(values)
-        self._efforts[given] = np.clip(vec[given], -self._effort_limit[given],
-                                       self._effort_limit[given])
-        self.data.qfrc_applied[self.compiled.dof_adr] = self._efforts
-        if self.forces.active:
-            self.forces.changed = True  # the timed efforts add to the held ones
 
     # ----- links --------------------------------------------------------------------------------
     def body_id(self, link: str) -> int:
