@@ -118,7 +118,7 @@ def _state_once(statements: Statements, el: etree._Element, element: str,
                 for attr, value in node.attrib.items():
                     quantity = attr if path == ["dynamics"] else f"<{'><'.join(path)}> {attr}"
                     statements.state(element, quantity, Statement(value, f"<{tag}>", node.sourceline),
-                                     overrides=False, why=f"urdfdom reads only the first <{tag}>")
+                                     overrides=False, why=f"urdfdom reads only the first <{node.tag}>")
 
 
 # ----- reading ---------------------------------------------------------------------------------
