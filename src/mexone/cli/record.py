@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mexone import signals
 from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording
 from mexone.errors import InputError
 from mexone.files import check_output, move_into_place, temporary_path, usable
@@ -61,13 +62,10 @@ def run(args: argparse.Namespace) -> int:
             if runner:
                 runner.run(args.duration)
             else:
-                lab.sim.run(args.duration)
+                lab.sim.run(args.duration, until=signals.requested)  # a signal ends it early
         except DivergenceError as exc:
             print(f"mexone: {exc.one_line()}")
             status = 1
-        except KeyboardInterrupt:
-            if runner:
-                runner.stop()
     if runner and runner.error:
         print(runner.error)
         status = 1

@@ -102,8 +102,6 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
         except DivergenceError as exc:
             diverged = exc.one_line()
             runner.stop()
-        except KeyboardInterrupt:
-            runner.stop()
     tilt, height = sim.base_tilt, sim.base_height
     fell = has_fallen(sim, start_height)
     metrics = recorder.metrics()

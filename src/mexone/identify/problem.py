@@ -28,6 +28,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from mujoco import sysid
 
+from mexone import signals
 from mexone.identify.parameters import Unknown, apply_to_model, parameter_dict
 from mexone.identify.replay import SENSOR_SUFFIX, Experiment
 
@@ -245,7 +246,9 @@ class Problem:
 
     # ----- fitting ----------------------------------------------------------------------------
     def _tracked(self, x, params):
-        """The residual, remembering the best single point evaluated (Ctrl-C keeps it)."""
+        """The residual, remembering the best single point evaluated (Ctrl-C keeps it). A signal
+        stops the fit here, between two evaluations (signals.Stop, a KeyboardInterrupt)."""
+        signals.check()
         result = self.residual(x, params)
         p = self.progress
         p.evaluations += 1
