@@ -18,7 +18,7 @@ Run the robot headless for --duration seconds of sim time (with a routine if one
 record every topic -- joint states, controller commands, /clock, /tf -- to a bag stamped with
 sim time: .mcap is rosbag2 with ROS 2 CDR messages (Foxglove, PlotJuggler, ros2 bag), .bag is
 ROS 1. Ctrl-C or SIGTERM stops the run and leaves a valid bag (a second Ctrl-C does not cut the
-closing short). Then: mexone plot BAG.
+closing short), exit 130/143. Then: mexone plot BAG.
 
 While recording, the bag is BAG.active; it becomes BAG when it is closed. A recording that was
 killed (kill -9, a crash, a routine calling os._exit) leaves BAG.active with everything up to

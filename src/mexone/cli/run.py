@@ -39,7 +39,8 @@ With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and
 real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
 reach_goals the /<ns>/<frame>/goal poses) and see what it publishes (the walk's plan).
 
-exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input"""
+exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input, 130/143 stopped
+by Ctrl-C/SIGTERM (the report up to then is printed, a --record bag closed)"""
 
 
 def add_parser(sub) -> None:

@@ -44,7 +44,8 @@ sim time, wall time, real-time factor, base height, the fastest link speed seen,
 the robot came to rest.
 
 A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
-the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2."""
+the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2. Stopped by Ctrl-C or
+SIGTERM: 130/143 (headless: after the summary)."""
 
 
 def add_parser(sub) -> None:
