@@ -284,6 +284,7 @@ def test_every_verb_stops_on_a_signal_at_any_moment(verb, tmp_path, fit_bag):
     runs = plan(verb, rng, tmp_path)
     with ThreadPoolExecutor(max_workers=2) as pool:  # two at a time: the machine has 2 cores
         done = list(pool.map(lambda r: stop(r, fit_bag), runs))
+    print(f"{verb}: stopped in " + ", ".join(f"{r.stopped_in:.2f}" for r in done) + " s")
     for run in done:
         name = signal.Signals(run.first).name
         err = run.proc.text()

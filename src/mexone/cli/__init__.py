@@ -129,6 +129,8 @@ def _main(argv: list[str] | None) -> int:
             return _interrupted()
         return code
     except MexoneError as exc:
+        if signals.requested():  # e.g. xacro, in our process group, ended by the same Ctrl-C
+            return _interrupted()
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
