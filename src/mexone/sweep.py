@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mexone import signals
 from mexone.control.metrics import overshoot, rise_time, settling_time
 from mexone.control.spec import PidGains, controller_name
 from mexone.errors import InputError
@@ -33,6 +34,7 @@ GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 DEFAULT_STEP = 0.5  # rad
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
+POLL = 0.1  # s between looks at signals.requested() while the workers run
 
 
 @dataclass(frozen=True)
@@ -169,6 +171,8 @@ def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
     q, effort = np.empty(n), np.empty(n)
     one = np.array([row])
     for k in range(n):
+        if k % 500 == 0:
+            signals.check()  # --workers 1 runs trials in the CLI's process: stop between steps
         sim.step(1)
         q[k] = hw.position(one)[0]
         effort[k] = hw.effort(one)[0]
@@ -233,19 +237,39 @@ def run_sweep(spec: SweepSpec, trials: list[Trial], out_csv: Path, workers: int,
 
 
 def _local_results(spec: SweepSpec, trials: list[Trial], workers: int, _address) -> Iterator[dict]:
+    """Finished trials as they come. A signal (signals.requested) ends the sweep between two
+    results: the workers are ended (their runs are lost, the finished ones are kept)."""
     if workers <= 1:
         for trial in trials:
-            yield run_trial(spec, trial)
+            row = run_trial(spec, trial)
+            if signals.requested():  # a routine trial ends early on a signal: not a result
+                return
+            yield row
         return
-    pool = ProcessPoolExecutor(workers)
+    pool = ProcessPoolExecutor(workers, initializer=signals.leave_to_parent)
+    stopped = True
     try:
         pending = {pool.submit(run_trial, spec, t) for t in trials}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        while pending and not signals.requested():
+            finished, pending = wait(pending, timeout=POLL, return_when=FIRST_COMPLETED)
             for future in finished:
                 yield future.result()
+        stopped = bool(pending)
     finally:
+        if stopped:  # a signal, an error, or the caller stopped asking: do not wait for runs
+            _end_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _end_workers(pool: ProcessPoolExecutor) -> None:
+    """SIGTERM to every worker (ProcessPoolExecutor.terminate_workers from Python 3.14 on)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
 
 
 def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
@@ -261,9 +285,12 @@ def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
     remote = ray.remote(run_trial)
     try:
         pending = [remote.remote(spec, t) for t in trials]
-        while pending:
-            finished, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(finished[0])
+        while pending and not signals.requested():
+            finished, pending = ray.wait(pending, num_returns=1, timeout=POLL)
+            if finished:
+                yield ray.get(finished[0])
+        for ref in pending:  # stopped by a signal: the runs in flight are dropped
+            ray.cancel(ref, force=True)
     finally:
         if started_here:
             ray.shutdown()

@@ -39,7 +39,8 @@ With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and
 real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
 reach_goals the /<ns>/<frame>/goal poses) and see what it publishes (the walk's plan).
 
-exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input"""
+exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input, 130/143 stopped
+by Ctrl-C/SIGTERM (the report up to then is printed, a --record bag closed)"""
 
 
 def add_parser(sub) -> None:
@@ -101,8 +102,6 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
             runner.run(args.duration, on_tick=on_tick, tick=tick)
         except DivergenceError as exc:
             diverged = exc.one_line()
-            runner.stop()
-        except KeyboardInterrupt:
             runner.stop()
     tilt, height = sim.base_tilt, sim.base_height
     fell = has_fallen(sim, start_height)

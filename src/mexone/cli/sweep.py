@@ -115,13 +115,14 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=len(trials), unit="run", desc="sweep", initial=finished)
     try:
         rows = run_sweep(spec, trials, csv_path, args.workers, args.backend, args.address,
-                         progress=bar.update)
-    except KeyboardInterrupt:
-        bar.close()
+                         progress=bar.update)  # returns early on a signal (signals.requested)
+    except KeyboardInterrupt:  # signals.Stop
+        rows = None
+    bar.close()
+    if rows is None or signals.requested():
         print(f"mexone: interrupted; finished runs are in {csv_path}; --resume continues",
               file=sys.stderr)
         return signals.exit_code()
-    bar.close()
     return _report(spec, rows, ranges, args, out, len(trials), namespace)
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 import viser
 
+from mexone import signals
 from mexone.control.spec import PidGains
 from mexone.description.materials import display_rgba
 from mexone.description.model import Box, Cylinder, Dynamics, Limit, Pose, Sphere
@@ -80,7 +81,7 @@ class EditorApp:
     def serve_forever(self) -> None:
         """Animate the swing preview until stopped (the page itself runs in viser's threads)."""
         start = time.perf_counter()
-        while not self.stopping.is_set():
+        while not self.stopping.is_set() and not signals.requested():
             if self.swinging.is_set() and self.selected_joint:
                 with self.lock:
                     self._swing(time.perf_counter() - start)

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import viser
 
+from mexone import signals
 from mexone.control.controllers import Controller
 from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
@@ -132,7 +133,7 @@ class GuiApp:
 
     def serve_forever(self, duration: float | None = None) -> None:
         sim_start = self.lab.sim.time
-        while not self.stopping.is_set():
+        while not self.stopping.is_set() and not signals.requested():
             self.work.drain(on_error=self._refused)
             sim = self.lab.sim
             sim.work.drain(on_error=self._refused)  # other front ends' work (ROS services)
@@ -147,7 +148,8 @@ class GuiApp:
                 gate = self.routine.scheduler if self.routine and self.routine.running else None
                 tick = min(frame, TICK if self.tick_hooks else PLOT_PERIOD)
                 try:
-                    sim.run(frame, tick=tick, gate=gate, on_tick=self._tick)
+                    sim.run(frame, tick=tick, gate=gate, on_tick=self._tick,
+                            until=signals.requested)
                 except DivergenceError as exc:
                     self._diverged(exc)
             self._after_frame()

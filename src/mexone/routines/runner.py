@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import mexone
-from mexone import yamlio
+from mexone import signals, yamlio
 from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
 from mexone.lab import Lab
@@ -197,14 +197,15 @@ class RoutineRunner:
         sim = self.lab.sim
         if duration is None:
             # each routine runs to its first wait (served meanwhile): by then it has declared
-            while self.scheduler.active and self.scheduler.horizon() is None:
+            while (self.scheduler.active and self.scheduler.horizon() is None
+                   and not signals.requested()):
                 sim.work.drain()
             duration = self.declared_duration() or default
         remaining = duration
-        try:
-            while remaining > sim.timestep / 2 and self.scheduler.active:
+        try:  # a signal (Ctrl-C, SIGTERM) ends the run at the next tick; the routines stop
+            while remaining > sim.timestep / 2 and self.scheduler.active and not signals.requested():
                 remaining -= sim.run(remaining, on_tick=on_tick, tick=tick, gate=self.scheduler,
-                                     until=lambda: not self.scheduler.active)
+                                     until=lambda: not self.scheduler.active or signals.requested())
         finally:
             self.stop()
 
