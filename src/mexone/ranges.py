@@ -17,7 +17,8 @@ from dataclasses import dataclass
 from mexone.errors import InputError
 
 __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table",
-           "MASS", "MOMENT", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE", "VELOCITY",
+           "MASS", "MOMENT", "PRODUCT", "COLOUR", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE",
+           "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
            "PUSH_DURATION", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
@@ -78,8 +79,11 @@ class Range:
         return [self.check(v, what, **where) for v in values]
 
 
-MASS = Range("mass", "kg", 0.0, 1e5, low_open=True, why="a 100 t link is a typo or grams")
+MASS = Range("mass", "kg", 1e-9, 1e5, why="a 100 t link is a typo or grams; under a microgram a "
+              "unit error (MuJoCo ignores masses under 1e-15)")
 MOMENT = Range("moment of inertia", "kg m^2", 0.0, 1e6, why="100 t at 3 m")
+PRODUCT = Range("product of inertia", "kg m^2", -1e6, 1e6, why="Ixy, Ixz, Iyz: as large as a moment")
+COLOUR = Range("colour component", "", 0.0, 1.0, why="red, green, blue, alpha")
 LENGTH = Range("length", "m", -1e3, 1e3, why="offsets within a robot: a kilometre is a unit error")
 SIZE = Range("size", "m", 0.0, 1e3, low_open=True, why="a geometry's size, radius or length")
 POSITION = Range("position", "m", -1e4, 1e4, why="a place in the world (spawn, move, goal)")

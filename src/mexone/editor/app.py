@@ -34,11 +34,12 @@ from mexone.description.model import Box, Cylinder, Dynamics, Limit, Pose, Spher
 from mexone.editor.massprops import SHAPES
 from mexone.editor.parts import UNITS, Part, read_parts, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
-from mexone.editor.session import EDIT_TYPES, EditSession, selection_of
+from mexone.editor.session import EDIT_TYPES, MAX_SNAP_CHOICES, EditSession, selection_of
 from mexone.editor.snapping import SNAP_RADIUS
 from mexone.errors import MexoneError
 from mexone.gui.scene import _wxyz, trimesh_of
 from mexone.gui.security import guard, warn_if_exposed
+from mexone.ranges import CONTACT_KD, MASS
 
 __all__ = ["EditorApp"]
 
@@ -150,7 +151,7 @@ class EditorApp:
         with gui.add_folder("Link"):
             self._link = gui.add_dropdown("Link", (_NONE,))
             self._link.on_update(lambda _: self._select_link(self._link.value))
-            self._mass = gui.add_number("Mass (kg)", 1.0, min=1e-6, max=1e5, step=0.001)
+            self._mass = gui.add_number("Mass (kg)", 1.0, min=MASS.low, max=MASS.high, step=0.001)
             gui.add_button("Compute COM + inertia from mesh").on_click(lambda _: self.act(
                 "inertia", lambda: self.session.compute_inertia(self._need_link(), self._mass.value)))
             self._com = gui.add_vector3("COM (m)", (0.0, 0.0, 0.0), step=0.0001)
@@ -166,7 +167,7 @@ class EditorApp:
             self._col_xyz = gui.add_vector3("Collision xyz", (0.0, 0.0, 0.0), step=0.001)
             button("Apply collision size", self._edit_collision)
             self._mu = gui.add_vector3("mu1 mu2 kp", (1.0, 1.0, 1e6), step=0.01)
-            self._kd = gui.add_number("kd", 1.0, min=0.0, step=0.1)
+            self._kd = gui.add_number("kd", 1.0, min=CONTACT_KD.low, max=CONTACT_KD.high, step=0.1)
             button("Apply surface", lambda: self.session.set_surface(self._need_link(), *self._mu.value,
                                                                      self._kd.value))
             self._rgb = gui.add_rgb("Colour", (180, 180, 190))
@@ -303,8 +304,8 @@ class EditorApp:
             self._snaps = []
             self._snap.options = [_NONE]
             return
-        self._snaps = self.session.snaps(child)[:60]
-        self._snap.options = [f"{i}: {s.label}" for i, (s, _p, _a) in enumerate(self._snaps)] or [_NONE]
+        self._snaps = self.session.snaps(child)[:MAX_SNAP_CHOICES]
+        self._snap.options = self.session.snap_choices(child) or [_NONE]
 
     def _fill_checks(self) -> None:
         findings = self.session.findings()
@@ -514,8 +515,8 @@ class EditorApp:
         parent, child = self._parent.value, self._child.value
         if not self._snaps or self._snap.value == _NONE:
             raise MexoneError("pick a child with a mesh and a snap point")
-        index = int(self._snap.value.split(":", 1)[0])
-        _snap, point, axis = self._snaps[index]
+        index = self.session.snap_of(child, self._snap.value)
+        _snap, point, axis = self.session.snaps(child)[index]
         name = self._jname.value
         self.session.add_joint(name, parent, child, self._jtype.value, point, axis)
         self.selected_joint = name
@@ -581,7 +582,7 @@ class EditorApp:
             self._child.value = joint.child
             self._update_snaps()
             raise MexoneError(f"the snap list now shows '{joint.child}': pick a point and snap again")
-        snap = self.session.snap_joint(joint.name, int(self._snap.value.split(":", 1)[0]))
+        snap = self.session.snap_joint(joint.name, self.session.snap_of(joint.child, self._snap.value))
         self.say(f"{joint.name} snapped to {snap.label}")
 
     def _apply_motor(self) -> None:

@@ -10,7 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mexone.editor.massprops import solid_of
 from mexone.errors import InputError
+from mexone.ranges import SIZE, number_text
 
 __all__ = ["UNITS", "MESH_TYPES", "Part", "read_part", "read_parts", "guess_unit", "safe_name",
            "MAX_PART_BYTES", "MAX_ZIP_PARTS"]
@@ -69,7 +71,8 @@ def read_part(filename: str, data: bytes, taken=()) -> Part:
         raise InputError(f"'{filename}' is {len(data) / 1e6:.0f} MB, over "
                          f"{MAX_PART_BYTES // 2**20} MB", hint="simplify the mesh in the CAD program")
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+        with np.errstate(all="ignore"):  # a 1e37-wide part overflows while merging: refused below
+            mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for bad files
         raise InputError(f"'{filename}' is unreadable: {exc}",
                          hint="export it again as binary STL") from None
@@ -81,6 +84,12 @@ def read_part(filename: str, data: bytes, taken=()) -> Part:
     if extent <= 0:
         raise InputError(f"'{filename}' is flat in every direction (zero size)",
                          hint="export the solid, not a sketch")
+    smallest = min(UNITS.values())
+    if extent * smallest > SIZE.high:
+        raise InputError(f"'{filename}' is {number_text(extent)} units wide: over "
+                         f"{number_text(SIZE.high)} m even in {min(UNITS, key=UNITS.get)}",
+                         hint="export the part at its real size")
+    solid_of(mesh, f"'{filename}'")
     return Part(safe_name(filename, taken), mesh, guess_unit(extent))
 
 
