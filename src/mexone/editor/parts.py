@@ -84,11 +84,9 @@ def read_part(filename: str, data: bytes, taken=()) -> Part:
     if extent <= 0:
         raise InputError(f"'{filename}' is flat in every direction (zero size)",
                          hint="export the solid, not a sketch")
-    smallest = min(UNITS.values())
-    if extent * smallest > SIZE.high:
-        raise InputError(f"'{filename}' is {number_text(extent)} units wide: over "
-                         f"{number_text(SIZE.high)} m even in {min(UNITS, key=UNITS.get)}",
-                         hint="export the part at its real size")
+    smallest = min(UNITS, key=UNITS.get)
+    SIZE.check(extent * UNITS[smallest], f"'{filename}' ({number_text(extent)} units wide), its largest "
+               f"side even in {smallest},", hint="export the part at its real size")
     solid_of(mesh, f"'{filename}'")
     return Part(safe_name(filename, taken), mesh, guess_unit(extent))
 

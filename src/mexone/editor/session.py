@@ -439,12 +439,12 @@ class EditSession:
         self.link(link)
         (mass,) = _numbers(mass, "mass", MASS, 1)
         ixx, ixy, ixz, iyy, iyz, izz = _numbers(inertia, "inertia", count=6)
-        _numbers((ixx, iyy, izz), "moment of inertia", MOMENT)
-        _numbers((ixy, ixz, iyz), "product of inertia", PRODUCT)
         inertial = Inertial(mass, (ixx, ixy, ixz, iyy, iyz, izz),
                             Pose(_numbers(com, "centre of mass", LENGTH, 3),
                                  _numbers(rpy, "inertial rpy", ANGLE, 3)))
-        _refuse_inertial(link, inertial)
+        _refuse_inertial(link, inertial)  # check's rule first: it says what is impossible
+        _numbers((ixx, iyy, izz), "moment of inertia", MOMENT)
+        _numbers((ixy, ixz, iyz), "product of inertia", PRODUCT)
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             model.links[link].inertial = inertial
@@ -526,6 +526,7 @@ class EditSession:
 
     def place(self, link: str, matrix: np.ndarray) -> None:
         """Where a loose part (a root) sits in the editor's world, before a joint holds it."""
+        self.link(link)
         if link not in self.model.roots:
             raise InputError(f"'{link}' hangs on joint '{self.model.parent_joint[link].name}'",
                              hint="move the joint's frame instead")
