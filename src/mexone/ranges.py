@@ -21,7 +21,7 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table",
            "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
-           "PUSH_DURATION", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
+           "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
 
 
 def number_text(value: float) -> str:
@@ -107,6 +107,8 @@ DURATION = Range("duration", "s", 1e-3, 1e9, why="of sim time: one 1 ms step to 
 RTF = Range("real-time factor", "", 0.0, 100.0, why="0 runs as fast as possible")
 IMPULSE = Range("push impulse", "N s", 0.0, 1000.0)
 PUSH_DURATION = Range("push duration", "s", 1e-3, 5.0)
+PLOT_WINDOW = Range("plot window", "s", 0.1, 60.0, why="sim seconds a plot pane shows")
+STEP_SIZE = Range("step response size", "rad", -3.0, 3.0, why="the GUI's step response")
 STEPS = Range("steps", "", 1, 100_000, integer=True, why="Step N on the page")
 PORT = Range("port", "", 0, 65535, integer=True, why="0 picks a free port")
 MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm has scale 0.001")

@@ -109,8 +109,8 @@ def _world(tmp_path, step: str) -> str:
 def test_a_half_second_step_is_refused(tmp_path):
     out = mexone("sim", "--headless", "--world", _world(tmp_path, "0.5"), cwd=tmp_path)
     assert out.returncode == 2
-    assert out.stderr == ("mexone: w.world:8: <max_step_size> 0.5 s is outside the 1e-05 to 0.01 s "
-                          "mexone simulates (Gazebo's default is 0.001)\n")
+    assert out.stderr == ("mexone: w.world:8: <max_step_size> 0.5 s must be a finite number >= 1e-05 "
+                          "and <= 0.01 s (Gazebo's default is 0.001)\n")
 
 
 def test_a_2_ms_step_is_fine(tmp_path):

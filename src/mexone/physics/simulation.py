@@ -40,12 +40,13 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
+from mexone.ranges import TIMESTEP
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
            "MIN_TIMESTEP", "MAX_TIMESTEP"]
 
 NS = 1_000_000_000
-MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.01  # s: what a humanoid lab can sensibly step with
+MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP is their home
 # steps between divergence checks: a diverging run goes NaN within steps, so 50 ms still names the
 # link that went first; each check is a Python interlude that costs MuJoCo its warm caches
 _WATCH_EVERY = 50
@@ -204,9 +205,7 @@ class Simulation:
 
     def set_timestep(self, seconds: float) -> None:
         """Change the physics step; listeners (the controller manager) are told."""
-        if not MIN_TIMESTEP <= seconds <= MAX_TIMESTEP:  # also refuses NaN
-            raise InputError(f"time step {seconds:g} s is out of range",
-                             hint=f"use {MIN_TIMESTEP:g} to {MAX_TIMESTEP:g} s")
+        seconds = TIMESTEP.check(seconds, hint="Gazebo's default is 0.001")
         self.model.opt.timestep = seconds
         self._step_ns = round(seconds * NS)
         for hook in self._timestep_hooks:
