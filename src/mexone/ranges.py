@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from mexone.errors import InputError
 
-__all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table",
+__all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs_page",
            "MASS", "MOMENT", "PRODUCT", "COLOUR", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE",
            "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
@@ -133,5 +133,15 @@ def markdown_table() -> str:
     return "\n".join(rows)
 
 
+def docs_page() -> str:
+    """docs/ranges.md: `python -m mexone.ranges > docs/ranges.md` (a test says when it is stale)."""
+    return ("# Valid ranges\n\n"
+            "Every number a user sets (on the command line, on the page, in the model editor, in a ROS\n"
+            "service call, in a model or world file) is checked against its quantity's range here, and\n"
+            "refused in one line outside it. Generated from `src/mexone/ranges.py` (their one home) by\n"
+            "`python -m mexone.ranges > docs/ranges.md`; do not edit by hand.\n\n"
+            + markdown_table() + "\n")
+
+
 if __name__ == "__main__":
-    print(markdown_table())
+    print(docs_page(), end="")

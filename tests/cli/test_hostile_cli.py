@@ -35,6 +35,7 @@ CASES = [
     ("rtf-nan", ["sim", "--headless", "--rtf", "nan"], "argument --rtf: nan must be"),
     ("rtf-negative", ["sim", "--headless", "--rtf", "-1"], "argument --rtf: -1 must be"),
     ("rtf-inf", ["sim", "--headless", "--rtf", "inf"], "0 runs as fast as possible"),
+    ("rtf-huge", ["sim", "--headless", "--rtf", "200"], "argument --rtf: 200 must be a finite number >= 0 and <= 100"),
     ("duration-zero", ["sim", "--headless", "--duration", "0"], "argument --duration: 0 must be"),
     ("duration-nan", ["sim", "--headless", "--duration", "nan"], "argument --duration: nan"),
     ("duration-tiny", ["sim", "--headless", "--duration", "1e-300"], "argument --duration"),

@@ -40,7 +40,7 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
-from mexone.ranges import TIMESTEP
+from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
            "MIN_TIMESTEP", "MAX_TIMESTEP"]
@@ -223,7 +223,7 @@ class Simulation:
         """Call `callback(sim)` every `period` s of sim time, first one period from now.
         Between calls MuJoCo steps in C, so a 50 Hz publisher costs nothing per step."""
         if not (period > 0 and math.isfinite(period)):
-            raise InputError(f"period {period} must be a finite number > 0")
+            raise InputError(f"period {number_text(period)} must be a finite number > 0")
         period_ns = max(1, round(period * NS))
         timer = Periodic(period_ns, callback, self._time_ns + period_ns)
         self.periodic.append(timer)
@@ -592,7 +592,7 @@ class Simulation:
         apply_joint_effort); motors and other efforts add to it."""
         dof = self._dof(joint)
         if not math.isfinite(effort):
-            raise InputError(f"effort {effort} is not finite")
+            raise InputError(f"effort {number_text(effort)} is not finite")
         begin, end = self._duration_ns(duration, start)
         self.forces.efforts.append(JointEffort(dof, float(effort), begin, end))
         self.forces.changed = True
@@ -611,10 +611,13 @@ class Simulation:
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
-        values = np.asarray(gravity, dtype=float)
-        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 1000:
-            raise InputError(f"gravity {list(values)} must be 3 finite numbers within +-1000 m/s^2")
-        self.model.opt.gravity[:] = values
+        try:
+            values = np.asarray(gravity, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("gravity must be 3 numbers (x y z, m/s^2)") from None
+        if values.shape != (3,):
+            raise InputError(f"gravity must be 3 numbers (x y z, m/s^2), not {values.size}")
+        self.model.opt.gravity[:] = GRAVITY.check_all(values.tolist())
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
