@@ -199,6 +199,15 @@ def test_placements(session, matrix, link):
     refused_or_sound(session, lambda: session.place(link, matrix))
 
 
+@PROPERTY
+@given(name=st.one_of(NAMES, st.text(max_size=70), ODD), fixed=st.booleans())
+def test_names_a_page_sends(session, name, fixed):
+    refused_or_sound(session, lambda: session.rename(name))
+    refused_or_sound(session, lambda: session.fix_to_world(name, fixed))
+    refused_or_sound(session, lambda: session.remove_joint(name))
+    refused_or_sound(session, lambda: session.remove_link(name))
+
+
 def stl(vertices, faces) -> bytes:
     buffer = io.BytesIO()
     trimesh.Trimesh(np.asarray(vertices, dtype=float), faces, process=False).export(buffer, file_type="stl")

@@ -597,7 +597,7 @@ class EditorApp:
     def save(self, kind: str) -> Path:
         base = self._base.value
         if safe_name(base) != base:
-            raise MexoneError(f"base name '{base}' must be lower-case letters, digits and _")
+            raise MexoneError(f"base name {repr(base)[:80]} must be lower-case letters, digits and _")
         force = self._overwrite.value
         target = {"urdf": f"{base}.urdf", "sdf": f"{base}.sdf", "yaml": f"{base}_controllers.yaml",
                   "package": base}[kind]

@@ -91,4 +91,4 @@ def fit_collisions(mesh, shape: str, origin: np.ndarray, mesh_ref: Mesh | None =
             end[:3, 3] = frame[:3, 3] + sign * frame[:3, 2] * length / 2
             out.append(Collision(Sphere(radius), placed(end), name=label))
         return out
-    raise InputError(f"unknown collision shape '{shape}'", hint=f"one of: {', '.join(SHAPES)}")
+    raise InputError(f"unknown collision shape {repr(shape)[:80]}", hint=f"one of: {', '.join(SHAPES)}")

@@ -100,7 +100,7 @@ def _numbers(values, what: str, valid: Range | None = None, count: int | None = 
         raise InputError(f"{what} needs {count} numbers, not {len(items)}", hint="type numbers")
     for item in items:
         if valid is not None:
-            valid.check(item, what, hint="type numbers")
+            valid.check(item, what)  # its range says what to type
         elif not math.isfinite(item):
             raise InputError(f"{what} {number_text(item)} is not finite", hint="type numbers")
     return tuple(float(v) for v in items)
@@ -118,9 +118,14 @@ def _direction(values, what: str) -> tuple[float, ...]:
     return tuple(float(v) for v in vector / np.linalg.norm(vector))
 
 
+def _shown(value: object) -> str:
+    """What a page sent, quoted for a one-line message: escapes shown, at most 64 characters."""
+    return repr(value[:64] if isinstance(value, str) else value)[:80]
+
+
 def _name(text: str, what: str) -> str:
     if not isinstance(text, str) or not _NAME.match(text):
-        raise InputError(f"{what} '{text}' is not a valid name",
+        raise InputError(f"{what} {_shown(text)} is not a valid name",
                          hint="letters, digits and _, starting with a letter, at most 64")
     return text
 
@@ -295,13 +300,13 @@ class EditSession:
         return self._findings
 
     def link(self, name: str) -> Link:
-        if name not in self.model.links:
-            raise InputError(f"no link '{name}'", hint="pick a link of the model")
+        if not isinstance(name, str) or name not in self.model.links:
+            raise InputError(f"no link {_shown(name)}", hint="pick a link of the model")
         return self.model.links[name]
 
     def joint(self, name: str) -> Joint:
-        if name not in self.model.joints:
-            raise InputError(f"no joint '{name}'", hint="pick a joint of the model")
+        if not isinstance(name, str) or name not in self.model.joints:
+            raise InputError(f"no joint {_shown(name)}", hint="pick a joint of the model")
         return self.model.joints[name]
 
     def part_mesh(self, link: str):
@@ -353,8 +358,7 @@ class EditSession:
         self.link(link)
         choices = self.snap_choices(link)
         if not isinstance(choice, str) or choice not in choices:
-            shown = choice if isinstance(choice, str) and len(choice) <= 40 else type(choice).__name__
-            raise InputError(f"snap '{shown}' is not one of the {len(choices)} offered on '{link}'",
+            raise InputError(f"snap {_shown(choice)} is not one of the {len(choices)} offered on '{link}'",
                              hint="pick a snap from the list")
         return choices.index(choice)
 
@@ -384,7 +388,7 @@ class EditSession:
         part = read_part(filename, data, taken=set(self.model.links) | {"world"})
         unit = unit or part.guess
         if unit not in UNITS:
-            raise InputError(f"unknown unit '{unit}'", hint=f"one of: {', '.join(UNITS)}")
+            raise InputError(f"unknown unit {_shown(unit)}", hint=f"one of: {', '.join(UNITS)}")
         scaled = part.mesh.copy()
         scaled.apply_scale(UNITS[unit])
         SIZE.check(float(np.max(scaled.extents)), f"'{filename}' in {unit}: its largest side",
@@ -580,7 +584,7 @@ class EditSession:
         self.link(parent)
         self.link(child)
         if type not in EDIT_TYPES:
-            raise InputError(f"joint type '{type}' is not one of {', '.join(EDIT_TYPES)}")
+            raise InputError(f"joint type {_shown(type)} is not one of {', '.join(EDIT_TYPES)}")
         if child not in self.model.roots or child == "world":
             raise InputError(f"'{child}' already hangs on a joint", hint="a link has one parent")
         if parent in self.model.walk(child):
@@ -611,7 +615,7 @@ class EditSession:
                   dynamics: Dynamics | None = None) -> None:
         joint = self.joint(name)
         if type is not None and type not in EDIT_TYPES:
-            raise InputError(f"joint type '{type}' is not one of {', '.join(EDIT_TYPES)}")
+            raise InputError(f"joint type {_shown(type)} is not one of {', '.join(EDIT_TYPES)}")
         if axis is not None:
             axis = _direction(axis, "axis")
         if limit is not None:
@@ -665,7 +669,7 @@ class EditSession:
         snaps = self.snaps(joint.child)
         if isinstance(snap_index, bool) or not isinstance(snap_index, int | np.integer) \
                 or not 0 <= snap_index < len(snaps):
-            raise InputError(f"snap {snap_index!r} is not one of the {len(snaps)} candidates on "
+            raise InputError(f"snap {_shown(snap_index)} is not one of the {len(snaps)} candidates on "
                              f"'{joint.child}'", hint="pick a snap from the list")
         snap, point, axis = snaps[snap_index]
         frames = self.world_frames()
