@@ -57,3 +57,16 @@ def test_the_cli_check_and_controllers_use_the_same_bounds():
     assert (ranges.MASS.high, ranges.MOMENT.high) == (MAX_LINK_MASS, MAX_MOMENT)
     assert PidGains(ranges.GAIN_P.high).problem() is None
     assert "p 1e+300 must be" in PidGains(1e300).problem()
+
+
+@pytest.mark.parametrize("mass, words", [("1e-300", "mass 1e-300 kg is below any robot link's (at least 1e-09 kg)"),
+                                         ("1e300", "mass 1e+300 kg is beyond any robot link's (at most 1e+05 kg)")])
+def test_check_reports_an_absurd_mass_by_the_mass_range(tmp_path, mass, words):
+    from mexone.description.check import check_model
+    from mexone.description.urdf import read_urdf
+
+    (tmp_path / "r.urdf").write_text(
+        f'<robot name="r"><link name="base"><inertial><mass value="{mass}"/>'
+        '<inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial></link></robot>')
+    found = [f for f in check_model(read_urdf(tmp_path / "r.urdf")) if f.code == "mass-implausible"]
+    assert len(found) == 1 and words in found[0].message
