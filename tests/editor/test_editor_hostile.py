@@ -21,7 +21,7 @@ from mexone.control.spec import PidGains
 from mexone.description.check import check_model, inertial_problem
 from mexone.description.model import Box, Cylinder, Dynamics, Inertial, Limit, Pose, Sphere
 from mexone.description.urdf import write_urdf
-from mexone.editor.parts import read_part
+from mexone.editor.parts import read_part, read_parts
 from mexone.editor.save import save_urdf
 from mexone.editor.session import EditSession
 from mexone.errors import InputError, MexoneError
@@ -220,6 +220,27 @@ def stl(vertices, faces) -> bytes:
 def test_imported_parts(session, points, unit):
     faces = [[0, 1, 2], *([[0, 2, 3], [0, 3, 1], [1, 3, 2]] if len(points) >= 4 else [])]
     refused_or_sound(session, lambda: session.import_part("part.stl", stl(points, faces), unit))
+
+
+FORE = (ARM / "arm_fore.stl").read_bytes()
+
+
+@PROPERTY
+@given(name=st.one_of(st.text(max_size=20).map(lambda t: t + ".stl"),
+                      st.sampled_from(["a.zip", "b.OBJ", "c.dae", "x", "../../e.stl", "a\nb.stl"])),
+       data=st.one_of(st.binary(max_size=300),
+                      st.tuples(st.integers(0, len(FORE) - 1), st.binary(min_size=1, max_size=8)).map(
+                          lambda cut: FORE[:cut[0]] + cut[1] + FORE[cut[0] + len(cut[1]):])))
+def test_uploads(name, data):
+    """What the page's upload button hands the server: any name, any bytes (a mutated real STL)."""
+    try:
+        parts = read_parts(name, data)
+    except MexoneError as exc:
+        line = exc.one_line()
+        assert "\n" not in line and "np.float" not in line and len(line) < 400, line
+        return
+    for part in parts:
+        assert len(part.mesh.faces) > 0 and np.isfinite(part.mesh.vertices).all()
 
 
 # ----- the found cases, each failing before ---------------------------------------------------

@@ -48,7 +48,7 @@ from mexone.description.model import (
 from mexone.description.urdf import parse_urdf, write_urdf
 from mexone.description.xmlio import XmlReader
 from mexone.editor.massprops import MassProperties, fit_collisions, mass_properties, solid_of
-from mexone.editor.parts import UNITS, read_part
+from mexone.editor.parts import UNITS, quoted, read_part
 from mexone.editor.snapping import SNAP_RADIUS, Snap, nearest_snap, snap_points
 from mexone.errors import InputError, MexoneError
 from mexone.physics.world import default_world
@@ -391,11 +391,11 @@ class EditSession:
             raise InputError(f"unknown unit {_shown(unit)}", hint=f"one of: {', '.join(UNITS)}")
         scaled = part.mesh.copy()
         scaled.apply_scale(UNITS[unit])
-        SIZE.check(float(np.max(scaled.extents)), f"'{filename}' in {unit}: its largest side",
+        SIZE.check(float(np.max(scaled.extents)), f"{quoted(filename)} in {unit}: its largest side",
                    hint="pick the unit the part was drawn in")
-        solid, _hull = solid_of(scaled, filename)
+        solid, _hull = solid_of(scaled, quoted(filename))
         mass = DEFAULT_DENSITY * solid.volume
-        MASS.check(mass, f"'{filename}' in {unit}: its mass at {DEFAULT_DENSITY:g} kg/m^3",
+        MASS.check(mass, f"{quoted(filename)} in {unit}: its mass at {DEFAULT_DENSITY:g} kg/m^3",
                    hint="pick the unit the part was drawn in")
         props = mass_properties(scaled, mass, np.eye(4))
         _refuse_inertial(part.name, props.inertial)
