@@ -20,7 +20,7 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs
            "MASS", "MOMENT", "PRODUCT", "COLOUR", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE",
            "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
-           "GAIN_D", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
+           "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
            "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
 
 
@@ -99,6 +99,7 @@ CONTACT_KD = Range("contact kd", "N s/m", 0.0, 1e9, why="Gazebo's contact dampin
 GAIN_P = Range("p gain", "", 0.0, 1e5, why="control_toolbox PID p")
 GAIN_I = Range("i gain", "", 0.0, 1e5, why="control_toolbox PID i")
 GAIN_D = Range("d gain", "", 0.0, 1e4, why="control_toolbox PID d")
+GAINS = {"p": GAIN_P, "i": GAIN_I, "d": GAIN_D}  # a PID gain's range by its key
 I_CLAMP = Range("i_clamp", "", -1e5, 1e5, why="the integral term's clamp")
 TIMESTEP = Range("time step", "s", 1e-5, 0.01, why="above 10 ms contacts turn to mush; below 10 us "
                  "nothing moves in a session")

@@ -42,7 +42,7 @@ from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions
 from mexone.physics.simulation import WorkQueue
 from mexone.physics.watchdog import DivergenceError
-from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, GRAVITY, RTF, STEPS, TIMESTEP, number_text
+from mexone.ranges import GAINS, GRAVITY, RTF, STEPS, TIMESTEP, number_text
 from mexone.routines.runner import RoutineRunner, routine_choices
 
 __all__ = ["GuiApp", "FPS", "MAX_STEPS"]
@@ -52,7 +52,6 @@ log = logging.getLogger(__name__)
 FPS = 30.0  # scene updates per second of wall time
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
 MAX_STEPS = int(STEPS.high)  # Step N at most (a page could send anything): ranges.STEPS
-GAINS = {"p": GAIN_P, "i": GAIN_I, "d": GAIN_D}  # the page's gain fields, by key
 STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
 PAGE_RENDER_SECONDS = 10.0  # a page that sends no picture by then gets MuJoCo's render instead
 MAX_PAGE_RENDER = 4096  # px a side at most asked of a page for a screenshot
