@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import hashlib
 import io
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -27,8 +28,13 @@ from mexone.editor.session import EditSession
 from mexone.errors import InputError, MexoneError
 
 ARM = Path(__file__).resolve().parents[1] / "data" / "editor"
-PROPERTY = settings(derandomize=True, max_examples=40, deadline=None,
-                    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+_FUZZ = int(os.environ.get("MEXONE_FUZZ_EXAMPLES", "0"))  # a longer run: MEXONE_FUZZ_EXAMPLES=2000 pytest -m fuzz
+
+
+def PROPERTY(test):  # noqa: N802 - reads as the decorator it is
+    """CI: derandomized, 40 examples each; MEXONE_FUZZ_EXAMPLES: that many, seeded by pytest."""
+    return pytest.mark.fuzz(settings(max_examples=_FUZZ or 40, derandomize=not _FUZZ, deadline=None,
+                                     database=None, suppress_health_check=list(HealthCheck))(test))
 
 
 @pytest.fixture(scope="module")
