@@ -39,7 +39,7 @@ from mexone.editor.snapping import SNAP_RADIUS
 from mexone.errors import MexoneError
 from mexone.gui.scene import _wxyz, trimesh_of
 from mexone.gui.security import guard, warn_if_exposed
-from mexone.ranges import CONTACT_KD, MASS
+from mexone.ranges import MASS
 
 __all__ = ["EditorApp"]
 
@@ -49,6 +49,9 @@ _COLLISION_RGB = (224, 140, 60)
 _MAX_FINDING_BUTTONS = 12
 _NONE = "(none)"
 GUESS = "guess from size"
+# the page's mass input stops here: with min = MASS.low (1e-9) viser's number input breaks the
+# whole panel (tests/editor/test_editor_browser.py); the server still checks ranges.MASS
+_MASS_WIDGET_MIN = 1e-6
 
 
 class EditorApp:
@@ -151,7 +154,7 @@ class EditorApp:
         with gui.add_folder("Link"):
             self._link = gui.add_dropdown("Link", (_NONE,))
             self._link.on_update(lambda _: self._select_link(self._link.value))
-            self._mass = gui.add_number("Mass (kg)", 1.0, min=MASS.low, max=MASS.high, step=0.001)
+            self._mass = gui.add_number("Mass (kg)", 1.0, min=_MASS_WIDGET_MIN, max=MASS.high, step=0.001)
             gui.add_button("Compute COM + inertia from mesh").on_click(lambda _: self.act(
                 "inertia", lambda: self.session.compute_inertia(self._need_link(), self._mass.value)))
             self._com = gui.add_vector3("COM (m)", (0.0, 0.0, 0.0), step=0.0001)
@@ -167,7 +170,7 @@ class EditorApp:
             self._col_xyz = gui.add_vector3("Collision xyz", (0.0, 0.0, 0.0), step=0.001)
             button("Apply collision size", self._edit_collision)
             self._mu = gui.add_vector3("mu1 mu2 kp", (1.0, 1.0, 1e6), step=0.01)
-            self._kd = gui.add_number("kd", 1.0, min=CONTACT_KD.low, max=CONTACT_KD.high, step=0.1)
+            self._kd = gui.add_number("kd", 1.0, min=0.0, step=0.1)
             button("Apply surface", lambda: self.session.set_surface(self._need_link(), *self._mu.value,
                                                                      self._kd.value))
             self._rgb = gui.add_rgb("Colour", (180, 180, 190))
