@@ -49,8 +49,8 @@ _COLLISION_RGB = (224, 140, 60)
 _MAX_FINDING_BUTTONS = 12
 _NONE = "(none)"
 GUESS = "guess from size"
-# the page's mass input stops here: with min = MASS.low (1e-9) viser's number input breaks the
-# whole panel (tests/editor/test_editor_browser.py); the server still checks ranges.MASS
+# the page's mass input keeps the minimum its browser test ran with (a widget bound is only a
+# convenience: a websocket client sends any number, and the session checks it by ranges.MASS)
 _MASS_WIDGET_MIN = 1e-6
 
 
