@@ -26,6 +26,7 @@ from mexone.control.spec import PidGains, controller_name
 from mexone.errors import InputError
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import has_fallen
+from mexone.ranges import GAINS, number_text
 
 __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "run_sweep",
            "parse_range", "best_row", "best_yaml", "heatmap", "METRICS", "GAIN_KEYS"]
@@ -77,6 +78,9 @@ def parse_range(text: str, name: str) -> np.ndarray:
                          hint="e.g. --p 20:200:10") from None
     if not np.isfinite(values).all() or (values < 0).any() or values.size == 0:
         raise InputError(f"--{name} '{text}': gains must be finite and >= 0")
+    if name in GAINS and not all(GAINS[name].contains(v) for v in values):
+        worst = max(values)
+        raise InputError(f"--{name} '{text}': {number_text(worst)} must be {GAINS[name].describe()}")
     return values
 
 

@@ -239,7 +239,7 @@ def test_a_gizmo_dropped_by_a_hole_snaps_the_joint_frame_onto_its_axis(tmp_path)
     frame = session.world_frames()["arm_fore"]
     np.testing.assert_allclose(frame[:3, 3], hole, atol=1e-9)
     np.testing.assert_allclose(frame[:3, :3] @ session.joint("elbow").axis, (0.0, -1.0, 0.0), atol=1e-9)
-    with pytest.raises(InputError, match="not finite"):
+    with pytest.raises(InputError, match="gizmo position NaN must be a finite number"):
         session.snap_joint_near("elbow", (np.nan, 0.0, 0.0))
     session.undo()
     assert session.joint("elbow").origin == origin

@@ -70,3 +70,27 @@ def test_pacing_keeps_the_target_real_time_factor():
     wall = time.perf_counter() - start
     assert 0.45 < wall < 0.75  # 1 s of sim at twice real time
     assert sim.rtf.value == pytest.approx(2.0, rel=0.15)
+
+
+@pytest.mark.parametrize("gravity, message", [
+    ((float("nan"), 0.0, -9.81), "gravity component NaN must be a finite number >= -1000 and <= 1000 m/s^2"),
+    (np.array([0.0, 0.0, -1e300]), "gravity component -1e+300 must be"),
+    ((0.0, -9.81), "gravity must be 3 numbers (x y z, m/s^2), not 2"),
+    (("down", 0, 0), "gravity must be 3 numbers"),
+])
+def test_bad_gravity_is_one_line_without_numpy_reprs(sim, gravity, message):
+    before = sim.gravity
+    with pytest.raises(InputError) as refused:
+        sim.set_gravity(gravity)
+    assert message in refused.value.one_line() and "np.float" not in refused.value.one_line()
+    assert np.array_equal(sim.gravity, before)
+
+
+def test_a_nan_spawn_pose_is_said_without_numpy_reprs():
+    from mexone.description.loader import load_model
+    from mexone.physics import Spawn
+    from mexone.physics.compile import compile_model
+
+    robot = load_model(mex_one.urdf_path())
+    with pytest.raises(InputError, match=r"spawn pose \(0, 0, NaN, 0, 0, 0\) is not finite"):
+        compile_model(robot, spawn=Spawn((0.0, 0.0, np.float64("nan"))))

@@ -17,6 +17,7 @@ from mexone import signals
 from mexone.cli.common import Number
 from mexone.errors import InputError, OutputExistsError
 from mexone.files import check_output, replacing, usable, write_text
+from mexone.ranges import ANGLE
 from mexone.sweep import (
     DEFAULT_STEP,
     GAIN_KEYS,
@@ -35,7 +36,7 @@ from mexone.sweep import (
 
 OUTPUTS = ("sweep.csv", "sweep.json", "heatmap.png", "best_gains.yaml")
 MAX_TRIALS = 100_000  # a grid of three 100-value ranges is a typo, not a sweep
-STEP = Number(-6.3, 6.3, hint="radians")
+STEP = Number.of(ANGLE, "radians")
 TRIAL_DURATION = Number(0.2, 3600.0, low_open=True, hint="s of sim time; the step comes at 0.1 s")
 TRIALS = Number(1, MAX_TRIALS, integer=True)
 SEED = Number(0, 2**32 - 1, integer=True)

@@ -122,8 +122,8 @@ def tune(robot: RobotModel, timestep: float, positions: Mapping[str, float] | No
     gravity = np.array([0.0, 0.0, -_GRAVITY])
     out = []
     for joint in robot.moving_joints:
-        if joint.mimic is not None:
-            continue
+        if joint.mimic is not None or joint.parent not in frames:
+            continue  # (not in frames: a tree beside the root's, as an editor's loose parts)
         distal = set(robot.walk(joint.child))
         if support and support & distal:  # a leg: it lifts the body, not the other legs
             moved = {name for name in everything - distal

@@ -10,6 +10,8 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
+
 __all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
            "POSITION_SUFFIX"]
 
@@ -49,8 +51,13 @@ class PidGains:
         negative = [k for k in ("p", "i", "d") if values[k] < 0]
         if negative:
             return f"negative {', '.join(negative)} (a PID gain < 0 pushes away from the setpoint)"
+        for key, valid in (("p", GAIN_P), ("i", GAIN_I), ("d", GAIN_D), ("i_clamp_min", I_CLAMP),
+                           ("i_clamp_max", I_CLAMP)):
+            if not valid.contains(values[key]):
+                return f"{key} {number_text(values[key])} must be {valid.describe()}"
         if self.i_clamp_min > self.i_clamp_max:
-            return f"i_clamp_min {self.i_clamp_min:g} > i_clamp_max {self.i_clamp_max:g}"
+            return (f"i_clamp_min {number_text(self.i_clamp_min)} > i_clamp_max "
+                    f"{number_text(self.i_clamp_max)}")
         return None
 
     @property

@@ -40,12 +40,13 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
+from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
            "MIN_TIMESTEP", "MAX_TIMESTEP"]
 
 NS = 1_000_000_000
-MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.01  # s: what a humanoid lab can sensibly step with
+MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP is their home
 # steps between divergence checks: a diverging run goes NaN within steps, so 50 ms still names the
 # link that went first; each check is a Python interlude that costs MuJoCo its warm caches
 _WATCH_EVERY = 50
@@ -201,9 +202,7 @@ class Simulation:
 
     def set_timestep(self, seconds: float) -> None:
         """Change the physics step; listeners (the controller manager) are told."""
-        if not MIN_TIMESTEP <= seconds <= MAX_TIMESTEP:  # also refuses NaN
-            raise InputError(f"time step {seconds:g} s is out of range",
-                             hint=f"use {MIN_TIMESTEP:g} to {MAX_TIMESTEP:g} s")
+        seconds = TIMESTEP.check(seconds, hint="Gazebo's default is 0.001")
         self.model.opt.timestep = seconds
         self._step_ns = round(seconds * NS)
         for hook in self._timestep_hooks:
@@ -221,7 +220,7 @@ class Simulation:
         """Call `callback(sim)` every `period` s of sim time, first one period from now.
         Between calls MuJoCo steps in C, so a 50 Hz publisher costs nothing per step."""
         if not (period > 0 and math.isfinite(period)):
-            raise InputError(f"period {period} must be a finite number > 0")
+            raise InputError(f"period {number_text(period)} must be a finite number > 0")
         period_ns = max(1, round(period * NS))
         timer = Periodic(period_ns, callback, self._time_ns + period_ns)
         self.periodic.append(timer)
@@ -579,7 +578,7 @@ class Simulation:
         apply_joint_effort); motors and other efforts add to it."""
         dof = self._dof(joint)
         if not math.isfinite(effort):
-            raise InputError(f"effort {effort} is not finite")
+            raise InputError(f"effort {number_text(effort)} is not finite")
         begin, end = self._duration_ns(duration, start)
         self.forces.efforts.append(JointEffort(dof, float(effort), begin, end))
         self.forces.changed = True
@@ -598,10 +597,13 @@ class Simulation:
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
-        values = np.asarray(gravity, dtype=float)
-        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 1000:
-            raise InputError(f"gravity {list(values)} must be 3 finite numbers within +-1000 m/s^2")
-        self.model.opt.gravity[:] = values
+        try:
+            values = np.asarray(gravity, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("gravity must be 3 numbers (x y z, m/s^2)") from None
+        if values.shape != (3,):
+            raise InputError(f"gravity must be 3 numbers (x y z, m/s^2), not {values.size}")
+        self.model.opt.gravity[:] = GRAVITY.check_all(values.tolist())
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
