@@ -635,6 +635,8 @@ class EditSession:
             target.axis = axis or target.axis
             target.limit = limit if limit is not None else target.limit
             target.dynamics = dynamics if dynamics is not None else target.dynamics
+            if dynamics is not None and name in model.gazebo_joints:
+                model.gazebo_joints[name] = dynamics  # Gazebo's <gazebo> value wins: both say it
             if target.type == "fixed":
                 model.transmissions = [t for t in model.transmissions if t.joint != name]
                 extras.motors.pop(name, None)
