@@ -168,6 +168,8 @@ def _end_fork(exc: BaseException | None, path: Path) -> None:
                       "only the routine's own process has the simulation; it ends"), 1
     elif exc is None or (isinstance(exc, SystemExit) and exc.code in (None, 0)):
         line, code = None, 0
+    elif isinstance(exc, KeyboardInterrupt):  # stopped with the routine (SIGTERM)
+        line, code = None, 1
     elif isinstance(exc, SystemExit) and isinstance(exc.code, int):
         line, code = None, exc.code
     else:
