@@ -73,14 +73,17 @@ def run(args: argparse.Namespace) -> int:
     if supervisor.available():  # the run goes on in a child; this process only supervises it
         status = supervisor.fork_run()
         if status is not None:
+            supervisor.leave(status)
             return status
     bridge = connect_ros(args) if args.ros else None
     try:
-        return _run(args, params, bridge)
+        status = _run(args, params, bridge)
     finally:
         if bridge is not None:
             bridge.shutdown()
         supervisor.ended()
+    supervisor.leave(status)  # the run's process ends here, its report out
+    return status
 
 
 def _run(args: argparse.Namespace, params: dict, bridge) -> int:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from mexone.routines import processes
 
-__all__ = ["fork_run", "ended", "available", "END_GRACE", "EXEC_GRACE"]
+__all__ = ["fork_run", "ended", "leave", "available", "END_GRACE", "EXEC_GRACE"]
 
 END_GRACE = 10.0  # s the run may take to exit after its end (it only prints and exits then)
 EXEC_GRACE = 1.0  # s the run may live on after closing its end of the pipe: else it exec'd
@@ -42,6 +42,7 @@ class _Child:
 
 
 _child: _Child | None = None  # set in the run's process
+_forked_by: int | None = None  # the pid that forked the run (set in both processes)
 
 
 def available() -> bool:
@@ -56,23 +57,37 @@ def available() -> bool:
 
 def ended() -> None:
     """In the run: it got to its end (its report is printed, or its error is on the way out)."""
-    global _child
-    if _child is not None and _child.pid == os.getpid():
+    if _child is not None and _child.pid == os.getpid() and _child.fd >= 0:
         with contextlib.suppress(OSError):
             os.write(_child.fd, b"end\n")
-        _child = None
+            os.close(_child.fd)
+        _child.fd = -1
+
+
+def leave(status: int) -> None:
+    """End this process now with `status` if it is the supervisor or the run (both are the
+    `mexone` command's own, their output flushed, their files closed): the interpreter's
+    teardown of MuJoCo, numpy and the rest costs up to a second, twice. Else return."""
+    if _forked_by is None or os.getpid() not in (_forked_by, getattr(_child, "pid", None)):
+        return
+    ended()
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(OSError, ValueError):
+            stream.flush()
+    os._exit(status)
 
 
 def fork_run() -> int | None:
     """Fork the run. In the run (the child, in its own process group) return None: it goes on.
     In the supervisor, wait for it, stop whatever it left, and return the exit status."""
-    global _child
+    global _child, _forked_by
     for stream in (sys.stdout, sys.stderr):  # else the child prints what was buffered again
         with contextlib.suppress(OSError, ValueError):
             stream.flush()
     _become_subreaper()
     read_fd, write_fd = os.pipe()
     mask = signal.pthread_sigmask(signal.SIG_BLOCK, _SIGNALS)  # none lands between fork and setup
+    _forked_by = os.getpid()
     try:
         pid = os.fork()
     except BaseException:
