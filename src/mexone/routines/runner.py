@@ -239,6 +239,11 @@ class RoutineRunner:
                 entry.error = entry.context.abandoned
         if self._children is not None:  # what the routines started ends with them
             self.left_running += sandbox.stop_children(self._children)
+        for entry in self.routines:
+            if entry.thread is not None and not entry.thread.is_alive():
+                for line in sandbox.stop_threads(entry.context):
+                    entry.context.notices.append(line)
+                    self._log("WARN", line)
 
 
 def _students_traceback(path: Path) -> str:

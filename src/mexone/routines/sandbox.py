@@ -10,7 +10,8 @@ outlives it. What a routine's code (its file's frames, in any thread) may not do
 - a thread it started that raises: an error of the routine (a ROS node's thread prints a
   traceback and the node goes on; here the run goes on and then fails with the traceback).
 - a program it started and left running: stopped when the routine ends (with its children),
-  an error of the routine.
+  an error of the routine. A thread it started and left running is stopped then too (a
+  warning): in the GUI it would run on in the lab's process.
 
 `sys.exit(0)` (or `sys.exit()`) ends a routine like returning; `sys.exit(n)` with n != 0 is its
 error. `mexone run` adds the process boundary (routines.supervisor): what no guard here catches
@@ -34,7 +35,7 @@ from mexone.routines import processes, runtime
 from mexone.routines.runtime import Forked, RoutineContext, Shutdown
 
 __all__ = ["RoutineExit", "install", "run_path", "routine_of_caller", "students_traceback",
-           "stop_children"]
+           "stop_children", "stop_threads"]
 
 _PACKAGE = str(Path(mexone.__file__).resolve().parent)
 _GUARDED = ("_exit", "execv", "execve")  # os.execl/execlp/execvp/... all end in execv or execve
@@ -194,4 +195,17 @@ def stop_children(before: set[int]) -> list[str]:
              for pid in new]
     tree = [pid for root in new for pid in (root, *processes.descendants(root, procs))]
     processes.stop(tree)
+    return lines
+
+
+def stop_threads(context: RoutineContext) -> list[str]:
+    """Interrupt the threads still running the routine's code (threads it started and left
+    running; its own thread the scheduler stops); one line for each."""
+    me = threading.get_ident()
+    names = {t.ident: t.name for t in threading.enumerate()}
+    lines = []
+    for tid, frame in sys._current_frames().items():
+        if tid != me and tid in names and context.source in _frames(frame):
+            runtime._interrupt(tid)
+            lines.append(f"the routine left thread '{names[tid]}' running: mexone stopped it")
     return lines
