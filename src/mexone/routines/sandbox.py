@@ -61,13 +61,19 @@ def install() -> None:
     threading.excepthook = lambda args: _thread_raised(args, previous)
 
 
-def routine_of_caller(depth: int = 2) -> RoutineContext | None:
+def routine_of_caller(depth: int = 2, guess: bool = False) -> RoutineContext | None:
     """The routine whose code is calling (its thread, or one of its frames in a thread it
-    started), in the process that has its simulation; None for everything else."""
+    started), in the process that has its simulation; None for everything else. With `guess`,
+    a thread other than the main one while exactly one routine runs is that routine's (a thread
+    whose target is os._exit itself has no frame of the routine's)."""
     context = getattr(runtime._local, "context", None)
     if context is not None:
         return context if context.scheduler.pid == os.getpid() else None
-    return _routine_in(_frames(sys._getframe(depth)))
+    context = _routine_in(_frames(sys._getframe(depth)))
+    if context is None and guess and threading.current_thread() is not threading.main_thread():
+        running = [c for c in list(runtime._active) if c.scheduler.pid == os.getpid()]
+        context = running[0] if len(running) == 1 else None
+    return context
 
 
 def _frames(frame) -> list[str]:
@@ -89,17 +95,22 @@ def _routine_in(files: list[str]) -> RoutineContext | None:
 
 def _guard(name: str, original: Callable) -> Callable:
     def guarded(*args, **kwargs):
-        context = routine_of_caller()
+        context = routine_of_caller(guess=True)
         if context is None:
             return original(*args, **kwargs)
         shown = repr(args[0]) if args else ""
         if name == "_exit":
-            raise RoutineExit(f"the routine called os._exit({shown}), which would end the lab "
-                              "with it: the routine was stopped there (end a routine by "
-                              "returning, or with sys.exit(n))")
-        raise RoutineExit(f"the routine called os.{name}({shown}, ...), which would replace the "
-                          "lab's process: the routine was stopped there (start a program with "
-                          "subprocess)")
+            message = (f"the routine called os._exit({shown}), which would end the lab with it: "
+                       "the routine was stopped there (end a routine by returning, or with "
+                       "sys.exit(n))")
+        else:
+            message = (f"the routine called os.{name}({shown}, ...), which would replace the "
+                       "lab's process: the routine was stopped there (start a program with "
+                       "subprocess)")
+        if getattr(runtime._local, "context", None) is None:  # a thread the routine started
+            name_ = threading.current_thread().name
+            context.errors.append(f"{message} (in thread '{name_}', which the routine started)")
+        raise RoutineExit(message)
 
     guarded.__name__ = guarded.__qualname__ = name
     guarded.__doc__ = original.__doc__
@@ -123,6 +134,8 @@ def _thread_raised(args, previous) -> None:
     while tb is not None:
         files.append(tb.tb_frame.f_code.co_filename)
         tb = tb.tb_next
+    if issubclass(args.exc_type, RoutineExit):
+        return  # its guard recorded it
     context = _routine_in(files)
     if context is None:
         previous(args)
@@ -130,9 +143,6 @@ def _thread_raised(args, previous) -> None:
     if issubclass(args.exc_type, Shutdown | SystemExit):
         return  # the simulation ended under it; sys.exit ends a thread
     name = args.thread.name if args.thread is not None else "?"
-    if issubclass(args.exc_type, RoutineExit):
-        context.errors.append(f"{args.exc_value} (in thread '{name}', which the routine started)")
-        return
     shown = students_traceback(args.exc_value, Path(context.source), args.exc_traceback)
     context.errors.append(f"in thread '{name}', which the routine started:\n{shown}")
 
