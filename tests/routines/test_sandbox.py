@@ -134,9 +134,11 @@ def test_a_routine_that_spins_forever_is_stopped_and_leaves_nothing(tmp_path):
     assert wait_until(lambda: not left_behind(str(tmp_path)), timeout=5), left_behind(str(tmp_path))
 
 
-def test_sigterm_reaches_the_run_which_reports_and_leaves_nothing(tmp_path):
-    """`mexone run` supervises the run: a SIGTERM to the command the user started stops the
-    run (its report printed) and what the routine started."""
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT, signal.SIGKILL])
+def test_a_signal_to_mexone_run_stops_the_run_which_reports_and_leaves_nothing(tmp_path, signum):
+    """`mexone run` supervises the run: a SIGTERM or Ctrl-C to the command the user started
+    stops the run (its report printed) and what the routine started; so does kill -9 of it
+    (the run is told with SIGTERM: PR_SET_PDEATHSIG)."""
     path = tmp_path / "long.py"
     path.write_text(f"import subprocess, sys\nfrom mexone import rospy\nrospy.init_node('long')\n"
                     f"subprocess.Popen([sys.executable, '-c', 'import time; time.sleep(1000)', "
@@ -149,15 +151,16 @@ def test_sigterm_reaches_the_run_which_reports_and_leaves_nothing(tmp_path):
         for line in proc.stdout:
             if "ready" in line:
                 break
-        proc.send_signal(signal.SIGTERM)
+        proc.send_signal(signum)
         start = time.monotonic()
-        out, err = proc.communicate(timeout=30)
+        out, err = proc.communicate(timeout=30)  # until the run, which holds the pipes, ends
         assert time.monotonic() - start < 5
     finally:
         proc.kill()
-    assert proc.returncode == 1, err  # the program the routine left running is its error
+    # the program the routine left running is its error
+    assert proc.returncode == (-signal.SIGKILL if signum == signal.SIGKILL else 1), err
     assert "stayed standing" in out and "the routine left process" in err
-    assert not left_behind(str(tmp_path))
+    assert wait_until(lambda: not left_behind(str(tmp_path)), timeout=5), left_behind(str(tmp_path))
 
 
 # ----- in the lab's own process (the GUI's routines run there) ---------------------------------

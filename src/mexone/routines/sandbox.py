@@ -48,17 +48,22 @@ class RoutineExit(BaseException):
 
 
 def install() -> None:
-    """Guard this process (once; code outside routines is not affected): os._exit and os.exec*
+    """Guard this process (code outside routines is not affected): os._exit and os.exec*
     called from a routine's code raise RoutineExit, a fork from it is recorded, and a thread it
     started that raises becomes its error."""
-    if _real:
-        return
-    for name in _GUARDED:
-        _real[name] = original = getattr(os, name)
-        setattr(os, name, _guard(name, original))
-    os.register_at_fork(after_in_parent=_forked)
-    previous = threading.excepthook
-    threading.excepthook = lambda args: _thread_raised(args, previous)
+    if not _real:
+        for name in _GUARDED:
+            _real[name] = original = getattr(os, name)
+            setattr(os, name, _guard(name, original))
+        os.register_at_fork(after_in_parent=_forked)
+    if not getattr(threading.excepthook, "mexone_sandbox", False):  # again if someone put theirs
+        previous = threading.excepthook
+
+        def hook(args) -> None:
+            _thread_raised(args, previous)
+
+        hook.mexone_sandbox = True
+        threading.excepthook = hook
 
 
 def routine_of_caller(depth: int = 2, guess: bool = False) -> RoutineContext | None:

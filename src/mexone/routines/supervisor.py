@@ -32,6 +32,7 @@ END_GRACE = 10.0  # s the run may take to exit after its end (it only prints and
 EXEC_GRACE = 1.0  # s the run may live on after closing its end of the pipe: else it exec'd
 _POLL = 0.02  # s between looks at the run
 _SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n))
+_PR_SET_PDEATHSIG = 1
 _PR_SET_CHILD_SUBREAPER = 36
 
 
@@ -97,6 +98,9 @@ def fork_run() -> int | None:
         os.close(read_fd)
         with contextlib.suppress(OSError):
             os.setpgid(0, 0)
+        _prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)  # a supervisor killed (-9) stops the run too
+        if os.getppid() != _forked_by:  # it was, before that
+            os._exit(128 + signal.SIGTERM)
         _child = _Child(os.getpid(), write_fd)
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         return None
@@ -121,10 +125,13 @@ def fork_run() -> int | None:
 def _become_subreaper() -> None:
     """Linux: orphans of the run (a process it started whose parent ended) come to us, not to
     init, so they can be found and stopped at the end."""
-    if not sys.platform.startswith("linux"):
-        return
-    with contextlib.suppress(OSError, AttributeError):
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+    _prctl(_PR_SET_CHILD_SUBREAPER, 1)
+
+
+def _prctl(option: int, value: int) -> None:
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(OSError, AttributeError):
+            ctypes.CDLL(None, use_errno=True).prctl(option, value, 0, 0, 0)
 
 
 @dataclass
