@@ -55,7 +55,12 @@ def table() -> dict[int, Proc]:
 def children(pid: int | None = None) -> set[int]:
     """The running child processes of `pid` (default: this process)."""
     pid = os.getpid() if pid is None else pid
-    return {p.pid for p in table().values() if p.ppid == pid and p.running}
+    tasks = _PROC / str(pid) / "task"
+    try:  # the kernel's own list, per thread (CONFIG_PROC_CHILDREN): no scan of every process
+        listed = {int(c) for t in tasks.iterdir() for c in (t / "children").read_text().split()}
+        return {c for c in listed if (proc := _read(c)) is not None and proc.running}
+    except (FileNotFoundError, NotADirectoryError, ProcessLookupError, PermissionError):
+        return {p.pid for p in table().values() if p.ppid == pid and p.running}
 
 
 def descendants(root: int, procs: dict[int, Proc] | None = None) -> list[int]:

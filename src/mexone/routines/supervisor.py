@@ -223,6 +223,8 @@ class _Watch:
     def _stop_leftovers(self) -> list[str]:
         """Stop the run's process group and every process below us (orphans came to us, the
         subreaper); lines naming those that still ran."""
+        if _nothing_left(self.pid):
+            return []
         procs = processes.table()
         me = os.getpid()
         pids = sorted(set(processes.group(self.pid, procs)) | set(processes.descendants(me, procs)))
@@ -235,6 +237,23 @@ class _Watch:
                 os.killpg(self.pid, signal.SIGKILL)
         processes.reap_zombies()
         return shown
+
+
+def _nothing_left(pgid: int) -> bool:
+    """No process in the run's group and no child of ours (an orphan would be one): the usual
+    end, told without reading the whole process table."""
+    try:
+        os.killpg(pgid, 0)
+        return False
+    except ProcessLookupError:
+        pass
+    except PermissionError:
+        return False
+    try:
+        os.waitpid(-1, os.WNOHANG)  # an orphan that ended is reaped; the scan finds the rest
+    except ChildProcessError:
+        return True
+    return False
 
 
 def _signal_name(signum: int) -> str:
