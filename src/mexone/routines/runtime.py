@@ -62,7 +62,6 @@ class RoutineContext:
     notices: list[str] = field(default_factory=list)  # mexone's own warnings (unheard topics)
     source: str = ""  # the routine's file: its frames tell its threads from the lab's own
     errors: list[str] = field(default_factory=list)  # found besides its own end (a thread raised)
-    forks: list[int] = field(default_factory=list)  # processes it forked (ended with it)
 
     @property
     def time(self) -> float:
