@@ -102,6 +102,7 @@ def fork_run() -> int | None:
         if os.getppid() != _forked_by:  # it was, before that
             os._exit(128 + signal.SIGTERM)
         _child = _Child(os.getpid(), write_fd)
+        _no_terminal_input()
         signal.pthread_sigmask(signal.SIG_SETMASK, mask)
         return None
     os.close(write_fd)
@@ -120,6 +121,16 @@ def fork_run() -> int | None:
             if handler is not None:
                 signal.signal(signum, handler)
         os.close(read_fd)
+
+
+def _no_terminal_input() -> None:
+    """The run is not the terminal's foreground group: reading the terminal would stop it
+    (SIGTTIN) for good. A routine reads an empty stdin instead (input() raises EOFError)."""
+    with contextlib.suppress(OSError, ValueError):
+        if os.isatty(0):
+            null = os.open(os.devnull, os.O_RDONLY)
+            os.dup2(null, 0)
+            os.close(null)
 
 
 def _become_subreaper() -> None:
@@ -207,8 +218,8 @@ class _Watch:
                     "no report; mexone stopped it (start a program with subprocess)"), 1
         if os.WIFEXITED(status):
             code = os.WEXITSTATUS(status)
-            if self.ended_at is not None:
-                return None, code
+            if self.ended_at is not None or (self.first_signal and code == 128 + self.first_signal):
+                return None, code  # its report, or its line for the signal forwarded to it
             return (f"the routine ended the run's process (exit status {code}) before its "
                     "report: no tracking report (end a routine by returning, or with "
                     "sys.exit(n))"), 1
