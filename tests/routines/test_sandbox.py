@@ -45,6 +45,11 @@ CASES = {
                 "the run's process was killed by SIGKILL"),
     "segfault": ("import ctypes\nctypes.string_at(0)\n", 1, "killed by SIGSEGV"),
     "sys.exit(0)": ("sys.exit(0)\nrospy.logerr('never here')\n", 0, None),
+    # a documented success: the thread is stopped with the run, and a warning says so
+    "a thread left running": ("def spin():\n    while True:\n        time.sleep(0.01)\n"
+                              "threading.Thread(target=spin, name='spinner', daemon=False).start()\n",
+                              0, "mexone: warning: the routine left thread 'spinner' running: "
+                                 "mexone stopped it"),
     "sys.exit(4)": ("sys.exit(4)\n", 1, "routine exited with status 4"),
     "a thread raises": ("threading.Thread(target=lambda: 1 / 0, name='worker').start()\n"
                         "rospy.sleep(0.5)\n", 1, "in thread 'worker', which the routine started"),

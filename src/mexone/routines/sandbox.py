@@ -139,14 +139,14 @@ def _thread_raised(args, previous) -> None:
     while tb is not None:
         files.append(tb.tb_frame.f_code.co_filename)
         tb = tb.tb_next
-    if issubclass(args.exc_type, RoutineExit):
-        return  # its guard recorded it
+    if issubclass(args.exc_type, RoutineExit | Shutdown):
+        return  # its guard recorded it; mexone stopped the thread (the routine had ended)
     context = _routine_in(files)
     if context is None:
         previous(args)
         return
-    if issubclass(args.exc_type, Shutdown | SystemExit):
-        return  # the simulation ended under it; sys.exit ends a thread
+    if issubclass(args.exc_type, SystemExit):
+        return  # sys.exit ends a thread
     name = args.thread.name if args.thread is not None else "?"
     shown = students_traceback(args.exc_value, Path(context.source), args.exc_traceback)
     context.errors.append(f"in thread '{name}', which the routine started:\n{shown}")
