@@ -124,6 +124,9 @@ def _guard(name: str, original: Callable) -> Callable:
 
 def _forked() -> None:
     """After os.fork(), in the parent: a fork from a routine's code is that routine's error."""
+    files = _frames(sys._getframe(1))
+    if any(name.endswith("subprocess.py") for name in files):
+        return  # Popen(preexec_fn=...): the copy execs a program at once
     context = routine_of_caller(depth=3)
     message = ("the routine forked the lab's process (os.fork): the copy has no simulation (use "
                "a thread, or subprocess for a program); the copy was ended with the routine")
@@ -206,8 +209,10 @@ def stop_children(before: set[int]) -> list[str]:
     if not new:
         return []
     procs = processes.table()
-    lines = [f"the routine left process {processes.describe(pid)} running: mexone stopped it"
-             for pid in new]
+    shown = {pid: processes.describe(pid) for pid in new}
+    alive = processes.children()  # not one that was ending by itself meanwhile
+    lines = [f"the routine left process {shown[pid]} running: mexone stopped it" for pid in new
+             if pid in alive]
     tree = [pid for root in new for pid in (root, *processes.descendants(root, procs))]
     processes.stop(tree)
     return lines
