@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -32,7 +33,8 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 
 __all__ = ["Stop", "stop_on_signals", "requested", "check", "exit_code", "hold", "release",
-           "finishing", "uninterrupted", "ignore_from_now", "leave_to_parent"]
+           "finishing", "uninterrupted", "ignore_from_now", "leave_to_parent", "interrupted",
+           "final_status"]
 
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
                 if hasattr(signal, name))
@@ -112,6 +114,19 @@ def check() -> None:
     verbs' start-up, a bench's measurements, a fit's residual evaluations)."""
     if _state.first is not None:
         raise Stop(f"interrupted by {signal.Signals(_state.first).name}")
+
+
+def interrupted() -> int:
+    """Say that a signal stopped the run (one line) and return its exit status, 128 + n."""
+    code = exit_code()
+    print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
+    return code
+
+
+def final_status(code: int) -> int:
+    """A verb's status as the process reports it: a verb that returned 0 after a signal stopped
+    it early (its outputs written) ends with 130/143, as the README's rule says."""
+    return interrupted() if code == 0 and requested() else code
 
 
 def leave_to_parent() -> None:

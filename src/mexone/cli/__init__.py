@@ -12,7 +12,6 @@ import argparse
 import gc
 import logging
 import os
-import signal
 import sys
 
 from mexone import signals
@@ -124,29 +123,20 @@ def _main(argv: list[str] | None) -> int:
             from mexone.inputs import set_input_limit_mb
 
             set_input_limit_mb(args.max_input_mb)
-        code = int(args.run(args) or 0)
-        if code == 0 and signals.requested():  # stopped early, cleanly: its outputs are written
-            return _interrupted()
-        return code
+        return signals.final_status(int(args.run(args) or 0))
     except MexoneError as exc:
         if signals.requested():  # e.g. xacro, in our process group, ended by the same Ctrl-C
-            return _interrupted()
+            return signals.interrupted()
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        return _interrupted()
+        return signals.interrupted()
     except BrokenPipeError:
         return 0
     except OSError as exc:  # the machine, not mexone: a full disk, a vanished folder, stdout gone
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"mexone: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
-
-
-def _interrupted() -> int:
-    code = signals.exit_code()
-    print(f"mexone: interrupted by {signal.Signals(code - 128).name}", file=sys.stderr)
-    return code
 
 
 if __name__ == "__main__":

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mexone import signals
 from mexone.cli.common import (
     DURATION,
     RTF,
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         if bridge is not None:
             bridge.shutdown()
         supervisor.ended()
-    supervisor.leave(status)  # the run's process ends here, its report out
+    supervisor.leave(signals.final_status(status))  # the run's process ends here, its report out
     return status
 
 
