@@ -41,6 +41,7 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
+from mexone.ranges import number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
            "MIN_TIMESTEP", "MAX_TIMESTEP", "OutsideInput", "OUTSIDE_WINDOW"]
@@ -548,6 +549,22 @@ class Simulation:
         self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
+
+    def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+        """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
+        note per clamped joint ("l_elbow 100 -> 2.6"): a teleport beyond a limit would have the
+        limit's constraint fling the link back, faster than physics allows."""
+        out, notes = {}, []
+        for name, value in values.items():
+            joint = self.robot.joints.get(name)
+            limit = joint.limit if joint is not None and joint.type in ("revolute", "prismatic") \
+                else None
+            clamped = float(value) if limit is None else min(max(float(value), limit.lower),
+                                                             limit.upper)
+            if clamped != value:
+                notes.append(f"{name} {number_text(value)} -> {number_text(clamped)}")
+            out[name] = clamped
+        return out, notes
 
     def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
         """Joint-space efforts pushed straight onto the joints (Gazebo's Joint::SetForce, clamped to
