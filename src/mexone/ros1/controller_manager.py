@@ -61,6 +61,7 @@ class ControllerManagerNode:
                           self._reload),
         ]
         self.extras: dict[str, list] = {}  # controller -> its reconfigure server, action, ...
+        self.trajectories: dict[str, TrajectoryInterfaces] = {}  # trajectory controller -> its action
         for name in list(self.manager.controllers):
             self._add_extras(name)
 
@@ -180,10 +181,12 @@ class ControllerManagerNode:
         if ctrl.gains is not None and len(ctrl.joints) == 1:
             extras.append(self._reconfigure(name, ctrl.gains[0]))
         if ctrl.kind == "trajectory":
-            extras += TrajectoryInterfaces(self, name).handles
+            self.trajectories[name] = TrajectoryInterfaces(self, name)
+            extras += self.trajectories[name].handles
         self.extras[name] = extras
 
     def _remove_extras(self, name: str) -> None:
+        self.trajectories.pop(name, None)
         for handle in self.extras.pop(name, []):
             # a dynamic_reconfigure Server has no shutdown(): its service and topics go one by one
             parts = [getattr(handle, a) for a in ("set_service", "descr_topic", "update_topic")
