@@ -347,6 +347,9 @@ class _ActionHandle:
         self.server = server
 
     def shutdown(self) -> None:
+        timer = getattr(self.server, "status_timer", None)
+        if timer is not None:  # first: it publishes the status on a publisher about to go
+            timer.shutdown()
         for attr in ("status_pub", "result_pub", "feedback_pub", "goal_sub", "cancel_sub"):
             handle = getattr(self.server, attr, None)
             if handle is not None:
