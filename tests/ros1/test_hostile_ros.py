@@ -670,3 +670,45 @@ def test_fuzz_follow_joint_trajectory_goals(harness, points, names):
         assert handle.result.error_string
     harness.settle()
     harness.trajectory.controller.cancel(harness.lab.sim.time)
+
+
+@pytest.mark.fuzz
+@fuzz(60)
+@given(points=st.lists(st.tuples(st.integers(-3, 3).map(lambda k: k * 0.25), fields(2, size=st.integers(0, 3)),
+                                 fields(2, size=st.integers(0, 3))), max_size=3),
+       names=st.sampled_from([["l_elbow", "l_shoulder_pitch"], ["l_elbow"], ["l_elbow", "l_elbow"]]),
+       command=st.one_of(SMALL, NUMBER))
+def test_fuzz_command_topics(harness, points, names, command):
+    """What rostopic pub can send to the command topics, as the bridge relays it (converted, then
+    published on the bus in the simulation thread): dropped with a warning or clamped, never a
+    crash."""
+    from std_msgs.msg import Float64
+    from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+    from mexone.ros1 import convert
+
+    rospy = harness.rospy
+    trajectory = JointTrajectory(joint_names=names, points=[
+        JointTrajectoryPoint(positions=p, velocities=v, time_from_start=rospy.Duration(t))
+        for t, p, v in points])
+    bus = harness.lab.bus
+    bus.publish("/mex_rb/arm_controller/command", convert.from_ros(trajectory))
+    bus.publish("/mex_rb/neck_yaw_position_controller/command", convert.from_ros(Float64(command)))
+    harness.settle()
+    [neck] = harness.lab.controllers.controllers["neck_yaw_position_controller"].setpoint
+    assert -1.2 <= neck <= 1.2  # within its limits whatever was sent
+
+
+def test_nan_and_huge_commands_on_a_topic_are_dropped_or_clamped(sim):
+    for value in (".nan", "1.0e+300", "-.inf"):
+        out = subprocess.run(["rostopic", "pub", "-1", "/mex_rb/neck_pitch_position_controller/command",
+                              "std_msgs/Float64", f"data: {value}"], env=ros_env(sim.port),
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+    deadline = time.time() + 30
+    while not (sim.warnings("is not finite; ignored") and sim.warnings("clamped: neck_pitch 1e+300 ->")) \
+            and time.time() < deadline:
+        time.sleep(0.05)
+    assert sim.warnings("neck_pitch_position_controller: command [nan] is not finite; ignored")
+    assert sim.warnings("clamped: neck_pitch 1e+300 -> 0.8")
+    sim.assert_alive()

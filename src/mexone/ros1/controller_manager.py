@@ -338,7 +338,11 @@ class TrajectoryInterfaces:
         t = req.time.to_sec()
         if not math.isfinite(t):
             return QueryTrajectoryStateResponse()
-        pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        try:
+            pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        except Exception as exc:  # noqa: BLE001 - an empty answer and a line, never a crash
+            log.warning("%s/%s/query_state: %s", self.node.ns, self.name, _text(exc))
+            return QueryTrajectoryStateResponse()
         return QueryTrajectoryStateResponse(list(self.controller.joints), list(pos), list(vel), list(acc))
 
 

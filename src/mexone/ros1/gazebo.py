@@ -89,7 +89,7 @@ class GazeboNode:
         def handler(_req):
             try:
                 self.bridge.call(action)
-            except (MexoneError, TimeoutError) as exc:
+            except Exception as exc:  # noqa: BLE001 - logged, never a crash
                 log.error("%s", _text(exc))
             return EmptyResponse()
         return handler
@@ -259,7 +259,7 @@ class GazeboNode:
 
         try:
             self.bridge.call(lambda: self.lab.sim.clear_wrenches(self._link(req.body_name)))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - logged, never a crash
             log.error("clear_body_wrenches: %s", _text(exc))
         return BodyRequestResponse()
 
@@ -278,7 +278,7 @@ class GazeboNode:
 
         try:
             self.bridge.call(lambda: self.lab.sim.clear_joint_efforts(req.joint_name))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - logged, never a crash
             log.error("clear_joint_forces: %s", _text(exc))
         return JointRequestResponse()
 
