@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from helpers import wait_until
+
 sys.path.insert(0, str(Path(__file__).parent))
 from test_bridge import ros_env, start_mexone, stop  # noqa: E402
 
@@ -67,6 +69,12 @@ class Sim:
 
     def warnings(self, text: str) -> list[str]:
         return [m.msg for m in list(self.rosout) if m.name == "/mexone" and text in m.msg]
+
+    def heard(self, text: str, timeout: float = 30.0) -> list[str]:
+        """The simulator's /rosout lines containing `text`, waiting for the first (/rosout is a
+        topic of its own: a line may arrive after the answer it explains)."""
+        wait_until(lambda: self.warnings(text), timeout)
+        return self.warnings(text)
 
     def assert_alive(self) -> None:
         """The process runs, /clock advances and the joint states are finite."""
@@ -168,7 +176,7 @@ def test_a_joint_set_beyond_its_limit_is_clamped_with_a_warning(sim):
     sim.assert_alive()
     msg = sim.rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=20)
     assert dict(zip(msg.name, msg.position, strict=True))["l_elbow"] == pytest.approx(upper, abs=0.1)
-    assert sim.warnings("set_model_configuration: clamped to the joint limits: l_elbow 100 ->")
+    assert sim.heard("set_model_configuration: clamped to the joint limits: l_elbow 100 ->")
     _rosservice(sim, "/gazebo/set_model_configuration", "{model_name: mex_rb, urdf_param_name: '', "
                 "joint_names: [l_elbow], joint_positions: [0.0]}")
 
@@ -205,8 +213,8 @@ def test_switch_controller_refuses_an_unknown_strictness_and_a_nan_timeout(sim):
     assert not switch([], ["neck_yaw_position_controller"], 99, False, 0.0).ok
     assert not switch([], ["neck_yaw_position_controller"], 2, False, math.nan).ok
     assert not switch([], ["neck_yaw_position_controller"], 2, False, -1.0).ok
-    assert sim.warnings("strictness 99 must be BEST_EFFORT (1) or STRICT (2)")
-    assert sim.warnings("timeout NaN must be")
+    assert sim.heard("strictness 99 must be BEST_EFFORT (1) or STRICT (2)")
+    assert sim.heard("timeout NaN must be")
     from controller_manager_msgs.srv import ListControllers
 
     listed = sim.service("/mex_rb/controller_manager/list_controllers", ListControllers)().controller
@@ -250,7 +258,7 @@ def test_trajectory_goals_with_bad_times_or_positions_are_rejected(sim):
         result = client.get_result()
         assert result.error_code == FollowJointTrajectoryResult.INVALID_GOAL
         assert why in result.error_string, result.error_string
-    assert sim.warnings("follow_joint_trajectory: goal rejected")
+    assert sim.heard("follow_joint_trajectory: goal rejected")
     client.send_goal(_goal(rospy, [0.5, 1.0], [[-0.2, -0.1], [-0.3, -0.2]]))  # a good one still works
     assert client.wait_for_result(rospy.Duration(60))
     assert client.get_state() == actionlib.GoalStatus.SUCCEEDED
@@ -269,10 +277,7 @@ def test_a_malformed_trajectory_on_the_command_topic_is_dropped_with_a_warning(s
     msg = JointTrajectory(joint_names=["l_elbow", "l_shoulder_pitch"],
                           points=[JointTrajectoryPoint(positions=[0.3], time_from_start=rospy.Duration(1))])
     pub.publish(msg)
-    deadline = time.time() + 30
-    while not sim.warnings("has 1 positions for 2 joints") and time.time() < deadline:
-        time.sleep(0.05)
-    assert sim.warnings("has 1 positions for 2 joints")
+    assert sim.heard("has 1 positions for 2 joints")
     pub.unregister()
     sim.assert_alive()
 
@@ -289,10 +294,7 @@ def test_a_divergence_caused_by_a_service_call_resets_the_world_and_the_simulati
     wrench.force.x = wrench.force.y = 9e5
     answer = push("mex_rb::l_forearm", "world", Point(), wrench, rospy.Time(0), rospy.Duration(0.2))
     assert answer.success, answer.status_message
-    deadline = time.time() + 60
-    while not sim.warnings("the world was reset") and time.time() < deadline:
-        time.sleep(0.05)
-    [warning] = sim.warnings("the world was reset")
+    [warning] = sim.heard("the world was reset", timeout=60)
     assert "likely cause: the outside input /gazebo/apply_body_wrench (mex_rb::l_forearm" in warning
     assert "gains" not in warning
     sim.assert_alive()
@@ -705,10 +707,6 @@ def test_nan_and_huge_commands_on_a_topic_are_dropped_or_clamped(sim):
                               "std_msgs/Float64", f"data: {value}"], env=ros_env(sim.port),
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stderr
-    deadline = time.time() + 30
-    while not (sim.warnings("is not finite; ignored") and sim.warnings("clamped: neck_pitch 1e+300 ->")) \
-            and time.time() < deadline:
-        time.sleep(0.05)
-    assert sim.warnings("neck_pitch_position_controller: command [nan] is not finite; ignored")
-    assert sim.warnings("clamped: neck_pitch 1e+300 -> 0.8")
+    assert sim.heard("neck_pitch_position_controller: command [nan] is not finite; ignored")
+    assert sim.heard("clamped: neck_pitch 1e+300 -> 0.8")
     sim.assert_alive()
