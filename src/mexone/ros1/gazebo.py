@@ -71,8 +71,8 @@ class GazeboNode:
     @property
     def lab(self):
         """The bridge's lab, once attached (a call that comes earlier waits for it)."""
-        if self.bridge.lab is None and not self.bridge.ready.wait(120.0):
-            raise TimeoutError("the simulator has not started")
+        if self.bridge.lab is None:
+            self.bridge.call(lambda: None)  # waits for attach(), or raises TimeoutError
         return self.bridge.lab
 
     def attach(self) -> None:
