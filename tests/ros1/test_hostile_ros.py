@@ -62,6 +62,7 @@ class Sim:
         self.rosout: list = []
         self.services_at_first_states: set[str] = set()
         self.services_when_advertised: set[str] | None = None
+        self.early_spawn: list = []  # the answer to a spawn sent as soon as the service was listed
 
     def service(self, name: str, kind):
         self.rospy.wait_for_service(name, timeout=30)
@@ -125,13 +126,26 @@ def sim(ros_master):
     sub = rospy.Subscriber("/mex_rb/joint_states", JointState, on_states)
     out = rospy.Subscriber("/rosout", Log, s.rosout.append)
     s.proc = start_mexone(port)
+
+    def spawn_early() -> None:  # what a script does that calls spawn as soon as it can
+        from gazebo_msgs.srv import SpawnModel
+        from geometry_msgs.msg import Pose
+
+        pose = Pose()
+        pose.position.x, pose.position.z, pose.orientation.w = 2.0, 0.3, 1.0
+        s.early_spawn.append(rospy.ServiceProxy("/gazebo/spawn_urdf_model", SpawnModel)(
+            "early_box", BOX, "", pose, "world"))
+    early = threading.Thread(target=spawn_early, daemon=True)
     deadline = time.time() + 120
     while time.time() < deadline and not first.is_set():
         snapshot = _gazebo_services(port)
+        if "/gazebo/spawn_urdf_model" in snapshot[0] and early.ident is None:
+            early.start()
         if "/mex_rb/joint_states" in snapshot[1] and s.services_when_advertised is None:
             s.services_when_advertised = snapshot[0]
         time.sleep(0.01)
     assert first.is_set(), "no joint_states within 120 s"
+    early.join(60)
     sub.unregister()
     # the trajectory controller the action tests use, as ros_control loads one
     from controller_manager_msgs.srv import LoadController, SwitchController
@@ -153,6 +167,12 @@ def test_gazebo_services_are_offered_before_the_robot_publishes(sim):
     assert sim.services_when_advertised is None or expected <= sim.services_when_advertised, \
         expected - sim.services_when_advertised
     assert expected <= sim.services_at_first_states, expected - sim.services_at_first_states
+    # a spawn sent the moment the service was listed waited for the world and succeeded
+    [answer] = sim.early_spawn
+    assert answer.success, answer.status_message
+    from gazebo_msgs.srv import DeleteModel
+
+    assert sim.service("/gazebo/delete_model", DeleteModel)("early_box").success
 
 
 def _rosservice(sim: Sim, *args: str) -> str:
