@@ -41,6 +41,16 @@ ARM = {"type": "effort_controllers/JointTrajectoryController", "joints": ["l_sho
 BOX = """<robot name="box"><link name="box"><inertial><mass value="0.3"/>
 <inertia ixx="0.002" iyy="0.002" izz="0.002" ixy="0" ixz="0" iyz="0"/></inertial>
 <collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link></robot>"""
+ARM_BOT = """<robot name="bot"><link name="base"><inertial><mass value="1"/>
+<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
+<collision><geometry><box size="0.1 0.1 0.1"/></geometry></collision></link>
+<joint name="hinge" type="revolute"><parent link="base"/><child link="arm"/><axis xyz="0 1 0"/>
+<limit lower="-1" upper="1" effort="5" velocity="2"/></joint>
+<link name="arm"><inertial><origin xyz="0 0 0.1"/><mass value="0.2"/>
+<inertia ixx="0.001" iyy="0.001" izz="0.001" ixy="0" ixz="0" iyz="0"/></inertial></link>
+<transmission name="t"><type>transmission_interface/SimpleTransmission</type>
+<joint name="hinge"><hardwareInterface>hardware_interface/EffortJointInterface</hardwareInterface></joint>
+<actuator name="m"><mechanicalReduction>1</mechanicalReduction></actuator></transmission></robot>"""
 SDF_BOX = """<sdf version="1.6"><model name="box"><link name="box"><inertial><mass>0.3</mass>
 <inertia><ixx>0.002</ixx><iyy>0.002</iyy><izz>0.002</izz></inertia></inertial>
 <collision name="c"><geometry><box><size>0.1 0.1 0.1</size></box></geometry></collision></link>
@@ -548,20 +558,22 @@ def test_fuzz_set_physics_properties(harness, step, rate, gravity, iterations):
 @pytest.mark.fuzz
 @fuzz(20)
 @given(name=mostly(["box", "box2"], ["", "mex_rb", "a/b"]), pose=fields(7, st.floats(-3.0, 3.0)),
-       xml=mostly([BOX], ["", "<robot", "<robot name='x'/>"]),
-       sdf=st.booleans())
-def test_fuzz_spawn_and_delete(harness, name, pose, xml, sdf):
+       xml=mostly([BOX, ARM_BOT], ["", "<robot", "<robot name='x'/>"]),
+       sdf=st.booleans(), namespace=st.sampled_from(["", "bot", "a b", "/../x", "mex_rb", "/fuzz_bot"]))
+def test_fuzz_spawn_and_delete(harness, name, pose, xml, sdf, namespace):
+    """A box, or a robot with a transmission (it gets a controller manager of its own)."""
     from gazebo_msgs.srv import DeleteModelRequest, SpawnModelRequest
 
     spawn = harness.gazebo._spawn(".sdf" if sdf else ".urdf")
-    xml = {BOX: SDF_BOX}.get(xml, xml) if sdf else xml
-    answer = spawn(SpawnModelRequest(name, xml, "", _pose(pose), "world"))
+    if sdf:
+        xml = {BOX: SDF_BOX, ARM_BOT: SDF_BOX}.get(xml, xml)
+    answer = spawn(SpawnModelRequest(name, xml, namespace, _pose(pose), "world"))
     _answered(answer)
     if answer.success:
         assert all(abs(v) <= 1e4 for v in pose[:3]), pose
     harness.settle()
     harness.gazebo._delete_model(DeleteModelRequest(name))
-    assert not harness.lab.sim.models
+    assert not harness.lab.sim.models and not harness.gazebo.managers
     harness.lab.sim.reset()
 
 

@@ -10,6 +10,7 @@ status_message, as gazebo_ros does; the handlers never let an exception reach ro
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import tempfile
@@ -94,7 +95,8 @@ class GazeboNode:
             return EmptyResponse()
         return handler
 
-    def _answer(self, response_cls, fn: Callable[[], dict | None], **failure) -> object:
+    def _answer(self, response_cls, fn: Callable[[], dict | None], quiet: bool = False,
+                **failure) -> object:
         """Run `fn` in the simulation thread: its dict fills the response (success=True); an
         error is success=False with the reason, also on /rosout. Nothing a request carries
         may raise past here (rospy would only say "service cannot process request")."""
@@ -102,7 +104,8 @@ class GazeboNode:
             fields = self.bridge.call(fn) or {}
         except Exception as exc:  # noqa: BLE001 - every refusal is an answer, never a crash
             text = _text(exc)
-            log.warning("%s/%s: %s", self.bridge.gazebo_ns, _service_name(response_cls), text)
+            if not quiet:  # (the caller says it)
+                log.warning("%s/%s: %s", self.bridge.gazebo_ns, _service_name(response_cls), text)
             return response_cls(success=False, status_message=text, **failure)
         return response_cls(success=True, status_message=fields.pop("status_message", "ok"),
                             **fields)
@@ -401,35 +404,45 @@ class GazeboNode:
 
     # ----- models -------------------------------------------------------------------------------
     def _spawn(self, suffix: str):
-        from gazebo_msgs.srv import SpawnModelResponse
 
         def handler(req):
-            name = req.model_name.strip()
-            if not name or "/" in name or "::" in name:
-                return SpawnModelResponse(False, f"model_name '{req.model_name}' must be a plain "
-                                                 "non-empty name")
-            if req.reference_frame not in _WORLD:
-                return SpawnModelResponse(False, "only the world reference_frame is supported")
-            try:
-                position = checks.position(req.initial_pose.position, "initial_pose.position")
-                quat = checks.quaternion(req.initial_pose.orientation, "initial_pose.orientation")
-            except InputError as exc:
-                log.warning("%s/spawn_model: %s", self.bridge.gazebo_ns, _text(exc))
-                return SpawnModelResponse(False, _text(exc))
-            spawn = Spawn(tuple(position), _rpy(quat), on_ground=False)
             with tempfile.TemporaryDirectory() as tmp:  # alive until the model has compiled
-                try:
-                    robot = _load_text(req.model_xml, Path(tmp) / f"model{suffix}")
-                except (MexoneError, OSError) as exc:
-                    return SpawnModelResponse(False, f"cannot read the model: {_text(exc)}")
-                if not robot.transmissions:
-                    def add():
-                        self.lab.sim.add_model(robot, name, spawn)
-                        self._noted("spawn_model", name, lambda: self.lab.sim.remove_model(name))
-                        return {"status_message": "SpawnModel: Successfully spawned entity"}
-                    return self._answer(SpawnModelResponse, add)
-                return self._spawn_robot(req, robot, name, spawn)
+                path = Path(tmp) / f"model{suffix}"
+                answer = self._spawn_from(req, path)
+            # the file is ours, not the caller's: name what they sent
+            answer.status_message = answer.status_message.replace(str(path), "model_xml")
+            if not answer.success:
+                log.warning("%s/spawn_%s_model: %s", self.bridge.gazebo_ns, suffix[1:],
+                            answer.status_message)
+            return answer
         return handler
+
+    def _spawn_from(self, req, path: Path):
+        from gazebo_msgs.srv import SpawnModelResponse
+
+        name = req.model_name.strip()
+        if not name or "/" in name or "::" in name:
+            return SpawnModelResponse(False, f"model_name '{req.model_name}' must be a plain "
+                                             "non-empty name")
+        if req.reference_frame not in _WORLD:
+            return SpawnModelResponse(False, "only the world reference_frame is supported")
+        try:
+            position = checks.position(req.initial_pose.position, "initial_pose.position")
+            quat = checks.quaternion(req.initial_pose.orientation, "initial_pose.orientation")
+        except InputError as exc:
+            return SpawnModelResponse(False, _text(exc))
+        spawn = Spawn(tuple(position), _rpy(quat), on_ground=False)
+        try:
+            robot = _load_text(req.model_xml, path)
+        except Exception as exc:  # noqa: BLE001 - whatever the text holds: an answer, never a crash
+            return SpawnModelResponse(False, f"cannot read the model: {_text(exc)}")
+        if not robot.transmissions:
+            def add():
+                self.lab.sim.add_model(robot, name, spawn)
+                self._noted("spawn_model", name, lambda: self.lab.sim.remove_model(name))
+                return {"status_message": "SpawnModel: Successfully spawned entity"}
+            return self._answer(SpawnModelResponse, add, quiet=True)
+        return self._spawn_robot(req, robot, name, spawn)
 
     def _spawn_robot(self, req, robot, name: str, spawn: Spawn):
         """A robot with transmissions gets what gazebo_ros_control gives it: a controller manager
@@ -444,6 +457,11 @@ class GazeboNode:
 
         ns = "/" + (req.robot_namespace.strip().strip("/") or (robot.ros_namespace or "").strip("/")
                     or name)
+        from rosgraph.names import is_legal_name
+
+        if not is_legal_name(ns):
+            return SpawnModelResponse(False, f"robot_namespace '{req.robot_namespace}' is not a ROS "
+                                             "name (letters, digits, _ and /)")
         taken = {self.lab.namespace} | {m.namespace for m in self.managers.values()}
         if ns in taken:
             return SpawnModelResponse(False, f"robot_namespace {ns} is taken by another robot: "
@@ -465,9 +483,14 @@ class GazeboNode:
             self._noted("spawn_model", name, lambda: self._undo_spawn(name))
             return {"status_message": f"SpawnModel: Successfully spawned entity (controller "
                                       f"manager at {ns}/controller_manager)"}
-        answer = self._answer(SpawnModelResponse, add)
+        answer = self._answer(SpawnModelResponse, add, quiet=True)
         if answer.success:
-            self.nodes[name] = ControllerManagerNode(self.bridge, self.managers[name], ns)
+            try:
+                self.nodes[name] = ControllerManagerNode(self.bridge, self.managers[name], ns)
+            except Exception as exc:  # noqa: BLE001 - no services, no robot: taken back
+                with contextlib.suppress(Exception):  # the answer below says what went wrong
+                    self.bridge.call(lambda: self._undo_spawn(name))
+                return SpawnModelResponse(False, f"controller manager at {ns}: {_text(exc)}")
         return answer
 
     def _undo_spawn(self, name: str) -> None:
