@@ -89,7 +89,7 @@ class Control(Protocol):
 class OutsideInput:
     """An input from outside the lab that changed the physics (see Simulation.note_input)."""
 
-    what: str  # e.g. "/gazebo/set_model_configuration (l_elbow 2.6)"
+    what: str  # e.g. "/gazebo/set_model_configuration (l_elbow 0.1)"
     step: int  # Simulation.steps when it was applied
     undo: Callable[[], None] | None = None  # puts back what a lasting change (physics) replaced
 
@@ -552,7 +552,7 @@ class Simulation:
 
     def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
-        note per clamped joint ("l_elbow 100 -> 2.6"): a teleport beyond a limit would have the
+        note per clamped joint ("l_elbow 100 -> 0.1"): a teleport beyond a limit would have the
         limit's constraint fling the link back, faster than physics allows."""
         out, notes = {}, []
         for name, value in values.items():
