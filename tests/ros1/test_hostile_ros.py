@@ -169,6 +169,8 @@ def sim(ros_master):
     yield s
     out.unregister()
     stop(s.proc)
+    # the next module's simulator would read it as "controllers from the parameter server"
+    rospy.delete_param("/mex_rb/arm_controller")
 
 
 def test_gazebo_services_are_offered_before_the_robot_publishes(sim):
