@@ -21,7 +21,8 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs
            "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
-           "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
+           "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT",
+           "FORCE", "SPEED", "SPIN"]
 
 
 def number_text(value: float) -> str:
@@ -114,6 +115,11 @@ STEPS = Range("steps", "", 1, 100_000, integer=True, why="Step N on the page")
 PORT = Range("port", "", 0, 65535, integer=True, why="0 picks a free port")
 MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm has scale 0.001")
 TIMEOUT = Range("timeout", "s", 0.0, 1e6, why="a ROS service's timeout (0: none)")
+FORCE = Range("force", "N or N m", -1e6, 1e6, why="a pushed force or torque, an applied joint "
+              "effort (signed)")
+# the divergence watchdog's limits (physics/watchdog.py): a body set moving faster is a divergence
+SPEED = Range("speed", "m/s", -50.0, 50.0, why="a set linear velocity (component and length)")
+SPIN = Range("spin", "rad/s", -500.0, 500.0, why="a set angular velocity (component and length)")
 
 RANGES: tuple[Range, ...] = tuple(v for v in globals().values() if isinstance(v, Range))
 

@@ -11,6 +11,7 @@ Sim time is kept as integer nanoseconds, so stamps and timers never drift by flo
 
 from __future__ import annotations
 
+import logging
 import math
 import queue
 import threading
@@ -43,7 +44,9 @@ from mexone.physics.world import World
 from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
-           "MIN_TIMESTEP", "MAX_TIMESTEP"]
+           "MIN_TIMESTEP", "MAX_TIMESTEP", "OutsideInput", "OUTSIDE_WINDOW"]
+
+log = logging.getLogger("mexone.physics")
 
 NS = 1_000_000_000
 MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP is their home
@@ -51,6 +54,9 @@ MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP i
 # link that went first; each check is a Python interlude that costs MuJoCo its warm caches
 _WATCH_EVERY = 50
 _FIRST_WATCH = 10  # steps after a reset to the first check: a bad start shows at once
+# s of sim time after an outside input (a ROS service call, a goal, a command) during which a
+# divergence is blamed on it: a teleport or a push shows within a few steps
+OUTSIDE_WINDOW = 2.0
 _LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
                 "inertia-too-large": "its inertia is implausibly large for its mass and size",
                 "inertia-triangle": "its inertia is physically impossible",
@@ -77,6 +83,15 @@ class Control(Protocol):
 
     def update(self, sim: Simulation) -> None:
         """read -> controllers -> write; sets wake_ns again. Runs in the simulation thread."""
+
+
+@dataclass(frozen=True)
+class OutsideInput:
+    """An input from outside the lab that changed the physics (see Simulation.note_input)."""
+
+    what: str  # e.g. "/gazebo/set_model_configuration (l_elbow 0.1)"
+    step: int  # Simulation.steps when it was applied
+    undo: Callable[[], None] | None = None  # puts back what a lasting change (physics) replaced
 
 
 @dataclass
@@ -181,6 +196,11 @@ class Simulation:
         self._pace_origin: tuple[float, float] | None = None
         self._since_watch = 0
         self._time_ns = 0
+        self.steps = 0  # physics steps taken, never reset: measures time across resets
+        self.outside: OutsideInput | None = None  # the last outside input (note_input)
+        # a front end that serves a graph (ROS) sets this: a divergence an outside input caused
+        # resets the world with a warning instead of ending the run (see _diverged)
+        self.recover_outside = False
         self._step_ns = round(self.model.opt.timestep * NS)
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
@@ -277,17 +297,66 @@ class Simulation:
             try:
                 mujoco.mj_step(model, data, chunk)
             except mujoco.FatalError as exc:  # e.g. out of constraint memory: a one-line error
-                raise DivergenceError(f"MuJoCo stopped at t = {self.time:.3f} s: "
-                                      f"{' '.join(str(exc).split())}",
-                                      hint="a model this big or this stiff needs 'mexone check' "
-                                           "and a smaller time step") from None
+                cause = self._outside_cause()
+                self._diverged(DivergenceError(
+                    f"MuJoCo stopped at t = {self.time:.3f} s: {' '.join(str(exc).split())}",
+                    hint=f"likely cause: {cause}" if cause else "a model this big or this stiff "
+                    "needs 'mexone check' and a smaller time step"))
+                model, data = self.model, self.data
+                continue
             self._time_ns += chunk * self._step_ns
+            self.steps += chunk
             remaining -= chunk
             self._since_watch += chunk
             if self._since_watch >= _WATCH_EVERY:
                 self._since_watch = 0
-                self.watchdog.check()
+                try:
+                    self.watchdog.check()
+                except DivergenceError as exc:
+                    self._diverged(exc)
+                    model, data = self.model, self.data
         self._fire_due()
+
+    # ----- outside inputs -----------------------------------------------------------------------
+    def note_input(self, what: str, undo: Callable[[], None] | None = None) -> None:
+        """An input from outside the lab (a ROS service call, an action goal, a command) was just
+        applied: a divergence within OUTSIDE_WINDOW s names it as the likely cause and, with
+        recover_outside, `undo()` runs and the world is reset instead of the run ending."""
+        self.outside = OutsideInput(what, self.steps, undo)
+
+    def recent_input(self) -> OutsideInput | None:
+        """The last outside input if it came within OUTSIDE_WINDOW s of sim time."""
+        outside = self.outside
+        if outside is None or (self.steps - outside.step) * self.timestep > OUTSIDE_WINDOW:
+            return None
+        return outside
+
+    def _outside_cause(self) -> str | None:
+        outside = self.recent_input()
+        if outside is None:
+            return None
+        ago = (self.steps - outside.step) * self.timestep
+        return f"the outside input {outside.what}, {ago:.3f} s of sim time before"
+
+    def _diverged(self, error: DivergenceError) -> None:
+        """Raise `error`, unless an outside input caused it and recover_outside is set: then
+        that input is undone where it lasts (physics settings, gains), the world is reset as
+        Gazebo's reset_world does, a warning says why, and the run goes on. No input from the
+        graph may end the simulation; a model that diverges on its own still stops it."""
+        outside = self.recent_input()
+        if outside is None or not self.recover_outside:
+            raise error
+        self.outside = None
+        undone = ""
+        if outside.undo is not None:
+            try:
+                outside.undo()
+                undone = " it was undone and"
+            except Exception as exc:  # noqa: BLE001 - the reset below still saves the run
+                log.warning("could not undo %s: %s", outside.what, exc)
+        log.warning("%s;%s the world was reset (as /gazebo/reset_world) so the simulation goes on",
+                    error.one_line(), undone)
+        self.reset()
 
     def run(self, duration: float, on_tick: Callable[[Simulation], None] | None = None,
             tick: float = 0.05, gate: Gate | None = None,
@@ -475,6 +544,22 @@ class Simulation:
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
+    def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+        """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
+        note per clamped joint ("l_elbow 100 -> 0.1"): a teleport beyond a limit would have the
+        limit's constraint fling the link back, faster than physics allows."""
+        out, notes = {}, []
+        for name, value in values.items():
+            joint = self.robot.joints.get(name)
+            limit = joint.limit if joint is not None and joint.type in ("revolute", "prismatic") \
+                else None
+            clamped = float(value) if limit is None else min(max(float(value), limit.lower),
+                                                             limit.upper)
+            if clamped != value:
+                notes.append(f"{name} {number_text(value)} -> {number_text(clamped)}")
+            out[name] = clamped
+        return out, notes
+
     # ----- links --------------------------------------------------------------------------------
     def body_id(self, link: str) -> int:
         """The MuJoCo body of a robot link, or of any body by its MuJoCo name (spawned models)."""
@@ -621,7 +706,11 @@ class Simulation:
         return float(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
 
     def _likely_cause(self, link: str) -> str | None:
-        """The lint finding that explains a divergence: on that link first, else anywhere."""
+        """The outside input just before it, else the lint finding that explains a divergence:
+        on that link first, else anywhere."""
+        outside = self._outside_cause()
+        if outside is not None:
+            return outside
         suspects = [f for f in check_model(self.robot) if f.code in _LINT_CAUSES]
         suspects.sort(key=lambda f: f.element != f'link "{link}"')
         if not suspects:

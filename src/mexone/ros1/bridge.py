@@ -48,6 +48,7 @@ _CLOCK_BURST = 20.0  # /clock messages that may go out at once after a pause in 
 _PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused (Gazebo keeps publishing)
 _NOT_MIRRORED = {"/clock", "/tf"}  # the bridge publishes these itself (see _publish_clock, TF)
 _HEAVY = (msgs.Image, msgs.PointCloud2)
+_START_WAIT = 120.0  # s a service call made while the simulator starts waits for it
 
 
 def import_rospy():
@@ -140,7 +141,16 @@ class Ros1Bridge:
         self._rosout = _RosoutHandler()
         logging.getLogger("mexone").addHandler(self._rosout)
         self.lab = None
-        self.services: list = []
+        self.ready = threading.Event()  # attach() finished: the simulation thread takes calls
+        self._direct = False
+        self._owner: threading.Thread | None = None
+        from mexone.ros1.gazebo import GazeboNode
+
+        # gazebo_ros' services come with the world, before any robot (Gazebo offers them before
+        # it spawns one): a script that calls spawn_urdf_model as soon as the node is up works;
+        # calls made while the robot still compiles wait for attach()
+        self.gazebo = GazeboNode(self)
+        self.services: list = [self.gazebo]
 
     def attach(self, lab, urdf_text: str) -> None:
         from rosgraph_msgs.msg import Clock
@@ -148,6 +158,7 @@ class Ros1Bridge:
 
         rospy = self.rospy
         self.lab = lab
+        self._owner = threading.current_thread()
         self._direct = True  # until attach returns, this thread is the one that steps the sim
         self._types = {"Clock": Clock, "TFMessage": TFMessage}
         rospy.set_param(f"{lab.namespace}/robot_description", urdf_text)
@@ -172,12 +183,13 @@ class Ros1Bridge:
         lab.sim.on_reset(self._after_reset)
         self.sync_topics()
         from mexone.ros1.controller_manager import ControllerManagerNode
-        from mexone.ros1.gazebo import GazeboNode
 
         if lab.controllers is not None:
             self.services.append(ControllerManagerNode(self))
-        self.services.append(GazeboNode(self))
+        self.gazebo.attach()
+        lab.sim.recover_outside = True  # no input from the graph may end the simulation
         self._direct = False
+        self.ready.set()
         self.master_ok = True
         self._watch = threading.Thread(target=self._watch_master, daemon=True)
         self._watch.start()
@@ -212,14 +224,36 @@ class Ros1Bridge:
 
     def _relay(self, topic: str):
         def callback(ros_msg) -> None:  # rospy's thread: hand over, in order, to the sim thread
-            msg = convert.from_ros(ros_msg)
-            self.lab.sim.work.put(lambda: self.lab.bus.publish(topic, msg))
+            try:
+                msg = convert.from_ros(ros_msg)
+            except Exception as exc:  # noqa: BLE001 - a bad message is dropped, never a crash
+                log.warning("%s: message dropped: %s", topic, exc)
+                return
+
+            def deliver() -> None:
+                self.lab.sim.note_input(topic)
+                self.lab.bus.publish(topic, msg)  # the controllers check it (finite, size, limits)
+            self.post(deliver, topic)
         return callback
 
+    def post(self, fn: Callable[[], object], what: str) -> None:
+        """Hand `fn` to the simulation thread without waiting; what it raises is a warning on
+        /rosout naming `what`, never the end of the simulation loop."""
+        def guarded() -> None:
+            try:
+                fn()
+            except Exception as exc:  # noqa: BLE001 - no input from the graph ends the simulation
+                log.warning("%s: %s", what, exc.one_line() if isinstance(exc, MexoneError)
+                            else f"{type(exc).__name__}: {exc}")
+        self.lab.sim.work.put(guarded)
+
     def call(self, fn: Callable[[], object], timeout: float = 10.0):
-        """Run `fn` in the simulation thread and return its result (for service handlers)."""
-        if self._direct:
+        """Run `fn` in the simulation thread and return its result (for service handlers);
+        before attach() has finished, wait for it (the robot may still be compiling)."""
+        if self._direct and threading.current_thread() is self._owner:
             return fn()
+        if not self.ready.wait(_START_WAIT):
+            raise TimeoutError(f"the simulator has not started within {_START_WAIT:g} s")
         return self.lab.sim.work.call(fn, timeout=timeout)
 
     # ----- /clock ------------------------------------------------------------------------------
