@@ -11,6 +11,7 @@ Sim time is kept as integer nanoseconds, so stamps and timers never drift by flo
 
 from __future__ import annotations
 
+import logging
 import math
 import queue
 import threading
@@ -40,16 +41,22 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
+from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
-           "MIN_TIMESTEP", "MAX_TIMESTEP"]
+           "MIN_TIMESTEP", "MAX_TIMESTEP", "OutsideInput", "OUTSIDE_WINDOW"]
+
+log = logging.getLogger("mexone.physics")
 
 NS = 1_000_000_000
-MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.01  # s: what a humanoid lab can sensibly step with
+MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP is their home
 # steps between divergence checks: a diverging run goes NaN within steps, so 50 ms still names the
 # link that went first; each check is a Python interlude that costs MuJoCo its warm caches
 _WATCH_EVERY = 50
 _FIRST_WATCH = 10  # steps after a reset to the first check: a bad start shows at once
+# s of sim time after an outside input (a ROS service call, a goal, a command) during which a
+# divergence is blamed on it: a teleport or a push shows within a few steps
+OUTSIDE_WINDOW = 2.0
 _LINT_CAUSES = {"com-outside": "its centre of mass lies outside its geometry",
                 "inertia-too-large": "its inertia is implausibly large for its mass and size",
                 "inertia-triangle": "its inertia is physically impossible",
@@ -76,6 +83,15 @@ class Control(Protocol):
 
     def update(self, sim: Simulation) -> None:
         """read -> controllers -> write; sets wake_ns again. Runs in the simulation thread."""
+
+
+@dataclass(frozen=True)
+class OutsideInput:
+    """An input from outside the lab that changed the physics (see Simulation.note_input)."""
+
+    what: str  # e.g. "/gazebo/set_model_configuration (l_elbow 0.1)"
+    step: int  # Simulation.steps when it was applied
+    undo: Callable[[], None] | None = None  # puts back what a lasting change (physics) replaced
 
 
 @dataclass
@@ -166,9 +182,6 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.joint_names = list(self.compiled.joints)
         self._index = {name: i for i, name in enumerate(self.joint_names)}
-        self._effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
-                                       for j in robot.moving_joints])
-        self._efforts = np.zeros(len(self.joint_names))
         self.models: dict[str, str] = {}  # spawned model -> the MuJoCo name of its root body
         self.forces = Forces()  # timed wrenches and joint efforts (apply_wrench, apply_joint_effort)
         self._model_hooks: list[Callable[[], None]] = []
@@ -183,6 +196,11 @@ class Simulation:
         self._pace_origin: tuple[float, float] | None = None
         self._since_watch = 0
         self._time_ns = 0
+        self.steps = 0  # physics steps taken, never reset: measures time across resets
+        self.outside: OutsideInput | None = None  # the last outside input (note_input)
+        # a front end that serves a graph (ROS) sets this: a divergence an outside input caused
+        # resets the world with a warning instead of ending the run (see _diverged)
+        self.recover_outside = False
         self._step_ns = round(self.model.opt.timestep * NS)
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
@@ -204,9 +222,7 @@ class Simulation:
 
     def set_timestep(self, seconds: float) -> None:
         """Change the physics step; listeners (the controller manager) are told."""
-        if not MIN_TIMESTEP <= seconds <= MAX_TIMESTEP:  # also refuses NaN
-            raise InputError(f"time step {seconds:g} s is out of range",
-                             hint=f"use {MIN_TIMESTEP:g} to {MAX_TIMESTEP:g} s")
+        seconds = TIMESTEP.check(seconds, hint="Gazebo's default is 0.001")
         self.model.opt.timestep = seconds
         self._step_ns = round(seconds * NS)
         for hook in self._timestep_hooks:
@@ -224,7 +240,7 @@ class Simulation:
         """Call `callback(sim)` every `period` s of sim time, first one period from now.
         Between calls MuJoCo steps in C, so a 50 Hz publisher costs nothing per step."""
         if not (period > 0 and math.isfinite(period)):
-            raise InputError(f"period {period} must be a finite number > 0")
+            raise InputError(f"period {number_text(period)} must be a finite number > 0")
         period_ns = max(1, round(period * NS))
         timer = Periodic(period_ns, callback, self._time_ns + period_ns)
         self.periodic.append(timer)
@@ -257,7 +273,7 @@ class Simulation:
                 control.update(self)
         forces = self.forces
         if forces.changed or forces.active:
-            forces.apply(self.data, now, half, self._efforts, self.compiled.dof_adr)
+            forces.apply(self.data, now, half)
 
     def _steps_until_due(self) -> int:
         soonest = min([t.next_ns for t in self.periodic] + [c.wake_ns for c in self.controls],
@@ -281,17 +297,66 @@ class Simulation:
             try:
                 mujoco.mj_step(model, data, chunk)
             except mujoco.FatalError as exc:  # e.g. out of constraint memory: a one-line error
-                raise DivergenceError(f"MuJoCo stopped at t = {self.time:.3f} s: "
-                                      f"{' '.join(str(exc).split())}",
-                                      hint="a model this big or this stiff needs 'mexone check' "
-                                           "and a smaller time step") from None
+                cause = self._outside_cause()
+                self._diverged(DivergenceError(
+                    f"MuJoCo stopped at t = {self.time:.3f} s: {' '.join(str(exc).split())}",
+                    hint=f"likely cause: {cause}" if cause else "a model this big or this stiff "
+                    "needs 'mexone check' and a smaller time step"))
+                model, data = self.model, self.data
+                continue
             self._time_ns += chunk * self._step_ns
+            self.steps += chunk
             remaining -= chunk
             self._since_watch += chunk
             if self._since_watch >= _WATCH_EVERY:
                 self._since_watch = 0
-                self.watchdog.check()
+                try:
+                    self.watchdog.check()
+                except DivergenceError as exc:
+                    self._diverged(exc)
+                    model, data = self.model, self.data
         self._fire_due()
+
+    # ----- outside inputs -----------------------------------------------------------------------
+    def note_input(self, what: str, undo: Callable[[], None] | None = None) -> None:
+        """An input from outside the lab (a ROS service call, an action goal, a command) was just
+        applied: a divergence within OUTSIDE_WINDOW s names it as the likely cause and, with
+        recover_outside, `undo()` runs and the world is reset instead of the run ending."""
+        self.outside = OutsideInput(what, self.steps, undo)
+
+    def recent_input(self) -> OutsideInput | None:
+        """The last outside input if it came within OUTSIDE_WINDOW s of sim time."""
+        outside = self.outside
+        if outside is None or (self.steps - outside.step) * self.timestep > OUTSIDE_WINDOW:
+            return None
+        return outside
+
+    def _outside_cause(self) -> str | None:
+        outside = self.recent_input()
+        if outside is None:
+            return None
+        ago = (self.steps - outside.step) * self.timestep
+        return f"the outside input {outside.what}, {ago:.3f} s of sim time before"
+
+    def _diverged(self, error: DivergenceError) -> None:
+        """Raise `error`, unless an outside input caused it and recover_outside is set: then
+        that input is undone where it lasts (physics settings, gains), the world is reset as
+        Gazebo's reset_world does, a warning says why, and the run goes on. No input from the
+        graph may end the simulation; a model that diverges on its own still stops it."""
+        outside = self.recent_input()
+        if outside is None or not self.recover_outside:
+            raise error
+        self.outside = None
+        undone = ""
+        if outside.undo is not None:
+            try:
+                outside.undo()
+                undone = " it was undone and"
+            except Exception as exc:  # noqa: BLE001 - the reset below still saves the run
+                log.warning("could not undo %s: %s", outside.what, exc)
+        log.warning("%s;%s the world was reset (as /gazebo/reset_world) so the simulation goes on",
+                    error.one_line(), undone)
+        self.reset()
 
     def run(self, duration: float, on_tick: Callable[[Simulation], None] | None = None,
             tick: float = 0.05, gate: Gate | None = None,
@@ -367,7 +432,6 @@ class Simulation:
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
-        self._efforts[:] = 0.0
         self.forces = Forces()
         mujoco.mj_forward(self.model, self.data)
         self._time_ns = 0
@@ -480,15 +544,21 @@ class Simulation:
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
-    def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
-        """Joint-space efforts pushed straight onto the joints (Gazebo's Joint::SetForce, clamped to
-        the URDF effort limit as Gazebo clamps it), held until changed. Motors add to them."""
-        vec, given = self._vector(values)
-        self._efforts[given] = np.clip(vec[given], -self._effort_limit[given],
-                                       self._effort_limit[given])
-        self.data.qfrc_applied[self.compiled.dof_adr] = self._efforts
-        if self.forces.active:
-            self.forces.changed = True  # the timed efforts add to the held ones
+    def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
+        """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
+        note per clamped joint ("l_elbow 100 -> 0.1"): a teleport beyond a limit would have the
+        limit's constraint fling the link back, faster than physics allows."""
+        out, notes = {}, []
+        for name, value in values.items():
+            joint = self.robot.joints.get(name)
+            limit = joint.limit if joint is not None and joint.type in ("revolute", "prismatic") \
+                else None
+            clamped = float(value) if limit is None else min(max(float(value), limit.lower),
+                                                             limit.upper)
+            if clamped != value:
+                notes.append(f"{name} {number_text(value)} -> {number_text(clamped)}")
+            out[name] = clamped
+        return out, notes
 
     # ----- links --------------------------------------------------------------------------------
     def body_id(self, link: str) -> int:
@@ -593,7 +663,7 @@ class Simulation:
         apply_joint_effort); motors and other efforts add to it."""
         dof = self._dof(joint)
         if not math.isfinite(effort):
-            raise InputError(f"effort {effort} is not finite")
+            raise InputError(f"effort {number_text(effort)} is not finite")
         begin, end = self._duration_ns(duration, start)
         self.forces.efforts.append(JointEffort(dof, float(effort), begin, end))
         self.forces.changed = True
@@ -612,10 +682,13 @@ class Simulation:
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
-        values = np.asarray(gravity, dtype=float)
-        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 1000:
-            raise InputError(f"gravity {list(values)} must be 3 finite numbers within +-1000 m/s^2")
-        self.model.opt.gravity[:] = values
+        try:
+            values = np.asarray(gravity, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("gravity must be 3 numbers (x y z, m/s^2)") from None
+        if values.shape != (3,):
+            raise InputError(f"gravity must be 3 numbers (x y z, m/s^2), not {values.size}")
+        self.model.opt.gravity[:] = GRAVITY.check_all(values.tolist())
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""
@@ -633,7 +706,11 @@ class Simulation:
         return float(np.arccos(np.clip(rot[2, 2], -1.0, 1.0)))
 
     def _likely_cause(self, link: str) -> str | None:
-        """The lint finding that explains a divergence: on that link first, else anywhere."""
+        """The outside input just before it, else the lint finding that explains a divergence:
+        on that link first, else anywhere."""
+        outside = self._outside_cause()
+        if outside is not None:
+            return outside
         suspects = [f for f in check_model(self.robot) if f.code in _LINT_CAUSES]
         suspects.sort(key=lambda f: f.element != f'link "{link}"')
         if not suspects:

@@ -18,11 +18,12 @@ import mujoco
 import numpy as np
 
 from mexone.errors import MexoneError
+from mexone.ranges import SPEED, SPIN
 
 __all__ = ["DivergenceError", "Watchdog", "link_speeds"]
 
-MAX_LINEAR_SPEED = 50.0  # m/s: no part of a lab robot moves this fast (a 125 m fall)
-MAX_ANGULAR_SPEED = 500.0  # rad/s: 80 turns a second
+MAX_LINEAR_SPEED = SPEED.high  # m/s: no part of a lab robot moves this fast (a 125 m fall)
+MAX_ANGULAR_SPEED = SPIN.high  # rad/s: 80 turns a second
 # Below this in every generalised velocity (rad/s, m/s) the link speeds are not computed: sane
 # robots are far below it, and a diverging one passes it within a few steps of going wrong.
 _CHEAP_BOUND = 25.0

@@ -25,17 +25,13 @@ import threading
 import time
 from collections.abc import Callable
 
-import yaml
-
 from mexone.bus import msgs
-from mexone.control.config import parse_control_config
-from mexone.control.spec import ControlConfig
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
-__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server", "controllers_at",
-           "CLOCK_PERIOD", "DEFAULT_NODE", "CLOCK_FREQUENCY"]
+__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "CLOCK_PERIOD", "DEFAULT_NODE",
+           "CLOCK_FREQUENCY"]
 
 log = logging.getLogger("mexone.ros")
 
@@ -52,6 +48,7 @@ _CLOCK_BURST = 20.0  # /clock messages that may go out at once after a pause in 
 _PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused (Gazebo keeps publishing)
 _NOT_MIRRORED = {"/clock", "/tf"}  # the bridge publishes these itself (see _publish_clock, TF)
 _HEAVY = (msgs.Image, msgs.PointCloud2)
+_START_WAIT = 120.0  # s a service call made while the simulator starts waits for it
 
 
 def import_rospy():
@@ -72,35 +69,6 @@ def import_rospy():
                               hint=f"reinstall with: {ROS_INSTALL}") from None
     interfaces.use_generated()
     return rospy
-
-
-def config_from_param_server(rospy, namespace: str) -> ControlConfig:
-    """The controller configuration a `rosparam load` of the seed's YAML put under /<ns>."""
-    key = "/" + namespace.strip("/")
-    try:
-        params = rospy.get_param(key)
-    except KeyError:
-        raise MexoneError(f"no controller configuration at {key} on the parameter server",
-                          hint="rosparam load your controllers.yaml first, or pass "
-                               "--controllers YAML") from None
-    return parse_control_config(yaml.safe_dump({namespace.strip("/"): _controllers_only(params)}))
-
-
-def controllers_at(rospy, namespace: str) -> ControlConfig:
-    """The controllers on the parameter server under /<ns>, possibly none (a robot spawned
-    before its controllers.yaml was loaded: the spawner's load_controller reads them later)."""
-    ns = namespace.strip("/")
-    params = rospy.get_param("/" + ns, {})
-    return parse_control_config(yaml.safe_dump({ns: _controllers_only(params)}))
-
-
-def _controllers_only(params) -> dict:
-    """The entries of a namespace that are controllers (a `type:`) or gazebo_ros_control's gains;
-    a namespace also holds robot_description, dynamic_reconfigure's values, ..."""
-    if not isinstance(params, dict):
-        return {}
-    return {k: v for k, v in params.items()
-            if (isinstance(v, dict) and "type" in v) or k == "gazebo_ros_control"}
 
 
 class _Mirror:
@@ -173,17 +141,26 @@ class Ros1Bridge:
         self._rosout = _RosoutHandler()
         logging.getLogger("mexone").addHandler(self._rosout)
         self.lab = None
-        self.services: list = []
+        self.ready = threading.Event()  # attach() finished: the simulation thread takes calls
+        self._direct = False
+        self._owner: threading.Thread | None = None
+        from mexone.ros1.gazebo import GazeboNode
+
+        # gazebo_ros' services come with the world, before any robot (Gazebo offers them before
+        # it spawns one): a script that calls spawn_urdf_model as soon as the node is up works;
+        # calls made while the robot still compiles wait for attach()
+        self.gazebo = GazeboNode(self)
+        self.services: list = [self.gazebo]
 
     def attach(self, lab, urdf_text: str) -> None:
-        from geometry_msgs.msg import TransformStamped
         from rosgraph_msgs.msg import Clock
         from tf2_msgs.msg import TFMessage
 
         rospy = self.rospy
         self.lab = lab
+        self._owner = threading.current_thread()
         self._direct = True  # until attach returns, this thread is the one that steps the sim
-        self._types = {"Clock": Clock, "TFMessage": TFMessage, "TransformStamped": TransformStamped}
+        self._types = {"Clock": Clock, "TFMessage": TFMessage}
         rospy.set_param(f"{lab.namespace}/robot_description", urdf_text)
         if self.node_name == DEFAULT_NODE or not rospy.has_param("/robot_description"):
             rospy.set_param("/robot_description", urdf_text)
@@ -206,12 +183,13 @@ class Ros1Bridge:
         lab.sim.on_reset(self._after_reset)
         self.sync_topics()
         from mexone.ros1.controller_manager import ControllerManagerNode
-        from mexone.ros1.gazebo import GazeboNode
 
         if lab.controllers is not None:
             self.services.append(ControllerManagerNode(self))
-        self.services.append(GazeboNode(self))
+        self.gazebo.attach()
+        lab.sim.recover_outside = True  # no input from the graph may end the simulation
         self._direct = False
+        self.ready.set()
         self.master_ok = True
         self._watch = threading.Thread(target=self._watch_master, daemon=True)
         self._watch.start()
@@ -246,14 +224,36 @@ class Ros1Bridge:
 
     def _relay(self, topic: str):
         def callback(ros_msg) -> None:  # rospy's thread: hand over, in order, to the sim thread
-            msg = convert.from_ros(ros_msg)
-            self.lab.sim.work.put(lambda: self.lab.bus.publish(topic, msg))
+            try:
+                msg = convert.from_ros(ros_msg)
+            except Exception as exc:  # noqa: BLE001 - a bad message is dropped, never a crash
+                log.warning("%s: message dropped: %s", topic, exc)
+                return
+
+            def deliver() -> None:
+                self.lab.sim.note_input(topic)
+                self.lab.bus.publish(topic, msg)  # the controllers check it (finite, size, limits)
+            self.post(deliver, topic)
         return callback
 
+    def post(self, fn: Callable[[], object], what: str) -> None:
+        """Hand `fn` to the simulation thread without waiting; what it raises is a warning on
+        /rosout naming `what`, never the end of the simulation loop."""
+        def guarded() -> None:
+            try:
+                fn()
+            except Exception as exc:  # noqa: BLE001 - no input from the graph ends the simulation
+                log.warning("%s: %s", what, exc.one_line() if isinstance(exc, MexoneError)
+                            else f"{type(exc).__name__}: {exc}")
+        self.lab.sim.work.put(guarded)
+
     def call(self, fn: Callable[[], object], timeout: float = 10.0):
-        """Run `fn` in the simulation thread and return its result (for service handlers)."""
-        if self._direct:
+        """Run `fn` in the simulation thread and return its result (for service handlers);
+        before attach() has finished, wait for it (the robot may still be compiling)."""
+        if self._direct and threading.current_thread() is self._owner:
             return fn()
+        if not self.ready.wait(_START_WAIT):
+            raise TimeoutError(f"the simulator has not started within {_START_WAIT:g} s")
         return self.lab.sim.work.call(fn, timeout=timeout)
 
     # ----- /clock ------------------------------------------------------------------------------
@@ -317,21 +317,9 @@ class Ros1Bridge:
         """World -> floating base; robot_state_publisher adds the links from joint_states."""
         if not sim.compiled.free or self.pub_tf.get_num_connections() == 0:
             return
-        body = sim.compiled.root_body
-        tf = self._types["TransformStamped"]()
-        tf.header.stamp = convert.ros_time(sim.time_ns)
-        tf.header.frame_id = "world"
-        tf.child_frame_id = self._frame(sim.robot.base_link)
-        x, y, z = sim.data.xpos[body]
-        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = x, y, z
-        w, qx, qy, qz = sim.data.xquat[body]
-        rot = tf.transform.rotation
-        rot.w, rot.x, rot.y, rot.z = w, qx, qy, qz
-        self.pub_tf.publish(self._types["TFMessage"](transforms=[tf]))
-
-    def _frame(self, link: str) -> str:
-        """A link's TF frame: robot_state_publisher's tf_prefix is the user's to set."""
-        return link
+        # robot_state_publisher's tf_prefix is the user's to set: frames are the links' names
+        base = msgs.TFMessage([self.lab.base_transform()])
+        self.pub_tf.publish(convert.to_ros(base, self._types["TFMessage"]))
 
     # ----- lifecycle ---------------------------------------------------------------------------
     def _watch_master(self) -> None:

@@ -24,15 +24,20 @@ from mexone.control.controllers.trajectory import (
 )
 from mexone.control.manager import BEST_EFFORT, STRICT
 from mexone.control.spec import PidGains
-from mexone.errors import MexoneError
+from mexone.errors import InputError, MexoneError
+from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, TIMEOUT, number_text
 from mexone.ros1 import convert
 
 __all__ = ["ControllerManagerNode", "pid_config_type"]
 
 log = logging.getLogger("mexone.ros")
 _INTERFACE_PREFIX = "hardware_interface::"
-_GAIN_RANGE = {"p": (0.0, 1e5), "i": (0.0, 1e5), "d": (0.0, 1e4), "i_clamp_min": (-1e5, 0.0),
-               "i_clamp_max": (0.0, 1e5)}
+# dynamic_reconfigure's min and max of control_toolbox's parameters, from mexone.ranges
+_GAIN_RANGE = {"p": (GAIN_P.low, GAIN_P.high), "i": (GAIN_I.low, GAIN_I.high),
+               "d": (GAIN_D.low, GAIN_D.high), "i_clamp_min": (I_CLAMP.low, 0.0),
+               "i_clamp_max": (0.0, I_CLAMP.high)}
+_GAIN_CHECKS = {"p": GAIN_P, "i": GAIN_I, "d": GAIN_D, "i_clamp_min": I_CLAMP,
+                "i_clamp_max": I_CLAMP}
 
 
 class ControllerManagerNode:
@@ -56,6 +61,7 @@ class ControllerManagerNode:
                           self._reload),
         ]
         self.extras: dict[str, list] = {}  # controller -> its reconfigure server, action, ...
+        self.trajectories: dict[str, TrajectoryInterfaces] = {}  # trajectory controller -> its action
         for name in list(self.manager.controllers):
             self._add_extras(name)
 
@@ -95,7 +101,7 @@ class ControllerManagerNode:
                     self.manager.define(spec)
                 self.manager.load(name)
             self.bridge.call(load)
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - every refusal is ok=False, never a crash
             log.error("load_controller %s: %s", name, _text(exc))
             return LoadControllerResponse(False)
         self._add_extras(name)
@@ -106,7 +112,7 @@ class ControllerManagerNode:
 
         try:
             self.bridge.call(lambda: self.manager.unload(req.name))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - every refusal is ok=False, never a crash
             log.error("unload_controller %s: %s", req.name, _text(exc))
             return UnloadControllerResponse(False)
         self._remove_extras(req.name)
@@ -116,15 +122,18 @@ class ControllerManagerNode:
         from controller_manager_msgs.srv import SwitchControllerResponse
 
         strictness = req.strictness
-        if strictness not in (BEST_EFFORT, STRICT):
-            log.warning("switch_controller: strictness %d is neither STRICT (2) nor BEST_EFFORT "
-                        "(1); using BEST_EFFORT, as ros_control does", strictness)
-            strictness = BEST_EFFORT
-        start, stop = list(req.start_controllers), list(req.stop_controllers)
         try:
+            if strictness == 0:  # unset: ros_control warns and takes BEST_EFFORT
+                log.warning("switch_controller: no strictness given (0); using BEST_EFFORT (1), "
+                            "as ros_control does; STRICT is 2")
+                strictness = BEST_EFFORT
+            elif strictness not in (BEST_EFFORT, STRICT):
+                raise InputError(f"strictness {strictness} must be BEST_EFFORT (1) or STRICT (2)")
+            TIMEOUT.check(req.timeout, "timeout")
+            start, stop = list(req.start_controllers), list(req.stop_controllers)
             self.bridge.call(lambda: self.manager.switch(start=start, stop=stop,
                                                          strictness=strictness))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - every refusal is ok=False, never a crash
             log.error("switch_controller: %s", _text(exc))
             return SwitchControllerResponse(False)
         return SwitchControllerResponse(True)
@@ -144,7 +153,11 @@ class ControllerManagerNode:
             self.manager.switch(stop=[n for n, c in self.manager.controllers.items() if c.running])
             for name in list(self.manager.controllers):
                 self.manager.unload(name)
-        self.bridge.call(kill)
+        try:
+            self.bridge.call(kill)
+        except Exception as exc:  # noqa: BLE001 - every refusal is ok=False, never a crash
+            log.error("reload_controller_libraries: %s", _text(exc))
+            return ReloadControllerLibrariesResponse(False)
         for name in loaded:
             self._remove_extras(name)
         return ReloadControllerLibrariesResponse(True)
@@ -168,10 +181,12 @@ class ControllerManagerNode:
         if ctrl.gains is not None and len(ctrl.joints) == 1:
             extras.append(self._reconfigure(name, ctrl.gains[0]))
         if ctrl.kind == "trajectory":
-            extras += TrajectoryInterfaces(self, name).handles
+            self.trajectories[name] = TrajectoryInterfaces(self, name)
+            extras += self.trajectories[name].handles
         self.extras[name] = extras
 
     def _remove_extras(self, name: str) -> None:
+        self.trajectories.pop(name, None)
         for handle in self.extras.pop(name, []):
             # a dynamic_reconfigure Server has no shutdown(): its service and topics go one by one
             parts = [getattr(handle, a) for a in ("set_service", "descr_topic", "update_topic")
@@ -187,15 +202,28 @@ class ControllerManagerNode:
         from dynamic_reconfigure.server import Server
 
         def on_change(config, _level):  # rospy thread (and once at start, with the server's values)
-            new = PidGains(float(config["p"]), float(config["i"]), float(config["d"]),
-                           float(config["i_clamp_min"]), float(config["i_clamp_max"]),
-                           bool(config["antiwindup"]))
-            try:
-                self.bridge.call(lambda: self.manager.set_gains(name, new))
-            except (MexoneError, TimeoutError) as exc:
+            try:  # dynamic_reconfigure clamps to min and max, but a NaN passes its comparisons
+                values = {k: check.check(config[k], f"{name}/pid {k}")
+                          for k, check in _GAIN_CHECKS.items()}
+                new = PidGains(values["p"], values["i"], values["d"], values["i_clamp_min"],
+                               values["i_clamp_max"], bool(config["antiwindup"]))
+                old = self.bridge.call(lambda: list(self.manager.controllers[name].gains))
+
+                def put() -> None:
+                    if old == [new] * len(old):
+                        return  # the server's first call, or no change: no outside input
+                    self.manager.set_gains(name, new)
+                    self.lab.sim.note_input(f"{self.ns}/{name}/pid (p {number_text(new.p)}, i "
+                                            f"{number_text(new.i)}, d {number_text(new.d)})",
+                                            lambda: self.manager.set_gains(name, old))
+                self.bridge.call(put)
+            except Exception as exc:  # noqa: BLE001 - a refusal keeps the gains, never a crash
                 log.error("%s/pid: %s", name, _text(exc))
-                current = self.bridge.call(lambda: self.manager.controllers[name].gains[0])
-                config.update(_gain_values(current))
+                try:
+                    current = self.bridge.call(lambda: self.manager.controllers[name].gains[0])
+                    config.update(_gain_values(current))
+                except Exception:  # noqa: BLE001 - the controller went meanwhile
+                    pass
             return config
 
         return Server(pid_config_type(gains), on_change, namespace=f"{self.ns}/{name}/pid")
@@ -222,9 +250,27 @@ class TrajectoryInterfaces:
     def _goal(self, handle) -> None:
         """actionlib's thread, holding its lock: hand over and return at once."""
         goal = handle.get_goal()
-        trajectory = convert.trajectory_from_ros(goal.trajectory)
+        try:
+            trajectory = convert.trajectory_from_ros(goal.trajectory)
+        except Exception as exc:  # noqa: BLE001 - rejected, never a crash
+            self._reject(handle, f"cannot read the trajectory: {exc}")
+            return
         joints = list(goal.trajectory.joint_names)
-        self.node.lab.sim.work.put(lambda: self._start(handle, goal, trajectory, joints))
+
+        def start() -> None:  # simulation thread: a goal is always answered
+            try:
+                self._start(handle, goal, trajectory, joints)
+            except Exception as exc:  # noqa: BLE001 - rejected, never a crash
+                self._reject(handle, _text(exc))
+        self.node.bridge.post(start, f"{self.node.ns}/{self.name}/follow_joint_trajectory")
+
+    def _reject(self, handle, text: str) -> None:
+        from control_msgs.msg import FollowJointTrajectoryResult
+
+        log.warning("%s/%s/follow_joint_trajectory: goal rejected: %s", self.node.ns, self.name,
+                    text)
+        handle.set_rejected(FollowJointTrajectoryResult(
+            error_code=FollowJointTrajectoryResult.INVALID_GOAL, error_string=text), text)
 
     def _start(self, handle, goal, trajectory, joints) -> None:  # simulation thread
         from control_msgs.msg import FollowJointTrajectoryResult
@@ -245,6 +291,8 @@ class TrajectoryInterfaces:
             result = FollowJointTrajectoryResult(error_code=code if code != PREEMPTED else 0,
                                                  error_string=text)
             if not accepted:
+                log.warning("%s/%s/follow_joint_trajectory: goal rejected: %s", self.node.ns,
+                            self.name, text)
                 handle.set_rejected(result, text)
             elif code == SUCCESSFUL:
                 handle.set_succeeded(result, text)
@@ -264,6 +312,7 @@ class TrajectoryInterfaces:
         self.controller.execute(trajectory, tg, sim.time)
         if not outcome:
             accepted = True
+            sim.note_input(f"{self.node.ns}/{self.name}/follow_joint_trajectory goal")
             handle.set_accepted("")
 
     def _feedback(self, handle, joints, t, desired, velocity, actual, actual_velocity) -> None:
@@ -280,7 +329,8 @@ class TrajectoryInterfaces:
 
     def _cancel(self, handle) -> None:
         sim = self.node.lab.sim
-        sim.work.put(lambda: self.controller.cancel(sim.time))
+        self.node.bridge.post(lambda: self.controller.cancel(sim.time),
+                              f"{self.node.ns}/{self.name}/follow_joint_trajectory cancel")
 
     def _query(self, req):
         from control_msgs.srv import QueryTrajectoryStateResponse
@@ -288,7 +338,11 @@ class TrajectoryInterfaces:
         t = req.time.to_sec()
         if not math.isfinite(t):
             return QueryTrajectoryStateResponse()
-        pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        try:
+            pos, vel, acc = self.node.bridge.call(lambda: self.controller.query_state(t))
+        except Exception as exc:  # noqa: BLE001 - an empty answer and a line, never a crash
+            log.warning("%s/%s/query_state: %s", self.node.ns, self.name, _text(exc))
+            return QueryTrajectoryStateResponse()
         return QueryTrajectoryStateResponse(list(self.controller.joints), list(pos), list(vel), list(acc))
 
 
@@ -297,6 +351,9 @@ class _ActionHandle:
         self.server = server
 
     def shutdown(self) -> None:
+        timer = getattr(self.server, "status_timer", None)
+        if timer is not None:  # first: it publishes the status on a publisher about to go
+            timer.shutdown()
         for attr in ("status_pub", "result_pub", "feedback_pub", "goal_sub", "cancel_sub"):
             handle = getattr(self.server, attr, None)
             if handle is not None:

@@ -10,19 +10,21 @@ status_message, as gazebo_ros does; the handlers never let an exception reach ro
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import tempfile
+import threading
 from collections.abc import Callable
 from pathlib import Path
 
 import mujoco
 import numpy as np
 
-from mexone.errors import MexoneError
+from mexone.errors import InputError, MexoneError
 from mexone.physics.compile import Spawn
-from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP
-from mexone.ros1 import convert
+from mexone.ranges import FORCE, GRAVITY, JOINT_VALUE, RTF, TIMESTEP, number_text
+from mexone.ros1 import checks, convert
 
 __all__ = ["GazeboNode", "STATES_RATE"]
 
@@ -38,16 +40,16 @@ class GazeboNode:
         from gazebo_msgs.msg import LinkStates, ModelStates
         from std_srvs.srv import Empty
 
-        self.bridge, self.rospy, self.lab = bridge, bridge.rospy, bridge.lab
+        self.bridge, self.rospy = bridge, bridge.rospy
         rospy, ns = self.rospy, bridge.gazebo_ns
         self.managers: dict = {}  # spawned robot -> its ControllerManager (simulation thread)
         self.nodes: dict = {}  # spawned robot -> its ControllerManagerNode (services)
-        sim = self.lab.sim
+        self._state_types = (LinkStates, ModelStates)
         table: list[tuple[str, type, Callable]] = [
-            ("pause_physics", Empty, self._empty(sim.pause)),
-            ("unpause_physics", Empty, self._empty(sim.resume)),
-            ("reset_simulation", Empty, self._empty(sim.reset)),
-            ("reset_world", Empty, self._empty(sim.reset)),
+            ("pause_physics", Empty, self._empty(lambda: self.lab.sim.pause())),
+            ("unpause_physics", Empty, self._empty(lambda: self.lab.sim.resume())),
+            ("reset_simulation", Empty, self._empty(lambda: self.lab.sim.reset())),
+            ("reset_world", Empty, self._empty(lambda: self.lab.sim.reset())),
             ("get_model_state", srv.GetModelState, self._get_model_state),
             ("set_model_state", srv.SetModelState, self._set_model_state),
             ("get_link_state", srv.GetLinkState, self._get_link_state),
@@ -66,8 +68,20 @@ class GazeboNode:
             ("delete_model", srv.DeleteModel, self._delete_model),
         ]
         self.services = [rospy.Service(f"{ns}/{name}", kind, handler) for name, kind, handler in table]
-        self.model_states = _Lazy(self, f"{ns}/model_states", ModelStates, self._model_states)
-        self.link_states = _Lazy(self, f"{ns}/link_states", LinkStates, self._link_states)
+
+    @property
+    def lab(self):
+        """The bridge's lab, once attached (a call that comes earlier waits for it)."""
+        if self.bridge.lab is None:
+            self.bridge.call(lambda: None)  # waits for attach(), or raises TimeoutError
+        return self.bridge.lab
+
+    def attach(self) -> None:
+        """The lab is there: the state topics (their publishers feed on the simulation)."""
+        ns = self.bridge.gazebo_ns
+        link_states, model_states = self._state_types
+        self.model_states = _Lazy(self, f"{ns}/model_states", model_states, self._model_states)
+        self.link_states = _Lazy(self, f"{ns}/link_states", link_states, self._link_states)
 
     # ----- helpers ------------------------------------------------------------------------------
     def _empty(self, action: Callable[[], None]):
@@ -76,20 +90,31 @@ class GazeboNode:
         def handler(_req):
             try:
                 self.bridge.call(action)
-            except (MexoneError, TimeoutError) as exc:
+            except Exception as exc:  # noqa: BLE001 - logged, never a crash
                 log.error("%s", _text(exc))
             return EmptyResponse()
         return handler
 
-    def _answer(self, response_cls, fn: Callable[[], dict | None], **failure) -> object:
+    def _answer(self, response_cls, fn: Callable[[], dict | None], quiet: bool = False,
+                **failure) -> object:
         """Run `fn` in the simulation thread: its dict fills the response (success=True); an
-        error is success=False with the reason."""
+        error is success=False with the reason, also on /rosout. Nothing a request carries
+        may raise past here (rospy would only say "service cannot process request")."""
         try:
             fields = self.bridge.call(fn) or {}
-        except (MexoneError, TimeoutError, ValueError) as exc:
-            return response_cls(success=False, status_message=_text(exc), **failure)
+        except Exception as exc:  # noqa: BLE001 - every refusal is an answer, never a crash
+            text = _text(exc)
+            if not quiet:  # (the caller says it)
+                log.warning("%s/%s: %s", self.bridge.gazebo_ns, _service_name(response_cls), text)
+            return response_cls(success=False, status_message=text, **failure)
         return response_cls(success=True, status_message=fields.pop("status_message", "ok"),
                             **fields)
+
+    def _noted(self, service: str, detail: str = "", undo: Callable[[], None] | None = None) -> None:
+        """Tell the simulation an outside input changed it (simulation thread): a divergence
+        soon after names it and is undone instead of ending the run."""
+        self.lab.sim.note_input(f"{self.bridge.gazebo_ns}/{service}"
+                                + (f" ({detail})" if detail else ""), undo)
 
     def _models(self) -> dict[str, str]:
         """Model name -> the MuJoCo name of its root body (the robot's first)."""
@@ -167,16 +192,18 @@ class GazeboNode:
 
         state = req.model_state
         return self._answer(SetModelStateResponse, lambda: self._place(
-            self._model_root(state.model_name), state.pose, state.twist, state.reference_frame))
+            self._model_root(state.model_name), state.pose, state.twist, state.reference_frame,
+            "set_model_state", state.model_name))
 
-    def _place(self, body: str, pose, twist, reference: str) -> None:
+    def _place(self, body: str, pose, twist, reference: str, service: str, name: str) -> None:
         if reference not in _WORLD:
             raise MexoneError(f"reference_frame '{reference}': only the world frame is supported "
                               "for setting states", hint="leave it empty or 'world'")
-        p, o = pose.position, pose.orientation
-        lin, ang = twist.linear, twist.angular
-        self.lab.sim.set_free_body(body, (p.x, p.y, p.z), (o.w, o.x, o.y, o.z),
-                                   (lin.x, lin.y, lin.z), (ang.x, ang.y, ang.z))
+        position = checks.position(pose.position, "pose.position")
+        quat = checks.quaternion(pose.orientation, "pose.orientation", zero_is_identity=False)
+        linear, angular = checks.twist(twist, "twist")
+        self.lab.sim.set_free_body(body, position, quat, linear, angular)
+        self._noted(service, name)
 
     def _get_link_state(self, req):
         from gazebo_msgs.msg import LinkState
@@ -199,7 +226,8 @@ class GazeboNode:
                 raise MexoneError(f"link '{state.link_name}' hangs on a joint; only a model's "
                                   "floating root link can be placed",
                                   hint="set joints with set_model_configuration")
-            self._place(body, state.pose, state.twist, state.reference_frame)
+            self._place(body, state.pose, state.twist, state.reference_frame, "set_link_state",
+                        state.link_name)
         return self._answer(SetLinkStateResponse, put)
 
     # ----- forces -------------------------------------------------------------------------------
@@ -216,13 +244,17 @@ class GazeboNode:
             body = self._link(req.body_name)
             frame = req.reference_frame
             frame = "world" if frame in _WORLD else self._link(frame)
-            f, t, p = req.wrench.force, req.wrench.torque, req.reference_point
-            offset = np.array([p.x, p.y, p.z], dtype=float)
+            force = checks.force(req.wrench.force, "wrench.force")
+            torque = checks.force(req.wrench.torque, "wrench.torque")
+            offset = checks.offset(req.reference_point, "reference_point")
             point = None
             if offset.any():  # from the pushed link's origin, in the frame's axes
                 point = sim.link_pose(body)[0] + offset if frame == "world" else offset
             start, length = self._timing(req.start_time, req.duration)
-            sim.apply_wrench(body, (f.x, f.y, f.z), (t.x, t.y, t.z), point, frame, length, start)
+            sim.apply_wrench(body, force, torque, point, frame, length, start)
+            self._noted("apply_body_wrench", f"{req.body_name}: force "
+                        + " ".join(number_text(v) for v in force) + ", torque "
+                        + " ".join(number_text(v) for v in torque))
         return self._answer(ApplyBodyWrenchResponse, push)
 
     def _clear_body_wrenches(self, req):
@@ -230,7 +262,7 @@ class GazeboNode:
 
         try:
             self.bridge.call(lambda: self.lab.sim.clear_wrenches(self._link(req.body_name)))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - logged, never a crash
             log.error("clear_body_wrenches: %s", _text(exc))
         return BodyRequestResponse()
 
@@ -238,8 +270,10 @@ class GazeboNode:
         from gazebo_msgs.srv import ApplyJointEffortResponse
 
         def push():
+            effort = FORCE.check(req.effort, "effort")
             start, length = self._timing(req.start_time, req.duration)
-            self.lab.sim.apply_joint_effort(req.joint_name, req.effort, length, start)
+            self.lab.sim.apply_joint_effort(req.joint_name, effort, length, start)
+            self._noted("apply_joint_effort", f"{req.joint_name} {number_text(effort)}")
         return self._answer(ApplyJointEffortResponse, push)
 
     def _clear_joint_forces(self, req):
@@ -247,7 +281,7 @@ class GazeboNode:
 
         try:
             self.bridge.call(lambda: self.lab.sim.clear_joint_efforts(req.joint_name))
-        except (MexoneError, TimeoutError) as exc:
+        except Exception as exc:  # noqa: BLE001 - logged, never a crash
             log.error("clear_joint_forces: %s", _text(exc))
         return JointRequestResponse()
 
@@ -306,23 +340,33 @@ class GazeboNode:
         iterations (ode_config.sor_pgs_iters); ODE's other knobs have no MuJoCo meaning."""
         from gazebo_msgs.srv import SetPhysicsPropertiesResponse
 
-        def put():
+        def put():  # every field is checked before anything changes
             sim = self.lab.sim
-            step, rate = float(req.time_step), float(req.max_update_rate)
-            if not MIN_TIMESTEP <= step <= MAX_TIMESTEP:
-                raise MexoneError(f"time_step {step:g} s is out of range",
-                                  hint=f"use {MIN_TIMESTEP:g} to {MAX_TIMESTEP:g} s")
+            step = TIMESTEP.check(req.time_step, "time_step")
+            rate = float(req.max_update_rate)
             if not (math.isfinite(rate) and rate >= 0):
-                raise MexoneError(f"max_update_rate {rate:g} must be >= 0 (0: as fast as possible)")
-            g = req.gravity
-            sim.set_gravity((g.x, g.y, g.z))
+                raise InputError(f"max_update_rate {number_text(rate)} must be a finite number "
+                                 ">= 0 (0: as fast as possible)")
+            rtf = RTF.check(rate * step, "max_update_rate x time_step (the real-time factor)")
+            gravity = checks.vector(req.gravity, GRAVITY, "gravity")
+            iterations = int(req.ode_config.sor_pgs_iters)
+            before = (sim.gravity, sim.timestep, sim.target_rtf, int(sim.model.opt.iterations))
+
+            def undo() -> None:
+                sim.set_gravity(before[0])
+                sim.set_timestep(before[1])
+                sim.target_rtf = before[2]
+                sim.model.opt.iterations = before[3]
+
+            sim.set_gravity(gravity)
             sim.set_timestep(step)
-            sim.target_rtf = rate * step if rate > 0 else None
+            sim.target_rtf = rtf if rate > 0 else None
             if not sim.paused:
                 sim.resume()  # pacing restarts from now, at the new rate
-            iterations = int(req.ode_config.sor_pgs_iters)
             if iterations > 0:
                 sim.model.opt.iterations = min(iterations, 1000)
+            self._noted("set_physics_properties", f"time_step {number_text(step)}, gravity "
+                        + " ".join(number_text(v) for v in gravity), undo)
         return self._answer(SetPhysicsPropertiesResponse, put)
 
     def _set_configuration(self, req):
@@ -336,54 +380,87 @@ class GazeboNode:
             if len(req.joint_names) != len(req.joint_positions):
                 raise MexoneError(f"{len(req.joint_names)} joint names but "
                                   f"{len(req.joint_positions)} positions")
-            values = dict(zip(req.joint_names, req.joint_positions, strict=True))
+            names = checks.names(req.joint_names, "joint_names")
+            unknown = [n for n in names if n not in sim.joint_names]
+            if unknown:
+                raise InputError(f"no moving joint named {', '.join(unknown)}",
+                                 hint="joints: " + ", ".join(sim.joint_names))
+            asked = {n: JOINT_VALUE.check(v, f"{n} position")
+                     for n, v in zip(names, req.joint_positions, strict=True)}
+            # beyond a limit: clamped with a warning (docs/DECISIONS.md), as the controllers'
+            # commands are; a teleport past it would be flung back faster than physics allows
+            values, clamped = sim.within_limits(asked)
             sim.set_joint_positions(values)
             if self.lab.controllers is not None:
                 self.lab.controllers.hold(values)  # they hold the new pose, not the old setpoint
+            self._noted("set_model_configuration",
+                        ", ".join(f"{n} {number_text(v)}" for n, v in values.items()))
+            if not clamped:
+                return None
+            text = "clamped to the joint limits: " + ", ".join(clamped)
+            log.warning("%s/set_model_configuration: %s", self.bridge.gazebo_ns, text)
+            return {"status_message": f"SetModelConfiguration: {text}"}
         return self._answer(SetModelConfigurationResponse, put)
 
     # ----- models -------------------------------------------------------------------------------
     def _spawn(self, suffix: str):
-        from gazebo_msgs.srv import SpawnModelResponse
 
         def handler(req):
-            name = req.model_name.strip()
-            if not name or "/" in name or "::" in name:
-                return SpawnModelResponse(False, f"model_name '{req.model_name}' must be a plain "
-                                                 "non-empty name")
-            if req.reference_frame not in _WORLD:
-                return SpawnModelResponse(False, "only the world reference_frame is supported")
-            p, o = req.initial_pose.position, req.initial_pose.orientation
-            quat = np.array([o.w, o.x, o.y, o.z], dtype=float)
-            if not np.isfinite(quat).all() or not np.any(quat):
-                quat = np.array([1.0, 0, 0, 0])
-            spawn = Spawn((p.x, p.y, p.z), _rpy(quat / np.linalg.norm(quat)), on_ground=False)
             with tempfile.TemporaryDirectory() as tmp:  # alive until the model has compiled
-                try:
-                    robot = _load_text(req.model_xml, Path(tmp) / f"model{suffix}")
-                except (MexoneError, OSError) as exc:
-                    return SpawnModelResponse(False, f"cannot read the model: {_text(exc)}")
-                if not robot.transmissions:
-                    def add():
-                        self.lab.sim.add_model(robot, name, spawn)
-                        return {"status_message": "SpawnModel: Successfully spawned entity"}
-                    return self._answer(SpawnModelResponse, add)
-                return self._spawn_robot(req, robot, name, spawn)
+                path = Path(tmp) / f"model{suffix}"
+                answer = self._spawn_from(req, path)
+            # the file is ours, not the caller's: name what they sent
+            answer.status_message = answer.status_message.replace(str(path), "model_xml")
+            if not answer.success:
+                log.warning("%s/spawn_%s_model: %s", self.bridge.gazebo_ns, suffix[1:],
+                            answer.status_message)
+            return answer
         return handler
+
+    def _spawn_from(self, req, path: Path):
+        from gazebo_msgs.srv import SpawnModelResponse
+
+        name = req.model_name.strip()
+        if not name or "/" in name or "::" in name:
+            return SpawnModelResponse(False, f"model_name '{req.model_name}' must be a plain "
+                                             "non-empty name")
+        if req.reference_frame not in _WORLD:
+            return SpawnModelResponse(False, "only the world reference_frame is supported")
+        try:
+            position = checks.position(req.initial_pose.position, "initial_pose.position")
+            quat = checks.quaternion(req.initial_pose.orientation, "initial_pose.orientation")
+        except InputError as exc:
+            return SpawnModelResponse(False, _text(exc))
+        spawn = Spawn(tuple(position), _rpy(quat), on_ground=False)
+        try:
+            robot = _load_text(req.model_xml, path)
+        except Exception as exc:  # noqa: BLE001 - whatever the text holds: an answer, never a crash
+            return SpawnModelResponse(False, f"cannot read the model: {_text(exc)}")
+        if not robot.transmissions:
+            def add():
+                self.lab.sim.add_model(robot, name, spawn)
+                self._noted("spawn_model", name, lambda: self.lab.sim.remove_model(name))
+                return {"status_message": "SpawnModel: Successfully spawned entity"}
+            return self._answer(SpawnModelResponse, add, quiet=True)
+        return self._spawn_robot(req, robot, name, spawn)
 
     def _spawn_robot(self, req, robot, name: str, spawn: Spawn):
         """A robot with transmissions gets what gazebo_ros_control gives it: a controller manager
         in its namespace (spawn_model's -robot_namespace, else its URDF's, else its name) with
         the controllers on the parameter server there, loaded stopped for the spawner."""
         from gazebo_msgs.srv import SpawnModelResponse
+        from rosgraph.names import is_legal_name
 
         from mexone.control.hardware import SimHardware, build_actuators
         from mexone.control.manager import ControllerManager
-        from mexone.ros1.bridge import controllers_at
+        from mexone.lab import robot_namespace
         from mexone.ros1.controller_manager import ControllerManagerNode
+        from mexone.ros1.params import controllers_at
 
-        ns = "/" + (req.robot_namespace.strip().strip("/") or (robot.ros_namespace or "").strip("/")
-                    or name)
+        ns = robot_namespace(robot, None, req.robot_namespace, name)  # its YAML is found there
+        if not is_legal_name(ns):
+            return SpawnModelResponse(False, f"robot_namespace '{req.robot_namespace}' is not a ROS "
+                                             "name (letters, digits, _ and /)")
         taken = {self.lab.namespace} | {m.namespace for m in self.managers.values()}
         if ns in taken:
             return SpawnModelResponse(False, f"robot_namespace {ns} is taken by another robot: "
@@ -402,12 +479,28 @@ class GazeboNode:
             except MexoneError:
                 sim.remove_model(name)
                 raise
+            self._noted("spawn_model", name, lambda: self._undo_spawn(name))
             return {"status_message": f"SpawnModel: Successfully spawned entity (controller "
                                       f"manager at {ns}/controller_manager)"}
-        answer = self._answer(SpawnModelResponse, add)
+        answer = self._answer(SpawnModelResponse, add, quiet=True)
         if answer.success:
-            self.nodes[name] = ControllerManagerNode(self.bridge, self.managers[name], ns)
+            try:
+                self.nodes[name] = ControllerManagerNode(self.bridge, self.managers[name], ns)
+            except Exception as exc:  # noqa: BLE001 - no services, no robot: taken back
+                with contextlib.suppress(Exception):  # the answer below says what went wrong
+                    self.bridge.call(lambda: self._undo_spawn(name))
+                return SpawnModelResponse(False, f"controller manager at {ns}: {_text(exc)}")
         return answer
+
+    def _undo_spawn(self, name: str) -> None:
+        """A spawned robot that made the physics diverge is deleted again (simulation thread)."""
+        manager = self.managers.pop(name, None)
+        if manager is not None:
+            manager.close()
+        self.lab.sim.remove_model(name)
+        node = self.nodes.pop(name, None)
+        if node is not None:
+            threading.Thread(target=node.shutdown, daemon=True).start()  # rospy, not the physics
 
     def _delete_model(self, req):
         from gazebo_msgs.srv import DeleteModelResponse
@@ -508,6 +601,12 @@ def _load_text(xml: str, path: Path):
         raise MexoneError("model_xml is empty")
     path.write_text(xml)
     return load_model(path)
+
+
+def _service_name(response_cls: type) -> str:
+    """SetModelConfigurationResponse -> set_model_configuration."""
+    name = response_cls.__name__.removesuffix("Response")
+    return "".join(f"_{c.lower()}" if c.isupper() else c for c in name).lstrip("_")
 
 
 def _text(exc: BaseException) -> str:

@@ -17,10 +17,14 @@ from mexone.bus.msgs import JointTrajectory
 from mexone.control.controllers.base import register
 from mexone.control.controllers.position import PositionController
 from mexone.errors import InputError
+from mexone.ranges import JOINT_VALUE, VELOCITY, number_text
 
-__all__ = ["TrajectoryController", "TrajectoryGoal", "SUCCESSFUL", "INVALID_GOAL", "INVALID_JOINTS",
+__all__ = ["TrajectoryController", "TrajectoryGoal", "trajectory_problem", "NOT_INCREASING",
+           "SUCCESSFUL", "INVALID_GOAL", "INVALID_JOINTS",
            "PATH_TOLERANCE_VIOLATED", "GOAL_TOLERANCE_VIOLATED", "PREEMPTED"]
 
+# joint_trajectory_controller's words for the one check it makes of the times
+NOT_INCREASING = "Trajectory message contains waypoints that are not strictly increasing in time."
 # control_msgs/FollowJointTrajectoryResult error codes (and PREEMPTED: a newer goal or a cancel)
 SUCCESSFUL, INVALID_GOAL, INVALID_JOINTS = 0, -1, -2
 PATH_TOLERANCE_VIOLATED, GOAL_TOLERANCE_VIOLATED = -4, -5
@@ -85,6 +89,10 @@ class TrajectoryController(PositionController):
         if missing or not msg.points:
             self.warn_once("traj", f"trajectory without points or joints {missing}; ignored")
             return None
+        problem = trajectory_problem(msg)
+        if problem:
+            self.warn_once("bad", f"{problem}; trajectory ignored")
+            return None
         return msg
 
     def apply(self, msg: JointTrajectory, t: float) -> None:
@@ -128,8 +136,9 @@ class TrajectoryController(PositionController):
             goal.done(INVALID_JOINTS, f"joints {list(msg.joint_names)} are not this controller's "
                                       f"{self.joints}")
             return
-        if not msg.points or any(len(p.positions) != len(msg.joint_names) for p in msg.points):
-            goal.done(INVALID_GOAL, "every point needs one position per joint")
+        problem = trajectory_problem(msg)
+        if problem:
+            goal.done(INVALID_GOAL, problem)
             return
         self._end_goal(PREEMPTED, "preempted by a newer goal")
         if not self._replace(msg, t):
@@ -211,3 +220,37 @@ class TrajectoryController(PositionController):
             self.follow(desired, velocity)
             if self.goal is not None:
                 self._check_goal(t, desired, velocity)
+
+
+def trajectory_problem(msg: JointTrajectory) -> str | None:
+    """What makes a trajectory unusable, or None: no points; a point without one position per
+    joint, or with velocities or accelerations of the wrong length; a value that is not finite
+    or beyond mexone.ranges (JOINT_VALUE, VELOCITY); a negative time; times not strictly
+    increasing (joint_trajectory_controller refuses those with NOT_INCREASING)."""
+    n = len(msg.joint_names)
+    if not msg.points:
+        return "Trajectory message contains empty trajectory. Nothing to convert."
+    times = []
+    for k, point in enumerate(msg.points):
+        if len(point.positions) != n:
+            return f"point {k} has {len(point.positions)} positions for {n} joints"
+        for field_name, rng in (("velocities", VELOCITY), ("accelerations", None)):
+            values = getattr(point, field_name)
+            if values and len(values) != n:
+                return f"point {k} has {len(values)} {field_name} for {n} joints"
+            for j, v in enumerate(values):
+                if not np.isfinite(v) or (rng is not None and not rng.contains(abs(v))):
+                    bound = f" within +-{number_text(rng.high)} {rng.unit}" if rng else ""
+                    return (f"point {k}: {field_name} of {msg.joint_names[j]} {number_text(v)} "
+                            f"must be finite{bound}")
+        for j, v in enumerate(point.positions):
+            if not JOINT_VALUE.contains(v):
+                return (f"point {k} position of {msg.joint_names[j]} {number_text(v)} must be "
+                        f"{JOINT_VALUE.describe()}")
+        t = point.time_from_start.to_sec()
+        if t < 0:
+            return f"point {k} time_from_start {number_text(t)} s is negative"
+        times.append(t)
+    if any(b <= a for a, b in zip(times, times[1:], strict=False)):
+        return NOT_INCREASING
+    return None
