@@ -747,6 +747,6 @@ def test_nan_and_huge_commands_on_a_topic_are_dropped_or_clamped(sim):
                               "std_msgs/Float64", f"data: {value}"], env=ros_env(sim.port),
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stderr
-    assert sim.heard("neck_pitch_position_controller: command [nan] is not finite; ignored")
+    assert sim.heard("neck_pitch_position_controller: command (NaN) is not finite; ignored")
     assert sim.heard("clamped: neck_pitch 1e+300 -> 0.8")
     sim.assert_alive()
