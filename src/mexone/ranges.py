@@ -20,7 +20,7 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table",
            "MASS", "MOMENT", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE", "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
-           "PUSH_DURATION", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT"]
+           "PUSH_DURATION", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT", "CONTROL_PERIOD"]
 
 
 def number_text(value: float) -> str:
@@ -107,6 +107,8 @@ STEPS = Range("steps", "", 1, 100_000, integer=True, why="Step N on the page")
 PORT = Range("port", "", 0, 65535, integer=True, why="0 picks a free port")
 MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm has scale 0.001")
 TIMEOUT = Range("timeout", "s", 0.0, 1e6, why="a ROS service's timeout (0: none)")
+CONTROL_PERIOD = Range("control period", "s", 1e-5, 10.0, why="the controllers' period (at least "
+                       "the physics step): 0.1 Hz is no controller")
 
 RANGES: tuple[Range, ...] = tuple(v for v in globals().values() if isinstance(v, Range))
 
