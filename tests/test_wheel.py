@@ -71,7 +71,8 @@ class Venv:
         exe = str(self.bin / args[0]) if (self.bin / args[0]).exists() else args[0]
         out = subprocess.run([exe, *args[1:]], cwd=cwd or self.work, env=self.env,
                              capture_output=True, text=True, timeout=timeout)
-        assert out.returncode == 0, f"{' '.join(args)}: exit {out.returncode}\n{out.stderr[-3000:]}"
+        said = (out.stderr + out.stdout)[-3000:]  # `run --json` reports a routine's error on stdout
+        assert out.returncode == 0, f"{' '.join(args)}: exit {out.returncode}\n{said}"
         return out
 
 
@@ -144,6 +145,9 @@ def _jobs(venv: Venv, urdf: Path, jobs: dict[str, Future]) -> dict[str, object]:
                                         "64x48", "--fps", "10", "-o", "home.gif"),
         "test_check": lambda: venv.run("mexone", "check"),
         "test_sim": lambda: venv.run("mexone", "sim", "--headless", "--duration", "0.2", "--json"),
+        "test_ros_env_puts_an_unactivated_venvs_mexone_on_path": lambda: venv.run(
+            "bash", "-c", f'PATH=/usr/bin:/bin; eval "$({venv.bin}/mexone ros-env)" && '
+                          'command -v mexone && command -v python3'),
         "test_ros_env_finds_the_installed_packages": lambda: (
             venv.run("bash", "-c", ROS_ENV_SCRIPT) if shutil.which("roslaunch") else None),
     }
@@ -296,3 +300,10 @@ def test_ros_env_finds_the_installed_packages(jobs, installed):
     scripts = installed / "robots" / "mex_one" / "scripts"
     assert lines[3].endswith(f"{scripts}/sweep_node.py __name:=routine")
     assert lines[4].endswith(f"{scripts}/arms_node.py __name:=routine")
+
+
+def test_ros_env_puts_an_unactivated_venvs_mexone_on_path(jobs, venv):
+    """roslaunch mex_rb model.launch runs `mexone sim --ros` by name: it must find this one,
+    and the venv must not shadow the system's python3 that ROS's nodes run on."""
+    found = jobs["test_ros_env_puts_an_unactivated_venvs_mexone_on_path"].result().stdout.split()
+    assert found == [str(venv.bin / "mexone"), "/usr/bin/python3"]

@@ -5,7 +5,10 @@ src/ folder to point them at."""
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
+import sys
+from pathlib import Path
 
 from mexone.ros1.interfaces import environment
 
@@ -16,7 +19,9 @@ Print the shell exports that let ROS 1 tools find mexone's packages wherever pip
 ROS_PACKAGE_PATH gains the message packages (controller_manager_msgs, control_msgs,
 gazebo_msgs), controller_manager with its spawner and the robot package mex_rb (roslaunch
 mex_rb control.launch); PYTHONPATH gains the messages' Python (rostopic, rosservice, rospy
-nodes). Existing entries stay first; nothing is added twice, so running it again is harmless.
+nodes); PATH gains the folder of this `mexone` command if it is not on PATH (an unactivated
+venv), since roslaunch mex_rb model.launch starts `mexone sim --ros`. Existing entries stay
+first; nothing is added twice, so running it again is harmless.
 
     eval "$(mexone ros-env)"        # in ~/.bashrc after ROS's own setup"""
 
@@ -30,9 +35,22 @@ def add_parser(sub) -> None:
 
 
 def exports(env: dict[str, str] | None = None) -> str:
-    """POSIX shell lines (sh, bash, zsh) exporting the two paths with mexone's entries added."""
+    """POSIX shell lines (sh, bash, zsh) exporting the paths with mexone's entries added."""
     new = environment(env)
-    return "".join(f"export {key}={shlex.quote(new[key])}\n" for key in KEYS)
+    lines = [f"export {key}={shlex.quote(new[key])}\n" for key in KEYS]
+    folder = _command_folder()
+    path = [p for p in new.get("PATH", "").split(os.pathsep) if p]
+    if folder is not None and folder not in path:  # appended: never shadows the system python3
+        lines.append(f"export PATH={shlex.quote(os.pathsep.join([*path, folder]))}\n")
+    return "".join(lines)
+
+
+def _command_folder() -> str | None:
+    """The folder holding the `mexone` command that runs (a venv's bin/), if there is one."""
+    for candidate in (Path(sys.argv[0]), Path(sys.executable).with_name("mexone")):
+        if candidate.name == "mexone" and os.access(candidate, os.X_OK):
+            return str(candidate.absolute().parent)
+    return None
 
 
 def run(args: argparse.Namespace) -> int:
