@@ -36,13 +36,14 @@ def test_eval_appends_once_and_keeps_what_was_there(tmp_path):
     odd.mkdir()
     script = (f'eval "$({MEXONE} ros-env)"; eval "$({MEXONE} ros-env)"; '
               'printf "%s\\n%s\\n" "$ROS_PACKAGE_PATH" "$PYTHONPATH"')
-    ros_path, py_path = _shell(script, ROS_PACKAGE_PATH=f"{odd}:/usr/share").splitlines()
+    ros_path, py_path = _shell(script, ROS_PACKAGE_PATH=f"{odd}:/usr/share:/usr/share",
+                               PYTHONPATH=f"{Path(mexone.__file__).parents[1]}:").splitlines()
     robots = str(mex_one.package_dir().parent)
-    assert ros_path.split(":") == [str(odd), "/usr/share", str(interfaces.SHARE), robots]
-    parts = py_path.split(":")
-    assert parts[-1] == str(interfaces.MSGS) and parts.count(str(interfaces.MSGS)) == 1
+    # what was there stays as it was (even a duplicate, even an empty entry: the cwd)
+    assert ros_path.split(":") == [str(odd), "/usr/share", "/usr/share", str(interfaces.SHARE), robots]
+    assert py_path.split(":") == [str(Path(mexone.__file__).parents[1]), "", str(interfaces.MSGS)]
     # the tests' ros_env() builds the same paths (interfaces.environment)
-    expected = interfaces.environment({"ROS_PACKAGE_PATH": f"{odd}:/usr/share"})
+    expected = interfaces.environment({"ROS_PACKAGE_PATH": f"{odd}:/usr/share:/usr/share"})
     assert ros_path == expected["ROS_PACKAGE_PATH"]
 
 

@@ -39,9 +39,9 @@ def exports(env: dict[str, str] | None = None) -> str:
     new = environment(env)
     lines = [f"export {key}={shlex.quote(new[key])}\n" for key in KEYS]
     folder = _command_folder()
-    path = [p for p in new.get("PATH", "").split(os.pathsep) if p]
-    if folder is not None and folder not in path:  # appended: never shadows the system python3
-        lines.append(f"export PATH={shlex.quote(os.pathsep.join([*path, folder]))}\n")
+    path = new.get("PATH", "")
+    if folder is not None and folder not in path.split(os.pathsep):  # appended: the system's
+        lines.append(f"export PATH={shlex.quote(f'{path}{os.pathsep}{folder}')}\n")  # python3 first
     return "".join(lines)
 
 

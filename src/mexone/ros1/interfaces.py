@@ -46,9 +46,9 @@ def environment(env: dict[str, str] | None = None) -> dict[str, str]:
     env = dict(os.environ if env is None else env)
     for key, paths in (("ROS_PACKAGE_PATH", (SHARE, mex_one.package_dir().parent)),
                        ("PYTHONPATH", (MSGS,))):
-        parts = [p for p in env.get(key, "").split(os.pathsep) if p]
-        parts += [str(path) for path in paths if str(path) not in parts]
-        env[key] = os.pathsep.join(dict.fromkeys(parts))  # no duplicates, first one wins
+        value = env.get(key, "")  # kept as it is (an empty PYTHONPATH entry means the cwd)
+        missing = [str(path) for path in paths if str(path) not in value.split(os.pathsep)]
+        env[key] = os.pathsep.join([value, *missing] if value else missing)
     return env
 
 
