@@ -32,6 +32,12 @@ EXAMPLES = sorted((ROOT / "examples").glob("[0-9][0-9]_*.py"))
 TIMES: dict[str, float] = {}  # what building and installing cost, for the report
 
 
+# a clean environment: with this checkout's src/ on PYTHONPATH, pip sees its mexone.egg-info
+# (left by an editable install) as mexone "already installed" and skips the wheel
+CLEAN_ENV = {k: v for k, v in os.environ.items()
+             if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "ROS_PACKAGE_PATH")}
+
+
 def _git(*args: str) -> str:
     if shutil.which("git") is None or not (ROOT / ".git").exists():
         pytest.skip("the wheel tests compare with git: run them in a git checkout")
@@ -52,7 +58,7 @@ def wheel(tmp_path_factory) -> Path:
     start = time.monotonic()
     built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
                             "--disable-pip-version-check", "-w", str(out), str(tree)],
-                           capture_output=True, text=True, timeout=600)
+                           capture_output=True, text=True, timeout=600, env=CLEAN_ENV)
     TIMES["build wheel"] = time.monotonic() - start
     assert built.returncode == 0, built.stderr[-3000:]
     (path,) = out.glob("mexone-*.whl")
@@ -80,26 +86,24 @@ class Venv:
 def venv(wheel, tmp_path_factory) -> Venv:
     """A fresh venv (no system site-packages: those hold the editable mexone) with the wheel."""
     root = tmp_path_factory.mktemp("venv")
+    env = dict(CLEAN_ENV, PATH=f"{root / 'bin'}{os.pathsep}{CLEAN_ENV.get('PATH', '/usr/bin:/bin')}",
+               VIRTUAL_ENV=str(root))
     start = time.monotonic()
-    subprocess.run([sys.executable, "-m", "venv", str(root)], check=True, timeout=300)
+    subprocess.run([sys.executable, "-m", "venv", str(root)], check=True, timeout=300, env=env)
     TIMES["create venv"] = time.monotonic() - start
     start = time.monotonic()
     python = str(root / "bin" / "python")
     pip = subprocess.run([python, "-m", "pip", "install", "-q", "--no-compile",
                           "--disable-pip-version-check", str(wheel)],
-                         capture_output=True, text=True, timeout=1200)
+                         capture_output=True, text=True, timeout=1200, env=env)
     TIMES["pip install wheel + deps"] = time.monotonic() - start
     assert pip.returncode == 0, pip.stderr[-3000:]
     # the byte-code pip would have compiled one file after another, on every core: a user's
     # install has it, and compiling scipy on first import is no part of a routine's first step
     start = time.monotonic()
     subprocess.run([python, "-m", "compileall", "-q", "-j", "0", str(root / "lib")], check=True,
-                   capture_output=True, timeout=1200)
+                   capture_output=True, timeout=1200, env=env)
     TIMES["compile byte-code"] = time.monotonic() - start
-    env = {k: v for k, v in os.environ.items()
-           if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "ROS_PACKAGE_PATH")}
-    env.update(PATH=f"{root / 'bin'}{os.pathsep}{env.get('PATH', '/usr/bin:/bin')}",
-               VIRTUAL_ENV=str(root))
     work = tmp_path_factory.mktemp("work")
     assert not work.resolve().is_relative_to(ROOT)
     return Venv(root / "bin", work, env)
