@@ -125,11 +125,12 @@ ROS_ENV_SCRIPT = (
 
 def _jobs(venv: Venv, urdf: Path, jobs: dict[str, Future]) -> dict[str, object]:
     """Each test's commands, in the order they start: the routines and examples first, the
-    benchmark last and alone (its parallel rows take every core)."""
-    def after(*names):  # wait for earlier jobs (submitted before this one: no deadlock)
-        for name in names or [n for n in jobs if n != "test_bench_quick"]:
-            if name in jobs:
-                jobs[name].exception()
+    benchmark last and alone (its parallel rows take every core). A job that needs an earlier
+    one's output waits on its future in `jobs` (the pool is FIFO: no deadlock)."""
+    def after_the_rest():  # every earlier job (submitted before this one: no deadlock)
+        for name, job in list(jobs.items()):
+            if name != "test_bench_quick":
+                job.exception()
 
     table: dict[str, object] = {}
     for example in reversed(EXAMPLES):  # 04_walk is the longest
@@ -142,10 +143,10 @@ def _jobs(venv: Venv, urdf: Path, jobs: dict[str, Future]) -> dict[str, object]:
     table |= {
         "recorded": lambda: venv.run("mexone", "record", "excitation", "--duration", "0.5",
                                      "-o", "run.mcap"),
-        "test_identify": lambda: (after("recorded"), jobs["recorded"].result(), venv.run(
+        "test_identify": lambda: (jobs["recorded"].result(), venv.run(
             "mexone", "identify", "run.mcap", "--params", "damping", "--joints", "l_elbow",
             "--max-iterations", "2", "-o", "identified"))[-1],
-        "test_plot": lambda: (after("recorded"), jobs["recorded"].result(),
+        "test_plot": lambda: (jobs["recorded"].result(),
                               venv.run("mexone", "plot", "run.mcap", "-o", "run.png"))[-1],
         "test_convert_to_sdf_and_mjcf": lambda: (
             venv.run("mexone", "convert", str(urdf), "-o", "mex_rb.sdf"),
@@ -165,7 +166,7 @@ def _jobs(venv: Venv, urdf: Path, jobs: dict[str, Future]) -> dict[str, object]:
                           'command -v mexone && command -v python3'),
         "test_ros_env_finds_the_installed_packages": lambda: (
             venv.run("bash", "-c", ROS_ENV_SCRIPT) if shutil.which("roslaunch") else None),
-        "test_bench_quick": lambda: (after(), venv.run("mexone", "bench", "--quick", "--json"))[-1],
+        "test_bench_quick": lambda: (after_the_rest(), venv.run("mexone", "bench", "--quick", "--json"))[-1],
     }
     return table
 
