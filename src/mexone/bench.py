@@ -30,6 +30,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from mexone import signals
 from mexone.bus.msgs import JointState
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import RunMonitor
@@ -58,6 +59,7 @@ class BenchReport:
 def _best(fn, repeats: int) -> float:
     best = float("inf")
     for _ in range(repeats):
+        signals.check()  # a signal stops the bench between two timed runs (signals.Stop)
         start = time.perf_counter()
         fn()
         best = min(best, time.perf_counter() - start)
@@ -122,6 +124,7 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
 
     bares, ourses = [], []
     for k in range(max(8, 4 * repeats)):
+        signals.check()
         first, second = (bare, ours) if k % 2 else (ours, bare)
         a, b = first(), second()
         bares.append(a if first is bare else b)

@@ -40,13 +40,14 @@ TF_RATE = 50.0  # Hz of /tf, robot_state_publisher's default (only while someone
 
 
 def robot_namespace(robot: RobotModel, config: ControlConfig | None = None,
-                    override: str | None = None) -> str:
+                    override: str | None = None, name: str | None = None) -> str:
     """The robot's ROS namespace: the one asked for, else the controller YAML's, else the
-    URDF's gazebo_ros_control robotNamespace, else the robot's name ("/mex_rb")."""
+    URDF's gazebo_ros_control robotNamespace, else its name (`name`, a spawned model's, or the
+    robot's: "/mex_rb"). The one home of the rule (sim, run --ros, /gazebo/spawn_urdf_model)."""
     for candidate in (override, config.namespace if config else None, robot.ros_namespace,
-                      robot.name):
-        if candidate and candidate.strip("/"):
-            return "/" + candidate.strip("/")
+                      name or robot.name):
+        if candidate and candidate.strip().strip("/"):
+            return "/" + candidate.strip().strip("/")
     return "/robot"
 
 
@@ -136,16 +137,23 @@ class Lab:
         """Every joint's transform (parent -> child link) and world -> the floating base."""
         self.bus.publish("/tf", TFMessage(self.transforms()))
 
+    def base_transform(self) -> TransformStamped | None:
+        """world -> the robot's base link, where the simulation has it (None if the base link has
+        no body of its own); the one home of that transform (the bus's /tf, the ROS bridge's)."""
+        sim = self.sim
+        body = sim.compiled.bodies.get(sim.robot.base_link)
+        if body is None:
+            return None
+        return TransformStamped(Header(0, Time.from_nsec(sim.time_ns), "world"),
+                                sim.robot.base_link, tuple(sim.data.xpos[body]),
+                                tuple(sim.data.xquat[body]))
+
     def transforms(self) -> list[TransformStamped]:
         sim = self.sim
         stamp = Time.from_nsec(sim.time_ns)
         data, bodies = sim.data, sim.compiled.bodies
-        out = []
-        root = sim.robot.base_link
-        if sim.compiled.free or root in bodies:
-            out.append(TransformStamped(Header(0, stamp, "world"), root,
-                                        tuple(data.xpos[bodies[root]]),
-                                        tuple(data.xquat[bodies[root]])))
+        base = self.base_transform()
+        out = [] if base is None else [base]
         for joint in sim.robot.joints.values():
             if joint.parent not in bodies or joint.child not in bodies:
                 continue

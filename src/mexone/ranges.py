@@ -16,11 +16,13 @@ from dataclasses import dataclass
 
 from mexone.errors import InputError
 
-__all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table",
-           "MASS", "MOMENT", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE", "VELOCITY",
+__all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs_page",
+           "MASS", "MOMENT", "PRODUCT", "COLOUR", "LENGTH", "SIZE", "POSITION", "JOINT_VALUE", "ANGLE",
+           "VELOCITY",
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
-           "GAIN_D", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
-           "PUSH_DURATION", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT", "CONTROL_PERIOD"]
+           "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
+           "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT",
+           "CONTROL_PERIOD"]
 
 
 def number_text(value: float) -> str:
@@ -78,8 +80,11 @@ class Range:
         return [self.check(v, what, **where) for v in values]
 
 
-MASS = Range("mass", "kg", 0.0, 1e5, low_open=True, why="a 100 t link is a typo or grams")
+MASS = Range("mass", "kg", 1e-9, 1e5, why="a 100 t link is a typo or grams; under a microgram a "
+              "unit error (MuJoCo ignores masses under 1e-15)")
 MOMENT = Range("moment of inertia", "kg m^2", 0.0, 1e6, why="100 t at 3 m")
+PRODUCT = Range("product of inertia", "kg m^2", -1e6, 1e6, why="Ixy, Ixz, Iyz: as large as a moment")
+COLOUR = Range("colour component", "", 0.0, 1.0, why="red, green, blue, alpha")
 LENGTH = Range("length", "m", -1e3, 1e3, why="offsets within a robot: a kilometre is a unit error")
 SIZE = Range("size", "m", 0.0, 1e3, low_open=True, why="a geometry's size, radius or length")
 POSITION = Range("position", "m", -1e4, 1e4, why="a place in the world (spawn, move, goal)")
@@ -95,6 +100,7 @@ CONTACT_KD = Range("contact kd", "N s/m", 0.0, 1e9, why="Gazebo's contact dampin
 GAIN_P = Range("p gain", "", 0.0, 1e5, why="control_toolbox PID p")
 GAIN_I = Range("i gain", "", 0.0, 1e5, why="control_toolbox PID i")
 GAIN_D = Range("d gain", "", 0.0, 1e4, why="control_toolbox PID d")
+GAINS = {"p": GAIN_P, "i": GAIN_I, "d": GAIN_D}  # a PID gain's range by its key
 I_CLAMP = Range("i_clamp", "", -1e5, 1e5, why="the integral term's clamp")
 TIMESTEP = Range("time step", "s", 1e-5, 0.01, why="above 10 ms contacts turn to mush; below 10 us "
                  "nothing moves in a session")
@@ -103,6 +109,8 @@ DURATION = Range("duration", "s", 1e-3, 1e9, why="of sim time: one 1 ms step to 
 RTF = Range("real-time factor", "", 0.0, 100.0, why="0 runs as fast as possible")
 IMPULSE = Range("push impulse", "N s", 0.0, 1000.0)
 PUSH_DURATION = Range("push duration", "s", 1e-3, 5.0)
+PLOT_WINDOW = Range("plot window", "s", 0.1, 60.0, why="sim seconds a plot pane shows")
+STEP_SIZE = Range("step response size", "rad", -3.0, 3.0, why="the GUI's step response")
 STEPS = Range("steps", "", 1, 100_000, integer=True, why="Step N on the page")
 PORT = Range("port", "", 0, 65535, integer=True, why="0 picks a free port")
 MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm has scale 0.001")
@@ -129,5 +137,15 @@ def markdown_table() -> str:
     return "\n".join(rows)
 
 
+def docs_page() -> str:
+    """docs/ranges.md: `python -m mexone.ranges > docs/ranges.md` (a test says when it is stale)."""
+    return ("# Valid ranges\n\n"
+            "Every number a user sets (on the command line, on the page, in the model editor, in a ROS\n"
+            "service call, in a model or world file) is checked against its quantity's range here, and\n"
+            "refused in one line outside it. Generated from `src/mexone/ranges.py` (their one home) by\n"
+            "`python -m mexone.ranges > docs/ranges.md`; do not edit by hand.\n\n"
+            + markdown_table() + "\n")
+
+
 if __name__ == "__main__":
-    print(markdown_table())
+    print(docs_page(), end="")

@@ -32,8 +32,9 @@ class ROSException(Exception):
     pass
 
 
-class ROSInterruptException(ROSException, KeyboardInterrupt):
-    """Raised in sleeps when the simulation ends, as rospy does on shutdown."""
+class ROSInterruptException(ROSException, KeyboardInterrupt, Shutdown):
+    """Raised in sleeps when the simulation ends, as rospy does on shutdown (a Shutdown, so the
+    routine runner, below this module, knows it as the routine's clean end)."""
 
 
 class ROSInitException(ROSException):

@@ -1,65 +1,97 @@
-"""Ctrl-C, SIGTERM and SIGHUP stop a run once; a file being finished is never cut short.
+"""Ctrl-C, SIGTERM and SIGHUP stop a run once, at a point of mexone's choosing; a file being
+finished is never cut short.
 
-The CLI calls `stop_on_signals()` before anything else. The first signal raises KeyboardInterrupt
-in the main thread, so a verb unwinds through its `finally` blocks and closes its bag. While a
-recording is open (`hold`), later signals do not interrupt that unwinding: a second Ctrl-C 0-60 ms
-after the first used to cut a bag's closing short and leave it unreadable. While a file is being
-finished (`finishing`), even the first signal waits until it is done.
+The CLI calls `stop_on_signals()` before anything else. The handler only records the request
+(the first signal, for the exit code 128 + N): it never raises. A handler that raised landed
+wherever Python happened to be -- a weakref callback, a `__del__` -- where the exception is
+printed as "Exception ignored" and dropped, and a `mexone sim` kept simulating for 40 minutes
+after a SIGTERM. Every long-running loop instead asks `requested()` at its natural points (a
+tick of sim time, a frame of the GUI, a finished sweep run, a residual evaluation) and ends
+cleanly; `check()` raises `Stop` (a KeyboardInterrupt) from mexone's own code where unwinding
+is the clean way out.
+
+The handler sets no threading.Event: `Event.set` takes the Event's lock, and a handler runs in
+the main thread between two bytecodes, possibly while that same thread holds the lock inside
+`Event.wait` -- a deadlock. Loops poll a plain attribute instead (they wake at least every
+frame or tick, well under the 5 s a stop may take).
+
+A second signal within GRACE of the first (a double Ctrl-C) is the same stop. One that comes
+later while nothing is being written (`hold`, `finishing`) ends the process at once: a stop
+that hangs is still ended by pressing Ctrl-C again. While a recording is open or a file is being
+finished, it only says so: a bag's closing is never cut short.
 """
 
 from __future__ import annotations
 
+import os
 import signal
-import sys
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 
-__all__ = ["stop_on_signals", "exit_code", "hold", "release", "finishing", "uninterrupted",
-           "ignore_from_now"]
+__all__ = ["Stop", "stop_on_signals", "requested", "check", "exit_code", "hold", "release",
+           "finishing", "uninterrupted", "ignore_from_now", "leave_to_parent"]
 
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
                 if hasattr(signal, name))
-GRACE = 1.0  # s after the first signal in which another one (a double Ctrl-C) is not a new stop
+GRACE = 1.0  # s after the first signal in which another one (a double Ctrl-C) is the same stop
+
+
+class Stop(KeyboardInterrupt):
+    """A signal asked the run to stop; raised by `check()` in mexone's own code, never by the
+    handler (so it is a KeyboardInterrupt: every `except Exception` lets it through)."""
 
 
 @dataclass
 class _State:
-    installed: bool = False
+    installed: bool = False  # the CLI's handlers are in place (not a library user's process)
     first: int | None = None  # the first signal received, for the exit code
-    raised_at: float | None = None  # when KeyboardInterrupt was raised: the run is unwinding
+    at: float = 0.0  # when it came (time.monotonic)
     finishing: int = 0  # files being finished right now
     held: list[str] = field(default_factory=list)  # recordings open
-    pending: int | None = None  # a signal that waited for a file to be finished
+    pending: int | None = None  # library user's process: a signal deferred by finishing()
     noted: bool = False
 
 
 _state = _State()
 
 
+def _say(text: str) -> None:
+    """One line on stderr without Python's buffered stderr (whose lock the interrupted code may
+    hold: print() from a handler can raise 'reentrant call')."""
+    with suppress(OSError):
+        os.write(2, f"mexone: {text}\n".encode())
+
+
 def _on_signal(signum: int, _frame) -> None:
+    """Record; never raise. (Runs in the main thread between two bytecodes of whatever it was
+    doing, which may be a weakref callback or a __del__.)"""
     state = _state
-    if state.first is None:
-        state.first = signum
-    unwinding = state.raised_at is not None
-    recent = unwinding and time.monotonic() - state.raised_at < GRACE
-    if state.finishing or (unwinding and (state.held or recent)):
-        if not unwinding and state.pending is None:
+    if not state.installed:  # inside finishing() in a library user's process: deliver later
+        if state.pending is None:
             state.pending = signum
-        if unwinding and state.held and not state.noted:
-            state.noted = True
-            print(f"mexone: still stopping: closing {state.held[-1]}, one moment "
-                  "(kill -9 abandons it)", file=sys.stderr, flush=True)
         return
-    state.raised_at = time.monotonic()  # the first, or one long after it: a stop that hangs
-    raise KeyboardInterrupt
+    now = time.monotonic()
+    if state.first is None:
+        state.first, state.at = signum, now
+        return
+    if now - state.at < GRACE:
+        return
+    if state.finishing or state.held:
+        if not state.noted:
+            state.noted = True
+            what = state.held[-1] if state.held else "a file"
+            _say(f"still stopping: closing {what}, one moment (kill -9 abandons it)")
+        return
+    _say(f"stopping took too long; ended by a second {signal.Signals(signum).name}")
+    os._exit(128 + state.first)
 
 
 def stop_on_signals() -> None:
-    """Make SIGINT, SIGTERM and SIGHUP end the run like Ctrl-C (main thread only). A signal the
-    parent set to be ignored (nohup, a background job) stays ignored."""
+    """Make SIGINT, SIGTERM and SIGHUP request a stop (main thread only). A signal the parent
+    set to be ignored (nohup, a background job) stays ignored."""
     if threading.current_thread() is not threading.main_thread():
         return
     for signum in SIGNALS:
@@ -70,9 +102,48 @@ def stop_on_signals() -> None:
     _state.installed = True
 
 
+def requested() -> bool:
+    """A signal asked the run to stop (cheap: an attribute; call it every tick)."""
+    return _state.first is not None
+
+
+def check() -> None:
+    """Raise Stop if a signal asked the run to stop: for straight-line work between loops (the
+    verbs' start-up, a bench's measurements, a fit's residual evaluations)."""
+    if _state.first is not None:
+        raise Stop(f"interrupted by {signal.Signals(_state.first).name}")
+
+
+def leave_to_parent() -> None:
+    """In a pool's worker (a sweep's runs): SIGTERM ends it at once (its parent stops it that
+    way) and SIGINT, which a terminal sends to the whole process group, is left to the parent,
+    which stops its workers itself."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _after_fork_in_child() -> None:
+    """fork copies the handlers: a child with ours would record SIGTERM and carry on. It gets
+    the default dispositions (what an exec'd program gets too) and a fresh record."""
+    global _state
+    if not _state.installed:
+        return
+    _state = _State()
+    try:
+        for signum in SIGNALS:
+            if signal.getsignal(signum) is _on_signal:
+                signal.signal(signum, signal.SIG_DFL)
+    except ValueError:  # not the main thread: keep ours, which now only record
+        pass
+
+
+os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
 def ignore_from_now() -> None:
-    """The CLI is returning after a signal: nothing is left to stop, and a late second Ctrl-C
-    must not turn a clean exit into a KeyboardInterrupt traceback (exit -2)."""
+    """The CLI is returning after a signal: nothing is left to stop, and a late second signal
+    must not end a clean exit early."""
     if _state.first is not None and threading.current_thread() is threading.main_thread():
         for signum in SIGNALS:
             if signal.getsignal(signum) is _on_signal:
@@ -85,7 +156,7 @@ def exit_code() -> int:
 
 
 def hold(name: str) -> None:
-    """A recording is open: after the first signal, further ones must not interrupt its closing."""
+    """A recording is open: after the first signal, further ones must not end the process."""
     _state.held.append(name)
 
 
@@ -94,31 +165,15 @@ def release(name: str) -> None:
         _state.held.remove(name)
 
 
-def _deliver_pending() -> None:
-    """A signal waited for a file to be finished: now it stops the run (once)."""
-    state = _state
-    if state.pending is None or state.finishing:
-        return
-    state.pending = None
-    if state.raised_at is None:
-        state.raised_at = time.monotonic()
-        raise KeyboardInterrupt
-
-
 class _Uninterrupted:
-    """`with signals.uninterrupted:` -- cheap enough for every message a recorder writes (a
-    KeyboardInterrupt inside the mcap library's record writing leaves a corrupt record)."""
-
-    def __init__(self, deliver: bool = True):
-        self.deliver = deliver  # False: the caller re-delivers to a library user's handlers
+    """`with signals.uninterrupted:` -- a write that a second signal must not cut short; cheap
+    enough for every message a recorder writes."""
 
     def __enter__(self) -> None:
         _state.finishing += 1
 
     def __exit__(self, *_exc) -> None:
         _state.finishing -= 1
-        if self.deliver and _state.pending is not None:
-            _deliver_pending()
 
 
 uninterrupted = _Uninterrupted()
@@ -126,9 +181,10 @@ uninterrupted = _Uninterrupted()
 
 @contextmanager
 def finishing() -> Iterator[None]:
-    """No signal interrupts the block (closing a bag, renaming it into place); one that arrives
-    meanwhile is delivered when the block ends. Also in a library user's process, where the
-    signals are not ours: there they are deferred, then re-delivered to the user's handlers."""
+    """No signal interrupts the block (closing a bag, renaming it into place). In the CLI no
+    signal interrupts anything anyway; in a library user's process, where the signals are not
+    ours (Python's own SIGINT raises KeyboardInterrupt anywhere), one that arrives meanwhile is
+    deferred, then re-delivered to the user's handlers when the block ends."""
     state = _state
     swapped = {}
     if not state.installed and threading.current_thread() is threading.main_thread():
@@ -137,12 +193,12 @@ def finishing() -> Iterator[None]:
         for signum in swapped:
             signal.signal(signum, _on_signal)
     try:
-        with _Uninterrupted(deliver=not swapped):
+        with uninterrupted:
             yield
     finally:
         if swapped:
             for signum, handler in swapped.items():
                 signal.signal(signum, handler)
-            pending, state.pending, state.first = state.pending, None, None
+            pending, state.pending = state.pending, None
             if pending is not None:
                 signal.raise_signal(pending)  # to the handler the library user had

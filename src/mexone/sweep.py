@@ -20,11 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.control.metrics import settling_time
-from mexone.control.spec import PidGains
+from mexone import signals
+from mexone.control.metrics import overshoot, rise_time, settling_time
+from mexone.control.spec import PidGains, controller_name
 from mexone.errors import InputError
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import has_fallen
+from mexone.ranges import GAINS, number_text
 
 __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "run_sweep",
            "parse_range", "best_row", "best_yaml", "heatmap", "METRICS", "GAIN_KEYS"]
@@ -33,6 +35,7 @@ GAIN_KEYS = ("p", "i", "d", "i_clamp")
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 DEFAULT_STEP = 0.5  # rad
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
+POLL = 0.1  # s between looks at signals.requested() while the workers run
 
 
 @dataclass(frozen=True)
@@ -75,6 +78,9 @@ def parse_range(text: str, name: str) -> np.ndarray:
                          hint="e.g. --p 20:200:10") from None
     if not np.isfinite(values).all() or (values < 0).any() or values.size == 0:
         raise InputError(f"--{name} '{text}': gains must be finite and >= 0")
+    if name in GAINS and not all(GAINS[name].contains(v) for v in values):
+        worst = max(values)
+        raise InputError(f"--{name} '{text}': {number_text(worst)} must be {GAINS[name].describe()}")
     return values
 
 
@@ -169,21 +175,16 @@ def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
     q, effort = np.empty(n), np.empty(n)
     one = np.array([row])
     for k in range(n):
+        if k % 500 == 0:
+            signals.check()  # --workers 1 runs trials in the CLI's process: stop between steps
         sim.step(1)
         q[k] = hw.position(one)[0]
         effort[k] = hw.effort(one)[0]
     t = np.arange(1, n + 1) * sim.timestep
-    size = target - start
-    progress = (q - start) / size if size else np.ones(n)
-    return {"rise_time": _rise_time(t, progress), "overshoot": float(max(progress.max() - 1, 0)),
-            "settling_time": settling_time(t, q, target, size),
+    return {"rise_time": rise_time(t, q, start, target), "overshoot": overshoot(q, start, target),
+            "settling_time": settling_time(t, q, target, target - start),
             "iae": float(np.abs(target - q).sum() * sim.timestep),
             "max_effort": np.abs(effort).max()}
-
-
-def _rise_time(t: np.ndarray, progress: np.ndarray) -> float | None:
-    low, high = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
-    return float(t[high[0]] - t[low[0]]) if low.size and high.size else None
 
 
 def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
@@ -240,19 +241,39 @@ def run_sweep(spec: SweepSpec, trials: list[Trial], out_csv: Path, workers: int,
 
 
 def _local_results(spec: SweepSpec, trials: list[Trial], workers: int, _address) -> Iterator[dict]:
+    """Finished trials as they come. A signal (signals.requested) ends the sweep between two
+    results: the workers are ended (their runs are lost, the finished ones are kept)."""
     if workers <= 1:
         for trial in trials:
-            yield run_trial(spec, trial)
+            row = run_trial(spec, trial)
+            if signals.requested():  # a routine trial ends early on a signal: not a result
+                return
+            yield row
         return
-    pool = ProcessPoolExecutor(workers)
+    pool = ProcessPoolExecutor(workers, initializer=signals.leave_to_parent)
+    stopped = True
     try:
         pending = {pool.submit(run_trial, spec, t) for t in trials}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        while pending and not signals.requested():
+            finished, pending = wait(pending, timeout=POLL, return_when=FIRST_COMPLETED)
             for future in finished:
                 yield future.result()
+        stopped = bool(pending)
     finally:
+        if stopped:  # a signal, an error, or the caller stopped asking: do not wait for runs
+            _end_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _end_workers(pool: ProcessPoolExecutor) -> None:
+    """SIGTERM to every worker (ProcessPoolExecutor.terminate_workers from Python 3.14 on)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
 
 
 def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
@@ -268,9 +289,12 @@ def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
     remote = ray.remote(run_trial)
     try:
         pending = [remote.remote(spec, t) for t in trials]
-        while pending:
-            finished, pending = ray.wait(pending, num_returns=1)
-            yield ray.get(finished[0])
+        while pending and not signals.requested():
+            finished, pending = ray.wait(pending, num_returns=1, timeout=POLL)
+            if finished:
+                yield ray.get(finished[0])
+        for ref in pending:  # stopped by a signal: the runs in flight are dropped
+            ray.cancel(ref, force=True)
     finally:
         if started_here:
             ray.shutdown()
@@ -299,7 +323,7 @@ def best_yaml(spec: SweepSpec, row: dict, metric: str, namespace: str, runs: int
         pid = {k: round(_number(row[k]), 6) for k in ("p", "i", "d") if k in row}
         if "i_clamp" in row:
             pid["i_clamp_min"], pid["i_clamp_max"] = -_number(row["i_clamp"]), _number(row["i_clamp"])
-        controllers[f"{joint}_position_controller"] = {"pid": pid}
+        controllers[controller_name(joint)] = {"pid": pid}
     header = (f"# best of {runs} runs by {metric} ({_number(row[metric]):.6g}), from mexone sweep;\n"
               "# paste over the matching entries of controllers.yaml\n")
     return header + yaml.safe_dump({namespace.strip("/"): controllers}, sort_keys=False)

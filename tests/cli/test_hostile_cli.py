@@ -35,6 +35,7 @@ CASES = [
     ("rtf-nan", ["sim", "--headless", "--rtf", "nan"], "argument --rtf: nan must be"),
     ("rtf-negative", ["sim", "--headless", "--rtf", "-1"], "argument --rtf: -1 must be"),
     ("rtf-inf", ["sim", "--headless", "--rtf", "inf"], "0 runs as fast as possible"),
+    ("rtf-huge", ["sim", "--headless", "--rtf", "200"], "argument --rtf: 200 must be a finite number >= 0 and <= 100"),
     ("duration-zero", ["sim", "--headless", "--duration", "0"], "argument --duration: 0 must be"),
     ("duration-nan", ["sim", "--headless", "--duration", "nan"], "argument --duration: nan"),
     ("duration-tiny", ["sim", "--headless", "--duration", "1e-300"], "argument --duration"),
@@ -75,6 +76,7 @@ CASES = [
     ("gain-count-zero", [*SWEEP, "--p", "1:2:0"], "the count must be 1 to 10000"),
     ("gain-nan", [*SWEEP, "--p", "nan"], "gains must be finite and >= 0"),
     ("gain-negative", [*SWEEP, "--p", "-1"], "gains must be finite and >= 0"),
+    ("gain-huge", [*SWEEP, "--p", "1e300"], "--p '1e300': 1e+300 must be a finite number >= 0 and <= 100000"),
     ("grid-huge", [*SWEEP, "--p", "1:2:1000", "--d", "1:2:1000"], "more than 100000"),
     # --- what used to be tracebacks ------------------------------------------------------------
     ("param-unclosed", ["run", "home", "_joint:=[", "--duration", "0.1"],

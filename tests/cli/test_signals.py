@@ -3,10 +3,12 @@ used to be a KeyboardInterrupt traceback and exit -2); a file being finished wai
 
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
 import time
+import weakref
 from pathlib import Path
 
 import pytest
@@ -93,3 +95,99 @@ def test_uninterrupted_is_cheap_enough_for_every_message():
         with signals.uninterrupted:
             pass
     assert (time.perf_counter() - start) / 100_000 < 5e-6  # s per message
+
+
+@pytest.fixture
+def cli_handlers(monkeypatch):
+    """mexone's handlers installed in this process, as the CLI installs them; restored after."""
+    monkeypatch.setattr(signals, "_state", signals._State())
+    saved = {s: signal.getsignal(s) for s in signals.SIGNALS}
+    signals.stop_on_signals()
+    try:
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler)
+
+
+def _signal_self(signum: int) -> list[bool]:
+    """Send signum to this process and spin a few bytecodes so the handler runs right here;
+    return whether the stop was seen afterwards (a handler that raised never gets there)."""
+    os.kill(os.getpid(), signum)
+    for _ in range(1000):
+        if signals.requested():
+            break
+    return [signals.requested()]
+
+
+def test_a_signal_inside_del_or_a_weakref_callback_is_not_lost(cli_handlers, capsys):
+    """The bug: SIGTERM landed in WeakValueDictionary's callback, the handler's KeyboardInterrupt
+    was printed as 'Exception ignored' and dropped, and `mexone sim` ran on for 40 minutes."""
+    seen: list[bool] = []
+
+    class Dropped:
+        def __del__(self):
+            seen.extend(_signal_self(signal.SIGTERM))
+
+    Dropped()  # __del__ runs now, and the handler inside it
+    assert seen == [True]  # the handler ran inside __del__ and did not raise there
+    assert signals.requested() and signals.exit_code() == 143
+    with pytest.raises(signals.Stop):
+        signals.check()  # the stop is raised where mexone's code asks for it
+
+    signals._state.first = None  # again, through a weakref callback, as in the report
+    cache = weakref.WeakValueDictionary()
+
+    class Value:
+        pass
+
+    cache["page"] = value = Value()
+    ref = weakref.ref(value, lambda _ref: seen.extend(_signal_self(signal.SIGINT)))
+    del value  # the callbacks run now
+    assert ref() is None and "page" not in cache
+    assert seen == [True, True] and signals.exit_code() == 130
+    assert "Exception ignored" not in capsys.readouterr().err
+
+
+def test_a_second_signal_within_the_grace_is_the_same_stop(cli_handlers):
+    signals._on_signal(signal.SIGINT, None)
+    signals._on_signal(signal.SIGTERM, None)  # a double stop: recorded once, nothing raised
+    assert signals.exit_code() == 130
+
+
+def _python(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, preexec_fn=_default_sigint)
+
+
+def test_a_later_second_signal_ends_a_stop_that_hangs_unless_a_file_is_being_closed():
+    hung = ("import os, signal, time\nfrom mexone import signals\nsignals.stop_on_signals()\n"
+            "{hold}os.kill(os.getpid(), signal.SIGTERM)\ntime.sleep(signals.GRACE + 0.2)\n"
+            "os.kill(os.getpid(), signal.SIGINT)\ntime.sleep(0.5)\nprint('survived', flush=True)\n")
+    ended = _python(hung.format(hold=""))
+    assert ended.returncode == 143 and ended.stdout == ""
+    assert ended.stderr == "mexone: stopping took too long; ended by a second SIGINT\n"
+    closing = _python(hung.format(hold="signals.hold('x.mcap')\n"))
+    assert closing.returncode == 0 and closing.stdout == "survived\n"
+    assert closing.stderr == ("mexone: still stopping: closing x.mcap, one moment "
+                              "(kill -9 abandons it)\n")
+
+
+def test_a_signal_the_parent_ignored_stays_ignored():
+    code = ("import os, signal\nsignal.signal(signal.SIGHUP, signal.SIG_IGN)\n"
+            "from mexone import signals\nsignals.stop_on_signals()\n"
+            "print(signal.getsignal(signal.SIGHUP) is signal.SIG_IGN, "
+            "signal.getsignal(signal.SIGTERM) is signals._on_signal)\n")
+    assert _python(code).stdout == "True True\n"
+
+
+def test_a_forked_child_gets_the_default_dispositions(cli_handlers):
+    """fork copies the handlers; a sweep's worker with ours would record SIGTERM and run on."""
+    signals._on_signal(signal.SIGTERM, None)  # the parent is stopping
+    pid = os.fork()
+    if pid == 0:  # the child: default SIGTERM, no stop recorded
+        ok = signal.getsignal(signal.SIGTERM) is signal.SIG_DFL and not signals.requested()
+        os._exit(0 if ok else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    assert signal.getsignal(signal.SIGTERM) is signals._on_signal and signals.requested()

@@ -87,6 +87,25 @@ def test_nothing_but_the_hardware_interface_writes_actuator_state():
     assert offenders == []
 
 
+def test_write_changes_exactly_the_actuator_fields_recompiling_carries_over():
+    """RUNTIME_ACTUATOR_FIELDS (carried over when a model is added, replayed by identify) is the
+    list of what write() changes: a field written but not listed would silently go stale."""
+    from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
+
+    lab = Lab.create()
+    hw, model = lab.controllers.hw, lab.sim.model
+    fields = [name for name in dir(model) if name.startswith("actuator_")
+              and isinstance(getattr(model, name), np.ndarray)]
+    before = {name: getattr(model, name).copy() for name in fields}
+    c, rows = hw.command, np.arange(len(hw.joints))
+    c.kp[:], c.kd[:], c.ki[:] = 123.0, 4.5, 6.7
+    c.i_min[:], c.i_max[:], c.antiwindup[:] = -0.8, 0.9, True
+    hw.gains_changed(rows)
+    hw.write()  # no loop serves this lab: this thread is its simulation thread
+    changed = {name for name in fields if not np.array_equal(before[name], getattr(model, name))}
+    assert changed == set(RUNTIME_ACTUATOR_FIELDS)
+
+
 def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable):
     """The joint is pinned at its upper limit (3 rad) by a load the 1 N m motor cannot beat, so
     the error to a 2.5 rad setpoint is a constant -0.5 and the I term is the ramp i e t, before

@@ -239,7 +239,7 @@ def test_a_gizmo_dropped_by_a_hole_snaps_the_joint_frame_onto_its_axis(tmp_path)
     frame = session.world_frames()["arm_fore"]
     np.testing.assert_allclose(frame[:3, 3], hole, atol=1e-9)
     np.testing.assert_allclose(frame[:3, :3] @ session.joint("elbow").axis, (0.0, -1.0, 0.0), atol=1e-9)
-    with pytest.raises(InputError, match="not finite"):
+    with pytest.raises(InputError, match="gizmo position NaN must be a finite number"):
         session.snap_joint_near("elbow", (np.nan, 0.0, 0.0))
     session.undo()
     assert session.joint("elbow").origin == origin
@@ -310,3 +310,15 @@ def test_a_gazebo_model_editor_sdf_saves_as_convert_writes_it(tmp_path):
     editor, convert = (write_urdf(read_urdf(tmp_path / f"{n}.urdf")) for n in ("editor", "convert"))
     assert editor == convert
     assert "model://arm_editor/meshes/part.stl" in editor
+
+
+def test_editing_a_mex_one_joint_s_damping_changes_what_it_simulates_with(tmp_path):
+    """Mex-One states its joints' damping twice (URDF <dynamics> and the <gazebo> block, which
+    wins): an edit sets both, so the saved file says one thing and `check` finds no conflict."""
+    from mexone.description.model import Dynamics
+
+    session = EditSession.open(tmp_path / "mex", mex_one.urdf_path())
+    assert "l_elbow" in session.model.gazebo_joints
+    session.set_joint("l_elbow", dynamics=Dynamics(0.9, 0.05, 0.0))
+    assert session.model.joint_dynamics("l_elbow").damping == pytest.approx(0.9)
+    assert [f.code for f in session.findings() if f.code == "value-conflict"] == []

@@ -180,9 +180,9 @@ def test_a_zipped_folder_of_parts_waits_to_be_accepted_one_by_one(app):
     assert app.act("upload", app._received)
     assert [p.name for p in app.pending] == ["evil", "fore_arm"]
     assert app.act("discard", app._discard)
-    app._unit.value = "m"  # the page's choice wins over the guess
+    app._unit.value = "cm"  # the page's choice wins over the guess (mm)
     assert app.act("import", app._accept)
-    assert app.session.model.links["fore_arm"].visuals[0].geometry.scale == (1.0, 1.0, 1.0)
+    assert app.session.model.links["fore_arm"].visuals[0].geometry.scale == (0.01, 0.01, 0.01)
     assert not app.pending and not (app.session.folder.parent / "evil.stl").exists()
     app.act("undo", app.session.undo)
     bomb = io.BytesIO()
@@ -223,3 +223,26 @@ def test_a_fitted_collision_is_edited_by_typing(app):
     session.undo()
     session.undo()
     assert session.model.links["arm_base"].collisions[0].geometry != Box(size)
+
+
+def test_a_snap_or_a_part_the_page_should_not_send_is_one_line_on_the_page(app):
+    """'9999: x' raised IndexError in viser's thread pool and '-1: x' picked the last snap; a
+    flat STL printed a server traceback and left its mesh in the work folder."""
+    import io
+    from types import SimpleNamespace
+
+    import trimesh
+
+    step, meshes = app.session.index, sorted(app.session.meshes.iterdir())
+    app._parent._impl.value, app._child._impl.value = "arm_base", "arm_upper"
+    app._update_snaps()
+    for choice in ("9999: x", "-1: x"):
+        app._snap._impl.value = choice  # any websocket client can send any string
+        assert not app.act("joint", app._add_joint)
+        assert f"snap '{choice}' is not one of the" in app._status_msg.content
+    buffer = io.BytesIO()
+    trimesh.Trimesh([[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0]], [[0, 1, 2]]).export(buffer, file_type="stl")
+    app._upload._impl.value = SimpleNamespace(name="sheet.stl", content=buffer.getvalue())
+    assert not app.act("upload", app._received)
+    assert "'sheet.stl' is flat" in app._status_msg.content and not app.pending
+    assert app.session.index == step and sorted(app.session.meshes.iterdir()) == meshes

@@ -20,6 +20,7 @@ import bagtools  # noqa: E402
 
 from mexone import signals  # noqa: E402
 from mexone.cli import main  # noqa: E402
+from mexone.description.check import check_model  # noqa: E402
 from mexone.description.loader import load_model  # noqa: E402
 from mexone.identify.recording import regular_times  # noqa: E402
 from mexone.identify.session import Options, identify  # noqa: E402
@@ -143,6 +144,8 @@ def test_cli_json_patched_urdf_and_report(hung, tmp_path, capsys, monkeypatch):
             assert new == old, joint
     assert {n: link.inertial for n, link in before.links.items()} == \
         {n: link.inertial for n, link in after.links.items()}
+    # <dynamics> and the <gazebo> override were patched alike: nothing says two things
+    assert [f for f in check_model(after) if f.code == "value-conflict"] == []
     # only the identified attributes and one comment changed
     import difflib
 

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from lxml import etree
 
+from mexone.control.hardware import SimHardware, build_actuators
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
 from mexone.lab import Lab
@@ -78,7 +79,7 @@ def test_standing_spawn_touches_the_ground_without_penetration():
 def _fold_left_arm(self_collide: bool) -> tuple[float, set[str]]:
     sim = Simulation(mex_one.urdf_path(), options=CompileOptions(
         self_collision=None if self_collide else False, fixed_base=True))
-    sim.apply_efforts({"l_shoulder_roll": -4.0})  # push the left arm in towards the body
+    sim.apply_joint_effort("l_shoulder_roll", -4.0)  # push the left arm in towards the body
     touched = set()
     for _ in range(150):
         sim.step(10)
@@ -149,7 +150,10 @@ def test_any_urdf_fixed_base_arm_with_relative_meshes():
     sim.run(2.0)
     assert np.isfinite(sim.data.qpos).all()
     # the mechanicalReduction 50 motor: joint effort = 50 x actuator effort, limit 20 N m
-    sim.apply_efforts({"shoulder": 100.0})
+    sim = Simulation(ROBOTS / "arm" / "arm.urdf", edits=[build_actuators])
+    hw = SimHardware(sim)
+    hw.command.effort[hw.rows(["shoulder"])] = 100.0
+    hw.write()
     sim.step(1)
     assert sim.joint_efforts()[0] == pytest.approx(20.0)
 

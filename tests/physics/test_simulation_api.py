@@ -7,6 +7,7 @@ import time
 import numpy as np
 import pytest
 
+from mexone.control.hardware import SimHardware, build_actuators
 from mexone.errors import InputError
 from mexone.physics import Simulation
 from mexone.robots import mex_one
@@ -42,20 +43,22 @@ def test_set_positions_and_read_back(sim):
     assert quat[0] == pytest.approx(np.cos(0.25))  # yawed by 0.5 rad
 
 
-def test_efforts_are_clamped_to_the_urdf_limit(sim):
-    sim.reset()
-    sim.apply_efforts({"l_knee": 1000.0})
+def test_efforts_are_clamped_to_the_urdf_limit():
+    """The effort a joint's motor gives (an effort controller's command) stops at the URDF limit."""
+    sim = Simulation(mex_one.urdf_path(), edits=[build_actuators])
+    hw = SimHardware(sim)
+    hw.command.effort[hw.rows(["l_knee"])] = 1000.0
+    hw.write()
     sim.step(1)
     knee = sim.joint_names.index("l_knee")
     assert sim.joint_efforts()[knee] == pytest.approx(25.0)  # params: 25 N m knees
-    sim.apply_efforts(np.zeros(21))
 
 
 def test_bad_joint_and_effort_are_refused(sim):
     with pytest.raises(InputError, match="no moving joint named 'l_wing'"):
-        sim.apply_efforts({"l_wing": 1.0})
+        sim.apply_joint_effort("l_wing", 1.0)
     with pytest.raises(InputError, match="not finite"):
-        sim.apply_efforts({"l_knee": float("nan")})
+        sim.apply_joint_effort("l_knee", float("nan"))
     with pytest.raises(InputError, match="no link named"):
         sim.link_pose("tail")
 
@@ -67,3 +70,27 @@ def test_pacing_keeps_the_target_real_time_factor():
     wall = time.perf_counter() - start
     assert 0.45 < wall < 0.75  # 1 s of sim at twice real time
     assert sim.rtf.value == pytest.approx(2.0, rel=0.15)
+
+
+@pytest.mark.parametrize("gravity, message", [
+    ((float("nan"), 0.0, -9.81), "gravity component NaN must be a finite number >= -1000 and <= 1000 m/s^2"),
+    (np.array([0.0, 0.0, -1e300]), "gravity component -1e+300 must be"),
+    ((0.0, -9.81), "gravity must be 3 numbers (x y z, m/s^2), not 2"),
+    (("down", 0, 0), "gravity must be 3 numbers"),
+])
+def test_bad_gravity_is_one_line_without_numpy_reprs(sim, gravity, message):
+    before = sim.gravity
+    with pytest.raises(InputError) as refused:
+        sim.set_gravity(gravity)
+    assert message in refused.value.one_line() and "np.float" not in refused.value.one_line()
+    assert np.array_equal(sim.gravity, before)
+
+
+def test_a_nan_spawn_pose_is_said_without_numpy_reprs():
+    from mexone.description.loader import load_model
+    from mexone.physics import Spawn
+    from mexone.physics.compile import compile_model
+
+    robot = load_model(mex_one.urdf_path())
+    with pytest.raises(InputError, match=r"spawn pose \(0, 0, NaN, 0, 0, 0\) is not finite"):
+        compile_model(robot, spawn=Spawn((0.0, 0.0, np.float64("nan"))))

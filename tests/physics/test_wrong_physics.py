@@ -4,6 +4,7 @@ absurd world steps, meshes MuJoCo cannot read, <mimic>."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -14,7 +15,7 @@ import pytest
 import trimesh
 
 from mexone.description.urdf import read_urdf
-from mexone.errors import InputError
+from mexone.errors import InputError, MexoneError
 from mexone.physics import DivergenceError, Simulation, Spawn
 from mexone.robots import mex_one
 
@@ -109,8 +110,8 @@ def _world(tmp_path, step: str) -> str:
 def test_a_half_second_step_is_refused(tmp_path):
     out = mexone("sim", "--headless", "--world", _world(tmp_path, "0.5"), cwd=tmp_path)
     assert out.returncode == 2
-    assert out.stderr == ("mexone: w.world:8: <max_step_size> 0.5 s is outside the 1e-05 to 0.01 s "
-                          "mexone simulates (Gazebo's default is 0.001)\n")
+    assert out.stderr == ("mexone: w.world:8: <max_step_size> 0.5 s must be a finite number >= 1e-05 "
+                          "and <= 0.01 s (Gazebo's default is 0.001)\n")
 
 
 def test_a_2_ms_step_is_fine(tmp_path):
@@ -167,3 +168,16 @@ def test_mimic_joint_follows_its_leader(tmp_path):
     left, right = sim.joint_positions()
     assert abs(left) > 0.05  # it swung
     assert right == pytest.approx(0.1 - left, abs=2e-3)
+
+
+def test_a_world_s_gravity_and_real_time_factor_are_checked_by_their_ranges(tmp_path):
+    from mexone.physics.world import read_world
+
+    text = mex_one.world_path().read_text()
+    for old, new, message in (
+            ("<real_time_factor>1</real_time_factor>", "<real_time_factor>1e300</real_time_factor>",
+             "1e+300 must be a finite number >= 0 and <= 100"),
+            ("<gravity>0 0 -9.81</gravity>", "<gravity>0 0 -1e300</gravity>", "(0, 0, -1e+300) m/s^2: each component")):
+        (tmp_path / "w.world").write_text(text.replace(old, new, 1))
+        with pytest.raises(MexoneError, match=re.escape(message)):
+            read_world(tmp_path / "w.world")

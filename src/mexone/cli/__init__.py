@@ -2,13 +2,14 @@
 
 Exit codes: 0 ok, 1 findings or failed checks, 2 bad input or a failing machine such as a full
 disk (one line on stderr, no traceback), 128 + N stopped by signal N before the verb could finish
-its work (130 Ctrl-C, 143 SIGTERM); a verb that stops cleanly on a signal (a recording closed, a
-summary printed) exits as it reports.
+its work (130 Ctrl-C, 143 SIGTERM), also when it stopped cleanly (its bag closed, its report or
+summary printed, its finished sweep runs kept).
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import logging
 import os
 import signal
@@ -95,21 +96,26 @@ def main(argv: list[str] | None = None) -> int:
     _offscreen_gl()
     try:
         return _main(argv)
-    except KeyboardInterrupt:  # a late signal that landed in one of _main's handlers
+    except KeyboardInterrupt:  # Python's own handler, before ours were installed
         return signals.exit_code()
     finally:
         signals.ignore_from_now()
+        if argv is None:  # the process's own command line: it exits next
+            # The interpreter's exit collects the whole heap again and again (finalize_modules):
+            # seconds after `identify` or a GUI session, on a busy machine 5 s between a SIGTERM
+            # and the process's end. Everything is written and closed by now; frozen objects
+            # are skipped by those collections (and freed as the modules go).
+            gc.freeze()
 
 
 def _main(argv: list[str] | None) -> int:
     try:
-        # A signal during start-up waits until the verbs have loaded (importing MuJoCo takes a
-        # while, and a KeyboardInterrupt inside a C extension's import becomes an ImportError),
-        # then stops the run here: one line, exit 130/143.
-        with signals.uninterrupted:
-            signals.stop_on_signals()
-            _setup_logging()
-            parser = build_parser()
+        # A signal during start-up is only recorded (as every signal is): the verbs load, then
+        # the run stops here, one line, exit 130/143. Later, each verb's loops ask for it.
+        signals.stop_on_signals()
+        _setup_logging()
+        parser = build_parser()
+        signals.check()
         args, extra = parser.parse_known_args(argv)
         if extra:  # ROS-style name:=value may follow options: `mexone run sweep --json _joint:=x`
             if not (hasattr(args, "params") and all(":=" in e for e in extra)):
@@ -119,16 +125,17 @@ def _main(argv: list[str] | None) -> int:
             from mexone.inputs import set_input_limit_mb
 
             set_input_limit_mb(args.max_input_mb)
-        return int(args.run(args) or 0)
+        code = int(args.run(args) or 0)
+        if code == 0 and signals.requested():  # stopped early, cleanly: its outputs are written
+            return _interrupted()
+        return code
     except MexoneError as exc:
+        if signals.requested():  # e.g. xacro, in our process group, ended by the same Ctrl-C
+            return _interrupted()
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return _interrupted()
-    except ImportError as exc:  # a verb's lazy import of a C extension, interrupted
-        if isinstance(exc.__cause__ or exc.__context__, KeyboardInterrupt):
-            return _interrupted()
-        raise
     except BrokenPipeError:
         return 0
     except OSError as exc:  # the machine, not mexone: a full disk, a vanished folder, stdout gone

@@ -6,6 +6,7 @@ import argparse
 import json
 import sys
 
+from mexone import signals
 from mexone.bench import __doc__ as BENCH_DOC
 from mexone.bench import format_report, run_bench
 
@@ -20,7 +21,11 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    report = run_bench(args.quick, progress=lambda name: print(f"measuring {name}...",
-                                                              file=sys.stderr))
+    def progress(name: str) -> None:
+        signals.check()  # between two measurements: a signal stops the bench here
+        print(f"measuring {name}...", file=sys.stderr)
+
+    report = run_bench(args.quick, progress=progress)
+    signals.check()
     print(json.dumps(report.as_json(), indent=2) if args.json else format_report(report))
     return 0

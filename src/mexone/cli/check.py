@@ -20,7 +20,9 @@ check_urdf does, then look for the mistakes that make a simulated robot explode 
 non-positive or implausible masses, impossible or oversized inertias, centres of mass outside
 the link, collision shapes away from the visuals, misplaced joints, missing meshes or meshes in
 millimetres without a 0.001 scale, meaningless effort/velocity limits, negative friction or
-contact stiffness, planar/floating joints and trees deeper than MuJoCo can build, <mimic>
+contact stiffness, values given twice (a <gazebo reference> block overriding the URDF's
+<dynamics>, two <gazebo> blocks or tags disagreeing, a repeated URDF element: both lines and
+the one that wins), planar/floating joints and trees deeper than MuJoCo can build, <mimic>
 joints, duplicated or capitalised names, several roots or loops, and (with --controllers)
 controllers naming joints that have no transmission, two controllers on one joint and
 impossible PID gains, each with the YAML's file:line.

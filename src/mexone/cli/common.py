@@ -13,13 +13,14 @@ from pathlib import Path
 
 import yaml
 
-from mexone import yamlio
+from mexone import ranges, yamlio
 from mexone.cli import add_input_limit_option
 from mexone.errors import InputError
 from mexone.inputs import read_input_text
 from mexone.lab import AUTO, Lab
 from mexone.physics import CompileOptions, Spawn
 from mexone.physics.world import default_world, read_world
+from mexone.ranges import Range
 
 __all__ = ["add_model_options", "lab_from_args", "options_from_args", "recording",
            "add_record_options", "positive", "Number", "DURATION", "host", "check_can_serve",
@@ -36,6 +37,12 @@ class Number:
     low_open: bool = False  # low itself is not allowed
     integer: bool = False
     hint: str = ""
+
+    @classmethod
+    def of(cls, valid: Range, hint: str | None = None) -> Number:
+        """The argparse type of a quantity whose one range lives in ranges.py."""
+        return cls(valid.low, valid.high, valid.low_open, valid.integer,
+                   valid.why if hint is None else hint)
 
     def describe(self) -> str:
         def text(value: float) -> str:
@@ -63,12 +70,12 @@ class Number:
 
 
 positive = Number(0.0, low_open=True)  # rates, frames per second
-DURATION = Number(1e-3, 1e9, hint="s of sim time")  # from one 1 ms step to "until Ctrl-C"
-POSITION = Number(-1e4, 1e4, hint="metres")
-JOINT_VALUE = Number(-1e4, 1e4, hint="radians or metres")
-ANGLE = Number(-6.3, 6.3, hint="radians, within +-2 pi (1.5708 is 90 degrees)")
-RTF = Number(0.0, hint="0 runs as fast as possible")
-PORT = Number(0, 65535, integer=True, hint="0 picks a free port")
+DURATION = Number.of(ranges.DURATION, "s of sim time")  # from one 1 ms step to "until Ctrl-C"
+POSITION = Number.of(ranges.POSITION, "metres")
+JOINT_VALUE = Number.of(ranges.JOINT_VALUE, "radians or metres")
+ANGLE = Number.of(ranges.ANGLE, "radians, within +-2 pi (1.5708 is 90 degrees)")
+RTF = Number.of(ranges.RTF, "0 runs as fast as possible")
+PORT = Number.of(ranges.PORT, "0 picks a free port")
 
 
 def host(text: str) -> str:

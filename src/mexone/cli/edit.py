@@ -69,9 +69,7 @@ def run(args: argparse.Namespace) -> int:
     if args.duration is not None:
         threading.Timer(args.duration, app.stopping.set).start()
     try:
-        app.serve_forever()
-    except KeyboardInterrupt:
-        pass
+        app.serve_forever()  # until a signal asks it to stop (signals.requested)
     finally:
         app.stop()
     return 0

@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from mexone import signals
 from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording
 from mexone.errors import InputError
 from mexone.files import check_output, move_into_place, temporary_path, usable
@@ -17,7 +18,7 @@ Run the robot headless for --duration seconds of sim time (with a routine if one
 record every topic -- joint states, controller commands, /clock, /tf -- to a bag stamped with
 sim time: .mcap is rosbag2 with ROS 2 CDR messages (Foxglove, PlotJuggler, ros2 bag), .bag is
 ROS 1. Ctrl-C or SIGTERM stops the run and leaves a valid bag (a second Ctrl-C does not cut the
-closing short). Then: mexone plot BAG.
+closing short), exit 130/143. Then: mexone plot BAG.
 
 While recording, the bag is BAG.active; it becomes BAG when it is closed. A recording that was
 killed (kill -9, a crash, a routine calling os._exit) leaves BAG.active with everything up to
@@ -61,13 +62,10 @@ def run(args: argparse.Namespace) -> int:
             if runner:
                 runner.run(args.duration)
             else:
-                lab.sim.run(args.duration)
+                lab.sim.run(args.duration, until=signals.requested)  # a signal ends it early
         except DivergenceError as exc:
             print(f"mexone: {exc.one_line()}")
             status = 1
-        except KeyboardInterrupt:
-            if runner:
-                runner.stop()
     if runner and runner.error:
         print(runner.error)
         status = 1

@@ -102,8 +102,6 @@ def run(args: argparse.Namespace) -> int:
         except DivergenceError as exc:
             print(f"mexone: {exc.one_line()}")
             status = 1
-        except KeyboardInterrupt:
-            runner.stop()
         finally:
             bar.close()
             video.close()

@@ -6,6 +6,7 @@ import argparse
 
 from mexone.description.loader import load_model
 from mexone.description.urdf import write_urdf
+from mexone.lab import robot_namespace
 from mexone.robots import mex_one
 from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
 
@@ -28,12 +29,13 @@ def connect_ros(args: argparse.Namespace):
     """Join the ROS graph; take the controllers from the parameter server if a `rosparam load`
     put them there and none were given on the command line (the seed's control.launch flow)."""
     from mexone.control.spec import ControlConfig
-    from mexone.ros1.bridge import Ros1Bridge, config_from_param_server
+    from mexone.ros1.bridge import Ros1Bridge
+    from mexone.ros1.params import config_from_param_server
 
     bridge = Ros1Bridge(args.name)
     if args.controllers is None and not args.no_controllers:
         robot = load_model(args.model or mex_one.urdf_path())
-        ns = (args.namespace or robot.ros_namespace or robot.name).strip("/")
+        ns = robot_namespace(robot, None, args.namespace).strip("/")  # no YAML given
         config = config_from_param_server(bridge.rospy, ns) if bridge.rospy.has_param(f"/{ns}") \
             else None
         if config is not None and config.controllers:

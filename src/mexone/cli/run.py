@@ -22,6 +22,7 @@ from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError
 from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
+from mexone.routines import supervisor
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
 TRACK_PERIOD = 0.02  # s between samples of the base's pose (for the routine's phases)
@@ -39,7 +40,15 @@ With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and
 real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
 reach_goals the /<ns>/<frame>/goal poses) and see what it publishes (the walk's plan).
 
-exit status: 0 ok, 1 the routine failed or the simulation diverged, 2 bad input"""
+The run is a child process in its own process group: whatever the routine starts (a program,
+a fork) is stopped when the run ends, and a routine that ends the process itself (os._exit, exec,
+a crash) gets one line and exit 1, not a silent 0. sys.exit(0) in a routine ends it as returning
+does; sys.exit(n) is its error.
+
+exit status: 0 ok, 1 the routine failed (its exception, sys.exit(n), a thread of its own that
+raised, a fork, a program it left running, ending the process) or the simulation diverged,
+2 bad input, 130/143 stopped by Ctrl-C/SIGTERM (the report up to then is printed, a --record
+bag closed)"""
 
 
 def add_parser(sub) -> None:
@@ -62,12 +71,20 @@ def add_parser(sub) -> None:
 
 def run(args: argparse.Namespace) -> int:
     params = parse_param_args(args.params)
+    if supervisor.available():  # the run goes on in a child; this process only supervises it
+        status = supervisor.fork_run()
+        if status is not None:
+            supervisor.leave(status)
+            return status
     bridge = connect_ros(args) if args.ros else None
     try:
-        return _run(args, params, bridge)
+        status = _run(args, params, bridge)
     finally:
         if bridge is not None:
             bridge.shutdown()
+        supervisor.ended()
+    supervisor.leave(status)  # the run's process ends here, its report out
+    return status
 
 
 def _run(args: argparse.Namespace, params: dict, bridge) -> int:
@@ -101,8 +118,6 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
             runner.run(args.duration, on_tick=on_tick, tick=tick)
         except DivergenceError as exc:
             diverged = exc.one_line()
-            runner.stop()
-        except KeyboardInterrupt:
             runner.stop()
     tilt, height = sim.base_tilt, sim.base_height
     fell = has_fallen(sim, start_height)

@@ -8,6 +8,7 @@ import os
 import sys
 from pathlib import Path
 
+from mexone import signals
 from mexone.cli.common import (
     DURATION,
     PORT,
@@ -43,7 +44,8 @@ sim time, wall time, real-time factor, base height, the fastest link speed seen,
 the robot came to rest.
 
 A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
-the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2."""
+the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2. Stopped by Ctrl-C or
+SIGTERM: 130/143 (headless: after the summary)."""
 
 
 def add_parser(sub) -> None:
@@ -97,9 +99,7 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
           file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
-            app.serve_forever(duration)
-    except KeyboardInterrupt:
-        pass
+            app.serve_forever(duration)  # until a signal asks it to stop (signals.requested)
     finally:
         app.stop()
     return 0
@@ -143,11 +143,9 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
     with recording(lab, args.record, args.force):
         try:  # paced: pace every 2 ms of sim time, so /clock flows evenly
             sim.run(duration if duration is not None else float("inf"), on_tick=tick,
-                    tick=0.002 if bridge is not None and rtf else 0.01)
+                    tick=0.002 if bridge is not None and rtf else 0.01, until=signals.requested)
         except DivergenceError as exc:
             monitor.error = exc.one_line()
-        except KeyboardInterrupt:
-            pass
     summary = monitor.summary()
     if args.json:
         print(json.dumps({k: v for k, v in summary.as_json().items() if k != "rest_time"}

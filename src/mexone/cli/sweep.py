@@ -17,6 +17,7 @@ from mexone import signals
 from mexone.cli.common import Number
 from mexone.errors import InputError, OutputExistsError
 from mexone.files import check_output, replacing, usable, write_text
+from mexone.ranges import ANGLE
 from mexone.sweep import (
     DEFAULT_STEP,
     GAIN_KEYS,
@@ -35,7 +36,7 @@ from mexone.sweep import (
 
 OUTPUTS = ("sweep.csv", "sweep.json", "heatmap.png", "best_gains.yaml")
 MAX_TRIALS = 100_000  # a grid of three 100-value ranges is a typo, not a sweep
-STEP = Number(-6.3, 6.3, hint="radians")
+STEP = Number.of(ANGLE, "radians")
 TRIAL_DURATION = Number(0.2, 3600.0, low_open=True, hint="s of sim time; the step comes at 0.1 s")
 TRIALS = Number(1, MAX_TRIALS, integer=True)
 SEED = Number(0, 2**32 - 1, integer=True)
@@ -115,13 +116,14 @@ def run(args: argparse.Namespace) -> int:
     bar = tqdm(total=len(trials), unit="run", desc="sweep", initial=finished)
     try:
         rows = run_sweep(spec, trials, csv_path, args.workers, args.backend, args.address,
-                         progress=bar.update)
-    except KeyboardInterrupt:
-        bar.close()
+                         progress=bar.update)  # returns early on a signal (signals.requested)
+    except KeyboardInterrupt:  # signals.Stop
+        rows = None
+    bar.close()
+    if rows is None or signals.requested():
         print(f"mexone: interrupted; finished runs are in {csv_path}; --resume continues",
               file=sys.stderr)
         return signals.exit_code()
-    bar.close()
     return _report(spec, rows, ranges, args, out, len(trials), namespace)
 
 

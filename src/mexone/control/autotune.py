@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
+from mexone.control.spec import ControlConfig, ControllerSpec, PidGains, controller_name
 from mexone.description.kinematics import link_frames_at, with_mimics
 from mexone.description.meshes import geometry_bounds
 from mexone.description.model import RobotModel, Transmission
@@ -32,7 +32,7 @@ from mexone.errors import MexoneError
 
 __all__ = ["JointTuning", "tune", "auto_config", "with_transmissions", "controllers_yaml",
            "transmissions_xacro", "STEP_BANDWIDTH", "SATURATION_ERROR", "POSITION_TYPE",
-           "STATE_TYPE"]
+           "STATE_TYPE", "controller_name"]
 
 STEP_BANDWIDTH = 0.1  # w dt: at most 0.1 rad of the loop's phase per physics step
 SATURATION_ERROR = 0.1  # rad (or m): the error at which p alone reaches the effort limit
@@ -122,8 +122,8 @@ def tune(robot: RobotModel, timestep: float, positions: Mapping[str, float] | No
     gravity = np.array([0.0, 0.0, -_GRAVITY])
     out = []
     for joint in robot.moving_joints:
-        if joint.mimic is not None:
-            continue
+        if joint.mimic is not None or joint.parent not in frames:
+            continue  # (not in frames: a tree beside the root's, as an editor's loose parts)
         distal = set(robot.walk(joint.child))
         if support and support & distal:  # a leg: it lifts the body, not the other legs
             moved = {name for name in everything - distal
@@ -169,10 +169,6 @@ def with_transmissions(robot: RobotModel) -> RobotModel:
     added = [Transmission(f"{j.name}_tran", j.name, actuator=f"{j.name}_motor")
              for j in robot.moving_joints if j.name not in have and j.mimic is None]
     return replace(robot, transmissions=[*robot.transmissions, *added])
-
-
-def controller_name(joint: str) -> str:
-    return f"{joint}_position_controller"
 
 
 def auto_config(robot: RobotModel, timestep: float, positions: Mapping[str, float] | None = None,

@@ -85,7 +85,9 @@ def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
             raise reader.error(root, f"expected one robot namespace holding the controllers, "
                                      f"found {len(spaces)}", "e.g. 'mex_rb:' with controllers below")
         namespace, _, body = spaces[0]
-    config = ControlConfig(namespace=namespace, source=path)
+    parameters = yamlio.construct(root)
+    config = ControlConfig(namespace=namespace, source=path,
+                           parameters=parameters if isinstance(parameters, dict) else {})
     for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
         if name == "gazebo_ros_control":
             _pid_gains(reader, node, config)

@@ -32,7 +32,8 @@ from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
 __all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "bake_gains",
-           "INTEGRAL_SUFFIX",
+           "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "gain_to_biasprm",
+           "biasprm_to_gain",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
 INTEGRAL_SUFFIX = "/i"
@@ -78,12 +79,33 @@ def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
             mj_joint.actfrcrange = (-effort, effort)
 
 
+# The one home of the gain <-> actuator mapping: MuJoCo's PID servo holds -gain / gear^2 of the
+# joint-space p and d gains in biasprm[1] and biasprm[2] (actuator length = gear q).
+_BIAS_COLUMN = {"p": 1, "d": 2}
+
+
+def gain_to_biasprm(gain, gear):
+    """A joint-space p or d gain as the motor's biasprm entry."""
+    return -gain / gear**2
+
+
+def biasprm_to_gain(biasprm, gear):
+    """The joint-space gain a motor's biasprm entry holds (gain_to_biasprm's inverse)."""
+    return -biasprm * gear**2
+
+
 def set_motor_gain(model: mujoco.MjModel, actuator: int, term: str, value: float) -> None:
-    """Write a p or d gain into a motor actuator of `model` as write() does (the one home of
-    the mapping: MuJoCo's PID servo holds -gain / gear^2 in biasprm), for models that are not a
-    running simulation's, e.g. identification's rollout copies."""
+    """Write a p or d gain into a motor actuator of `model` as write() does, for models that are
+    not a running simulation's, e.g. identification's rollout copies."""
     gear = model.actuator_gear[actuator, 0]
-    model.actuator_biasprm[actuator, {"p": 1, "d": 2}[term]] = -value / gear**2
+    model.actuator_biasprm[actuator, _BIAS_COLUMN[term]] = gain_to_biasprm(value, gear)
+
+
+def motor_gains(model: mujoco.MjModel, actuator: int) -> tuple[float, float]:
+    """(p, d) of a motor actuator of `model`, in joint space."""
+    gear = model.actuator_gear[actuator, 0]
+    return tuple(float(biasprm_to_gain(model.actuator_biasprm[actuator, _BIAS_COLUMN[term]], gear))
+                 for term in ("p", "d"))
 
 
 def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotModel], None]:
@@ -94,8 +116,11 @@ def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotM
     def edit(spec: mujoco.MjSpec, robot: RobotModel) -> None:
         for joint, pid in gains.items():
             motor, integral = spec.actuator(joint), spec.actuator(joint + INTEGRAL_SUFFIX)
-            r2 = motor.gear[0] ** 2
-            motor.biasprm = np.r_[0.0, -pid.p / r2, -pid.d / r2, np.zeros(7)]
+            gear = motor.gear[0]
+            bias = np.zeros(10)
+            for term in ("p", "d"):
+                bias[_BIAS_COLUMN[term]] = gain_to_biasprm(getattr(pid, term), gear)
+            motor.biasprm = bias
             if pid.integrates:  # else the I term stays clamped to nothing, as build_actuators left it
                 integral.gainprm = np.r_[pid.i, np.zeros(9)]
                 integral.forcerange = (pid.i_clamp_min, pid.i_clamp_max)
@@ -237,9 +262,9 @@ class SimHardware:
         if self._gains_changed.any():
             rows = np.flatnonzero(self._gains_changed)
             self._gains_changed[:] = False
-            motor, integral, r2 = self.motor[rows], self.integral[rows], r[rows] ** 2
-            model.actuator_biasprm[motor, 1] = -c.kp[rows] / r2
-            model.actuator_biasprm[motor, 2] = -c.kd[rows] / r2
+            motor, integral = self.motor[rows], self.integral[rows]
+            model.actuator_biasprm[motor, _BIAS_COLUMN["p"]] = gain_to_biasprm(c.kp[rows], r[rows])
+            model.actuator_biasprm[motor, _BIAS_COLUMN["d"]] = gain_to_biasprm(c.kd[rows], r[rows])
             ki = c.ki[rows]
             model.actuator_gainprm[integral, 0] = ki
             model.actuator_forcerange[integral, 0] = c.i_min[rows]

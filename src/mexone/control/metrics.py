@@ -11,7 +11,7 @@ from mexone.control.manager import ControllerManager
 from mexone.physics.simulation import Simulation
 
 __all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE", "settling_time",
-           "settle_band", "rise_time"]
+           "settle_band", "rise_time", "overshoot", "step_progress"]
 
 SAMPLE_RATE = 200.0  # Hz: 5 ms resolution for settling times
 SETTLE_BAND = 0.02  # settled when within 2% of the step...
@@ -55,18 +55,17 @@ def _metrics(joint: str, data: np.ndarray) -> JointTracking:
     t, sp, q = data.T
     error = sp - q
     changes = np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1
-    overshoot, settling = 0.0, 0.0
+    worst, settling = 0.0, 0.0
     bounds = list(changes) + [len(t)]
     for k, start in enumerate(changes):
         end = bounds[k + 1]
         step = sp[start] - sp[start - 1]
-        window = (q[start:end] - sp[start]) * np.sign(step)
-        overshoot = max(overshoot, float(max(window.max(), 0.0)) / abs(step))
+        worst = max(worst, overshoot(q[start:end], sp[start - 1], sp[start]))
         if settling is not None:
             settle = settling_time(t[start:end] - t[start], q[start:end], sp[start], step)
             settling = None if settle is None else max(settling, settle)
     return JointTracking(joint, float(np.sqrt(np.mean(error**2))), float(np.abs(error).max()),
-                         overshoot, settling, len(changes))
+                         worst, settling, len(changes))
 
 
 def settle_band(step: float) -> float:
@@ -85,10 +84,20 @@ def settling_time(t: np.ndarray, q: np.ndarray, target: float, step: float) -> f
     return float(t[outside[-1] + 1])
 
 
+def step_progress(q: np.ndarray, start: float, target: float) -> np.ndarray:
+    """How far along q is on each sample, from `start` (0) to `target` (1); all 1 for no step."""
+    return (q - start) / (target - start) if target != start else np.ones_like(q, dtype=float)
+
+
+def overshoot(q: np.ndarray, start: float, target: float) -> float:
+    """How far q went past `target` after a step from `start`, as a fraction of the step."""
+    return float(max(step_progress(q, start, target).max() - 1.0, 0.0))
+
+
 def rise_time(t: np.ndarray, q: np.ndarray, start: float, target: float) -> float | None:
     """Time (from t[0]'s origin) q takes from 10% to 90% of the way from `start` to `target`;
     None if it never gets there."""
-    progress = (q - start) / (target - start) if target != start else np.ones_like(q)
+    progress = step_progress(q, start, target)
     low, high = np.flatnonzero(progress >= 0.1), np.flatnonzero(progress >= 0.9)
     if low.size == 0 or high.size == 0:
         return None

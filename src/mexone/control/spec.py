@@ -10,7 +10,23 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["PidGains", "ControllerSpec", "ControlConfig"]
+from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
+
+__all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
+           "POSITION_SUFFIX"]
+
+POSITION_SUFFIX = "_position_controller"
+
+
+def controller_name(joint: str) -> str:
+    """The position controller of one joint, named as the seed's YAML names it."""
+    return joint + POSITION_SUFFIX
+
+
+def joint_label(controller: str) -> str:
+    """A controller's name without that convention's suffix (l_knee_position_controller ->
+    l_knee), for labels; other names unchanged."""
+    return controller.removesuffix(POSITION_SUFFIX)
 
 
 @dataclass(frozen=True)
@@ -35,8 +51,13 @@ class PidGains:
         negative = [k for k in ("p", "i", "d") if values[k] < 0]
         if negative:
             return f"negative {', '.join(negative)} (a PID gain < 0 pushes away from the setpoint)"
+        for key, valid in (("p", GAIN_P), ("i", GAIN_I), ("d", GAIN_D), ("i_clamp_min", I_CLAMP),
+                           ("i_clamp_max", I_CLAMP)):
+            if not valid.contains(values[key]):
+                return f"{key} {number_text(values[key])} must be {valid.describe()}"
         if self.i_clamp_min > self.i_clamp_max:
-            return f"i_clamp_min {self.i_clamp_min:g} > i_clamp_max {self.i_clamp_max:g}"
+            return (f"i_clamp_min {number_text(self.i_clamp_min)} > i_clamp_max "
+                    f"{number_text(self.i_clamp_max)}")
         return None
 
     @property
@@ -77,3 +98,5 @@ class ControlConfig:
     controllers: dict[str, ControllerSpec] = field(default_factory=dict)
     pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
     source: Path | None = None
+    # the file as `rosparam load` puts it on the parameter server (routines' get_param reads it)
+    parameters: dict = field(default_factory=dict, compare=False, repr=False)

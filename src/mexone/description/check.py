@@ -7,6 +7,7 @@ collisions and joints, missing meshes, meaningless limits.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,8 +18,9 @@ from mexone.description.findings import Finding
 from mexone.description.meshes import geometry_bounds
 from mexone.description.model import GazeboLink, Geometry, Inertial, Link, Mesh, Pose, RobotModel
 from mexone.errors import MexoneError
+from mexone.ranges import MASS, MOMENT, number_text
 
-__all__ = ["check_model", "format_tree", "summary", "RULES", "implausible_inertial",
+__all__ = ["check_model", "format_tree", "summary", "RULES", "implausible_inertial", "inertial_problem",
            "surface_problem", "mimic_problem", "UNSIMULATED_JOINTS", "MAX_LINK_MASS", "MAX_MOMENT",
            "MAX_DENSITY", "MAX_DEPTH"]
 
@@ -38,8 +40,8 @@ _TINY_EXTENT = 0.002  # m: a scaled mesh smaller than this was probably scaled t
 _TINY_FRACTION = 0.01  # of the robot's mass: a link this light cannot change how it moves
 _OVERLAP_ENOUGH = 0.5  # of the smaller box's volume: collision and visual share their place
 # Beyond these a value is a typo or a wrong unit, not a robot; `mexone sim` refuses them too
-MAX_LINK_MASS = 1e5  # kg: a 100 t link
-MAX_MOMENT = 1e6  # kg m^2: 100 t at 3 m
+MAX_LINK_MASS = MASS.high  # kg: a 100 t link (ranges.py is their home)
+MAX_MOMENT = MOMENT.high  # kg m^2: 100 t at 3 m
 MAX_DENSITY = 1e6  # kg/m^3 of the link's bounding box: 44x osmium
 MAX_DEPTH = 1023  # links in a chain: MuJoCo nests at most 1023 bodies
 UNSIMULATED_JOINTS = {
@@ -50,13 +52,35 @@ UNSIMULATED_JOINTS = {
 
 
 def implausible_inertial(inertial: Inertial) -> str | None:
-    """What makes a mass or inertia impossible for a robot link, or None."""
-    if inertial.mass > MAX_LINK_MASS:
-        return (f"mass {inertial.mass:.3g} kg is beyond any robot link's (at most "
-                f"{MAX_LINK_MASS:.0e} kg): a typo or the wrong unit")
+    """A positive mass or a moment beyond what any robot link has (ranges.MASS, MOMENT), or None."""
+    if inertial.mass > 0 and not MASS.contains(inertial.mass):
+        side, bound = ("beyond", f"at most {MAX_LINK_MASS:.0e}") if not inertial.mass < MASS.low else \
+            ("below", f"at least {MASS.low:.0e}")
+        return (f"mass {number_text(inertial.mass)} kg is {side} any robot link's ({bound} kg): "
+                "a typo or the wrong unit")
     if (largest := max(abs(v) for v in inertial.inertia)) > MAX_MOMENT:
         return (f"inertia {largest:.3g} kg m^2 is beyond any robot link's (at most "
                 f"{MAX_MOMENT:.0e} kg m^2): a typo or the wrong unit")
+    return None
+
+
+def inertial_problem(inertial: Inertial) -> tuple[str, str] | None:
+    """(rule code, message) of what makes an <inertial> impossible, or None: the one rule
+    `mexone check` reports and the model editor refuses by."""
+    if not inertial.mass > 0:
+        return "mass-nonpositive", f"mass {number_text(inertial.mass)} kg: a body needs a positive mass"
+    if not all(math.isfinite(v) for v in inertial.inertia):
+        return "inertia-not-positive", "inertia is not finite: type six numbers"
+    if (problem := implausible_inertial(inertial)) is not None:
+        return "mass-implausible", problem
+    moments = np.linalg.eigvalsh(inertial.tensor)
+    if moments[0] <= 0:
+        return ("inertia-not-positive", "inertia is not positive definite (principal moments "
+                f"{', '.join(f'{m:.3g}' for m in moments)} kg m^2): every moment must be > 0; "
+                "derive it from the link's shape and mass")
+    if moments[0] + moments[1] < moments[2] * (1 - 1e-6):
+        return ("inertia-triangle", f"principal moments {moments[0]:.3g} + {moments[1]:.3g} < "
+                f"{moments[2]:.3g} break the triangle inequality: no real body has them")
     return None
 
 
@@ -186,25 +210,16 @@ def _rule_inertial(ctx: _Context) -> Iterator[Finding]:
                               "moves but has no <inertial>: Gazebo ignores the link and MuJoCo "
                               "refuses it; give it its mass and inertia", link.line)
             continue
-        if inertial.mass <= 0:
-            yield Finding("mass-nonpositive", "error", element,
-                          f"mass {inertial.mass:g} kg: a body needs a positive mass", link.line)
-            continue
-        if (problem := implausible_inertial(inertial)) is not None:
-            yield Finding("mass-implausible", "error", element, problem, link.line)
+        problem = inertial_problem(inertial)
+        if problem is not None and problem[0] in ("mass-nonpositive", "mass-implausible"):
+            yield Finding(problem[0], "error", element, problem[1], link.line)
             continue
         yield from _density(ctx, link)
+        if problem is not None:
+            yield Finding(problem[0], "error", element, problem[1], link.line)
+            if problem[0] == "inertia-not-positive":
+                continue
         moments = np.linalg.eigvalsh(inertial.tensor)
-        if moments[0] <= 0:
-            yield Finding("inertia-not-positive", "error", element,
-                          f"inertia is not positive definite (principal moments "
-                          f"{', '.join(f'{m:.3g}' for m in moments)} kg m^2): every moment must be "
-                          "> 0; derive it from the link's shape and mass", link.line)
-            continue
-        if moments[0] + moments[1] < moments[2] * (1 - 1e-6):
-            yield Finding("inertia-triangle", "error", element,
-                          f"principal moments {moments[0]:.3g} + {moments[1]:.3g} < {moments[2]:.3g} "
-                          "break the triangle inequality: no real body has them", link.line)
         yield from _inertia_size(ctx, link, moments)
         yield from _com_inside(ctx, link)
 

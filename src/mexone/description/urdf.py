@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 from lxml import etree
 
+from mexone.description.conflicts import Statement, Statements, leaves
 from mexone.description.findings import Finding
 from mexone.description.materials import apply_named_colors
 from mexone.description.model import (
@@ -45,6 +47,10 @@ __all__ = ["read_urdf", "parse_urdf", "write_urdf", "fmt"]
 
 _GAZEBO_LINK_NUMBERS = {"mu1": "mu1", "mu2": "mu2", "kp": "kp", "kd": "kd", "maxVel": "max_vel",
                         "minDepth": "min_depth"}
+_GAZEBO_JOINT_DYNAMICS = {"axis/dynamics/damping": "damping", "axis/dynamics/friction": "friction"}
+# elements urdfdom reads once, the first: a second, different copy is dead
+_ONCE = {"link": ("inertial",),
+         "joint": ("origin", "axis", "limit", "dynamics", "mimic", "calibration", "safety_controller")}
 
 
 def read_urdf(path: Path | str, label: str | None = None) -> RobotModel:
@@ -59,21 +65,24 @@ def parse_urdf(xml: XmlReader, source: Path | None = None) -> RobotModel:
     findings: list[Finding] = []
     model = RobotModel(name=xml.attr(root, "name"), links={}, joints={}, source=source,
                        reader_findings=findings)
+    statements = Statements(xml.label, findings)
 
     for el in root.iterfind("link"):
         link = _link(xml, el)
-        _keep_first(model.links, link, "link", findings)
+        if _keep_first(model.links, link, "link", findings):
+            _state_once(statements, el, f'link "{link.name}"', _ONCE["link"])
     for el in root.iterfind("joint"):
         joint = _joint(xml, el)
         for end in (joint.parent, joint.child):
             if end not in model.links:
                 raise xml.fail(el, f"names link '{end}', which is not defined",
                                "add the <link> or correct the name")
-        _keep_first(model.joints, joint, "joint", findings)
+        if _keep_first(model.joints, joint, "joint", findings):
+            _state_once(statements, el, f'joint "{joint.name}"', _ONCE["joint"])
     for el in root.iterfind("transmission"):
         model.transmissions.append(_transmission(xml, el))
     for el in root.iterfind("gazebo"):
-        _gazebo(xml, el, model)
+        _gazebo(xml, el, model, statements)
     apply_named_colors(list(model.links.values()), _named_colors(xml, root))
     return model
 
@@ -87,13 +96,29 @@ def _named_colors(xml: XmlReader, root: etree._Element) -> dict[str, tuple[float
     return out
 
 
-def _keep_first(table: dict, item, kind: str, findings: list[Finding]) -> None:
+def _keep_first(table: dict, item, kind: str, findings: list[Finding]) -> bool:
+    """Add item unless its name is taken (reported); whether it was added."""
     if item.name in table:
         findings.append(Finding("duplicate-name", "error", f'{kind} "{item.name}"',
                                 f"the name is used twice (first on line {table[item.name].line}); "
                                 "names must be unique", item.line))
-        return
+        return False
     table[item.name] = item
+    return True
+
+
+def _state_once(statements: Statements, el: etree._Element, element: str,
+                tags: tuple[str, ...]) -> None:
+    """Every attribute under the elements urdfdom reads once: a later copy that differs is dead."""
+    for tag in tags:
+        for copy in el.iterfind(tag):
+            for node in copy.iter(etree.Element):
+                path = [n.tag for n in node.iterancestors() if el in n.iterancestors()][::-1]
+                path.append(node.tag)
+                for attr, value in node.attrib.items():
+                    quantity = attr if path == ["dynamics"] else f"<{'><'.join(path)}> {attr}"
+                    statements.state(element, quantity, Statement(value, f"<{tag}>", node.sourceline),
+                                     overrides=False, why=f"urdfdom reads only the first <{node.tag}>")
 
 
 # ----- reading ---------------------------------------------------------------------------------
@@ -207,7 +232,7 @@ def _transmission(xml: XmlReader, el: etree._Element) -> Transmission:
     )
 
 
-def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
+def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel, statements: Statements) -> None:
     ref = el.get("reference")
     if ref is None:
         for plugin in el.iterfind("plugin"):
@@ -222,27 +247,40 @@ def _gazebo(xml: XmlReader, el: etree._Element, model: RobotModel) -> None:
             break  # reported below, with the reference
         model.sensors.append(read_sensor(xml, sensor, link=ref if on_link else None,
                                          joint=None if on_link else ref))
-    if ref in model.links:
-        props = model.gazebo_links.setdefault(ref, GazeboLink(line=el.sourceline))
-        collide = xml.text_bool(el, "selfCollide")
-        if collide is not None:
-            props.self_collide = collide
-        for tag, attr in _GAZEBO_LINK_NUMBERS.items():
-            if el.find(tag) is not None:
-                setattr(props, attr, xml.text_number(el, tag))
-        if (material := xml.text(el, "material")) is not None:
-            props.material = material
-    elif ref in model.joints:
-        dyn = el.find("axis/dynamics")
-        if dyn is not None:
-            base = model.joints[ref].dynamics
-            model.gazebo_joints[ref] = Dynamics(xml.text_number(dyn, "damping", base.damping),
-                                                xml.text_number(dyn, "friction", base.friction),
-                                                base.armature)
+    if ref in model.links or ref in model.joints:
+        # in file order, each value overriding the one before, as Gazebo's URDF parser applies them
+        on_link = ref in model.links
+        element = f'{"link" if on_link else "joint"} "{ref}"'
+        if on_link:
+            props = model.gazebo_links.setdefault(ref, GazeboLink(line=el.sourceline))
+        for path, leaf in leaves(el, skip=("sensor", "plugin")):
+            text = (leaf.text or "").strip()
+            if text:
+                quantity = _GAZEBO_JOINT_DYNAMICS.get(path) if not on_link else None
+                statements.state(
+                    element, quantity or f"<{path.replace('/', '><')}>",
+                    Statement(text, f'<gazebo reference="{ref}">', leaf.sourceline), overrides=True,
+                    why="Gazebo applies <gazebo reference> over the URDF, later over earlier")
+            if on_link:
+                _gazebo_link_value(xml, props, path, leaf, text)
+            elif path in _GAZEBO_JOINT_DYNAMICS and text:
+                current = model.gazebo_joints.get(ref, model.joints[ref].dynamics)
+                model.gazebo_joints[ref] = replace(current, **{
+                    _GAZEBO_JOINT_DYNAMICS[path]: xml.number(leaf, text, "value")})
     else:
         model.reader_findings.append(Finding(
             "gazebo-unknown-reference", "warning", f'<gazebo reference="{ref}">',
             "names no link or joint; Gazebo ignores it silently: correct the name", el.sourceline))
+
+
+def _gazebo_link_value(xml: XmlReader, props: GazeboLink, path: str, leaf: etree._Element,
+                       text: str) -> None:
+    if path == "selfCollide":
+        props.self_collide = xml.bool_of(leaf)
+    elif path in _GAZEBO_LINK_NUMBERS:
+        setattr(props, _GAZEBO_LINK_NUMBERS[path], xml.number(leaf, text, "value"))
+    elif path == "material":
+        props.material = text
 
 
 # ----- writing ---------------------------------------------------------------------------------

@@ -147,8 +147,10 @@ class XmlReader:
 
     def text_bool(self, el: etree._Element, tag: str) -> bool | None:
         sub = el.find(tag)
-        if sub is None:
-            return None
+        return None if sub is None else self.bool_of(sub)
+
+    def bool_of(self, sub: etree._Element) -> bool:
+        """The boolean an element's text says (true, false, 1 or 0)."""
         text = (sub.text or "").strip().lower()
         if text in ("1", "true"):
             return True

@@ -28,17 +28,19 @@ from pathlib import Path
 import numpy as np
 import viser
 
+from mexone import signals
 from mexone.control.spec import PidGains
 from mexone.description.materials import display_rgba
 from mexone.description.model import Box, Cylinder, Dynamics, Limit, Pose, Sphere
 from mexone.editor.massprops import SHAPES
 from mexone.editor.parts import UNITS, Part, read_parts, safe_name
 from mexone.editor.save import save_controllers, save_package, save_sdf, save_urdf
-from mexone.editor.session import EDIT_TYPES, EditSession, selection_of
+from mexone.editor.session import EDIT_TYPES, MAX_SNAP_CHOICES, EditSession, selection_of
 from mexone.editor.snapping import SNAP_RADIUS
 from mexone.errors import MexoneError
 from mexone.gui.scene import _wxyz, trimesh_of
 from mexone.gui.security import guard, warn_if_exposed
+from mexone.ranges import MASS
 
 __all__ = ["EditorApp"]
 
@@ -48,6 +50,9 @@ _COLLISION_RGB = (224, 140, 60)
 _MAX_FINDING_BUTTONS = 12
 _NONE = "(none)"
 GUESS = "guess from size"
+# the page's mass input keeps the minimum its browser test ran with (a widget bound is only a
+# convenience: a websocket client sends any number, and the session checks it by ranges.MASS)
+_MASS_WIDGET_MIN = 1e-6
 
 
 class EditorApp:
@@ -80,7 +85,7 @@ class EditorApp:
     def serve_forever(self) -> None:
         """Animate the swing preview until stopped (the page itself runs in viser's threads)."""
         start = time.perf_counter()
-        while not self.stopping.is_set():
+        while not self.stopping.is_set() and not signals.requested():
             if self.swinging.is_set() and self.selected_joint:
                 with self.lock:
                     self._swing(time.perf_counter() - start)
@@ -150,7 +155,7 @@ class EditorApp:
         with gui.add_folder("Link"):
             self._link = gui.add_dropdown("Link", (_NONE,))
             self._link.on_update(lambda _: self._select_link(self._link.value))
-            self._mass = gui.add_number("Mass (kg)", 1.0, min=1e-6, max=1e5, step=0.001)
+            self._mass = gui.add_number("Mass (kg)", 1.0, min=_MASS_WIDGET_MIN, max=MASS.high, step=0.001)
             gui.add_button("Compute COM + inertia from mesh").on_click(lambda _: self.act(
                 "inertia", lambda: self.session.compute_inertia(self._need_link(), self._mass.value)))
             self._com = gui.add_vector3("COM (m)", (0.0, 0.0, 0.0), step=0.0001)
@@ -303,8 +308,8 @@ class EditorApp:
             self._snaps = []
             self._snap.options = [_NONE]
             return
-        self._snaps = self.session.snaps(child)[:60]
-        self._snap.options = [f"{i}: {s.label}" for i, (s, _p, _a) in enumerate(self._snaps)] or [_NONE]
+        self._snaps = self.session.snaps(child)[:MAX_SNAP_CHOICES]
+        self._snap.options = self.session.snap_choices(child) or [_NONE]
 
     def _fill_checks(self) -> None:
         findings = self.session.findings()
@@ -514,8 +519,8 @@ class EditorApp:
         parent, child = self._parent.value, self._child.value
         if not self._snaps or self._snap.value == _NONE:
             raise MexoneError("pick a child with a mesh and a snap point")
-        index = int(self._snap.value.split(":", 1)[0])
-        _snap, point, axis = self._snaps[index]
+        index = self.session.snap_of(child, self._snap.value)
+        _snap, point, axis = self.session.snaps(child)[index]
         name = self._jname.value
         self.session.add_joint(name, parent, child, self._jtype.value, point, axis)
         self.selected_joint = name
@@ -581,7 +586,7 @@ class EditorApp:
             self._child.value = joint.child
             self._update_snaps()
             raise MexoneError(f"the snap list now shows '{joint.child}': pick a point and snap again")
-        snap = self.session.snap_joint(joint.name, int(self._snap.value.split(":", 1)[0]))
+        snap = self.session.snap_joint(joint.name, self.session.snap_of(joint.child, self._snap.value))
         self.say(f"{joint.name} snapped to {snap.label}")
 
     def _apply_motor(self) -> None:
@@ -596,7 +601,7 @@ class EditorApp:
     def save(self, kind: str) -> Path:
         base = self._base.value
         if safe_name(base) != base:
-            raise MexoneError(f"base name '{base}' must be lower-case letters, digits and _")
+            raise MexoneError(f"base name {repr(base)[:80]} must be lower-case letters, digits and _")
         force = self._overwrite.value
         target = {"urdf": f"{base}.urdf", "sdf": f"{base}.sdf", "yaml": f"{base}_controllers.yaml",
                   "package": base}[kind]

@@ -9,8 +9,9 @@ import numpy as np
 
 from mexone.description.model import Box, Collision, Cylinder, Inertial, Mesh, Pose, Sphere
 from mexone.errors import InputError
+from mexone.ranges import MASS
 
-__all__ = ["MassProperties", "mass_properties", "fit_collisions", "SHAPES"]
+__all__ = ["MassProperties", "mass_properties", "fit_collisions", "solid_of", "SHAPES"]
 
 SHAPES = ("mesh", "convex hull", "box", "cylinder", "capsule", "sphere")
 
@@ -23,22 +24,28 @@ class MassProperties:
     from_hull: bool  # the mesh is not a closed solid: its convex hull's volume was used
 
 
-def _solid(mesh):
-    """The mesh if it encloses a volume, else its convex hull (an open or inverted mesh has no
-    meaningful volume; the hull is the closest solid)."""
+def solid_of(mesh, what: str = "the part") -> tuple[object, bool]:
+    """(the mesh if it encloses a volume, else its convex hull; whether the hull was used), or
+    an InputError for a flat, one-triangle or collinear part: an open or inverted mesh has no
+    meaningful volume and the hull is the closest solid, but a flat part has none at all."""
     if mesh.is_watertight and mesh.volume > 0:
         return mesh, False
-    return mesh.convex_hull, True
+    try:
+        hull = mesh.convex_hull  # Qhull: fails on fewer than 4 points off one plane
+        volume = float(hull.volume)
+    except Exception:  # noqa: BLE001 - Qhull and trimesh raise many types for degenerate input
+        hull, volume = None, 0.0
+    scale = float(np.max(mesh.extents)) if len(mesh.vertices) else 0.0
+    if hull is None or not np.isfinite(volume) or volume <= 1e-12 * scale**3:
+        raise InputError(f"{what} is flat: it encloses no volume to compute a mass or inertia from",
+                         hint="export the solid part, not a sketch or a surface")
+    return hull, True
 
 
 def mass_properties(mesh, mass: float, origin: np.ndarray) -> MassProperties:
     """`mesh` in metres in its geometry frame, placed in the link by `origin` (4x4)."""
-    if not (np.isfinite(mass) and mass > 0):
-        raise InputError(f"mass {mass:g} kg must be > 0", hint="type the part's mass in kg")
-    solid, hull = _solid(mesh)
-    if solid.volume <= 0:
-        raise InputError("the part has no volume to compute an inertia from",
-                         hint="type the inertia, or fit a box and use its inertia")
+    mass = MASS.check(mass, "mass", hint="type the part's mass in kg")
+    solid, hull = solid_of(mesh)
     solid = solid.copy()
     solid.density = mass / solid.volume
     rot = origin[:3, :3]
@@ -84,4 +91,4 @@ def fit_collisions(mesh, shape: str, origin: np.ndarray, mesh_ref: Mesh | None =
             end[:3, 3] = frame[:3, 3] + sign * frame[:3, 2] * length / 2
             out.append(Collision(Sphere(radius), placed(end), name=label))
         return out
-    raise InputError(f"unknown collision shape '{shape}'", hint=f"one of: {', '.join(SHAPES)}")
+    raise InputError(f"unknown collision shape {repr(shape)[:80]}", hint=f"one of: {', '.join(SHAPES)}")

@@ -10,9 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mexone.editor.massprops import solid_of
 from mexone.errors import InputError
+from mexone.ranges import SIZE, number_text
 
-__all__ = ["UNITS", "MESH_TYPES", "Part", "read_part", "read_parts", "guess_unit", "safe_name",
+__all__ = ["UNITS", "MESH_TYPES", "Part", "read_part", "read_parts", "guess_unit", "safe_name", "quoted",
            "MAX_PART_BYTES", "MAX_ZIP_PARTS"]
 
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
@@ -35,6 +37,11 @@ class Part:
     def extent(self) -> float:
         """Largest side of its bounding box, in the file's units."""
         return float(np.max(self.mesh.extents))
+
+
+def quoted(filename: object) -> str:
+    """An uploaded file's name for a one-line message: quoted, escapes shown, at most 64 chars."""
+    return repr(filename[:64] if isinstance(filename, str) else filename)[:80]
 
 
 def safe_name(text: str, taken=()) -> str:
@@ -64,23 +71,28 @@ def read_part(filename: str, data: bytes, taken=()) -> Part:
 
     kind = filename.rsplit(".", 1)[-1].lower() if "." in filename else ""
     if kind not in MESH_TYPES:
-        raise InputError(f"'{filename}' is not an STL, OBJ or DAE file", hint="export the part as STL")
+        raise InputError(f"{quoted(filename)} is not an STL, OBJ or DAE file", hint="export the part as STL")
     if len(data) > MAX_PART_BYTES:
-        raise InputError(f"'{filename}' is {len(data) / 1e6:.0f} MB, over "
+        raise InputError(f"{quoted(filename)} is {len(data) / 1e6:.0f} MB, over "
                          f"{MAX_PART_BYTES // 2**20} MB", hint="simplify the mesh in the CAD program")
     try:
-        mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
+        with np.errstate(all="ignore"):  # a 1e37-wide part overflows while merging: refused below
+            mesh = trimesh.load(io.BytesIO(data), file_type=kind, force="mesh", process=True)
     except Exception as exc:  # trimesh raises many types for bad files
-        raise InputError(f"'{filename}' is unreadable: {exc}",
+        raise InputError(f"{quoted(filename)} is unreadable: {' '.join(str(exc).split())[:160]}",
                          hint="export it again as binary STL") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-        raise InputError(f"'{filename}' holds no triangles", hint="export it again as STL")
+        raise InputError(f"{quoted(filename)} holds no triangles", hint="export it again as STL")
     if not np.isfinite(mesh.vertices).all():
-        raise InputError(f"'{filename}' has vertices that are not numbers", hint="export it again")
+        raise InputError(f"{quoted(filename)} has vertices that are not numbers", hint="export it again")
     extent = float(np.max(mesh.extents))
     if extent <= 0:
-        raise InputError(f"'{filename}' is flat in every direction (zero size)",
+        raise InputError(f"{quoted(filename)} is flat in every direction (zero size)",
                          hint="export the solid, not a sketch")
+    smallest = min(UNITS, key=UNITS.get)
+    SIZE.check(extent * UNITS[smallest], f"{quoted(filename)} ({number_text(extent)} units wide), its "
+               f"largest side even in {smallest},", hint="export the part at its real size")
+    solid_of(mesh, quoted(filename))
     return Part(safe_name(filename, taken), mesh, guess_unit(extent))
 
 
@@ -97,12 +109,12 @@ def read_parts(filename: str, data: bytes, taken=()) -> list[Part]:
         entries = [e for e in archive.infolist() if not e.is_dir()
                    and e.filename.rsplit(".", 1)[-1].lower() in MESH_TYPES]
     except (zipfile.BadZipFile, ValueError) as exc:
-        raise InputError(f"'{filename}' is not a readable zip: {exc}",
+        raise InputError(f"{quoted(filename)} is not a readable zip: {' '.join(str(exc).split())[:160]}",
                          hint="zip the parts' folder again") from None
     if not entries:
-        raise InputError(f"'{filename}' holds no STL, OBJ or DAE file", hint="zip the folder of parts")
+        raise InputError(f"{quoted(filename)} holds no STL, OBJ or DAE file", hint="zip the folder of parts")
     if len(entries) > MAX_ZIP_PARTS or sum(e.file_size for e in entries) > MAX_PART_BYTES:
-        raise InputError(f"'{filename}' unpacks to {len(entries)} parts and "
+        raise InputError(f"{quoted(filename)} unpacks to {len(entries)} parts and "
                          f"{sum(e.file_size for e in entries) / 1e6:.0f} MB, over {MAX_ZIP_PARTS} parts "
                          f"or {MAX_PART_BYTES // 2**20} MB", hint="import the parts in smaller groups")
     parts: list[Part] = []
@@ -113,7 +125,7 @@ def read_parts(filename: str, data: bytes, taken=()) -> list[Part]:
             content = member.read(budget + 1)
         budget -= len(content)
         if budget < 0:
-            raise InputError(f"'{filename}' unpacks to more than {MAX_PART_BYTES // 2**20} MB",
+            raise InputError(f"{quoted(filename)} unpacks to more than {MAX_PART_BYTES // 2**20} MB",
                              hint="import the parts in smaller groups")
         parts.append(read_part(entry.filename, content, names))
     return parts

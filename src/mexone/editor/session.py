@@ -14,6 +14,7 @@ import json
 import math
 import os
 import re
+import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -21,14 +22,16 @@ import numpy as np
 
 from mexone.control.autotune import tune
 from mexone.control.spec import PidGains
-from mexone.description.check import check_model, implausible_inertial
+from mexone.description.check import check_model, inertial_problem
 from mexone.description.convert import rebase_meshes
 from mexone.description.findings import Finding
 from mexone.description.kinematics import joint_motion
 from mexone.description.loader import load_model
 from mexone.description.meshes import load_mesh, resolve_mesh
 from mexone.description.model import (
+    Box,
     Collision,
+    Cylinder,
     Dynamics,
     GazeboLink,
     Inertial,
@@ -38,23 +41,46 @@ from mexone.description.model import (
     Mesh,
     Pose,
     RobotModel,
+    Sphere,
     Transmission,
     Visual,
 )
-from mexone.description.urdf import read_urdf, write_urdf
-from mexone.editor.massprops import MassProperties, fit_collisions, mass_properties
-from mexone.editor.parts import UNITS, read_part
+from mexone.description.urdf import parse_urdf, write_urdf
+from mexone.description.xmlio import XmlReader
+from mexone.editor.massprops import MassProperties, fit_collisions, mass_properties, solid_of
+from mexone.editor.parts import UNITS, quoted, read_part
 from mexone.editor.snapping import SNAP_RADIUS, Snap, nearest_snap, snap_points
 from mexone.errors import InputError, MexoneError
 from mexone.physics.world import default_world
+from mexone.ranges import (
+    ANGLE,
+    COLOUR,
+    CONTACT_KD,
+    CONTACT_KP,
+    DAMPING,
+    EFFORT,
+    FRICTION,
+    JOINT_VALUE,
+    LENGTH,
+    MASS,
+    MOMENT,
+    MU,
+    POSITION,
+    PRODUCT,
+    SIZE,
+    VELOCITY,
+    Range,
+    number_text,
+)
 
-__all__ = ["EditSession", "EDIT_TYPES", "DEFAULT_DENSITY", "selection_of"]
+__all__ = ["EditSession", "EDIT_TYPES", "DEFAULT_DENSITY", "MAX_SNAP_CHOICES", "selection_of"]
 
 EDIT_TYPES = ("revolute", "continuous", "prismatic", "fixed")  # what the Model Editor offered
 DEFAULT_DENSITY = 1200.0  # kg/m^3 (3D-printed plastic): an imported part's mass until one is typed
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,63}$")
 _ELEMENT = re.compile(r'^(link|joint) "(.+)"$')
 MAX_HISTORY = 500  # steps kept on disk; older ones are dropped
+MAX_SNAP_CHOICES = 60  # snap candidates the page lists for a child
 
 
 def selection_of(finding: Finding) -> tuple[str, str] | None:
@@ -63,16 +89,43 @@ def selection_of(finding: Finding) -> tuple[str, str] | None:
     return (match.group(1), match.group(2)) if match else None
 
 
-def _finite(values, what: str) -> tuple[float, ...]:
-    out = tuple(float(v) for v in values)
-    if not all(math.isfinite(v) for v in out):
-        raise InputError(f"{what} {out} is not finite", hint="type numbers")
-    return out
+def _numbers(values, what: str, valid: Range | None = None, count: int | None = None) -> tuple[float, ...]:
+    """`count` numbers from what a page sent, each finite and in `valid` (ranges.py), or an
+    InputError naming `what`: the page is not trusted, so nothing it sends reaches the model unread."""
+    try:
+        items = np.asarray(values, dtype=float).ravel()
+    except (TypeError, ValueError, OverflowError):
+        raise InputError(f"{what} is not a list of numbers", hint="type numbers") from None
+    if count is not None and len(items) != count:
+        raise InputError(f"{what} needs {count} numbers, not {len(items)}", hint="type numbers")
+    for item in items:
+        if valid is not None:
+            valid.check(item, what)  # its range says what to type
+        elif not math.isfinite(item):
+            raise InputError(f"{what} {number_text(item)} is not finite", hint="type numbers")
+    return tuple(float(v) for v in items)
+
+
+def _direction(values, what: str) -> tuple[float, ...]:
+    """A unit vector along three finite numbers, not all zero (scaled first: the norm of
+    (1e308, 1e308, 1e308) overflows, its direction does not)."""
+    vector = np.array(_numbers(values, what, count=3))
+    largest = float(np.max(np.abs(vector)))
+    if largest == 0:
+        raise InputError(f"{what} ({', '.join(number_text(v) for v in vector)}) must not be all zero",
+                         hint="type the direction, e.g. 0 0 1")
+    vector = vector / largest
+    return tuple(float(v) for v in vector / np.linalg.norm(vector))
+
+
+def _shown(value: object) -> str:
+    """What a page sent, quoted for a one-line message: escapes shown, at most 64 characters."""
+    return repr(value[:64] if isinstance(value, str) else value)[:80]
 
 
 def _name(text: str, what: str) -> str:
     if not isinstance(text, str) or not _NAME.match(text):
-        raise InputError(f"{what} '{text}' is not a valid name",
+        raise InputError(f"{what} {_shown(text)} is not a valid name",
                          hint="letters, digits and _, starting with a letter, at most 64")
     return text
 
@@ -145,34 +198,47 @@ class EditSession:
 
     def _save_state(self, state: dict) -> None:
         """Atomically (a crash or a reader never sees half a file), then remembered."""
-        temporary = self.history / f".state.{os.getpid()}.json"
-        temporary.write_text(json.dumps(state))
-        os.replace(temporary, self.history / "state.json")
+        _write_atomic(self.history / "state.json", json.dumps(state))
         self._state_cache = dict(state)
 
     def _step_paths(self, index: int) -> tuple[Path, Path]:
         return self.history / f"{index:04d}.urdf", self.history / f"{index:04d}.json"
 
     def _write_step(self, index: int, model: RobotModel, extras: _Extras) -> None:
+        """The model is read back before anything is written, so one the reader refuses (an
+        axis that overflowed to zero) changes no file; then the step's files, the working
+        model.urdf (atomically) and last the index: whoever sees the new index sees its model."""
+        text = write_urdf(model)
+        checked = self._read_back(text)
         urdf, meta = self._step_paths(index)
-        urdf.write_text(write_urdf(model))
-        meta.write_text(extras.to_json())
+        _write_atomic(urdf, text)
+        _write_atomic(meta, extras.to_json())
         first = 0 if index == 0 else self._state().get("first", 0)
         if index - first >= MAX_HISTORY:
             for old in self._step_paths(first):
                 old.unlink(missing_ok=True)
             first += 1
-        self._load(index)  # then the index: whoever sees the new index sees its model
+        self._install(checked, extras)
         self._save_state({"index": index, "top": index, "first": first})
+
+    def _read_back(self, text: str) -> tuple[str, RobotModel]:
+        """(the URDF `text`, the model the reader reads from it as model.urdf), or the reader's
+        error: the check comes before any file is written."""
+        working = self.folder / "model.urdf"
+        model = parse_urdf(XmlReader(working, data=text.encode()), working)
+        model.reader_findings.clear()  # a new robot has no links yet; check says so itself
+        return text, model
+
+    def _install(self, checked: tuple[str, RobotModel], extras: _Extras) -> None:
+        text, model = checked
+        _write_atomic(self.folder / "model.urdf", text)
+        self.model, self.extras = model, extras
+        self._findings = None
 
     def _load(self, index: int) -> None:
         urdf, meta = self._step_paths(index)
-        text = urdf.read_text()
-        (self.folder / "model.urdf").write_text(text)
-        model = read_urdf(self.folder / "model.urdf")
-        model.reader_findings.clear()  # a new robot has no links yet; check says so itself
-        self.model, self.extras = model, _Extras.from_json(meta.read_text())
-        self._findings = None
+        extras = _Extras.from_json(meta.read_text())
+        self._install(self._read_back(urdf.read_text()), extras)
 
     @property
     def index(self) -> int:
@@ -234,13 +300,13 @@ class EditSession:
         return self._findings
 
     def link(self, name: str) -> Link:
-        if name not in self.model.links:
-            raise InputError(f"no link '{name}'", hint="pick a link of the model")
+        if not isinstance(name, str) or name not in self.model.links:
+            raise InputError(f"no link {_shown(name)}", hint="pick a link of the model")
         return self.model.links[name]
 
     def joint(self, name: str) -> Joint:
-        if name not in self.model.joints:
-            raise InputError(f"no joint '{name}'", hint="pick a joint of the model")
+        if not isinstance(name, str) or name not in self.model.joints:
+            raise InputError(f"no joint {_shown(name)}", hint="pick a joint of the model")
         return self.model.joints[name]
 
     def part_mesh(self, link: str):
@@ -281,6 +347,21 @@ class EditSession:
         return [(s, frame[:3, :3] @ s.point + frame[:3, 3], frame[:3, :3] @ s.axis)
                 for s in snap_points(mesh)]
 
+    def snap_choices(self, link: str) -> list[str]:
+        """What the page's *Snap on child* list offers for `link`: 'index: label', the first
+        MAX_SNAP_CHOICES candidates."""
+        return [f"{i}: {snap.label}" for i, (snap, _p, _a) in enumerate(self.snaps(link)[:MAX_SNAP_CHOICES])]
+
+    def snap_of(self, link: str, choice: object) -> int:
+        """The index of the snap candidate `choice` names, refused unless it is one the page was
+        offered for `link` (a websocket client can send any string: '9999: x', '-1: x')."""
+        self.link(link)
+        choices = self.snap_choices(link)
+        if not isinstance(choice, str) or choice not in choices:
+            raise InputError(f"snap {_shown(choice)} is not one of the {len(choices)} offered on '{link}'",
+                             hint="pick a snap from the list")
+        return choices.index(choice)
+
     def control_config(self):
         """The controllers the motors make: a position controller per motor, with its gains."""
         from mexone.control.autotune import POSITION_TYPE, STATE_RATE, STATE_TYPE, controller_name
@@ -307,18 +388,22 @@ class EditSession:
         part = read_part(filename, data, taken=set(self.model.links) | {"world"})
         unit = unit or part.guess
         if unit not in UNITS:
-            raise InputError(f"unknown unit '{unit}'", hint=f"one of: {', '.join(UNITS)}")
+            raise InputError(f"unknown unit {_shown(unit)}", hint=f"one of: {', '.join(UNITS)}")
+        scaled = part.mesh.copy()
+        scaled.apply_scale(UNITS[unit])
+        SIZE.check(float(np.max(scaled.extents)), f"{quoted(filename)} in {unit}: its largest side",
+                   hint="pick the unit the part was drawn in")
+        solid, _hull = solid_of(scaled, quoted(filename))
+        mass = DEFAULT_DENSITY * solid.volume
+        MASS.check(mass, f"{quoted(filename)} in {unit}: its mass at {DEFAULT_DENSITY:g} kg/m^3",
+                   hint="pick the unit the part was drawn in")
+        props = mass_properties(scaled, mass, np.eye(4))
+        _refuse_inertial(part.name, props.inertial)
         path = self.meshes / f"{part.name}.stl"
         n = 2
         while path.exists():  # an undone import left its file; never reuse a name for new bytes
             path, n = self.meshes / f"{part.name}_{n}.stl", n + 1
-        part.mesh.export(path)
-        scale = (UNITS[unit],) * 3
-        ref = Mesh(f"meshes/{path.name}", scale)
-        scaled = part.mesh.copy()
-        scaled.apply_scale(UNITS[unit])
-        solid = scaled if scaled.is_watertight and scaled.volume > 0 else scaled.convex_hull
-        props = mass_properties(scaled, max(DEFAULT_DENSITY * solid.volume, 1e-6), np.eye(4))
+        ref = Mesh(f"meshes/{path.name}", (UNITS[unit],) * 3)
 
         def change(model: RobotModel, extras: _Extras) -> None:
             model.links[part.name] = Link(part.name, props.inertial,
@@ -326,7 +411,12 @@ class EditSession:
                                           [Collision(ref, name=f"{part.name}_collision")])
             extras.collision_shapes[part.name] = "mesh"
 
-        self._edit(f"import {part.name} ({unit})", change)
+        part.mesh.export(path)
+        try:
+            self._edit(f"import {part.name} ({unit})", change)
+        except BaseException:
+            path.unlink(missing_ok=True)  # a refused import leaves nothing behind
+            raise
         return part.name
 
     def mass_properties(self, link: str, mass: float) -> MassProperties:
@@ -334,27 +424,31 @@ class EditSession:
         if found is None:
             raise InputError(f"link '{link}' has no mesh to compute an inertia from",
                              hint="type its inertia")
-        return mass_properties(found[0], float(mass), found[1])
+        (mass,) = _numbers(mass, "mass", MASS, 1)
+        return mass_properties(found[0], mass, found[1])
 
     def compute_inertia(self, link: str, mass: float) -> MassProperties:
         """COM and inertia of the link's mesh at `mass` kg, uniform density."""
         props = self.mass_properties(link, mass)
+        _refuse_inertial(link, props.inertial)
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             model.links[link].inertial = props.inertial
 
-        self._edit(f"{link}: inertia from mesh at {mass:g} kg", change)
+        self._edit(f"{link}: inertia from mesh at {number_text(props.inertial.mass)} kg", change)
         return props
 
     def set_inertial(self, link: str, mass: float, com, inertia, rpy=(0.0, 0.0, 0.0)) -> None:
         """Typed in, as the seed did from CAD: mass, COM (link frame), ixx ixy ixz iyy iyz izz."""
         self.link(link)
-        inertial = Inertial(float(mass), _finite(inertia, "inertia"),
-                            Pose(_finite(com, "centre of mass"), _finite(rpy, "inertial rpy")))
-        if not (math.isfinite(inertial.mass) and inertial.mass > 0):
-            raise InputError(f"mass {mass} must be > 0", hint="type the part's mass in kg")
-        if (problem := implausible_inertial(inertial)) is not None:
-            raise InputError(f"link '{link}': {problem}")
+        (mass,) = _numbers(mass, "mass", MASS, 1)
+        ixx, ixy, ixz, iyy, iyz, izz = _numbers(inertia, "inertia", count=6)
+        inertial = Inertial(mass, (ixx, ixy, ixz, iyy, iyz, izz),
+                            Pose(_numbers(com, "centre of mass", LENGTH, 3),
+                                 _numbers(rpy, "inertial rpy", ANGLE, 3)))
+        _refuse_inertial(link, inertial)  # check's rule first: it says what is impossible
+        _numbers((ixx, iyy, izz), "moment of inertia", MOMENT)
+        _numbers((ixy, ixz, iyz), "product of inertia", PRODUCT)
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             model.links[link].inertial = inertial
@@ -384,12 +478,23 @@ class EditSession:
     def set_collision(self, link: str, index: int, geometry, origin: Pose) -> None:
         """Edit a fitted shape by hand (its size and place)."""
         cols = self.link(link).collisions
-        if not 0 <= index < len(cols):
-            raise InputError(f"link '{link}' has no collision {index}")
-        for v in (getattr(geometry, "size", None), getattr(geometry, "radius", None),
-                  getattr(geometry, "length", None)):
-            if v is not None and not all(x > 0 and math.isfinite(x) for x in np.atleast_1d(v)):
-                raise InputError(f"collision size {v} must be > 0", hint="type sizes in metres")
+        if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(cols):
+            raise InputError(f"link '{link}' has no collision {index!r}")
+        match geometry:
+            case Box(size):
+                geometry = Box(_numbers(size, "collision size", SIZE, 3))
+            case Cylinder(radius, length):
+                geometry = Cylinder(*_numbers((radius, length), "collision size", SIZE, 2))
+            case Sphere(radius):
+                geometry = Sphere(*_numbers(radius, "collision size", SIZE, 1))
+            case Mesh():
+                geometry = cols[index].geometry if isinstance(cols[index].geometry, Mesh) else None
+            case _:
+                geometry = None
+        if geometry is None:
+            raise InputError("a collision is a box, cylinder or sphere", hint="fit a shape first")
+        origin = Pose(_numbers(getattr(origin, "xyz", None), "collision xyz", LENGTH, 3),
+                      _numbers(getattr(origin, "rpy", None), "collision rpy", ANGLE, 3))
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             model.links[link].collisions[index] = replace(cols[index], geometry=geometry,
@@ -402,9 +507,9 @@ class EditSession:
         """Gazebo friction and contact values (None: Gazebo's default)."""
         self.link(link)
         values = {"mu1": mu1, "mu2": mu2, "kp": kp, "kd": kd}
-        for key, value in values.items():
-            if value is not None and not (math.isfinite(value) and value >= 0 and (key != "kp" or value > 0)):
-                raise InputError(f"{key} {value} must be {'> 0' if key == 'kp' else '>= 0'}")
+        valid = {"mu1": MU, "mu2": MU, "kp": CONTACT_KP, "kd": CONTACT_KD}
+        values = {key: None if value is None else _numbers(value, key, valid[key], 1)[0]
+                  for key, value in values.items()}
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             props = model.gazebo_links.get(link, GazeboLink())
@@ -413,9 +518,8 @@ class EditSession:
         self._edit(f"{link}: surface", change)
 
     def set_color(self, link: str, rgba) -> None:
-        rgba = _finite(rgba, "colour")
-        if len(rgba) != 4 or not all(0 <= v <= 1 for v in rgba):
-            raise InputError(f"colour {rgba} needs four values in 0..1")
+        self.link(link)
+        rgba = _numbers(rgba, "colour", COLOUR, 4)
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             target = model.links[link]
@@ -426,11 +530,17 @@ class EditSession:
 
     def place(self, link: str, matrix: np.ndarray) -> None:
         """Where a loose part (a root) sits in the editor's world, before a joint holds it."""
+        self.link(link)
         if link not in self.model.roots:
             raise InputError(f"'{link}' hangs on joint '{self.model.parent_joint[link].name}'",
                              hint="move the joint's frame instead")
-        matrix = np.asarray(matrix, dtype=float)
-        _finite(matrix.ravel(), "placement")
+        matrix = np.array(_numbers(matrix, "placement", count=16)).reshape(4, 4)
+        _numbers(matrix[:3, 3], "placement", POSITION)
+        rotation = matrix[:3, :3]
+        if not (np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-6) and np.linalg.det(rotation) > 0
+                and np.allclose(matrix[3], (0, 0, 0, 1))):
+            raise InputError("placement is not a rigid motion (a rotation and a translation)",
+                             hint="move the part with the gizmo")
 
         def change(_model: RobotModel, extras: _Extras) -> None:
             extras.placements[link] = matrix.ravel().tolist()
@@ -474,21 +584,20 @@ class EditSession:
         self.link(parent)
         self.link(child)
         if type not in EDIT_TYPES:
-            raise InputError(f"joint type '{type}' is not one of {', '.join(EDIT_TYPES)}")
+            raise InputError(f"joint type {_shown(type)} is not one of {', '.join(EDIT_TYPES)}")
         if child not in self.model.roots or child == "world":
             raise InputError(f"'{child}' already hangs on a joint", hint="a link has one parent")
         if parent in self.model.walk(child):
             raise InputError(f"'{parent}' hangs below '{child}': that joint would close a loop",
                              hint="swap parent and child")
-        point, axis = np.array(_finite(point, "joint point")), np.array(_finite(axis, "joint axis"))
-        if len(point) != 3 or len(axis) != 3 or np.linalg.norm(axis) < 1e-9:
-            raise InputError("a joint needs a point (x y z) and a non-zero axis")
+        point = np.array(_numbers(point, "joint point", POSITION, 3))
+        axis = np.array(_direction(axis, "joint axis"))
         frames = self.world_frames()
         child_world, parent_world = frames[child], frames[parent]
         joint_world = child_world.copy()
         joint_world[:3, 3] = point  # the child's frame keeps its orientation, moves to the joint
         shift = np.linalg.inv(joint_world) @ child_world
-        local_axis = child_world[:3, :3].T @ (axis / np.linalg.norm(axis))
+        local_axis = child_world[:3, :3].T @ axis
         origin = Pose.from_matrix(np.linalg.inv(parent_world) @ joint_world)
         limit = Limit(-math.pi / 2, math.pi / 2, 10.0, 3.0) if type == "revolute" else \
             Limit(-0.1, 0.1, 100.0, 0.5) if type == "prismatic" else \
@@ -506,22 +615,19 @@ class EditSession:
                   dynamics: Dynamics | None = None) -> None:
         joint = self.joint(name)
         if type is not None and type not in EDIT_TYPES:
-            raise InputError(f"joint type '{type}' is not one of {', '.join(EDIT_TYPES)}")
+            raise InputError(f"joint type {_shown(type)} is not one of {', '.join(EDIT_TYPES)}")
         if axis is not None:
-            axis = np.array(_finite(axis, "axis"))
-            if len(axis) != 3 or np.linalg.norm(axis) < 1e-9:
-                raise InputError(f"axis {tuple(axis)} must be three numbers, not all zero")
-            axis = tuple(float(v) for v in axis / np.linalg.norm(axis))
+            axis = _direction(axis, "axis")
         if limit is not None:
-            _finite((limit.lower, limit.upper, limit.effort, limit.velocity), "limit")
-            if limit.lower > limit.upper:
-                raise InputError(f"lower limit {limit.lower:g} > upper limit {limit.upper:g}")
-            if limit.effort < 0 or limit.velocity < 0:
-                raise InputError("effort and velocity limits cannot be negative")
+            lower, upper = _numbers((limit.lower, limit.upper), "limit", JOINT_VALUE, 2)
+            if lower > upper:
+                raise InputError(f"lower limit {number_text(lower)} > upper limit {number_text(upper)}")
+            limit = Limit(lower, upper, *_numbers(limit.effort, "effort limit", EFFORT, 1),
+                          *_numbers(limit.velocity, "velocity limit", VELOCITY, 1))
         if dynamics is not None:
-            _finite((dynamics.damping, dynamics.friction), "dynamics")
-            if dynamics.damping < 0 or dynamics.friction < 0:
-                raise InputError("damping and friction cannot be negative")
+            dynamics = Dynamics(*_numbers(dynamics.damping, "damping", DAMPING, 1),
+                                *_numbers(dynamics.friction, "friction", FRICTION, 1),
+                                *_numbers(dynamics.armature, "armature", MOMENT, 1))
 
         def change(model: RobotModel, extras: _Extras) -> None:
             target = model.joints[name]
@@ -529,6 +635,8 @@ class EditSession:
             target.axis = axis or target.axis
             target.limit = limit if limit is not None else target.limit
             target.dynamics = dynamics if dynamics is not None else target.dynamics
+            if dynamics is not None and name in model.gazebo_joints:
+                model.gazebo_joints[name] = dynamics  # Gazebo's <gazebo> value wins: both say it
             if target.type == "fixed":
                 model.transmissions = [t for t in model.transmissions if t.joint != name]
                 extras.motors.pop(name, None)
@@ -542,7 +650,8 @@ class EditSession:
         keep_parts: the child's parts stay where they are (the frame moves over them, as in the
         Model Editor); otherwise the child moves with its frame."""
         joint = self.joint(name)
-        new = Pose(_finite(origin.xyz, "joint position"), _finite(origin.rpy, "joint rotation"))
+        new = Pose(_numbers(getattr(origin, "xyz", None), "joint position", LENGTH, 3),
+                   _numbers(getattr(origin, "rpy", None), "joint rotation", ANGLE, 3))
         shift = np.linalg.inv(new.matrix) @ joint.origin.matrix
 
         def change(model: RobotModel, _extras: _Extras) -> None:
@@ -560,8 +669,10 @@ class EditSession:
         so a URDF reads `axis 0 1 0` for a hole along y, not a rotated frame."""
         joint = self.joint(name)
         snaps = self.snaps(joint.child)
-        if not 0 <= snap_index < len(snaps):
-            raise InputError(f"snap {snap_index} is not one of the {len(snaps)} candidates")
+        if isinstance(snap_index, bool) or not isinstance(snap_index, int | np.integer) \
+                or not 0 <= snap_index < len(snaps):
+            raise InputError(f"snap {_shown(snap_index)} is not one of the {len(snaps)} candidates on "
+                             f"'{joint.child}'", hint="pick a snap from the list")
         snap, point, axis = snaps[snap_index]
         frames = self.world_frames()
         parent, child = frames[joint.parent], frames[joint.child]
@@ -569,7 +680,7 @@ class EditSession:
         joint_world[:3, 3] = point
         new = Pose.from_matrix(np.linalg.inv(parent) @ joint_world)
         shift = np.linalg.inv(new.matrix) @ joint.origin.matrix
-        local_axis = child[:3, :3].T @ (axis / np.linalg.norm(axis))
+        local_axis = child[:3, :3].T @ np.array(_direction(axis, "snap axis"))
 
         def change(model: RobotModel, _extras: _Extras) -> None:
             target = model.joints[name]
@@ -585,9 +696,7 @@ class EditSession:
         mesh nearest `at` (the editor's world) within `radius`; None (nothing changed) when
         every candidate is further."""
         joint = self.joint(name)
-        at = np.array(_finite(at, "gizmo position"))
-        if len(at) != 3:
-            raise InputError(f"gizmo position {tuple(at)} must be three numbers")
+        at = np.array(_numbers(at, "gizmo position", POSITION, 3))
         index = nearest_snap(self.snaps(joint.child), at, radius)
         return None if index is None else self.snap_joint(name, index)
 
@@ -623,6 +732,9 @@ class EditSession:
         target = self.joint(joint)
         if on and not target.moving:
             raise InputError(f"joint '{joint}' is {target.type}: nothing for a motor to move")
+        if gains is not None:
+            gains = PidGains(*_numbers((gains.p, gains.i, gains.d, gains.i_clamp_min, gains.i_clamp_max),
+                                       "gains", count=5), antiwindup=bool(gains.antiwindup))
         if gains is not None and (problem := gains.problem()) is not None:
             raise InputError(f"joint '{joint}': {problem}")
         typed = gains is not None
@@ -658,6 +770,23 @@ class EditSession:
             model.name = name
 
         self._edit(f"robot named {name}", change)
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """`text` in `path` whole or not at all (a crash or a reader never sees half a file)."""
+    temporary = path.with_name(f".{path.name}.{os.getpid()}.{threading.get_ident()}")
+    try:
+        temporary.write_text(text)
+        os.replace(temporary, path)
+    finally:
+        temporary.unlink(missing_ok=True)
+
+
+def _refuse_inertial(link: str, inertial: Inertial) -> None:
+    """`mexone check`'s inertial rule (description/check.py), as a refusal."""
+    if (problem := inertial_problem(inertial)) is not None:
+        raise InputError(f"link '{link}': {problem[1]}", hint="type the inertia of a real body, or "
+                         "compute it from the mesh")
 
 
 def _reexpress(model: RobotModel, link: str, shift: np.ndarray) -> None:

@@ -21,7 +21,9 @@ from pathlib import Path
 import numpy as np
 import viser
 
+from mexone import signals
 from mexone.control.controllers import Controller
+from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
 from mexone.gui.fields import NumberFields
 from mexone.gui.handles import IkHandles
@@ -40,8 +42,9 @@ from mexone.gui.walkpad import WalkPad
 from mexone.gui.walkplan import WALK_PLAN, WalkPlanView
 from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions
-from mexone.physics.simulation import MAX_TIMESTEP, MIN_TIMESTEP, WorkQueue
+from mexone.physics.simulation import WorkQueue
 from mexone.physics.watchdog import DivergenceError
+from mexone.ranges import GAINS, GRAVITY, RTF, STEPS, TIMESTEP, number_text
 from mexone.routines.runner import RoutineRunner, routine_choices
 
 __all__ = ["GuiApp", "FPS", "MAX_STEPS"]
@@ -50,9 +53,8 @@ log = logging.getLogger(__name__)
 
 FPS = 30.0  # scene updates per second of wall time
 TICK = 0.001  # s of sim time between tick hooks (the ROS bridge's /clock)
-MAX_STEPS = 100_000  # Step N at most (a page could send anything)
+MAX_STEPS = int(STEPS.high)  # Step N at most (a page could send anything): ranges.STEPS
 STEP_BUDGET = 0.025  # s of wall time per frame spent on Step N, so the page stays live
-MAX_RTF = 100.0
 PAGE_RENDER_SECONDS = 10.0  # a page that sends no picture by then gets MuJoCo's render instead
 MAX_PAGE_RENDER = 4096  # px a side at most asked of a page for a screenshot
 
@@ -131,7 +133,7 @@ class GuiApp:
 
     def serve_forever(self, duration: float | None = None) -> None:
         sim_start = self.lab.sim.time
-        while not self.stopping.is_set():
+        while not self.stopping.is_set() and not signals.requested():
             self.work.drain(on_error=self._refused)
             sim = self.lab.sim
             sim.work.drain(on_error=self._refused)  # other front ends' work (ROS services)
@@ -146,7 +148,8 @@ class GuiApp:
                 gate = self.routine.scheduler if self.routine and self.routine.running else None
                 tick = min(frame, TICK if self.tick_hooks else PLOT_PERIOD)
                 try:
-                    sim.run(frame, tick=tick, gate=gate, on_tick=self._tick)
+                    sim.run(frame, tick=tick, gate=gate, on_tick=self._tick,
+                            until=signals.requested)
                 except DivergenceError as exc:
                     self._diverged(exc)
             self._after_frame()
@@ -270,13 +273,13 @@ class GuiApp:
             self.play.on_click(lambda _: self.do(self._toggle_pause))
             step = gui.add_button("Step", hint="one physics step")
             step.on_click(lambda _: self.do(lambda: self.step_n(1)))
-            self.steps = self.fields.add("Steps", 100, 1, MAX_STEPS, lambda v: None, integer=True)
+            self.steps = self.fields.add("Steps", 100, STEPS, lambda v: None)
             step_n = gui.add_button("Step N")
             step_n.on_click(lambda _: self.do(lambda: self.step_n(self.fields.held(self.steps)[0])))
             gui.add_button("Reset model").on_click(lambda _: self.do(self.reset_model))
             gui.add_button("Reset world").on_click(lambda _: self.do(self.reset_world))
-            self.rtf = self.fields.add("Real-time factor", self.target_rtf, 0.0, MAX_RTF,
-                                       self._set_rtf, hint="0 = as fast as possible")
+            self.rtf = self.fields.add("Real-time factor", self.target_rtf, RTF, self._set_rtf,
+                                       hint="0 = as fast as possible")
             self.follow = gui.add_checkbox("Follow robot", False)
             self.follow.on_update(lambda _: self.follow_offset.clear())
             self.paused_after_reset = gui.add_checkbox("Start paused", self.start_paused,
@@ -407,9 +410,7 @@ class GuiApp:
 
     def step_n(self, n: float) -> None:
         """Gazebo's step button: n physics steps, spread over frames."""
-        n = int(n)
-        if not 1 <= n <= MAX_STEPS:
-            raise InputError(f"Steps: {n} must be from 1 to {MAX_STEPS}")
+        n = STEPS.check(n, "Steps:")
         if not self.lab.sim.paused:
             self._toggle_pause()
         self.steps_left = n
@@ -477,7 +478,8 @@ class GuiApp:
                 number = float(value) / self._scale(ctrl)
                 lo, hi = ctrl.command_range(index)
                 if not (math.isfinite(number) and lo - 1e-9 <= number <= hi + 1e-9):
-                    raise InputError(f"{joint}: {value} is outside {lo:g} to {hi:g} {ctrl.unit}")
+                    raise InputError(f"{joint}: {number_text(value)} is outside {number_text(lo)} to "
+                                     f"{number_text(hi)} {ctrl.unit}")
                 self.lab.controllers.command(ctrl.name, {joint: number})
 
             self.do(send)
@@ -518,10 +520,10 @@ class GuiApp:
     def _add_gains(self, ctrl: Controller) -> None:
         gui = self.server.gui
         gains = ctrl.gains[0]
-        with gui.add_folder(ctrl.name.replace("_position_controller", ""), expand_by_default=False):
+        label = joint_label(ctrl.name)
+        with gui.add_folder(label, expand_by_default=False):
             for key in ("p", "i", "d"):
-                self.fields.add(f"{key} ({ctrl.name.replace('_position_controller', '')})",
-                                float(getattr(gains, key)), 0.0, 1e30,
+                self.fields.add(f"{key} ({label})", float(getattr(gains, key)), GAINS[key],
                                 lambda v, c=ctrl, k=key: self._set_gain(c, k, v))
 
     def _set_gain(self, ctrl: Controller, key: str, value: float) -> None:
@@ -600,9 +602,9 @@ class GuiApp:
         model = self.lab.sim.model
         with gui.add_folder("Physics", expand_by_default=False):
             self.gravity = self.fields.add("Gravity (m/s²)", [float(g) for g in model.opt.gravity],
-                                           -1000.0, 1000.0, self._apply_gravity, hint="x, y, z")
-            self.timestep = self.fields.add("Time step (s)", float(model.opt.timestep),
-                                            MIN_TIMESTEP, MAX_TIMESTEP, self.lab.sim.set_timestep)
+                                           GRAVITY, self._apply_gravity, hint="x, y, z")
+            self.timestep = self.fields.add("Time step (s)", float(model.opt.timestep), TIMESTEP,
+                                            self.lab.sim.set_timestep)
             self.self_collide = gui.add_checkbox("Self-collision", self.options.self_collision
                                                  is not False, hint="applies at Reset world")
 

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import viser
 
+from mexone.ranges import Range
+
 __all__ = ["NumberFields", "parse_numbers", "SETTLE"]
 
 SETTLE = 0.5  # s without a keystroke before a typed value is read
@@ -48,9 +50,7 @@ def show(values: list[float]) -> str:
 class _Field:
     handle: viser.GuiTextHandle
     apply: Callable[[list[float]], None]
-    lo: float
-    hi: float
-    integer: bool
+    valid: Range
     count: int
     held: list[float]
     typed: object = None
@@ -63,15 +63,16 @@ class NumberFields:
         self.fields: list[_Field] = []
         self.last_change: str | None = None  # "gravity = 0, 0, -981": what a divergence follows
 
-    def add(self, label: str, initial: float | list[float], lo: float, hi: float,
-            apply: Callable, integer: bool = False, hint: str | None = None) -> viser.GuiTextHandle:
-        """A field holding one number (or several: `initial` a list); `apply(value)` runs in the
-        simulation thread, and may refuse by raising."""
+    def add(self, label: str, initial: float | list[float], valid: Range, apply: Callable,
+            hint: str | None = None) -> viser.GuiTextHandle:
+        """A field holding one number (or several: `initial` a list), each in `valid` (the
+        quantity's one range, ranges.py); `apply(value)` runs in the simulation thread, and may
+        refuse by raising."""
         held = list(initial) if isinstance(initial, list | tuple) else [float(initial)]
         handle = self.gui.add_text(label, initial_value=show(held), hint=hint)
         count = len(held)
         entry = _Field(handle, (lambda v: apply(v)) if count > 1 else (lambda v: apply(v[0])),
-                       lo, hi, integer, count, held)
+                       valid, count, held)
 
         def typed(event) -> None:
             if event.client is None:
@@ -100,12 +101,7 @@ class NumberFields:
             text, entry.typed = entry.typed, None
             label = entry.handle.label
             try:
-                values = parse_numbers(label, text, entry.count)
-                for v in values:
-                    if not entry.lo <= v <= entry.hi or (entry.integer and v != int(v)):
-                        kind = "a whole number" if entry.integer else "a number"
-                        raise ValueError(f"{label}: {v:.10g} must be {kind} from "
-                                         f"{entry.lo:g} to {entry.hi:g}")
+                values = entry.valid.check_all(parse_numbers(label, text, entry.count), f"{label}:")
                 entry.apply(values)
             except Exception as exc:  # noqa: BLE001 - every refusal is shown, the field restored
                 message = exc.one_line() if hasattr(exc, "one_line") else str(exc)

@@ -23,6 +23,7 @@ import numpy as np
 import viser
 
 from mexone.lab import Lab
+from mexone.ranges import IMPULSE, PUSH_DURATION
 
 __all__ = ["Inspector", "CLICK_MODES", "PUSH_DIRECTIONS", "DRAG", "hit", "joint_hit",
            "link_report", "joint_report"]
@@ -31,7 +32,7 @@ CLICK_MODES = ("inspect", "push")
 DRAG = "drag the handle"
 PUSH_DIRECTIONS = ("away from the camera", DRAG, "+x", "-x", "+y", "-y", "+z", "-z")
 ARROW_METRES_PER_NS = 0.02  # a 40 N s push draws 0.8 m
-MAX_IMPULSE = 1000.0  # N s
+MAX_IMPULSE = IMPULSE.high  # N s: a push drawn longer is capped here
 JOINT_ARROW = 0.12  # m: the length View > Joints draws an axis (scene.py)
 JOINT_PICK = 0.02  # m: a click this close to an axis arrow picks the joint
 _AXES = {"+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0), "-y": (0, -1, 0), "+z": (0, 0, 1),
@@ -187,9 +188,9 @@ class Inspector:
                                               initial_value=PUSH_DIRECTIONS[0],
                                               hint=f"{DRAG}: a click aims, the gizmo sets the "
                                                    "direction, Push fires")
-            self.impulse_field = fields.add("Push impulse (N s)", self.impulse, 0.0, MAX_IMPULSE,
+            self.impulse_field = fields.add("Push impulse (N s)", self.impulse, IMPULSE,
                                             lambda v: setattr(self, "impulse", v))
-            fields.add("Push duration (s)", self.duration, 0.001, 5.0,
+            fields.add("Push duration (s)", self.duration, PUSH_DURATION,
                        lambda v: setattr(self, "duration", v), hint="force = impulse / duration")
             self.from_length = gui.add_checkbox("Magnitude from length", False,
                                                 hint=f"{DRAG}: the arrow's length sets the "

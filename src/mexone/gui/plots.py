@@ -26,13 +26,14 @@ import viser
 import viser.uplot as uplot
 
 from mexone.lab import Lab
+from mexone.ranges import PLOT_WINDOW
 from mexone.sensors import ForceTorqueSensor, ImuSensor
 
 __all__ = ["SignalLog", "PlotPanel", "Pane", "PLOT_PERIOD", "MAX_WINDOW", "axis_scale", "PANES",
            "numeric_fields", "field_value"]
 
 PLOT_PERIOD = 0.01  # s of sim time between samples while running (100 Hz)
-MAX_WINDOW = 60.0  # s of sim time a pane may show
+MAX_WINDOW = PLOT_WINDOW.high  # s of sim time a pane may show
 CAPACITY = 20_000  # samples kept (Step N samples every physics step)
 PANES = 3
 _COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#e377c2")
@@ -319,7 +320,7 @@ class PlotPanel:
                                               hint="numeric fields of its latest message")
                 gui.add_button("Add field to pane").on_click(lambda _: self.do(self._add_field))
                 self.field_note = gui.add_markdown("")
-            self.window_field = number("Window (s)", self.seconds, 0.1, MAX_WINDOW,
+            self.window_field = number("Window (s)", self.seconds, PLOT_WINDOW,
                                        self._set_window, hint="sim seconds shown")
             self.hold_box = gui.add_checkbox("Hold", False, hint="freeze the panes while the "
                                                                  "simulation runs (pausing does too)")

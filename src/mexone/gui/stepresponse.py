@@ -13,6 +13,7 @@ import viser
 from mexone.control.metrics import TrackingRecorder, rise_time
 from mexone.errors import InputError
 from mexone.lab import Lab
+from mexone.ranges import STEP_SIZE
 
 __all__ = ["StepResponse", "STEP_WINDOW"]
 
@@ -38,7 +39,7 @@ class StepResponse:
                 return
             default = "l_elbow" if "l_elbow" in joints else joints[0]
             self.joint = gui.add_dropdown("Joint", joints, initial_value=default)
-            number("Step (rad)", self.size, -3.0, 3.0, lambda v: setattr(self, "size", v))
+            number("Step (rad)", self.size, STEP_SIZE, lambda v: setattr(self, "size", v))
             gui.add_button("Apply step").on_click(lambda _: self.do(
                 lambda: self.start(self.joint.value, self.size)))
             self.view = gui.add_markdown("")

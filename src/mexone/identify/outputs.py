@@ -103,8 +103,9 @@ def write_outputs(result: Result, plan: Plan) -> list[str]:
         write_text(plan.json, json.dumps(result.as_json(), indent=1) + "\n", plan.force)
         outputs["values as JSON"] = plan.json.name
         result.notes.extend(notes)
-        for before, after in zip(result.before, result.after, strict=True):
+        figures = not result.fit.interrupted  # a stopped run ends in seconds: plots take longer
+        for before, after in zip(result.before, result.after, strict=True) if figures else ():
             with replacing(plan.folder / figure_name(before), plan.force) as temporary:
                 plot_bag(before, after, temporary)
-        write_text(plan.report, markdown(result, outputs), plan.force)
+        write_text(plan.report, markdown(result, outputs, figures), plan.force)
     return notes

@@ -16,7 +16,7 @@ import mujoco
 import numpy as np
 from mujoco import sysid
 
-from mexone.control.hardware import set_motor_gain
+from mexone.control.hardware import motor_gains, set_motor_gain
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
 
@@ -148,8 +148,7 @@ def _unknowns(kind: str, target: str, robot: RobotModel, model: mujoco.MjModel,
     motor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, target)
     kp = kd = 0.0
     if motor >= 0:
-        gear = model.actuator_gear[motor, 0]
-        kp, kd = -model.actuator_biasprm[motor, 1] * gear**2, -model.actuator_biasprm[motor, 2] * gear**2
+        kp, kd = motor_gains(model, motor)
     if kind == "damping":
         nominal = float(model.dof_damping[dof])
         scale = nominal or 0.1 * kd or 0.1

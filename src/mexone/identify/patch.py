@@ -4,7 +4,9 @@ The URDF is edited as text, located through lxml's parse (which element, on whic
 other byte -- comments, attribute order, indentation, the values nobody identified -- stays. An XML
 comment before each changed joint or link says what changed from what, and from which bags.
 Joint damping and friction go where the simulator reads them from (a `<gazebo reference>`
-override wins over `<dynamics>`, as in Gazebo); armature is `<dynamics armature>`. A xacro or SDF
+override wins over `<dynamics>`, as in Gazebo), and into `<dynamics>` too where it states them, so
+the two never disagree (`mexone check` reports a value given twice); armature is
+`<dynamics armature>`. A xacro or SDF
 cannot be patched faithfully as text (its values may be expressions): the expanded model is
 written as a plain URDF instead, and the report says so. Controller gains are patched in the
 controllers YAML the same way (`p:` and `d:` values, with a `#` comment).
@@ -156,6 +158,8 @@ def _joint_edits(src: _Source, joint: etree._Element, name: str,
         value = value_text(c.new)
         if attr != "armature" and gazebo is not None and gazebo.find(attr) is not None:
             edits.append(src.set_text(gazebo.find(attr), value))
+            if dynamics is not None and dynamics.get(attr) is not None:  # the two stay equal:
+                edits.append(src.set_attr(dynamics, attr, value))  # check reports them otherwise
         elif dynamics is not None:
             edits.append(src.set_attr(dynamics, attr, value))
         else:

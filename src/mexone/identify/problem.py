@@ -28,6 +28,7 @@ import numpy as np
 from mujoco import rollout as mj_rollout
 from mujoco import sysid
 
+from mexone import signals
 from mexone.identify.parameters import Unknown, apply_to_model, parameter_dict
 from mexone.identify.replay import SENSOR_SUFFIX, Experiment
 
@@ -123,6 +124,7 @@ class Problem:
         self._threads = max(1, self.threads)
         self._pool = mj_rollout.Rollout(nthread=self._threads if self._threads > 1 else 0)
         self._best: tuple[float, np.ndarray] = (math.inf, self.params.as_vector())
+        self._fitting = False  # solve() is running: signals stop it (_stop_point)
         self.groups = independent_groups(self.experiments, self.unknowns)
         names = [e.name for e in self.experiments]
         self._delay = {names.index(u.target): u for u in self.unknowns
@@ -158,6 +160,7 @@ class Problem:
         columns = np.asarray(x, dtype=float).reshape(len(x), -1)
         per_column, delays = [], []
         for c in range(columns.shape[1]):
+            self._stop_point()  # compiling a Jacobian's dozens of models takes seconds
             params.update_from_vector(columns[:, c])
             per_column.append(self.models(params))
             delays.append(self.delays(params, self.experiments))
@@ -189,6 +192,7 @@ class Problem:
         state = np.tile(e.initial_state, (len(models), 1))
         previous = None  # the sensor row of the step before the chunk
         for start in range(0, e.steps, CHUNK_STEPS):
+            self._stop_point()
             stop = min(start + CHUNK_STEPS, e.steps)
             states, sensed = self._pool.rollout(models, datas, state,
                                                 _delayed(e.ctrl, start, stop, delays / e.timestep))
@@ -244,6 +248,13 @@ class Problem:
         return jac
 
     # ----- fitting ----------------------------------------------------------------------------
+    def _stop_point(self) -> None:
+        """While fitting, a signal (Ctrl-C, SIGTERM) stops the fit here: signals.Stop, a
+        KeyboardInterrupt raised by this code between two rollout chunks or model compilations,
+        which solve() turns into the best point so far. Predictions after the fit run on."""
+        if self._fitting:
+            signals.check()
+
     def _tracked(self, x, params):
         """The residual, remembering the best single point evaluated (Ctrl-C keeps it)."""
         result = self.residual(x, params)
@@ -277,6 +288,7 @@ class Problem:
         interrupted, jac = False, None
         with _quiet_absl():
             try:
+                self._fitting = True
                 fitted, result = sysid.optimize(
                     self.params, self._tracked, optimizer="mujoco", verbose=False,
                     max_iters=max_iterations, eps=FD_STEP, xtol=X_TOLERANCE,
@@ -286,6 +298,8 @@ class Problem:
                 jac = result.jac
             except KeyboardInterrupt:
                 interrupted, x = True, np.asarray(self._best[1], dtype=float).reshape(-1)
+            finally:
+                self._fitting = False
         halfwidth = correlation = None
         scale = np.array([u.scale for u in self.unknowns])
         if intervals and not interrupted and jac is not None and x.size:

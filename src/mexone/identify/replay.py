@@ -22,6 +22,7 @@ from mexone.description.transforms import matrix_to_rpy
 from mexone.errors import InputError, MexoneError
 from mexone.identify.recording import STILL, Recording
 from mexone.lab import Lab
+from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 from mexone.physics.compile import CompileOptions, Spawn
 from mexone.record.reader import FLOAT64, MULTI, TRAJECTORY
 
@@ -32,8 +33,6 @@ HANG_HEIGHT = 0.5  # m of air under the lowest point of a robot on a stand (no /
 SENSOR_SUFFIX = "/identify"  # the joint-position sensors added to the fitting model
 _MOVED = 0.001  # m: a base that moved more than this was not on a stand
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
-_RUNTIME = ("actuator_gainprm", "actuator_biasprm", "actuator_forcerange", "actuator_actlimited",
-            "actuator_actrange")
 
 
 @dataclass
@@ -116,7 +115,7 @@ def replay(recording: Recording, robot: RobotModel, config: ControlConfig,
     spec = _fitting_spec(lab, recording.joints)
     times, measured = _grid(recording)
     model = sim.model
-    runtime = {name: getattr(model, name).copy() for name in _RUNTIME}
+    runtime = {name: getattr(model, name).copy() for name in RUNTIME_ACTUATOR_FIELDS}
     runtime["disableflags"] = np.array([model.opt.disableflags])
     experiment = Experiment(recording, fixed, spec, model, ctrl, state, times, measured,
                             list(recording.joints), runtime, robot.base_link,

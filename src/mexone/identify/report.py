@@ -25,8 +25,9 @@ def _mrad(value: float) -> str:
     return f"{value * 1000:.3g}"
 
 
-def markdown(result: Result, outputs: dict[str, str]) -> str:
-    """The report's text; `outputs` names the other files written (what -> file name)."""
+def markdown(result: Result, outputs: dict[str, str], figures: bool = True) -> str:
+    """The report's text; `outputs` names the other files written (what -> file name);
+    `figures`: a PNG per bag was written (not after a stop)."""
     fit = result.fit
     lines = ["# mexone identify", ""]
     fitted = ", ".join(e.name for e in result.experiments)
@@ -35,8 +36,8 @@ def markdown(result: Result, outputs: dict[str, str]) -> str:
                  f"{fit.seconds:.1f} s)" + (f"; validated on {', '.join(e.name for e in result.validation)}"
                                              if result.validation else "") + ".")
     if fit.interrupted:
-        lines += ["", "**Interrupted**: these are the best values found before Ctrl-C, without "
-                      "confidence intervals."]
+        lines += ["", "**Interrupted**: these are the best values found before Ctrl-C or SIGTERM, "
+                      "without confidence intervals" + ("." if figures else " or plots.")]
     where = "the held-out bags" if result.held_out else "the fitted bags"
     ratio = result.rms_before / result.rms_after if result.rms_after > 0 else float("inf")
     lines += ["", f"RMS joint error on {where}: **{_mrad(result.rms_before)} mrad before, "
@@ -65,8 +66,9 @@ def markdown(result: Result, outputs: dict[str, str]) -> str:
         role = "fitted" if k < n else "held out"
         lines.append(f"| {b.experiment.name} | {role} | {_mrad(b.rms())} | {_mrad(a.rms())} |")
     for b, a in zip(result.before, result.after, strict=True):
-        lines += ["", f"## {b.experiment.name}", "", f"![{b.experiment.name}]({figure_name(b)})",
-                  "", "| joint | before | after |", "|---|---|---|"]
+        figure = [f"![{b.experiment.name}]({figure_name(b)})", ""] if figures else []
+        lines += ["", f"## {b.experiment.name}", "", *figure, "| joint | before | after |",
+                  "|---|---|---|"]
         before, after = b.rms_per_joint(), a.rms_per_joint()
         lines += [f"| {j} | {_mrad(before[j])} | {_mrad(after[j])} |" for j in before]
     if result.notes:

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mexone import signals
 from mexone.control.config import ControlConfig, load_control_config
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
@@ -138,8 +139,10 @@ def identify(bags: list[Path], options: Options, validation: list[Path] = (),
     for path in bags + validation:
         say(f"replaying {path.name}")
         recording = read_recording(path, robot, config, joints or None)
+        signals.check()  # stopped before the fit: nothing to write (signals.Stop, exit 130/143)
         (experiments if path in bags else held).append(replay(recording, robot, config,
                                                                options.base))
+        signals.check()
     if not joints:
         measured = {j for e in experiments for j in e.joints}
         joints = [j.name for j in robot.actuated_joints if j.name in measured] \
@@ -156,8 +159,11 @@ def identify(bags: list[Path], options: Options, validation: list[Path] = (),
         before = problem.predict(experiments + held, x0)
         say(f"fitting {len(unknowns)} parameters on {len(experiments)} bag(s)")
         fit = problem.solve(options.max_iterations, options.intervals)
-        say("simulating the identified model")
-        after = problem.predict(experiments + held, fit.scaled)
+        if fit.interrupted and np.array_equal(fit.scaled, x0):  # stopped before a better point
+            after = before
+        else:
+            say("simulating the identified model")
+            after = problem.predict(experiments + held, fit.scaled)
     finally:
         problem.close()
     if fit.interrupted:

@@ -53,7 +53,7 @@ from mexone.msgs import (
     Quaternion,
     Twist,
 )
-from mexone.routines.runtime import RoutineContext, current
+from mexone.routines.runtime import RoutineContext, busy, current
 
 __all__ = ["reach", "look_at", "push", "walk", "walk_cmd_vel", "follow_goals", "GOAL_FRAMES",
            "walk_seconds", "step_from_twist", "joint_targets", "RATE", "REACHED"]
@@ -126,7 +126,8 @@ def _mover() -> _Mover:
         if isinstance(params, dict) and str(params.get("type", "")).endswith("JointPositionController"):
             publishers[params.get("joint")] = rospy.Publisher(f"{ns}/{name}/command", Float64,
                                                               queue_size=1)
-    ik = WholeBodyIK.for_sim(lab.sim)
+    with busy("the IK's set-up"):
+        ik = WholeBodyIK.for_sim(lab.sim)
     mover = _Mover(context, ik, publishers, trimmed=set(publishers) - ik.support_joints())
 
     def on_state(msg: JointState) -> None:
@@ -154,35 +155,36 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     mover = _mover()
     ik = mover.ik
     snapshot = mover.snapshot()
-    ik.reset(snapshot)
-    initial = ik.joint_positions()
-    start, rotation0 = ik.pose(frame)
-    goal = np.asarray(xyz, dtype=float)
-    ik.set_rpy_target(frame, goal, rpy)  # checks the target before anything moves
-    rotation = None if rpy is None else ik.targets[frame].transform_target_to_world.rotation()
-    ticks = max(1, round(duration * RATE))
-    path = []  # planned whole before anything moves: the joints at each tick
-    for k in range(1, ticks + 1):
-        s = _min_jerk(k / ticks)
-        if rotation is None:
-            ik.set_target(frame, start + s * (goal - start))
-        else:
-            between = mink.SO3.from_matrix(rotation0).interpolate(rotation, s)
-            ik.set_target(frame, start + s * (goal - start), between.as_matrix())
-        ik.step(1.0 / RATE)
-        path.append(ik.joint_positions())
-    ik.converge()
-    if not ik.error(frame).reached:  # the straight path ends in another local minimum
+    with busy("reach's IK"):  # the plan and its restarts: seconds on a loaded machine
         ik.reset(snapshot)
-        ik.set_rpy_target(frame, goal, rpy)
-        ik.solve(frame)  # fresh starts of the arm: the closest pose there is
-        after = ik.joint_positions()
-        # there in joint space (no collision check: see README), slowly enough not to throw the
-        # body: a restart can flip a shoulder by 4 rad
-        swing = max(abs(after[n] - initial[n]) for n in after)
-        moves = max(ticks, round(_MIN_JERK_PEAK * swing / _SWING_SPEED * RATE))
-        path = [{n: initial[n] + _min_jerk(k / moves) * (after[n] - initial[n]) for n in after}
-                for k in range(1, moves + 1)]
+        initial = ik.joint_positions()
+        start, rotation0 = ik.pose(frame)
+        goal = np.asarray(xyz, dtype=float)
+        ik.set_rpy_target(frame, goal, rpy)  # checks the target before anything moves
+        rotation = None if rpy is None else ik.targets[frame].transform_target_to_world.rotation()
+        ticks = max(1, round(duration * RATE))
+        path = []  # planned whole before anything moves: the joints at each tick
+        for k in range(1, ticks + 1):
+            s = _min_jerk(k / ticks)
+            if rotation is None:
+                ik.set_target(frame, start + s * (goal - start))
+            else:
+                between = mink.SO3.from_matrix(rotation0).interpolate(rotation, s)
+                ik.set_target(frame, start + s * (goal - start), between.as_matrix())
+            ik.step(1.0 / RATE)
+            path.append(ik.joint_positions())
+        ik.converge()
+        if not ik.error(frame).reached:  # the straight path ends in another local minimum
+            ik.reset(snapshot)
+            ik.set_rpy_target(frame, goal, rpy)
+            ik.solve(frame)  # fresh starts of the arm: the closest pose there is
+            after = ik.joint_positions()
+            # there in joint space (no collision check: see README), slowly enough not to throw the
+            # body: a restart can flip a shoulder by 4 rad
+            swing = max(abs(after[n] - initial[n]) for n in after)
+            moves = max(ticks, round(_MIN_JERK_PEAK * swing / _SWING_SPEED * RATE))
+            path = [{n: initial[n] + _min_jerk(k / moves) * (after[n] - initial[n]) for n in after}
+                    for k in range(1, moves + 1)]
     rate = rospy.Rate(RATE)
     for joints in path:
         mover.send(joints)
@@ -194,7 +196,8 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
         ik.set_rpy_target(frame, goal, rpy)
         if ik.error(frame).position < _CORRECT_ABOVE:
             break
-        ik.converge()
+        with busy("reach's IK"):
+            ik.converge()
         mover.hold(ik.joint_positions(), rate)
         error = ik.error(frame)
     planned = error

@@ -15,12 +15,14 @@ from mexone.errors import InputError
 from mexone.physics.compile import _PLAIN, _SELF, CompileOptions, Spawn, SpecEdit, compile_model
 from mexone.physics.world import World
 
-__all__ = ["attach_model", "detach_model", "carry_over", "TOUCH_ALL"]
+__all__ = ["attach_model", "detach_model", "carry_over", "TOUCH_ALL", "RUNTIME_ACTUATOR_FIELDS"]
 
 TOUCH_ALL = _SELF | _PLAIN  # contype/conaffinity that meets both kinds of robot link (compile.collision_bits)
-# what the running simulation may have changed on its model since it compiled (gains, physics)
-_ACTUATOR_FIELDS = ("actuator_biasprm", "actuator_gainprm", "actuator_forcerange", "actuator_actrange",
-                    "actuator_actlimited", "actuator_forcelimited", "actuator_ctrlrange")
+# The actuator fields a running simulation's model changes after it compiled: the controllers'
+# gains and clamps, which control.hardware.SimHardware.write() sets (tests/control checks that
+# it writes exactly these). Recompiling, and identification's replays, carry them over.
+RUNTIME_ACTUATOR_FIELDS = ("actuator_biasprm", "actuator_gainprm", "actuator_forcerange",
+                           "actuator_actrange", "actuator_actlimited")
 _OPTION_FIELDS = ("timestep", "gravity", "iterations", "disableflags", "solver")
 
 
@@ -91,7 +93,7 @@ def carry_over(old: mujoco.MjModel, new: mujoco.MjModel) -> None:
     same = [(a, b) for a, b in same if b >= 0]
     if same:
         src, dst = (np.array(ids) for ids in zip(*same, strict=True))
-        for field in _ACTUATOR_FIELDS:
+        for field in RUNTIME_ACTUATOR_FIELDS:
             getattr(new, field)[dst] = getattr(old, field)[src]
     for field in _OPTION_FIELDS:
         value = getattr(old.opt, field)

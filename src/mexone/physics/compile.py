@@ -30,6 +30,7 @@ from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel
 from mexone.description.transforms import rpy_to_matrix
 from mexone.errors import InputError, MexoneError, ModelError, UnsupportedError
 from mexone.physics.world import World, default_world
+from mexone.ranges import number_text
 
 _log = logging.getLogger("mexone.physics")
 
@@ -219,7 +220,8 @@ def compile_model(robot: RobotModel, world: World | None = None, spawn: Spawn = 
     world = world or default_world()
     _refuse_what_we_cannot_build(robot, options.fixed_base)
     if not np.isfinite([*spawn.xyz, *spawn.rpy]).all():
-        raise InputError(f"spawn pose {(*spawn.xyz, *spawn.rpy)} is not finite", hint="give finite numbers")
+        raise InputError(f"spawn pose ({', '.join(number_text(v) for v in (*spawn.xyz, *spawn.rpy))}) "
+                         "is not finite", hint="give finite numbers")
     spec = mujoco.MjSpec()
     spec.modelname = robot.name
     spec.compiler.inertiafromgeom = mujoco.mjtInertiaFromGeom.mjINERTIAFROMGEOM_FALSE
@@ -321,7 +323,7 @@ def initial_positions(robot: RobotModel, spawn: Spawn) -> dict[str, float]:
             raise InputError(f"initial position for '{name}', which is not a moving joint of "
                              f"'{robot.name}'", hint=f"moving joints: {moving}")
         if not np.isfinite(value):
-            raise InputError(f"initial position {value} of '{name}' is not finite")
+            raise InputError(f"initial position {number_text(value)} of '{name}' is not finite")
         if joint.type in ("revolute", "prismatic") and not (
                 joint.limit.lower - 1e-9 <= value <= joint.limit.upper + 1e-9):
             raise InputError(f"initial position {value:g} of '{name}' is outside its limits "

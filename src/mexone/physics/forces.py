@@ -76,10 +76,9 @@ class Forces:
             times.append(now + _REFRESH_STEPS * step_ns)
         return min(times, default=FOREVER)
 
-    def apply(self, data: mujoco.MjData, now: int, half_step: int, held: np.ndarray,
-              dofs: np.ndarray) -> None:
-        """xfrc_applied and qfrc_applied for time `now`: the held joint efforts (`held` on `dofs`)
-        plus every timed force acting now; expired ones are dropped."""
+    def apply(self, data: mujoco.MjData, now: int, half_step: int) -> None:
+        """xfrc_applied and qfrc_applied for time `now`: every force acting now (the one writer
+        of both); expired ones are dropped."""
         self.changed = False
         self.wrenches = [w for w in self.wrenches if w.end_ns > now + half_step]
         self.efforts = [e for e in self.efforts if e.end_ns > now + half_step]
@@ -88,7 +87,6 @@ class Forces:
             if w.start_ns <= now + half_step:
                 data.xfrc_applied[w.body] += w.world(data)
         data.qfrc_applied[:] = 0.0
-        data.qfrc_applied[dofs] = held
         for e in self.efforts:
             if e.start_ns <= now + half_step:
                 data.qfrc_applied[e.dof] += e.effort

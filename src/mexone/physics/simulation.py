@@ -40,12 +40,13 @@ from mexone.physics.compile import (
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
 from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
+from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
 __all__ = ["Simulation", "RtfMeter", "Periodic", "Gate", "Control", "WorkQueue", "NS",
            "MIN_TIMESTEP", "MAX_TIMESTEP"]
 
 NS = 1_000_000_000
-MIN_TIMESTEP, MAX_TIMESTEP = 1e-5, 0.01  # s: what a humanoid lab can sensibly step with
+MIN_TIMESTEP, MAX_TIMESTEP = TIMESTEP.low, TIMESTEP.high  # s: ranges.TIMESTEP is their home
 # steps between divergence checks: a diverging run goes NaN within steps, so 50 ms still names the
 # link that went first; each check is a Python interlude that costs MuJoCo its warm caches
 _WATCH_EVERY = 50
@@ -166,9 +167,6 @@ class Simulation:
         self.data = mujoco.MjData(self.model)
         self.joint_names = list(self.compiled.joints)
         self._index = {name: i for i, name in enumerate(self.joint_names)}
-        self._effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
-                                       for j in robot.moving_joints])
-        self._efforts = np.zeros(len(self.joint_names))
         self.models: dict[str, str] = {}  # spawned model -> the MuJoCo name of its root body
         self.forces = Forces()  # timed wrenches and joint efforts (apply_wrench, apply_joint_effort)
         self._model_hooks: list[Callable[[], None]] = []
@@ -204,9 +202,7 @@ class Simulation:
 
     def set_timestep(self, seconds: float) -> None:
         """Change the physics step; listeners (the controller manager) are told."""
-        if not MIN_TIMESTEP <= seconds <= MAX_TIMESTEP:  # also refuses NaN
-            raise InputError(f"time step {seconds:g} s is out of range",
-                             hint=f"use {MIN_TIMESTEP:g} to {MAX_TIMESTEP:g} s")
+        seconds = TIMESTEP.check(seconds, hint="Gazebo's default is 0.001")
         self.model.opt.timestep = seconds
         self._step_ns = round(seconds * NS)
         for hook in self._timestep_hooks:
@@ -224,7 +220,7 @@ class Simulation:
         """Call `callback(sim)` every `period` s of sim time, first one period from now.
         Between calls MuJoCo steps in C, so a 50 Hz publisher costs nothing per step."""
         if not (period > 0 and math.isfinite(period)):
-            raise InputError(f"period {period} must be a finite number > 0")
+            raise InputError(f"period {number_text(period)} must be a finite number > 0")
         period_ns = max(1, round(period * NS))
         timer = Periodic(period_ns, callback, self._time_ns + period_ns)
         self.periodic.append(timer)
@@ -257,7 +253,7 @@ class Simulation:
                 control.update(self)
         forces = self.forces
         if forces.changed or forces.active:
-            forces.apply(self.data, now, half, self._efforts, self.compiled.dof_adr)
+            forces.apply(self.data, now, half)
 
     def _steps_until_due(self) -> int:
         soonest = min([t.next_ns for t in self.periodic] + [c.wake_ns for c in self.controls],
@@ -367,7 +363,6 @@ class Simulation:
             mujoco.mj_resetData(self.model, self.data)
         else:  # the initial joint positions (-J, --pose)
             mujoco.mj_resetDataKeyframe(self.model, self.data, self.compiled.spawn_key)
-        self._efforts[:] = 0.0
         self.forces = Forces()
         mujoco.mj_forward(self.model, self.data)
         self._time_ns = 0
@@ -480,16 +475,6 @@ class Simulation:
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
 
-    def apply_efforts(self, values: Mapping[str, float] | Sequence[float]) -> None:
-        """Joint-space efforts pushed straight onto the joints (Gazebo's Joint::SetForce, clamped to
-        the URDF effort limit as Gazebo clamps it), held until changed. Motors add to them."""
-        vec, given = self._vector(values)
-        self._efforts[given] = np.clip(vec[given], -self._effort_limit[given],
-                                       self._effort_limit[given])
-        self.data.qfrc_applied[self.compiled.dof_adr] = self._efforts
-        if self.forces.active:
-            self.forces.changed = True  # the timed efforts add to the held ones
-
     # ----- links --------------------------------------------------------------------------------
     def body_id(self, link: str) -> int:
         """The MuJoCo body of a robot link, or of any body by its MuJoCo name (spawned models)."""
@@ -593,7 +578,7 @@ class Simulation:
         apply_joint_effort); motors and other efforts add to it."""
         dof = self._dof(joint)
         if not math.isfinite(effort):
-            raise InputError(f"effort {effort} is not finite")
+            raise InputError(f"effort {number_text(effort)} is not finite")
         begin, end = self._duration_ns(duration, start)
         self.forces.efforts.append(JointEffort(dof, float(effort), begin, end))
         self.forces.changed = True
@@ -612,10 +597,13 @@ class Simulation:
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
-        values = np.asarray(gravity, dtype=float)
-        if values.shape != (3,) or not np.isfinite(values).all() or np.abs(values).max() > 1000:
-            raise InputError(f"gravity {list(values)} must be 3 finite numbers within +-1000 m/s^2")
-        self.model.opt.gravity[:] = values
+        try:
+            values = np.asarray(gravity, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError("gravity must be 3 numbers (x y z, m/s^2)") from None
+        if values.shape != (3,):
+            raise InputError(f"gravity must be 3 numbers (x y z, m/s^2), not {values.size}")
+        self.model.opt.gravity[:] = GRAVITY.check_all(values.tolist())
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""

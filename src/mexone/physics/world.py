@@ -13,12 +13,9 @@ from pathlib import Path
 from mexone.description.sdf import sdf_version
 from mexone.description.xmlio import XmlReader
 from mexone.errors import UnsupportedError
+from mexone.ranges import GRAVITY, RTF, TIMESTEP, number_text
 
-__all__ = ["World", "Ground", "read_world", "default_world", "STEP_RANGE"]
-
-# s: below 10 us a second of sim costs minutes; above 10 ms contacts (timeconst >= 4 steps) turn
-# to mush and stiff controllers diverge. Gazebo's default is 1 ms.
-STEP_RANGE = (1e-5, 0.01)
+__all__ = ["World", "Ground", "read_world", "default_world"]
 
 
 @dataclass(frozen=True)
@@ -56,17 +53,20 @@ def read_world(path: Path | str) -> World:
     values: dict = {"name": world.get("name", "default"), "source": path, "ground": None}
     if (g := world.find("gravity")) is not None:
         values["gravity"] = xml.numbers(g, g.text or "", 3, "value")
+        if not all(GRAVITY.contains(v) for v in values["gravity"]):
+            raise xml.fail(g, f"({', '.join(number_text(v) for v in values['gravity'])}) m/s^2: each "
+                              f"component must be {GRAVITY.describe()}", "Earth's is 0 0 -9.8")
     physics = world.find("physics")
     if physics is not None:
         values["step"] = xml.text_number(physics, "max_step_size", 0.001)
-        low, high = STEP_RANGE
-        if not low <= values["step"] <= high:
+        if not TIMESTEP.contains(values["step"]):  # ranges.TIMESTEP says why
             step_el = physics.find("max_step_size")
-            raise xml.fail(step_el, f"{values['step']:g} s is outside the {low:g} to {high:g} s mexone "
-                                    "simulates", "Gazebo's default is 0.001")
+            raise xml.fail(step_el, f"{number_text(values['step'])} s must be {TIMESTEP.describe()}",
+                           "Gazebo's default is 0.001")
         values["real_time_factor"] = xml.text_number(physics, "real_time_factor", 1.0)
-        if values["real_time_factor"] < 0:
-            raise xml.fail(physics.find("real_time_factor"), "must be >= 0 (0: as fast as possible)")
+        if not RTF.contains(values["real_time_factor"]):
+            raise xml.fail(physics.find("real_time_factor"), f"{number_text(values['real_time_factor'])} "
+                           f"must be {RTF.describe()} (0: as fast as possible)")
         iters = physics.find("ode/solver/iters")
         if iters is not None:
             count = xml.number(iters, iters.text or "", "value")

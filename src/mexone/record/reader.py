@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.highlevel import AnyReader
 
+from mexone.control.spec import controller_name
 from mexone.errors import InputError
 from mexone.record.bag import typestore_for
 
@@ -216,7 +217,7 @@ def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
 
         series = JointSeries(name, t, column("position"), column("velocity"), column("effort"))
         topic = next((topic for topic, msgs in contents.commands.items()
-                      if topic.endswith(f"/{name}_position_controller/command")
+                      if topic.endswith(f"/{controller_name(name)}/command")
                       and msgs[0].msgtype == FLOAT64), None)
         if topic is not None:
             ct = np.array([c.t for c in contents.commands[topic]])

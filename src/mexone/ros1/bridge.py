@@ -25,17 +25,13 @@ import threading
 import time
 from collections.abc import Callable
 
-import yaml
-
 from mexone.bus import msgs
-from mexone.control.config import parse_control_config
-from mexone.control.spec import ControlConfig
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
-__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "config_from_param_server", "controllers_at",
-           "CLOCK_PERIOD", "DEFAULT_NODE", "CLOCK_FREQUENCY"]
+__all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "CLOCK_PERIOD", "DEFAULT_NODE",
+           "CLOCK_FREQUENCY"]
 
 log = logging.getLogger("mexone.ros")
 
@@ -72,35 +68,6 @@ def import_rospy():
                               hint=f"reinstall with: {ROS_INSTALL}") from None
     interfaces.use_generated()
     return rospy
-
-
-def config_from_param_server(rospy, namespace: str) -> ControlConfig:
-    """The controller configuration a `rosparam load` of the seed's YAML put under /<ns>."""
-    key = "/" + namespace.strip("/")
-    try:
-        params = rospy.get_param(key)
-    except KeyError:
-        raise MexoneError(f"no controller configuration at {key} on the parameter server",
-                          hint="rosparam load your controllers.yaml first, or pass "
-                               "--controllers YAML") from None
-    return parse_control_config(yaml.safe_dump({namespace.strip("/"): _controllers_only(params)}))
-
-
-def controllers_at(rospy, namespace: str) -> ControlConfig:
-    """The controllers on the parameter server under /<ns>, possibly none (a robot spawned
-    before its controllers.yaml was loaded: the spawner's load_controller reads them later)."""
-    ns = namespace.strip("/")
-    params = rospy.get_param("/" + ns, {})
-    return parse_control_config(yaml.safe_dump({ns: _controllers_only(params)}))
-
-
-def _controllers_only(params) -> dict:
-    """The entries of a namespace that are controllers (a `type:`) or gazebo_ros_control's gains;
-    a namespace also holds robot_description, dynamic_reconfigure's values, ..."""
-    if not isinstance(params, dict):
-        return {}
-    return {k: v for k, v in params.items()
-            if (isinstance(v, dict) and "type" in v) or k == "gazebo_ros_control"}
 
 
 class _Mirror:
@@ -176,14 +143,13 @@ class Ros1Bridge:
         self.services: list = []
 
     def attach(self, lab, urdf_text: str) -> None:
-        from geometry_msgs.msg import TransformStamped
         from rosgraph_msgs.msg import Clock
         from tf2_msgs.msg import TFMessage
 
         rospy = self.rospy
         self.lab = lab
         self._direct = True  # until attach returns, this thread is the one that steps the sim
-        self._types = {"Clock": Clock, "TFMessage": TFMessage, "TransformStamped": TransformStamped}
+        self._types = {"Clock": Clock, "TFMessage": TFMessage}
         rospy.set_param(f"{lab.namespace}/robot_description", urdf_text)
         if self.node_name == DEFAULT_NODE or not rospy.has_param("/robot_description"):
             rospy.set_param("/robot_description", urdf_text)
@@ -317,21 +283,9 @@ class Ros1Bridge:
         """World -> floating base; robot_state_publisher adds the links from joint_states."""
         if not sim.compiled.free or self.pub_tf.get_num_connections() == 0:
             return
-        body = sim.compiled.root_body
-        tf = self._types["TransformStamped"]()
-        tf.header.stamp = convert.ros_time(sim.time_ns)
-        tf.header.frame_id = "world"
-        tf.child_frame_id = self._frame(sim.robot.base_link)
-        x, y, z = sim.data.xpos[body]
-        tf.transform.translation.x, tf.transform.translation.y, tf.transform.translation.z = x, y, z
-        w, qx, qy, qz = sim.data.xquat[body]
-        rot = tf.transform.rotation
-        rot.w, rot.x, rot.y, rot.z = w, qx, qy, qz
-        self.pub_tf.publish(self._types["TFMessage"](transforms=[tf]))
-
-    def _frame(self, link: str) -> str:
-        """A link's TF frame: robot_state_publisher's tf_prefix is the user's to set."""
-        return link
+        # robot_state_publisher's tf_prefix is the user's to set: frames are the links' names
+        base = msgs.TFMessage([self.lab.base_transform()])
+        self.pub_tf.publish(convert.to_ros(base, self._types["TFMessage"]))
 
     # ----- lifecycle ---------------------------------------------------------------------------
     def _watch_master(self) -> None:

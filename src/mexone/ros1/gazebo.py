@@ -379,11 +379,11 @@ class GazeboNode:
 
         from mexone.control.hardware import SimHardware, build_actuators
         from mexone.control.manager import ControllerManager
-        from mexone.ros1.bridge import controllers_at
+        from mexone.lab import robot_namespace
         from mexone.ros1.controller_manager import ControllerManagerNode
+        from mexone.ros1.params import controllers_at
 
-        ns = "/" + (req.robot_namespace.strip().strip("/") or (robot.ros_namespace or "").strip("/")
-                    or name)
+        ns = robot_namespace(robot, None, req.robot_namespace, name)  # its YAML is found there
         taken = {self.lab.namespace} | {m.namespace for m in self.managers.values()}
         if ns in taken:
             return SpawnModelResponse(False, f"robot_namespace {ns} is taken by another robot: "

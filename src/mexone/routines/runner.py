@@ -6,19 +6,17 @@ arm routine) and the Scheduler they share, so their runs stay deterministic.
 
 from __future__ import annotations
 
-import runpy
 import sys
 import threading
-import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import mexone
-from mexone import yamlio
+from mexone import signals, yamlio
 from mexone.description.urdf import write_urdf
 from mexone.errors import InputError
 from mexone.lab import Lab
+from mexone.routines import processes, sandbox
 from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Shutdown, bind
 
 __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "parse_param_args",
@@ -26,7 +24,6 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 
 _HERE = Path(__file__).resolve().parent
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
-_PACKAGE = str(Path(mexone.__file__).resolve().parent)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
            "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
            "reach_goals": "reach_goals.py"}
@@ -113,13 +110,14 @@ class RoutineRunner:
         if poll is not None:
             self.scheduler.poll = poll
         self.params: dict[str, object] = {}  # the parameter server the routines share
-        if lab.controllers and lab.controllers.config.source:
-            raw = yamlio.load(lab.controllers.config.source.read_text()) or {}
-            _flatten("", raw, self.params)
+        if lab.controllers:  # the controller YAML, as it was read
+            _flatten("", lab.controllers.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
         self.routines: list[Routine] = []
+        self._children: set[int] | None = None  # this process's children before the routines ran
+        self.left_running: list[str] = []  # programs the routines started and left running
         if routine is not None:
             self.add(routine, args)
 
@@ -127,7 +125,7 @@ class RoutineRunner:
         """Another routine to run with the others (started by start())."""
         path = resolve_routine(routine)
         context = RoutineContext(self.lab, self.scheduler, self.params, self._log,
-                                 node_name=f"/{path.stem}")
+                                 node_name=f"/{path.stem}", source=str(path))
         entry = Routine(path, context, dict(args or {}))
         self.routines.append(entry)
         return entry
@@ -139,6 +137,7 @@ class RoutineRunner:
     @property
     def error(self) -> str | None:
         errors = [r.error for r in self.routines if r.error]
+        errors += [e for r in self.routines for e in r.context.errors] + self.left_running
         return "\n".join(errors) or None
 
     @property
@@ -157,6 +156,9 @@ class RoutineRunner:
 
     def start(self) -> None:
         """Start every routine not yet started; each holds the clock until it first waits."""
+        sandbox.install()
+        if self._children is None:
+            self._children = processes.children()
         for entry in self.routines:
             if entry.thread is None:
                 ready = threading.Event()
@@ -166,28 +168,26 @@ class RoutineRunner:
                 ready.wait()
 
     def _main(self, entry: Routine, ready: threading.Event) -> None:
-        from mexone.rospy import ROSInterruptException
-
         context = entry.context
         bind(context)
         self.scheduler.enter(context)
         ready.set()
-        argv = sys.argv
         try:
             name = entry.path.stem
             for key, value in entry.private.items():
                 key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
                 self.params[key] = value
-            runpy.run_path(str(entry.path), run_name="__main__")
-        except (Shutdown, ROSInterruptException):
+            sandbox.run_path(entry.path)
+        except Shutdown:  # rospy's ROSInterruptException is one
             pass
+        except sandbox.RoutineExit as exc:
+            entry.error = str(exc)
         except SystemExit as exc:
             if exc.code not in (None, 0):
                 entry.error = f"routine exited with status {exc.code}"
         except BaseException:  # noqa: BLE001 - the student's error, shown as their traceback
             entry.error = _students_traceback(entry.path)
         finally:
-            sys.argv = argv
             if context.abandoned and not entry.error:
                 entry.error = context.abandoned
             self.scheduler.leave()
@@ -202,14 +202,15 @@ class RoutineRunner:
         sim = self.lab.sim
         if duration is None:
             # each routine runs to its first wait (served meanwhile): by then it has declared
-            while self.scheduler.active and self.scheduler.horizon() is None:
+            while (self.scheduler.active and self.scheduler.horizon() is None
+                   and not signals.requested()):
                 sim.work.drain()
             duration = self.declared_duration() or default
         remaining = duration
-        try:
-            while remaining > sim.timestep / 2 and self.scheduler.active:
+        try:  # a signal (Ctrl-C, SIGTERM) ends the run at the next tick; the routines stop
+            while remaining > sim.timestep / 2 and self.scheduler.active and not signals.requested():
                 remaining -= sim.run(remaining, on_tick=on_tick, tick=tick, gate=self.scheduler,
-                                     until=lambda: not self.scheduler.active)
+                                     until=lambda: not self.scheduler.active or signals.requested())
         finally:
             self.stop()
 
@@ -232,6 +233,13 @@ class RoutineRunner:
                 entry.thread.join(timeout=join)
             if entry.context.abandoned and not entry.error:
                 entry.error = entry.context.abandoned
+        if self._children is not None:  # what the routines started ends with them
+            self.left_running += sandbox.stop_children(self._children)
+        for entry in self.routines:
+            if entry.thread is not None and not entry.thread.is_alive():
+                for line in sandbox.stop_threads(entry.context):
+                    entry.context.notices.append(line)
+                    self._log("WARN", line)
 
 
 def _students_traceback(path: Path) -> str:
@@ -241,10 +249,4 @@ def _students_traceback(path: Path) -> str:
     if exc_type is KeyboardInterrupt:
         exc = KeyboardInterrupt("the routine raised KeyboardInterrupt (only the simulation "
                                 "stops routines)")
-    frames = [f for f in traceback.extract_tb(tb)
-              if f.filename == str(path) or not (f.filename.startswith(_PACKAGE)
-                                                 or f.filename.endswith(("runpy.py", "threading.py"))
-                                                 or "<frozen runpy>" in f.filename)]
-    lines = ["Traceback (most recent call last):\n", *traceback.format_list(frames),
-             *traceback.format_exception_only(type(exc), exc)]
-    return "".join(lines).rstrip()
+    return sandbox.students_traceback(exc, path, tb)

@@ -6,31 +6,43 @@ simulation, which steps until the earliest wake-up and hands it back. Messages f
 subscribers are queued and delivered in the routine's own thread while it waits, so student code
 never runs in the simulation thread. A headless run is as fast as the physics and deterministic;
 a GUI run keeps real time. A routine that stops yielding (a loop without rate.sleep(), a long
-time.sleep) is abandoned after `stall` seconds of wall time instead of freezing the lab.
+time.sleep) is abandoned after `stall` seconds of wall time instead of freezing the lab; mexone's
+own long computations (reach's IK) say so with `busy()` and are not mistaken for one.
+A process the routine forks has no simulation (only the thread that forked is copied): its first
+rospy call ends it (`Forked`), instead of waiting forever for a clock nobody advances.
 """
 
 from __future__ import annotations
 
 import ctypes
 import math
+import os
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from mexone.errors import MexoneError
 from mexone.lab import Lab
 
-__all__ = ["Scheduler", "RoutineContext", "Shutdown", "current", "bind", "STALL_SECONDS"]
+__all__ = ["Scheduler", "RoutineContext", "Shutdown", "Forked", "current", "bind", "busy",
+           "STALL_SECONDS", "BUSY_SECONDS"]
 
 STALL_SECONDS = 5.0  # wall seconds a routine may compute without yielding to the simulation
+BUSY_SECONDS = 120.0  # wall seconds one of mexone's own computations (busy()) may take at most
 _POLL = 0.05  # wall seconds the simulation waits for routines before returning to its caller
 
 
 class Shutdown(BaseException):
     """The simulation ended (or gave up on the routine) while it ran or waited; rospy raises
     ROSInterruptException. A BaseException, so a routine's `except Exception` cannot swallow it."""
+
+
+class Forked(Shutdown):
+    """A process the routine forked called rospy: only the routine's own process has the
+    simulation (a fork copies the forking thread alone), so the copy ends (routines.sandbox)."""
 
 
 @dataclass
@@ -48,6 +60,8 @@ class RoutineContext:
     abandoned: str | None = None  # why the simulation stopped waiting for it
     warned_topics: set[str] = field(default_factory=set)
     notices: list[str] = field(default_factory=list)  # mexone's own warnings (unheard topics)
+    source: str = ""  # the routine's file: its frames tell its threads from the lab's own
+    errors: list[str] = field(default_factory=list)  # found besides its own end (a thread raised)
 
     @property
     def time(self) -> float:
@@ -76,6 +90,7 @@ class _Thread:
     context: RoutineContext
     running_since: float | None = None  # wall time it last got the clock (None: it waits)
     wait: _Wait | None = None
+    busy: list[str] = field(default_factory=list)  # mexone's computations running (busy())
 
 
 class Scheduler:
@@ -89,6 +104,7 @@ class Scheduler:
         self._cond = threading.Condition()
         self._threads: dict[int, _Thread] = {}
         self.stalled: list[str] = []  # messages about routines given up on
+        self.pid = os.getpid()  # the process with the simulation (a fork of it has none)
 
     # ----- routine side ------------------------------------------------------------------------
     def enter(self, context: RoutineContext) -> None:
@@ -103,6 +119,8 @@ class Scheduler:
     def wait(self, wake: float, ready: Callable[[], bool] | None = None) -> None:
         """Block until sim time reaches `wake` or `ready()` holds, running this routine's
         subscriber callbacks as their messages arrive."""
+        if os.getpid() != self.pid:
+            raise Forked  # before touching a lock another thread may have held at the fork
         me = threading.get_ident()
         if math.isnan(wake):
             raise ValueError("cannot wait until a NaN time")
@@ -159,8 +177,11 @@ class Scheduler:
         """Give up on routines that have not yielded for `stall` s: the simulation goes on."""
         now = time.perf_counter()
         for tid, t in list(self._threads.items()):
-            if t.running_since is not None and now - t.running_since > self.stall:
-                reason = (f"routine did not yield to the simulation for {self.stall:g} s "
+            limit = BUSY_SECONDS if t.busy else self.stall
+            if t.running_since is not None and now - t.running_since > limit:
+                reason = (f"mexone's {t.busy[-1]} ran for {limit:g} s without yielding to the "
+                          "simulation (a mexone bug: please report it)" if t.busy else
+                          f"routine did not yield to the simulation for {self.stall:g} s "
                           "(call rate.sleep())")
                 t.context.abandoned = reason
                 self.stalled.append(reason)
@@ -182,6 +203,23 @@ class Scheduler:
     def active(self) -> bool:
         with self._cond:
             return bool(self._threads)
+
+    @contextmanager
+    def busy(self, what: str) -> Iterator[None]:
+        """The calling routine thread runs one of mexone's own computations: the watchdog allows
+        it BUSY_SECONDS, not `stall`, and the routine's own clock starts again after it."""
+        with self._cond:
+            entry = self._threads.get(threading.get_ident())
+            if entry is not None:
+                entry.busy.append(what)
+        try:
+            yield
+        finally:
+            if entry is not None:
+                with self._cond:
+                    entry.busy.pop()
+                    if entry.running_since is not None:
+                        entry.running_since = time.perf_counter()
 
 
 def _interrupt(thread_id: int) -> None:
@@ -213,4 +251,19 @@ def current() -> RoutineContext:
     if context is None:
         raise MexoneError("no simulation is running for this routine",
                           hint="run it with 'mexone run FILE' (or from the GUI's Routines panel)")
+    if os.getpid() != context.scheduler.pid:
+        raise Forked
     return context
+
+
+@contextmanager
+def busy(what: str) -> Iterator[None]:
+    """`with busy("reach's IK"):` -- mexone's own long computation in a routine (many IK
+    restarts on a loaded machine take seconds of wall time without yielding): the routine
+    watchdog must not take it for a student's busy loop. Outside a routine it does nothing."""
+    context = getattr(_local, "context", None)
+    if context is None:
+        yield
+        return
+    with context.scheduler.busy(what):
+        yield

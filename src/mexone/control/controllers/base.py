@@ -22,6 +22,7 @@ from mexone.control.hardware import SimHardware
 from mexone.control.spec import ControllerSpec, PidGains
 from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
+from mexone.ranges import number_text
 
 __all__ = ["Controller", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
            "controller_type"]
@@ -174,7 +175,8 @@ class Controller:
                                    "ignored")
             return None
         if not np.isfinite(values).all():
-            self.warn_once("nan", f"command {values.tolist()} is not finite; ignored (the "
+            shown = ", ".join(number_text(v) for v in values)
+            self.warn_once("nan", f"command ({shown}) is not finite; ignored (the "
                                   "simulation never sees a NaN)")
             return None
         return values

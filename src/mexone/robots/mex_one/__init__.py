@@ -5,9 +5,7 @@ from __future__ import annotations
 from importlib.resources import as_file, files
 from pathlib import Path
 
-__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "NAMESPACE", "END_EFFECTORS"]
-
-NAMESPACE = "mex_rb"
+__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "END_EFFECTORS"]
 
 # Named frames whole-body motion commands (mexone.motion): link and offset (m) in its frame.
 # Hands: the far end of the forearm (its 0.15 m cylinder centred 0.095 m down); feet: the
