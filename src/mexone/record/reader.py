@@ -48,6 +48,7 @@ class StateMessage:
     position: np.ndarray
     velocity: np.ndarray  # empty when the driver does not report it
     effort: np.ndarray
+    index: int = 0  # 1, 2, ... on its topic (malformed messages left out still count)
 
 
 @dataclass
@@ -220,7 +221,7 @@ def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
                 contents.states.append(StateMessage(
                     t, header if header > 0 else None, getattr(msg.header, "seq", None),
                     conn.topic, names, _array(msg.position), _array(msg.velocity),
-                    _array(msg.effort)))
+                    _array(msg.effort), index))
             elif kind in (FLOAT64, MULTI):
                 msg = reader.deserialize(raw, kind)
                 contents.commands.setdefault(conn.topic, []).append(
