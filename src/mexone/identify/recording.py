@@ -336,10 +336,12 @@ def _check_times(times: np.ndarray, msgs: list[StateMessage], label: Path) -> No
         back = int(behind[0])
         later = msgs[int(np.argmax(times[:back] >= latest[back]))]
         m = msgs[back]
-        raise InputError(f"the header stamps on {m.topic} run backwards: message {m.index} is "
-                         f"stamped {number_text(times[back])} s, after message {later.index} at "
-                         f"{number_text(latest[back])} s", file=label,
-                         hint="stamp joint states with the driver's clock as it reads the joints")
+        raise InputError(f"the header stamps on {m.topic} run backwards in the order the bag "
+                         f"received them: message {m.index} is stamped {number_text(times[back])} "
+                         f"s, after message {later.index} at {number_text(latest[back])} s",
+                         file=label, hint="a driver stamps joint states as it reads the joints, "
+                                          "a recorder receives them in that order: were the "
+                                          "stamps or the bag's times rewritten?")
     step = np.diff(times)
     gap = int(np.argmax(step))
     if step[gap] > max(MAX_GAP, 20 * float(np.median(step))):
