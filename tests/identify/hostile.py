@@ -16,6 +16,7 @@ from mexone.record.reader import FLOAT64, JOINT_STATE, read_bag
 __all__ = ["Record", "TF", "records_of", "write", "STATE", "COMMAND"]
 
 STATE, COMMAND, TF = JOINT_STATE, FLOAT64, "tf2_msgs/msg/TFMessage"
+CHUNK = 16 * 1024  # bytes
 
 
 @dataclass
@@ -99,6 +100,7 @@ def write(records: list[Record], path: Path, ros1: bool | None = None) -> Path:
         from rosbags.rosbag1 import Writer
 
         with Writer(path) as writer:
+            writer.chunk_threshold = CHUNK  # small chunks: a cut bag keeps most of them
             connections: dict[str, object] = {}
             for r, ns in zip(records, stamp, strict=True):
                 if r.topic not in connections:
@@ -110,7 +112,7 @@ def write(records: list[Record], path: Path, ros1: bool | None = None) -> Path:
     from mcap.writer import Writer as McapWriter
 
     with path.open("wb") as handle:
-        writer = McapWriter(handle, compression=CompressionType.NONE)
+        writer = McapWriter(handle, compression=CompressionType.NONE, chunk_size=CHUNK)
         writer.start(profile="ros2", library="mexone tests")
         channels: dict[str, int] = {}
         for r, ns in zip(records, stamp, strict=True):

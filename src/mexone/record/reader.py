@@ -110,6 +110,7 @@ def _readable(path: Path | str) -> Iterator[Path]:
     killed recording's (BAG.active, or a truncated BAG) recovered into a temporary copy, with a
     one-line note saying how to repair the file itself."""
     from mexone.record.recover import (
+        KIND_NAMES,
         bag_kind,
         bag_suffix,
         is_complete,
@@ -144,11 +145,16 @@ def _readable(path: Path | str) -> Iterator[Path]:
             copy.symlink_to(source.resolve())
         else:
             found = recover(source, copy)
+            if not found.messages:
+                raise InputError(f"starts as {KIND_NAMES[kind]}, but not one message can be read "
+                                 "from it (damaged, or cut before its first chunk was written)",
+                                 file=source, hint="record it again")
             bag = source.with_name(source.name.removesuffix(".active"))
+            named = bag if bag_suffix(bag) == kind else bag.with_name(bag.stem + kind)
+            rename = "" if named == bag else f"renamed {named.name}, "
             log.warning(f"{source}: an unfinished recording (killed?); read the "
-                        f"{found.describe()} recovered from it; 'mexone record --recover {bag}' "
-                        "repairs it on disk" + ("" if bag_suffix(bag) == kind else
-                                                f" once renamed {bag.stem}{kind}"))
+                        f"{found.describe()} recovered from it; {rename}'mexone record --recover "
+                        f"{named}' repairs it on disk")
         try:
             yield copy
         except InputError as exc:  # about the user's file, not our temporary copy
