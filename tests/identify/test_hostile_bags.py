@@ -45,10 +45,11 @@ FIT = ["--params", "damping", "--joints", "l_elbow", "--max-iterations", "1", "-
 
 @pytest.fixture(scope="module")
 def records(tmp_path_factory) -> list[hostile.Record]:
-    """1.2 s of a Mex-One on a stand running the excitation routine, as editable records."""
+    """1 s of a Mex-One on a stand running the excitation routine, as editable records: every
+    joint's state, three joints' commands (the others hold their start), the base's /tf."""
     folder = tmp_path_factory.mktemp("hostile")
-    bag = bagtools.record(folder / "real.mcap", None, None, "fixed", 1.3)
-    return hostile.records_of(bag, 1.2)
+    bag = bagtools.record(folder / "real.mcap", None, None, "fixed", 1.1)
+    return hostile.records_of(bag, 1.0, commanded=("l_elbow", "l_knee", "waist_yaw"))
 
 
 def _bag(records, folder: Path, name: str, mutate=None) -> Path:
@@ -122,7 +123,7 @@ REFUSED = {
                                      zip(_states(rs), [r.stamp for r in _states(rs)][::-1],
                                          strict=True)],
                          "header stamps on /mex_rb/joint_states run backwards in the order the "
-                         "bag received them: message 3 is stamped 1.14 s, after message 1"),
+                         "bag received them: message 3 is stamped 0.96 s, after message 1 at 1 s"),
     "receive_times_backwards": (lambda rs: [setattr(r, "t", t) for r, t in
                                             zip(rs, [r.t for r in rs][::-1], strict=True)],
                                 "header stamps on /mex_rb/joint_states run backwards in the order "
@@ -197,7 +198,7 @@ def test_a_misnamed_bag_is_read_by_what_it_is(records, tmp_path, capfd, monkeypa
     assert f"{bag}: {kind} named {bag.suffix}; read as what it is (rename it " \
            f"{bag.stem}{content})" in err
     code, out, err = run_cli(["plot", str(bag), "-o", str(tmp_path / "p.csv")], capfd, monkeypatch)
-    assert code == 0 and "21 joints" in out, err
+    assert code == 0 and "rows for 3 joints" in out, err  # the commanded ones
     code, out, err = run_cli(["record", "--recover", str(bag)], capfd, monkeypatch)
     _refused(code, out, err, bag, f"is {kind} named {bag.suffix}", f"rename it {bag.stem}{content}")
     truncated = tmp_path / f"cut{bag.suffix}"  # a killed one, misnamed: read by content too
@@ -325,11 +326,13 @@ def name_mutations(draw) -> Mutation:
     def apply(records):
         states = _states(records)
         for r in [states[pick % len(states)]] if scope == "one" else states:
+            if not r.names:  # emptied by an earlier mutation
+                continue
             k = pick % len(r.names)
             if how == "drop_name":
                 r.names.pop(k)
             elif how == "drop_position":
-                r.position.pop(k)
+                del r.position[k:k + 1]
             elif how == "repeat_name":
                 r.names[k] = r.names[(k + 1) % len(r.names)]
             elif how == "same_name":
@@ -391,6 +394,7 @@ MUTATIONS = st.lists(st.one_of(value_mutations(), name_mutations(), time_mutatio
 def _contract(call, bag: Path, capfd, caplog) -> str:
     """call() returns or raises a one-line MexoneError naming the bag; no warning from numpy or
     MuJoCo either way. Returns "refused" or "ok"."""
+    logging.getLogger("mexone").handlers.clear()  # an earlier main()'s, on a closed stream
     capfd.readouterr()
     caplog.clear()
     with warnings.catch_warnings(record=True) as caught:
@@ -416,7 +420,7 @@ def _fuzz_settings(examples: int):
                                            HealthCheck.too_slow, HealthCheck.data_too_large])
 
 
-@_fuzz_settings(12)
+@_fuzz_settings(10)
 @given(mutations=MUTATIONS, ros1=st.booleans())
 def test_fuzz_identify(records, tmp_path_factory, capfd, caplog, monkeypatch, mutations, ros1):
     folder = tmp_path_factory.mktemp("fuzz")
@@ -436,7 +440,7 @@ def test_fuzz_identify(records, tmp_path_factory, capfd, caplog, monkeypatch, mu
             assert fit.notes or caplog.records, mutations
 
 
-@_fuzz_settings(40)
+@_fuzz_settings(25)
 @given(mutations=MUTATIONS, ros1=st.booleans())
 def test_fuzz_plot_reader(records, tmp_path_factory, capfd, caplog, mutations, ros1):
     folder = tmp_path_factory.mktemp("fuzz")
@@ -469,7 +473,7 @@ def byte_mutations(draw):
     return how, where, size, apply
 
 
-@_fuzz_settings(40)
+@_fuzz_settings(25)
 @given(mutation=byte_mutations(), ros1=st.booleans())
 def test_fuzz_bytes(records, tmp_path_factory, capfd, caplog, mutation, ros1):
     """Cut, flipped or misnamed bytes: the reader, plot and recovery each give one line or a
