@@ -281,6 +281,7 @@ def _check_states(contents: BagContents, wanted: set[str], label: Path, notes: l
     are what drivers send for 'unknown': those samples are left out, with a note."""
     bad = 0
     first = ""
+    bare = [m for m in contents.states if not len(m.position) and wanted.intersection(m.names)]
     for m in contents.states:
         for i, name in enumerate(m.names):
             if name not in wanted:
@@ -302,6 +303,9 @@ def _check_states(contents: BagContents, wanted: set[str], label: Path, notes: l
     if bad:
         notes.append(f"{label.name}: {bad} joint position(s) NaN or inf, left out (the first: "
                      f"{first})")
+    if bare and len(bare) < len(contents.states):
+        notes.append(f"{label.name}: {len(bare)} JointState message(s) with no positions, left "
+                     f"out (the first: {_where(bare[0])})")
 
 
 def _check_start(recording: Recording, robot: RobotModel) -> None:
