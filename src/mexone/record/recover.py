@@ -194,7 +194,7 @@ def _fields(header: bytes) -> dict[str, bytes]:
     while pos + 4 <= len(header):
         (size,) = struct.unpack_from("<I", header, pos)
         name, _, value = header[pos + 4:pos + 4 + size].partition(b"=")
-        fields[name.decode()] = value
+        fields[name.decode(errors="replace")] = value  # a damaged name is no field we read
         pos += 4 + size
     return fields
 
@@ -267,8 +267,8 @@ def _recover_bag1(source: Path, output: Path) -> Recovered:
                 connection(fields, payload)
             elif op == _OP_CHUNK:
                 chunk(fields, payload)
-        except (KeyError, ValueError, struct.error, OSError, EOFError):
-            break  # a damaged record: the end of what can be recovered
+        except Exception:  # noqa: BLE001 -- a damaged record (a bad length, a codec's own
+            break  # error for a damaged chunk): the end of what can be recovered
     writer.close()
     found.topics = len(connections)
     return found
