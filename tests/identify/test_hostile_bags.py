@@ -489,3 +489,18 @@ def test_fuzz_bytes(records, tmp_path_factory, capfd, caplog, mutation, ros1):
     target = folder / ("r" + (bag_kind(bag) or bag.suffix))
     _contract(lambda: recover(bag, target), bag, capfd, caplog)
     shutil.rmtree(folder)
+
+
+def test_a_damaged_record_name_ends_recovery_without_a_traceback(records, tmp_path):
+    """(found by test_fuzz_bytes) a cut ROS 1 bag whose first connection's field names are not
+    UTF-8: what comes before it is recovered, the rest is one line."""
+    clean = hostile.write(records, tmp_path / "clean.bag")
+    data = clean.read_bytes()
+    at = data.index(b"topic=", len(b"#ROSBAG V2.0\n") + 200)  # inside the first chunk
+    damaged = tmp_path / "damaged.bag"
+    damaged.write_bytes(data[:at] + b"\xca\xa5" + data[at + 2:len(data) // 2])
+    assert recover(damaged, tmp_path / "out.bag").messages == 0  # was: UnicodeDecodeError
+    with pytest.raises(MexoneError) as refused:
+        read_bag(damaged)
+    assert "\n" not in str(refused.value) and str(damaged) in str(refused.value)
+    assert "not one message can be read" in str(refused.value)
