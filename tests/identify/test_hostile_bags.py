@@ -119,6 +119,8 @@ REFUSED = {
                                     if r.msgtype == TF], "/tf of pelvis", "translation (NaN"),
     "zero_quaternion": (lambda rs: [setattr(r, "quat", [0.0] * 4) for r in rs if r.msgtype == TF],
                         "/tf of pelvis", "rotation (0, 0, 0, 0) is not a quaternion"),
+    "huge_quaternion": (lambda rs: [setattr(r, "quat", [1e300, 0.0, 0.0, 0.0]) for r in rs
+                                    if r.msgtype == TF], "rotation (1e+300, 0, 0, 0)"),
     "stamps_backwards": (lambda rs: [setattr(r, "stamp", s) for r, s in
                                      zip(_states(rs), [r.stamp for r in _states(rs)][::-1],
                                          strict=True)],
@@ -144,7 +146,10 @@ def test_found_case_is_one_line(records, tmp_path, capfd, monkeypatch, case):
     mutate, *expected = REFUSED[case]
     bag = _bag(records, tmp_path, f"{case}.bag", mutate)
     monkeypatch.chdir(tmp_path)  # MuJoCo would write MUJOCO_LOG.TXT here
-    _refused(*_identify(bag, tmp_path, capfd, monkeypatch), bag, *expected)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        _refused(*_identify(bag, tmp_path, capfd, monkeypatch), bag, *expected)
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
     assert not (tmp_path / f"out-{bag.stem}").exists()
 

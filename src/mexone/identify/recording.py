@@ -461,10 +461,10 @@ def _base_pose(contents: BagContents, base: str, start: float, label: Path) -> B
                              f"not a place (beyond +-{number_text(POSITION.high)} m or not finite)",
                              file=label, hint="fix the transform's publisher, or drop /tf from "
                                               "the bag and say --base fixed or free")
-        norm = float(np.linalg.norm(s.quat)) if np.isfinite(s.quat).all() else 0.0
-        if not 1e-6 < norm < 1e6:
+        size = float(np.max(np.abs(s.quat))) if np.isfinite(s.quat).all() else 0.0
+        if not 1e-6 < size < 1e6:  # (before any norm: 1e300 squared overflows)
             raise InputError(f"{where}: rotation ({', '.join(map(number_text, s.quat))}) is not "
-                             "a quaternion (zero or not finite)", file=label,
+                             "a quaternion (zero, huge or not finite)", file=label,
                              hint="fix the transform's publisher, or drop /tf from the bag and "
                                   "say --base fixed or free")
     times = np.array([s.t for s in samples])
