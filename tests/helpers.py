@@ -66,3 +66,16 @@ def on_screen(tab, server, point) -> tuple[float, float]:
     x = (d @ right) / (depth * half * width / height)
     y = (d @ up) / (depth * half)
     return (x + 1) / 2 * width, (1 - y) / 2 * height
+
+
+FUZZ_EXAMPLES = int(__import__("os").environ.get("MEXONE_FUZZ_EXAMPLES", "0"))
+
+
+def fuzz(examples: int):
+    """hypothesis settings for a property test of hostile input: in CI derandomized, `examples`
+    of them; a longer run with fresh ones: MEXONE_FUZZ_EXAMPLES=2000 pytest -m fuzz
+    --hypothesis-seed=N."""
+    from hypothesis import HealthCheck, settings
+
+    return settings(max_examples=FUZZ_EXAMPLES or examples, derandomize=not FUZZ_EXAMPLES,
+                    deadline=None, database=None, suppress_health_check=list(HealthCheck))
