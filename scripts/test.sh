@@ -20,7 +20,8 @@ ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher 
               python3-genpy python3-genmsg python3-gencpp ros-std-msgs ros-geometry-msgs
               ros-trajectory-msgs ros-sensor-msgs ros-actionlib-msgs python3-actionlib
               python3-actionlib-msgs python3-dynamic-reconfigure python3-rosservice
-              python3-rosbag python3-roslaunch libroscpp-dev libstd-msgs-dev g++)
+              python3-rosbag python3-roslaunch libroscpp-dev libstd-msgs-dev g++
+              rosbash)  # rosrun (dynparam, the README's commands)
 dpkg -s "${ros_packages[@]}" >/dev/null 2>&1 || apt_packages+=("${ros_packages[@]}")
 # the real rviz under a virtual X server (tests/ros1/test_rviz.py)
 dpkg -s rviz xvfb xauth >/dev/null 2>&1 || apt_packages+=(rviz xvfb xauth)

@@ -102,3 +102,16 @@ def wait_frames(app, frames: int, timeout: float = 20.0) -> bool:
     while paused" is then shown over loop iterations that ran, not over a guessed wall time."""
     start = app._frames
     return wait_until(lambda: app._frames >= start + frames, timeout=timeout)
+
+
+FUZZ_EXAMPLES = int(__import__("os").environ.get("MEXONE_FUZZ_EXAMPLES", "0"))
+
+
+def fuzz(examples: int):
+    """hypothesis settings for a property test of hostile input: in CI derandomized, `examples`
+    of them; a longer run with fresh ones: MEXONE_FUZZ_EXAMPLES=2000 pytest -m fuzz
+    --hypothesis-seed=N."""
+    from hypothesis import HealthCheck, settings
+
+    return settings(max_examples=FUZZ_EXAMPLES or examples, derandomize=not FUZZ_EXAMPLES,
+                    deadline=None, database=None, suppress_health_check=list(HealthCheck))

@@ -13,6 +13,7 @@ __all__ = [
     "ModelError",
     "UnsupportedError",
     "OutputExistsError",
+    "ArgumentTypeError",
 ]
 
 
@@ -64,3 +65,8 @@ class UnsupportedError(MexoneError):
 
 class OutputExistsError(MexoneError):
     """Refusing to overwrite a file the user made."""
+
+
+class ArgumentTypeError(MexoneError, TypeError):
+    """A Python API called with a value of a type its signature does not accept: a TypeError for
+    Python callers, a one-line MexoneError for the front ends that print them."""

@@ -4,8 +4,10 @@
 from __future__ import annotations
 
 import functools
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from numbers import Real
 from pathlib import Path
 
 import mujoco
@@ -19,9 +21,11 @@ from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
+from mexone.errors import ArgumentTypeError, InputError
 from mexone.physics.compile import CompileOptions, Spawn, SpecEdit
 from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
+from mexone.ranges import CONTROL_PERIOD, RTF
 from mexone.robots import mex_one
 from mexone.sensors import SensorSuite, build_sensors
 
@@ -64,17 +68,34 @@ class Lab:
                options: CompileOptions = CompileOptions(), target_rtf: float | None = None,
                control_period: float | None = None, namespace: str | None = None,
                start: Sequence[str] | None = None, edits: Sequence[SpecEdit] = ()) -> Lab:
-        """model None: the built-in Mex-One. controllers None: the built-in robot's YAML (or none
-        for other robots); False: no controllers; "auto": a position controller per moving joint
-        with gains from the robot's physics (control/autotune.py); a path or ControlConfig: that
-        one. `start`: the controllers to start (default: every one, except alternatives for
-        joints an earlier one drives, which load stopped); the rest are loaded, stopped. `edits`
-        change the MuJoCo spec before it compiles (props in the world for an experiment)."""
+        """model None: the built-in Mex-One (else a RobotModel or a model file's path, str or
+        Path). controllers None: the built-in robot's YAML (or none for other robots); True: the
+        built-in robot's YAML (another robot has none: pass one, or "auto"); False: no
+        controllers; "auto": a position controller per moving joint with gains from the robot's
+        physics (control/autotune.py); a path (str or Path) or ControlConfig: that one. `start`:
+        the controllers to start (default: every one, except alternatives for joints an earlier
+        one drives, which load stopped); the rest are loaded, stopped. `edits` change the MuJoCo
+        spec before it compiles (props in the world for an experiment). A value of a type not
+        listed here is an ArgumentTypeError (a TypeError) naming the parameter."""
+        _check_arguments(model=model, controllers=controllers, world=world, spawn=spawn,
+                         options=options, target_rtf=target_rtf, control_period=control_period,
+                         namespace=namespace, start=start, edits=edits)
+        if target_rtf is not None:
+            target_rtf = RTF.check(target_rtf, "Lab.create: target_rtf")
+        if control_period is not None:
+            control_period = CONTROL_PERIOD.check(control_period, "Lab.create: control_period")
         builtin = model is None
         robot = model if isinstance(model, RobotModel) else load_model(model or mex_one.urdf_path())
         asked = controllers
         if controllers is None:
             controllers = mex_one.controllers_path() if builtin else False
+        elif controllers is True:
+            if not builtin:
+                raise ArgumentTypeError(
+                    "Lab.create: controllers=True means the built-in robot's controllers, and "
+                    f"'{robot.name}' is another robot", hint="pass its controller YAML, a "
+                    "ControlConfig, or 'auto' for gains from its physics")
+            controllers = mex_one.controllers_path()
         world = world or default_world()
         config = None
         if controllers == AUTO:
@@ -147,6 +168,46 @@ class Lab:
 
 
 AUTO = "auto"  # Lab.create(controllers=AUTO): controllers with gains from the robot's physics
+
+_PATH = (str, os.PathLike)
+_ACCEPTED = {  # Lab.create's parameters: (types, what to say); None is accepted where listed
+    "model": ((type(None), RobotModel, *_PATH), "None (the built-in Mex-One), a RobotModel or a "
+                                                "model file's path (str or Path)"),
+    "controllers": ((type(None), bool, ControlConfig, *_PATH),
+                    "None, True, False, 'auto', a controller YAML's path (str or Path) or a "
+                    "ControlConfig"),
+    "world": ((type(None), World), "None (the default world) or a World"),
+    "spawn": ((Spawn,), "a Spawn"),
+    "options": ((CompileOptions,), "a CompileOptions"),
+    "namespace": ((type(None), str), "None or a str"),
+}
+
+
+def _check_arguments(**values) -> None:
+    """Lab.create's types, checked before anything loads: one line naming the parameter."""
+    def wrong(name: str, value, accepted: str) -> ArgumentTypeError:
+        return ArgumentTypeError(f"Lab.create: {name} must be {accepted}, not "
+                                 f"{type(value).__name__} {value!r:.60}")
+
+    for name, (types, accepted) in _ACCEPTED.items():
+        value = values[name]
+        if not isinstance(value, types):
+            raise wrong(name, value, accepted)
+        if isinstance(value, _PATH) and not os.fspath(value):
+            raise InputError(f"Lab.create: {name} is an empty path", hint=f"pass {accepted}")
+    for name in ("target_rtf", "control_period"):  # their ranges: Range.check in Lab.create
+        value = values[name]
+        if value is not None and (isinstance(value, bool) or not isinstance(value, Real)):
+            raise wrong(name, value, "None or a number of seconds" if name == "control_period"
+                        else "None or a number (1: real time, 0: as fast as possible)")
+    start = values["start"]
+    if start is not None and (isinstance(start, (str, bytes)) or not isinstance(start, Sequence)
+                              or not all(isinstance(n, str) for n in start)):
+        raise wrong("start", start, "None or a list of controller names (a list, even of one)")
+    edits = values["edits"]
+    if isinstance(edits, (str, bytes)) or not isinstance(edits, Sequence) \
+            or not all(callable(e) for e in edits):
+        raise wrong("edits", edits, "a list of functions f(spec, robot)")
 
 
 def no_controllers_note(robot: RobotModel, asked) -> str:

@@ -22,7 +22,7 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
            "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT",
-           "FORCE", "SPEED", "SPIN"]
+           "FORCE", "SPEED", "SPIN", "CONTROL_PERIOD"]
 
 
 def number_text(value: float) -> str:
@@ -120,6 +120,8 @@ FORCE = Range("force", "N or N m", -1e6, 1e6, why="a pushed force or torque, an 
 # the divergence watchdog's limits (physics/watchdog.py): a body set moving faster is a divergence
 SPEED = Range("speed", "m/s", -50.0, 50.0, why="a set linear velocity (component and length)")
 SPIN = Range("spin", "rad/s", -500.0, 500.0, why="a set angular velocity (component and length)")
+CONTROL_PERIOD = Range("control period", "s", 1e-5, 10.0, why="the controllers' period (at least "
+                       "the physics step): 0.1 Hz is no controller")
 
 RANGES: tuple[Range, ...] = tuple(v for v in globals().values() if isinstance(v, Range))
 

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import hashlib
 import io
-import os
 import shutil
 import sys
 from pathlib import Path
@@ -15,9 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
+from helpers import fuzz
 from mexone.control.spec import PidGains
 from mexone.description.check import check_model, inertial_problem
 from mexone.description.model import Box, Cylinder, Dynamics, Inertial, Limit, Pose, Sphere
@@ -28,13 +28,11 @@ from mexone.editor.session import EditSession
 from mexone.errors import InputError, MexoneError
 
 ARM = Path(__file__).resolve().parents[1] / "data" / "editor"
-_FUZZ = int(os.environ.get("MEXONE_FUZZ_EXAMPLES", "0"))  # a longer run: MEXONE_FUZZ_EXAMPLES=2000 pytest -m fuzz
 
 
 def PROPERTY(test):  # noqa: N802 - reads as the decorator it is
-    """CI: derandomized, 40 examples each; MEXONE_FUZZ_EXAMPLES: that many, seeded by pytest."""
-    return pytest.mark.fuzz(settings(max_examples=_FUZZ or 40, derandomize=not _FUZZ, deadline=None,
-                                     database=None, suppress_health_check=list(HealthCheck))(test))
+    """CI: derandomized, 40 examples each (helpers.fuzz)."""
+    return pytest.mark.fuzz(fuzz(40)(test))
 
 
 @pytest.fixture(scope="module")

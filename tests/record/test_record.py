@@ -162,7 +162,7 @@ def test_bad_outputs(tmp_path):
     notbag = tmp_path / "notbag.bag"
     notbag.write_text("hello")
     out = mexone("plot", str(notbag), "-o", str(tmp_path / "p.png"))
-    assert out.returncode == 2 and "not a readable bag" in out.stderr
+    assert out.returncode == 2 and "not a bag (it starts with neither" in out.stderr
     assert out.stderr.count("\n") == 1
 
 

@@ -30,7 +30,8 @@ def free_port() -> int:
 
 
 def ros_env(port: int) -> dict:
-    """The environment of a ROS user with mexone's packages (spawner, message packages) found."""
+    """The environment of a ROS user after `eval "$(mexone ros-env)"` (the spawner, the message
+    packages and mex_rb found; tests/cli/test_ros_env.py holds the command to this function)."""
     from mexone.ros1 import interfaces
 
     return interfaces.environment(dict(
@@ -297,8 +298,7 @@ def test_the_seed_launch_files(tmp_path):
     both shoulders, both elbows and the neck reach the routine's 30 degrees."""
     port = free_port()
     core = start_roscore(port)
-    env = ros_env(port)
-    env["ROS_PACKAGE_PATH"] += os.pathsep + str(mex_one.package_dir().parent)
+    env = ros_env(port)  # mex_rb found as `mexone ros-env` puts it on ROS_PACKAGE_PATH
     model = subprocess.Popen(["roslaunch", "--wait", "mex_rb", "model.launch", "headless:=true"],
                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                              start_new_session=True)

@@ -10,7 +10,6 @@ examples: `MEXONE_FUZZ_EXAMPLES=2000 pytest -m fuzz tests/ros1/test_hostile_ros.
 from __future__ import annotations
 
 import math
-import os
 import subprocess
 import sys
 import threading
@@ -20,13 +19,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import wait_until
+from helpers import fuzz, wait_until
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_bridge import ros_env, start_mexone, stop  # noqa: E402
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, event, given, settings  # noqa: E402
+from hypothesis import event, given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -56,13 +55,6 @@ SDF_BOX = """<sdf version="1.6"><model name="box"><link name="box"><inertial><ma
 <collision name="c"><geometry><box><size>0.1 0.1 0.1</size></box></geometry></collision></link>
 </model></sdf>"""
 
-_FUZZ = int(os.environ.get("MEXONE_FUZZ_EXAMPLES", "0"))
-
-
-def fuzz(examples: int):
-    """CI: derandomized, `examples` of them; MEXONE_FUZZ_EXAMPLES: that many, seeded by pytest."""
-    return settings(max_examples=_FUZZ or examples, derandomize=not _FUZZ, deadline=None,
-                    database=None, suppress_health_check=list(HealthCheck))
 
 
 # ----- one simulator for the module's round trips ---------------------------------------------
@@ -747,6 +739,6 @@ def test_nan_and_huge_commands_on_a_topic_are_dropped_or_clamped(sim):
                               "std_msgs/Float64", f"data: {value}"], env=ros_env(sim.port),
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stderr
-    assert sim.heard("neck_pitch_position_controller: command [nan] is not finite; ignored")
+    assert sim.heard("neck_pitch_position_controller: command (NaN) is not finite; ignored")
     assert sim.heard("clamped: neck_pitch 1e+300 -> 0.8")
     sim.assert_alive()

@@ -114,10 +114,7 @@ def _rviz(tmp_path: Path, port: int, display: str, view: str) -> subprocess.Pope
     kind, values = VIEWS[view]
     config = tmp_path / f"{view}.rviz"
     config.write_text(TOP_DOWN.replace("VIEW_CLASS", kind).replace("VIEW_VALUES", values))
-    from mexone.robots import mex_one
-
     env = ros_env(port)  # mex_rb (meshes for the robot model) found as the README says
-    env["ROS_PACKAGE_PATH"] = f"{env['ROS_PACKAGE_PATH']}:{mex_one.package_dir().parent}"
     env.update(DISPLAY=display, LIBGL_ALWAYS_SOFTWARE="1")
     log = Path(os.environ.get("TMPDIR", "/tmp")) / f"mexone-rviz-{view}.log"
     with open(log, "w") as out:  # the child keeps its own copy of the descriptor

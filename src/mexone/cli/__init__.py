@@ -49,6 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
         plot,
         record,
         render,
+        rosenv,
         run,
         sim,
         sweep,
@@ -62,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
     for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
-                   bench, edit):
+                   bench, edit, rosenv):
         module.add_parser(sub)
     return parser
 

@@ -82,11 +82,13 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from mexone.identify.outputs import plan_outputs, write_outputs
+    from mexone.identify.parameters import check_kinds
     from mexone.identify.session import Options, identify, load_inputs
 
     for bag in [*args.bags, *args.validate]:
         if not bag.is_file():
             raise InputError("no such bag", file=bag, hint="give a .bag or .mcap file")
+    check_kinds(args.fit_params)
     robot, config = load_inputs(args.model, args.controllers)
     plan = plan_outputs(args.output, robot.source, config.source, "gains" in args.fit_params,
                         [*args.bags, *args.validate], args.force)
@@ -115,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
     finally:
         bar.close()
     write_outputs(result, plan)
+    for note in result.notes:  # what was left out of the bags, assumed or not written back
+        print(f"mexone: note: {note}", file=sys.stderr)
     if args.json:
         print(json.dumps(result.as_json()))
     else:

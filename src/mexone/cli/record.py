@@ -75,18 +75,32 @@ def run(args: argparse.Namespace) -> int:
 def recover_bag(bag: Path, output: Path | None, force: bool) -> int:
     """Rebuild BAG from BAG.active (or a truncated BAG, kept as NAME.orig.EXT) or into OUTPUT."""
     from mexone.record.bag import BAG_SUFFIXES
-    from mexone.record.recover import bag_suffix, is_complete, killed_recording, recover
+    from mexone.record.recover import (
+        bag_kind,
+        bag_suffix,
+        is_complete,
+        killed_recording,
+        misnamed,
+        not_a_bag,
+        recover,
+    )
 
     if bag_suffix(bag) not in BAG_SUFFIXES:
         raise InputError(f"cannot recover '{bag.suffix or bag.name}' files", file=bag,
                          hint="give the .mcap or .bag that was being recorded")
     source = killed_recording(usable(bag))
+    wrong = misnamed(source or bag) if (source or bag).is_file() else None
+    if wrong:  # recovered, it would be written under the wrong kind's name
+        kind = bag_kind(source or bag)
+        raise InputError(f"is {wrong}", file=source or bag,
+                         hint=f"rename it {Path(bag.name).stem}{kind} and recover that; "
+                              "mexone plot and identify read it as it is")
     if source is None:
         if bag.is_file() and is_complete(bag):
             print(f"{bag} is complete; nothing to recover")
             return 0
         if bag.is_file():
-            raise InputError("not a bag that can be recovered (it does not start as one)", file=bag)
+            raise not_a_bag(bag)
         raise InputError("no such file, and no killed recording of it (BAG.active)", file=bag)
     name = Path(source.name.removesuffix(".active"))
     in_place = output is None and source.name == name.name

@@ -20,7 +20,7 @@ from mexone.control.hardware import motor_gains, set_motor_gain
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
 
-__all__ = ["KINDS", "Unknown", "Kind", "unknowns_for", "parameter_dict", "apply_to_model",
+__all__ = ["KINDS", "Unknown", "Kind", "unknowns_for", "check_kinds", "parameter_dict", "apply_to_model",
            "JOINT_KINDS", "LINK_KINDS", "delay_unknown", "DELAY", "DELAY_RANGE"]
 
 
@@ -103,14 +103,25 @@ class Unknown:
         set_motor_gain(model, model.actuator(self.target).id, self.component, value)
 
 
-def unknowns_for(kinds: list[str], joints: list[str], links: list[str], robot: RobotModel,
-                 model: mujoco.MjModel) -> list[Unknown]:
-    """The unknowns of each kind for the joints (joint kinds) and links (link kinds), with their
-    nominal values read from the compiled nominal model."""
+def check_kinds(kinds) -> list[str]:
+    """--params as given: at least one, each a kind of `KINDS`, none twice (before any bag is
+    read, so a typo costs no replay)."""
+    kinds = list(kinds)
     bad = [k for k in kinds if k not in KINDS]
     if bad:
         raise InputError(f"--params: unknown parameter {', '.join(bad)}",
                          hint="choose from " + ",".join(KINDS))
+    if not kinds:
+        raise InputError("--params names no parameter to fit",
+                         hint="choose from " + ",".join(KINDS))
+    return list(dict.fromkeys(kinds))
+
+
+def unknowns_for(kinds: list[str], joints: list[str], links: list[str], robot: RobotModel,
+                 model: mujoco.MjModel) -> list[Unknown]:
+    """The unknowns of each kind for the joints (joint kinds) and links (link kinds), with their
+    nominal values read from the compiled nominal model."""
+    kinds = check_kinds(kinds)
     if any(KINDS[k].of == "link" for k in kinds) and not links:
         raise InputError(f"--params {','.join(k for k in kinds if KINDS[k].of == 'link')} needs "
                          "--links: which links to weigh", hint="e.g. --links torso")

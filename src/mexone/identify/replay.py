@@ -24,6 +24,7 @@ from mexone.identify.recording import STILL, Recording
 from mexone.lab import Lab
 from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 from mexone.physics.compile import CompileOptions, Spawn
+from mexone.physics.watchdog import DivergenceError
 from mexone.record.reader import FLOAT64, MULTI, TRAJECTORY
 
 __all__ = ["Experiment", "replay", "BASES", "HANG_HEIGHT", "SENSOR_SUFFIX"]
@@ -108,6 +109,12 @@ def replay(recording: Recording, robot: RobotModel, config: ControlConfig,
                 i += 1
             sim.step(1)
             ctrl[k] = sim.data.ctrl
+    except DivergenceError as exc:  # the bag's start or commands, not the user's gains
+        raise InputError(f"replaying the bag, the model {exc.what.removeprefix('simulation ')}",
+                         file=recording.bag,
+                         hint="the recorded start pose or commands are more than this model can "
+                              "follow: is --model (and --controllers) the robot that was "
+                              "recorded?") from None
     except MexoneError as exc:
         raise InputError(f"replaying the commands at t = {k * dt:.3f} s: {exc.what}",
                          file=recording.bag, hint=exc.hint) from None

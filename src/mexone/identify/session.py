@@ -16,7 +16,7 @@ from mexone.control.config import ControlConfig, load_control_config
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
 from mexone.errors import InputError
-from mexone.identify.parameters import KINDS, delay_unknown, unknowns_for
+from mexone.identify.parameters import KINDS, check_kinds, delay_unknown, unknowns_for
 from mexone.identify.problem import MAX_ITERATIONS, Fit, Prediction, Problem, Progress
 from mexone.identify.recording import read_recording
 from mexone.identify.replay import Experiment, replay
@@ -94,7 +94,7 @@ class Result:
                 "validated_on": [e.name for e in self.validation] or None,
                 "bags": [e.name for e in self.experiments],
                 "iterations": fit.iterations, "seconds": round(fit.seconds, 3),
-                "interrupted": fit.interrupted}
+                "interrupted": fit.interrupted, "notes": self.notes or None}
 
 
 def load_inputs(model: Path | None, controllers: Path | None) -> tuple[RobotModel, ControlConfig]:
@@ -128,6 +128,7 @@ def identify(bags: list[Path], options: Options, validation: list[Path] = (),
     (fitted and held out) before and after."""
     bags, validation = [Path(b) for b in bags], [Path(v) for v in validation]
     _check_bags(bags, validation)
+    kinds = check_kinds(options.params)
     say = on_stage or (lambda _text: None)
     robot, config = load_inputs(options.model, options.controllers)
     joints = list(options.joints)
@@ -146,8 +147,8 @@ def identify(bags: list[Path], options: Options, validation: list[Path] = (),
     if not joints:
         measured = {j for e in experiments for j in e.joints}
         joints = [j.name for j in robot.actuated_joints if j.name in measured] \
-            if any(KINDS[k].of == "joint" for k in options.params) else []
-    unknowns = unknowns_for(list(options.params), joints, list(options.links), robot,
+            if any(KINDS[k].of == "joint" for k in kinds) else []
+    unknowns = unknowns_for(kinds, joints, list(options.links), robot,
                             experiments[0].model)
     if options.delay:
         unknowns += [delay_unknown(e.name) for e in experiments]
@@ -166,6 +167,13 @@ def identify(bags: list[Path], options: Options, validation: list[Path] = (),
             after = problem.predict(experiments + held, fit.scaled)
     finally:
         problem.close()
+    loose = [u.name for u, h in zip(fit.unknowns, fit.halfwidth if fit.halfwidth is not None
+                                    else [0.0] * len(fit.unknowns), strict=True)
+             if not np.isfinite(h)]
+    if loose:
+        notes.append(f"the bags do not determine {', '.join(loose[:3])}"
+                     f"{f' and {len(loose) - 3} more' if len(loose) > 3 else ''} (interval +- inf): "
+                     "the joints they act on did not move enough; record more excitation")
     if fit.interrupted:
         notes.append(f"interrupted after {fit.iterations} iterations: the best fit so far, "
                      "without confidence intervals")

@@ -21,6 +21,7 @@ from rosbags.highlevel import AnyReader
 
 from mexone.control.spec import controller_name
 from mexone.errors import InputError
+from mexone.ranges import number_text
 from mexone.record.bag import typestore_for
 
 __all__ = ["JointSeries", "read_joint_series", "FieldSeries", "read_field_series", "read_bag",
@@ -48,6 +49,7 @@ class StateMessage:
     position: np.ndarray
     velocity: np.ndarray  # empty when the driver does not report it
     effort: np.ndarray
+    index: int = 0  # 1, 2, ... on its topic (malformed messages left out still count)
 
 
 @dataclass
@@ -86,6 +88,7 @@ class BagContents:
     commands: dict[str, list[CommandMessage]]  # topic -> messages in bag order
     transforms: list[TransformSample]
     topics: dict[str, str]  # every topic -> its message type
+    warnings: list[str] = field(default_factory=list)  # one line each: what was left out and why
 
 
 @dataclass
@@ -104,28 +107,59 @@ class JointSeries:
 
 @contextmanager
 def _readable(path: Path | str) -> Iterator[Path]:
-    """The bag itself; a killed recording's (BAG.active, or a truncated BAG) recovered into a
-    temporary copy, with a one-line note saying how to repair the file itself."""
-    from mexone.record.recover import killed_recording, looks_truncated, recover
+    """The bag, named as what it is (an MCAP named .bag is read as an MCAP, with a note); a
+    killed recording's (BAG.active, or a truncated BAG) recovered into a temporary copy, with a
+    one-line note saying how to repair the file itself."""
+    from mexone.record.recover import (
+        KIND_NAMES,
+        bag_kind,
+        bag_suffix,
+        is_complete,
+        killed_recording,
+        misnamed,
+        not_a_bag,
+        recover,
+    )
 
     path = Path(path)
-    if path.is_dir() or (path.is_file() and not path.name.endswith(".active")
-                         and not looks_truncated(path)):
+    if path.is_dir():  # a rosbag2 folder
         yield path
         return
-    killed = killed_recording(path)
-    if killed is None:
+    source = path if path.is_file() and not path.name.endswith(".active") else \
+        killed_recording(path)
+    if source is None:
         raise InputError("no such file", file=path, hint="record one with --record FILE")
-    with tempfile.TemporaryDirectory(prefix="mexone-recover-") as folder:
-        copy = Path(folder) / killed.name.removesuffix(".active")
-        found = recover(killed, copy)
-        bag = killed.with_name(copy.name)
-        log.warning(f"{killed}: an unfinished recording (killed?); read the {found.describe()} "
-                    f"recovered from it; 'mexone record --recover {bag}' repairs it on disk")
+    kind = bag_kind(source)
+    if kind is None:
+        raise not_a_bag(source)
+    wrong = misnamed(source)
+    if wrong:
+        log.warning(f"{source}: {wrong}; read as what it is (rename it "
+                    f"{Path(source.name.removesuffix('.active')).stem}{kind})")
+    complete = source is path and is_complete(source)
+    if complete and not wrong:
+        yield path
+        return
+    with tempfile.TemporaryDirectory(prefix="mexone-read-") as folder:
+        copy = Path(folder) / (Path(source.name.removesuffix(".active")).stem + kind)
+        if complete:
+            copy.symlink_to(source.resolve())
+        else:
+            found = recover(source, copy)
+            if not found.messages:
+                raise InputError(f"starts as {KIND_NAMES[kind]}, but not one message can be read "
+                                 "from it (damaged, or cut before its first chunk was written)",
+                                 file=source, hint="record it again")
+            bag = source.with_name(source.name.removesuffix(".active"))
+            named = bag if bag_suffix(bag) == kind else bag.with_name(bag.stem + kind)
+            rename = "" if named == bag else f"renamed {named.name}, "
+            log.warning(f"{source}: an unfinished recording (killed?); read the "
+                        f"{found.describe()} recovered from it; {rename}'mexone record --recover "
+                        f"{named}' repairs it on disk")
         try:
             yield copy
         except InputError as exc:  # about the user's file, not our temporary copy
-            raise InputError(exc.what, file=killed, hint=exc.hint) from None
+            raise InputError(exc.what, file=source, hint=exc.hint) from None
 
 
 def read_bag(path: Path | str, frames: tuple[str, ...] = ()) -> BagContents:
@@ -144,30 +178,57 @@ def _array(values) -> np.ndarray:
     return np.asarray(values, dtype=float).ravel()
 
 
+def _reason(exc: BaseException) -> str:
+    """A library's error as one short line (some span lines, some quote whole records)."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
 def _open(path: Path) -> AnyReader:
     try:
         reader = AnyReader([path], default_typestore=typestore_for(path.suffix == ".bag"))
         reader.open()
     except Exception as exc:  # rosbags raises its own error types for damaged or foreign files
-        raise InputError(f"not a readable bag: {exc}", file=path,
+        raise InputError(f"not a readable bag: {_reason(exc)}", file=path,
                          hint="give a .mcap or .bag recorded by mexone or ROS") from None
     return reader
+
+
+def _malformed(msg, names: tuple[str, ...]) -> str | None:
+    """Why a JointState breaks its own type's rule, or None: ROS wants one position, velocity and
+    effort per name (or none of one kind), and each joint named once."""
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        return f"names {twice[0]} {names.count(twice[0])} times"
+    for kind in ("position", "velocity", "effort"):
+        count = len(getattr(msg, kind))
+        if count not in (0, len(names)):
+            return f"has {len(names)} names but {count} {kind} values (ROS: one per name, or none)"
+    return None
 
 
 def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
     reader = _open(path)
     wanted = {f.strip("/") for f in frames}
     contents = BagContents(path, [], {}, [], {c.topic: c.msgtype for c in reader.connections})
+    counts: dict[str, int] = {}  # JointState messages per topic
+    bad: list[str] = []  # the malformed ones, left out
     try:
         for conn, stamp, raw in reader.messages():
             kind, t = conn.msgtype, stamp * 1e-9
             if kind == JOINT_STATE:
                 msg = reader.deserialize(raw, kind)
                 header = _seconds(msg.header.stamp)
+                names = tuple(msg.name)
+                index = counts[conn.topic] = counts.get(conn.topic, 0) + 1
+                why = _malformed(msg, names)
+                if why is not None:
+                    bad.append(f"message {index} on {conn.topic} (t = {number_text(t)} s) {why}")
+                    continue
                 contents.states.append(StateMessage(
                     t, header if header > 0 else None, getattr(msg.header, "seq", None),
-                    conn.topic, tuple(msg.name), _array(msg.position), _array(msg.velocity),
-                    _array(msg.effort)))
+                    conn.topic, names, _array(msg.position), _array(msg.velocity),
+                    _array(msg.effort), index))
             elif kind in (FLOAT64, MULTI):
                 msg = reader.deserialize(raw, kind)
                 contents.commands.setdefault(conn.topic, []).append(
@@ -192,28 +253,39 @@ def _read(path: Path, frames: tuple[str, ...]) -> BagContents:
     except InputError:
         raise
     except Exception as exc:  # a damaged chunk or a message that does not match its type
-        raise InputError(f"cannot read the bag's messages: {exc}", file=path,
+        raise InputError(f"cannot read the bag's messages: {_reason(exc)}", file=path,
                          hint="'mexone record --recover' repairs a truncated bag") from None
     finally:
         reader.close()
+    if bad and not contents.states:
+        raise InputError(f"every JointState message is malformed: {bad[0]}", file=path,
+                         hint="fix the driver that published them")
+    if bad:
+        contents.warnings.append(f"{path.name}: left out {len(bad)} malformed JointState "
+                                 f"message(s), the first: {bad[0]}")
     return contents
 
 
 def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
-    """Per joint, for plots: the joints of the first JointState message, and each joint's
-    `<joint>_position_controller/command` held between messages."""
+    """Per joint, for plots: every joint of the JointState messages (looked up by name in each
+    message: drivers shuffle them), and each joint's `<joint>_position_controller/command` held
+    between messages. What the reader left out is logged, one line each."""
     contents = read_bag(path)
+    for warning in contents.warnings:
+        log.warning(warning)
     states = contents.states
     if not states:
         raise InputError("the bag has no sensor_msgs/JointState messages", file=path,
                          hint="record a run that has a joint_state_controller")
-    names = list(states[0].names)
+    names = list(dict.fromkeys(n for s in states for n in s.names))
+    where = [{n: i for i, n in enumerate(s.names)} for s in states]
     t = np.array([s.stamp if s.stamp is not None else s.t for s in states])
     out = {}
-    for i, name in enumerate(names):
-        def column(field_name: str, i=i) -> np.ndarray:
-            return np.array([getattr(s, field_name)[i] if len(getattr(s, field_name)) > i
-                             else np.nan for s in states])
+    for name in names:
+        def column(field_name: str, name=name) -> np.ndarray:
+            return np.array([getattr(s, field_name)[w[name]] if name in w and
+                             len(getattr(s, field_name)) > w[name] else np.nan
+                             for s, w in zip(states, where, strict=True)])
 
         series = JointSeries(name, t, column("position"), column("velocity"), column("effort"))
         topic = next((topic for topic, msgs in contents.commands.items()
@@ -221,7 +293,8 @@ def read_joint_series(path: Path | str) -> dict[str, JointSeries]:
                       and msgs[0].msgtype == FLOAT64), None)
         if topic is not None:
             ct = np.array([c.t for c in contents.commands[topic]])
-            cv = np.array([c.values[0] for c in contents.commands[topic]])
+            cv = np.array([c.values[0] if len(c.values) else np.nan
+                           for c in contents.commands[topic]])
             idx = np.searchsorted(ct, t, side="right") - 1
             series.command = np.where(idx >= 0, cv[np.maximum(idx, 0)], 0.0)
             series.command_times = ct.tolist()
@@ -293,7 +366,7 @@ def read_field_series(path: Path | str, wanted: list[str]) -> list[FieldSeries]:
         except InputError:
             raise
         except Exception as exc:
-            raise InputError(f"cannot read the bag's messages: {exc}", file=path,
+            raise InputError(f"cannot read the bag's messages: {_reason(exc)}", file=path,
                              hint="'mexone record --recover' repairs a truncated bag") from None
         finally:
             reader.close()

@@ -18,10 +18,12 @@ from pathlib import Path
 from mexone.errors import InputError
 
 __all__ = ["Recovered", "recover", "is_complete", "looks_truncated", "bag_suffix",
-           "killed_recording"]
+           "killed_recording", "bag_kind", "KIND_NAMES", "not_a_bag", "misnamed"]
 
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 BAG1_MAGIC = b"#ROSBAG V2.0\n"
+_SQLITE_MAGIC = b"SQLite format 3\x00"
+KIND_NAMES = {".mcap": "an MCAP file", ".bag": "a ROS 1 bag"}
 
 
 @dataclass
@@ -50,10 +52,54 @@ def bag_suffix(path: Path) -> str:
     return Path(name).suffix.lower()
 
 
-def is_complete(path: Path) -> bool:
-    """Whether the format's own reader opens the bag (index and footer intact)."""
+def _head(path: Path) -> bytes:
     try:
-        if bag_suffix(path) == ".bag":
+        with path.open("rb") as handle:
+            return handle.read(len(BAG1_MAGIC))
+    except OSError:
+        return b""
+
+
+def bag_kind(path: Path) -> str | None:
+    """What the file is by its first bytes, whatever its name: ".mcap" (MCAP's magic, b"\\x89MCAP"),
+    ".bag" (ROS 1's "#ROSBAG V2.0") or None (neither)."""
+    head = _head(path)
+    if head.startswith(MCAP_MAGIC[:5]):
+        return ".mcap"
+    if head.startswith(BAG1_MAGIC[:-1]):
+        return ".bag"
+    return None
+
+
+def not_a_bag(path: Path) -> InputError:
+    """The error for a file that starts as neither kind of bag, saying what it is where known."""
+    head = _head(path)
+    if not head:
+        what = "an empty file" if path.is_file() and path.stat().st_size == 0 else "not readable"
+    elif head.startswith(_SQLITE_MAGIC[:len(head)]):
+        return InputError("a ROS 2 SQLite bag (.db3), which mexone does not read", file=path,
+                          hint="convert it: ros2 bag convert with storage_id: mcap")
+    else:
+        what = "not a bag (it starts with neither MCAP's magic bytes nor '#ROSBAG V2.0')"
+    return InputError(what, file=path, hint="give a .mcap or .bag recorded by mexone or ROS")
+
+
+def misnamed(path: Path) -> str | None:
+    """'an MCAP file named .bag' when the file's content and its name disagree, else None."""
+    kind, named = bag_kind(path), bag_suffix(path)
+    if kind is None or kind == named:
+        return None
+    return f"{KIND_NAMES[kind]} named {named or 'without .mcap or .bag'}"
+
+
+def _kind(path: Path) -> str:
+    return bag_kind(path) or bag_suffix(path)
+
+
+def is_complete(path: Path) -> bool:
+    """Whether the format's own reader opens the bag (index and footer intact), by content."""
+    try:
+        if _kind(path) == ".bag":
             from rosbags.rosbag1 import Reader
 
             with Reader(path):
@@ -68,13 +114,7 @@ def is_complete(path: Path) -> bool:
 
 def looks_truncated(path: Path) -> bool:
     """A bag that starts as one but does not open: a killed recording, not some other file."""
-    try:
-        with path.open("rb") as handle:
-            head = handle.read(16)
-    except OSError:
-        return False
-    magic = BAG1_MAGIC if bag_suffix(path) == ".bag" else MCAP_MAGIC
-    return head.startswith(magic) and not is_complete(path)
+    return bag_kind(path) is not None and not is_complete(path)
 
 
 def killed_recording(path: Path) -> Path | None:
@@ -93,15 +133,13 @@ def killed_recording(path: Path) -> Path | None:
 def recover(source: Path, output: Path) -> Recovered:
     """Write every complete message of the truncated bag `source` to a new, valid bag `output`
     (same format; output must not exist)."""
-    with source.open("rb") as handle:
-        head = handle.read(len(BAG1_MAGIC))
-    if bag_suffix(source) == ".bag":
-        if head != BAG1_MAGIC:
-            raise InputError("not a ROS 1 bag (no '#ROSBAG V2.0' header)", file=source)
-        return _recover_bag1(source, output)
-    if not head.startswith(MCAP_MAGIC):
-        raise InputError("not an MCAP file (no MCAP magic at the start)", file=source)
-    return _recover_mcap(source, output)
+    kind = bag_kind(source)
+    if kind is None:
+        raise not_a_bag(source)
+    if kind != bag_suffix(output):
+        raise InputError(f"is {KIND_NAMES[kind]}: it cannot be recovered as "
+                         f"'{output.suffix or output.name}'", file=source, hint=f"name it {kind}")
+    return _recover_bag1(source, output) if kind == ".bag" else _recover_mcap(source, output)
 
 
 def _recover_mcap(source: Path, output: Path) -> Recovered:
@@ -156,7 +194,7 @@ def _fields(header: bytes) -> dict[str, bytes]:
     while pos + 4 <= len(header):
         (size,) = struct.unpack_from("<I", header, pos)
         name, _, value = header[pos + 4:pos + 4 + size].partition(b"=")
-        fields[name.decode()] = value
+        fields[name.decode(errors="replace")] = value  # a damaged name is no field we read
         pos += 4 + size
     return fields
 
@@ -229,8 +267,8 @@ def _recover_bag1(source: Path, output: Path) -> Recovered:
                 connection(fields, payload)
             elif op == _OP_CHUNK:
                 chunk(fields, payload)
-        except (KeyError, ValueError, struct.error, OSError, EOFError):
-            break  # a damaged record: the end of what can be recovered
+        except Exception:  # noqa: BLE001 -- a damaged record (a bad length, a codec's own
+            break  # error for a damaged chunk): the end of what can be recovered
     writer.close()
     found.topics = len(connections)
     return found

@@ -37,13 +37,18 @@ def use_generated() -> None:
 
 
 def environment(env: dict[str, str] | None = None) -> dict[str, str]:
-    """`env` (default: this process's) with mexone's ROS packages on ROS_PACKAGE_PATH and their
-    Python on PYTHONPATH: what rosservice, rostopic, roslaunch and the spawner need."""
+    """`env` (default: this process's) with mexone's ROS packages on ROS_PACKAGE_PATH (the
+    message packages, controller_manager with its spawner, and the robot package mex_rb) and
+    their Python on PYTHONPATH, appended once: what rosservice, rostopic, roslaunch and the
+    spawner need. `mexone ros-env` prints it as shell exports."""
+    from mexone.robots import mex_one
+
     env = dict(os.environ if env is None else env)
-    for key, path in (("ROS_PACKAGE_PATH", SHARE), ("PYTHONPATH", MSGS)):
-        parts = [p for p in env.get(key, "").split(os.pathsep) if p]
-        if str(path) not in parts:
-            env[key] = os.pathsep.join([*parts, str(path)])
+    for key, paths in (("ROS_PACKAGE_PATH", (SHARE, mex_one.package_dir().parent)),
+                       ("PYTHONPATH", (MSGS,))):
+        value = env.get(key, "")  # kept as it is (an empty PYTHONPATH entry means the cwd)
+        missing = [str(path) for path in paths if str(path) not in value.split(os.pathsep)]
+        env[key] = os.pathsep.join([value, *missing] if value else missing)
     return env
 
 

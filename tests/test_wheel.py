@@ -1,0 +1,323 @@
+"""The wheel a user gets from `pip install .`, not this checkout: it holds every file git has
+under src/ (with the executable bits ROS needs), and installed into a fresh venv it runs every
+shipped routine, every example and each verb's smallest real use from a folder outside the
+source tree (the rest of the suite tests the editable install, which hid a missing walk.yaml).
+
+One venv for the module (pip's cache makes the dependencies quick); the commands run two at a
+time (or one per core) as soon as it is ready, and each test waits for and checks its own, so a
+failure names what broke.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import zipfile
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = sorted(p.stem for p in (ROOT / "src/mexone/routines/shipped").glob("*.py")
+                 if p.stem != "__init__")
+EXAMPLES = sorted((ROOT / "examples").glob("[0-9][0-9]_*.py"))
+TIMES: dict[str, float] = {}  # what building and installing cost, for the report
+
+
+# a clean environment: with this checkout's src/ on PYTHONPATH, pip sees its mexone.egg-info
+# (left by an editable install) as mexone "already installed" and skips the wheel
+CLEAN_ENV = {k: v for k, v in os.environ.items()
+             if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "ROS_PACKAGE_PATH")}
+
+
+def _git(*args: str) -> str:
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("the wheel tests compare with git: run them in a git checkout")
+    return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True,
+                          check=True).stdout
+
+
+@pytest.fixture(scope="module")
+def wheel(tmp_path_factory) -> Path:
+    """The wheel built from a copy of the files git knows (tracked, or new and not ignored): a
+    stale build/ or egg-info in the checkout cannot leak into it."""
+    tree = tmp_path_factory.mktemp("tree")
+    for name in _git("ls-files", "-z", "--cached", "--others", "--exclude-standard").split("\0"):
+        if name and (ROOT / name).is_file():
+            (tree / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, tree / name)
+    out = tmp_path_factory.mktemp("dist")
+    start = time.monotonic()
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+                            "--disable-pip-version-check", "-w", str(out), str(tree)],
+                           capture_output=True, text=True, timeout=600, env=CLEAN_ENV)
+    TIMES["build wheel"] = time.monotonic() - start
+    assert built.returncode == 0, built.stderr[-3000:]
+    (path,) = out.glob("mexone-*.whl")
+    return path
+
+
+@dataclass(frozen=True)
+class Venv:
+    bin: Path
+    work: Path  # a folder outside the source tree, where the commands run
+    env: dict
+
+    def run(self, *args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+        """A command (the venv's own if it has one by that name); failing is an AssertionError
+        naming the command and the end of its stderr."""
+        exe = str(self.bin / args[0]) if (self.bin / args[0]).exists() else args[0]
+        out = subprocess.run([exe, *args[1:]], cwd=cwd or self.work, env=self.env,
+                             capture_output=True, text=True, timeout=timeout)
+        said = (out.stderr + out.stdout)[-3000:]  # `run --json` reports a routine's error on stdout
+        assert out.returncode == 0, f"{' '.join(args)}: exit {out.returncode}\n{said}"
+        return out
+
+
+@pytest.fixture(scope="module")
+def venv(wheel, tmp_path_factory) -> Venv:
+    """A fresh venv (no system site-packages: those hold the editable mexone) with the wheel."""
+    root = tmp_path_factory.mktemp("venv")
+    env = dict(CLEAN_ENV, PATH=f"{root / 'bin'}{os.pathsep}{CLEAN_ENV.get('PATH', '/usr/bin:/bin')}",
+               VIRTUAL_ENV=str(root))
+    start = time.monotonic()
+    subprocess.run([sys.executable, "-m", "venv", str(root)], check=True, timeout=300, env=env)
+    TIMES["create venv"] = time.monotonic() - start
+    start = time.monotonic()
+    python = str(root / "bin" / "python")
+    pip = subprocess.run([python, "-m", "pip", "install", "-q", "--no-compile",
+                          "--disable-pip-version-check", str(wheel)],
+                         capture_output=True, text=True, timeout=1200, env=env)
+    TIMES["pip install wheel + deps"] = time.monotonic() - start
+    assert pip.returncode == 0, pip.stderr[-3000:]
+    # the byte-code pip would have compiled one file after another, on every core: a user's
+    # install has it, and compiling scipy on first import is no part of a routine's first step
+    start = time.monotonic()
+    subprocess.run([python, "-m", "compileall", "-q", "-j", "0", str(root / "lib")], check=True,
+                   capture_output=True, timeout=1200, env=env)
+    TIMES["compile byte-code"] = time.monotonic() - start
+    work = tmp_path_factory.mktemp("work")
+    assert not work.resolve().is_relative_to(ROOT)
+    return Venv(root / "bin", work, env)
+
+
+@pytest.fixture(scope="module")
+def installed(venv) -> Path:
+    """The installed mexone package folder (in the venv's site-packages)."""
+    out = venv.run("python", "-c", "import mexone, pathlib; print(pathlib.Path(mexone.__file__).parent)")
+    return Path(out.stdout.strip())
+
+
+ROS_ENV_SCRIPT = (
+    'eval "$(mexone ros-env)" && rospack find mex_rb && rossrv md5 gazebo_msgs/SpawnModel && '
+    '/usr/bin/python3 -c "from control_msgs.msg import JointControllerState as m; print(m._md5sum)" && '
+    'roslaunch --args /routine mex_rb control.launch && '
+    'roslaunch --args /routine mex_rb control.launch routine:=arms_node.py')
+
+
+def _jobs(venv: Venv, urdf: Path, jobs: dict[str, Future]) -> dict[str, object]:
+    """Each test's commands, in the order they start: the routines and examples first, the
+    benchmark last and alone (its parallel rows take every core). A job that needs an earlier
+    one's output waits on its future in `jobs` (the pool is FIFO: no deadlock)."""
+    def after_the_rest():  # every earlier job (submitted before this one: no deadlock)
+        for name, job in list(jobs.items()):
+            if name != "test_bench_quick":
+                job.exception()
+
+    table: dict[str, object] = {}
+    for example in reversed(EXAMPLES):  # 04_walk is the longest
+        folder = venv.work / example.stem
+        table[f"test_example_runs[{example.stem}]"] = lambda e=example, f=folder: (
+            f.mkdir(), venv.run("python", shutil.copy(e, f), str(f), cwd=f))
+    for routine in SHIPPED:
+        table[f"test_shipped_routine_runs[{routine}]"] = lambda r=routine: venv.run(
+            "mexone", "run", r, "--duration", "1", "--json")
+    table |= {
+        "recorded": lambda: venv.run("mexone", "record", "excitation", "--duration", "0.5",
+                                     "-o", "run.mcap"),
+        "test_identify": lambda: (jobs["recorded"].result(), venv.run(
+            "mexone", "identify", "run.mcap", "--params", "damping", "--joints", "l_elbow",
+            "--max-iterations", "2", "-o", "identified"))[-1],
+        "test_plot": lambda: (jobs["recorded"].result(),
+                              venv.run("mexone", "plot", "run.mcap", "-o", "run.png"))[-1],
+        "test_convert_to_sdf_and_mjcf": lambda: (
+            venv.run("mexone", "convert", str(urdf), "-o", "mex_rb.sdf"),
+            (venv.work / "mjcf").mkdir(),
+            venv.run("mexone", "convert", str(urdf), "-o", "mjcf/mex_rb.xml"),
+            venv.run("mexone", "sim", "mex_rb.sdf", "--headless", "--duration", "0.05")),  # read back
+        "test_controllers": lambda: (
+            venv.run("mexone", "controllers", str(urdf), "-o", "auto.yaml"),
+            venv.run("mexone", "sim", "--controllers", "auto.yaml", "--headless", "--duration",
+                     "0.2", "--json")),
+        "test_render": lambda: venv.run("mexone", "render", "home", "--duration", "0.2", "--size",
+                                        "64x48", "--fps", "10", "-o", "home.gif"),
+        "test_check": lambda: venv.run("mexone", "check"),
+        "test_sim": lambda: venv.run("mexone", "sim", "--headless", "--duration", "0.2", "--json"),
+        "test_ros_env_puts_an_unactivated_venvs_mexone_on_path": lambda: venv.run(
+            "bash", "-c", f'PATH=/usr/bin:/bin; eval "$({venv.bin}/mexone ros-env)" && '
+                          'command -v mexone && command -v python3'),
+        "test_ros_env_finds_the_installed_packages": lambda: (
+            venv.run("bash", "-c", ROS_ENV_SCRIPT) if shutil.which("roslaunch") else None),
+        "test_bench_quick": lambda: (after_the_rest(), venv.run("mexone", "bench", "--quick", "--json"))[-1],
+    }
+    return table
+
+
+@pytest.fixture(scope="module")
+def jobs(venv, installed, request):
+    """Every selected test's commands, started at once on a pool: name -> Future."""
+    selected = {item.name for item in request.session.items if item.module is request.module}
+    futures: dict[str, Future] = {}
+    pool = ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 1))
+    table = _jobs(venv, installed / "robots/mex_one/urdf/mex_rb.urdf", futures)
+    for name, job in table.items():
+        if name in selected or (name == "recorded" and selected & {"test_record", "test_plot",
+                                                                    "test_identify"}):
+            futures[name] = pool.submit(job)
+    yield futures
+    pool.shutdown(cancel_futures=True)
+
+
+def test_the_venv_runs_the_wheels_mexone(venv, installed):
+    assert installed.is_relative_to(venv.bin.parent), installed
+    print("\n" + ", ".join(f"{k} {v:.1f} s" for k, v in TIMES.items()))
+
+
+# ----- what the wheel holds ---------------------------------------------------------------------
+def test_the_wheel_holds_every_file_git_has_under_src(wheel):
+    """Code and data alike (urdf, meshes, launch files, ROS packages, routines' YAML): a new data
+    file the packaging misses fails here, not on a user's machine."""
+    tracked = {line.split("\t", 1)[1].removeprefix("src/")
+               for line in _git("ls-files", "-s", "src").splitlines()}
+    with zipfile.ZipFile(wheel) as z:
+        shipped = {n for n in z.namelist() if ".dist-info/" not in n}
+    assert sorted(tracked - shipped) == []
+    assert sorted(shipped - tracked) == []
+
+
+def test_the_wheel_keeps_the_executable_bits(wheel):
+    """roslaunch and rosrun start a node only if its file is executable (scripts/*.py too)."""
+    executable = {line.split("\t", 1)[1].removeprefix("src/")
+                  for line in _git("ls-files", "-s", "src").splitlines() if line.startswith("100755")}
+    assert {"mexone/robots/mex_one/scripts/arms_node.py",
+            "mexone/robots/mex_one/scripts/sweep_node.py"} <= executable
+    with zipfile.ZipFile(wheel) as z:
+        modes = {i.filename: i.external_attr >> 16 for i in z.infolist()}
+    assert sorted(n for n in executable if not modes[n] & 0o111) == []
+
+
+def test_the_installed_files_keep_the_executable_bits(installed):
+    scripts = installed / "robots" / "mex_one" / "scripts"
+    for name in ("arms_node.py", "sweep_node.py", "mexone_node"):
+        assert os.access(scripts / name, os.X_OK), name
+    assert os.access(installed / "ros1/share/controller_manager/scripts/spawner", os.X_OK)
+
+
+# ----- every shipped routine, every example -----------------------------------------------------
+@pytest.mark.parametrize("routine", SHIPPED)
+def test_shipped_routine_runs(jobs, request, routine):
+    out = jobs[request.node.name].result()
+    assert json.loads(out.stdout)["sim_time"] == pytest.approx(1.0, abs=0.01)
+
+
+@pytest.mark.parametrize("example", EXAMPLES, ids=[e.stem for e in EXAMPLES])
+def test_example_runs(jobs, request, venv, example):
+    jobs[request.node.name].result()
+    folder = venv.work / example.stem
+    assert sorted(folder.iterdir()) != [folder / example.name] or "01_" in example.name  # outputs
+
+
+# ----- each verb's smallest real use ------------------------------------------------------------
+def test_sim(jobs):
+    summary = json.loads(jobs["test_sim"].result().stdout)
+    assert summary["sim_time"] == pytest.approx(0.2) and not summary["diverged"]
+    assert summary["base_height"] > 0.55  # the built-in robot stands on its controllers
+
+
+def test_check(jobs):
+    assert "no problems found" in jobs["test_check"].result().stdout
+
+
+def test_convert_to_sdf_and_mjcf(jobs, venv):
+    import mujoco
+
+    jobs["test_convert_to_sdf_and_mjcf"].result()
+    model = mujoco.MjModel.from_xml_path(str(venv.work / "mjcf/mex_rb.xml"))  # plain MuJoCo
+    driven = {int(j) for j, kind in zip(model.actuator_trnid[:, 0], model.actuator_trntype, strict=True)
+              if kind == mujoco.mjtTrn.mjTRN_JOINT}
+    assert len(driven) == 21 and model.nmesh > 0  # the controllers' actuators, the meshes
+
+
+def test_controllers(jobs):
+    _, sim = jobs["test_controllers"].result()
+    assert json.loads(sim.stdout)["base_height"] > 0.55
+
+
+def test_record(jobs, venv):
+    from mcap.reader import make_reader  # an independent reader
+
+    jobs["recorded"].result()
+    with open(venv.work / "run.mcap", "rb") as f:
+        summary = make_reader(f).get_summary()
+    topics = {summary.channels[c].topic: n
+              for c, n in summary.statistics.channel_message_counts.items()}
+    assert topics.get("/mex_rb/joint_states", 0) >= 20  # 50 Hz for 0.5 s
+
+
+def test_plot(jobs, venv):
+    from PIL import Image
+
+    jobs["test_plot"].result()
+    with Image.open(venv.work / "run.png") as image:
+        assert min(image.size) > 100
+
+
+def test_render(jobs, venv):
+    from PIL import Image
+
+    jobs["test_render"].result()
+    with Image.open(venv.work / "home.gif") as gif:
+        assert gif.size == (64, 48) and gif.n_frames == 2
+
+
+def test_identify(jobs, venv):
+    jobs["test_identify"].result()
+    result = json.loads((venv.work / "identified/identify.json").read_text())
+    assert result["params"]["damping"]["l_elbow"] > 0
+    assert (venv.work / "identified/mex_rb.urdf").is_file()
+
+
+def test_bench_quick(jobs):
+    report = json.loads(jobs["test_bench_quick"].result().stdout)
+    assert report["overhead"]["ratio"] > 0 and report["cold_start_s"] > 0
+    assert report["pybullet"] is None  # the [peers] extra is not installed: that row is left out
+
+
+# ----- ROS 1 from the wheel ---------------------------------------------------------------------
+def test_ros_env_finds_the_installed_packages(jobs, installed):
+    """After eval "$(mexone ros-env)": ROS's tools find mexone's packages inside site-packages,
+    and roslaunch can start control.launch's routine nodes (their files are executable)."""
+    out = jobs["test_ros_env_finds_the_installed_packages"].result()
+    if out is None:
+        pytest.skip("Debian ROS 1 is not installed (ros-core)")
+    lines = out.stdout.splitlines()
+    assert lines[0] == str(installed / "robots" / "mex_one")
+    assert lines[1:3] == ["9ed9c82c96abe1a00c3e8cdaeee24413", "987ad85e4756f3aef7f1e5e7fe0595d1"]
+    scripts = installed / "robots" / "mex_one" / "scripts"
+    assert lines[3].endswith(f"{scripts}/sweep_node.py __name:=routine")
+    assert lines[4].endswith(f"{scripts}/arms_node.py __name:=routine")
+
+
+def test_ros_env_puts_an_unactivated_venvs_mexone_on_path(jobs, venv):
+    """roslaunch mex_rb model.launch runs `mexone sim --ros` by name: it must find this one,
+    and the venv must not shadow the system's python3 that ROS's nodes run on."""
+    found = jobs["test_ros_env_puts_an_unactivated_venvs_mexone_on_path"].result().stdout.split()
+    assert found == [str(venv.bin / "mexone"), "/usr/bin/python3"]
