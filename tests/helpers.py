@@ -68,7 +68,6 @@ def on_screen(tab, server, point) -> tuple[float, float]:
     return (x + 1) / 2 * width, (1 - y) / 2 * height
 
 
-
 def run_cli(argv: list, cwd=None, env: dict[str, str] | None = None) -> tuple[int, str, str]:
     """`mexone ARGV` in this process (the CLI's `main`), in folder `cwd`, without the machine's
     ROS_PACKAGE_PATH (plus `env`): exit code, stdout, stderr. A corpus of cases then costs one
