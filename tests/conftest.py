@@ -53,6 +53,10 @@ def _for_the_session(thread: threading.Thread) -> bool:
     owner = getattr(getattr(thread, "_target", None), "__self__", None)
     if type(owner).__name__ == "QueuedConnection":  # a publisher's queue to one subscriber
         return getattr(getattr(owner, "_connection", None), "name", None) == "/rosout"
+    if thread.name == "tqdm_monitor":  # tqdm's one monitor of every bar, for the process's life
+        return True
+    if type(thread).__module__ == "rospy.timer":  # an action server's status timer sleeps on ROS
+        return True  # time: under the session's /use_sim_time with no /clock left it never wakes
     return thread in _session_threads or type(owner).__module__.startswith(_NODE_MACHINERY)
 
 
@@ -95,7 +99,8 @@ def pytest_runtest_teardown(item, nextitem):
         _suspects.clear()
         left = _leaked([t for t in suspects if not _for_the_session(t)])
         if left:
-            names = ", ".join(f"'{t.name}' (started in {suspects[t]})" for t in left)
+            names = ", ".join(f"'{t.name}' ({type(t).__module__}.{type(t).__name__}, started in "
+                              f"{suspects[t]})" for t in left)
             raise AssertionError(f"{len(left)} thread(s) left behind after {item.path.name}"
                                  f"'s teardown: {names}")
     return result

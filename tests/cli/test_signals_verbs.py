@@ -293,7 +293,10 @@ def test_every_verb_stops_on_a_signal_at_any_moment(verb, tmp_path, fit_bag):
         what = (f"{verb} {name}{' + ' + signal.Signals(run.second).name if run.second else ''} "
                 f"{run.delay:.2f} s after up: exit {run.proc.popen.returncode} in "
                 f"{run.stopped_in:.2f} s; stderr:\n{err}")
-        assert run.proc.popen.returncode == 128 + run.first, what
+        # two signals that land while the main thread is in C (a MuJoCo rollout) reach Python's
+        # handler together, lowest number first: then the second one's code is as right
+        codes = {128 + run.first} | ({128 + run.second} if run.second else set())
+        assert run.proc.popen.returncode in codes, what
         assert run.stopped_in <= STOP_WITHIN, what
         assert "Traceback" not in err and "Exception ignored" not in err, what
         assert all(line.startswith("mexone: ") for line in err.splitlines()

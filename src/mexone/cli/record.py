@@ -21,7 +21,7 @@ ROS 1. Ctrl-C or SIGTERM stops the run and leaves a valid bag (a second Ctrl-C d
 closing short), exit 130/143. Then: mexone plot BAG.
 
 While recording, the bag is BAG.active; it becomes BAG when it is closed. A recording that was
-killed (kill -9, a crash, a routine calling os._exit) leaves BAG.active with everything up to
+killed (kill -9, a crash) leaves BAG.active with everything up to
 0.25 s of sim time before the kill: --recover BAG rebuilds a valid BAG from it and says how many
 messages it recovered (a truncated BAG from elsewhere is repaired in place, the original kept as
 NAME.orig.mcap or NAME.orig.bag)."""
