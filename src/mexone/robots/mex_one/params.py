@@ -158,7 +158,7 @@ def hinges() -> list[Hinge]:
 # them. No <gazebo><material> is written: it would paint a link's servo and shell one colour.
 MATERIALS = {
     "shell_white": (0.92, 0.92, 0.90, 1.0),  # painted covers
-    "servo_dark": (0.20, 0.21, 0.24, 1.0),  # servo housings, horns, brackets, hands, soles
+    "servo_dark": (0.26, 0.27, 0.30, 1.0),  # servo housings, horns, brackets, hands, soles
     "kinect_black": (0.04, 0.04, 0.05, 1.0),  # the Kinect's body
 }
 # Facets: round enough at a metre, ~20k triangles for the robot (the page keeps its shadow
