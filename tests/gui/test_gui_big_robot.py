@@ -90,9 +90,10 @@ def test_display_meshes_fit_the_budget_and_are_cached(big_robot, tmp_path, monke
     assert lab.sim.model.mesh_facenum.sum() == uses * FACES_PER_PART
 
 
-def _time_to_draw(robot: Path, browser) -> tuple[float, float, int]:
+def _time_to_draw(robot: Path, browser, pixels: bool = True) -> tuple[float, float | None, int]:
     """(s from the page's load event until every visual of the robot has arrived and the page
-    has drawn two frames since, fraction of pixels the robot changes, bytes received until then).
+    has drawn two frames since, fraction of pixels the robot changes (None unless `pixels`),
+    bytes received until then).
     Arrival is read off the websocket (viser's frames: zstd msgpack); drawing from the page's own
     animation frames, not from screenshots (which take seconds each in software GL)."""
     import msgspec
@@ -129,6 +130,9 @@ def _time_to_draw(robot: Path, browser) -> tuple[float, float, int]:
         assert len(arrived) == len(names), f"{len(names) - len(arrived)} visuals never arrived"
         tab.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
         drawn = time.monotonic() - loaded
+        if not pixels:
+            tab.close()
+            return drawn, None, until_drawn[0]
         # the robot is really on the page: hiding it changes what is drawn
         tab.wait_for_timeout(1500)  # the sky and the panel settle
         shown = _pixels(tab)

@@ -15,6 +15,7 @@ from mexone.control.config import load_control_config
 from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree
 from mexone.description.loader import load_model
+from mexone.description.materials import display_rgba
 from mexone.description.meshes import load_mesh, resolve_mesh
 from mexone.robots import mex_one
 from mexone.robots.mex_one import generate, params
@@ -102,10 +103,17 @@ def test_every_link_is_physical(model):
         moments = np.linalg.eigvalsh(inertial.tensor)
         assert moments[0] > 0
         assert moments[0] + moments[1] >= moments[2]
-        assert len(link.visuals) == 1 and link.collisions
+        assert link.visuals and link.collisions
         gz = model.gazebo_links[link.name]
         assert gz.self_collide is True and gz.mu1 > 0 and gz.mu2 > 0 and gz.kp > 0 and gz.kd > 0
-        assert gz.material.startswith("Gazebo/")
+        # the visuals' named colours are what every renderer shows: no Gazebo script paints a
+        # link's servo and shell one colour
+        assert gz.material is None
+        materials = [v.material for v in link.visuals]
+        assert len(set(materials)) == len(materials)  # one visual per material
+        for vis in link.visuals:
+            assert vis.rgba == params.MATERIALS[vis.material]
+            assert display_rgba(model, link.name, vis) == vis.rgba
 
 
 def test_box_inertia_matches_the_closed_form(model):
@@ -117,23 +125,48 @@ def test_box_inertia_matches_the_closed_form(model):
                                 m / 12 * (x * x + y * y)], rtol=1e-5)
 
 
-def test_meshes_are_millimetre_stl_matching_the_collisions(model):
+def _bounds(boxes) -> tuple[np.ndarray, np.ndarray]:
+    boxes = np.array(boxes).reshape(-1, 3)
+    return boxes.min(axis=0), boxes.max(axis=0)
+
+
+def test_meshes_are_millimetre_stl_wrapping_the_collisions(model):
     for link in (model.links[p.name] for p in params.parts()):
-        visual = link.visuals[0].geometry
-        assert visual.scale == (0.001, 0.001, 0.001)
-        assert visual.filename == f"package://mex_rb/meshes/{link.name}.stl"
-        path = resolve_mesh(visual.filename, model.base_dir)
-        assert path.read_bytes()[:5] != b"solid"  # binary STL
-        mesh = load_mesh(path)
-        lo, hi = mesh.bounds / 1000.0
-        # the collision primitives' bounds are the visual mesh's bounds
-        pts = []
-        for col in link.collisions:
-            half = col.geometry.half_extents()
-            pts += [np.asarray(col.origin.xyz) - half, np.asarray(col.origin.xyz) + half]
-        pts = np.array(pts)
-        np.testing.assert_allclose(lo, pts.min(axis=0), atol=1e-3, err_msg=link.name)
-        np.testing.assert_allclose(hi, pts.max(axis=0), atol=1e-3, err_msg=link.name)
+        seen = []
+        for i, vis in enumerate(link.visuals):
+            assert vis.geometry.scale == (0.001, 0.001, 0.001)
+            stem = link.name if i == 0 else f"{link.name}_{vis.material}"
+            assert vis.geometry.filename == f"package://mex_rb/meshes/{stem}.stl"
+            path = resolve_mesh(vis.geometry.filename, model.base_dir)
+            assert path.read_bytes()[:5] != b"solid"  # binary STL
+            mesh = load_mesh(path)
+            assert trimesh.Trimesh(mesh.vertices, mesh.faces).is_watertight, path.name  # closed
+            seen.append(mesh.bounds / 1000.0)
+        lo, hi = _bounds(seen)
+        c_lo, c_hi = _bounds([(np.asarray(c.origin.xyz) - c.geometry.half_extents(),
+                               np.asarray(c.origin.xyz) + c.geometry.half_extents())
+                              for c in link.collisions])
+        # the shell wraps the collision primitives; it only reaches further to cover a joint's
+        # servo in the gap the primitives leave (the knee's: 5 cm) or to draw a hand
+        assert np.all(np.abs(lo - c_lo) <= 0.051) and np.all(np.abs(hi - c_hi) <= 0.051), link.name
+    # the robot is drawn as tall as it collides: soles on the ground, the Kinect's top at 1.05 m
+    for name, side in (("l_foot", 0), ("head", 1)):
+        meshes = [load_mesh(resolve_mesh(v.geometry.filename, model.base_dir))
+                  for v in model.links[name].visuals]
+        drawn = _bounds([m.bounds / 1000.0 for m in meshes])[side][2]
+        cols = model.links[name].collisions
+        collides = _bounds([(np.asarray(c.origin.xyz) - c.geometry.half_extents(),
+                             np.asarray(c.origin.xyz) + c.geometry.half_extents())
+                            for c in cols])[side][2]
+        assert drawn == pytest.approx(collides, abs=1e-4), name
+
+
+def test_visual_triangles_are_few_enough_for_software_gl(model):
+    faces = sum(len(load_mesh(resolve_mesh(v.geometry.filename, model.base_dir)).faces)
+                for link in model.links.values() for v in link.visuals)
+    from mexone.gui.scene import SHADOW_TRIANGLES
+
+    assert 10_000 < faces <= SHADOW_TRIANGLES  # round shells, and the page keeps its shadow
 
 
 def test_controller_yaml_follows_listing_3_17(model):

@@ -112,8 +112,8 @@ class GuiApp:
             lambda: self.inspector.click(e.ray_origin, e.ray_direction)))
         logging.getLogger("mexone").addHandler(_GuiLog(self))
         self.server.initial_camera.fov = math.radians(45.0)  # a 1 m robot fills half the view
-        self.server.initial_camera.position = (1.6, -1.6, 1.0)
-        self.server.initial_camera.look_at = (0.0, 0.0, 0.5)
+        self.server.initial_camera.position = (1.3, -1.35, 0.95)
+        self.server.initial_camera.look_at = (0.0, 0.0, 0.52)
         if paused:
             self._toggle_pause()
 

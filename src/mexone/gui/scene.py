@@ -28,6 +28,7 @@ _INERTIA_RGB = (150, 60, 200)
 _JOINT_RGB = (250, 220, 0)
 _CONTACT_RGB = (230, 30, 30)
 _MAX_CONTACTS = 64
+ENVIRONMENT_LIGHT, AMBIENT_LIGHT = 0.35, 0.35  # (viser's default environment is 1.0)
 SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
@@ -84,7 +85,9 @@ class RobotScene:
                        plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
         # the world's sun casts the one shadow (viser's default lights would add a second pass)
         scene.configure_default_lights(cast_shadow=False)
-        scene.add_light_ambient("/ambient", intensity=0.6)
+        # dimmer than viser's defaults, which wash a white robot's dark servos out to mid grey
+        scene.configure_environment_map(environment_intensity=ENVIRONMENT_LIGHT)
+        scene.add_light_ambient("/ambient", intensity=AMBIENT_LIGHT)
         # sent before the meshes and hidden after them, so every page shows it while they arrive
         loading = self.server.gui.add_markdown("**Loading the robot…**")
         budgets = display_budgets(robot)

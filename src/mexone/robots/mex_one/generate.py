@@ -36,11 +36,10 @@ from mexone.description.sensors import CameraSpec, Noise, SensorSpec
 from mexone.description.urdf import write_urdf
 from mexone.robots.mex_one import params
 
-__all__ = ["build_model", "controllers_yaml", "mesh_for", "generate", "HERE"]
+__all__ = ["build_model", "controllers_yaml", "visual_meshes", "mesh_file", "generate", "HERE"]
 
 HERE = Path(__file__).resolve().parent
 MM = 1000.0
-_SECTIONS = 48  # facets around a cylinder: smooth enough to look round
 
 
 def _volume(shape: params.Shape) -> float:
@@ -80,39 +79,81 @@ def _primitive(shape: params.Shape):
     return Box(shape.size) if shape.kind == "box" else Cylinder(*shape.size)
 
 
-def mesh_for(part: params.Part):
-    """The part's visual mesh in millimetres, in the link frame (as a CAD export would be)."""
+def _piece(piece: params.Piece):
+    """One visual solid in millimetres (convex hulls of spheres: rounded, closed, low-poly)."""
     import trimesh
 
-    pieces = []
-    for shape in part.shapes:
-        if shape.kind == "box":
-            piece = trimesh.creation.box(extents=np.asarray(shape.size) * MM)
-        else:
-            radius, length = shape.size
-            piece = trimesh.creation.cylinder(radius=radius * MM, height=length * MM,
-                                              sections=_SECTIONS)
-        piece.apply_translation(np.asarray(shape.center) * MM)
-        pieces.append(piece)
-    return trimesh.util.concatenate(pieces)
+    size = np.asarray(piece.size, dtype=float) * MM
+    centre = np.asarray(piece.center) * MM
+    if piece.kind == "rbox":
+        *extent, r = size
+        ball = trimesh.creation.uv_sphere(radius=r, count=list(params.CORNER_SEGMENTS)).vertices
+        half = np.maximum(np.asarray(extent) / 2 - r, 0.0)
+        corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]) * half
+        mesh = trimesh.convex.convex_hull(np.vstack([ball + c for c in corners]))
+    elif piece.kind == "limb":
+        r_top, r_bottom, z_top, z_bottom, squash = piece.size
+        points = []
+        for r, z in ((r_top, z_top), (r_bottom, z_bottom)):
+            ball = trimesh.creation.uv_sphere(radius=r * MM, count=list(params.LIMB_SEGMENTS))
+            points.append(ball.vertices * (1.0, squash, 1.0) + (0.0, 0.0, z * MM))
+        mesh = trimesh.convex.convex_hull(np.vstack(points))
+        centre = centre * (1.0, 1.0, 0.0)  # the limb's heights are its own
+    elif piece.kind == "horn":
+        radius, length = size
+        mesh = trimesh.creation.cylinder(radius=radius, height=length,
+                                         sections=params.HORN_SECTIONS)
+        turn = {"x": trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)),
+                "y": trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)),
+                "z": np.eye(4)}[piece.axis]
+        mesh.apply_transform(turn)
+    else:
+        raise ValueError(f"unknown piece kind {piece.kind!r}")
+    mesh.apply_translation(centre)
+    return mesh
+
+
+def visual_meshes(link: str) -> dict[str, object]:
+    """The link's visual meshes in millimetres, in the link frame (as a CAD export would be),
+    one per material in the order the link's pieces name them."""
+    import trimesh
+
+    by_material: dict[str, list] = {}
+    for piece in params.looks()[link]:
+        by_material.setdefault(piece.material, []).append(_piece(piece))
+    return {material: trimesh.util.concatenate(pieces) for material, pieces in by_material.items()}
+
+
+def mesh_file(link: str, material: str, first: bool) -> str:
+    """meshes/<link>.stl for a link's first material (its main shell), <link>_<material>.stl
+    for the others."""
+    return f"{link}.stl" if first else f"{link}_{material}.stl"
+
+
+def _visuals(link: str) -> list[Visual]:
+    visuals = []
+    for i, material in enumerate(visual_meshes(link)):
+        name = mesh_file(link, material, i == 0)
+        mesh = Mesh(f"package://{params.PACKAGE}/meshes/{name}", (0.001, 0.001, 0.001))
+        visuals.append(Visual(mesh, name=f"{name[:-4]}_visual", material=material,
+                              rgba=params.MATERIALS[material]))
+    return visuals
 
 
 def build_model() -> RobotModel:
     model = RobotModel(name=params.ROBOT_NAME, links={}, joints={},
                        ros_namespace=f"/{params.ROBOT_NAME}")
     for part in params.parts():
-        mesh = Mesh(f"package://{params.PACKAGE}/meshes/{part.name}.stl", (0.001, 0.001, 0.001))
         model.links[part.name] = Link(
             part.name,
             inertial_for(part),
-            [Visual(mesh, name=f"{part.name}_visual", material=part.material,
-                    rgba=part.rgba)],
+            _visuals(part.name),
             [Collision(_primitive(s), Pose(s.center), f"{part.name}_collision_{i}")
              for i, s in enumerate(part.shapes)],
         )
         model.gazebo_links[part.name] = GazeboLink(
             self_collide=True, mu1=part.mu, mu2=part.mu, kp=params.CONTACT_KP,
-            kd=params.CONTACT_KD, material=part.material)
+            kd=params.CONTACT_KD)
     for h in params.hinges():
         dynamics = Dynamics(h.damping, h.friction)
         model.joints[h.name] = Joint(h.name, "revolute", h.parent, h.child, Pose(h.xyz), h.axis,
@@ -199,9 +240,10 @@ def generate(out: Path = HERE) -> list[Path]:
     urdf.write_text(write_urdf(build_model(), URDF_COMMENT))
     written.append(urdf)
     for part in params.parts():
-        path = out / "meshes" / f"{part.name}.stl"
-        mesh_for(part).export(path, file_type="stl")
-        written.append(path)
+        for i, (material, mesh) in enumerate(visual_meshes(part.name).items()):
+            path = out / "meshes" / mesh_file(part.name, material, i == 0)
+            mesh.export(path, file_type="stl")
+            written.append(path)
     yaml_path = out / "config" / "controllers.yaml"
     yaml_path.write_text(controllers_yaml())
     written.append(yaml_path)

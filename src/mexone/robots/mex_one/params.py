@@ -33,11 +33,11 @@ class Shape:
 
 @dataclass(frozen=True)
 class Part:
+    """A link's physics: its mass and the primitives that collide (and give its inertia)."""
+
     name: str
     mass: float  # kg, spread uniformly over the shapes' volume
     shapes: tuple[Shape, ...]
-    material: str  # Gazebo material script name
-    rgba: tuple[float, float, float, float]
     mu: float = 0.9  # Coulomb friction with other surfaces (mu1 = mu2)
 
 
@@ -59,12 +59,6 @@ class Hinge:
     d: float
 
 
-GREY = (0.75, 0.75, 0.78, 1.0)
-DARK = (0.25, 0.25, 0.28, 1.0)
-WHITE = (0.95, 0.95, 0.95, 1.0)
-BLACK = (0.08, 0.08, 0.08, 1.0)
-
-
 def _box(x, y, z, center=(0.0, 0.0, 0.0)) -> Shape:
     return Shape("box", (x, y, z), center)
 
@@ -75,25 +69,24 @@ def _cyl(r, length, center=(0.0, 0.0, 0.0)) -> Shape:
 
 # Total: 15.0 kg. Left limbs only; the right side is mirrored by `parts()`.
 _CENTRE_PARTS = (
-    Part("pelvis", 2.0, (_box(0.12, 0.18, 0.08),), "Gazebo/Grey", GREY),
+    Part("pelvis", 2.0, (_box(0.12, 0.18, 0.08),)),
     # electronics and battery sit a little forward: the COM is 1 cm ahead of the hips
-    Part("torso", 3.6, (_box(0.12, 0.20, 0.24, (0.01, 0.0, 0.13)),), "Gazebo/Grey", GREY),
-    Part("neck", 0.15, (_cyl(0.025, 0.04, (0.0, 0.0, 0.02)),), "Gazebo/DarkGrey", DARK),
+    Part("torso", 3.6, (_box(0.12, 0.20, 0.24, (0.01, 0.0, 0.13)),)),
+    Part("neck", 0.15, (_cyl(0.025, 0.04, (0.0, 0.0, 0.02)),)),
     # head with the Kinect on top, as on the real robot
     Part("head", 0.95, (_box(0.10, 0.12, 0.065, (0.0, 0.0, 0.0375)),
-                        _box(0.065, 0.28, 0.04, (0.0, 0.0, 0.09))), "Gazebo/White", WHITE),
+                        _box(0.065, 0.28, 0.04, (0.0, 0.0, 0.09)))),
 )
 _LEFT_PARTS = (
-    Part("l_hip_rotor", 0.25, (_cyl(0.03, 0.03, (0.0, 0.0, -0.015)),), "Gazebo/DarkGrey", DARK),
-    Part("l_hip_bracket", 0.35, (_box(0.05, 0.05, 0.04),), "Gazebo/DarkGrey", DARK),
-    Part("l_thigh", 1.0, (_cyl(0.04, 0.17, (0.0, 0.0, -0.115)),), "Gazebo/Grey", GREY),
-    Part("l_shank", 0.8, (_cyl(0.035, 0.17, (0.0, 0.0, -0.115)),), "Gazebo/Grey", GREY),
-    Part("l_ankle", 0.2, (_box(0.04, 0.04, 0.03),), "Gazebo/DarkGrey", DARK),
-    Part("l_foot", 0.45, (_box(0.16, 0.08, 0.03, (0.02, 0.0, -0.045)),), "Gazebo/Black", BLACK,
-         mu=1.0),
-    Part("l_shoulder", 0.2, (_box(0.05, 0.04, 0.05),), "Gazebo/DarkGrey", DARK),
-    Part("l_upper_arm", 0.5, (_cyl(0.03, 0.13, (0.0, 0.0, -0.095)),), "Gazebo/Grey", GREY),
-    Part("l_forearm", 0.4, (_cyl(0.025, 0.15, (0.0, 0.0, -0.095)),), "Gazebo/Grey", GREY),
+    Part("l_hip_rotor", 0.25, (_cyl(0.03, 0.03, (0.0, 0.0, -0.015)),)),
+    Part("l_hip_bracket", 0.35, (_box(0.05, 0.05, 0.04),)),
+    Part("l_thigh", 1.0, (_cyl(0.04, 0.17, (0.0, 0.0, -0.115)),)),
+    Part("l_shank", 0.8, (_cyl(0.035, 0.17, (0.0, 0.0, -0.115)),)),
+    Part("l_ankle", 0.2, (_box(0.04, 0.04, 0.03),)),
+    Part("l_foot", 0.45, (_box(0.16, 0.08, 0.03, (0.02, 0.0, -0.045)),), mu=1.0),
+    Part("l_shoulder", 0.2, (_box(0.05, 0.04, 0.05),)),
+    Part("l_upper_arm", 0.5, (_cyl(0.03, 0.13, (0.0, 0.0, -0.095)),)),
+    Part("l_forearm", 0.4, (_cyl(0.025, 0.15, (0.0, 0.0, -0.095)),)),
 )
 
 X, Y, Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
@@ -143,8 +136,8 @@ def _mirror_shape(shape: Shape) -> Shape:
 
 def parts() -> list[Part]:
     """Every link, in the order written to the URDF."""
-    right = [Part(_mirror_name(p.name), p.mass, tuple(_mirror_shape(s) for s in p.shapes),
-                  p.material, p.rgba, p.mu) for p in _LEFT_PARTS]
+    right = [Part(_mirror_name(p.name), p.mass, tuple(_mirror_shape(s) for s in p.shapes), p.mu)
+             for p in _LEFT_PARTS]
     return [*_CENTRE_PARTS, *_LEFT_PARTS, *right]
 
 
@@ -158,6 +151,129 @@ def hinges() -> list[Hinge]:
                            (x, -y, z), h.axis, lower, upper, h.effort, h.velocity, h.damping,
                            h.friction, h.p, h.i, h.d))
     return [*_CENTRE_JOINTS, *_LEFT_JOINTS, *right]
+
+
+# ----- Looks: the visual shells (issue 28). Drawing only: physics uses the Parts above. -------
+# Three named URDF materials; every renderer (the page, videos, the MJCF and SDF exports) shows
+# them. No <gazebo><material> is written: it would paint a link's servo and shell one colour.
+MATERIALS = {
+    "shell_white": (0.92, 0.92, 0.90, 1.0),  # painted covers
+    "servo_dark": (0.26, 0.27, 0.30, 1.0),  # servo housings, horns, brackets, hands, soles
+    "kinect_black": (0.04, 0.04, 0.05, 1.0),  # the Kinect's body
+}
+# Facets: round enough at a metre, ~20k triangles for the robot (the page keeps its shadow
+# under gui.scene.SHADOW_TRIANGLES).
+LIMB_SEGMENTS = (20, 12)  # around, pole to pole, of a limb's end spheres
+CORNER_SEGMENTS = (8, 6)  # of a rounded box's corner spheres
+HORN_SECTIONS = 20  # around a servo horn
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One visual solid in its link's frame, in metres.
+
+    kind 'rbox': size = (x, y, z, corner radius); 'limb': size = (top radius, bottom radius,
+    top z, bottom z, y/x squash), a rounded taper along z through `center`'s x and y;
+    'horn': size = (radius, length), a cylinder along `axis` ('x', 'y' or 'z')."""
+
+    kind: str
+    size: tuple[float, ...]
+    center: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    material: str = "shell_white"
+    axis: str = "z"
+
+
+def _rbox(x, y, z, r, center=(0.0, 0.0, 0.0), material="shell_white") -> Piece:
+    return Piece("rbox", (x, y, z, r), center, material)
+
+
+def _limb(r_top, r_bottom, z_top, z_bottom, squash=0.85, center=(0.0, 0.0, 0.0)) -> Piece:
+    return Piece("limb", (r_top, r_bottom, z_top, z_bottom, squash), center)
+
+
+def _horn(r, length, axis, center=(0.0, 0.0, 0.0), material="servo_dark") -> Piece:
+    return Piece("horn", (r, length), center, material, axis)
+
+
+def _servo(x, y, z, center=(0.0, 0.0, 0.0)) -> Piece:
+    return _rbox(x, y, z, 0.006, center, "servo_dark")
+
+
+# Centre and left links; the right side is mirrored by `looks()`. Each link's pieces are drawn
+# as one <visual> per material (meshes/<link>.stl for the first material, <link>_<material>.stl).
+_LOOKS: dict[str, tuple[Piece, ...]] = {
+    "pelvis": (
+        _rbox(0.12, 0.18, 0.08, 0.025),
+        _horn(0.045, 0.012, "z", (0.0, 0.0, 0.042)),  # waist yaw bearing
+        _servo(0.05, 0.04, 0.02, (0.0, 0.06, -0.03)),  # hip yaw servos' feet
+        _servo(0.05, 0.04, 0.02, (0.0, -0.06, -0.03)),
+    ),
+    "torso": (
+        # chest wider than the waist, like a child's torso
+        _rbox(0.10, 0.16, 0.11, 0.02, (0.005, 0.0, 0.065)),
+        _rbox(0.12, 0.20, 0.14, 0.03, (0.01, 0.0, 0.175)),
+        _rbox(0.006, 0.09, 0.07, 0.003, (0.07, 0.0, 0.16), "servo_dark"),  # chest vent
+        _rbox(0.03, 0.13, 0.13, 0.01, (-0.052, 0.0, 0.15), "servo_dark"),  # battery pack
+        _horn(0.022, 0.24, "y", (0.0, 0.0, 0.22)),  # shoulder servos' shafts
+        _horn(0.02, 0.03, "z", (0.0, 0.0, 0.25)),  # neck yaw bearing
+    ),
+    "neck": (_horn(0.022, 0.04, "z", (0.0, 0.0, 0.02)),
+             _horn(0.012, 0.07, "y", (0.0, 0.0, 0.04))),
+    "head": (
+        _rbox(0.10, 0.12, 0.065, 0.025, (0.0, 0.0, 0.0375)),
+        _rbox(0.012, 0.09, 0.03, 0.006, (0.045, 0.0, 0.04), "servo_dark"),  # visor
+        _horn(0.018, 0.128, "y", (0.0, 0.0, 0.035)),  # ears: the neck pitch servo
+        # the Kinect: a black bar on a stub, three windows on its front face
+        _rbox(0.03, 0.05, 0.012, 0.004, (-0.005, 0.0, 0.074), "kinect_black"),
+        _rbox(0.062, 0.28, 0.034, 0.012, (-0.001, 0.0, 0.093), "kinect_black"),
+        _horn(0.0075, 0.004, "x", (0.0305, 0.026, 0.093)),  # IR projector
+        _horn(0.0065, 0.004, "x", (0.0305, 0.0, 0.093)),  # RGB camera
+        _horn(0.0075, 0.004, "x", (0.0305, -0.026, 0.093)),  # IR camera
+    ),
+    "l_hip_rotor": (_horn(0.028, 0.03, "z", (0.0, 0.0, -0.015)),
+                    _servo(0.045, 0.03, 0.02, (0.0, 0.0, -0.04))),
+    "l_hip_bracket": (_servo(0.05, 0.05, 0.04),
+                      _horn(0.016, 0.056, "x"), _horn(0.02, 0.064, "y")),
+    "l_thigh": (
+        _limb(0.042, 0.034, -0.055, -0.18),
+        _servo(0.05, 0.058, 0.05, (0.0, 0.0, -0.213)),  # knee servo
+        _horn(0.02, 0.074, "y", (0.0, 0.0, -0.23)),
+    ),
+    "l_shank": (
+        _limb(0.036, 0.028, -0.06, -0.185),
+        _servo(0.045, 0.054, 0.045, (0.0, 0.0, -0.207)),  # ankle pitch servo
+        _horn(0.018, 0.066, "y", (0.0, 0.0, -0.23)),
+    ),
+    "l_ankle": (_servo(0.04, 0.04, 0.03), _horn(0.013, 0.05, "x")),
+    "l_foot": (
+        _rbox(0.16, 0.08, 0.022, 0.009, (0.02, 0.0, -0.041)),
+        _rbox(0.16, 0.08, 0.01, 0.004, (0.02, 0.0, -0.055), "servo_dark"),  # sole
+    ),
+    "l_shoulder": (_rbox(0.056, 0.046, 0.056, 0.02, (0.0, 0.006, 0.004)),  # shoulder cap
+                   _horn(0.017, 0.064, "x")),
+    "l_upper_arm": (
+        _limb(0.03, 0.026, -0.045, -0.14, 0.9),
+        _servo(0.04, 0.05, 0.045, (0.0, 0.0, -0.163)),  # elbow servo
+        _horn(0.017, 0.062, "y", (0.0, 0.0, -0.17)),
+    ),
+    "l_forearm": (
+        _limb(0.025, 0.021, -0.035, -0.145, 0.9),
+        _servo(0.032, 0.03, 0.02, (0.0, 0.0, -0.16)),  # wrist
+        _rbox(0.04, 0.02, 0.045, 0.008, (0.0, 0.0, -0.19), "servo_dark"),  # hand
+        _rbox(0.012, 0.012, 0.028, 0.005, (0.022, 0.0, -0.178), "servo_dark"),  # thumb
+    ),
+}
+
+
+def looks() -> dict[str, tuple[Piece, ...]]:
+    """Every link's visual pieces; right links are the left ones mirrored in y."""
+    out = {name: pieces for name, pieces in _LOOKS.items()}
+    for name, pieces in _LOOKS.items():
+        if name.startswith("l_"):
+            out[_mirror_name(name)] = tuple(
+                Piece(p.kind, p.size, (p.center[0], -p.center[1], p.center[2]), p.material, p.axis)
+                for p in pieces)
+    return out
 
 
 # Contact: Gazebo's ODE contact stiffness kp (N/m) and damping kd (N s/m) for every link
