@@ -175,7 +175,7 @@ def start(run: Run, fit_bag: Path) -> Mexone:
         "edit": ["edit", "--port", "0", "--workdir", "work"],
         "run": ["run", str(f / "echo.py"), "--duration", "600", "--record", "run.bag"],
         "record": ["record", str(f / "echo.py"), "-o", "rec.mcap", "--duration", "600"],
-        "sweep": ["sweep", "--joint", "l_elbow", "--p", "20:200:40", "--duration", "1.5",
+        "sweep": ["sweep", "--joint", "l_elbow", "--p", "20:200:400", "--duration", "3",
                   "--workers", "2", "-o", "sw"],
         "identify": ["identify", str(fit_bag), "--no-delay", "-o", "id", "-v"],
     }[run.verb]

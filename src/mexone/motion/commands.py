@@ -152,10 +152,10 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     move in joint space, at most _SWING_SPEED per joint."""
     if not (duration > 0 and math.isfinite(duration)):
         raise InputError(f"reach: duration {duration} must be a finite number > 0 s")
-    mover = _mover()
-    ik = mover.ik
-    snapshot = mover.snapshot()
     with busy("reach's IK"):  # the plan and its restarts: seconds on a loaded machine
+        mover = _mover()
+        ik = mover.ik
+        snapshot = mover.snapshot()
         ik.reset(snapshot)
         initial = ik.joint_positions()
         start, rotation0 = ik.pose(frame)
@@ -192,18 +192,19 @@ def reach(frame: str, xyz, rpy=None, duration: float = 2.0) -> FrameError:
     mover.hold(ik.joint_positions(), rate)
     error = ik.error(frame)
     for _ in range(_CORRECTIONS):  # close the loop on where the frame really is
-        ik.reset(mover.snapshot())
-        ik.set_rpy_target(frame, goal, rpy)
-        if ik.error(frame).position < _CORRECT_ABOVE:
-            break
         with busy("reach's IK"):
+            ik.reset(mover.snapshot())
+            ik.set_rpy_target(frame, goal, rpy)
+            if ik.error(frame).position < _CORRECT_ABOVE:
+                break
             ik.converge()
         mover.hold(ik.joint_positions(), rate)
         error = ik.error(frame)
     planned = error
-    ik.reset(mover.snapshot())
-    ik.set_rpy_target(frame, goal, rpy)
-    error = ik.error(frame)  # where the frame really is
+    with busy("reach's IK"):
+        ik.reset(mover.snapshot())
+        ik.set_rpy_target(frame, goal, rpy)
+        error = ik.error(frame)  # where the frame really is
     if not error.reached and planned.reached:
         rospy.logwarn("reach %s: stopped %s short of (%.3f, %.3f, %.3f): the body did not follow "
                       "the IK (a collision, a foot slipping or tipping, a joint at its effort "
