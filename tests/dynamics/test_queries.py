@@ -287,3 +287,30 @@ def test_snapshot_goes_through_the_simulation_thread_while_a_loop_runs():
         stop.set()
         loop.join()
     assert "l_forearm" in dyn.frames
+
+
+def test_com_and_momentum_of_a_model_with_two_free_bodies():
+    """Two roots (a plain model's default robot is every body): the sums by hand."""
+    model = mujoco.MjModel.from_xml_string("""
+    <mujoco><worldbody>
+      <body name="a" pos="0 0 1"><freejoint/><inertial pos="0.1 0 0" mass="2" diaginertia="0.1 0.2 0.3"/></body>
+      <body name="b" pos="1 0 0"><freejoint/><inertial pos="0 0.2 0" mass="3" diaginertia="0.3 0.1 0.2"/></body>
+    </worldbody></mujoco>""")
+    data = mujoco.MjData(model)
+    data.qvel[:] = np.random.default_rng(2).normal(size=12)
+    mujoco.mj_forward(model, data)
+    dyn = Dynamics(model, data)
+    masses = model.body_mass[1:]
+    com = masses @ data.xipos[1:] / 5.0
+    np.testing.assert_allclose(dyn.com(), com, atol=1e-12)
+    linear, angular = np.zeros(3), np.zeros(3)
+    jp, jr = np.zeros((3, 12)), np.zeros((3, 12))
+    for body in (1, 2):
+        mujoco.mj_jacBodyCom(model, data, jp, jr, body)
+        rotation = data.ximat[body].reshape(3, 3)
+        p = model.body_mass[body] * jp @ data.qvel
+        linear += p
+        angular += rotation @ np.diag(model.body_inertia[body]) @ rotation.T @ jr @ data.qvel
+        angular += np.cross(data.xipos[body] - com, p)
+    np.testing.assert_allclose(dyn.centroidal_momentum(), np.r_[linear, angular], atol=1e-12)
+    np.testing.assert_allclose(dyn.com_jacobian() @ data.qvel * 5.0, linear, atol=1e-12)

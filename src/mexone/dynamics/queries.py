@@ -264,6 +264,8 @@ class Dynamics:
     def com(self) -> np.ndarray:
         """(3,): the robot's centre of mass in the world frame."""
         d = self._positions()
+        if len(self._roots) == 1:
+            return d.subtree_com[self._roots[0]].copy()
         masses = self.model.body_subtreemass[self._roots]
         return masses @ d.subtree_com[self._roots] / masses.sum()
 
@@ -282,15 +284,18 @@ class Dynamics:
         of mass (kg m^2/s), world frame."""
         d = self._velocities()
         mujoco.mj_subtreeVel(self.model, d)
-        com = self.com()
-        linear, angular = np.zeros(3), np.zeros(3)
-        for root in self._roots:
-            m = self.model.body_subtreemass[root]
-            p = m * d.subtree_linvel[root]
-            linear += p
-            angular += d.subtree_angmom[root] + np.cross(d.subtree_com[root] - com, p)
-        return np.r_[linear, angular]
-
+        out = np.zeros(6)
+        if len(self._roots) == 1:
+            root = self._roots[0]
+            out[:3] = self.model.body_subtreemass[root] * d.subtree_linvel[root]
+            out[3:] = d.subtree_angmom[root]
+            return out
+        masses = self.model.body_subtreemass[self._roots]
+        momenta = masses[:, None] * d.subtree_linvel[self._roots]
+        offsets = d.subtree_com[self._roots] - self.com()  # each subtree's momentum about the COM
+        out[:3] = momenta.sum(axis=0)
+        out[3:] = d.subtree_angmom[self._roots].sum(axis=0) + np.cross(offsets, momenta).sum(axis=0)
+        return out
 
 def _frames(model: mujoco.MjModel, links: Mapping[str, int]) -> dict[str, tuple[int, int]]:
     out: dict[str, tuple[int, int]] = {}
