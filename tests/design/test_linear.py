@@ -235,3 +235,33 @@ def test_bad_requests_are_one_line_errors(standing):
     model, data = pendulum(0.1)
     with pytest.raises(InputError, match="needs mexone's joint actuators"):
         linearize(model, data)
+
+
+def test_a_reduced_model_follows_the_pose_it_is_taken_at(standing):
+    """The welded model is compiled once per joint set and posed per call: the second pose's
+    model is the one a fresh compile gives there, not the first pose's."""
+    from mexone.design import linear
+
+    arm = ["r_shoulder_pitch", "r_elbow"]
+    first = linearize(standing, joints=arm, held="rigid", fixed_base=True)
+    model = standing.sim.model
+    data = mujoco.MjData(model)
+    mujoco.mj_copyData(data, model, standing.sim.data)
+    data.qpos[model.jnt_qposadr[model.joint("r_shoulder_roll").id]] = -0.6  # welded, moved
+    mujoco.mj_forward(model, data)
+    plant = linear._take(standing, None)
+    plant.data = data
+    welded = [j for j in linear._moving_joints(plant) if j not in arm]
+    cached = linear._welded(plant, welded, True)
+    linear._REDUCED.clear()
+    fresh = linear._welded(plant, welded, True)
+    np.testing.assert_array_equal(cached.model.body_pos, fresh.model.body_pos)
+    np.testing.assert_array_equal(cached.data.xpos, fresh.data.xpos)
+    m_cached, m_fresh = (Dynamics(p.model, p.data).mass_matrix() for p in (cached, fresh))
+    np.testing.assert_array_equal(m_cached, m_fresh)
+    # and the pose mattered: rolling the shoulder out changed the arm's inertia about its pitch
+    standing_dyn = Dynamics.snapshot(standing)
+    dofs = standing_dyn.dofs(arm)
+    before = standing_dyn.mass_matrix()[np.ix_(dofs, dofs)]
+    assert abs(m_cached[0, 0] - before[0, 0]) > 1e-3 * before[0, 0]
+    assert first.B.shape == (4, 2)
