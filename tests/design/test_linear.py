@@ -232,6 +232,8 @@ def test_bad_requests_are_one_line_errors(standing):
         operating_point(standing, support="one")
     with pytest.raises(InputError, match="'elbow', which is not a hinge"):
         operating_point(standing, {"elbow": 0.1})
+    with pytest.raises(InputError, match=r"pose angle 1 of 'l_elbow' is outside its limits \[-2.5, 0.1\]"):
+        operating_point(standing, {"l_elbow": 1.0})
     model, data = pendulum(0.1)
     with pytest.raises(InputError, match="needs mexone's joint actuators"):
         linearize(model, data)

@@ -147,6 +147,9 @@ def operating_point(source, pose: Mapping[str, float] | None = None, support: st
                              hint="joints: " + ", ".join(plant.joints or _joint_names(model)))
         if not np.isfinite(value):
             raise InputError(f"pose angle of '{name}' is not finite")
+        low, high = model.jnt_range[joint]
+        if model.jnt_limited[joint] and not low - 1e-9 <= value <= high + 1e-9:
+            raise InputError(f"pose angle {value:g} of '{name}' is outside its limits [{low:g}, {high:g}]")
         d.qpos[model.jnt_qposadr[joint]] = value
     d.qvel[:] = 0.0
     d.qacc[:] = 0.0

@@ -47,16 +47,17 @@ class Dynamics:
     `Dynamics(model, data)` reads `data`'s state (qpos, qvel, mocap) now and after each
     `refresh()`; queries are computed lazily, once per refresh, on a private `MjData`.
     `links` maps extra frame names to body ids (a compiled robot's URDF links); `robot_bodies`
-    are the bodies whose centre of mass `com()` is (default: every body but the world)."""
+    are the bodies whose centre of mass `com()` is (default: every body but the world).
+    copy=False: `data` is handed over (nobody else uses it) and the queries compute in it."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData,
                  links: Mapping[str, int] | None = None,
-                 robot_bodies: Iterable[int] | None = None):
+                 robot_bodies: Iterable[int] | None = None, *, copy: bool = True):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise TypeError("Dynamics(model, data) takes a mujoco.MjModel and a mujoco.MjData")
         self.model = model
         self._source = data
-        self._data = mujoco.MjData(model)
+        self._data = mujoco.MjData(model) if copy else data
         self._frames = _frames(model, links or {})
         bodies = sorted(set(robot_bodies) if robot_bodies is not None
                         else set(range(1, model.nbody)) or {0})
@@ -83,12 +84,12 @@ class Dynamics:
             raise TypeError("Dynamics.snapshot(lab) takes a mexone Lab or Simulation")
 
         def take() -> Dynamics:
-            copy = mujoco.MjData(sim.model)
-            copy.qpos[:], copy.qvel[:] = sim.data.qpos, sim.data.qvel
-            copy.mocap_pos[:], copy.mocap_quat[:] = sim.data.mocap_pos, sim.data.mocap_quat
-            copy.time = sim.data.time
+            state = mujoco.MjData(sim.model)
+            state.qpos[:], state.qvel[:] = sim.data.qpos, sim.data.qvel
+            state.mocap_pos[:], state.mocap_quat[:] = sim.data.mocap_pos, sim.data.mocap_quat
+            state.time = sim.data.time
             links = sim.compiled.bodies
-            return cls(sim.model, copy, links, links.values())
+            return cls(sim.model, state, links, links.values(), copy=False)
 
         loop = getattr(sim, "loop_thread", None)
         if loop is None or loop == threading.get_ident():
