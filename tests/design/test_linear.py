@@ -105,7 +105,7 @@ def test_a_two_link_arm_matches_its_analytic_discrete_model():
     s1, c1, s12, c12 = np.sin(q[0]), np.cos(q[0]), np.sin(q.sum()), np.cos(q.sum())
     g = np.array([(M1 * C1 + M2 * L1) * G * c1 + M2 * C2 * G * c12, M2 * C2 * G * c12])
     data.qpos[:], data.ctrl[:] = q, g  # held still by its gravity torques
-    sys = linearize(model, data, inputs="ctrl", outputs=["tip"])
+    sys = linearize(model, data, inputs="ctrl", outputs=["tip", "com", "pose:link2"])
     c2 = np.cos(q[1])
     mass = np.array([[I1 + I2 + M1 * C1**2 + M2 * (L1**2 + C2**2 + 2 * L1 * C2 * c2),
                       I2 + M2 * (C2**2 + L1 * C2 * c2)],
@@ -117,8 +117,15 @@ def test_a_two_link_arm_matches_its_analytic_discrete_model():
     assert_relative(sys.A - np.eye(4), a - np.eye(4))
     assert_relative(sys.B, b)
     jac = np.array([[-L1 * s1 - L2 * s12, -L2 * s12], [0, 0], [L1 * c1 + L2 * c12, L2 * c12]])
-    assert_relative(sys.C, np.hstack([jac, np.zeros((3, 2))]))
+    com_jac = (M1 * C1 * np.array([[-s1, 0], [0, 0], [c1, 0]])
+               + M2 * np.array([[-L1 * s1 - C2 * s12, -C2 * s12], [0, 0], [L1 * c1 + C2 * c12, C2 * c12]])
+               ) / (M1 + M2)
+    link2 = np.array([[-L1 * s1, 0], [0, 0], [L1 * c1, 0], [0, 0], [-1, -1], [0, 0]])  # origin, axis -y
+    expected = np.vstack([jac, com_jac, link2])
+    assert_relative(sys.C, np.hstack([expected, np.zeros((12, 2))]))
+    np.testing.assert_array_equal(sys.D, 0)
     assert sys.state_labels == ["j1:q", "j2:q", "j1:dq", "j2:dq"]
+    assert sys.output_labels[3:9] == ["com:x", "com:y", "com:z", "link2:x", "link2:y", "link2:z"]
 
 
 @pytest.fixture(scope="module")
@@ -220,7 +227,7 @@ def _data(model, qpos):
 
 
 def test_bad_requests_are_one_line_errors(standing):
-    with pytest.raises(InputError, match="inputs 'torque' is not one of effort, position, ctrl"):
+    with pytest.raises(InputError, match="inputs 'torque' is not one of effort, position, velocity, ctrl"):
         linearize(standing, inputs="torque")
     with pytest.raises(InputError, match="not a multiple of the time step"):
         linearize(standing, period=0.0015)
@@ -267,3 +274,16 @@ def test_a_reduced_model_follows_the_pose_it_is_taken_at(standing):
     before = standing_dyn.mass_matrix()[np.ix_(dofs, dofs)]
     assert abs(m_cached[0, 0] - before[0, 0]) > 1e-3 * before[0, 0]
     assert first.B.shape == (4, 2)
+
+
+def test_mex_one_gyro_output_is_the_imu_sites_angular_jacobian(standing):
+    """MuJoCo's sensor derivative (C) of the torso gyro against the dynamics' Jacobian: the gyro
+    reads the site's angular velocity in the site's frame, so d gyro / d qvel = R^T J_rot."""
+    sys = linearize(standing, outputs=["imu/gyro", "com"])
+    dyn = Dynamics.snapshot(standing)
+    nv = dyn.model.nv
+    _, rotation = dyn.pose("sensor/imu")
+    expected = rotation.T @ dyn.jacobian("sensor/imu")[3:]
+    np.testing.assert_allclose(sys.C[:3, nv:2 * nv], expected, atol=1e-6)
+    np.testing.assert_allclose(sys.C[3:, :nv], dyn.com_jacobian(), atol=1e-12)
+    assert sys.output_labels == ["imu/gyro:x", "imu/gyro:y", "imu/gyro:z", "com:x", "com:y", "com:z"]

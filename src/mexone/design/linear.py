@@ -18,11 +18,13 @@ inputs
     "effort": `<joint>:effort`, the joint torque through each motor's feed-forward input (N m);
     those joints' own PD and I terms are off in the model, as an effort controller claims them,
     so A is the open-loop plant. "position": `<joint>:position`, the PID's setpoint (rad), the
-    loop closed by its gains as set now. "ctrl": every MuJoCo control as is (any model).
+    loop closed by its gains as set now; "velocity": `<joint>:velocity`, its velocity setpoint
+    (rad/s), likewise. "ctrl": every MuJoCo control as is (any model).
     Joints not among `joints` keep their controllers as set (held at their setpoints).
 outputs
-    MuJoCo sensors by name (`imu/gyro:x`...), from MuJoCo's sensor derivatives; by default the
-    states themselves (C = I).
+    MuJoCo sensors by name (`imu/gyro:x`...), from MuJoCo's sensor derivatives; "com" (the
+    centre of mass, `com:x`...) and "pose:<frame>" (its position and small rotation, world
+    frame, `<frame>:x` ... `<frame>:rz`) from the Jacobians; by default the states (C = I).
 
 A reduced model (`held="rigid"`: the joints outside `joints` welded at their current angles;
 `fixed_base=True`: the root welded where it is) is a recompiled copy of the model: fewer states,
@@ -41,12 +43,13 @@ import mujoco
 import numpy as np
 
 from mexone.control.hardware import INTEGRAL_SUFFIX
+from mexone.dynamics import Dynamics
 from mexone.errors import InputError
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
 
-INPUT_KINDS = ("effort", "position", "ctrl")
+INPUT_KINDS = ("effort", "position", "velocity", "ctrl")
 SUPPORTS = ("both", "left", "right", "fixed")
 _FEET = {"both": ("l_foot", "r_foot"), "left": ("l_foot",), "right": ("r_foot",), "fixed": ()}
 _BASE = "base"
@@ -317,8 +320,8 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     if not joint_friction:
         model.dof_frictionloss[:] = 0.0
     steps = _steps(model, period)
-    sensors = _sensor_rows(model, outputs)
-    if sensors is not None:
+    output_list = _check_outputs(model, outputs)
+    if output_list is not None:
         model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
     nx, nu, ns = 2 * model.nv + model.na, model.nu, model.nsensordata
@@ -337,16 +340,18 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
         mujoco.mj_step(model, rollout)
 
     u_map, input_names, u0 = _input_map(plant, chosen, inputs)
-    b, dd = b @ u_map, dd @ u_map
+    b = b @ u_map
     state_names = _state_names(plant)
-    keep = _kept_states(model, a, c if sensors is not None else np.zeros((0, nx)))
+    c_all, d_all, output_names = np.zeros((0, nx)), np.zeros((0, b.shape[1])), []
+    if output_list is not None:
+        c_all, d_all, output_names = _outputs(model, d, output_list, c, dd @ u_map)
+    keep = _kept_states(model, a, c_all)
     a, b = a[np.ix_(keep, keep)], b[keep]
     state_names = [state_names[i] for i in keep]
-    if sensors is None:
+    if output_list is None:
         c_out, d_out, output_names = np.eye(len(keep)), np.zeros((len(keep), b.shape[1])), state_names
     else:
-        rows, output_names = sensors
-        c_out, d_out = c[np.ix_(rows, keep)], dd[rows]
+        c_out, d_out = c_all[:, keep], d_all
     sys = control.ss(a, b, c_out, d_out, steps * model.opt.timestep, states=state_names,
                      inputs=input_names, outputs=output_names, name="robot")
     act_rows = np.array([i - 2 * model.nv for i in keep if i >= 2 * model.nv], dtype=int)
@@ -401,19 +406,48 @@ def _steps(model: mujoco.MjModel, period: float | None) -> int:
     return steps
 
 
-def _sensor_rows(model: mujoco.MjModel, outputs: Iterable[str] | None):
+def _check_outputs(model: mujoco.MjModel, outputs: Iterable[str] | None) -> list[str] | None:
     if outputs is None:
         return None
-    rows, names = [], []
-    for name in ([outputs] if isinstance(outputs, str) else list(outputs)):
-        sensor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name)
-        if sensor < 0:
+    names = [outputs] if isinstance(outputs, str) else list(outputs)
+    for name in names:
+        if name == "com" or (isinstance(name, str) and name.startswith("pose:")):
+            continue
+        if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name) < 0:
             listed = ", ".join(model.sensor(i).name for i in range(model.nsensor)) or "none"
-            raise InputError(f"no sensor named '{name}' in the model", hint=f"sensors: {listed}")
+            raise InputError(f"no sensor named '{name}' in the model",
+                             hint=f"outputs: a sensor ({listed}), 'com', or 'pose:<frame>'")
+    return names
+
+
+def _outputs(model: mujoco.MjModel, data: mujoco.MjData, names: list[str], c: np.ndarray,
+             dd: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Rows of C and D: a sensor's from MuJoCo's sensor derivatives; the centre of mass's and a
+    frame's position and small rotation (world frame) from its Jacobian, whose columns are the
+    tangent space's (so C = [J, 0], D = 0)."""
+    nx, nu = c.shape[1], dd.shape[1]
+    rows_c, rows_d, labels = [], [], []
+    dyn = None
+    for name in names:
+        if name == "com" or name.startswith("pose:"):
+            if dyn is None:
+                state = mujoco.MjData(model)
+                mujoco.mj_copyData(state, model, data)
+                dyn = Dynamics(model, state, copy=False)
+            jac = dyn.com_jacobian() if name == "com" else dyn.jacobian(name[len("pose:"):])
+            block = np.zeros((jac.shape[0], nx))
+            block[:, :model.nv] = jac
+            rows_c.append(block)
+            rows_d.append(np.zeros((jac.shape[0], nu)))
+            prefix = "com" if name == "com" else _signal(name[len("pose:"):])
+            labels += [f"{prefix}:{axis}" for axis in (_FREE_POS[:3] if name == "com" else _FREE_POS)]
+            continue
+        sensor = model.sensor(name).id
         adr, dim = int(model.sensor_adr[sensor]), int(model.sensor_dim[sensor])
-        rows += range(adr, adr + dim)
-        names += _component_names(_signal(name), dim)
-    return rows, names
+        rows_c.append(c[adr:adr + dim])
+        rows_d.append(dd[adr:adr + dim])
+        labels += _component_names(_signal(name), dim)
+    return np.vstack(rows_c), np.vstack(rows_d), labels
 
 
 def _component_names(name: str, dim: int) -> list[str]:
@@ -489,6 +523,9 @@ def _input_map(plant: _Plant, joints: list[str], kind: str):
         if kind == "effort":
             u_map[adr + 2, col] = 1.0 / gear
             u0[col] = d.ctrl[adr + 2] * gear
+        elif kind == "velocity":
+            u_map[adr + 1, col] = gear
+            u0[col] = d.ctrl[adr + 1] / gear
         else:
             u_map[adr, col] = gear
             if integral >= 0:
