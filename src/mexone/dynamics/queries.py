@@ -32,6 +32,7 @@ import mujoco
 import numpy as np
 
 from mexone.errors import InputError
+from mexone.ranges import number_text
 
 if TYPE_CHECKING:
     from mexone.physics.simulation import Simulation
@@ -145,7 +146,7 @@ class Dynamics:
         for name in names:
             found = self._joint_dofs.get(name)
             if found is None:
-                raise InputError(f"no joint named '{name}' in the model",
+                raise InputError(f"no joint named {_shown(name)} in the model",
                                  hint="joints: " + ", ".join(self._joint_dofs))
             out.append(found)
         return np.concatenate(out).astype(int) if out else np.zeros(0, dtype=int)
@@ -204,7 +205,7 @@ class Dynamics:
         return d.qfrc_inverse.copy()
 
     def _vector(self, value, what: str) -> np.ndarray:
-        out = np.asarray(value, dtype=float).reshape(-1)
+        out = _floats(value, what)
         if out.shape != (self.model.nv,):
             raise InputError(f"{what} has {out.size} values; the model has nv = {self.model.nv}")
         if not np.isfinite(out).all():
@@ -215,7 +216,8 @@ class Dynamics:
     def _frame(self, frame: str) -> tuple[int, int]:
         found = self._frames.get(frame) if isinstance(frame, str) else None
         if found is None:
-            raise InputError(f"no frame named '{frame}'", hint="frames: " + ", ".join(sorted(self._frames)))
+            raise InputError(f"no frame named {_shown(frame)}",
+                             hint="frames: " + ", ".join(sorted(self._frames)))
         return found
 
     def _body_and_point(self, frame: str, point) -> tuple[int, np.ndarray]:
@@ -227,9 +229,10 @@ class Dynamics:
             body, origin = index, d.xpos[index]
         if point is None:
             return body, origin.copy()
-        p = np.asarray(point, dtype=float).reshape(-1)
+        p = _floats(point, "point")
         if p.shape != (3,) or not np.isfinite(p).all():
-            raise InputError(f"point {point!r} is not 3 finite numbers (a world point, m)")
+            shown = ", ".join(number_text(v) for v in p[:4]) + (", ..." if p.size > 4 else "")
+            raise InputError(f"point ({shown}) is not 3 finite numbers (a world point, m)")
         return body, p
 
     def pose(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
@@ -297,6 +300,22 @@ class Dynamics:
         out[:3] = momenta.sum(axis=0)
         out[3:] = d.subtree_angmom[self._roots].sum(axis=0) + np.cross(offsets, momenta).sum(axis=0)
         return out
+
+def _shown(name) -> str:
+    """A name for a one-line message: quoted, control characters escaped."""
+    if isinstance(name, str):
+        text = name
+    else:
+        text = number_text(name) if isinstance(name, (int, float)) else repr(name)
+    return "'" + text.encode("unicode_escape").decode("ascii")[:80] + "'"
+
+
+def _floats(value, what: str) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not a list of numbers") from None
+
 
 def _frames(model: mujoco.MjModel, links: Mapping[str, int]) -> dict[str, tuple[int, int]]:
     out: dict[str, tuple[int, int]] = {}
