@@ -97,6 +97,14 @@ class Dynamics:
             return take()
         return sim.work.call(take, timeout=timeout)
 
+    @classmethod
+    def live(cls, sim: Simulation) -> Dynamics:
+        """A `Dynamics` bound to a Simulation's live data, with its robot's link names and COM:
+        for code in the simulation thread (a controller), which calls `refresh()` before each
+        use. A model change (a model spawned or removed) needs a new one."""
+        links = sim.compiled.bodies
+        return cls(sim.model, sim.data, links, links.values())
+
     def refresh(self) -> None:
         """Take the source data's state again (cheap: the copy and the computations happen at
         the first query after it). A controller's dynamics is refreshed before every update."""
