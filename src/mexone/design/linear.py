@@ -116,8 +116,9 @@ def _actuator(model, name: str) -> int:
 @dataclass(frozen=True)
 class OperatingPoint:
     """A pose held still: `qpos` (nq,), the joint torques `efforts` (N m, one per name in
-    `joints`) that hold it, and the `residual` (6,): the force (N) and torque (N m) on the base
-    that no actuator can give (zero when the pose balances on its support; for support="fixed",
+    `joints`) that hold it, and the `residual` (6,): the force (N, world frame) and torque
+    (N m, about the root link's axes: the free joint's coordinates) on the base that no actuator
+    can give (zero when the pose balances on its support; for support="fixed",
     what the weld carries). `contacts`: the links touching the ground."""
 
     qpos: np.ndarray
@@ -332,7 +333,7 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     mujoco.mj_copyData(rollout, model, d)
     for k in range(steps):
         ak, bk = np.zeros((nx, nx)), np.zeros((nx, nu))
-        if k == 0:
+        if k == 0 and output_list is not None:
             mujoco.mjd_transitionFD(model, rollout, eps, True, ak, bk, c, dd)
         else:
             mujoco.mjd_transitionFD(model, rollout, eps, True, ak, bk, None, None)
