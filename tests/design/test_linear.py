@@ -287,3 +287,36 @@ def test_mex_one_gyro_output_is_the_imu_sites_angular_jacobian(standing):
     np.testing.assert_allclose(sys.C[:3, nv:2 * nv], expected, atol=1e-6)
     np.testing.assert_allclose(sys.C[3:, :nv], dyn.com_jacobian(), atol=1e-12)
     assert sys.output_labels == ["imu/gyro:x", "imu/gyro:y", "imu/gyro:z", "com:x", "com:y", "com:z"]
+
+
+def test_a_urdf_arm_through_the_robot_stack_matches_its_analytic_model():
+    """tests/data's two-link arm (welded to the world, shoulder geared 50:1) under mexone's own
+    actuators: effort inputs through the motors' feed-forward, the implicit step's damping,
+    the operating point's efforts = g(q); the analytic model of the same equations."""
+    from pathlib import Path
+
+    urdf = Path(__file__).parents[1] / "data" / "robots" / "arm" / "arm.urdf"
+    lab = Lab.create(urdf, controllers="auto")
+    q = np.array([0.4, 0.6])
+    point = operating_point(lab, {"shoulder": q[0], "elbow": q[1]}, support="fixed")
+    sys = linearize(lab, point=point)
+    m1, c1, i1, m2, c2, i2, l1, g = 0.5, 0.15, 0.0038, 0.3, 0.125, 0.0016, 0.3, 9.81
+    s1, s12, co1, co12, co2 = np.sin(q[0]), np.sin(q.sum()), np.cos(q[0]), np.cos(q.sum()), np.cos(q[1])
+    gravity = -g * np.array([(m1 * c1 + m2 * l1) * s1 + m2 * c2 * s12, m2 * c2 * s12])
+    np.testing.assert_allclose(point.efforts, gravity, rtol=1e-9)
+    assert point.joints == ("shoulder", "elbow") and point.contacts == ()
+    mass = np.array([[i1 + i2 + m1 * c1**2 + m2 * (l1**2 + c2**2 + 2 * l1 * c2 * co2),
+                      i2 + m2 * (c2**2 + l1 * c2 * co2)],
+                     [i2 + m2 * (c2**2 + l1 * c2 * co2), i2 + m2 * c2**2]])
+    stiffness = -g * np.array([[(m1 * c1 + m2 * l1) * co1 + m2 * c2 * co12, m2 * c2 * co12],
+                               [m2 * c2 * co12, m2 * c2 * co12]])  # dg/dq
+    damping = np.diag([0.05, 0.05])
+    h = lab.sim.model.opt.timestep
+    solve = h * np.linalg.inv(mass + h * damping)  # implicitfast: (M + h D) dv = h f
+    dv_dq, dv_dv = -solve @ stiffness, np.eye(2) - solve @ damping
+    a = np.block([[np.eye(2) + h * dv_dq, h * dv_dv], [dv_dq, dv_dv]])
+    b = np.vstack([h * solve, solve])
+    assert_relative(sys.A - np.eye(4), a - np.eye(4))
+    assert_relative(sys.B, b)
+    assert sys.input_labels == ["shoulder:effort", "elbow:effort"]
+    np.testing.assert_allclose(sys.linearization.u0, gravity, rtol=1e-9)
