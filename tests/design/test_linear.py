@@ -320,3 +320,19 @@ def test_a_urdf_arm_through_the_robot_stack_matches_its_analytic_model():
     assert_relative(sys.B, b)
     assert sys.input_labels == ["shoulder:effort", "elbow:effort"]
     np.testing.assert_allclose(sys.linearization.u0, gravity, rtol=1e-9)
+    # the same arm with its position PIDs closing the loop (auto gains, no I term here):
+    # tau = kp (u - q) - kd dq, kd integrated implicitly with the damping
+    from mexone.control.hardware import motor_gains
+
+    model = lab.sim.model
+    kp, kd = (np.diag(v) for v in zip(*(motor_gains(model, model.actuator(j).id) for j in point.joints),
+                                        strict=True))
+    closed = linearize(lab, point=point, inputs="position")
+    solve = h * np.linalg.inv(mass + h * (damping + kd))
+    dv_dq, dv_dv = -solve @ (stiffness + kp), np.eye(2) - solve @ (damping + kd)
+    a = np.block([[np.eye(2) + h * dv_dq, h * dv_dv], [dv_dq, dv_dv]])
+    b = np.vstack([h * solve @ kp, solve @ kp])
+    assert_relative(closed.A - np.eye(4), a - np.eye(4))
+    assert_relative(closed.B, b)
+    np.testing.assert_allclose(closed.linearization.u0, q)
+    assert np.all(np.abs(np.linalg.eigvals(closed.A)) < 1)  # the PIDs hold it
