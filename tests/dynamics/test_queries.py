@@ -287,6 +287,10 @@ def test_snapshot_goes_through_the_simulation_thread_while_a_loop_runs():
         stop.set()
         loop.join()
     assert "l_forearm" in dyn.frames
+    # the loop's thread has ended: nobody drains the work queue, the state is read directly
+    assert not lab.sim.loop_elsewhere()
+    after = Dynamics.snapshot(lab, timeout=0.5)
+    np.testing.assert_array_equal(after.q, lab.sim.data.qpos)
 
 
 def test_com_and_momentum_of_a_model_with_two_free_bodies():

@@ -34,7 +34,6 @@ nothing else approximated.
 from __future__ import annotations
 
 import copy
-import threading
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -94,8 +93,7 @@ def _take(source, data: mujoco.MjData | None) -> _Plant:
         feet = tuple(f for f in ("l_foot", "r_foot") if f in sim.compiled.bodies)
         return _copy_plant(model, sim.data, joints, root, sim.compiled.spec, feet)
 
-    loop = getattr(sim, "loop_thread", None)
-    if loop is None or loop == threading.get_ident():
+    if not sim.loop_elsewhere():
         return take()
     return sim.work.call(take)
 

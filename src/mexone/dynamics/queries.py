@@ -24,7 +24,6 @@ moving with it: v = J[:3] dq, w = J[3:] dq.
 
 from __future__ import annotations
 
-import threading
 from collections.abc import Iterable, Mapping
 from typing import TYPE_CHECKING, Any
 
@@ -92,8 +91,7 @@ class Dynamics:
             links = sim.compiled.bodies
             return cls(sim.model, state, links, links.values(), copy=False)
 
-        loop = getattr(sim, "loop_thread", None)
-        if loop is None or loop == threading.get_ident():
+        if not sim.loop_elsewhere():
             return take()
         return sim.work.call(take, timeout=timeout)
 

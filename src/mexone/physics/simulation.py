@@ -209,6 +209,14 @@ class Simulation:
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
         self.reset()
 
+    def loop_elsewhere(self) -> bool:
+        """True while another thread, alive, runs the loop: reach MuJoCo through `work.call`
+        (else the caller is the only one stepping and may read the data directly)."""
+        loop = self.loop_thread
+        if loop is None or loop == threading.get_ident():
+            return False
+        return any(t.ident == loop for t in threading.enumerate())
+
     # ----- clock ---------------------------------------------------------------------------------
     @property
     def time(self) -> float:
