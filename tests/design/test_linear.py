@@ -336,3 +336,24 @@ def test_a_urdf_arm_through_the_robot_stack_matches_its_analytic_model():
     assert_relative(closed.B, b)
     np.testing.assert_allclose(closed.linearization.u0, q)
     assert np.all(np.abs(np.linalg.eigvals(closed.A)) < 1)  # the PIDs hold it
+
+
+def test_an_integral_with_gain_is_a_state_and_one_without_is_not(standing):
+    """A PID's integral (MuJoCo act) stays in the model only when its ki acts on something: an
+    integral with ki = 0 would be a mode at 1 no input or cost sees (dlqr refuses those)."""
+    import copy
+
+    model = copy.copy(standing.sim.model)
+    data = mujoco.MjData(model)
+    mujoco.mj_copyData(data, model, standing.sim.data)
+    integral = model.actuator("l_elbow/i").id
+    model.actuator_gainprm[integral, 0] = 5.0  # ki, and its clamps (the hardware writes both)
+    model.actuator_forcerange[integral] = (-1.0, 1.0)
+    sys = linearize(model, data, inputs="ctrl")
+    acts = [s for s in sys.state_labels if s.endswith(":act")]
+    assert acts == ["l_elbow/i:act"]
+    assert sys.nstates == 2 * model.nv + 1
+    assert sys.ninputs == model.nu and "l_elbow:ff" in sys.input_labels
+    row = sys.state_labels.index("l_elbow/i:act")
+    elbow = sys.state_labels.index("l_elbow:q")
+    assert sys.A[row, elbow] == pytest.approx(-model.opt.timestep, rel=1e-6)  # dz = (q_ref - q) dt
