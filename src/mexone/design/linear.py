@@ -43,7 +43,7 @@ import numpy as np
 
 from mexone.control.hardware import INTEGRAL_SUFFIX
 from mexone.dynamics import Dynamics
-from mexone.errors import InputError
+from mexone.errors import ArgumentTypeError, InputError
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
@@ -71,16 +71,17 @@ class _Plant:
     qvel_index: np.ndarray | None = None
 
 
-def _take(source, data: mujoco.MjData | None) -> _Plant:
+def _take(source, data: mujoco.MjData | None, who: str = "linearize") -> _Plant:
     """A copy of the source's model (its gains as set now) and state, taken in the simulation
     thread when a loop runs in another one."""
     if isinstance(source, mujoco.MjModel):
         if not isinstance(data, mujoco.MjData):
-            raise TypeError("linearize(model, data): give the MjData of the state too")
+            raise ArgumentTypeError(f"{who}(model, data): give the MjData of the state too")
         return _copy_plant(source, data, [], None, None, ())
     sim = getattr(source, "sim", source)
     if not hasattr(sim, "work") or not hasattr(sim, "compiled"):
-        raise TypeError("takes a mexone Lab or Simulation, or a mujoco.MjModel and MjData")
+        raise ArgumentTypeError(f"{who} takes a mexone Lab or Simulation, or a mujoco.MjModel "
+                                f"and its MjData, not {type(source).__name__}")
 
     def take() -> _Plant:
         model = sim.model
@@ -140,8 +141,10 @@ def operating_point(source, pose: Mapping[str, float] | None = None, support: st
     must be lifted by the pose) or "fixed" (no ground: the base held where it is)."""
     if support not in SUPPORTS:
         raise InputError(f"support '{support}' is not one of {', '.join(SUPPORTS)}")
-    plant = _take(source, data)
+    plant = _take(source, data, "operating_point")
     model, d = plant.model, plant.data
+    if pose is not None and not isinstance(pose, Mapping):
+        raise ArgumentTypeError("operating_point: pose is a mapping of joint names to angles (rad)")
     for name, value in (pose or {}).items():
         joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if joint < 0 or int(model.jnt_type[joint]) not in _SCALAR_JOINTS:

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import mujoco
 import numpy as np
 
-from mexone.errors import InputError
+from mexone.errors import ArgumentTypeError, InputError
 from mexone.ranges import number_text
 
 if TYPE_CHECKING:
@@ -54,7 +54,7 @@ class Dynamics:
                  links: Mapping[str, int] | None = None,
                  robot_bodies: Iterable[int] | None = None, *, copy: bool = True):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
-            raise TypeError("Dynamics(model, data) takes a mujoco.MjModel and a mujoco.MjData")
+            raise ArgumentTypeError("Dynamics(model, data) takes a mujoco.MjModel and a mujoco.MjData")
         self.model = model
         self._source = data
         self._data = mujoco.MjData(model) if copy else data
@@ -81,7 +81,7 @@ class Dynamics:
         loop runs in another thread, so it is consistent. Its `refresh()` changes nothing."""
         sim: Simulation = getattr(lab, "sim", lab)
         if not hasattr(sim, "work") or not hasattr(sim, "compiled"):
-            raise TypeError("Dynamics.snapshot(lab) takes a mexone Lab or Simulation")
+            raise ArgumentTypeError("Dynamics.snapshot(lab) takes a mexone Lab or Simulation")
 
         def take() -> Dynamics:
             state = mujoco.MjData(sim.model)
