@@ -69,7 +69,8 @@ def test_any_linearize_request_is_a_model_or_one_line(period, inputs, joints):
 
 @fuzz(20)
 @given(pose=st.dictionaries(st.sampled_from(["l_elbow", "r_knee", "pelvis_free", "nope"]),
-                            st.floats(allow_nan=True, allow_infinity=True, width=32), max_size=2),
+                            st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32),
+                                      st.text(max_size=3), st.none()), max_size=2),
        support=st.sampled_from(["both", "left", "right", "fixed", "one"]))
 def test_any_operating_point_request_is_a_point_or_one_line(pose, support):
     lab = _lab()

@@ -150,6 +150,10 @@ def operating_point(source, pose: Mapping[str, float] | None = None, support: st
         if joint < 0 or int(model.jnt_type[joint]) not in _SCALAR_JOINTS:
             raise InputError(f"pose names '{name}', which is not a hinge or slide joint of the model",
                              hint="joints: " + ", ".join(plant.joints or _joint_names(model)))
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            raise InputError(f"pose angle of '{name}' is not a number") from None
         if not np.isfinite(value):
             raise InputError(f"pose angle of '{name}' is not finite")
         low, high = model.jnt_range[joint]
