@@ -233,7 +233,7 @@ def test_bad_requests_are_one_line_errors(standing):
         linearize(standing, period=0.0015)
     with pytest.raises(InputError, match="no sensor named 'gyro'.*imu/gyro"):
         linearize(standing, outputs=["gyro"])
-    with pytest.raises(InputError, match="knee: not an actuated joint.*l_knee"):
+    with pytest.raises(InputError, match="'knee': not an actuated joint.*l_knee"):
         linearize(standing, joints=["knee"])
     with pytest.raises(InputError, match="support 'one' is not one of both, left, right, fixed"):
         operating_point(standing, support="one")

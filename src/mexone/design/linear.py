@@ -148,17 +148,17 @@ def operating_point(source, pose: Mapping[str, float] | None = None, support: st
     for name, value in (pose or {}).items():
         joint = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, name)
         if joint < 0 or int(model.jnt_type[joint]) not in _SCALAR_JOINTS:
-            raise InputError(f"pose names '{name}', which is not a hinge or slide joint of the model",
+            raise InputError(f"pose names {name!r}, which is not a hinge or slide joint of the model",
                              hint="joints: " + ", ".join(plant.joints or _joint_names(model)))
         try:
             value = float(value)
         except (TypeError, ValueError):
-            raise InputError(f"pose angle of '{name}' is not a number") from None
+            raise InputError(f"pose angle of {name!r} is not a number") from None
         if not np.isfinite(value):
-            raise InputError(f"pose angle of '{name}' is not finite")
+            raise InputError(f"pose angle of {name!r} is not finite")
         low, high = model.jnt_range[joint]
         if model.jnt_limited[joint] and not low - 1e-9 <= value <= high + 1e-9:
-            raise InputError(f"pose angle {value:g} of '{name}' is outside its limits [{low:g}, {high:g}]")
+            raise InputError(f"pose angle {value:g} of {name!r} is outside its limits [{low:g}, {high:g}]")
         d.qpos[model.jnt_qposadr[joint]] = value
     d.qvel[:] = 0.0
     d.qacc[:] = 0.0
@@ -312,7 +312,7 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     chosen = list(plant.joints if joints is None else joints)
     unknown = [j for j in chosen if j not in plant.joints]
     if unknown and inputs != "ctrl":
-        raise InputError(f"{', '.join(unknown)}: not an actuated joint of the model",
+        raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
                          hint="actuated joints: " + (", ".join(plant.joints) or "none (no controllers)"))
     if inputs != "ctrl" and not chosen:
         raise InputError(f"inputs '{inputs}' needs mexone's joint actuators; this model has none",
@@ -421,7 +421,7 @@ def _check_outputs(model: mujoco.MjModel, outputs: Iterable[str] | None) -> list
             continue
         if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, name) < 0:
             listed = ", ".join(model.sensor(i).name for i in range(model.nsensor)) or "none"
-            raise InputError(f"no sensor named '{name}' in the model",
+            raise InputError(f"no sensor named {name!r} in the model",
                              hint=f"outputs: a sensor ({listed}), 'com', or 'pose:<frame>'")
     return names
 
