@@ -69,7 +69,7 @@ def queries(repeat: int) -> dict[str, float]:
         "linearize(lab, point), full: 54 states, 21 efforts, ms": lambda: linearize(lab, point=point),
         "linearize, full, with the IMU as outputs, ms":
             lambda: linearize(lab, point=point, outputs=["imu/gyro", "imu/acc"]),
-        "linearize, one arm, fixed base (recompiled), ms":
+        "linearize, one arm, fixed base (after its first call), ms":
             lambda: linearize(lab, joints=arm, held="rigid", fixed_base=True),
     }
     out.update({name: per_call(fn, max(1, repeat // 200)) / 1000 for name, fn in slow.items()})
