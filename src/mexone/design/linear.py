@@ -309,7 +309,7 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     plant = _take(source, data)
     if point is not None:
         _apply(plant, point)
-    chosen = list(plant.joints if joints is None else joints)
+    chosen = list(plant.joints if joints is None else [joints] if isinstance(joints, str) else joints)
     unknown = [j for j in chosen if j not in plant.joints]
     if unknown and inputs != "ctrl":
         raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
