@@ -20,7 +20,7 @@ from mexone.cli.common import (
 )
 from mexone.cli.ros import add_ros_options, connect_ros, urdf_text
 from mexone.control.metrics import TrackingRecorder
-from mexone.errors import InputError
+from mexone.errors import InputError, RoutineError
 from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines import supervisor
@@ -117,6 +117,8 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     with recording(lab, args.record, args.force):
         try:
             runner.run(args.duration, on_tick=on_tick, tick=tick)
+        except RoutineError:
+            pass  # runner.error: reported with the run's report below, exit 1
         except DivergenceError as exc:
             diverged = exc.one_line()
             runner.stop()
