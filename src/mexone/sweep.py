@@ -200,7 +200,7 @@ def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
 
     timer = sim.add_periodic(0.01, sample)
     try:
-        RoutineRunner(lab, spec.routine).run(spec.duration)  # a failed routine: RoutineError
+        RoutineRunner(lab, spec.routine).run(spec.duration, hold=True)  # failed: RoutineError
     finally:
         sim.remove_periodic(timer)
     return {"rise_time": None, "overshoot": None, "settling_time": None, **totals}

@@ -61,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     with recording(lab, args.output, args.force):
         try:
             if runner:
-                runner.run(args.duration)
+                runner.run(args.duration, hold=True)
             else:
                 lab.sim.run(args.duration, until=signals.requested)  # a signal ends it early
         except RoutineError as exc:  # the bag keeps what happened up to the failure

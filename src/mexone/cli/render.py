@@ -102,7 +102,8 @@ def run(args: argparse.Namespace) -> int:
             try:
                 frame(lab.sim)
                 length = None if args.duration is None else args.duration - 1.0 / args.fps
-                runner.run(length, on_tick=frame, tick=1.0 / args.fps, default=6.0 - 1.0 / args.fps)
+                runner.run(length, on_tick=frame, tick=1.0 / args.fps, default=6.0 - 1.0 / args.fps,
+                           hold=True)
             finally:
                 bar.close()
                 video.close()

@@ -197,10 +197,13 @@ class RoutineRunner:
             bind(None)
 
     def run(self, duration: float | None, on_tick=None, tick: float = 0.05,
-            default: float = DEFAULT_DURATION) -> None:
+            default: float = DEFAULT_DURATION, hold: bool = False) -> None:
         """Simulate until every routine ends or `duration` s of sim time pass (a routine that
         stops yielding is abandoned after the stall time, with an error). duration None: as
-        long as the routines declare (declared_duration), else `default` s.
+        long as the routines declare (declared_duration), else `default` s. hold: when the
+        routines end first (without an error), simulate on to the duration with the
+        controllers holding their last commands, so what a routine's last lines set off (a
+        push, a step) shows: the CLI's runs last their duration.
 
         Raises RoutineError (after the run ended and the routines stopped) when a routine
         failed: its FILE:LINE and exception in one line, the whole report in `.details` (also
@@ -221,6 +224,8 @@ class RoutineRunner:
         finally:
             self.stop()
         self.check()
+        while hold and remaining > sim.timestep / 2 and not signals.requested():
+            remaining -= sim.run(remaining, on_tick=on_tick, tick=tick, until=signals.requested)
 
     def check(self) -> None:
         """Raise RoutineError if a routine failed (run() calls it; a caller of start() may)."""
