@@ -38,7 +38,7 @@ def add_parser(sub) -> None:
     parser = sub.add_parser("check", help="print the kinematic tree and lint a robot model",
                             description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("model", nargs="?", type=Path,
-                        help="URDF, .urdf.xacro, .sdf or Gazebo model folder "
+                        help="URDF, .urdf.xacro, .sdf, Gazebo model folder or MJCF (.xml) "
                              "(default: the built-in Mex-One with its controllers)")
     parser.add_argument("--controllers", type=Path, metavar="YAML",
                         help="ros_control controller YAML to check against the model")
