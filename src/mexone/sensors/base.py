@@ -1,23 +1,40 @@
-"""What every simulated sensor shares: its topics, its header, and lazily measured MuJoCo data.
+"""What every simulated sensor type shares, and the registry that makes one module a sensor type.
 
-A sensor publishes at its update rate in sim time, from the simulation thread, and only while
-someone listens to one of its topics (as gazebo_ros plugins do): nobody listening, no timer, no
-cost. MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however many
-sensors ask.
+A sensor type is ONE plug-in (a `Sensor` subclass registered with `register_sensor`), as a
+ros2_control semantic component plus its broadcaster:
+
+- `build`: its MjSpec edit (sites, MuJoCo sensors, cameras) before the model compiles;
+- `state_type` and `read`: its state interfaces, a small dataclass of numpy arrays with
+  ros2_control's field names, filled lazily once per instant (`Sensor.state()`): only sensors
+  somebody reads cost anything;
+- `message_type` and `message`: what its broadcaster publishes, built from that state, at the
+  sensor's update rate, only while someone listens to its topic (as gazebo_ros plugins and
+  ros2_control's broadcasters do);
+- `plot`: its plot signals (`<name>/<field>/<axis>`), and `pane`/`view`: its GUI view.
+
+MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however many sensors ask.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from mexone.bus.msgs import Header, Time
 from mexone.bus.topics import Bus, resolve_name
+from mexone.description import sensors as declared
+from mexone.description.model import RobotModel
 from mexone.description.sensors import SensorSpec
 from mexone.physics.simulation import Simulation
 
-__all__ = ["Output", "Measure", "Sensor", "topic_name"]
+__all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "register_sensor",
+           "SENSOR_CLASSES", "sensor_type", "AXES"]
+
+AXES = {3: "xyz", 4: "xyzw", 6: ("x", "y", "z", "rx", "ry", "rz")}  # plot signals per array size
 
 
 def topic_name(namespace: str, name: str) -> str:
@@ -54,8 +71,12 @@ class Measure:
         self.sim = sim
         self._at = -1
         sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+        sim.on_reset(self.invalidate)
 
-    def data(self):
+    def invalidate(self) -> None:
+        self._at = -1
+
+    def data(self) -> np.ndarray:
         sim = self.sim
         if self._at != sim.time_ns:
             model, data = sim.model, sim.data
@@ -73,6 +94,16 @@ class Measure:
 
 @dataclass
 class Sensor:
+    """One declared sensor in a running simulation. Subclasses (one per sensor type) set the
+    class attributes and override `build`, `setup`, `read` and `message`."""
+
+    type_name: ClassVar[str] = ""  # the SDF <sensor type="...">; set by register_sensor
+    state_type: ClassVar[type | None] = None  # its state interfaces; None: no state (cameras)
+    message_type: ClassVar[type | None] = None  # the message of its main topic
+    broadcaster: ClassVar[str] = ""  # the ros2_control broadcaster that would publish it
+    plot: ClassVar[dict[str, str]] = {}  # state field -> unit: the plot signals it offers
+    pane: ClassVar[tuple[str, str] | None] = None  # GUI: (title, "field/axis") per sensor type
+
     spec: SensorSpec
     sim: Simulation
     bus: Bus
@@ -82,8 +113,46 @@ class Sensor:
     outputs: list[Output] = field(default_factory=list)
     seq: int = 0
 
+    # ----- the type's model edit (before the model compiles) ---------------------------------
+    @classmethod
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
+        """Add what this type needs to the MjSpec (a site, MuJoCo sensors, a camera) on `body`,
+        the MuJoCo body of the sensor's link. Nothing by default."""
+
+    # ----- runtime -------------------------------------------------------------------------------
     def __post_init__(self) -> None:
-        """Each sensor type finds its MuJoCo data and names its outputs here."""
+        self._state = self.state_type() if self.state_type is not None else None
+        self._at = -1
+        self.setup()
+        if not self.outputs and self.message_type is not None:
+            self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
+                                   self.message_type)]
+
+    def setup(self) -> None:
+        """Find this sensor's MuJoCo data (ids, addresses); name its outputs if it has several."""
+
+    def read(self, state: Any) -> None:
+        """Fill `state` (this type's state_type) with the values at the current instant."""
+        raise NotImplementedError
+
+    def message(self, state: Any) -> object:
+        """The broadcaster's message for the main topic, built from `state`."""
+        raise NotImplementedError
+
+    def state(self) -> Any:
+        """The state interfaces at this instant, read on the first request of the instant (the
+        same object each time: copy an array to keep it past the instant)."""
+        if self._state is None:
+            raise KeyError(f"{self.type_name} sensor '{self.spec.name}' has no state interfaces")
+        now = self.sim.time_ns
+        if self._at != now:
+            self.read(self._state)
+            self._at = now
+        return self._state
+
+    def invalidate(self) -> None:
+        self._at = -1
 
     @property
     def frame(self) -> str:
@@ -105,4 +174,78 @@ class Sensor:
         return self.bus.wanted(output.topic)
 
     def publish(self, sim: Simulation) -> None:
-        raise NotImplementedError
+        """The broadcaster's tick: the main topic's message from this instant's state."""
+        self.bus.publish(self.outputs[0].topic, self.message(self.state()))
+
+    # ----- plots and the page --------------------------------------------------------------------
+    def signals(self) -> list[tuple[str, str]]:
+        """(signal name, unit) of every plot signal: `<name>/<field>/<axis>`, in `values` order."""
+        state = self._state
+        out = []
+        for name, unit in self.plot.items():
+            size = np.size(getattr(state, name))
+            out += [(f"{self.spec.name}/{name}/{a}", unit) for a in AXES.get(size, range(size))]
+        return out
+
+    def values(self) -> np.ndarray:
+        """The plot signals' values now (`signals` order)."""
+        state = self.state()
+        return np.concatenate([np.ravel(getattr(state, name)) for name in self.plot]) \
+            if self.plot else np.zeros(0)
+
+    def view(self) -> str | None:
+        """A line of markdown for the page's Sensors panel (None: nothing to show)."""
+        return None
+
+
+SENSOR_CLASSES: dict[str, type[Sensor]] = {}  # SDF sensor type -> its plug-in
+
+
+def register_sensor(type_name: str) -> Callable[[type[Sensor]], type[Sensor]]:
+    """Class decorator: make `cls` the plug-in of SDF sensor type `type_name` (declared in a
+    URDF's `<gazebo reference=...><sensor type="type_name">`), everywhere at once: the URDF/SDF
+    reader accepts the type, the model builder calls its `build`, the suite runs it."""
+
+    def add(cls: type[Sensor]) -> type[Sensor]:
+        cls.type_name = cls.type_name or type_name
+        SENSOR_CLASSES[type_name] = cls
+        declared.add_sensor_type(type_name)
+        return cls
+
+    return add
+
+
+def sensor_type(type_name: str) -> type[Sensor]:
+    try:
+        return SENSOR_CLASSES[type_name]
+    except KeyError:
+        raise KeyError(f"no sensor plug-in for type '{type_name}' (registered: "
+                       f"{', '.join(SENSOR_CLASSES)})") from None
+
+
+class SensorStates(Mapping[str, Any]):
+    """name -> the sensor's state object at this instant (see `Sensor.state`): what controllers
+    read as `state.sensors[name]`. Only the sensors looked up are read."""
+
+    def __init__(self, sensors: Mapping[str, Sensor]):
+        self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
+
+    def __getitem__(self, name: str) -> Any:
+        sensor = self._sensors.get(name)
+        if sensor is None:
+            raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
+                           f"{', '.join(self._sensors) or 'none'})")
+        return sensor.state()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._sensors)
+
+    def __len__(self) -> int:
+        return len(self._sensors)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._sensors
+
+    def kinds(self) -> dict[str, str]:
+        """name -> sensor type, for listings."""
+        return {n: s.type_name for n, s in self._sensors.items()}

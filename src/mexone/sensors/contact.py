@@ -1,4 +1,5 @@
-"""Contact sensor (gazebo_ros_bumper): gazebo_msgs/ContactsState naming what touches the link.
+"""Contact sensor (gazebo_ros_bumper): gazebo_msgs/ContactsState naming what touches the link; its
+state interfaces are whether it touches anything and the total force on it.
 
 One ContactState per pair of colliding collision elements, named as Gazebo names them
 (`model::link::collision`; the ground is `ground_plane::link::collision`), with every contact
@@ -7,14 +8,16 @@ point, its normal, depth and the force on the sensor's link, in the world frame.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import mujoco
 import numpy as np
 
 from mexone.bus.msgs import ContactsState, ContactState, Vector3, Wrench
 from mexone.physics.compile import GROUP_VISUAL
-from mexone.sensors.base import Output, Sensor, topic_name
+from mexone.sensors.base import Sensor, register_sensor
 
-__all__ = ["ContactSensor", "collision_names"]
+__all__ = ["ContactSensor", "ContactSensorState", "collision_names"]
 
 GROUND_NAME = "ground_plane::link::collision"
 
@@ -35,8 +38,24 @@ def collision_names(sim) -> dict[int, tuple[str, str]]:
     return out
 
 
+@dataclass
+class ContactSensorState:
+    """The contact sensor's state interfaces."""
+
+    in_contact: bool = False
+    """whether any of its collision elements touches something"""
+    force: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """N, world frame: the total force the contacts apply to the sensor's link"""
+
+
+@register_sensor("contact")
 class ContactSensor(Sensor):
-    def __post_init__(self) -> None:
+    state_type = ContactSensorState
+    message_type = ContactsState
+    broadcaster = "gazebo_ros_bumper"
+    plot = {"force": "N"}
+
+    def setup(self) -> None:
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them
@@ -45,55 +64,89 @@ class ContactSensor(Sensor):
         self.geoms = mine
         self._mine_list = [g in mine for g in range(self.sim.model.ngeom)]  # geom id -> ours
         self._force6 = np.zeros(6)
-        self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
-                               ContactsState)]
+        self._points: list = []  # this instant's contacts (see _contact_points)
+        self._points_at = -1
 
-    def contacts(self) -> list[ContactState]:
-        """Our contacts, grouped by pair of collision elements. MuJoCo's contact arrays are
-        read once each and the few contacts of one sole handled in plain Python: at a handful
-        of points per sole, per-point numpy calls cost more than the arithmetic."""
+    def _contact_points(self) -> list[tuple]:
+        """Our contacts at this instant, once per instant: (index, own geom, other geom, sign,
+        force on us (world), position, normal's frame row, distance). MuJoCo's contact arrays
+        are read once each and the few contacts of one sole handled in plain Python: at a
+        handful of points per sole, per-point numpy calls cost more than the arithmetic."""
+        now = self.sim.time_ns
+        if self._points_at == now:
+            return self._points
+        self._points_at = now
         model, data = self.sim.model, self.sim.data
         ncon = data.ncon
+        self._points = points = []
         if ncon == 0:
-            return []
+            return points
         mine = self._mine_list
         picked = [(i, g1, g2) for i, (g1, g2) in enumerate(data.contact.geom[:ncon].tolist())
                   if mine[g1] or mine[g2]]
         if not picked:
-            return []
+            return points
         index = [i for i, _, _ in picked]
         frames = data.contact.frame[index].tolist()  # rows: normal, two tangents (world)
         positions = data.contact.pos[index].tolist()
         dists = data.contact.dist[index].tolist()
         local = self._force6
-        states: dict[tuple[int, int], ContactState] = {}
-        totals: dict[tuple[int, int], list[float]] = {}
+        contact_force = mujoco.mj_contactForce
         for k, (i, g1, g2) in enumerate(picked):
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
             own, other, sign = (g1, g2, -1.0) if mine[g1] else (g2, g1, 1.0)
-            mujoco.mj_contactForce(model, data, i, local)
+            contact_force(model, data, i, local)
             fn, t1, t2 = local[0] * sign, local[1] * sign, local[2] * sign
             f = frames[k]
             force = [fn * f[0] + t1 * f[3] + t2 * f[6], fn * f[1] + t1 * f[4] + t2 * f[7],
                      fn * f[2] + t1 * f[5] + t2 * f[8]]
+            points.append((i, own, other, sign, force, positions[k], f, dists[k]))
+        return points
+
+    def invalidate(self) -> None:
+        super().invalidate()
+        self._points_at = -1
+
+    def read(self, state: ContactSensorState) -> None:
+        points = self._contact_points()
+        state.in_contact = bool(points)
+        fx = fy = fz = 0.0
+        for point in points:
+            force = point[4]
+            fx, fy, fz = fx + force[0], fy + force[1], fz + force[2]
+        state.force[0], state.force[1], state.force[2] = fx, fy, fz
+
+    def contacts(self) -> list[ContactState]:
+        """Our contacts, grouped by pair of collision elements (the message's states)."""
+        points = self._contact_points()
+        if not points:
+            return []
+        ncon = self.sim.data.ncon
+        names = self.names
+        states: dict[tuple[int, int], ContactState] = {}
+        totals: dict[tuple[int, int], list[float]] = {}
+        for i, own, other, sign, force, position, f, dist in points:
             pair = (own, other)
             state = states.get(pair)
             if state is None:
                 state = states[pair] = ContactState(
-                    info=f"Debug: i:({i}/{ncon})", collision1_name=self.names[own][1],
-                    collision2_name=self.names[other][1] if other in self.names
-                    else model.geom(other).name)
+                    info=f"Debug: i:({i}/{ncon})", collision1_name=names[own][1],
+                    collision2_name=names[other][1] if other in names
+                    else self.sim.model.geom(other).name)
                 totals[pair] = [0.0, 0.0, 0.0]
             total = totals[pair]
             total[0], total[1], total[2] = total[0] + force[0], total[1] + force[1], total[2] + force[2]
             state.wrenches.append(Wrench(Vector3(*force), Vector3()))
-            state.contact_positions.append(Vector3(*positions[k]))
+            state.contact_positions.append(Vector3(*position))
             state.contact_normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
-            state.depths.append(max(-dists[k], 0.0))
+            state.depths.append(max(-dist, 0.0))
         for pair, state in states.items():
             state.total_wrench.force = Vector3(*totals[pair])
         return list(states.values())
 
-    def publish(self, sim) -> None:
-        msg = ContactsState(self.header("world"), self.contacts())
-        self.bus.publish(self.outputs[0].topic, msg)
+    def message(self, state: ContactSensorState) -> ContactsState:
+        return ContactsState(self.header("world"), self.contacts())
+
+    def view(self) -> str:
+        state = self.state()
+        return f"{'🟢' if state.in_contact else '⚪'} `{self.link}` {state.force[2]:5.1f} N"
