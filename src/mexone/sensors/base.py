@@ -69,12 +69,37 @@ class Measure:
 
     def __init__(self, sim: Simulation):
         self.sim = sim
-        self._at = -1
+        self._at = self._contacts_at = self._stamp_at = -1
+        self._stamp = Time()
+        self._contacts: tuple[list, list, list, list] = ([], [], [], [])
         sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
         sim.on_reset(self.invalidate)
 
     def invalidate(self) -> None:
         self._at = -1
+        self._contacts_at = -1
+        self._stamp_at = -1
+
+    def stamp(self) -> Time:
+        """This instant's sim time as a message stamp, one (immutable) object for every message
+        of the instant."""
+        now = self.sim.time_ns
+        if self._stamp_at != now:
+            self._stamp = Time.from_nsec(now)
+            self._stamp_at = now
+        return self._stamp
+
+    def contacts(self) -> tuple[list, list, list, list]:
+        """This instant's contacts as plain lists, read once for every contact sensor: (geom
+        pairs, frames (9 each: normal, two tangents, world), positions, distances)."""
+        sim = self.sim
+        if self._contacts_at != sim.time_ns:
+            contact, ncon = sim.data.contact, sim.data.ncon
+            self._contacts = (contact.geom[:ncon].tolist(), contact.frame[:ncon].tolist(),
+                              contact.pos[:ncon].tolist(), contact.dist[:ncon].tolist()) \
+                if ncon else ([], [], [], [])
+            self._contacts_at = sim.time_ns
+        return self._contacts
 
     def data(self) -> np.ndarray:
         sim = self.sim
@@ -165,7 +190,7 @@ class Sensor:
 
     def header(self, frame: str | None = None) -> Header:
         self.seq += 1
-        return Header(self.seq, Time.from_nsec(self.sim.time_ns), frame or self.frame)
+        return Header(self.seq, self.measure.stamp(), frame or self.frame)
 
     def wanted(self, output: Output) -> bool:
         topic = self.bus.topics.get(output.topic)

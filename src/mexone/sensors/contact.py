@@ -20,6 +20,20 @@ from mexone.sensors.base import Sensor, register_sensor
 __all__ = ["ContactSensor", "ContactSensorState", "collision_names"]
 
 GROUND_NAME = "ground_plane::link::collision"
+# MuJoCo's contact sensor: whether a geom touches anything and the net force it applies, summed
+# in C in the sensor pass every other sensor shares
+_FOUND_AND_FORCE = (1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)) \
+    | (1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE))
+_NETFORCE = 3  # mjtConReduce's netforce: the sum over matching contacts, world frame
+
+
+def watched_collisions(robot, link: str, wanted: tuple[str, ...]) -> list[int]:
+    """Indices of the link's collision elements a contact sensor watches: those it names (by
+    Gazebo's element name), or all of them when it names none or none of those it names."""
+    names = [col.name or (f"{link}_collision" if i == 0 else f"{link}_collision_{i}")
+             for i, col in enumerate(robot.links[link].collisions)]
+    picked = [i for i, n in enumerate(names) if n in set(wanted)] if wanted else []
+    return picked or list(range(len(names)))
 
 
 def collision_names(sim) -> dict[int, tuple[str, str]]:
@@ -55,7 +69,31 @@ class ContactSensor(Sensor):
     broadcaster = "gazebo_ros_bumper"
     plot = {"force": "N"}
 
+    @classmethod
+    def build(cls, spec, body, sensor, robot) -> None:
+        """A MuJoCo contact sensor per watched collision geom (found, net force): the state
+        interfaces come out of the shared sensor pass, with no Python per contact."""
+        link = sensor.link
+        for i in watched_collisions(robot, link, sensor.collisions):
+            geom = f"{link}/collision/{i}"
+            if spec.geom(geom) is None:
+                continue
+            mj = spec.add_sensor(name=f"{sensor.name}/{i}", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                                 objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=geom)
+            params = np.zeros(len(mj.intprm), dtype=int)
+            params[:3] = (_FOUND_AND_FORCE, _NETFORCE, 1)
+            mj.intprm = params
+
     def setup(self) -> None:
+        model = self.sim.model
+        adrs = []
+        for i in watched_collisions(self.sim.robot, self.link, self.spec.collisions):
+            try:
+                adrs.append(int(model.sensor_adr[model.sensor(f"{self.spec.name}/{i}").id]))
+            except KeyError:
+                continue
+        self._found = np.array(adrs, dtype=int)  # sensordata: found, then the force (3)
+        self._force_rows = np.array([[a + 1, a + 2, a + 3] for a in adrs], dtype=int).reshape(-1, 3)
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them
@@ -69,38 +107,30 @@ class ContactSensor(Sensor):
 
     def _contact_points(self) -> list[tuple]:
         """Our contacts at this instant, once per instant: (index, own geom, other geom, sign,
-        force on us (world), position, normal's frame row, distance). MuJoCo's contact arrays
-        are read once each and the few contacts of one sole handled in plain Python: at a
-        handful of points per sole, per-point numpy calls cost more than the arithmetic."""
+        force on us (world), position, frame, distance). MuJoCo's contact arrays are read once
+        per instant for all contact sensors (`Measure.contacts`) and the few contacts of one
+        sole handled in plain Python: at a handful of points per sole, per-point numpy calls
+        cost more than the arithmetic."""
         now = self.sim.time_ns
         if self._points_at == now:
             return self._points
         self._points_at = now
-        model, data = self.sim.model, self.sim.data
-        ncon = data.ncon
         self._points = points = []
-        if ncon == 0:
-            return points
+        geoms, frames, positions, dists = self.measure.contacts()
         mine = self._mine_list
-        picked = [(i, g1, g2) for i, (g1, g2) in enumerate(data.contact.geom[:ncon].tolist())
-                  if mine[g1] or mine[g2]]
-        if not picked:
-            return points
-        index = [i for i, _, _ in picked]
-        frames = data.contact.frame[index].tolist()  # rows: normal, two tangents (world)
-        positions = data.contact.pos[index].tolist()
-        dists = data.contact.dist[index].tolist()
-        local = self._force6
-        contact_force = mujoco.mj_contactForce
-        for k, (i, g1, g2) in enumerate(picked):
+        model, data, local = self.sim.model, self.sim.data, self._force6
+        for i, (g1, g2) in enumerate(geoms):
+            if not (mine[g1] or mine[g2]):
+                continue
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
             own, other, sign = (g1, g2, -1.0) if mine[g1] else (g2, g1, 1.0)
-            contact_force(model, data, i, local)
-            fn, t1, t2 = local[0] * sign, local[1] * sign, local[2] * sign
-            f = frames[k]
+            mujoco.mj_contactForce(model, data, i, local)
+            fn, t1, t2 = local[:3].tolist()  # Python floats: numpy scalars are slow arithmetic
+            fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
+            f = frames[i]
             force = [fn * f[0] + t1 * f[3] + t2 * f[6], fn * f[1] + t1 * f[4] + t2 * f[7],
                      fn * f[2] + t1 * f[5] + t2 * f[8]]
-            points.append((i, own, other, sign, force, positions[k], f, dists[k]))
+            points.append((i, own, other, sign, force, positions[i], f, dists[i]))
         return points
 
     def invalidate(self) -> None:
@@ -108,13 +138,14 @@ class ContactSensor(Sensor):
         self._points_at = -1
 
     def read(self, state: ContactSensorState) -> None:
-        points = self._contact_points()
-        state.in_contact = bool(points)
-        fx = fy = fz = 0.0
-        for point in points:
-            force = point[4]
-            fx, fy, fz = fx + force[0], fy + force[1], fz + force[2]
-        state.force[0], state.force[1], state.force[2] = fx, fy, fz
+        if not len(self._found):
+            state.in_contact = False
+            state.force[:] = 0.0
+            return
+        data = self.measure.data()
+        state.in_contact = bool(data[self._found].any())
+        # MuJoCo's netforce is what the geom applies to the others: the force on it is minus that
+        np.negative(data[self._force_rows].sum(axis=0), out=state.force)
 
     def contacts(self) -> list[ContactState]:
         """Our contacts, grouped by pair of collision elements (the message's states)."""
