@@ -99,11 +99,23 @@ LIGHT_SENSOR_RATE = 100.0  # Hz of the controller reading the sensors' states in
 def read_states_at(lab: Lab, rate: float = LIGHT_SENSOR_RATE) -> None:
     """A controller's read phase at `rate`: every light sensor's state, every field touched."""
     states = lab.sensors.states
-    names = list(states)
+    imus = [n for n, k in states.kinds().items() if k == "imu"]
+    fts = [n for n, k in states.kinds().items() if k == "force_torque"]
+    contacts = [n for n, k in states.kinds().items() if k == "contact"]
 
-    def read(_sim) -> None:
-        for name in names:
-            vars(states[name]).values()  # every field, as a control law would take them
+    taken: list = []
+
+    def read(_sim) -> None:  # every field, as a balance controller takes them
+        taken.clear()
+        for name in imus:
+            imu = states[name]
+            taken.extend((imu.orientation, imu.angular_velocity, imu.linear_acceleration))
+        for name in fts:
+            ft = states[name]
+            taken.extend((ft.force, ft.torque))
+        for name in contacts:
+            contact = states[name]
+            taken.extend((contact.in_contact, contact.force))
 
     lab.sim.add_periodic(1.0 / rate, read)
 

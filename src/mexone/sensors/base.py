@@ -65,20 +65,30 @@ class Output:
 
 class Measure:
     """MuJoCo's sensor values at the current instant, computed on the first request (the
-    simulation steps with MuJoCo's sensor pass turned off)."""
+    simulation steps with MuJoCo's sensor pass turned off), and the light sensors' state arrays.
+
+    Sensor types whose state is a fixed linear function of MuJoCo's sensordata (reordering,
+    signs, sums, constant rotations) register it with `linear`; `refresh` then fills every such
+    array with one matrix-vector product per instant, and their state arrays are views into one
+    buffer. Python work per reading is what makes sensors cost: this keeps it to a few calls
+    however many sensors are read.
+    """
 
     def __init__(self, sim: Simulation):
         self.sim = sim
-        self._at = self._contacts_at = self._stamp_at = -1
+        self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
         self._stamp = Time()
         self._contacts: tuple[list, list, list, list] = ([], [], [], [])
+        self._terms: list[tuple[int, np.ndarray, np.ndarray]] = []  # (offset, rows, matrix)
+        self._size = 0
+        self._matrix: np.ndarray | None = None
+        self.buffer = np.zeros(0)
+        self._views: list[tuple[Callable[[np.ndarray], None], int, int]] = []
         sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
         sim.on_reset(self.invalidate)
 
     def invalidate(self) -> None:
-        self._at = -1
-        self._contacts_at = -1
-        self._stamp_at = -1
+        self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
 
     def stamp(self) -> Time:
         """This instant's sim time as a message stamp, one (immutable) object for every message
@@ -116,6 +126,36 @@ class Measure:
             self._at = sim.time_ns
         return sim.data.sensordata
 
+    def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
+        """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
+        receives out's view into the shared buffer once the buffer exists (before the first
+        refresh), to make it the state's arrays."""
+        rows = np.asarray(rows, dtype=int)
+        matrix = np.asarray(matrix, dtype=float).reshape(-1, len(rows))
+        self._terms.append((self._size, rows, matrix))
+        self._views.append((bind, self._size, self._size + len(matrix)))
+        self._size += len(matrix)
+        self._matrix = None
+
+    def _build(self) -> None:
+        nsensordata = self.sim.model.nsensordata
+        self._matrix = np.zeros((self._size, nsensordata))
+        for offset, rows, matrix in self._terms:
+            for j, row in enumerate(rows):
+                self._matrix[offset:offset + len(matrix), row] += matrix[:, j]
+        self.buffer = np.zeros(self._size)
+        for bind, start, stop in self._views:
+            bind(self.buffer[start:stop])
+
+    def refresh(self) -> None:
+        """Every registered linear state at this instant (once per instant)."""
+        if self._refreshed_at == self.sim.time_ns:
+            return
+        if self._matrix is None:
+            self._build()
+        np.dot(self._matrix, self.data(), out=self.buffer)
+        self._refreshed_at = self.sim.time_ns
+
 
 @dataclass
 class Sensor:
@@ -128,6 +168,8 @@ class Sensor:
     broadcaster: ClassVar[str] = ""  # the ros2_control broadcaster that would publish it
     plot: ClassVar[dict[str, str]] = {}  # state field -> unit: the plot signals it offers
     pane: ClassVar[tuple[str, str] | None] = None  # GUI: (title, "field/axis") per sensor type
+    linear: ClassVar[bool] = False  # its state comes from Measure.linear (read() then only
+    # adds what is not linear: noise, a rotation that moves)
 
     spec: SensorSpec
     sim: Simulation
@@ -158,8 +200,20 @@ class Sensor:
         """Find this sensor's MuJoCo data (ids, addresses); name its outputs if it has several."""
 
     def read(self, state: Any) -> None:
-        """Fill `state` (this type's state_type) with the values at the current instant."""
+        """Fill `state` (this type's state_type) with the values at the current instant (for a
+        `linear` type: finish what Measure.refresh filled in)."""
         raise NotImplementedError
+
+    def bind(self, **slices: slice) -> Callable[[np.ndarray], None]:
+        """For Measure.linear: make the state's fields views into the buffer, field -> slice of
+        the registered output."""
+
+        def bind(view: np.ndarray) -> None:
+            for name, part in slices.items():
+                setattr(self._state, name, view[part])
+            self._linear_view = view
+
+        return bind
 
     def message(self, state: Any) -> object:
         """The broadcaster's message for the main topic, built from `state`."""
@@ -172,6 +226,8 @@ class Sensor:
             raise KeyError(f"{self.type_name} sensor '{self.spec.name}' has no state interfaces")
         now = self.sim.time_ns
         if self._at != now:
+            if self.linear:
+                self.measure.refresh()
             self.read(self._state)
             self._at = now
         return self._state

@@ -56,10 +56,15 @@ def collision_names(sim) -> dict[int, tuple[str, str]]:
 class ContactSensorState:
     """The contact sensor's state interfaces."""
 
-    in_contact: bool = False
-    """whether any of its collision elements touches something"""
     force: np.ndarray = field(default_factory=lambda: np.zeros(3))
     """N, world frame: the total force the contacts apply to the sensor's link"""
+    count: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    """how many contact points touch its collision elements"""
+
+    @property
+    def in_contact(self) -> bool:
+        """Whether any of its collision elements touches something."""
+        return bool(self.count[0] > 0)
 
 
 @register_sensor("contact")
@@ -68,6 +73,7 @@ class ContactSensor(Sensor):
     message_type = ContactsState
     broadcaster = "gazebo_ros_bumper"
     plot = {"force": "N"}
+    linear = True
 
     @classmethod
     def build(cls, spec, body, sensor, robot) -> None:
@@ -92,8 +98,17 @@ class ContactSensor(Sensor):
                 adrs.append(int(model.sensor_adr[model.sensor(f"{self.spec.name}/{i}").id]))
             except KeyError:
                 continue
-        self._found = np.array(adrs, dtype=int)  # sensordata: found, then the force (3)
-        self._force_rows = np.array([[a + 1, a + 2, a + 3] for a in adrs], dtype=int).reshape(-1, 3)
+        # sensordata per geom: found, then the net force it applies (3): the force on the link
+        # is minus their sum, and the count their sum
+        rows = np.array([a + k for a in adrs for k in range(4)], dtype=int)
+        matrix = np.zeros((4, len(rows)))
+        for j in range(len(adrs)):
+            matrix[0:3, 4 * j + 1:4 * j + 4] = -np.eye(3)
+            matrix[3, 4 * j] = 1.0
+        if len(rows):
+            self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), count=slice(3, 4)))
+        else:
+            self.linear = False  # nothing to watch: never in contact
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them
@@ -138,14 +153,7 @@ class ContactSensor(Sensor):
         self._points_at = -1
 
     def read(self, state: ContactSensorState) -> None:
-        if not len(self._found):
-            state.in_contact = False
-            state.force[:] = 0.0
-            return
-        data = self.measure.data()
-        state.in_contact = bool(data[self._found].any())
-        # MuJoCo's netforce is what the geom applies to the others: the force on it is minus that
-        np.negative(data[self._force_rows].sum(axis=0), out=state.force)
+        """All in Measure.refresh (linear), or nothing to watch (zeros)."""
 
     def contacts(self) -> list[ContactState]:
         """Our contacts, grouped by pair of collision elements (the message's states)."""
@@ -180,4 +188,4 @@ class ContactSensor(Sensor):
 
     def view(self) -> str:
         state = self.state()
-        return f"{'🟢' if state.in_contact else '⚪'} `{self.link}` {state.force[2]:5.1f} N"
+        return f"{'🟢' if state.in_contact else '⚪'} `{self.link}` {float(state.force[2]):5.1f} N"

@@ -48,6 +48,7 @@ class ForceTorqueSensor(Sensor):
     broadcaster = "force_torque_sensor_broadcaster"
     plot = {"force": "N"}
     pane = ("force-torque sensors, Fz", "force/z")
+    linear = True
 
     @classmethod
     def build(cls, spec, body, sensor, robot) -> None:
@@ -66,9 +67,19 @@ class ForceTorqueSensor(Sensor):
         self.parent_body = self.sim.compiled.bodies.get(joint.parent)
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in _CHANNELS], name)
         spec = self.spec
-        self._sign = -1.0 if spec.measure_direction == "child_to_parent" else 1.0
-        self._sensor_rot = rpy_to_matrix(spec.pose.rpy).T if spec.ft_frame == "sensor" else None
-        self._sensor_offset = np.asarray(spec.pose.xyz, dtype=float)
+        # what MuJoCo measures (parent on child, child frame at the joint) -> what the sensor
+        # reports: a constant linear map (sign; the sensor frame's rotation and offset) and, for
+        # the parent frame, a rotation that moves with the joint (read())
+        matrix = np.eye(6)
+        if spec.ft_frame == "sensor":
+            rot_t = rpy_to_matrix(spec.pose.rpy).T
+            x, y, z = spec.pose.xyz  # the sensor's origin in the child frame
+            skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+            matrix = np.block([[rot_t, np.zeros((3, 3))], [-rot_t @ skew, rot_t]])
+        if spec.measure_direction == "child_to_parent":
+            matrix = -matrix
+        rows = np.r_[self.force:self.force + 3, self.torque:self.torque + 3]
+        self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), torque=slice(3, 6)))
         self._to_parent = spec.ft_frame == "parent" and self.parent_body is not None
 
     @property
@@ -88,22 +99,15 @@ class ForceTorqueSensor(Sensor):
                 self.sim.data.site_xpos[self.site].copy())
 
     def read(self, state: ForceTorqueState) -> None:
-        data = self.measure.data()
-        force, torque = data[self.force:self.force + 3], data[self.torque:self.torque + 3]
         if self._to_parent:
-            rot = self.sim.data.xmat[self.parent_body].reshape(3, 3).T \
-                @ self.sim.data.site_xmat[self.site].reshape(3, 3)
-            force, torque = rot @ force, rot @ torque
-        elif self._sensor_rot is not None:
-            torque = torque - np.cross(self._sensor_offset, force)  # about the sensor's origin
-            force, torque = self._sensor_rot @ force, self._sensor_rot @ torque
+            data = self.sim.data
+            rot = data.xmat[self.parent_body].reshape(3, 3).T @ data.site_xmat[self.site].reshape(3, 3)
+            state.force[:] = rot @ state.force
+            state.torque[:] = rot @ state.torque
         if self.noise.active:
-            values = self.noise.apply(np.concatenate((force, torque)) * self._sign)
-            state.force[:], state.torque[:] = values[:3], values[3:]
-        else:
-            np.multiply(force, self._sign, out=state.force)
-            np.multiply(torque, self._sign, out=state.torque)
+            self.noise.add_to(self._linear_view)
 
     def message(self, state: ForceTorqueState) -> WrenchStamped:
-        return WrenchStamped(self.header(), Wrench(Vector3(*state.force.tolist()),
-                                                   Vector3(*state.torque.tolist())))
+        v = self._linear_view.tolist()
+        return WrenchStamped(self.header(), Wrench(Vector3(v[0], v[1], v[2]),
+                                                   Vector3(v[3], v[4], v[5])))

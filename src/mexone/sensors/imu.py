@@ -41,6 +41,7 @@ class ImuSensor(Sensor):
     broadcaster = "imu_sensor_broadcaster"
     plot = {"angular_velocity": "rad/s", "linear_acceleration": "m/s²"}
     pane = ("linear acceleration", "linear_acceleration")
+    linear = True
 
     @classmethod
     def build(cls, spec, body, sensor, robot) -> None:
@@ -56,22 +57,21 @@ class ImuSensor(Sensor):
         acc = int(model.sensor_adr[model.sensor(f"{name}/acc").id])
         gyro = int(model.sensor_adr[model.sensor(f"{name}/gyro").id])
         quat = int(model.sensor_adr[model.sensor(f"{name}/quat").id])
-        self.rates = np.r_[gyro:gyro + 3, acc:acc + 3]  # sensordata of (gyro, acc), noise's order
-        self.quat = np.r_[quat + 1:quat + 4, quat]  # MuJoCo's w x y z as x y z w
+        rows = np.r_[quat + 1:quat + 4, quat, gyro:gyro + 3, acc:acc + 3]  # x y z w, gyro, acc
+        self.measure.linear(rows, np.eye(len(rows)), self.bind(
+            orientation=slice(0, 4), angular_velocity=slice(4, 7), linear_acceleration=slice(7, 10),
+            _rates=slice(4, 10)))
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in IMU_CHANNELS], name)
-        var = self.noise.variance
+        var = self.noise.variance.tolist()
         self.gyro_cov = [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]]
         self.acc_cov = [var[3], 0.0, 0.0, 0.0, var[4], 0.0, 0.0, 0.0, var[5]]
 
     def read(self, state: ImuState) -> None:
-        data = self.measure.data()
-        values = self.noise.apply(data[self.rates])
-        state.orientation[:] = data[self.quat]
-        state.angular_velocity[:] = values[:3]
-        state.linear_acceleration[:] = values[3:]
+        if self.noise.active:  # angular velocity and linear acceleration: one view of 6
+            self.noise.add_to(state._rates)
 
     def message(self, state: ImuState) -> Imu:
-        x, y, z, w = state.orientation.tolist()
-        return Imu(self.header(), Quaternion(x, y, z, w), [0.0] * 9,
-                   Vector3(*state.angular_velocity.tolist()), list(self.gyro_cov),
-                   Vector3(*state.linear_acceleration.tolist()), list(self.acc_cov))
+        v = self._linear_view.tolist()
+        return Imu(self.header(), Quaternion(v[0], v[1], v[2], v[3]), [0.0] * 9,
+                   Vector3(v[4], v[5], v[6]), list(self.gyro_cov),
+                   Vector3(v[7], v[8], v[9]), list(self.acc_cov))

@@ -40,17 +40,31 @@ class NoiseModel:
     def variance(self) -> np.ndarray:
         return self.stddev**2
 
+    def _next(self) -> np.ndarray:
+        """This reading's noise per channel (mean and bias included), from the current block."""
+        if self._row >= len(self._draws):
+            self._draws = self.rng.normal(0.0, 1.0, (BLOCK, len(self.stddev))) * self.stddev \
+                + self.offset
+            self._row = 0
+        self._row += 1
+        return self._draws[self._row - 1]
+
+    def add_to(self, values: np.ndarray) -> None:
+        """Add this reading's noise to `values` in place (one value per channel)."""
+        if self._quantized:
+            values[:] = self.apply(values)
+        else:
+            values += self._next()
+
     def apply(self, values: np.ndarray) -> np.ndarray:
+        """`values` with this reading's noise (one value per channel, or one channel over many
+        values: an image)."""
         if not self.active:
             return values
-        if len(values) != len(self.stddev):  # one channel over many values (an image)
+        if len(values) != len(self.stddev):
             out = values + self.offset + self.rng.normal(0.0, 1.0, len(values)) * self.stddev
         else:
-            if self._row >= len(self._draws):
-                self._draws = self.rng.normal(0.0, 1.0, (BLOCK, len(values))) * self.stddev
-                self._row = 0
-            out = values + self.offset + self._draws[self._row]
-            self._row += 1
+            out = values + self._next()
         if self._quantized:
             quantized = self.precision > 0
             out[quantized] = np.round(out[quantized] / self.precision[quantized]) \

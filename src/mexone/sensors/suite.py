@@ -27,6 +27,11 @@ __all__ = ["SensorSuite", "SENSOR_CLASSES"]
 _ANKLE_HEIGHT = 0.25  # m: an FT sensor on a leaf link this close above the soles is a foot's
 
 
+def _broadcast(sim: Simulation, sensors: list[Sensor]) -> None:
+    for sensor in sensors:
+        sensor.publish(sim)
+
+
 class SensorSuite:
     def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None):
         self.sim, self.bus = sim, bus
@@ -43,7 +48,10 @@ class SensorSuite:
         self.balance = Balance(sim, bus, namespace, self._feet())
         sim.on_model_change(self.close)  # a spawned model: renderers were built on the old one
         sim.on_reset(self._invalidate)
-        self._timers: dict[str, Periodic] = {}
+        self._timers: dict[str, Periodic] = {}  # "balance" -> its timer
+        # the broadcasters: one timer per update period, publishing every listened-to sensor of
+        # that period at once (one Python burst per tick, not one per sensor)
+        self._groups: dict[int, tuple[Periodic, list[Sensor]]] = {}
         for name, sensor in self.sensors.items():
             for output in sensor.outputs:
                 bus.advertise(output.topic, output.type)
@@ -82,7 +90,8 @@ class SensorSuite:
 
     def broadcasting(self) -> list[str]:
         """The sensors (and "balance") whose broadcaster runs now: someone listens."""
-        return list(self._timers)
+        return [s.spec.name for _, group in self._groups.values() for s in group] \
+            + list(self._timers)
 
     def _wanted(self, key: str) -> bool:
         if key == "balance":
@@ -91,15 +100,27 @@ class SensorSuite:
         return any(sensor.wanted(o) for o in sensor.outputs)
 
     def _listeners_changed(self, key: str) -> None:
-        wanted, timer = self._wanted(key), self._timers.get(key)
-        if wanted and timer is None:
-            if key == "balance":
+        wanted = self._wanted(key)
+        if key == "balance":
+            timer = self._timers.get(key)
+            if wanted and timer is None:
                 self._timers[key] = self.sim.add_periodic(1.0 / BALANCE_RATE, self.balance.publish)
-            else:
-                sensor = self.sensors[key]
-                self._timers[key] = self.sim.add_periodic(1.0 / sensor.rate, sensor.publish)
-        elif not wanted and timer is not None:
-            self.sim.remove_periodic(self._timers.pop(key))
+            elif not wanted and timer is not None:
+                self.sim.remove_periodic(self._timers.pop(key))
+            return
+        sensor = self.sensors[key]
+        period = max(1, round(1e9 / sensor.rate))
+        timer, group = self._groups.get(period, (None, []))
+        if wanted and sensor not in group:
+            group.append(sensor)
+            if timer is None:
+                timer = self.sim.add_periodic(period / 1e9, lambda sim, g=group: _broadcast(sim, g))
+                self._groups[period] = (timer, group)
+        elif not wanted and sensor in group:
+            group.remove(sensor)
+            if not group:
+                self.sim.remove_periodic(timer)
+                del self._groups[period]
 
     def close(self) -> None:
         for sensor in self.sensors.values():
