@@ -260,12 +260,16 @@ class Sensor:
 
     # ----- plots and the page --------------------------------------------------------------------
     def signals(self) -> list[tuple[str, str]]:
-        """(signal name, unit) of every plot signal: `<name>/<field>/<axis>`, in `values` order."""
+        """(signal name, unit) of every plot signal: `<name>/<field>/<axis>` (`<name>/<field>`
+        for a single value), in `values` order."""
         state = self._state
         out = []
         for name, unit in self.plot.items():
             size = np.size(getattr(state, name))
-            out += [(f"{self.spec.name}/{name}/{a}", unit) for a in AXES.get(size, range(size))]
+            if size == 1:
+                out.append((f"{self.spec.name}/{name}", unit))
+            else:
+                out += [(f"{self.spec.name}/{name}/{a}", unit) for a in AXES.get(size, range(size))]
         return out
 
     def values(self) -> np.ndarray:
