@@ -78,7 +78,10 @@ class Measure:
         self.sim = sim
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
         self._stamp = Time()
-        self._contacts: tuple[list, list, list, list] = ([], [], [], [])
+        self._contacts: tuple = ([], [], [], [], [])
+        self._cone_model: mujoco.MjModel | None = None
+        self._elliptic = False
+        self._force6 = np.zeros(6)
         self._terms: list[tuple[int, np.ndarray, np.ndarray]] = []  # (offset, rows, matrix)
         self._size = 0
         self._matrix: np.ndarray | None = None
@@ -99,17 +102,39 @@ class Measure:
             self._stamp_at = now
         return self._stamp
 
-    def contacts(self) -> tuple[list, list, list, list]:
+    def contacts(self) -> tuple:
         """This instant's contacts as plain lists, read once for every contact sensor: (geom
-        pairs, frames (9 each: normal, two tangents, world), positions, distances)."""
+        pairs, frames (9 each: normal, two tangents, world), positions, distances, each
+        contact's (normal, tangent, tangent) force on geom2 in its frame). Elliptic cones
+        (mexone's default) read those forces straight from efc_force; others ask
+        mj_contactForce. Plain Python floats: at a handful of contacts, numpy per contact costs
+        more than the arithmetic."""
         sim = self.sim
         if self._contacts_at != sim.time_ns:
-            contact, ncon = sim.data.contact, sim.data.ncon
-            self._contacts = (contact.geom[:ncon].tolist(), contact.frame[:ncon].tolist(),
-                              contact.pos[:ncon].tolist(), contact.dist[:ncon].tolist()) \
-                if ncon else ([], [], [], [])
             self._contacts_at = sim.time_ns
+            model, data = sim.model, sim.data
+            contact, ncon = data.contact, data.ncon
+            if not ncon:
+                self._contacts = ([], [], [], [], [])
+                return self._contacts
+            if self._cone_model is not model:  # once per compiled model: enum reads are slow
+                self._cone_model = model
+                self._elliptic = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_ELLIPTIC)
+            adrs, dims = contact.efc_address[:ncon].tolist(), contact.dim[:ncon].tolist()
+            if self._elliptic:
+                efc = data.efc_force.tolist()
+                local = [(efc[a], efc[a + 1], efc[a + 2]) if d == 3 and a >= 0
+                         else self._contact_force(i)
+                         for i, (a, d) in enumerate(zip(adrs, dims, strict=True))]
+            else:
+                local = [self._contact_force(i) for i in range(ncon)]
+            self._contacts = (contact.geom[:ncon].tolist(), contact.frame[:ncon].tolist(),
+                              contact.pos[:ncon].tolist(), contact.dist[:ncon].tolist(), local)
         return self._contacts
+
+    def _contact_force(self, i: int) -> tuple[float, float, float]:
+        mujoco.mj_contactForce(self.sim.model, self.sim.data, i, self._force6)
+        return tuple(self._force6[:3].tolist())
 
     def data(self) -> np.ndarray:
         sim = self.sim
@@ -195,14 +220,19 @@ class Sensor:
         if not self.outputs and self.message_type is not None:
             self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
                                    self.message_type)]
+        self._frame_id = self.frame  # fixed once set up: the messages' frame_id
+        self._topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
+            if self.outputs else None
+        if not hasattr(self, "_needs_read"):  # setup may say a reading needs no read() call
+            self._needs_read = type(self).read is not Sensor.read
 
     def setup(self) -> None:
         """Find this sensor's MuJoCo data (ids, addresses); name its outputs if it has several."""
 
     def read(self, state: Any) -> None:
         """Fill `state` (this type's state_type) with the values at the current instant (for a
-        `linear` type: finish what Measure.refresh filled in)."""
-        raise NotImplementedError
+        `linear` type: finish what Measure.refresh filled in, if anything: noise, a rotation
+        that moves; a linear type that leaves this alone costs no call)."""
 
     def bind(self, **slices: slice) -> Callable[[np.ndarray], None]:
         """For Measure.linear: make the state's fields views into the buffer, field -> slice of
@@ -228,7 +258,8 @@ class Sensor:
         if self._at != now:
             if self.linear:
                 self.measure.refresh()
-            self.read(self._state)
+            if self._needs_read:
+                self.read(self._state)
             self._at = now
         return self._state
 
@@ -246,7 +277,7 @@ class Sensor:
 
     def header(self, frame: str | None = None) -> Header:
         self.seq += 1
-        return Header(self.seq, self.measure.stamp(), frame or self.frame)
+        return Header(self.seq, self.measure.stamp(), frame or self._frame_id)
 
     def wanted(self, output: Output) -> bool:
         topic = self.bus.topics.get(output.topic)
@@ -256,7 +287,7 @@ class Sensor:
 
     def publish(self, sim: Simulation) -> None:
         """The broadcaster's tick: the main topic's message from this instant's state."""
-        self.bus.publish(self.outputs[0].topic, self.message(self.state()))
+        self.bus.deliver(self._topic, self.message(self.state()))
 
     # ----- plots and the page --------------------------------------------------------------------
     def signals(self) -> list[tuple[str, str]]:

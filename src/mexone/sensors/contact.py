@@ -108,7 +108,7 @@ class ContactSensor(Sensor):
         if len(rows):
             self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), count=slice(3, 4)))
         else:
-            self.linear = False  # nothing to watch: never in contact
+            self.linear = False  # nothing to watch: never in contact (the state stays zero)
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them
@@ -116,69 +116,44 @@ class ContactSensor(Sensor):
             mine = {g for g in mine if self.names[g][1].rsplit("::", 1)[1] in wanted} or mine
         self.geoms = mine
         self._mine_list = [g in mine for g in range(self.sim.model.ngeom)]  # geom id -> ours
-        self._force6 = np.zeros(6)
-        self._points: list = []  # this instant's contacts (see _contact_points)
-        self._points_at = -1
-
-    def _contact_points(self) -> list[tuple]:
-        """Our contacts at this instant, once per instant: (index, own geom, other geom, sign,
-        force on us (world), position, frame, distance). MuJoCo's contact arrays are read once
-        per instant for all contact sensors (`Measure.contacts`) and the few contacts of one
-        sole handled in plain Python: at a handful of points per sole, per-point numpy calls
-        cost more than the arithmetic."""
-        now = self.sim.time_ns
-        if self._points_at == now:
-            return self._points
-        self._points_at = now
-        self._points = points = []
-        geoms, frames, positions, dists = self.measure.contacts()
-        mine = self._mine_list
-        model, data, local = self.sim.model, self.sim.data, self._force6
-        for i, (g1, g2) in enumerate(geoms):
-            if not (mine[g1] or mine[g2]):
-                continue
-            # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
-            own, other, sign = (g1, g2, -1.0) if mine[g1] else (g2, g1, 1.0)
-            mujoco.mj_contactForce(model, data, i, local)
-            fn, t1, t2 = local[:3].tolist()  # Python floats: numpy scalars are slow arithmetic
-            fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
-            f = frames[i]
-            force = [fn * f[0] + t1 * f[3] + t2 * f[6], fn * f[1] + t1 * f[4] + t2 * f[7],
-                     fn * f[2] + t1 * f[5] + t2 * f[8]]
-            points.append((i, own, other, sign, force, positions[i], f, dists[i]))
-        return points
-
-    def invalidate(self) -> None:
-        super().invalidate()
-        self._points_at = -1
-
-    def read(self, state: ContactSensorState) -> None:
-        """All in Measure.refresh (linear), or nothing to watch (zeros)."""
 
     def contacts(self) -> list[ContactState]:
-        """Our contacts, grouped by pair of collision elements (the message's states)."""
-        points = self._contact_points()
-        if not points:
-            return []
-        ncon = self.sim.data.ncon
+        """Our contacts at this instant, grouped by pair of collision elements (the message's
+        states), from the instant's contact lists every contact sensor shares: a handful of
+        points per sole, handled in plain Python."""
+        geoms, frames, positions, dists, local = self.measure.contacts()
+        mine = self._mine_list
         names = self.names
         states: dict[tuple[int, int], ContactState] = {}
         totals: dict[tuple[int, int], list[float]] = {}
-        for i, own, other, sign, force, position, f, dist in points:
+        for i, (g1, g2) in enumerate(geoms):
+            # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
+            if mine[g1]:
+                own, other, sign = g1, g2, -1.0
+            elif mine[g2]:
+                own, other, sign = g2, g1, 1.0
+            else:
+                continue
+            fn, t1, t2 = local[i]
+            fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
+            f = frames[i]  # rows: normal, two tangents (world)
+            fx = fn * f[0] + t1 * f[3] + t2 * f[6]
+            fy = fn * f[1] + t1 * f[4] + t2 * f[7]
+            fz = fn * f[2] + t1 * f[5] + t2 * f[8]
             pair = (own, other)
             state = states.get(pair)
             if state is None:
                 state = states[pair] = ContactState(
-                    info=f"Debug: i:({i}/{ncon})", collision1_name=names[own][1],
+                    info=f"Debug: i:({i}/{len(geoms)})", collision1_name=names[own][1],
                     collision2_name=names[other][1] if other in names
                     else self.sim.model.geom(other).name)
                 totals[pair] = [0.0, 0.0, 0.0]
             total = totals[pair]
-            total[0], total[1], total[2] = total[0] + force[0], total[1] + force[1], total[2] + force[2]
-            state.wrenches.append(Wrench(Vector3(*force), Vector3()))
-            state.contact_positions.append(Vector3(*position))
+            total[0], total[1], total[2] = total[0] + fx, total[1] + fy, total[2] + fz
+            state.wrenches.append(Wrench(Vector3(fx, fy, fz), Vector3()))
+            state.contact_positions.append(Vector3(*positions[i]))
             state.contact_normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
-            state.depths.append(max(-dist, 0.0))
+            state.depths.append(-dists[i] if dists[i] < 0 else 0.0)
         for pair, state in states.items():
             state.total_wrench.force = Vector3(*totals[pair])
         return list(states.values())

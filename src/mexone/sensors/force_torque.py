@@ -81,6 +81,7 @@ class ForceTorqueSensor(Sensor):
         rows = np.r_[self.force:self.force + 3, self.torque:self.torque + 3]
         self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), torque=slice(3, 6)))
         self._to_parent = spec.ft_frame == "parent" and self.parent_body is not None
+        self._needs_read = self._to_parent or self.noise.active
 
     @property
     def frame(self) -> str:

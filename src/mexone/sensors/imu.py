@@ -62,6 +62,7 @@ class ImuSensor(Sensor):
             orientation=slice(0, 4), angular_velocity=slice(4, 7), linear_acceleration=slice(7, 10),
             _rates=slice(4, 10)))
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in IMU_CHANNELS], name)
+        self._needs_read = self.noise.active
         var = self.noise.variance.tolist()
         self.gyro_cov = [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]]
         self.acc_cov = [var[3], 0.0, 0.0, 0.0, var[4], 0.0, 0.0, 0.0, var[5]]
