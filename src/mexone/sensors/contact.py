@@ -123,40 +123,44 @@ class ContactSensor(Sensor):
         points per sole, handled in plain Python."""
         geoms, frames, positions, dists, local = self.measure.contacts()
         mine = self._mine_list
-        names = self.names
-        states: dict[tuple[int, int], ContactState] = {}
-        totals: dict[tuple[int, int], list[float]] = {}
+        pairs: dict[tuple[int, int], list] = {}  # (own, other) -> [first index, points...]
         for i, (g1, g2) in enumerate(geoms):
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
             if mine[g1]:
-                own, other, sign = g1, g2, -1.0
+                pair, sign = (g1, g2), -1.0
             elif mine[g2]:
-                own, other, sign = g2, g1, 1.0
+                pair, sign = (g2, g1), 1.0
             else:
                 continue
-            fn, t1, t2 = local[i]
-            fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
-            f = frames[i]  # rows: normal, two tangents (world)
-            fx = fn * f[0] + t1 * f[3] + t2 * f[6]
-            fy = fn * f[1] + t1 * f[4] + t2 * f[7]
-            fz = fn * f[2] + t1 * f[5] + t2 * f[8]
-            pair = (own, other)
-            state = states.get(pair)
-            if state is None:
-                state = states[pair] = ContactState(
-                    info=f"Debug: i:({i}/{len(geoms)})", collision1_name=names[own][1],
-                    collision2_name=names[other][1] if other in names
-                    else self.sim.model.geom(other).name)
-                totals[pair] = [0.0, 0.0, 0.0]
-            total = totals[pair]
-            total[0], total[1], total[2] = total[0] + fx, total[1] + fy, total[2] + fz
-            state.wrenches.append(Wrench(Vector3(fx, fy, fz), Vector3()))
-            state.contact_positions.append(Vector3(*positions[i]))
-            state.contact_normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
-            state.depths.append(-dists[i] if dists[i] < 0 else 0.0)
-        for pair, state in states.items():
-            state.total_wrench.force = Vector3(*totals[pair])
-        return list(states.values())
+            points = pairs.get(pair)
+            if points is None:
+                points = pairs[pair] = [i]
+            points.append((i, sign))
+        if not pairs:
+            return []
+        names, ncon = self.names, len(geoms)
+        out = []
+        for (own, other), (first, *points) in pairs.items():
+            wrenches, positions_out, normals, depths = [], [], [], []
+            tx = ty = tz = 0.0
+            for i, sign in points:
+                fn, t1, t2 = local[i]
+                fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
+                f = frames[i]  # rows: normal, two tangents (world)
+                fx = fn * f[0] + t1 * f[3] + t2 * f[6]
+                fy = fn * f[1] + t1 * f[4] + t2 * f[7]
+                fz = fn * f[2] + t1 * f[5] + t2 * f[8]
+                tx, ty, tz = tx + fx, ty + fy, tz + fz
+                wrenches.append(Wrench(Vector3(fx, fy, fz), Vector3()))
+                p = positions[i]
+                positions_out.append(Vector3(p[0], p[1], p[2]))
+                normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
+                depths.append(-dists[i] if dists[i] < 0 else 0.0)
+            out.append(ContactState(
+                f"Debug: i:({first}/{ncon})", names[own][1],
+                names[other][1] if other in names else self.sim.model.geom(other).name,
+                wrenches, Wrench(Vector3(tx, ty, tz), Vector3()), positions_out, normals, depths))
+        return out
 
     def message(self, state: ContactSensorState) -> ContactsState:
         return ContactsState(self.header("world"), self.contacts())
