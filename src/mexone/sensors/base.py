@@ -89,6 +89,14 @@ class Measure:
         self._views: list[tuple[Callable[[np.ndarray], None], int, int]] = []
         sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
         sim.on_reset(self.invalidate)
+        sim.on_model_change(self._model_changed)
+
+    def _model_changed(self) -> None:
+        """A model added or removed: our sensors' addresses stay (attached models come after),
+        sensordata may grow, and the new model steps with the sensor pass on again."""
+        self.sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+        self._matrix = None
+        self.invalidate()
 
     def invalidate(self) -> None:
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
