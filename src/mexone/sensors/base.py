@@ -64,7 +64,8 @@ class Output:
 
 
 class Measure:
-    """MuJoCo's sensor values at the current instant, computed on the first request (the
+    """MuJoCo's sensor values at the current instant (keyed by Simulation.steps, which never
+    repeats; a reset invalidates), computed on the first request (the
     simulation steps with MuJoCo's sensor pass turned off), and the light sensors' state arrays.
 
     Sensor types whose state is a fixed linear function of MuJoCo's sensordata (reordering,
@@ -104,10 +105,10 @@ class Measure:
     def stamp(self) -> Time:
         """This instant's sim time as a message stamp, one (immutable) object for every message
         of the instant."""
-        now = self.sim.time_ns
-        if self._stamp_at != now:
-            self._stamp = Time.from_nsec(now)
-            self._stamp_at = now
+        sim = self.sim
+        if self._stamp_at != sim.steps:
+            self._stamp = Time.from_nsec(sim.time_ns)
+            self._stamp_at = sim.steps
         return self._stamp
 
     def contacts(self) -> tuple:
@@ -118,8 +119,8 @@ class Measure:
         mj_contactForce. Plain Python floats: at a handful of contacts, numpy per contact costs
         more than the arithmetic."""
         sim = self.sim
-        if self._contacts_at != sim.time_ns:
-            self._contacts_at = sim.time_ns
+        if self._contacts_at != sim.steps:
+            self._contacts_at = sim.steps
             model, data = sim.model, sim.data
             contact, ncon = data.contact, data.ncon
             if not ncon:
@@ -146,7 +147,7 @@ class Measure:
 
     def data(self) -> np.ndarray:
         sim = self.sim
-        if self._at != sim.time_ns:
+        if self._at != sim.steps:
             model, data = sim.model, sim.data
             flags = model.opt.disableflags
             model.opt.disableflags = flags & ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
@@ -156,7 +157,7 @@ class Measure:
                 mujoco.mj_sensorAcc(model, data)
             finally:
                 model.opt.disableflags = flags
-            self._at = sim.time_ns
+            self._at = sim.steps
         return sim.data.sensordata
 
     def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
@@ -182,12 +183,12 @@ class Measure:
 
     def refresh(self) -> None:
         """Every registered linear state at this instant (once per instant)."""
-        if self._refreshed_at == self.sim.time_ns:
+        if self._refreshed_at == self.sim.steps:
             return
         if self._matrix is None:
             self._build()
         np.dot(self._matrix, self.data(), out=self.buffer)
-        self._refreshed_at = self.sim.time_ns
+        self._refreshed_at = self.sim.steps
 
 
 @dataclass
@@ -262,9 +263,9 @@ class Sensor:
         same object each time: copy an array to keep it past the instant)."""
         if self._state is None:
             raise KeyError(f"{self.type_name} sensor '{self.spec.name}' has no state interfaces")
-        now = self.sim.time_ns
+        now = self.sim.steps  # an instant: steps never repeat (a reset invalidates)
         if self._at != now:
-            if self.linear:
+            if self.linear and self.measure._refreshed_at != now:
                 self.measure.refresh()
             if self._needs_read:
                 self.read(self._state)

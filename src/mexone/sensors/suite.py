@@ -11,6 +11,8 @@ cost nothing per step.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from mexone.bus.topics import Bus
@@ -114,7 +116,7 @@ class SensorSuite:
         if wanted and sensor not in group:
             group.append(sensor)
             if timer is None:
-                timer = self.sim.add_periodic(period / 1e9, lambda sim, g=group: _broadcast(sim, g))
+                timer = self.sim.add_periodic(period / 1e9, partial(_broadcast, sensors=group))
                 self._groups[period] = (timer, group)
         elif not wanted and sensor in group:
             group.remove(sensor)
