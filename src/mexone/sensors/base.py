@@ -34,6 +34,7 @@ from mexone.physics.simulation import Simulation
 __all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "register_sensor",
            "SENSOR_CLASSES", "sensor_type", "AXES"]
 
+_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 AXES = {3: "xyz", 4: "xyzw", 6: ("x", "y", "z", "rx", "ry", "rz")}  # plot signals per array size
 
 
@@ -88,14 +89,18 @@ class Measure:
         self._matrix: np.ndarray | None = None
         self.buffer = np.zeros(0)
         self._views: list[tuple[Callable[[np.ndarray], None], int, int]] = []
-        sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
         sim.on_reset(self.invalidate)
         sim.on_model_change(self._model_changed)
+        self._model_changed()
 
     def _model_changed(self) -> None:
-        """A model added or removed: our sensors' addresses stay (attached models come after),
-        sensordata may grow, and the new model steps with the sensor pass on again."""
-        self.sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+        """A model added or removed (and at the start): our sensors' addresses stay (attached
+        models come after), sensordata may grow, and a new model would step with the sensor
+        pass on. What the pass touches is looked up here once: each call into MuJoCo's
+        bindings costs, at 100 Hz between steps."""
+        self.sim.model.opt.disableflags |= _SENSOR_OFF
+        self._opt = self.sim.model.opt
+        self._sensordata = self.sim.data.sensordata
         self._matrix = None
         self.invalidate()
 
@@ -129,7 +134,8 @@ class Measure:
             if self._cone_model is not model:  # once per compiled model: enum reads are slow
                 self._cone_model = model
                 self._elliptic = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_ELLIPTIC)
-            adrs, dims = contact.efc_address[:ncon].tolist(), contact.dim[:ncon].tolist()
+            # data.contact is already the ncon contacts: no slicing (each numpy call counts here)
+            adrs, dims = contact.efc_address.tolist(), contact.dim.tolist()
             if self._elliptic:
                 efc = data.efc_force.tolist()
                 local = [(efc[a], efc[a + 1], efc[a + 2]) if d == 3 and a >= 0
@@ -137,8 +143,8 @@ class Measure:
                          for i, (a, d) in enumerate(zip(adrs, dims, strict=True))]
             else:
                 local = [self._contact_force(i) for i in range(ncon)]
-            self._contacts = (contact.geom[:ncon].tolist(), contact.frame[:ncon].tolist(),
-                              contact.pos[:ncon].tolist(), contact.dist[:ncon].tolist(), local)
+            self._contacts = (contact.geom.tolist(), contact.frame.tolist(), contact.pos.tolist(),
+                              contact.dist.tolist(), local)
         return self._contacts
 
     def _contact_force(self, i: int) -> tuple[float, float, float]:
@@ -148,17 +154,17 @@ class Measure:
     def data(self) -> np.ndarray:
         sim = self.sim
         if self._at != sim.steps:
-            model, data = sim.model, sim.data
-            flags = model.opt.disableflags
-            model.opt.disableflags = flags & ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+            model, data, opt = sim.model, sim.data, self._opt
+            flags = opt.disableflags
+            opt.disableflags = flags & ~_SENSOR_OFF
             try:  # the state the last step computed (positions, velocities, accelerations)
                 mujoco.mj_sensorPos(model, data)
                 mujoco.mj_sensorVel(model, data)
                 mujoco.mj_sensorAcc(model, data)
             finally:
-                model.opt.disableflags = flags
+                opt.disableflags = flags
             self._at = sim.steps
-        return sim.data.sensordata
+        return self._sensordata
 
     def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
         """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
