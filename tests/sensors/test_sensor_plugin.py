@@ -159,3 +159,21 @@ def test_a_new_sensor_type_survives_the_writers(pendulum, tmp_path, fmt):
     path.write_text(write(pendulum.sim.robot))
     spec = next(s for s in read(path).sensors if s.name == "hinge_torque")
     assert (spec.type, spec.joint, spec.update_rate) == ("joint_torque", "hinge", 50.0)
+
+
+def test_mexone_check_lists_the_sensors_and_their_state_interfaces(capsys):
+    import json
+
+    from mexone.cli import main
+
+    assert main(["check"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    imu = next(line for line in lines if line.strip().startswith("imu "))
+    assert "on pelvis" in imu and imu.endswith("orientation, angular_velocity, linear_acceleration")
+    contact = next(line for line in lines if line.strip().startswith("l_foot_contact "))
+    assert "in_contact, force" in contact
+    assert "(topics only)" in next(line for line in lines if line.strip().startswith("kinect "))
+    assert main(["check", "--json"]) == 0
+    rows = {r["name"]: r for r in json.loads(capsys.readouterr().out)["sensors"]}
+    assert rows["l_ankle_ft"] == {"name": "l_ankle_ft", "type": "force_torque", "on": "l_ankle_roll",
+                                  "rate_hz": 100.0, "state": ["force", "torque"]}
