@@ -3,8 +3,9 @@
 The convention (docs/contributing.md says the same for writers):
 - a ```bash block is run by bash (`-e -o pipefail`), a ```python block by the venv's python;
   ```text, ```console and every other kind are shown, never run;
-- the blocks of one page run in order in one scratch folder (a page is followed top to bottom),
-  each within a time budget (60 s unless its marker says);
+- the blocks of one page run in order, as one reader's terminal: they start in a scratch
+  folder, and a bash block's `cd` and `export`s carry over to the page's next blocks; each has
+  a time budget (60 s unless its marker says);
 - an HTML comment on the line(s) before a block marks what it needs, `;`-separated:
   `<!-- needs: ros1 display; timeout: 120; expect: stayed standing; serves: 8080 -->`
     needs: ros1     a roscore is started for the block (on a free port) and
@@ -149,8 +150,10 @@ def _roscore(env: dict, scratch: Path) -> tuple[subprocess.Popen, dict]:
     return core, env
 
 
-def run_block(block: Block, env: dict, cwd: Path, python: str = "python3") -> Outcome:
-    """Run one block in `cwd` with `env` (its PATH finds the `mexone` under test)."""
+def run_block(block: Block, env: dict, cwd: Path, python: str = "python3",
+              state: Path | None = None) -> Outcome:
+    """Run one block in `cwd` with `env` (its PATH finds the `mexone` under test). `state`: a
+    file holding the shell's folder and exports, read before the block and written after it."""
     for need, tool in (("ros1", "roscore"), ("display", "xvfb-run")):
         if need in block.needs and shutil.which(tool, path=env.get("PATH")) is None:
             return Outcome(block, None, "", 0.0, skipped=f"needs {need}: {tool} is not installed")
@@ -163,6 +166,9 @@ def run_block(block: Block, env: dict, cwd: Path, python: str = "python3") -> Ou
             script = f'exec {python} "{source}"\n'
         if "ros1" in block.needs:
             script = 'eval "$(mexone ros-env)"\n' + script
+        if state is not None:
+            script = (f'[ -f "{state}" ] && source "{state}"\n{script}\n'
+                      f'{{ export -p; echo "cd $(printf %q "$PWD")"; }} > "{state}"\n')
         command = ["bash", "-e", "-o", "pipefail", "-c", script]
         if "display" in block.needs:
             command = ["xvfb-run", "-a", *command]

@@ -39,10 +39,11 @@ def outcomes(venv, tmp_path_factory, request):
 
     def follow(page: Path, page_blocks: list) -> None:
         scratch = tmp_path_factory.mktemp(page.stem)
+        state = tmp_path_factory.mktemp("shell") / "state.sh"
         for block in page_blocks:
             try:
                 futures[block].set_result(docblocks.run_block(block, env, scratch,
-                                                              str(venv.bin / "python")))
+                                                              str(venv.bin / "python"), state))
             except Exception as error:  # noqa: BLE001 (the test reports it)
                 futures[block].set_exception(error)
         TOTAL[str(page.relative_to(ROOT))] = time.monotonic() - start
@@ -80,15 +81,17 @@ def test_a_stale_page_fails_the_harness(tmp_path):
     page = ROOT / "tests" / "data" / "docs" / "stale.md"
     found = docblocks.blocks(page)
     assert [(b.lang, b.line) for b in found] == [("bash", 5), ("python", 11), ("bash", 18),
-                                                 ("bash", 25), ("bash", 41)]
+                                                 ("bash", 25), ("bash", 41), ("bash", 46)]
     env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
-    results = [docblocks.run_block(b, env, tmp_path, sys.executable) for b in found]
+    state = tmp_path / "state.sh"
+    results = [docblocks.run_block(b, env, tmp_path, sys.executable, state) for b in found]
     problems = [r.problem for r in results]
     assert problems[0] == "exit 2" and "--no-such-option" in results[0].output
     assert problems[1] == "exit 1" and "LabThatWasRenamed" in results[1].output
     assert problems[2] == "its output does not say 'pelvis at 9.999 m'"
     assert problems[3] == "still running after its budget of 1 s" and results[3].seconds < 10
-    assert problems[4] is None and (tmp_path / "here.txt").is_file()
+    assert problems[4] is None and (tmp_path / "there" / "here.txt").is_file()
+    assert results[5].problem is None and "carried" in results[5].output  # its cd and export
     assert docblocks.report(results[0], ROOT).startswith("tests/data/docs/stale.md:5: ```bash block: exit 2")
 
 
