@@ -14,6 +14,7 @@ The convention (docs/contributing.md says the same for writers):
     timeout: S      the block's budget in seconds
     expect: TEXT    its output must contain TEXT (a figure the page states, checked)
     serves: PORT    a server: it passes once http://127.0.0.1:PORT answers, then gets Ctrl-C
+    file: NAME      not run: the block is written to NAME (a routine the next block runs)
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ class Block:
     timeout: float = DEFAULT_TIMEOUT
     expect: tuple[str, ...] = ()
     serves: int | None = None
+    file: str | None = None
 
     def where(self, root: Path) -> str:
         page = self.page.relative_to(root) if self.page.is_relative_to(root) else self.page
@@ -80,8 +82,9 @@ def _options(comment: str, where: str) -> dict:
     for item in filter(None, (part.strip() for part in body.split(";"))):
         key, sep, value = item.partition(":")
         key, value = key.strip(), value.strip()
-        if not sep or key not in ("needs", "timeout", "expect", "serves"):
-            raise ValueError(f"{where}: unknown block marker '{item}' (needs, timeout, expect, serves)")
+        if not sep or key not in ("needs", "timeout", "expect", "serves", "file"):
+            raise ValueError(f"{where}: unknown block marker '{item}' "
+                             "(needs, timeout, expect, serves, file)")
         if key == "needs":
             unknown = set(value.split()) - set(NEEDS)
             if unknown:
@@ -91,6 +94,8 @@ def _options(comment: str, where: str) -> dict:
             options["timeout"] = float(value)
         elif key == "serves":
             options["serves"] = int(value)
+        elif key == "file":
+            options["file"] = value
         else:
             options["expect"] = (*options.get("expect", ()), value)
     return options
@@ -160,7 +165,9 @@ def run_block(block: Block, env: dict, cwd: Path, python: str = "python3",
     env = {k: v for k, v in env.items() if k != "DISPLAY"} | {"MPLBACKEND": "Agg"}
     with tempfile.TemporaryDirectory() as tmp:
         script = block.code
-        if block.lang == "python":
+        if block.file:
+            script = f"cat > '{block.file}' <<'MEXONE_DOCS_EOF'\n{block.code}MEXONE_DOCS_EOF\n"
+        elif block.lang == "python":
             source = Path(tmp) / "block.py"
             source.write_text(block.code)
             script = f'exec {python} "{source}"\n'
