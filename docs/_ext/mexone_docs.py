@@ -98,11 +98,19 @@ def _api_pages(out: Path) -> None:
             block += [f".. currentmodule:: {name}", "", *_docstring(module), ""]
             for member in module.__all__:
                 if member not in excluded:
-                    block += [f".. {_directive(getattr(module, member))}:: {member}", ""]
+                    kind = _directive(getattr(module, member))
+                    block += [f".. {kind}:: {member}", *(["   :no-value:"] if kind == "autodata" else []), ""]
         else:
+            # data (constants, tables) is listed by name after the module's classes and functions:
+            # autodoc skips a module attribute without a `#:` comment even with undoc-members
+            data = [m for m in module.__all__ if m not in excluded
+                    and _directive(getattr(module, m, None)) == "autodata"]
             block.append(f".. automodule:: {name}")
-            if excluded:
-                block.append(f"   :exclude-members: {', '.join(excluded)}")
+            if excluded or data:
+                block.append(f"   :exclude-members: {', '.join(excluded + data)}")
+            block.append("")
+            for member in data:
+                block += [f".. autodata:: {name}.{member}", "   :no-value:", ""]
         block += ["```", ""]
         if elsewhere:
             block += ["Also exported here: " + ", ".join(elsewhere) + ".", ""]
@@ -222,6 +230,23 @@ def generate(app: Sphinx) -> None:
     _gallery_page(root, out)
 
 
+def _no_type_docstring(app, what, name, obj, options, lines: list[str]) -> None:
+    """A module constant's only docstring is a `#:` comment above it; without one autodoc would
+    show its type's (dict's, ndarray's): none then."""
+    if what != "data" or not lines:
+        return
+    from sphinx.pycode import ModuleAnalyzer
+
+    owner, _, attr = name.rpartition(".")
+    try:
+        commented = ("", attr) in ModuleAnalyzer.for_module(owner).find_attr_docs()
+    except Exception:  # noqa: BLE001 (no source to read: keep what autodoc found)
+        return
+    if not commented:
+        lines[:] = []
+
+
 def setup(app: Sphinx) -> dict:
     app.connect("builder-inited", generate)
+    app.connect("autodoc-process-docstring", _no_type_docstring)
     return {"version": "1", "parallel_read_safe": True}
