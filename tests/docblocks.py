@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import shutil
 import signal
 import socket
@@ -77,8 +78,11 @@ def pages(root: Path) -> list[Path]:
 
 
 def _options(comment: str, where: str) -> dict:
+    """A marker comment's options; a comment that is prose (no leading `word:`) marks nothing."""
     body = comment.strip().removeprefix("<!--").removesuffix("-->").strip()
     options: dict = {}
+    if not re.match(r"[a-z_]+\s*:", body):
+        return options
     for item in filter(None, (part.strip() for part in body.split(";"))):
         key, sep, value = item.partition(":")
         key, value = key.strip(), value.strip()

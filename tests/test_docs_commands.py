@@ -103,3 +103,5 @@ def test_a_misspelt_marker_is_an_error(tmp_path):
     page.write_text("<!-- needs: ros2 -->\n```bash\ntrue\n```\n")
     with pytest.raises(ValueError, match="unknown need"):
         docblocks.blocks(page)
+    page.write_text("<!-- the robot, as drawn above -->\n```bash\ntrue\n```\n")  # prose: no marker
+    assert docblocks.blocks(page)[0].needs == frozenset()
