@@ -70,7 +70,7 @@ def _directive(value) -> str:
 
     if inspect.isclass(value):
         return "autoexception" if issubclass(value, BaseException) else "autoclass"
-    return "autofunction" if callable(value) else "autodata"
+    return "autofunction" if inspect.isroutine(value) else "autodata"
 
 
 def _api_pages(out: Path) -> None:
