@@ -105,3 +105,17 @@ def test_a_misspelt_marker_is_an_error(tmp_path):
         docblocks.blocks(page)
     page.write_text("<!-- the robot, as drawn above -->\n```bash\ntrue\n```\n")  # prose: no marker
     assert docblocks.blocks(page)[0].needs == frozenset()
+
+
+def test_a_display_block_gets_a_virtual_display(tmp_path):
+    """`needs: display` runs the block under Xvfb (its DISPLAY is set; without the marker none is)."""
+    page = tmp_path / "page.md"
+    page.write_text("<!-- needs: display -->\n```bash\nxdpyinfo >/dev/null || test -n \"$DISPLAY\"\n"
+                    "echo \"display $DISPLAY\"\n```\n\n```bash\necho \"display [${DISPLAY:-}]\"\n```\n")
+    shown, plain = docblocks.blocks(page)
+    env = dict(os.environ, DISPLAY=":99")  # a display of the test's own is not passed on
+    outcome = docblocks.run_block(shown, env, tmp_path)
+    if outcome.skipped:
+        pytest.skip(outcome.skipped)
+    assert outcome.problem is None and "display :" in outcome.output
+    assert "display []" in docblocks.run_block(plain, env, tmp_path).output
