@@ -35,3 +35,16 @@ print(f"after {t:.1f} s: {x:.2f} m ahead, {y:+.2f} m aside, turned {yaw:.0f} deg
 (out / "walk.csv").write_text("t,x,y,yaw\n" + "".join(f"{a:.2f},{b:.4f},{c:.4f},{d:.2f}\n"
                                                      for a, b, c, d in track))
 print(f"wrote {out / 'walk.csv'}")
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+plt.plot([p[1] for p in track], [p[2] for p in track])
+plt.axis("equal")
+plt.xlabel("x (m)")
+plt.ylabel("y (m)")
+plt.title("the pelvis's path, from above")
+plt.savefig(out / "walk.png", dpi=100)
+print(f"wrote {out / 'walk.png'}")

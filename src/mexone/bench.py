@@ -1,7 +1,8 @@
 """`mexone bench`: what mexone costs and how fast it can go, all measured in one run.
 
 Rows (each a ratio or a rate measured side by side in the same process run, so they hold on a
-noisy machine):
+noisy machine)::
+
   overhead       Mex-One with 21 PD controllers and joint states at 50 Hz vs bare mj_step on
                  the very same compiled model, controls and actuator settings; and the same
                  with the full PID (I terms with clamps on all 21 joints)

@@ -143,12 +143,12 @@ def markdown_table() -> str:
 
 
 def docs_page() -> str:
-    """docs/ranges.md: `python -m mexone.ranges > docs/ranges.md` (a test says when it is stale)."""
+    """docs/ranges.md, written when the docs are built (docs/_ext/mexone_docs.py); never kept in git."""
     return ("# Valid ranges\n\n"
             "Every number a user sets (on the command line, on the page, in the model editor, in a ROS\n"
             "service call, in a model or world file) is checked against its quantity's range here, and\n"
-            "refused in one line outside it. Generated from `src/mexone/ranges.py` (their one home) by\n"
-            "`python -m mexone.ranges > docs/ranges.md`; do not edit by hand.\n\n"
+            "refused in one line outside it. Generated from `mexone/ranges.py` (their one home) when\n"
+            "these pages are built; `python -m mexone.ranges` prints the same.\n\n"
             + markdown_table() + "\n")
 
 

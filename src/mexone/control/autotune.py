@@ -1,7 +1,7 @@
 """Controllers for a robot that has none: one JointPositionController per moving joint, with
 gains from the robot's physics instead of a student's guesses.
 
-For each joint, in the standing pose (the initial joint positions):
+For each joint, in the standing pose (the initial joint positions)::
 
     I   the inertia the joint moves about its axis: the composite rigid-body inertia of the links
         beyond it, or, for a joint between the robot and the ground it stands on (a leg), of the

@@ -1,7 +1,7 @@
 """SimHardware: ros_control's hardware interface on MuJoCo, and the only code that touches actuators.
 
 `build_actuators` edits the MjSpec before the model compiles (as mjlab's actuator configs do) and
-gives every joint with a <transmission> two MuJoCo actuators:
+gives every joint with a <transmission> two MuJoCo actuators::
 
     <joint>     MuJoCo's native PID servo with the P and D terms and a feed-forward input,
                     torque = kp (q_ref - q) + kd (v_ref - qdot) + ff
