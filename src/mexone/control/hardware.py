@@ -31,7 +31,7 @@ from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "bake_gains",
+__all__ = ["SimHardware", "strided_view", "JointCommands", "JointStates", "build_actuators", "bake_gains",
            "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "gain_to_biasprm",
            "biasprm_to_gain",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
@@ -126,6 +126,19 @@ def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotM
                 integral.forcerange = (pid.i_clamp_min, pid.i_clamp_max)
 
     return edit
+
+
+def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """A view of array[index] when the indices are evenly spaced and increasing (a limb's joints
+    usually are), else None."""
+    if len(index) == 0:
+        return None
+    if len(index) == 1:
+        return array[int(index[0]):int(index[0]) + 1]
+    step = int(index[1] - index[0])
+    if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
+        return None
+    return array[int(index[0]):int(index[-1]) + 1:step]
 
 
 @dataclass
@@ -265,6 +278,11 @@ class SimHardware:
         teleport = bool(np.count_nonzero(self.command.teleport[rows]))
         if interface == "effort":
             ff = motor + 2
+            view = strided_view(sim.data.ctrl, ff)
+            if view is not None:  # one ufunc into MuJoCo's ctrl, no temporary
+                def write_effort_view(values: np.ndarray) -> None:
+                    np.divide(values, gear, out=view)
+                return write_effort_view
 
             def write_effort(values: np.ndarray) -> None:
                 sim.data.ctrl[ff] = values / gear

@@ -78,6 +78,7 @@ class ControllerManager:
         self._every: list[Controller] = []  # running controllers that update every period
         self._waiting = False  # a command was buffered since the last update
         self._half_step_ns = 0
+        self._direct = False  # only Python controllers reading MuJoCo directly run every period
         self._dt = self.control_period  # cached for the loop; _schedule refreshes it
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
@@ -119,10 +120,11 @@ class ControllerManager:
                 if ctrl.next_ns < self.wake_ns:
                     self.wake_ns = ctrl.next_ns
         self.updates += 1
-        self.hw.read()
+        waiting, self._waiting = self._waiting, False
+        if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
+            self.hw.read()
         t = now / NS
         dt = self._dt
-        waiting, self._waiting = self._waiting, False
         try:  # an idle controller (no command waiting, no period) has nothing to do
             for ctrl in self._running if waiting else self._every:
                 if ctrl.every_period or ctrl._pending is not None:
@@ -342,6 +344,7 @@ class ControllerManager:
         self._every = [c for c in self._running if c.every_period]
         if self._every == self._timed:
             self._every = self._timed  # the same list: update() takes its fast write
+        self._direct = self._every is self._timed and all(c.direct for c in self._timed)
         self._waiting = True  # a command buffered before the switch is not lost
         now = self.sim.time_ns
         self._half_step_ns = round(self.sim.timestep * NS / 2)

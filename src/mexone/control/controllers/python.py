@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from mexone.control.controllers.base import Controller, ControllerType
-from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
+from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
 from mexone.control.resolve import Plugin, student_line
 from mexone.control.student import PythonController, State, unit_of
 from mexone.errors import InputError, MexoneError
@@ -38,7 +38,6 @@ __all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH"]
 log = logging.getLogger("mexone.control")
 HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
 _SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
-_EMA = 0.02  # weight of the newest update in the mean time per update
 
 
 class ControllerHang(BaseException):
@@ -66,7 +65,8 @@ class PythonRunner(Controller):
         self.dofs = hw.dof_adr[self.rows].copy()
         self.fault: str | None = None
         self.updates = 0
-        self.update_time = 0.0  # s of wall time per update (a running mean)
+        self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
+        self._update_time = 0.0
         self.due = False
         self.next_ns = 0
         self.period_ns = 1
@@ -77,14 +77,20 @@ class PythonRunner(Controller):
         self._limits_said: set[str] = set()
         self._command = np.zeros(len(self.rows))
         self._effort_limit = hw.effort_limit[self.rows].copy()
+        # the same, as Python floats capped finite: an inf command never passes the fast check
+        self._limits = [min(float(v), 1e300) for v in self._effort_limit]
         self._n = len(self.rows)
         self._wrote = False  # a command to send at the manager's fast write
         self.writer = lambda values: None  # the manager's: hw.rows_writer for these joints
         self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
         self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
         self._span: slice | None = None
+        self.direct = False  # state views of MuJoCo's arrays: no hardware read needed
         self._views()
-        self._cmd_index = self._span if self._span is not None else self.rows
+        span = strided_view(np.arange(len(self.hw.joints)), self.rows)
+        self._cmd_index = slice(int(self.rows[0]), int(self.rows[0]) + len(self.rows)) \
+            if span is not None and (len(self.rows) == 1 or span.strides[0] == span.itemsize) \
+            else self.rows
         self.impl = self._instantiate(plugin)
 
     @classmethod
@@ -95,6 +101,14 @@ class PythonRunner(Controller):
     @property
     def setpoint(self) -> np.ndarray:
         return self._command.copy()
+
+    @property
+    def update_time(self) -> float:
+        """s of wall time per update: the mean since the last time this was read."""
+        if self._timed_updates:
+            self._update_time = self._spent / self._timed_updates
+            self._spent, self._timed_updates = 0.0, 0
+        return self._update_time
 
     @property
     def timed(self) -> bool:
@@ -253,6 +267,7 @@ class PythonRunner(Controller):
         self.dofs = self.hw.dof_adr[self.rows].copy()
         self.impl.dofs = self.dofs.copy()
         self.state._base_joint = self._base_joint()
+        self._views()
         self._dyn = None
 
     def flush(self) -> None:
@@ -261,25 +276,33 @@ class PythonRunner(Controller):
             self._wrote = False
             self.writer(self._command)
 
-    def _views(self) -> bool:
-        """Contiguous joints (a limb, usually): state.q, dq, effort are read-only views of the
-        hardware's state, so reading them costs nothing; else they are gathered each update."""
-        rows = self.rows
-        if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
-            return False
-        span = slice(int(rows[0]), int(rows[0]) + len(rows))
-        joints, state = self.hw.state, self.state
-        for name, array in (("q", joints.position), ("dq", joints.velocity),
-                            ("effort", joints.effort)):
-            view = array[span]
+    def _views(self) -> None:
+        """state.q, dq, effort as read-only views, so reading them costs nothing per update:
+        of MuJoCo's qpos, qvel and qfrc_actuator when the joints' addresses are evenly spaced
+        (a limb's are; `direct`: the manager need not read the hardware for us), else of the
+        hardware's state when the rows are; else gathered each update."""
+        hw, rows, state = self.hw, self.rows, self.state
+        data = self.ctx.sim.data
+        self.direct, self._span = False, None
+        views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
+                 strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
+        if any(v is None for v in views):
+            span = strided_view(np.arange(len(hw.joints)), rows)
+            if span is None or (len(rows) > 1 and span.strides[0] != span.itemsize):
+                state.q, state.dq, state.effort = (np.zeros(len(rows)) for _ in range(3))
+                return
+            self._span = slice(int(rows[0]), int(rows[0]) + len(rows))
+            views = [hw.state.position[self._span], hw.state.velocity[self._span],
+                     hw.state.effort[self._span]]
+        else:
+            self.direct = True
+        for view in views:
             view.flags.writeable = False
-            setattr(state, name, view)
-        self._span = span
-        return True
+        state.q, state.dq, state.effort = views
 
     def _read(self, t: float) -> None:
         state = self.state
-        if self._span is None:
+        if not self.direct and self._span is None:
             joints, rows = self.hw.state, self.rows
             state.q[:] = joints.position[rows]
             state.dq[:] = joints.velocity[rows]
@@ -314,7 +337,8 @@ class PythonRunner(Controller):
         if guard.leave():
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
-        self.update_time += _EMA * (elapsed - self.update_time)
+        self._spent += elapsed
+        self._timed_updates += 1
         if elapsed > self._max_time:
             self._overruns += 1
             if self._overruns >= self.plugin.max_overruns:
@@ -342,7 +366,7 @@ class PythonRunner(Controller):
                 self._fault(f"update returned {values.size} values for {n} joints "
                             f"({self.update_line()})")
                 return
-        if self.interface_name == "effort" and (np.abs(values) <= self._effort_limit).all():
+        if self.interface_name == "effort" and _within(values.tolist(), self._limits):
             self.hw.command.effort[self._cmd_index] = values  # usual: finite, within limits
             self._command = values
             self._wrote = True
@@ -459,6 +483,12 @@ class _HangGuard:
                     log.error("controller '%s': update cannot be interrupted: it is blocked "
                               "outside Python (%s); the lab is frozen: press Ctrl-C twice to end "
                               "it", runner.name, _where_running(tid, runner.plugin.file))
+
+
+def _within(values: list[float], limits: list[float]) -> bool:
+    """Every value finite and within +-its limit (a NaN fails every comparison): the fast check
+    of an update's efforts, in Python floats (a few numpy calls cost more for a limb's joints)."""
+    return all(-limit <= value <= limit for value, limit in zip(values, limits, strict=True))
 
 
 def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
