@@ -391,3 +391,25 @@ def test_dynamics_is_bound_to_the_live_state_once_per_update(tmp_path, turntable
         """)
     lab.sim.step(2)  # three updates: t = 0, 1, 2 ms
     assert len(built) == 3 and all(m is lab.sim.model and d is lab.sim.data for m, d in built)
+
+
+def test_sys_exit_and_a_hostile_return_value_are_faults(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        import sys
+        class Bad:
+            def __array__(self, *args, **kwargs):
+                raise RuntimeError("no array")
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                if t < 0.0005:
+                    return Bad()
+                if t > 0.0025:
+                    sys.exit(3)
+                return [0.0]
+        """)
+    lab.sim.step(1)
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.running and "update returned Bad" in ctrl.fault
+    lab.controllers.switch(start=["ctl"])
+    lab.sim.step(5)  # sys.exit inside update: a fault, not the end of the lab
+    assert not ctrl.running and "SystemExit: 3" in ctrl.fault and lab.sim.time == pytest.approx(0.006)

@@ -156,7 +156,7 @@ class PythonRunner(Controller):
             return fn(*args)
         except MexoneError:
             raise
-        except Exception as exc:  # noqa: BLE001 - the student's error, said in one line
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's error, said in one line
             raise InputError(f"controller '{self.name}': {what} failed: {self._where(exc)}",
                              hint="fix it, then reload") from None
 
@@ -211,7 +211,7 @@ class PythonRunner(Controller):
         self._read(t)
         try:
             self.impl.activate(self.state)
-        except Exception as exc:  # noqa: BLE001 - the student's fault
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
             self._fault(f"activate raised {self._where(exc)}")
         except ControllerHang:
             self._fault(f"activate ran past hang_timeout ({self.update_line()})")
@@ -323,7 +323,7 @@ class PythonRunner(Controller):
         guard.enter(self, start)
         try:
             out = self.impl.update(self.state, t, dt)
-        except Exception as exc:  # noqa: BLE001 - the student's fault
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
             guard.leave()
             self._fault(f"update raised {self._where(exc)} at t = {t:.3f} s")
             return
@@ -355,7 +355,7 @@ class PythonRunner(Controller):
         n = self._n
         try:
             values = np.asarray(out, dtype=float)
-        except (TypeError, ValueError):
+        except Exception:  # noqa: BLE001 - whatever their object raises
             self._fault(f"update returned {type(out).__name__} {str(out)[:40]!r}, not numbers "
                         f"({self.update_line()})")
             return
