@@ -413,3 +413,18 @@ def test_sys_exit_and_a_hostile_return_value_are_faults(tmp_path, turntable, cap
     lab.controllers.switch(start=["ctl"])
     lab.sim.step(5)  # sys.exit inside update: a fault, not the end of the lab
     assert not ctrl.running and "SystemExit: 3" in ctrl.fault and lab.sim.time == pytest.approx(0.006)
+
+
+@settings(max_examples=30, derandomize=True, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.text(alphabet="ab/._-:0 \\\x00é", min_size=1, max_size=12))
+def test_hostile_type_names_are_one_line(tmp_path, ctype):
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump({"ns": {"ctl": {"type": ctype, "joints": ["a"]}}}))
+    line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if "type:" in text)
+    try:
+        config = load_control_config(path)
+    except InputError as exc:
+        assert exc.one_line().startswith(f"{path}:{line}: ") and "\n" not in exc.one_line()
+    else:
+        assert ctype in config.controllers["ctl"].type  # a shipped type (never, from this alphabet)

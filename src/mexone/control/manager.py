@@ -487,6 +487,9 @@ class ControllerManager:
         """Publish a command to controller `name` on its topic, as any node would: `values` per
         joint (a dict may name some joints; the others keep their setpoint)."""
         ctrl = self._get(name)
+        if ctrl.msg_type is None:
+            raise InputError(f"controller '{name}' computes its own commands; it takes none",
+                             hint="change its parameters (set_param) or stop it")
         if isinstance(values, dict):
             current = ctrl.setpoint
             unknown = [j for j in values if j not in ctrl.joints]
