@@ -420,23 +420,24 @@ class PythonRunner(Controller):
 
 class _HangGuard:
     """One watchdog thread: interrupts a student's update that has not returned after its
-    hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in the simulation thread at
-    its next bytecode). It lives only while updates run: idle for a second, it ends."""
+    hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in that thread at its next
+    bytecode). It lives only while updates run: idle for half a second, it ends. Updates are
+    tracked per thread (two labs may step in two threads)."""
 
     _IDLE = 0.5  # s without updates after which the thread ends
     _POLL = 0.05  # s
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
-        self._entry: tuple[int, float, PythonRunner] | None = None
-        self._injected = False
+        self._entries: dict[int, tuple[float, PythonRunner]] = {}  # thread -> update in progress
+        self._injected: set[int] = set()
         self._running = False
         self._last = 0.0
 
     def enter(self, runner: PythonRunner, now: float) -> None:
-        """An update starts (`now`: time.perf_counter())."""
+        """An update starts in this thread (`now`: time.perf_counter())."""
         self._last = now
-        self._entry = (threading.get_ident(), now, runner)
+        self._entries[threading.get_ident()] = (now, runner)
         if not self._running:
             self._running = True
             threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
@@ -444,45 +445,49 @@ class _HangGuard:
     def leave(self) -> bool:
         """The update returned; True if the watchdog had interrupted it (the pending exception
         is withdrawn: it must not land in the manager)."""
+        tid = threading.get_ident()
         with self._lock:
-            entry, self._entry = self._entry, None
-            injected, self._injected = self._injected, False
-            if injected and entry is not None:
-                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(entry[0]), None)
-        return injected
+            self._entries.pop(tid, None)
+            if tid not in self._injected:
+                return False
+            self._injected.discard(tid)
+            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+        return True
 
     def _watch(self) -> None:
-        said_stuck = None
+        said_stuck: set[tuple[int, float]] = set()
         while True:
             time.sleep(self._POLL)
+            said: list[tuple[str, tuple]] = []
             with self._lock:
-                entry = self._entry
                 now = time.perf_counter()
-                if entry is None:
-                    said_stuck = None
+                if not self._entries:
+                    said_stuck.clear()
                     if now - self._last > self._IDLE:
                         self._running = False
-                        if self._entry is None:
+                        if not self._entries:
                             return
                         self._running = True
                     continue
-                tid, since, runner = entry
-                timeout = runner.plugin.hang_timeout
-                if now - since < timeout:
-                    continue
-                if not self._injected:
-                    self._injected = True
+                for tid, (since, runner) in list(self._entries.items()):
+                    timeout = runner.plugin.hang_timeout
+                    if now - since < timeout:
+                        continue
                     where = _where_running(tid, runner.plugin.file)
-                    log.error("controller '%s': update has not returned for %s s (%s): "
-                              "interrupting it", runner.name, number_text(round(now - since, 2)),
-                              where)
-                    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid),
-                                                               ctypes.py_object(ControllerHang))
-                elif now - since > 2 * timeout + 1.0 and said_stuck is not entry:
-                    said_stuck = entry
-                    log.error("controller '%s': update cannot be interrupted: it is blocked "
-                              "outside Python (%s); the lab is frozen: press Ctrl-C twice to end "
-                              "it", runner.name, _where_running(tid, runner.plugin.file))
+                    if tid not in self._injected:
+                        self._injected.add(tid)
+                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
+                            ctypes.c_ulong(tid), ctypes.py_object(ControllerHang))
+                        said.append(("controller '%s': update has not returned for %s s (%s): "
+                                     "interrupting it", (runner.name, number_text(round(now - since, 2)),
+                                                         where)))
+                    elif now - since > 2 * timeout + 1.0 and (tid, since) not in said_stuck:
+                        said_stuck.add((tid, since))
+                        said.append(("controller '%s': update cannot be interrupted: it is blocked "
+                                     "outside Python (%s); the lab is frozen: press Ctrl-C twice "
+                                     "to end it", (runner.name, where)))
+            for text, args in said:  # outside the lock: a log handler may take its time
+                log.error(text, *args)
 
 
 def _within(values: list[float], limits: list[float]) -> bool:
