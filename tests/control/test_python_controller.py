@@ -428,3 +428,33 @@ def test_hostile_type_names_are_one_line(tmp_path, ctype):
         assert exc.one_line().startswith(f"{path}:{line}: ") and "\n" not in exc.one_line()
     else:
         assert ctype in config.controllers["ctl"].type  # a shipped type (never, from this alphabet)
+
+
+def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
+    """Joints out of the hardware's order: state gathered, efforts scattered, each to its dof."""
+    write(tmp_path, "ctl.py", """\
+        import numpy as np
+        from mexone.control import PythonController
+
+        class Ctl(PythonController):
+            def configure(self):
+                self.seen = []
+            def update(self, state, t, dt):
+                self.seen.append((state.q.copy(), state.all_q[self.dofs + 1].copy()))
+                return np.array([0.5, -0.25, 0.125])
+        """)
+    path = write(tmp_path, "c.yaml", """\
+        mex_rb:
+          ctl:
+            type: ctl/Ctl
+            joints: [r_elbow, l_shoulder_pitch, waist_yaw]
+        """)
+    lab = Lab.create(controllers=path)
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.direct
+    lab.sim.step(3)
+    dofs = lab.controllers.hw.dof_adr[lab.controllers.hw.rows(["r_elbow", "l_shoulder_pitch",
+                                                                 "waist_yaw"])]
+    assert list(lab.sim.data.qfrc_actuator[dofs]) == [0.5, -0.25, 0.125]
+    q, q_from_all = ctrl.impl.seen[-1]  # qpos has one more entry than qvel (the base quaternion)
+    np.testing.assert_array_equal(q, q_from_all)

@@ -87,10 +87,7 @@ class PythonRunner(Controller):
         self._span: slice | None = None
         self.direct = False  # state views of MuJoCo's arrays: no hardware read needed
         self._views()
-        span = strided_view(np.arange(len(self.hw.joints)), self.rows)
-        self._cmd_index = slice(int(self.rows[0]), int(self.rows[0]) + len(self.rows)) \
-            if span is not None and (len(self.rows) == 1 or span.strides[0] == span.itemsize) \
-            else self.rows
+        self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
         self.impl = self._instantiate(plugin)
 
     @classmethod
@@ -287,11 +284,10 @@ class PythonRunner(Controller):
         views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
                  strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
         if any(v is None for v in views):
-            span = strided_view(np.arange(len(hw.joints)), rows)
-            if span is None or (len(rows) > 1 and span.strides[0] != span.itemsize):
+            self._span = _span_of(rows)
+            if self._span is None:
                 state.q, state.dq, state.effort = (np.zeros(len(rows)) for _ in range(3))
                 return
-            self._span = slice(int(rows[0]), int(rows[0]) + len(rows))
             views = [hw.state.position[self._span], hw.state.velocity[self._span],
                      hw.state.effort[self._span]]
         else:
@@ -488,6 +484,13 @@ class _HangGuard:
                                      "to end it", (runner.name, where)))
             for text, args in said:  # outside the lock: a log handler may take its time
                 log.error(text, *args)
+
+
+def _span_of(rows: np.ndarray) -> slice | None:
+    """rows as a slice when they are consecutive (a limb's joints usually are), else None."""
+    if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
+        return None
+    return slice(int(rows[0]), int(rows[0]) + len(rows))
 
 
 def _within(values: list[float], limits: list[float]) -> bool:
