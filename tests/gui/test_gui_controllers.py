@@ -9,7 +9,7 @@ import threading
 
 import pytest
 
-from helpers import free_port
+from helpers import free_port, wait_until
 from mexone.control.skeleton import skeleton_files
 from mexone.errors import InputError
 from mexone.gui.app import GuiApp
@@ -40,8 +40,8 @@ def test_table_params_switch_and_reload(app):
     gui, folder = app
     panel, manager = gui.controllers_panel, gui.lab.controllers
     call(gui, panel.update)
-    row = next(r for r in panel.table.content.splitlines() if r.startswith(f"| {NAME} "))
-    assert "| running | MyPd | 1000 |" in row
+    first = panel.table.content.splitlines()[0]  # the student's controller comes first
+    assert first.startswith(f"- **{NAME}**: running · MyPd · 1000 Hz · ") and "us/update" in first
     assert panel.pick.value == NAME
     call(gui, lambda: panel.set_param(NAME, "kp", "35"))
     assert manager.controllers[NAME].params["kp"] == 35.0
@@ -60,3 +60,12 @@ def test_table_params_switch_and_reload(app):
     new = manager.controllers[NAME]
     assert new is not old and new.running and new.params["kp"] == 35.0  # the live value kept
     assert new.plugin.cls.declared_params()["kp"].default == 21.0
+    # a bug: the panel says it stopped and why; the page was told (its log handler)
+    (folder / "my_pd.py").write_text(text.replace('        tau = self.kp', '        1 / 0\n        tau = self.kp'))
+    call(gui, panel.reload)
+    broken = manager.controllers[NAME]
+    assert wait_until(lambda: broken.fault is not None, timeout=20)
+    call(gui, panel.update)
+    lines = panel.table.content.splitlines()
+    assert lines[0].startswith(f"- **{NAME}**: **fault** · MyPd") and "ZeroDivisionError" in lines[1]
+    assert any("ZeroDivisionError" in line and line.startswith("[ERROR]") for line in gui.console)

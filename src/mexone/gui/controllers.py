@@ -22,18 +22,24 @@ __all__ = ["ControllersPanel", "controllers_table"]
 
 
 def controllers_table(lab: Lab) -> str:
-    """The panel's table (Markdown): name, state, type, rate, time per update."""
+    """The panel's list (Markdown, one line per controller, the students' first): name, state,
+    type, update rate, time per update; and why a stopped Python controller stopped."""
     manager = lab.controllers
     if manager is None:
         return lab.no_controllers or "no controllers"
-    rows = ["| controller | state | type | Hz | us/update |", "|---|---|---|---|---|"]
-    for info in manager.list():
+    infos = sorted(manager.list(), key=lambda i: i.update_rate is None)  # stable: YAML order
+    rows = []
+    for info in infos:
         state = "**fault**" if info.fault else info.state
-        rate = number_text(info.update_rate) if info.update_rate else ""
-        spent = f"{info.update_time * 1e6:.1f}" if info.update_time else ""
-        rows.append(f"| {info.name} | {state} | {info.type.split('/')[-1]} | {rate} | {spent} |")
-    faults = [f"**{i.name}**: {i.fault}" for i in manager.list() if i.fault]
-    return "\n".join(rows + ([""] + faults if faults else []))
+        parts = [state, info.type.split("/")[-1]]
+        if info.update_rate:
+            parts.append(f"{number_text(info.update_rate)} Hz")
+        if info.update_time:
+            parts.append(f"{info.update_time * 1e6:.1f} us/update")
+        rows.append(f"- **{info.name}**: {' · '.join(parts)}")
+        if info.fault:
+            rows.append(f"  - {info.fault}")
+    return "\n".join(rows)
 
 
 class ControllersPanel:
