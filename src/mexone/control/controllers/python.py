@@ -3,7 +3,8 @@
 The runner is the framework around the student's `update`: it builds the `State`, times the call,
 checks what comes back (numbers, one per joint, finite), clamps it to the joint's limits (said
 once), and writes it to the claimed command interface. The student's faults are theirs: an
-exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time`, or an update
+exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time` (an update the
+OS preempted meanwhile is the machine's, not counted), or an update
 that has not returned after `hang_timeout` (a watchdog thread interrupts it) -> the manager stops
 the controller, its joints hold their measured position (or are damped: `on_fault: damp`), the
 lab runs on, and one line names the controller and the student's file:line.
@@ -22,6 +23,11 @@ import threading
 import time
 import traceback
 from typing import Any
+
+try:
+    import resource
+except ImportError:  # Windows
+    resource = None
 
 import numpy as np
 
@@ -72,6 +78,7 @@ class PythonRunner(Controller):
         self.period_ns = 1
         self._last_t: float | None = None
         self._overruns = 0
+        self._suspect = False  # the last update overran: the next are checked for preemption
         self._dyn = None
         self._dyn_at = -1
         self._limits_said: set[str] = set()
@@ -187,7 +194,7 @@ class PythonRunner(Controller):
         hw, rows = self.hw, self.rows
         hw.release(rows)
         c = hw.command
-        self.fault, self._overruns, self._last_t = None, 0, None
+        self.fault, self._overruns, self._last_t, self._suspect = None, 0, None, False
         self.next_ns, self.due = -1, False  # the manager schedules the first update now
         self._limits_said.clear()
         if self.interface_name == "position":
@@ -315,6 +322,7 @@ class PythonRunner(Controller):
         self._read(t)
         self.updates += 1
         guard = _GUARD
+        switches = _preemptions() if self._suspect else 0  # only after an overrun: a syscall
         start = time.perf_counter()
         guard.enter(self, start)
         try:
@@ -336,14 +344,17 @@ class PythonRunner(Controller):
         self._spent += elapsed
         self._timed_updates += 1
         if elapsed > self._max_time:
-            self._overruns += 1
+            if not self._suspect:  # the first: measure the next ones for preemption
+                self._suspect = True
+            elif _preemptions() == switches:  # not the machine's doing: theirs
+                self._overruns += 1
             if self._overruns >= self.plugin.max_overruns:
                 self._fault(f"update overran its period: {self._overruns} updates in a row took "
                             f"longer than {number_text(self._max_time * 1e3)} ms (the last "
                             f"{number_text(elapsed * 1e3)} ms) ({self.update_line()})")
                 return
-        elif self._overruns:
-            self._overruns = 0
+        elif self._suspect:
+            self._suspect, self._overruns = False, 0
         if out is not None:
             self._write(out, t)
 
@@ -491,6 +502,14 @@ def _span_of(rows: np.ndarray) -> slice | None:
     if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
         return None
     return slice(int(rows[0]), int(rows[0]) + len(rows))
+
+
+def _preemptions() -> int:
+    """Times the OS took the CPU from this thread (involuntary context switches): an update
+    that overran while this moved was slowed by the machine, not by its code. Linux's
+    RUSAGE_THREAD; elsewhere 0 (every overrun counts)."""
+    who = getattr(resource, "RUSAGE_THREAD", None) if resource is not None else None
+    return 0 if who is None else resource.getrusage(who).ru_nivcsw
 
 
 def _within(values: list[float], limits: list[float]) -> bool:
