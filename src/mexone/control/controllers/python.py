@@ -42,6 +42,10 @@ from mexone.ranges import number_text
 __all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH"]
 
 log = logging.getLogger("mexone.control")
+# the students' own lines: info and up (mexone's own loggers say only warnings); the terminal
+# shows them all, the page and /rosout their warnings and errors
+STUDENT_LOG = logging.getLogger("mexone.control.student")
+STUDENT_LOG.setLevel(logging.INFO)
 HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
 _SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
 
@@ -150,7 +154,7 @@ class PythonRunner(Controller):
         impl.name, impl.joints = self.name, list(self.joints)
         impl.dofs = self.dofs.copy()
         impl.params = dict(plugin.params)
-        impl.log = _StudentLog(logging.getLogger("mexone.control.student"), {"name": self.name})
+        impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
         impl.__dict__["_mexone_binding"] = self
         self._call(impl.configure, "configure")
         return impl
