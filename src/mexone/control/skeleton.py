@@ -52,7 +52,7 @@ class {cls}(PythonController):
         """The controller takes over its joints: hold where they are now."""
         self.q0 = state.q.copy()
         self.log.info("holding %s at %s rad", ", ".join(self.joints),
-                      ", ".join(f"{q:.3f}" for q in self.q0))
+                      ", ".join(f"{{q:.3f}}" for q in self.q0))
 
     def update(self, state, t, dt):
         """Every period: state.q, state.dq, state.effort (the claimed joints), state.all_q,
