@@ -28,7 +28,7 @@ def sample(s):
 
 sim.add_periodic(0.1, sample)
 runner = RoutineRunner(lab, "walk", {"_course": [["forward", 1.0], ["turn", 90]]})
-runner.run(None)  # as long as the routine says: its course, then 5 s standing
+runner.run(None)  # its course, then 5 s standing; a failed routine raises RoutineError
 t, x, y, yaw = track[-1]
 print(f"after {t:.1f} s: {x:.2f} m ahead, {y:+.2f} m aside, turned {yaw:.0f} deg, "
       f"{'fell' if has_fallen(sim, start_height) else 'standing'}")

@@ -10,6 +10,8 @@ noisy machine):
   sensors        the PD row again with every light sensor read (pelvis IMU and both ankle FT at
                  100 Hz, sole contacts at 50 Hz), then also COM/ZMP/support polygon at 50 Hz;
                  and the Kinect's cost per frame (RGB; depth image + point cloud) offscreen
+  sensor states  the five light sensors read by a 100 Hz controller (`SensorSuite.states`) and
+                 broadcast to one subscriber each, vs the PD-only run (issue 25: <= 1.15)
   cold start     process start to the first simulated millisecond of `mexone sim --headless`
   parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
                  controllers run inside MuJoCo, so the controlled robot rolls out in C) and
@@ -48,6 +50,7 @@ class BenchReport:
     overhead_full_pid: dict = field(default_factory=dict)
     overhead_sensors: dict = field(default_factory=dict)
     overhead_balance: dict = field(default_factory=dict)
+    sensor_states: dict = field(default_factory=dict)
     camera: dict = field(default_factory=dict)
     pybullet: dict | None = None
     cold_start_s: float | None = None
@@ -90,6 +93,67 @@ def read_light_sensors(lab: Lab, balance_topics: bool = False) -> None:
     balance = lab.sensors.balance
     for key, topic in balance.topics.items():
         lab.bus.subscribe(topic, balance.types[key], lambda msg: None)
+
+
+LIGHT_SENSOR_RATE = 100.0  # Hz of the controller reading the sensors' states in `sensor_states`
+
+
+def read_states_at(lab: Lab, rate: float = LIGHT_SENSOR_RATE) -> None:
+    """A controller's read phase at `rate`: every light sensor's state, every field touched."""
+    states = lab.sensors.states
+    imus = [n for n, k in states.kinds().items() if k == "imu"]
+    fts = [n for n, k in states.kinds().items() if k == "force_torque"]
+    contacts = [n for n, k in states.kinds().items() if k == "contact"]
+
+    taken: list = []
+
+    def read(_sim) -> None:  # every field, as a balance controller takes them
+        taken.clear()
+        for name in imus:
+            imu = states[name]
+            taken.extend((imu.orientation, imu.angular_velocity, imu.linear_acceleration))
+        for name in fts:
+            ft = states[name]
+            taken.extend((ft.force, ft.torque))
+        for name in contacts:
+            contact = states[name]
+            taken.extend((contact.in_contact, contact.force))
+
+    lab.sim.add_periodic(1.0 / rate, read)
+
+
+def sensor_states(sim_seconds: float, repeats: int) -> dict:
+    """Mex-One on its PD controllers with joint states at 50 Hz (the PD-only run), against the
+    same with the five light sensors read by a 100 Hz controller and broadcast to one
+    subscriber each (IMU, both ankle FT at 100 Hz; both sole contacts at 50 Hz). Paired runs,
+    CPU time of this thread, as `overhead`."""
+    plain, read = Lab.create(), Lab.create()
+    read_light_sensors(read)
+    read_states_at(read)
+    runs = {}
+    for key, lab in (("pd", plain), ("sensors", read)):
+        lab.bus.subscribe(f"{lab.namespace}/joint_states", JointState, lambda msg: None)
+        steps = round(sim_seconds / lab.sim.timestep)
+
+        def run(sim=lab.sim, steps=steps) -> float:
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            return time.thread_time() - start
+
+        runs[key] = run
+    pds, reads = [], []
+    for k in range(max(8, 4 * repeats)):
+        signals.check()
+        if k % 2:
+            pds.append(runs["pd"]())
+            reads.append(runs["sensors"]())
+        else:
+            reads.append(runs["sensors"]())
+            pds.append(runs["pd"]())
+    ratio = float(np.median(np.array(reads) / np.array(pds)))
+    return {"pd_s_per_sim_s": float(np.median(pds)) / sim_seconds,
+            "sensors_s_per_sim_s": float(np.median(reads)) / sim_seconds, "ratio": ratio}
 
 
 def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
@@ -417,6 +481,7 @@ def run_bench(quick: bool = False, progress=None) -> BenchReport:
              ("overhead_sensors", lambda: overhead(sim_seconds, repeats, sensors=True)),
              ("overhead_balance", lambda: overhead(sim_seconds, repeats, sensors=True,
                                                    balance=True)),
+             ("sensor_states", lambda: sensor_states(sim_seconds, repeats)),
              ("camera", lambda: camera_cost(min(sim_seconds, 2.0))),
              ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
              ("cold_start_s", lambda: cold_start(2 if quick else 3)),
@@ -450,6 +515,9 @@ def format_report(report: BenchReport) -> str:
     f = report.overhead_balance
     if f:
         lines.append(f"{'overhead ratio, the same + COM, ZMP, polygon':<44} {f['ratio']:12.3f}")
+    f = report.sensor_states
+    if f:
+        lines.append(f"{'5 sensors read at 100 Hz + broadcast, vs PD':<44} {f['ratio']:12.3f}")
     c = report.camera
     if c:
         size = f"{c['width']}x{c['height']}"

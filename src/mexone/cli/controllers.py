@@ -11,6 +11,7 @@ from mexone.cli.common import add_joint_pose_options, joint_pose_from_args
 from mexone.control.autotune import controllers_yaml, transmissions_xacro, tune
 from mexone.control.skeleton import class_name, skeleton_files
 from mexone.description.loader import load_model
+from mexone.description.packages import package_name
 from mexone.errors import InputError
 from mexone.files import check_output, write_text
 from mexone.lab import robot_namespace
@@ -58,6 +59,16 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def include_name(path: Path) -> str:
+    """How a xacro includes `path`: `$(find pkg)/...` from the ROS package it is in (the nearest
+    folder above with a package.xml), else its absolute path."""
+    path = path.resolve()
+    for folder in path.parents:
+        if (name := package_name(folder)) is not None:
+            return f"$(find {name})/{path.relative_to(folder).as_posix()}"
+    return str(path)
+
+
 def run(args: argparse.Namespace) -> int:
     if str(args.model) == "new" and not args.model.is_file():
         return _new(args)
@@ -82,7 +93,8 @@ def run(args: argparse.Namespace) -> int:
     namespace = robot_namespace(robot)
     write_text(out, controllers_yaml(robot, world.step, namespace, pose, floating,
                                      source=args.model.name), args.force)
-    write_text(xacro, transmissions_xacro(robot, namespace, out.name), args.force)
+    write_text(xacro, transmissions_xacro(robot, namespace, out.name, include_name(xacro)),
+               args.force)
     print(f"wrote {out}: {len(tunings)} position controllers and a joint_state_controller")
     print(f"wrote {xacro}: include it from {args.model.name} for ros_control's <transmission>s")
     sag = max(tunings, key=lambda t: t.sag)

@@ -52,7 +52,8 @@ def add_parser(sub) -> None:
     p = sub.add_parser("sim", help="simulate a robot (default: the built-in Mex-One)",
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("model", nargs="?", type=Path,
-                   help="URDF, .urdf.xacro or SDF model (default: the built-in Mex-One)")
+                   help="URDF, .urdf.xacro, SDF (file or Gazebo model folder) or MJCF robot "
+                        "(default: the built-in Mex-One)")
     p.add_argument("--headless", action="store_true",
                    help="no web GUI and no pacing: run, then print a summary")
     p.add_argument("--port", type=PORT, default=8080,

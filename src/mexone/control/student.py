@@ -23,8 +23,7 @@ import numpy as np
 from mexone.errors import InputError
 from mexone.ranges import Range, number_text
 
-__all__ = ["PythonController", "Param", "State", "BaseState", "ImuState", "ForceTorqueState",
-           "sensor_states", "COMMAND_INTERFACES"]
+__all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES"]
 
 # command_interface -> ros_control's hardware interface (what a <transmission> offers)
 COMMAND_INTERFACES = {"effort": "EffortJointInterface", "position": "PositionJointInterface",
@@ -122,39 +121,10 @@ class BaseState:
     angular_velocity: np.ndarray
 
 
-@dataclass
-class ImuState:
-    """ros2_control's IMU semantic component: orientation x y z w, angular velocity (rad/s) and
-    proper linear acceleration (m/s^2, +9.81 up at rest), in the sensor's frame."""
-
-    orientation: np.ndarray
-    angular_velocity: np.ndarray
-    linear_acceleration: np.ndarray
-
-
-@dataclass
-class ForceTorqueState:
-    """ros2_control's force-torque semantic component: force (N) and torque (N m), in the
-    sensor's frame."""
-
-    force: np.ndarray
-    torque: np.ndarray
-
-
-def sensor_states(suite) -> dict[str, ImuState | ForceTorqueState]:
-    """`state.sensors`: every IMU and force-torque sensor of `suite` (a mexone.sensors
-    SensorSuite, or None) by its name, with ros2_control's field names. The one adapter between
-    the sensors as they are today and controllers (the sensors-as-state-interfaces work replaces
-    it)."""
-    if suite is None:
-        return {}
-    out: dict[str, ImuState | ForceTorqueState] = {}
-    for name, values in suite.readings().items():
-        if values.size == 10:  # w x y z, gyro, acc
-            out[name] = ImuState(np.r_[values[1:4], values[0]], values[4:7], values[7:10])
-        elif values.size == 6:
-            out[name] = ForceTorqueState(values[:3], values[3:6])
-    return out
+def sensor_states(suite) -> Mapping:
+    """`state.sensors`: the sensors' state interfaces of `suite` (a mexone.sensors SensorSuite,
+    or None), by name (`SensorSuite.states`: each read only when looked up, once an instant)."""
+    return {} if suite is None else suite.states
 
 
 class State:
@@ -162,8 +132,8 @@ class State:
     `effort` of the claimed joints (rad, rad/s, N m: arrays owned by the framework, valid during
     the call: copy what you keep), `all_q`/`all_dq` (MuJoCo's qpos, nq long, and qvel, nv long:
     index qvel-sized vectors with `self.dofs`), `time` (s of sim time), `base` (BaseState or
-    None) and `sensors` (name -> ImuState or ForceTorqueState). The last three are computed only
-    when read."""
+    None) and `sensors` (name -> the sensor's state: mexone.sensors ImuState, ForceTorqueState,
+    ContactSensorState). `base` and `sensors` are computed only when read."""
 
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
                  "_sensors", "_base")

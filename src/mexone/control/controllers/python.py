@@ -184,11 +184,15 @@ class PythonRunner(Controller):
 
     # ----- dynamics at the live state -----------------------------------------------------------
     def dynamics(self):
-        if self._dyn is None or self._dyn_at != self.updates:
+        """mexone.dynamics.Dynamics bound to the live state (`Dynamics.live`, made once per
+        model), refreshed at the first use in each update: queries cost only when asked."""
+        if self._dyn is None:
             from mexone.dynamics import Dynamics
 
-            sim = self.ctx.sim
-            self._dyn = Dynamics(sim.model, sim.data)
+            self._dyn = Dynamics.live(self.ctx.sim)
+            self._dyn_at = self.updates
+        elif self._dyn_at != self.updates:
+            self._dyn.refresh()
             self._dyn_at = self.updates
         return self._dyn
 
