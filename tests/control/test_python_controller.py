@@ -166,6 +166,7 @@ class MyPd(PythonController):
 
     def activate(self, state):
         self.q0, self.n = state.q.copy(), 0
+        self.acc0 = state.sensors["imu"].linear_acceleration.copy()  # sensors ready at activate
 
     def update(self, state, t, dt):
         self.n += 1
@@ -173,6 +174,11 @@ class MyPd(PythonController):
             raise RuntimeError("my bug")
         return self.kp * (self.q0 - state.q) - self.kd * state.dq
 """
+
+
+def arm_line(text: str) -> int:
+    """The line of ARM holding `text` (what the messages must name)."""
+    return next(i for i, line in enumerate(ARM.splitlines(), 1) if text in line)
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +198,7 @@ def test_raise_on_1000th_update_holds_then_reload_restores(arm, caplog):
     assert not ctrl.running and ctrl.updates == RAISE_AT
     [line] = errors(caplog)
     assert line.startswith("controller 'my_pd_controller' stopped, its joints holding their position")
-    assert f"{folder / 'my_pd.py'}:16: RuntimeError: my bug" in line
+    assert f"{folder / 'my_pd.py'}:{arm_line('raise RuntimeError')}: RuntimeError: my bug" in line
     rows = manager.hw.rows(ARM_JOINTS)
     held = sim.joint_positions()[rows].copy()
     sim.step(500)  # the lab runs on; gravity pulls the arm, the hold keeps it
@@ -200,7 +206,7 @@ def test_raise_on_1000th_update_holds_then_reload_restores(arm, caplog):
     assert np.abs(sim.joint_positions()[rows] - held).max() < 0.01
     # a reload whose file does not import keeps the stopped one and says where
     (folder / "my_pd.py").write_text(ARM.replace("self.n += 1", "self.n += 1 +"))
-    with pytest.raises(InputError, match=r"my_pd.py:14: SyntaxError"):
+    with pytest.raises(InputError, match=rf"my_pd.py:{arm_line('self.n += 1')}: SyntaxError"):
         manager.reload("my_pd_controller")
     assert manager.controllers["my_pd_controller"] is ctrl
     (folder / "my_pd.py").write_text(ARM.replace(f"== {RAISE_AT}", "== -1"))
@@ -218,7 +224,8 @@ def test_reload_keeps_the_running_one_when_configure_fails(arm):
     ctrl = manager.controllers["my_pd_controller"]
     assert ctrl.running
     (folder / "my_pd.py").write_text(ARM + "\n    def configure(self):\n        1 / 0\n")
-    with pytest.raises(InputError, match=r"configure failed: .*my_pd.py:20: ZeroDivisionError"):
+    line = len(ARM.splitlines()) + 3  # the appended `1 / 0`
+    with pytest.raises(InputError, match=rf"configure failed: .*my_pd.py:{line}: ZeroDivisionError"):
         manager.reload("my_pd_controller")
     assert manager.controllers["my_pd_controller"] is ctrl and ctrl.running
     (folder / "my_pd.py").write_text(ARM)
@@ -230,6 +237,7 @@ def test_state_reads_sensors_and_base(arm):
     lab.controllers.hw.read()
     ctrl._read(lab.sim.time)
     state = ctrl.state
+    assert ctrl.impl.acc0[2] == pytest.approx(9.81, abs=0.5)  # read in activate, at Lab.create
     imu = state.sensors["imu"]
     assert imu.linear_acceleration[2] == pytest.approx(9.81, abs=0.5)  # at rest: proper acc up
     assert np.linalg.norm(imu.orientation) == pytest.approx(1.0)

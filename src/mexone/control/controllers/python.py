@@ -184,12 +184,12 @@ class PythonRunner(Controller):
 
     # ----- dynamics at the live state -----------------------------------------------------------
     def dynamics(self):
-        """mexone.dynamics.Dynamics bound to the live state (`Dynamics.live`, made once per
-        model), refreshed at the first use in each update: queries cost only when asked."""
-        if self._dyn is None:
+        sim = self.ctx.sim
+        if self._dyn is None or self._dyn.model is not sim.model or self._dyn._source is not sim.data:
             from mexone.dynamics import Dynamics
 
-            self._dyn = Dynamics.live(self.ctx.sim)
+            links = sim.compiled.bodies  # one scratch MjData for the run: refreshed per update
+            self._dyn = Dynamics(sim.model, sim.data, links, links.values())
             self._dyn_at = self.updates
         elif self._dyn_at != self.updates:
             self._dyn.refresh()
