@@ -115,6 +115,8 @@ class Lab:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
             manager.start_default(start)
         lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
+        if manager is not None:
+            manager.use_sensors(lab.sensors)
         if manager is None:
             lab.no_controllers = no_controllers_note(robot, asked)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))

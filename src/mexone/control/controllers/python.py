@@ -1,0 +1,444 @@
+"""PythonRunner: a student's PythonController inside the manager's read -> update -> write.
+
+The runner is the framework around the student's `update`: it builds the `State`, times the call,
+checks what comes back (numbers, one per joint, finite), clamps it to the joint's limits (said
+once), and writes it to the claimed command interface. The student's faults are theirs: an
+exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time`, or an update
+that has not returned after `hang_timeout` (a watchdog thread interrupts it) -> the manager stops
+the controller, its joints hold their measured position (or are damped: `on_fault: damp`), the
+lab runs on, and one line names the controller and the student's file:line.
+
+Holding uses the joint's PID gains from the YAML (pid:, gains:, gazebo_ros_control/pid_gains)
+if it has any, else autotune's rule on the live inertia: w dt = 0.1, p = I w^2, d = 2 I w, with I
+the joint's diagonal entry of M(q) (MuJoCo's servo; its D term is implicit, so this is stable).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import inspect
+import logging
+import threading
+import time
+import traceback
+from typing import Any
+
+import numpy as np
+
+from mexone.control.controllers.base import Controller, ControllerType
+from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
+from mexone.control.resolve import Plugin, student_line
+from mexone.control.student import PythonController, State, unit_of
+from mexone.errors import InputError, MexoneError
+from mexone.physics.simulation import NS
+from mexone.ranges import number_text
+
+__all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH"]
+
+log = logging.getLogger("mexone.control")
+HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
+_SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
+_EMA = 0.02  # weight of the newest update in the mean time per update
+
+
+class ControllerHang(BaseException):
+    """Raised inside a student's update that ran past its hang_timeout (a BaseException, so the
+    student's own `except Exception` does not swallow it)."""
+
+
+class _StudentLog(logging.LoggerAdapter):
+    def process(self, msg, kwargs):
+        return f"{self.extra['name']}: {msg}", kwargs
+
+
+class PythonRunner(Controller):
+    kind = "python"
+    sliders = False
+
+    def __init__(self, spec, ctx):
+        plugin: Plugin = spec.plugin
+        self.plugin = plugin
+        super().__init__(spec, ctx)
+        self.msg_type = None  # it listens to no command topic: its update computes the command
+        self.interface_name = plugin.cls.command_interface
+        self.unit = unit_of(self.interface_name)
+        hw = self.hw
+        self.dofs = hw.dof_adr[self.rows].copy()
+        self.fault: str | None = None
+        self.updates = 0
+        self.update_time = 0.0  # s of wall time per update (a running mean)
+        self.due = False
+        self.next_ns = 0
+        self.period_ns = 1
+        self._last_t: float | None = None
+        self._overruns = 0
+        self._dyn = None
+        self._dyn_at = -1
+        self._limits_said: set[str] = set()
+        self._command = np.zeros(len(self.rows))
+        self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
+        self.impl = self._instantiate(plugin)
+
+    @classmethod
+    def type_of(cls, spec) -> ControllerType:
+        return ControllerType(spec.type, cls, spec.plugin.interface, False)
+
+    # ----- what front ends read -----------------------------------------------------------------
+    @property
+    def setpoint(self) -> np.ndarray:
+        return self._command.copy()
+
+    @property
+    def timed(self) -> bool:
+        return True
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return dict(self.impl.params)
+
+    def set_param(self, key: str, value) -> Any:
+        """Change a declared parameter live (simulation thread), validated as the YAML's."""
+        param = self.plugin.cls.declared_params().get(key)
+        if param is None:
+            raise InputError(f"controller '{self.name}' has no parameter '{key}'",
+                             hint="its parameters: " + (", ".join(self.impl.params) or "none"))
+        value = param.check(value, f"controller '{self.name}': {key}")
+        self.impl.params[key] = value
+        return value
+
+    # ----- loading ------------------------------------------------------------------------------
+    def _base_joint(self) -> tuple[int, int] | None:
+        """(qpos, qvel) address of this robot's free joint, or None (fixed to the world)."""
+        import mujoco
+
+        model, prefix = self.ctx.sim.model, self.hw.prefix
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.joint(j).name.startswith(prefix):
+                return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        return None
+
+    def _instantiate(self, plugin: Plugin) -> PythonController:
+        """The student's object, set up and configured; an error in their code is one line with
+        their file:line (the load fails; a reload keeps the old controller)."""
+        impl = self._call(plugin.cls, "creating")
+        impl.name, impl.joints = self.name, list(self.joints)
+        impl.dofs = self.dofs.copy()
+        impl.params = dict(plugin.params)
+        impl.log = _StudentLog(logging.getLogger("mexone.control.student"), {"name": self.name})
+        impl.__dict__["_mexone_binding"] = self
+        self._call(impl.configure, "configure")
+        return impl
+
+    def _call(self, fn, what: str, *args):
+        try:
+            return fn(*args)
+        except MexoneError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - the student's error, said in one line
+            raise InputError(f"controller '{self.name}': {what} failed: {self._where(exc)}",
+                             hint="fix it, then reload") from None
+
+    def _where(self, exc: BaseException) -> str:
+        file = self.plugin.file
+        line = student_line(file, exc.__traceback__)
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        return f"{file}:{line or '?'}: {type(exc).__name__}" + (f": {text}" if text else "")
+
+    def update_line(self) -> str:
+        """file:line of the student's update method (what a NaN or an overrun points at)."""
+        try:
+            line = inspect.getsourcelines(type(self.impl).update)[1]
+        except (OSError, TypeError):
+            line = "?"
+        return f"{self.plugin.file}:{line}"
+
+    # ----- dynamics at the live state -----------------------------------------------------------
+    def dynamics(self):
+        if self._dyn is None or self._dyn_at != self.updates:
+            from mexone.dynamics import Dynamics
+
+            sim = self.ctx.sim
+            self._dyn = Dynamics(sim.model, sim.data)
+            self._dyn_at = self.updates
+        return self._dyn
+
+    # ----- lifecycle (simulation thread) --------------------------------------------------------
+    def starting(self, t: float) -> None:
+        super().starting(t)
+        hw, rows = self.hw, self.rows
+        hw.release(rows)
+        c = hw.command
+        self.fault, self._overruns, self._last_t = None, 0, None
+        self.next_ns, self.due = -1, False  # the manager schedules the first update now
+        self._limits_said.clear()
+        if self.interface_name == "position":
+            c.position[rows] = hw.state.position[rows]
+            if not self._write_pid():
+                c.teleport[rows] = TELEPORT_POSITION
+            self._command[:] = hw.state.position[rows]
+        elif self.interface_name == "velocity":
+            gains = [self.pid_for(j) for j in self.joints]
+            if None in gains:
+                c.teleport[rows] = TELEPORT_VELOCITY
+            else:
+                c.kd[rows] = [g.p for g in gains]
+                hw.gains_changed(rows)
+            self._command[:] = 0.0
+        else:
+            self._command[:] = 0.0
+        self._read(t)
+        try:
+            self.impl.activate(self.state)
+        except Exception as exc:  # noqa: BLE001 - the student's fault
+            self._fault(f"activate raised {self._where(exc)}")
+        except ControllerHang:
+            self._fault(f"activate ran past hang_timeout ({self.update_line()})")
+
+    def _write_pid(self, damp: bool = False) -> bool:
+        """The YAML's PID gains on the claimed joints (p, d only when damping); False if a joint
+        has none."""
+        gains = [self.pid_for(j) for j in self.joints]
+        if None in gains:
+            return False
+        c, rows = self.hw.command, self.rows
+        c.kp[rows] = 0.0 if damp else [g.p for g in gains]
+        c.kd[rows] = [g.d for g in gains]
+        if not damp:
+            c.ki[rows] = [g.i for g in gains]
+            c.i_min[rows] = [g.i_clamp_min for g in gains]
+            c.i_max[rows] = [g.i_clamp_max for g in gains]
+            c.antiwindup[rows] = [g.antiwindup for g in gains]
+        self.hw.gains_changed(rows)
+        return True
+
+    def stopping(self) -> None:
+        try:
+            self.impl.deactivate()
+        except Exception as exc:  # noqa: BLE001 - said, and the stop goes on
+            log.warning("%s: deactivate raised %s", self.name, self._where(exc))
+        if self.fault is None:
+            super().stopping()
+            return
+        self.hold(damp=self.plugin.on_fault == "damp")
+
+    def hold(self, damp: bool = False) -> None:
+        """The joints hold their measured position (or are only damped) by MuJoCo's servo."""
+        hw, rows = self.hw, self.rows
+        hw.release(rows)
+        c = hw.command
+        c.position[rows] = hw.position(rows)
+        if self._write_pid(damp):
+            return
+        sim = self.ctx.sim
+        inertia = sim.data.qM[sim.model.dof_Madr[self.dofs]]
+        w = np.full(len(rows), HOLD_BANDWIDTH / sim.timestep)
+        limit = hw.effort_limit[rows]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w_effort = np.sqrt(limit / (inertia * _SATURATION_ERROR))
+        w = np.where(np.isfinite(w_effort), np.minimum(w, w_effort), w)
+        c.kp[rows] = 0.0 if damp else inertia * w**2
+        c.kd[rows] = 2.0 * inertia * w
+        hw.gains_changed(rows)
+
+    def _read(self, t: float) -> None:
+        hw, rows, state = self.hw, self.rows, self.state
+        state.q[:] = hw.state.position[rows]
+        state.dq[:] = hw.state.velocity[rows]
+        state.effort[:] = hw.state.effort[rows]
+        state._data = self.ctx.sim.data
+        state._refresh(t)
+
+    def update(self, t: float, dt: float) -> None:
+        if not self.due:
+            return
+        self.due = False
+        dt = t - self._last_t if self._last_t is not None else self.period_ns / NS
+        self._last_t = t
+        self._read(t)
+        self.updates += 1
+        guard = _GUARD
+        guard.enter(self)
+        start = time.perf_counter()
+        try:
+            out = self.impl.update(self.state, t, dt)
+        except Exception as exc:  # noqa: BLE001 - the student's fault
+            guard.leave()
+            self._fault(f"update raised {self._where(exc)} at t = {t:.3f} s")
+            return
+        except ControllerHang as exc:
+            guard.leave()
+            self._fault(f"update did not return within hang_timeout "
+                        f"{number_text(self.plugin.hang_timeout)} s (interrupted at "
+                        f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'})")
+            return
+        elapsed = time.perf_counter() - start
+        if guard.leave():
+            self._fault(f"update did not return within hang_timeout ({self.update_line()})")
+            return
+        self.update_time += _EMA * (elapsed - self.update_time) if self.updates > 1 \
+            else elapsed - self.update_time
+        limit = self.plugin.max_update_time or self.period_ns / NS
+        if elapsed > limit:
+            self._overruns += 1
+            if self._overruns >= self.plugin.max_overruns:
+                self._fault(f"update overran its period: {self._overruns} updates in a row took "
+                            f"longer than {number_text(limit * 1e3)} ms (the last "
+                            f"{number_text(elapsed * 1e3)} ms) ({self.update_line()})")
+                return
+        else:
+            self._overruns = 0
+        if out is not None:
+            self._write(out, t)
+
+    def _write(self, out, t: float) -> None:
+        n = len(self.rows)
+        try:
+            values = np.asarray(out, dtype=float)
+        except (TypeError, ValueError):
+            self._fault(f"update returned {type(out).__name__} {str(out)[:40]!r}, not numbers "
+                        f"({self.update_line()})")
+            return
+        if values.shape != (n,):
+            if values.size == n:
+                values = values.reshape(n)
+            else:
+                self._fault(f"update returned {values.size} values for {n} joints "
+                            f"({self.update_line()})")
+                return
+        if not np.isfinite(values).all():
+            bad = [f"{self.joints[i]} {number_text(values[i])}"
+                   for i in np.flatnonzero(~np.isfinite(values))]
+            self._fault(f"update returned {', '.join(bad)} at t = {t:.3f} s "
+                        f"({self.update_line()})")
+            return
+        hw, rows, kind = self.hw, self.rows, self.interface_name
+        if kind == "effort":
+            limit = hw.effort_limit[rows]
+            if (np.abs(values) > limit).any():
+                values = self._clamped(values, -limit, limit, "URDF effort limit")
+            hw.command.effort[rows] = values
+        elif kind == "position":
+            lo, hi = hw.lower[rows], hw.upper[rows]
+            if (values < lo).any() or (values > hi).any():
+                values = self._clamped(values, lo, hi, "joint limits")
+            hw.command.position[rows] = values
+        else:
+            limit = hw.velocity_limit[rows]
+            if (np.abs(values) > limit).any():
+                values = self._clamped(values, -limit, limit, "URDF velocity limit")
+            hw.command.velocity[rows] = values
+        self._command[:] = values
+
+    def _clamped(self, values, lower, upper, what: str) -> np.ndarray:
+        """Clamp, saying once per joint (Gazebo clamps efforts to the URDF limit too)."""
+        clamped = np.clip(values, lower, upper)
+        fresh = [i for i in np.flatnonzero(clamped != values) if self.joints[i] not in self._limits_said]
+        if fresh:
+            self._limits_said.update(self.joints[i] for i in fresh)
+            parts = [f"{self.joints[i]} {number_text(values[i])} -> {number_text(clamped[i])}"
+                     for i in fresh]
+            log.warning("%s: command beyond the %s, clamped (said once per joint): %s",
+                        self.name, what, ", ".join(parts))
+        return clamped
+
+    def _fault(self, text: str) -> None:
+        """Stop at the end of this cycle, joints held; one line on the terminal, page, /rosout."""
+        if self.fault is not None:
+            return
+        held = "damped" if self.plugin.on_fault == "damp" else "holding their position"
+        self.fault = text
+        log.error("controller '%s' stopped, its joints %s: %s", self.name, held, text)
+        self.ctx.faults.append(self.name)
+
+
+class _HangGuard:
+    """One watchdog thread: interrupts a student's update that has not returned after its
+    hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in the simulation thread at
+    its next bytecode). It lives only while updates run: idle for a second, it ends."""
+
+    _IDLE = 1.0  # s without updates after which the thread ends
+    _POLL = 0.05  # s
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._entry: tuple[int, float, PythonRunner] | None = None
+        self._injected = False
+        self._running = False
+        self._last = 0.0
+
+    def enter(self, runner: PythonRunner) -> None:
+        now = time.monotonic()
+        self._last = now
+        self._entry = (threading.get_ident(), now, runner)
+        if not self._running:
+            self._running = True
+            threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
+
+    def leave(self) -> bool:
+        """The update returned; True if the watchdog had interrupted it (the pending exception
+        is withdrawn: it must not land in the manager)."""
+        with self._lock:
+            entry, self._entry = self._entry, None
+            injected, self._injected = self._injected, False
+            if injected and entry is not None:
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(entry[0]), None)
+        return injected
+
+    def _watch(self) -> None:
+        said_stuck = None
+        while True:
+            time.sleep(self._POLL)
+            with self._lock:
+                entry = self._entry
+                now = time.monotonic()
+                if entry is None:
+                    said_stuck = None
+                    if now - self._last > self._IDLE:
+                        self._running = False
+                        if self._entry is None:
+                            return
+                        self._running = True
+                    continue
+                tid, since, runner = entry
+                timeout = runner.plugin.hang_timeout
+                if now - since < timeout:
+                    continue
+                if not self._injected:
+                    self._injected = True
+                    where = _where_running(tid, runner.plugin.file)
+                    log.error("controller '%s': update has not returned for %s s (%s): "
+                              "interrupting it", runner.name, number_text(round(now - since, 2)),
+                              where)
+                    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid),
+                                                               ctypes.py_object(ControllerHang))
+                elif now - since > 2 * timeout + 1.0 and said_stuck is not entry:
+                    said_stuck = entry
+                    log.error("controller '%s': update cannot be interrupted: it is blocked "
+                              "outside Python (%s); the lab is frozen: press Ctrl-C twice to end "
+                              "it", runner.name, _where_running(tid, runner.plugin.file))
+
+
+def _where_running(tid: int, file: str) -> str:
+    """file:line where thread `tid` runs now, in `file` if it is there."""
+    import sys
+
+    frame = sys._current_frames().get(tid)
+    stack = traceback.extract_stack(frame) if frame is not None else []
+    ours = [f for f in stack if f.filename == file]
+    frame_info = ours[-1] if ours else (stack[-1] if stack else None)
+    return f"{frame_info.filename}:{frame_info.lineno}" if frame_info else file
+
+
+_GUARD = _HangGuard()
+
+
+def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:
+    """The runner's period: 1/update_rate (at least one physics step), else the control period."""
+    rate = runner.plugin.update_rate
+    period = 1.0 / rate if rate else control_period
+    if period < timestep * (1 - 1e-9):
+        runner.warn_once("rate", f"update_rate {number_text(rate)} Hz is faster than the physics "
+                                 f"step ({number_text(1 / timestep)} Hz): it updates every step")
+        period = timestep
+    return max(1, round(period * NS))
+
