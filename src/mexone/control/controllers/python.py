@@ -154,11 +154,15 @@ class PythonRunner(Controller):
 
     # ----- dynamics at the live state -----------------------------------------------------------
     def dynamics(self):
-        if self._dyn is None or self._dyn_at != self.updates:
+        sim = self.ctx.sim
+        if self._dyn is None or self._dyn.model is not sim.model or self._dyn._source is not sim.data:
             from mexone.dynamics import Dynamics
 
-            sim = self.ctx.sim
-            self._dyn = Dynamics(sim.model, sim.data)
+            links = sim.compiled.bodies  # one scratch MjData for the run: refreshed per update
+            self._dyn = Dynamics(sim.model, sim.data, links, links.values())
+            self._dyn_at = self.updates
+        elif self._dyn_at != self.updates:
+            self._dyn.refresh()
             self._dyn_at = self.updates
         return self._dyn
 
