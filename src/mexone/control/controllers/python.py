@@ -234,7 +234,7 @@ class PythonRunner(Controller):
         if self._write_pid(damp):
             return
         sim = self.ctx.sim
-        inertia = sim.data.qM[sim.model.dof_Madr[self.dofs]]
+        inertia = _inertia_diagonal(sim.model, sim.data, self.dofs)
         w = np.full(len(rows), HOLD_BANDWIDTH / sim.timestep)
         limit = hw.effort_limit[rows]
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -360,7 +360,7 @@ class _HangGuard:
     hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in the simulation thread at
     its next bytecode). It lives only while updates run: idle for a second, it ends."""
 
-    _IDLE = 1.0  # s without updates after which the thread ends
+    _IDLE = 0.5  # s without updates after which the thread ends
     _POLL = 0.05  # s
 
     def __init__(self) -> None:
@@ -420,6 +420,20 @@ class _HangGuard:
                     log.error("controller '%s': update cannot be interrupted: it is blocked "
                               "outside Python (%s); the lab is frozen: press Ctrl-C twice to end "
                               "it", runner.name, _where_running(tid, runner.plugin.file))
+
+
+def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
+    """M(q)[i, i] for each dof i: the inertia the joint moves now (armature included)."""
+    import mujoco
+
+    unit, column = np.zeros(model.nv), np.zeros(model.nv)
+    out = np.empty(len(dofs))
+    for k, dof in enumerate(dofs):
+        unit[:] = 0.0
+        unit[dof] = 1.0
+        mujoco.mj_mulM(model, data, column, unit)
+        out[k] = column[dof]
+    return out
 
 
 def _where_running(tid: int, file: str) -> str:
