@@ -99,7 +99,7 @@ def test_computed_torque_tracks_five_times_closer_than_the_shipped_pid():
     lab = make_lab(TRACKING, start=pids, stop=["computed_torque"])
 
     def command(q):
-        for name, value in zip(pids, q):
+        for name, value in zip(pids, q, strict=True):
             lab.controllers.command(name, [value])
 
     shipped = tracking_rms(lab, joints, command)

@@ -3,11 +3,9 @@ ankle pitch torques. See README.md for the model and the derivation."""
 
 from __future__ import annotations
 
-import math
-
-import control
 import numpy as np
 
+import control
 from mexone.control import Param, PythonController
 
 __all__ = ["LqrBalance", "pendulum"]
@@ -28,17 +26,18 @@ def pendulum(mass: float, height: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 class LqrBalance(PythonController):
-    """u = -K (x - x0): K from the LQR of the pendulum above (python-control's `lqr`), x from
-    the whole-body COM (the encoders and the IMU's orientation), the torque kept within what
-    the feet's measured load can carry (the foot sensors), split over both ankles."""
+    """u = -m g c0 - K (x - x0): K from the LQR of the pendulum above (python-control's `lqr`),
+    x from the whole-body COM (the joint encoders, the base's motion with the IMU's gyro), u kept
+    within what the feet's measured load can carry (the foot force-torque sensors), split over
+    both ankles."""
 
     command_interface = "effort"
     q_position = Param(1.0, low=0.0, high=1e6, doc="LQR weight on c, 1/m^2 (Bryson: 1/max^2)")
     q_velocity = Param(1.0, low=0.0, high=1e6, doc="LQR weight on dc, s^2/m^2")
     r_torque = Param(1e-4, low=1e-9, high=1e3, doc="LQR weight on u, 1/(N m)^2")
     toe = Param(0.10, low=0.0, high=0.5, doc="m, sole ahead of the ankle: the COP's limit forward")
-    imu_gyro = Param(True, doc="the base's angular velocity from the IMU (else the simulator's)")
     heel = Param(0.06, low=0.0, high=0.5, doc="m, sole behind the ankle: the COP's limit backward")
+    imu_gyro = Param(True, doc="the base's angular velocity from the IMU (else the simulator's)")
 
     def configure(self) -> None:
         self.gain = np.zeros(2)
