@@ -161,3 +161,18 @@ def test_each_runs_headless_with_a_json_report(example, seconds, check):
     assert check(report["controllers"]), report["controllers"]
     assert "Traceback" not in out.stderr
     assert math.isfinite(report["rtf"])
+
+
+def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
+    from mexone.cli.sim import controller_reports
+
+    lab = make_lab(GRAVITY)
+    lab.sim.run(0.01)
+    impl = lab.controllers.controllers["gravity_compensation"].impl
+    impl.report = lambda: {"q0": impl.q0, "worst": np.float64(impl.worst)}
+    reports = controller_reports(lab)
+    assert reports["gravity_compensation"]["q0"] == pytest.approx(list(impl.q0))
+    assert "plain_pd" not in reports  # stopped controllers do not report
+    impl.report = lambda: 1 / 0
+    assert reports != (broken := controller_reports(lab))
+    assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
