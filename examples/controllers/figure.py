@@ -101,12 +101,12 @@ def main() -> None:
 
     sim.run(0.3)
     start = hand(sim)
-    sim.apply_wrench("l_forearm", (0.0, 10.0, 0.0), point=start, duration=0.8)
-    t, v = record(lab, 1.5, lambda s: 1e3 * (hand(s) - start)[1])
+    sim.apply_wrench("l_forearm", (0.0, 10.0, 0.0), point=start, duration=1.2)
+    t, v = record(lab, 1.9, lambda s: 1e3 * (hand(s) - start)[1])
     stiffness = lab.controllers.controllers["hand_impedance"].params["stiffness"]
     ax.plot(t, v, label="hand, sideways")
     ax.axhline(1e3 * 10.0 / stiffness, ls="--", c="k", label="F / K")
-    ax.set(title="3. push the hand: 10 N for 0.8 s", xlabel="t (s)", ylabel="displacement (mm)")
+    ax.set(title="3. push the hand: 10 N for 1.2 s", xlabel="t (s)", ylabel="displacement (mm)")
 
     ax = axes[1, 1]
     balance = HERE / "04_lqr_balance" / "controllers.yaml"
