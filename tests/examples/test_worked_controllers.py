@@ -129,7 +129,7 @@ def test_hand_impedance_moves_the_hand_force_over_stiffness():
         sim.apply_wrench(HAND, force, point=before, duration=1.2)  # at the hand, world frame
         sim.run(0.7)  # the hand settles; the standing robot still sways a little on its ankles:
         samples = []  # the mean over the push's last 0.5 s (about one period of that sway)
-        timer = sim.add_periodic(sim.timestep, lambda s: samples.append(hand()))
+        timer = sim.add_periodic(sim.timestep, lambda s, samples=samples: samples.append(hand()))
         sim.run(0.5)
         sim.remove_periodic(timer)
         pushes[direction] = (np.mean(samples, axis=0) - before) @ np.array(direction)
