@@ -41,7 +41,8 @@ until Ctrl-C or --duration.
 
 With --headless the run is unpaced (as fast as the machine allows) and ends with a summary:
 sim time, wall time, real-time factor, base height, the fastest link speed seen, and whether
-the robot came to rest.
+the robot came to rest; with --json also, under "controllers", the report() of each running
+Python controller that defines one (the worked controllers' measurements).
 
 A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
 the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2. Stopped by Ctrl-C or
