@@ -18,6 +18,7 @@ noisy machine):
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -51,6 +52,7 @@ class BenchReport:
     pybullet: dict | None = None
     cold_start_s: float | None = None
     parallel: list[dict] = field(default_factory=list)
+    python_controller: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         return asdict(self)
@@ -132,6 +134,102 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
     ratio = float(np.median(np.array(ourses) / np.array(bares)))
     return {"bare_s_per_sim_s": float(np.median(bares)) / sim_seconds,
             "mexone_s_per_sim_s": float(np.median(ourses)) / sim_seconds, "ratio": ratio}
+
+
+_BENCH_CONTROLLER = """\
+from mexone.control import Param, PythonController
+
+
+class MyPd(PythonController):
+    kp = Param(20.0, low=0.0, high=1e4)
+    kd = Param(1.0, low=0.0, high=1e3)
+
+    def activate(self, state):
+        self.q0 = state.q.copy()
+
+    def update(self, state, t, dt):
+        return self.kp * (self.q0 - state.q) - self.kd * state.dq
+"""
+
+
+def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
+    """What the framework costs per update of a student's PythonController (a PD on Mex-One's
+    left arm at 1 kHz): the manager's read -> update -> write per update (timed inside a run),
+    minus the same update() called in a bare loop on the same State, plus what waking the loop
+    every physics step costs the simulation (a do-nothing control's extra time per step). The
+    physics itself is left out: it is the same with any controller."""
+    from mexone.control.skeleton import skeleton_files
+
+    with tempfile.TemporaryDirectory() as folder:
+        for name, text in skeleton_files("my_pd").items():
+            (Path(folder) / name).write_text(text)
+        (Path(folder) / "my_pd.py").write_text(_BENCH_CONTROLLER)
+        lab = Lab.create(controllers=Path(folder) / "controllers.yaml")
+    sim, manager = lab.sim, lab.controllers
+    runner = manager.controllers["my_pd_controller"]
+    steps = round(sim_seconds / sim.timestep)
+    clock = time.perf_counter
+    real_update = manager.update
+    spent = [0.0]
+
+    def timed_update(s) -> None:
+        start = clock()
+        real_update(s)
+        spent[0] += clock() - start
+
+    def loop() -> float:
+        sim.reset()
+        spent[0], before = 0.0, runner.updates
+        manager.update = timed_update  # shadows the method for this run
+        try:
+            sim.step(steps)
+        finally:
+            del manager.update
+        return spent[0] / max(1, runner.updates - before)
+
+    def bare() -> float:
+        impl, state = runner.impl, runner.state
+        update = impl.update
+        start = clock()
+        for k in range(steps):
+            update(state, k * 0.001, 0.001)
+        return (clock() - start) / steps
+
+    class _Wake:  # a control that needs every step and does nothing
+        wake_ns = -math.inf
+
+        def update(self, s) -> None:
+            self.wake_ns = s.time_ns + round(s.timestep * 1e9)
+
+    def wake_cost() -> float:
+        manager.stop("my_pd_controller")
+        try:
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            idle = time.thread_time() - start
+            wake = _Wake()
+            sim.add_control(wake)
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            busy = time.thread_time() - start
+            sim.remove_control(wake)
+        finally:
+            manager.start("my_pd_controller")
+        return (busy - idle) / steps
+
+    loops, bares, wakes = [], [], []
+    for _ in range(max(4, 2 * repeats)):
+        signals.check()
+        loops.append(loop())
+        bares.append(bare())
+        wakes.append(wake_cost())
+    student, manager_time = float(np.median(bares)), float(np.median(loops))
+    wake = max(0.0, float(np.median(wakes)))
+    return {"student_us": student * 1e6, "manager_us_per_update": manager_time * 1e6,
+            "wake_us_per_step": wake * 1e6,
+            "framework_us_per_update": (manager_time - student + wake) * 1e6}
 
 
 def camera_cost(sim_seconds: float) -> dict:
@@ -316,7 +414,9 @@ def run_bench(quick: bool = False, progress=None) -> BenchReport:
              ("camera", lambda: camera_cost(min(sim_seconds, 2.0))),
              ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
              ("cold_start_s", lambda: cold_start(2 if quick else 3)),
-             ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds))]
+             ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds)),
+             ("python_controller", lambda: python_controller_cost(min(sim_seconds, 2.0),
+                                                                  repeats))]
     for name, fn in steps:
         if progress:
             progress(name)
@@ -366,4 +466,9 @@ def format_report(report: BenchReport) -> str:
         label = f"{row['backend']}, {row['workers']} worker(s)"
         lines.append(f"{label:<44} {row['robot_s_per_wall_s']:8.1f} robot-s/s, "
                      f"efficiency {row['efficiency']:.2f}")
+    p = report.python_controller
+    if p:
+        lines += [f"{'PythonController PD on 3 joints, 1 kHz: student us':<52} {p['student_us']:7.2f}",
+                  f"{'  framework us per update (target <= 10)':<52} "
+                  f"{p['framework_us_per_update']:7.2f}"]
     return "\n".join(lines)

@@ -75,6 +75,10 @@ class ControllerManager:
         self._periodic: list[Controller] = []  # running controllers that need every period
         self._running: list[Controller] = []
         self._timed: list[PythonRunner] = []  # running Python controllers (own update rates)
+        self._every: list[Controller] = []  # running controllers that update every period
+        self._waiting = False  # a command was buffered since the last update
+        self._half_step_ns = 0
+        self._dt = self.control_period  # cached for the loop; _schedule refreshes it
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
         self._state_timer: Periodic | None = None
@@ -84,6 +88,7 @@ class ControllerManager:
         sim.add_control(self)
         sim.on_reset(self.restart)
         sim.on_timestep_change(self.on_timestep_change)
+        sim.on_model_change(self._rebind)  # after the hardware's own rebind (registered first)
         sim.watchdog.suspects.append(self._suspect)
         for note in gazebo_differences(config):
             log.warning("%s: %s", note.spec.name, note.text)
@@ -104,7 +109,7 @@ class ControllerManager:
                 self._next_period_ns = now + period
             self.wake_ns = self._next_period_ns
         if self._timed:
-            half = round(sim.timestep * NS / 2)
+            half = self._half_step_ns
             for ctrl in self._timed:
                 if now >= ctrl.next_ns - half:
                     ctrl.due = True
@@ -116,14 +121,28 @@ class ControllerManager:
         self.updates += 1
         self.hw.read()
         t = now / NS
-        try:
-            for ctrl in self._running:
-                ctrl.update(t, self.control_period)
+        dt = self._dt
+        waiting, self._waiting = self._waiting, False
+        try:  # an idle controller (no command waiting, no period) has nothing to do
+            for ctrl in self._running if waiting else self._every:
+                if ctrl.every_period or ctrl._pending is not None:
+                    ctrl.update(t, dt)
         except ControllerHang:  # the watchdog's interrupt landed just after a student's update
             log.error("a controller's update was interrupted after it returned; no harm done")
         if self._ctx.faults:
             self._stop_faulted()
+        elif not waiting and self._every is self._timed:  # only Python controllers ran
+            for ctrl in self._timed:
+                ctrl.flush()
+            return
         self.hw.write()
+
+    def _rebind(self) -> None:
+        """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
+        for ctrl in self.controllers.values():
+            if isinstance(ctrl, PythonRunner):
+                ctrl.rebind()
+        self._schedule()
 
     def _stop_faulted(self) -> None:
         """Stop the controllers that faulted (their joints hold); the lab runs on."""
@@ -310,6 +329,7 @@ class ControllerManager:
     def _buffer(self, ctrl: Controller):
         def on_message(msg) -> None:  # the publisher's thread: buffer only
             if ctrl.on_command(msg):
+                self._waiting = True
                 self._wake()
         return on_message
 
@@ -317,9 +337,19 @@ class ControllerManager:
         self._running = [c for c in self.controllers.values() if c.running]
         self._periodic = [c for c in self._running if c.periodic]
         self._timed = [c for c in self._running if c.timed]
+        for ctrl in self._running:
+            ctrl.every_period = ctrl.periodic or ctrl.timed
+        self._every = [c for c in self._running if c.every_period]
+        if self._every == self._timed:
+            self._every = self._timed  # the same list: update() takes its fast write
+        self._waiting = True  # a command buffered before the switch is not lost
         now = self.sim.time_ns
+        self._half_step_ns = round(self.sim.timestep * NS / 2)
+        self._dt = self.control_period
         for ctrl in self._timed:
+            ctrl.writer = self.hw.rows_writer(ctrl.rows, ctrl.interface_name)
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
+            ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now
                 ctrl.next_ns = now
         self._next_period_ns = now

@@ -94,6 +94,7 @@ class Controller:
         self.running = False
         self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
         self._pending = None  # the latest command, waiting for the next update
+        self.every_period = False  # the manager's: update runs every period (periodic or timed)
         self._warned: set[str] = set()
 
     @classmethod

@@ -76,7 +76,15 @@ class PythonRunner(Controller):
         self._dyn_at = -1
         self._limits_said: set[str] = set()
         self._command = np.zeros(len(self.rows))
+        self._effort_limit = hw.effort_limit[self.rows].copy()
+        self._n = len(self.rows)
+        self._wrote = False  # a command to send at the manager's fast write
+        self.writer = lambda values: None  # the manager's: hw.rows_writer for these joints
+        self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
         self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
+        self._span: slice | None = None
+        self._views()
+        self._cmd_index = self._span if self._span is not None else self.rows
         self.impl = self._instantiate(plugin)
 
     @classmethod
@@ -179,7 +187,7 @@ class PythonRunner(Controller):
             c.position[rows] = hw.state.position[rows]
             if not self._write_pid():
                 c.teleport[rows] = TELEPORT_POSITION
-            self._command[:] = hw.state.position[rows]
+            self._command = hw.state.position[rows].copy()
         elif self.interface_name == "velocity":
             gains = [self.pid_for(j) for j in self.joints]
             if None in gains:
@@ -187,9 +195,9 @@ class PythonRunner(Controller):
             else:
                 c.kd[rows] = [g.p for g in gains]
                 hw.gains_changed(rows)
-            self._command[:] = 0.0
+            self._command = np.zeros(len(rows))
         else:
-            self._command[:] = 0.0
+            self._command = np.zeros(len(rows))
         self._read(t)
         try:
             self.impl.activate(self.state)
@@ -244,13 +252,44 @@ class PythonRunner(Controller):
         c.kd[rows] = 2.0 * inertia * w
         hw.gains_changed(rows)
 
+    def rebind(self) -> None:
+        """The model changed (a robot spawned or deleted): MuJoCo addresses moved."""
+        self.dofs = self.hw.dof_adr[self.rows].copy()
+        self.impl.dofs = self.dofs.copy()
+        self.state._base_joint = self._base_joint()
+        self._dyn = None
+
+    def flush(self) -> None:
+        """Send this controller's last command to MuJoCo (the manager's fast write)."""
+        if self._wrote:
+            self._wrote = False
+            self.writer(self._command)
+
+    def _views(self) -> bool:
+        """Contiguous joints (a limb, usually): state.q, dq, effort are read-only views of the
+        hardware's state, so reading them costs nothing; else they are gathered each update."""
+        rows = self.rows
+        if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
+            return False
+        span = slice(int(rows[0]), int(rows[0]) + len(rows))
+        joints, state = self.hw.state, self.state
+        for name, array in (("q", joints.position), ("dq", joints.velocity),
+                            ("effort", joints.effort)):
+            view = array[span]
+            view.flags.writeable = False
+            setattr(state, name, view)
+        self._span = span
+        return True
+
     def _read(self, t: float) -> None:
-        hw, rows, state = self.hw, self.rows, self.state
-        state.q[:] = hw.state.position[rows]
-        state.dq[:] = hw.state.velocity[rows]
-        state.effort[:] = hw.state.effort[rows]
+        state = self.state
+        if self._span is None:
+            joints, rows = self.hw.state, self.rows
+            state.q[:] = joints.position[rows]
+            state.dq[:] = joints.velocity[rows]
+            state.effort[:] = joints.effort[rows]
         state._data = self.ctx.sim.data
-        state._refresh(t)
+        state.time, state._sensors, state._base = t, None, None
 
     def update(self, t: float, dt: float) -> None:
         if not self.due:
@@ -261,8 +300,8 @@ class PythonRunner(Controller):
         self._read(t)
         self.updates += 1
         guard = _GUARD
-        guard.enter(self)
         start = time.perf_counter()
+        guard.enter(self, start)
         try:
             out = self.impl.update(self.state, t, dt)
         except Exception as exc:  # noqa: BLE001 - the student's fault
@@ -279,23 +318,21 @@ class PythonRunner(Controller):
         if guard.leave():
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
-        self.update_time += _EMA * (elapsed - self.update_time) if self.updates > 1 \
-            else elapsed - self.update_time
-        limit = self.plugin.max_update_time or self.period_ns / NS
-        if elapsed > limit:
+        self.update_time += _EMA * (elapsed - self.update_time)
+        if elapsed > self._max_time:
             self._overruns += 1
             if self._overruns >= self.plugin.max_overruns:
                 self._fault(f"update overran its period: {self._overruns} updates in a row took "
-                            f"longer than {number_text(limit * 1e3)} ms (the last "
+                            f"longer than {number_text(self._max_time * 1e3)} ms (the last "
                             f"{number_text(elapsed * 1e3)} ms) ({self.update_line()})")
                 return
-        else:
+        elif self._overruns:
             self._overruns = 0
         if out is not None:
             self._write(out, t)
 
     def _write(self, out, t: float) -> None:
-        n = len(self.rows)
+        n = self._n
         try:
             values = np.asarray(out, dtype=float)
         except (TypeError, ValueError):
@@ -309,6 +346,11 @@ class PythonRunner(Controller):
                 self._fault(f"update returned {values.size} values for {n} joints "
                             f"({self.update_line()})")
                 return
+        if self.interface_name == "effort" and (np.abs(values) <= self._effort_limit).all():
+            self.hw.command.effort[self._cmd_index] = values  # usual: finite, within limits
+            self._command = values
+            self._wrote = True
+            return
         if not np.isfinite(values).all():
             bad = [f"{self.joints[i]} {number_text(values[i])}"
                    for i in np.flatnonzero(~np.isfinite(values))]
@@ -331,7 +373,8 @@ class PythonRunner(Controller):
             if (np.abs(values) > limit).any():
                 values = self._clamped(values, -limit, limit, "URDF velocity limit")
             hw.command.velocity[rows] = values
-        self._command[:] = values
+        self._command = values
+        self._wrote = True
 
     def _clamped(self, values, lower, upper, what: str) -> np.ndarray:
         """Clamp, saying once per joint (Gazebo clamps efforts to the URDF limit too)."""
@@ -370,8 +413,8 @@ class _HangGuard:
         self._running = False
         self._last = 0.0
 
-    def enter(self, runner: PythonRunner) -> None:
-        now = time.monotonic()
+    def enter(self, runner: PythonRunner, now: float) -> None:
+        """An update starts (`now`: time.perf_counter())."""
         self._last = now
         self._entry = (threading.get_ident(), now, runner)
         if not self._running:
@@ -394,7 +437,7 @@ class _HangGuard:
             time.sleep(self._POLL)
             with self._lock:
                 entry = self._entry
-                now = time.monotonic()
+                now = time.perf_counter()
                 if entry is None:
                     said_stuck = None
                     if now - self._last > self._IDLE:
