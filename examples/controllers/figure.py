@@ -26,14 +26,13 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 
 
-def lab_of(name: str, start=(), stop=()) -> Lab:
+def lab_of(name: str, shipped: bool = False) -> Lab:
+    """The example's YAML (or Mex-One's own controllers) with the example's pose."""
     folder = HERE / name
     pose = folder / "pose.yaml"
     joints = tuple(read_pose(pose).items()) if pose.exists() else ()
-    lab = Lab.create(controllers=folder / "controllers.yaml", spawn=Spawn(joints=joints))
-    if start or stop:
-        lab.controllers.switch(start=list(start), stop=list(stop))
-    return lab
+    return Lab.create(controllers=None if shipped else folder / "controllers.yaml",
+                      spawn=Spawn(joints=joints))
 
 
 def record(lab: Lab, seconds: float, value) -> tuple[np.ndarray, np.ndarray]:
@@ -59,10 +58,9 @@ def main() -> None:
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
 
     ax = axes[0, 0]
-    for label, switch in (("gravity compensation + PD", {}),
-                          ("plain PD, same gains",
-                           {"start": ["plain_pd"], "stop": ["gravity_compensation"]})):
-        lab = lab_of("01_gravity_compensation", **switch)
+    for label, gravity in (("gravity compensation + PD", 1.0), ("plain PD, same gains", 0.0)):
+        lab = lab_of("01_gravity_compensation")
+        lab.controllers.controllers["gravity_compensation"].set_param("gravity", gravity)
         q = joint(lab, "l_shoulder_pitch")
         q0 = q(lab.sim)
         t, v = record(lab, 1.0, lambda sim, q=q, q0=q0: 1e3 * (q(sim) - q0))
@@ -74,12 +72,9 @@ def main() -> None:
     from computed_torque import reference
 
     q0 = np.array(list(read_pose(HERE / "02_computed_torque" / "pose.yaml").values()))
-    for label, switch in (("computed torque", {}),
-                          ("shipped PID", {"start": ["l_shoulder_pitch_position_controller",
-                                                     "l_elbow_position_controller"],
-                                           "stop": ["computed_torque"]})):
-        lab = lab_of("02_computed_torque", **switch)
-        if switch:
+    for label, shipped in (("computed torque", False), ("shipped PID", True)):
+        lab = lab_of("02_computed_torque", shipped)
+        if shipped:
             def command(sim, lab=lab):
                 q = reference(sim.time, q0, 0.5, 0.5)[0]
                 lab.controllers.command("l_shoulder_pitch_position_controller", [q[0]])

@@ -31,14 +31,12 @@ GRAVITY, TRACKING, IMPEDANCE, BALANCE = (EXAMPLES / n for n in (
     "01_gravity_compensation", "02_computed_torque", "03_hand_impedance", "04_lqr_balance"))
 
 
-def make_lab(example: Path, start: list[str] = (), stop: list[str] = ()) -> Lab:
-    """The example's YAML and pose; then `stop` stopped and `start` started at t = 0."""
+def make_lab(example: Path, shipped: bool = False) -> Lab:
+    """The example's YAML (or, `shipped`, Mex-One's own controllers) with the example's pose."""
     pose = example / "pose.yaml"
     joints = tuple(read_pose(pose).items()) if pose.exists() else ()
-    lab = Lab.create(controllers=example / "controllers.yaml", spawn=Spawn(joints=joints))
-    if start or stop:
-        lab.controllers.switch(start=start, stop=stop)
-    return lab
+    return Lab.create(controllers=None if shipped else example / "controllers.yaml",
+                      spawn=Spawn(joints=joints))
 
 
 class JointLog:
@@ -56,8 +54,11 @@ class JointLog:
         self.q.append(sim.data.qpos[self.adr].copy())
 
 
-def worst_drift(example: Path, joints: list[str], seconds: float, **switch) -> float:
-    lab = make_lab(example, **switch)
+def worst_drift(example: Path, joints: list[str], seconds: float, gravity: float) -> float:
+    lab = make_lab(example)
+    ctrl = lab.controllers.controllers["gravity_compensation"]
+    ctrl.set_param("gravity", gravity)  # before the first update: 0 is plain PD, same gains
+    assert ctrl.params["kp"] == 5.0
     start = lab.sim.data.qpos[[int(lab.sim.model.joint(j).qposadr[0]) for j in joints]].copy()
     log = JointLog(lab, joints)
     lab.sim.run(seconds)
@@ -66,12 +67,10 @@ def worst_drift(example: Path, joints: list[str], seconds: float, **switch) -> f
 
 def test_gravity_compensation_holds_the_arm_where_plain_pd_sags():
     arm = ["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"]
-    compensated = worst_drift(GRAVITY, arm, 1.0)
-    plain = worst_drift(GRAVITY, arm, 1.0, start=["plain_pd"], stop=["gravity_compensation"])
+    compensated = worst_drift(GRAVITY, arm, 1.0, gravity=1.0)
+    plain = worst_drift(GRAVITY, arm, 1.0, gravity=0.0)
     assert compensated < 2e-3, f"gravity compensation drifted {compensated * 1e3:.2f} mrad"
     assert plain > 50e-3, f"plain PD sagged only {plain * 1e3:.1f} mrad"
-    gains = make_lab(GRAVITY).controllers.controllers
-    assert gains["gravity_compensation"].params["kp"] == gains["plain_pd"].params["kp"] == 5.0
 
 
 def tracking_rms(lab: Lab, joints: list[str], command=None) -> float:
@@ -96,7 +95,7 @@ def test_computed_torque_tracks_five_times_closer_than_the_shipped_pid():
     assert list(read_pose(TRACKING / "pose.yaml")) == joints  # q0 in the joints' order
     computed = tracking_rms(make_lab(TRACKING), joints)
     pids = [f"{j}_position_controller" for j in joints]
-    lab = make_lab(TRACKING, start=pids, stop=["computed_torque"])
+    lab = make_lab(TRACKING, shipped=True)
 
     def command(q):
         for name, value in zip(pids, q, strict=True):
@@ -177,7 +176,9 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
     impl.report = lambda: {"q0": impl.q0, "worst": np.float64(impl.worst)}
     reports = controller_reports(lab)
     assert reports["gravity_compensation"]["q0"] == pytest.approx(list(impl.q0))
-    assert "plain_pd" not in reports  # stopped controllers do not report
+    lab.controllers.switch(stop=["gravity_compensation"])
+    assert "gravity_compensation" not in controller_reports(lab)  # stopped: no report
+    lab.controllers.switch(start=["gravity_compensation"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
     assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
