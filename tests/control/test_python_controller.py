@@ -347,3 +347,47 @@ def test_controllers_new_writes_a_skeleton_that_runs_and_checks(tmp_path, capsys
     assert main(["check", "--controllers", str(folder / "controllers.yaml")]) == 0
     assert main(["sim", "--headless", "--duration", "0.3", "--controllers",
                  str(folder / "controllers.yaml")]) == 0
+
+
+def test_velocity_interface_without_gains_is_an_ideal_servo(tmp_path, turntable):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            command_interface = "velocity"
+            def update(self, state, t, dt):
+                return [1.25]
+        """)
+    lab.sim.step(5)
+    assert lab.sim.joint_velocities()[0] == pytest.approx(1.25)
+
+
+def test_on_fault_damp_leaves_only_damping(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                raise ValueError("no")
+        """, "on_fault: damp\n")
+    lab.sim.step(2)
+    hw = lab.controllers.hw
+    assert hw.command.kp[0] == 0.0 and hw.command.kd[0] > 0.0
+    assert "its joints damped: update raised" in errors(caplog)[0]
+
+
+def test_dynamics_is_bound_to_the_live_state_once_per_update(tmp_path, turntable, monkeypatch):
+    """mexone.dynamics is another branch's; a stand-in records how the framework builds it."""
+    import sys
+    import types
+
+    built = []
+
+    class Dynamics:
+        def __init__(self, model, data):
+            built.append((model, data))
+
+    monkeypatch.setitem(sys.modules, "mexone.dynamics", types.SimpleNamespace(Dynamics=Dynamics))
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                assert self.dynamics is self.dynamics
+        """)
+    lab.sim.step(2)  # three updates: t = 0, 1, 2 ms
+    assert len(built) == 3 and all(m is lab.sim.model and d is lab.sim.data for m, d in built)
