@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from mexone.design import linearize, operating_point
 from mexone.dynamics import Dynamics
 from mexone.lab import Lab
 
@@ -60,7 +61,19 @@ def queries(repeat: int) -> dict[str, float]:
         "jacobian('l_forearm'), kinematics cached": lambda: dyn.jacobian("l_forearm"),
         "Dynamics.snapshot(lab) (no loop thread)": lambda: Dynamics.snapshot(lab),
     }
-    return {name: per_call(fn, repeat) for name, fn in rows.items()}
+    out = {name: per_call(fn, repeat) for name, fn in rows.items()}
+    arm = ["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"]
+    point = operating_point(lab)
+    slow = {  # milliseconds: each call copies the model, the reduced one recompiles it
+        "operating_point(lab), both feet, ms": lambda: operating_point(lab),
+        "linearize(lab, point), full: 54 states, 21 efforts, ms": lambda: linearize(lab, point=point),
+        "linearize, full, with the IMU as outputs, ms":
+            lambda: linearize(lab, point=point, outputs=["imu/gyro", "imu/acc"]),
+        "linearize, one arm, fixed base (recompiled), ms":
+            lambda: linearize(lab, joints=arm, held="rigid", fixed_base=True),
+    }
+    out.update({name: per_call(fn, max(1, repeat // 200)) / 1000 for name, fn in slow.items()})
+    return out
 
 
 def main() -> int:
@@ -72,7 +85,7 @@ def main() -> int:
     if args.json:
         print(json.dumps(results, indent=2))
         return 0
-    print(f"{'what (Mex-One, nv = 27)':58s} {'us per call':>12s}")
+    print(f"{'what (Mex-One, nv = 27)':58s} {'us per call':>12s} (ms where the row says)")
     for name, value in results.items():
         print(f"{name:58s} {value:12.1f}")
     return 0

@@ -314,3 +314,25 @@ def test_com_and_momentum_of_a_model_with_two_free_bodies():
         angular += np.cross(data.xipos[body] - com, p)
     np.testing.assert_allclose(dyn.centroidal_momentum(), np.r_[linear, angular], atol=1e-12)
     np.testing.assert_allclose(dyn.com_jacobian() @ data.qvel * 5.0, linear, atol=1e-12)
+
+
+def test_every_urdf_link_is_a_frame_at_its_urdf_pose():
+    """Links joined by fixed joints (the Kinect's optical frames) are bodies of their own: each
+    URDF link's frame is where the URDF's kinematics put it."""
+    from mexone.description.kinematics import link_frames_at
+
+    lab = Lab.create(controllers=False)
+    dyn = Dynamics.live(lab.sim)
+    robot = lab.sim.robot
+    assert set(robot.links) - {"world"} <= set(dyn.frames)
+    root_position, root_rotation = dyn.pose(robot.root)
+    angles = dict(zip(lab.sim.joint_names, lab.sim.joint_positions(), strict=True))
+    for name, frame in link_frames_at(robot, angles).items():  # in the root's frame
+        position, rotation = dyn.pose(name)
+        np.testing.assert_allclose(root_rotation.T @ (position - root_position), frame[:3, 3], atol=1e-9)
+        np.testing.assert_allclose(root_rotation.T @ rotation, frame[:3, :3], atol=1e-9)
+    before = dyn.com()
+    lab.sim.step(50)
+    np.testing.assert_array_equal(dyn.com(), before)  # bound, not followed until refreshed
+    dyn.refresh()
+    assert not np.allclose(dyn.com(), before)

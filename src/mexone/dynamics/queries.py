@@ -32,6 +32,7 @@ import mujoco
 import numpy as np
 
 from mexone.errors import InputError
+from mexone.ranges import number_text
 
 if TYPE_CHECKING:
     from mexone.physics.simulation import Simulation
@@ -47,16 +48,17 @@ class Dynamics:
     `Dynamics(model, data)` reads `data`'s state (qpos, qvel, mocap) now and after each
     `refresh()`; queries are computed lazily, once per refresh, on a private `MjData`.
     `links` maps extra frame names to body ids (a compiled robot's URDF links); `robot_bodies`
-    are the bodies whose centre of mass `com()` is (default: every body but the world)."""
+    are the bodies whose centre of mass `com()` is (default: every body but the world).
+    copy=False: `data` is handed over (nobody else uses it) and the queries compute in it."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData,
                  links: Mapping[str, int] | None = None,
-                 robot_bodies: Iterable[int] | None = None):
+                 robot_bodies: Iterable[int] | None = None, *, copy: bool = True):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise TypeError("Dynamics(model, data) takes a mujoco.MjModel and a mujoco.MjData")
         self.model = model
         self._source = data
-        self._data = mujoco.MjData(model)
+        self._data = mujoco.MjData(model) if copy else data
         self._frames = _frames(model, links or {})
         bodies = sorted(set(robot_bodies) if robot_bodies is not None
                         else set(range(1, model.nbody)) or {0})
@@ -83,17 +85,25 @@ class Dynamics:
             raise TypeError("Dynamics.snapshot(lab) takes a mexone Lab or Simulation")
 
         def take() -> Dynamics:
-            copy = mujoco.MjData(sim.model)
-            copy.qpos[:], copy.qvel[:] = sim.data.qpos, sim.data.qvel
-            copy.mocap_pos[:], copy.mocap_quat[:] = sim.data.mocap_pos, sim.data.mocap_quat
-            copy.time = sim.data.time
+            state = mujoco.MjData(sim.model)
+            state.qpos[:], state.qvel[:] = sim.data.qpos, sim.data.qvel
+            state.mocap_pos[:], state.mocap_quat[:] = sim.data.mocap_pos, sim.data.mocap_quat
+            state.time = sim.data.time
             links = sim.compiled.bodies
-            return cls(sim.model, copy, links, links.values())
+            return cls(sim.model, state, links, links.values(), copy=False)
 
         loop = getattr(sim, "loop_thread", None)
         if loop is None or loop == threading.get_ident():
             return take()
         return sim.work.call(take, timeout=timeout)
+
+    @classmethod
+    def live(cls, sim: Simulation) -> Dynamics:
+        """A `Dynamics` bound to a Simulation's live data, with its robot's link names and COM:
+        for code in the simulation thread (a controller), which calls `refresh()` before each
+        use. A model change (a model spawned or removed) needs a new one."""
+        links = sim.compiled.bodies
+        return cls(sim.model, sim.data, links, links.values())
 
     def refresh(self) -> None:
         """Take the source data's state again (cheap: the copy and the computations happen at
@@ -144,7 +154,7 @@ class Dynamics:
         for name in names:
             found = self._joint_dofs.get(name)
             if found is None:
-                raise InputError(f"no joint named '{name}' in the model",
+                raise InputError(f"no joint named {_shown(name)} in the model",
                                  hint="joints: " + ", ".join(self._joint_dofs))
             out.append(found)
         return np.concatenate(out).astype(int) if out else np.zeros(0, dtype=int)
@@ -203,7 +213,7 @@ class Dynamics:
         return d.qfrc_inverse.copy()
 
     def _vector(self, value, what: str) -> np.ndarray:
-        out = np.asarray(value, dtype=float).reshape(-1)
+        out = _floats(value, what)
         if out.shape != (self.model.nv,):
             raise InputError(f"{what} has {out.size} values; the model has nv = {self.model.nv}")
         if not np.isfinite(out).all():
@@ -214,7 +224,8 @@ class Dynamics:
     def _frame(self, frame: str) -> tuple[int, int]:
         found = self._frames.get(frame) if isinstance(frame, str) else None
         if found is None:
-            raise InputError(f"no frame named '{frame}'", hint="frames: " + ", ".join(sorted(self._frames)))
+            raise InputError(f"no frame named {_shown(frame)}",
+                             hint="frames: " + ", ".join(sorted(self._frames)))
         return found
 
     def _body_and_point(self, frame: str, point) -> tuple[int, np.ndarray]:
@@ -226,9 +237,10 @@ class Dynamics:
             body, origin = index, d.xpos[index]
         if point is None:
             return body, origin.copy()
-        p = np.asarray(point, dtype=float).reshape(-1)
+        p = _floats(point, "point")
         if p.shape != (3,) or not np.isfinite(p).all():
-            raise InputError(f"point {point!r} is not 3 finite numbers (a world point, m)")
+            shown = ", ".join(number_text(v) for v in p[:4]) + (", ..." if p.size > 4 else "")
+            raise InputError(f"point ({shown}) is not 3 finite numbers (a world point, m)")
         return body, p
 
     def pose(self, frame: str) -> tuple[np.ndarray, np.ndarray]:
@@ -296,6 +308,22 @@ class Dynamics:
         out[:3] = momenta.sum(axis=0)
         out[3:] = d.subtree_angmom[self._roots].sum(axis=0) + np.cross(offsets, momenta).sum(axis=0)
         return out
+
+def _shown(name) -> str:
+    """A name for a one-line message: quoted, control characters escaped."""
+    if isinstance(name, str):
+        text = name
+    else:
+        text = number_text(name) if isinstance(name, (int, float)) else repr(name)
+    return "'" + text.encode("unicode_escape").decode("ascii")[:80] + "'"
+
+
+def _floats(value, what: str) -> np.ndarray:
+    try:
+        return np.asarray(value, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise InputError(f"{what} is not a list of numbers") from None
+
 
 def _frames(model: mujoco.MjModel, links: Mapping[str, int]) -> dict[str, tuple[int, int]]:
     out: dict[str, tuple[int, int]] = {}
