@@ -3,9 +3,9 @@ ankle pitch torques. See README.md for the model and the derivation."""
 
 from __future__ import annotations
 
+import control
 import numpy as np
 
-import control
 from mexone.control import Param, PythonController
 
 __all__ = ["LqrBalance", "pendulum"]
