@@ -32,7 +32,8 @@ from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
 __all__ = ["SimHardware", "strided_view", "JointCommands", "JointStates", "build_actuators", "bake_gains",
-           "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "gain_to_biasprm",
+           "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "set_integral_gain",
+           "set_hold_controls", "clear_integrals", "copy_actuator_state", "gain_to_biasprm",
            "biasprm_to_gain",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
@@ -99,6 +100,43 @@ def set_motor_gain(model: mujoco.MjModel, actuator: int, term: str, value: float
     not a running simulation's, e.g. identification's rollout copies."""
     gear = model.actuator_gear[actuator, 0]
     model.actuator_biasprm[actuator, _BIAS_COLUMN[term]] = gain_to_biasprm(value, gear)
+
+
+def set_integral_gain(model: mujoco.MjModel, actuator: int, ki: float) -> None:
+    """Write the I gain of an integral actuator of `model` (a copy, as set_motor_gain)."""
+    model.actuator_gainprm[actuator, 0] = ki
+
+
+def set_hold_controls(model: mujoco.MjModel, data: mujoco.MjData, motor: int, integral: int,
+                      q: float, effort: float) -> None:
+    """The controls of one joint's motor (q_ref = q, v_ref = 0, `effort` feed-forward, in joint
+    space) and integral actuator (q_ref = q; none if `integral` < 0), on a model and data that are
+    not a running simulation's (linearisation's copies); write() does the same at run time."""
+    gear = model.actuator_gear[motor, 0]
+    adr = model.actuator_ctrladr[motor]
+    data.ctrl[adr:adr + 3] = gear * q, 0.0, effort / gear
+    if integral >= 0:
+        data.ctrl[model.actuator_ctrladr[integral]] = q
+
+
+def copy_actuator_state(source: mujoco.MjModel, source_data: mujoco.MjData,
+                        target: mujoco.MjModel, target_data: mujoco.MjData) -> None:
+    """Each of `target`'s actuators' controls and states from the same-named actuator of
+    `source` (a reduced copy of a model, e.g. linearisation's with joints welded)."""
+    for i in range(target.nactuator):
+        old = source.actuator(target.actuator(i).name).id
+        n = int(target.actuator_ctrlnum[i])
+        start, from_ = target.actuator_ctrladr[i], source.actuator_ctrladr[old]
+        target_data.ctrl[start:start + n] = source_data.ctrl[from_:from_ + n]
+        m = int(target.actuator_actnum[i])
+        if m:
+            start, from_ = target.actuator_actadr[i], source.actuator_actadr[old]
+            target_data.act[start:start + m] = source_data.act[from_:from_ + m]
+
+
+def clear_integrals(data: mujoco.MjData) -> None:
+    """Every actuator state (the integral terms) to zero, on a copy's data."""
+    data.act[:] = 0.0
 
 
 def motor_gains(model: mujoco.MjModel, actuator: int) -> tuple[float, float]:

@@ -41,9 +41,17 @@ import control
 import mujoco
 import numpy as np
 
-from mexone.control.hardware import INTEGRAL_SUFFIX
+from mexone.control.hardware import (
+    INTEGRAL_SUFFIX,
+    clear_integrals,
+    copy_actuator_state,
+    set_hold_controls,
+    set_integral_gain,
+    set_motor_gain,
+)
 from mexone.dynamics import Dynamics
 from mexone.errors import ArgumentTypeError, InputError
+from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
@@ -376,17 +384,13 @@ def _apply(plant: _Plant, point: OperatingPoint) -> None:
         raise InputError(f"the operating point has {point.qpos.size} positions; the model nq = {model.nq}")
     d.qpos[:] = point.qpos
     d.qvel[:] = 0.0
-    d.act[:] = 0.0
+    clear_integrals(d)
     for joint, effort in zip(point.joints, point.efforts, strict=True):
         motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
         if motor < 0:
             continue
         q = d.qpos[model.jnt_qposadr[model.joint(joint).id]]
-        gear = model.actuator_gear[motor, 0]
-        adr = model.actuator_ctrladr[motor]
-        d.ctrl[adr:adr + 3] = gear * q, 0.0, effort / gear
-        if integral >= 0:
-            d.ctrl[model.actuator_ctrladr[integral]] = q
+        set_hold_controls(model, d, motor, integral, q, effort)
     mujoco.mj_forward(plant.model, d)
 
 
@@ -394,9 +398,10 @@ def _open_loop(model: mujoco.MjModel, joints: Iterable[str]) -> None:
     """The effort-claimed joints' PD and I terms off, as an effort controller runs them."""
     for joint in joints:
         motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
-        model.actuator_biasprm[motor, 1:3] = 0.0
+        set_motor_gain(model, motor, "p", 0.0)
+        set_motor_gain(model, motor, "d", 0.0)
         if integral >= 0:
-            model.actuator_gainprm[integral, 0] = 0.0
+            set_integral_gain(model, integral, 0.0)
 
 
 def _steps(model: mujoco.MjModel, period: float | None) -> int:
@@ -581,15 +586,7 @@ def _welded(plant: _Plant, joints: list[str], fixed_base: bool) -> _Plant:
         qvel_index += range(model.jnt_dofadr[old], model.jnt_dofadr[old] + width_v)
     data.qpos[:] = d.qpos[qpos_index]
     data.qvel[:] = d.qvel[qvel_index]
-    for i in range(reduced.nactuator):
-        old = model.actuator(reduced.actuator(i).name).id
-        n = int(reduced.actuator_ctrlnum[i])
-        data.ctrl[reduced.actuator_ctrladr[i]:reduced.actuator_ctrladr[i] + n] = \
-            d.ctrl[model.actuator_ctrladr[old]:model.actuator_ctrladr[old] + n]
-        m = int(reduced.actuator_actnum[i])
-        if m:
-            data.act[reduced.actuator_actadr[i]:reduced.actuator_actadr[i] + m] = \
-                d.act[model.actuator_actadr[old]:model.actuator_actadr[old] + m]
+    copy_actuator_state(model, d, reduced, data)
     mujoco.mj_forward(reduced, data)
     joints_left = [j for j in plant.joints if j not in gone]
     return _Plant(reduced, data, joints_left, None if fixed_base else plant.root_joint, None,
@@ -627,15 +624,11 @@ def _compiled_without(spec: mujoco.MjSpec, weld: list[str]) -> mujoco.MjModel:
     return model
 
 
-_ACTUATOR_FIELDS = ("gainprm", "biasprm", "dynprm", "forcerange", "forcelimited", "actrange",
-                    "actlimited", "gear", "ctrlrange", "ctrllimited")
-
-
 def _copy_settings(source: mujoco.MjModel, target: mujoco.MjModel) -> None:
     """What changes at run time (gains, clamps, the step, gravity, flags) onto a recompiled copy."""
     for i in range(target.nactuator):
         old = source.actuator(target.actuator(i).name).id
-        for name in _ACTUATOR_FIELDS:
-            getattr(target, f"actuator_{name}")[i] = getattr(source, f"actuator_{name}")[old]
+        for name in RUNTIME_ACTUATOR_FIELDS:  # the rest compiled from the same spec
+            getattr(target, name)[i] = getattr(source, name)[old]
     for name in ("timestep", "gravity", "disableflags", "enableflags", "integrator", "iterations"):
         setattr(target.opt, name, getattr(source.opt, name))
