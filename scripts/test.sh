@@ -36,5 +36,10 @@ if ((${#apt_packages[@]})); then
 fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[test]"
+# ROS 2's wheels name their packages as ROS 1's (std_msgs, ...): a venv of their own for the
+# --ros2 tests (tests/ros2), which start the simulator and their rclpy client with its python
+[ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2
+.venv-ros2/bin/python -m pip install -q --disable-pip-version-check -e ".[ros2]"
+export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
 python3 -m ruff check .
 python3 -m pytest "$@"

@@ -92,7 +92,9 @@ class Ros2Bridge:
 
         self.context = rclpy.Context()
         try:
-            rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+            # warnings go to stderr through mexone's own log already: rcl's copy only to /rosout
+            rclpy.init(args=["--ros-args", "--disable-stdout-logs"], context=self.context,
+                       signal_handler_options=SignalHandlerOptions.NO)
             self.node = rclpy.create_node(node_name, context=self.context)
         except Exception as exc:  # noqa: BLE001 - rcl's errors: a bad domain id, no middleware
             raise MexoneError(f"cannot join the ROS 2 graph: {exc}",
