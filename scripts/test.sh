@@ -9,6 +9,7 @@ cd "$(dirname "$0")/.."
 apt_packages=()
 command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
 command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's browser tests
+command -v npm >/dev/null 2>&1 || apt_packages+=(nodejs npm)  # Foxglove's own client (tests/foxglove_ws)
 # ROS 1 from Debian: the real roscore, rostopic, robot_state_publisher, rospy and tf2 to test against
 ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher python3-std-msgs
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
@@ -41,5 +42,7 @@ python3 -m pip install -q --disable-pip-version-check -e ".[test]"
 [ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2
 .venv-ros2/bin/python -m pip install -q --disable-pip-version-check -e ".[ros2]"
 export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
+# Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
+npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
 python3 -m ruff check .
 python3 -m pytest "$@"

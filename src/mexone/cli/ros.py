@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from mexone.cli.common import PORT
 from mexone.description.loader import load_model
 from mexone.description.urdf import write_urdf
 from mexone.lab import robot_namespace
@@ -21,6 +22,10 @@ def add_ros_options(p: argparse.ArgumentParser) -> None:
                    help="join the ROS 2 graph (ROS_DOMAIN_ID) as a node: /clock, "
                         "/robot_description, topics, ros2_control's command names, parameters, "
                         "std_srvs services; needs pip install 'mexone[ros2]' (docs/ros2.md)")
+    p.add_argument("--foxglove", nargs="?", type=PORT, const=8765, metavar="PORT",
+                   help="serve every topic, the robot (URDF, meshes, TF) and sim time on the "
+                        "Foxglove WebSocket protocol at ws://HOST:PORT (default 8765, on --host: "
+                        "this machine only); needs pip install 'mexone[foxglove]' (docs/foxglove.md)")
     p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
                    help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
                         "/gazebo, another simulator's under /NAME): one per simulator on a master")
@@ -75,7 +80,8 @@ class Bridges:
 
         names = {"Ros1Bridge": f"ROS at {os.environ.get('ROS_MASTER_URI', '?')}",
                  "Ros2Bridge": f"ROS 2 (domain {os.environ.get('ROS_DOMAIN_ID', '0')})"}
-        return " and ".join(names.get(type(b).__name__, type(b).__name__) for b in self.bridges)
+        return " and ".join(b.where() if hasattr(b, "where") else names[type(b).__name__]
+                            for b in self.bridges)
 
 
 def connect_bridges(args: argparse.Namespace) -> Bridges | None:
@@ -92,6 +98,10 @@ def connect_bridges(args: argparse.Namespace) -> Bridges | None:
             from mexone.ros2 import Ros2Bridge
 
             bridges.append(Ros2Bridge(args.name))
+        if getattr(args, "foxglove", None) is not None:
+            from mexone.foxglove import FoxgloveBridge
+
+            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1")))
     except BaseException:
         Bridges(bridges).shutdown()
         raise

@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"{gazebo}\n    -> {mujoco_name}" + (f": {how}" if how else ""))
         return 0
     headless = args.headless or args.json
-    joined = args.ros or args.ros2
+    joined = args.ros or args.ros2 or args.foxglove is not None
     forever = not headless or joined
     duration = args.duration if args.duration is not None else (None if forever else 5.0)
     rtf = args.rtf if args.rtf is not None else (0.0 if headless and not joined else 1.0)
