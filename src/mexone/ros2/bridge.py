@@ -141,6 +141,7 @@ class Ros2Bridge:
         self._last_poll = 0.0
         self._last_clock_wall = self._bucket_wall = time.perf_counter()
         self._clock_tokens = 1.0
+        self._clock_last = (self._bucket_wall, 0)
         self._clock_timer = lab.sim.add_periodic(1.0 / CLOCK_FREQUENCY, self._publish_clock)
         lab.sim.on_reset(self._after_reset)
         self.sync_topics()
@@ -243,16 +244,22 @@ class Ros2Bridge:
     # ----- /clock ------------------------------------------------------------------------------
     def _publish_clock(self, sim) -> None:
         """/clock every 1/CLOCK_FREQUENCY of sim time, no more often than that in wall time;
-        flat out (no target RTF) at most FLAT_OUT_CLOCK a wall second (as the ROS 1 bridge)."""
+        flat out (no target RTF) at most FLAT_OUT_CLOCK a wall second. Faster than real time
+        the timer fires less often in sim time, from the sim rate since its last firing: a
+        1 ms timer would cut every physics step out of MuJoCo's batched mj_step."""
         wall_rate = CLOCK_FREQUENCY if sim.target_rtf else FLAT_OUT_CLOCK
-        stride = min(max(1.0, sim.rtf.value * CLOCK_FREQUENCY / wall_rate), 200.0)
-        self._clock_timer.period_ns = round(stride * NS / CLOCK_FREQUENCY)
-        now = time.perf_counter()
+        now, t_ns = time.perf_counter(), sim.time_ns
+        last_wall, last_ns = self._clock_last
+        if now > last_wall and t_ns > last_ns:
+            sim_rate = (t_ns - last_ns) / NS / (now - last_wall)  # sim s per wall s
+            period = min(max(1.0 / CLOCK_FREQUENCY, sim_rate / wall_rate), 0.2)
+            self._clock_timer.period_ns = round(period * NS)
+        self._clock_last = (now, t_ns)
         self._clock_tokens = min(20.0, self._clock_tokens + (now - self._bucket_wall) * wall_rate)
         self._bucket_wall = now
         if self._clock_tokens >= 1.0:
             self._clock_tokens -= 1.0
-            self._send_clock(sim.time_ns, now)
+            self._send_clock(t_ns, now)
 
     def _send_clock(self, t_ns: int, wall: float) -> None:
         from builtin_interfaces.msg import Time
