@@ -20,6 +20,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 from std_srvs.srv import Empty
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 SIM = sys.argv[1] if len(sys.argv) > 1 else "mexone"
 NS = "/mex_rb"
@@ -48,6 +49,7 @@ node.create_subscription(String, "/robot_description", keep("description"),
 node.create_subscription(Log, "/rosout", keep("rosout"), QoSProfile(depth=100))
 commands = node.create_publisher(Float64MultiArray, f"{CONTROLLER}/commands", 10)
 command_ros1 = node.create_publisher(Float64, f"{NS}/waist_yaw_position_controller/command", 10)
+trajectory = node.create_publisher(JointTrajectory, f"{NS}/r_arm_controller/joint_trajectory", 10)
 set_params = node.create_client(SetParameters, f"/{SIM}/set_parameters")
 get_params = node.create_client(GetParameters, f"/{SIM}/get_parameters")
 reset = node.create_client(Empty, "/reset_simulation")
@@ -125,6 +127,16 @@ spin_until(lambda: abs((position(JOINT) or 0) - target) <= 0.01 * target
 out["commanded"] = target
 out["reached"] = position(JOINT)
 out["waist_reached"] = position("waist_yaw")
+
+# 2b. joint_trajectory_controller's topic: two joints to a point 0.5 s ahead
+goal = {"r_shoulder_pitch": 0.25, "r_elbow": -0.6}
+spin_until(lambda: trajectory.get_subscription_count(), 20)
+point = JointTrajectoryPoint(positions=list(goal.values()))
+point.time_from_start.nanosec = 500_000_000
+trajectory.publish(JointTrajectory(joint_names=list(goal), points=[point]))
+spin_until(lambda: all(abs((position(j) or 0) - v) <= 0.01 * abs(v) for j, v in goal.items()), 20)
+out["trajectory_goal"] = goal
+out["trajectory_reached"] = {j: position(j) for j in goal}
 
 # 3. hostile input: NaN, wrong lengths; then the sim still runs and holds the last good command
 start = time.monotonic()

@@ -56,11 +56,32 @@ def python():
     return found
 
 
+def controllers_with_a_trajectory_controller(folder: Path) -> Path:
+    """Mex-One's controllers with the right arm under one joint_trajectory_controller."""
+    import yaml
+
+    from mexone.robots import mex_one
+
+    config = yaml.safe_load(mex_one.controllers_path().read_text())
+    ns = config["mex_rb"]
+    gains = {}
+    for joint in ("r_shoulder_pitch", "r_elbow"):
+        gains[joint] = {k: ns[f"{joint}_position_controller"]["pid"][k] for k in ("p", "i", "d")}
+        del ns[f"{joint}_position_controller"]
+    ns["r_arm_controller"] = {"type": "effort_controllers/JointTrajectoryController",
+                              "joints": list(gains), "gains": gains}
+    path = folder / "controllers.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
 @pytest.fixture(scope="module")
-def acceptance(python):
+def acceptance(python, tmp_path_factory):
     """Run the simulator and the client once; every test below reads what the client saw."""
     env = ros2_env()
-    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless"], env=env,
+    controllers = controllers_with_a_trajectory_controller(tmp_path_factory.mktemp("ros2"))
+    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless",
+                            "--controllers", str(controllers)], env=env,
                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         client = subprocess.run([python, str(HERE / "client.py"), "mexone"], env=env,
@@ -95,6 +116,12 @@ def test_commands_reach_the_joints_within_one_percent(acceptance):
     target = acceptance["commanded"]
     assert acceptance["reached"] == pytest.approx(target, rel=0.01)
     assert acceptance["waist_reached"] == pytest.approx(-0.2, rel=0.01)
+
+
+def test_joint_trajectory_reaches_its_point(acceptance):
+    """joint_trajectory_controller's `joint_trajectory` topic (trajectory_msgs/JointTrajectory)."""
+    for joint, goal in acceptance["trajectory_goal"].items():
+        assert acceptance["trajectory_reached"][joint] == pytest.approx(goal, rel=0.01)
 
 
 def test_bad_commands_are_refused_on_rosout_and_the_sim_goes_on(acceptance):
