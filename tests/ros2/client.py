@@ -47,6 +47,13 @@ node.create_subscription(WrenchStamped, f"{NS}/r_ankle_ft", keep("r"), qos_profi
 node.create_subscription(String, "/robot_description", keep("description"),
                          QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
 node.create_subscription(Log, "/rosout", keep("rosout"), QoSProfile(depth=100))
+try:  # built from its official definition by `python -m mexone.ros2.interfaces` (no wheel)
+    from tf2_msgs.msg import TFMessage
+
+    seen["tf"] = []
+    node.create_subscription(TFMessage, "/tf", keep("tf"), 100)
+except ImportError:
+    TFMessage = None
 commands = node.create_publisher(Float64MultiArray, f"{CONTROLLER}/commands", 10)
 command_ros1 = node.create_publisher(Float64, f"{NS}/waist_yaw_position_controller/command", 10)
 trajectory = node.create_publisher(JointTrajectory, f"{NS}/r_arm_controller/joint_trajectory", 10)
@@ -115,6 +122,11 @@ out["joint_states_rate"] = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(s
 out["imu_z"] = sum(m.linear_acceleration.z for _, m in seen["imu"]) / max(1, len(seen["imu"]))
 out["imu_xy"] = max(math.hypot(m.linear_acceleration.x, m.linear_acceleration.y)
                     for _, m in seen["imu"])
+if TFMessage is not None:
+    spin_until(lambda: seen["tf"], 10)
+    tf = seen["tf"][-1][1].transforms[0] if seen["tf"] else None
+    out["tf"] = tf and {"parent": tf.header.frame_id, "child": tf.child_frame_id,
+                        "z": tf.transform.translation.z, "w": tf.transform.rotation.w}
 out["ankle_fz"] = sum(sum(m.wrench.force.z for _, m in seen[s]) / len(seen[s]) for s in "lr")
 
 # 2. commands: ros2_control's name (Float64MultiArray) and the ROS 1 one (Float64)

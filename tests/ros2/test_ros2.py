@@ -103,6 +103,15 @@ def test_clock_joint_states_and_description_flow(acceptance):
     assert acceptance["joint_states_rate"] == pytest.approx(params.JOINT_STATE_RATE, rel=0.02)
 
 
+def test_tf_has_world_to_base(acceptance):
+    """/tf needs tf2_msgs, which has no wheel: built by `python -m mexone.ros2.interfaces`
+    (scripts/test.sh does) from its official definition."""
+    assert acceptance.get("tf"), "tf2_msgs is not built in the ROS 2 environment"
+    tf = acceptance["tf"]
+    assert (tf["parent"], tf["child"]) == ("world", "pelvis")  # the URDF root link
+    assert 0.3 < tf["z"] < 1.0 and tf["w"] == pytest.approx(1.0, abs=0.01)  # standing upright
+
+
 def test_imu_reads_plus_g_and_ankles_carry_the_weight_above_them(acceptance):
     assert acceptance["imu_z"] == pytest.approx(G, rel=0.01)
     assert acceptance["imu_xy"] < 0.05 * G
@@ -181,3 +190,15 @@ def test_one_table_serves_both_bridges():
         ("/ns/c/commands", "std_msgs/Float64MultiArray")]
     assert ros_map.ros2_control_aliases("/ns/c/command", msgs.JointTrajectory) == [
         ("/ns/c/joint_trajectory", "trajectory_msgs/JointTrajectory")]
+
+
+def test_building_messages_without_tools_is_one_line(monkeypatch, tmp_path):
+    from mexone.errors import MexoneError
+    from mexone.ros2 import interfaces
+
+    monkeypatch.setenv("PATH", str(tmp_path))  # no cmake, no compiler
+    with pytest.raises(MexoneError) as caught:
+        interfaces.build(tmp_path, log=lambda _line: None)
+    assert "needs 'cmake'" in caught.value.one_line() and "ros2-build" in caught.value.one_line()
+    assert (interfaces.SHARE / "tf2_msgs" / "msg" / "TFMessage.msg").read_text().strip() == \
+        "geometry_msgs/TransformStamped[] transforms"  # the official definition, field for field

@@ -73,6 +73,7 @@ CAMERA = Qos(True, 2, False, "images and clouds: reliable, depth 2 (image_transp
 CLOCK = Qos(False, 1, False, "/clock: best-effort, depth 1 (ClockQoS)")
 LATCHED = Qos(True, 1, True, "/robot_description: reliable, transient-local, depth 1")
 COMMAND = Qos(True, 10, False, "commands: reliable, depth 10 (ros2_control's subscriptions)")
+TF = Qos(True, 100, False, "/tf: reliable, depth 100 (tf2_ros' TransformBroadcaster)")
 
 _QOS = {msgs.Imu: SENSOR, msgs.WrenchStamped: SENSOR, msgs.ContactsState: SENSOR,
         msgs.Image: CAMERA, msgs.CameraInfo: CAMERA, msgs.PointCloud2: CAMERA,

@@ -20,10 +20,10 @@ import threading
 import time
 from collections.abc import Callable
 
-from mexone.bus import ros_map
+from mexone.bus import msgs, ros_map
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
-from mexone.ros2 import convert
+from mexone.ros2 import convert, interfaces
 
 __all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFAULT_NODE",
            "CLOCK_FREQUENCY"]
@@ -134,9 +134,9 @@ class Ros2Bridge:
             pub = node.create_publisher(String, name, _qos(ros_map.LATCHED))
             pub.publish(description)
             self._descriptions.append(pub)
+        self._skipped: set[str] = set()
         self._mirrors: dict[str, _Mirror] = {}
         self._inbound: dict[str, object] = {}
-        self._skipped: set[str] = set()
         self._known_topics = -1
         self._last_poll = 0.0
         self._last_clock_wall = self._bucket_wall = time.perf_counter()
@@ -144,6 +144,7 @@ class Ros2Bridge:
         self._clock_last = (self._bucket_wall, 0)
         self._clock_timer = lab.sim.add_periodic(1.0 / CLOCK_FREQUENCY, self._publish_clock)
         lab.sim.on_reset(self._after_reset)
+        self._tf_setup()
         self.sync_topics()
         self._services()
         self.params = Parameters(self)
@@ -177,7 +178,7 @@ class Ros2Bridge:
             return
         self._known_topics = len(bus.topics)
         for name, topic in list(bus.topics.items()):
-            if name == "/clock" or name in self._mirrors or name in self._inbound:
+            if name in ("/clock", "/tf") or name in self._mirrors or name in self._inbound:
                 continue
             if topic.publishers and ros_map.can_send(topic.type):
                 cls = convert.ros2_class(topic.type)
@@ -208,8 +209,10 @@ class Ros2Bridge:
         package = ros_map.package_of(bus_type)
         if package not in self._skipped:
             self._skipped.add(package)
-            log.info("%s and other %s topics are not on ROS 2: %s has no wheel on PyPI "
-                     "(see docs/ros2.md)", name, package, package)
+            build = " (python -m mexone.ros2.interfaces builds it)" \
+                if package in interfaces.PACKAGES else ""
+            log.info("%s and other %s topics are not on ROS 2: %s has no wheel on PyPI%s; "
+                     "see docs/ros2.md", name, package, package, build)
 
     def _relay(self, topic: str, build: Callable, via: str | None = None):
         def callback(ros_msg) -> None:  # the executor's thread: hand over, in order
@@ -240,6 +243,37 @@ class Ros2Bridge:
         if not self.ready.wait(_START_WAIT):
             raise TimeoutError(f"the simulator has not started within {_START_WAIT:g} s")
         return self.lab.sim.work.call(fn, timeout=timeout)
+
+    # ----- TF ----------------------------------------------------------------------------------
+    def _tf_setup(self) -> None:
+        """/tf with world -> the floating base, as the ROS 1 bridge (robot_state_publisher adds
+        the links from joint_states), when tf2_msgs is built (`python -m
+        mexone.ros2.interfaces`: it has no wheel)."""
+        self.pub_tf = self._tf_timer = None
+        tf_class = convert.message_class("tf2_msgs/TFMessage")
+        if tf_class is None:
+            self._skip("/tf", msgs.TFMessage)
+            return
+        self._tf_class = tf_class
+        self.pub_tf = self.node.create_publisher(tf_class, "/tf", _qos(ros_map.TF))
+        self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+
+    def _publish_base_tf(self, sim) -> None:
+        if not sim.compiled.free or self.pub_tf.get_subscription_count() == 0:
+            return
+        base = self.lab.base_transform()
+        if base is None:
+            return
+        from geometry_msgs.msg import TransformStamped
+
+        out = TransformStamped(child_frame_id=base.child_frame_id)
+        out.header.frame_id = base.header.frame_id
+        out.header.stamp.sec, out.header.stamp.nanosec = base.header.stamp.secs, \
+            base.header.stamp.nsecs
+        t, r = out.transform.translation, out.transform.rotation
+        t.x, t.y, t.z = (float(v) for v in base.translation)
+        r.w, r.x, r.y, r.z = (float(v) for v in base.rotation)
+        self.pub_tf.publish(self._tf_class(transforms=[out]))
 
     # ----- /clock ------------------------------------------------------------------------------
     def _publish_clock(self, sim) -> None:
@@ -289,6 +323,8 @@ class Ros2Bridge:
         logging.getLogger("mexone").removeHandler(self._rosout)
         if self.lab is not None:
             self.lab.sim.remove_periodic(self._clock_timer)
+            if self._tf_timer is not None:
+                self.lab.sim.remove_periodic(self._tf_timer)
         try:
             self.executor.shutdown(timeout_sec=1.0)
             self.node.destroy_node()
