@@ -42,8 +42,9 @@ python3 -m pip install -q --disable-pip-version-check -e ".[test]"
 # --ros2 tests (tests/ros2), which start the simulator and their rclpy client with its python
 [ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2
 .venv-ros2/bin/python -m pip install -q --disable-pip-version-check -e ".[ros2,ros2-build]"
-# tf2_msgs has no wheel: built from its official definition with PyPI's rosidl tools (~20 s)
-.venv-ros2/bin/python -c "import tf2_msgs" 2>/dev/null || .venv-ros2/bin/python -m mexone.ros2.interfaces
+# tf2_msgs, control_msgs have no wheel: built from their official definitions with PyPI's
+# rosidl tools (~20 s each, only when missing)
+.venv-ros2/bin/python -m mexone.ros2.interfaces
 export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
 # Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
 npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent

@@ -54,6 +54,13 @@ try:  # built from its official definition by `python -m mexone.ros2.interfaces`
     node.create_subscription(TFMessage, "/tf", keep("tf"), 100)
 except ImportError:
     TFMessage = None
+try:  # the same, for the controllers' state topics
+    from control_msgs.msg import JointControllerState
+
+    seen["state"] = []
+    node.create_subscription(JointControllerState, f"{CONTROLLER}/state", keep("state"), 10)
+except ImportError:
+    JointControllerState = None
 commands = node.create_publisher(Float64MultiArray, f"{CONTROLLER}/commands", 10)
 command_ros1 = node.create_publisher(Float64, f"{NS}/waist_yaw_position_controller/command", 10)
 trajectory = node.create_publisher(JointTrajectory, f"{NS}/r_arm_controller/joint_trajectory", 10)
@@ -163,7 +170,12 @@ out["still_running"] = sim_time(seen["clock"][-1][1]) > clock_before + 0.2
 out["held_after_bad"] = position(JOINT)
 
 # 4. a gain as a parameter; then a wrong type and a NaN, refused with a warning
+out["state_p_before"] = seen["state"][-1][1].p if JointControllerState and seen["state"] else None
 out["gain_set"] = set_gain(77.5)
+if JointControllerState is not None:
+    start = time.monotonic()
+    spin_until(lambda: any(t > start for t, _ in seen["state"]), 10)
+    out["state_p_after"] = seen["state"][-1][1].p
 got = call(get_params, GetParameters.Request(names=[GAIN]))
 out["gain_read"] = got.values[0].double_value
 start = time.monotonic()

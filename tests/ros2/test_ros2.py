@@ -145,6 +145,8 @@ def test_bad_commands_are_refused_on_rosout_and_the_sim_goes_on(acceptance):
 def test_gain_parameter_sets_and_bad_values_are_refused(acceptance):
     assert acceptance["gain_set"] == [True, ""]
     assert acceptance["gain_read"] == 77.5
+    # the controller's own state topic (control_msgs, built like tf2_msgs) shows the new gain
+    assert acceptance["state_p_before"] == 15.0 and acceptance["state_p_after"] == 77.5
     ok, reason = acceptance["gain_wrong_type"]
     assert not ok and "must be a double" in reason
     ok, reason = acceptance["gain_nan"]

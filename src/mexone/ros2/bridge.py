@@ -23,7 +23,7 @@ from collections.abc import Callable
 from mexone.bus import msgs, ros_map
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
-from mexone.ros2 import convert, interfaces
+from mexone.ros2 import convert
 
 __all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFAULT_NODE",
            "CLOCK_FREQUENCY"]
@@ -209,6 +209,8 @@ class Ros2Bridge:
         package = ros_map.package_of(bus_type)
         if package not in self._skipped:
             self._skipped.add(package)
+            from mexone.ros2 import interfaces
+
             build = " (python -m mexone.ros2.interfaces builds it)" \
                 if package in interfaces.PACKAGES else ""
             log.info("%s and other %s topics are not on ROS 2: %s has no wheel on PyPI%s; "

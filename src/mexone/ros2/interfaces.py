@@ -1,6 +1,7 @@
 """ROS 2 message packages PyPI has no wheel for, built on this machine from their official
 definitions with the rosidl tools that are on PyPI (`pip install 'mexone[ros2-build]'`):
-today tf2_msgs (TFMessage, for /tf).
+today tf2_msgs (TFMessage, for /tf) and control_msgs (JointControllerState, the
+controllers' state topics).
 
 `share/<package>/` holds the official .msg files with a package.xml and a CMakeLists.txt;
 `build()` runs CMake's `rosidl_generate_interfaces` against the wheels' prefix (the venv) and
@@ -8,7 +9,7 @@ installs the result there, as a colcon build of that package would: C and C++ ty
 libraries into `<prefix>/lib` (which the wheels' loader already searches), the Python package
 into site-packages. It needs CMake and a C/C++ compiler, and takes about 20 s.
 
-    python -m mexone.ros2.interfaces        # build and install into this Python's prefix
+    python -m mexone.ros2.interfaces        # build what is missing, into this Python's prefix
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ from mexone.errors import MexoneError
 __all__ = ["SHARE", "PACKAGES", "BUILD_INSTALL", "build", "missing"]
 
 SHARE = Path(__file__).resolve().parent / "share"
-PACKAGES = ("tf2_msgs",)
+PACKAGES = ("tf2_msgs", "control_msgs")
 BUILD_INSTALL = "pip install 'mexone[ros2-build]' (and apt-get install cmake g++)"
 _PYTHON_TOOLS = ("ament_package", "catkin_pkg", "rosidl_adapter", "rosidl_generator_py")
 
@@ -83,8 +84,13 @@ def build(prefix: Path | None = None, packages: tuple[str, ...] = PACKAGES, log=
 
 
 def main() -> int:
+    """Build the packages this Python cannot import yet (all of them with --all)."""
+    todo = PACKAGES if "--all" in sys.argv[1:] else tuple(missing())
+    if not todo:
+        print(f"mexone: {', '.join(PACKAGES)} already importable (--all rebuilds them)")
+        return 0
     try:
-        build()
+        build(packages=todo)
     except MexoneError as exc:
         print(f"mexone: {exc.one_line()}", file=sys.stderr)
         return 2
