@@ -96,6 +96,8 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
     note = "" if port == args.port or args.port == 0 else f" (port {args.port} was taken)"
     print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
           file=sys.stderr)
+    if bridge is not None:
+        print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
             app.serve_forever(duration)  # until a signal asks it to stop (signals.requested)
