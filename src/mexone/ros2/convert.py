@@ -78,7 +78,8 @@ def to_ros2(msg, cls):
         elif how == "bytes":
             value = array.array("B", bytes(value))
         elif how == "array":
-            value = [float(v) for v in value] if inner in ("double", "float") else list(value)
+            # array('d') is what rosidl's C conversion copies in one go (a list goes item by item)
+            value = array.array("d", value) if inner == "double" else list(value)
         setattr(out, name, value)
     return out
 
