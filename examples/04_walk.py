@@ -28,10 +28,23 @@ def sample(s):
 
 sim.add_periodic(0.1, sample)
 runner = RoutineRunner(lab, "walk", {"_course": [["forward", 1.0], ["turn", 90]]})
-runner.run(None)  # as long as the routine says: its course, then 5 s standing
+runner.run(None)  # its course, then 5 s standing; a failed routine raises RoutineError
 t, x, y, yaw = track[-1]
 print(f"after {t:.1f} s: {x:.2f} m ahead, {y:+.2f} m aside, turned {yaw:.0f} deg, "
       f"{'fell' if has_fallen(sim, start_height) else 'standing'}")
 (out / "walk.csv").write_text("t,x,y,yaw\n" + "".join(f"{a:.2f},{b:.4f},{c:.4f},{d:.2f}\n"
                                                      for a, b, c, d in track))
 print(f"wrote {out / 'walk.csv'}")
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+plt.plot([p[1] for p in track], [p[2] for p in track])
+plt.axis("equal")
+plt.xlabel("x (m)")
+plt.ylabel("y (m)")
+plt.title("the pelvis's path, from above")
+plt.savefig(out / "walk.png", dpi=100)
+print(f"wrote {out / 'walk.png'}")

@@ -37,7 +37,7 @@ if ((${#apt_packages[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${apt_packages[@]}" >/dev/null
 fi
 
-python3 -m pip install -q --disable-pip-version-check -e ".[test]"
+python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs: tests/test_docs*.py
 # ROS 2's wheels name their packages as ROS 1's (std_msgs, ...): a venv of their own for the
 # --ros2 tests (tests/ros2), which start the simulator and their rclpy client with its python
 [ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2

@@ -260,3 +260,20 @@ def humanoid(tmp_path) -> Path:
 def humanoid_with_mesh(tmp_path) -> Path:
     """The same, its pelvis drawn by meshes/pelvis.stl named package://biped_description/..."""
     return write_humanoid_package(tmp_path / "ws" / "src", mesh=True)
+
+
+# ----- the wheel in a fresh venv (tests/wheelenv.py): one per session, shared -------------------
+@pytest.fixture(scope="session")
+def wheel(tmp_path_factory) -> Path:
+    """The wheel built from a copy of the files git knows."""
+    import wheelenv
+
+    return wheelenv.build_wheel(tmp_path_factory)
+
+
+@pytest.fixture(scope="session")
+def venv(wheel, tmp_path_factory):
+    """A fresh venv (no system site-packages) with the wheel installed: a `wheelenv.Venv`."""
+    import wheelenv
+
+    return wheelenv.make_venv(wheel, tmp_path_factory)

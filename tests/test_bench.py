@@ -16,6 +16,7 @@ def test_bench_quick_json():
     report = json.loads(out.stdout)
     assert report["overhead"]["ratio"] > 0 and report["cold_start_s"] > 0
     assert report["overhead_sensors"]["ratio"] > 0 and report["overhead_balance"]["ratio"] > 0
+    assert report["sensor_states"]["ratio"] > 0 and report["sensor_states"]["pd_s_per_sim_s"] > 0
     assert report["camera"]["rgb_ms_per_frame"] > 0 and report["camera"]["depth_cloud_ms_per_frame"] > 0
     pybullet = report["pybullet"]
     assert pybullet is not None, "pybullet (the [peers] extra) is part of the test install"

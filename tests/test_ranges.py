@@ -1,12 +1,11 @@
 """ranges.py, the one home of every user-set quantity's range: the docs' table is generated from
-it (and a stale one fails here), numbers print as people write them, and the CLI, the check and
+it when the docs are built (and has every range), numbers print as people write them, and the CLI, the check and
 the editor refuse a value by the same Range."""
 
 from __future__ import annotations
 
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,14 +13,15 @@ import pytest
 from mexone import ranges
 from mexone.errors import InputError
 
-DOCS = Path(__file__).resolve().parents[1] / "docs" / "ranges.md"
 
-
-def test_the_committed_docs_table_is_the_generated_one():
+def test_the_generated_docs_table_has_every_range():
+    """`python -m mexone.ranges` prints the page the docs build writes (tests/test_docs.py checks
+    the built page too), one row per range."""
     generated = subprocess.run([sys.executable, "-m", "mexone.ranges"], capture_output=True, text=True,
                                check=True).stdout
     assert generated == ranges.docs_page()
-    assert DOCS.read_text() == generated, "docs/ranges.md is stale: python -m mexone.ranges > docs/ranges.md"
+    rows = [line for line in generated.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) == len(ranges.RANGES) + 1  # the header, then one per range
     for r in ranges.RANGES:  # every range has its row
         assert f"| {r.name} | " in generated
 

@@ -1,7 +1,8 @@
 """`mexone bench`: what mexone costs and how fast it can go, all measured in one run.
 
 Rows (each a ratio or a rate measured side by side in the same process run, so they hold on a
-noisy machine):
+noisy machine)::
+
   overhead       Mex-One with 21 PD controllers and joint states at 50 Hz vs bare mj_step on
                  the very same compiled model, controls and actuator settings; and the same
                  with the full PID (I terms with clamps on all 21 joints)
@@ -10,6 +11,8 @@ noisy machine):
   sensors        the PD row again with every light sensor read (pelvis IMU and both ankle FT at
                  100 Hz, sole contacts at 50 Hz), then also COM/ZMP/support polygon at 50 Hz;
                  and the Kinect's cost per frame (RGB; depth image + point cloud) offscreen
+  sensor states  the five light sensors read by a 100 Hz controller (`SensorSuite.states`) and
+                 broadcast to one subscriber each, vs the PD-only run (issue 25: <= 1.15)
   cold start     process start to the first simulated millisecond of `mexone sim --headless`
   parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
                  controllers run inside MuJoCo, so the controlled robot rolls out in C) and
@@ -18,6 +21,7 @@ noisy machine):
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -47,10 +51,12 @@ class BenchReport:
     overhead_full_pid: dict = field(default_factory=dict)
     overhead_sensors: dict = field(default_factory=dict)
     overhead_balance: dict = field(default_factory=dict)
+    sensor_states: dict = field(default_factory=dict)
     camera: dict = field(default_factory=dict)
     pybullet: dict | None = None
     cold_start_s: float | None = None
     parallel: list[dict] = field(default_factory=list)
+    python_controller: dict = field(default_factory=dict)
 
     def as_json(self) -> dict:
         return asdict(self)
@@ -88,6 +94,67 @@ def read_light_sensors(lab: Lab, balance_topics: bool = False) -> None:
     balance = lab.sensors.balance
     for key, topic in balance.topics.items():
         lab.bus.subscribe(topic, balance.types[key], lambda msg: None)
+
+
+LIGHT_SENSOR_RATE = 100.0  # Hz of the controller reading the sensors' states in `sensor_states`
+
+
+def read_states_at(lab: Lab, rate: float = LIGHT_SENSOR_RATE) -> None:
+    """A controller's read phase at `rate`: every light sensor's state, every field touched."""
+    states = lab.sensors.states
+    imus = [n for n, k in states.kinds().items() if k == "imu"]
+    fts = [n for n, k in states.kinds().items() if k == "force_torque"]
+    contacts = [n for n, k in states.kinds().items() if k == "contact"]
+
+    taken: list = []
+
+    def read(_sim) -> None:  # every field, as a balance controller takes them
+        taken.clear()
+        for name in imus:
+            imu = states[name]
+            taken.extend((imu.orientation, imu.angular_velocity, imu.linear_acceleration))
+        for name in fts:
+            ft = states[name]
+            taken.extend((ft.force, ft.torque))
+        for name in contacts:
+            contact = states[name]
+            taken.extend((contact.in_contact, contact.force))
+
+    lab.sim.add_periodic(1.0 / rate, read)
+
+
+def sensor_states(sim_seconds: float, repeats: int) -> dict:
+    """Mex-One on its PD controllers with joint states at 50 Hz (the PD-only run), against the
+    same with the five light sensors read by a 100 Hz controller and broadcast to one
+    subscriber each (IMU, both ankle FT at 100 Hz; both sole contacts at 50 Hz). Paired runs,
+    CPU time of this thread, as `overhead`."""
+    plain, read = Lab.create(), Lab.create()
+    read_light_sensors(read)
+    read_states_at(read)
+    runs = {}
+    for key, lab in (("pd", plain), ("sensors", read)):
+        lab.bus.subscribe(f"{lab.namespace}/joint_states", JointState, lambda msg: None)
+        steps = round(sim_seconds / lab.sim.timestep)
+
+        def run(sim=lab.sim, steps=steps) -> float:
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            return time.thread_time() - start
+
+        runs[key] = run
+    pds, reads = [], []
+    for k in range(max(8, 4 * repeats)):
+        signals.check()
+        if k % 2:
+            pds.append(runs["pd"]())
+            reads.append(runs["sensors"]())
+        else:
+            reads.append(runs["sensors"]())
+            pds.append(runs["pd"]())
+    ratio = float(np.median(np.array(reads) / np.array(pds)))
+    return {"pd_s_per_sim_s": float(np.median(pds)) / sim_seconds,
+            "sensors_s_per_sim_s": float(np.median(reads)) / sim_seconds, "ratio": ratio}
 
 
 def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
@@ -132,6 +199,108 @@ def overhead(sim_seconds: float, repeats: int, full_pid: bool = False,
     ratio = float(np.median(np.array(ourses) / np.array(bares)))
     return {"bare_s_per_sim_s": float(np.median(bares)) / sim_seconds,
             "mexone_s_per_sim_s": float(np.median(ourses)) / sim_seconds, "ratio": ratio}
+
+
+_BENCH_CONTROLLER = """\
+from mexone.control import Param, PythonController
+
+
+class MyPd(PythonController):
+    kp = Param(20.0, low=0.0, high=1e4)
+    kd = Param(1.0, low=0.0, high=1e3)
+
+    def activate(self, state):
+        self.q0 = state.q.copy()
+
+    def update(self, state, t, dt):
+        return self.kp * (self.q0 - state.q) - self.kd * state.dq
+"""
+
+
+def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
+    """What the framework costs per update of a student's PythonController (a PD on Mex-One's
+    left arm at 1 kHz): the manager's read -> update -> write per update (timed inside a run),
+    minus the same update() called in a bare loop on the same State, plus what waking the loop
+    every physics step costs the simulation (a do-nothing control's extra time per step). The
+    physics itself is left out: it is the same with any controller."""
+    from mexone.control.skeleton import skeleton_files
+
+    with tempfile.TemporaryDirectory() as folder:
+        for name, text in skeleton_files("my_pd").items():
+            (Path(folder) / name).write_text(text)
+        (Path(folder) / "my_pd.py").write_text(_BENCH_CONTROLLER)
+        lab = Lab.create(controllers=Path(folder) / "controllers.yaml")
+    sim, manager = lab.sim, lab.controllers
+    runner = manager.controllers["my_pd_controller"]
+    steps = round(sim_seconds / sim.timestep)
+    clock = time.thread_time  # CPU time of this thread: a loaded machine's other tenants excluded
+    real_update = manager.update
+    spent = [0.0]
+
+    def timed_update(s) -> None:
+        start = clock()
+        real_update(s)
+        spent[0] += clock() - start
+
+    def loop() -> float:
+        sim.reset()
+        spent[0], before = 0.0, runner.updates
+        manager.update = timed_update  # shadows the method for this run
+        try:
+            sim.step(steps)
+        finally:
+            del manager.update
+        return spent[0] / max(1, runner.updates - before)
+
+    def bare() -> float:
+        impl, state = runner.impl, runner.state
+        update = impl.update
+        start = clock()
+        for k in range(steps):
+            update(state, k * 0.001, 0.001)
+        return (clock() - start) / steps
+
+    class _Wake:  # a control that needs every step and does nothing
+        wake_ns = -math.inf
+
+        def update(self, s) -> None:
+            self.wake_ns = s.time_ns + round(s.timestep * 1e9)
+
+    def wake_cost() -> float:
+        manager.stop("my_pd_controller")
+        try:
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            idle = time.thread_time() - start
+            wake = _Wake()
+            sim.add_control(wake)
+            sim.reset()
+            start = time.thread_time()
+            sim.step(steps)
+            busy = time.thread_time() - start
+            sim.remove_control(wake)
+        finally:
+            manager.start("my_pd_controller")
+        return (busy - idle) / steps
+
+    def clock_cost() -> float:  # what timing each update adds to the update's measured time
+        start = clock()
+        for _ in range(10_000):
+            clock()
+        return (clock() - start) / 10_000
+
+    loops, bares, wakes = [], [], []
+    for _ in range(max(4, 2 * repeats)):
+        signals.check()
+        loops.append(loop())
+        bares.append(bare())
+        wakes.append(wake_cost())
+    student, manager_time = float(np.median(bares)), float(np.median(loops)) - clock_cost()
+    wake = max(0.0, float(np.median(wakes)))
+    return {"student_us": student * 1e6, "manager_us_per_update": manager_time * 1e6,
+            "wake_us_per_step": wake * 1e6,
+            "framework_us_per_update": (manager_time - student + wake) * 1e6}
 
 
 def camera_cost(sim_seconds: float) -> dict:
@@ -313,10 +482,13 @@ def run_bench(quick: bool = False, progress=None) -> BenchReport:
              ("overhead_sensors", lambda: overhead(sim_seconds, repeats, sensors=True)),
              ("overhead_balance", lambda: overhead(sim_seconds, repeats, sensors=True,
                                                    balance=True)),
+             ("sensor_states", lambda: sensor_states(sim_seconds, repeats)),
              ("camera", lambda: camera_cost(min(sim_seconds, 2.0))),
              ("pybullet", lambda: pybullet_compare(sim_seconds, repeats)),
              ("cold_start_s", lambda: cold_start(2 if quick else 3)),
-             ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds))]
+             ("parallel", lambda: parallel(os.cpu_count() or 1, sim_seconds)),
+             ("python_controller", lambda: python_controller_cost(min(sim_seconds, 2.0),
+                                                                  repeats))]
     for name, fn in steps:
         if progress:
             progress(name)
@@ -344,6 +516,9 @@ def format_report(report: BenchReport) -> str:
     f = report.overhead_balance
     if f:
         lines.append(f"{'overhead ratio, the same + COM, ZMP, polygon':<44} {f['ratio']:12.3f}")
+    f = report.sensor_states
+    if f:
+        lines.append(f"{'5 sensors read at 100 Hz + broadcast, vs PD':<44} {f['ratio']:12.3f}")
     c = report.camera
     if c:
         size = f"{c['width']}x{c['height']}"
@@ -366,4 +541,11 @@ def format_report(report: BenchReport) -> str:
         label = f"{row['backend']}, {row['workers']} worker(s)"
         lines.append(f"{label:<44} {row['robot_s_per_wall_s']:8.1f} robot-s/s, "
                      f"efficiency {row['efficiency']:.2f}")
+    p = report.python_controller
+    if p:
+        lines += [f"{'PythonController PD, 3 joints, 1 kHz: student us':<44} {p['student_us']:12.2f}",
+                  f"{'  manager cycle per update, CPU us':<44} {p['manager_us_per_update']:12.2f}",
+                  f"{'  waking the loop every step, us':<44} {p['wake_us_per_step']:12.2f}",
+                  f"{'  framework us per update (target <= 10)':<44} "
+                  f"{p['framework_us_per_update']:12.2f}"]
     return "\n".join(lines)

@@ -14,6 +14,7 @@ __all__ = [
     "UnsupportedError",
     "OutputExistsError",
     "ArgumentTypeError",
+    "RoutineError",
 ]
 
 
@@ -70,3 +71,15 @@ class OutputExistsError(MexoneError):
 class ArgumentTypeError(MexoneError, TypeError):
     """A Python API called with a value of a type its signature does not accept: a TypeError for
     Python callers, a one-line MexoneError for the front ends that print them."""
+
+
+class RoutineError(MexoneError):
+    """A routine failed (raised, exited with an error status, stopped yielding, left a program
+    running): `RoutineRunner.run` raises it so a Python caller cannot miss it. The one line
+    names the routine's file and line; `details` holds every routine's whole report (the
+    student's traceback)."""
+
+    def __init__(self, what: str, *, file: str | Path | None = None, line: int | None = None,
+                 hint: str | None = None, details: str = "") -> None:
+        self.details = details or what
+        super().__init__(what, file=file, line=line, hint=hint)

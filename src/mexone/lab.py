@@ -113,8 +113,10 @@ class Lab:
         manager = None
         if config is not None:
             manager = ControllerManager(sim, bus, config, SimHardware(sim), ns, control_period)
-            manager.start_default(start)
         lab = cls(sim, bus, manager, ns, SensorSuite(sim, bus, ns, namespace))
+        if manager is not None:  # the sensors first: a controller's activate may read them
+            manager.use_sensors(lab.sensors)
+            manager.start_default(start)
         if manager is None:
             lab.no_controllers = no_controllers_note(robot, asked)
         bus.on_subscribers("/clock", lambda n: lab._lazy("clock", n, CLOCK_RATE, lab._publish_clock))

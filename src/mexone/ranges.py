@@ -22,7 +22,8 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs
            "EFFORT", "DAMPING", "FRICTION", "MU", "CONTACT_KP", "CONTACT_KD", "GAIN_P", "GAIN_I",
            "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
            "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT",
-           "FORCE", "SPEED", "SPIN", "CONTROL_PERIOD"]
+           "FORCE", "SPEED", "SPIN", "CONTROL_PERIOD", "UPDATE_RATE", "UPDATE_TIME", "OVERRUNS",
+           "HANG_TIMEOUT"]
 
 
 def number_text(value: float) -> str:
@@ -122,6 +123,14 @@ SPEED = Range("speed", "m/s", -50.0, 50.0, why="a set linear velocity (component
 SPIN = Range("spin", "rad/s", -500.0, 500.0, why="a set angular velocity (component and length)")
 CONTROL_PERIOD = Range("control period", "s", 1e-5, 10.0, why="the controllers' period (at least "
                        "the physics step): 0.1 Hz is no controller")
+UPDATE_RATE = Range("update rate", "Hz", 0.1, 1e5, why="a Python controller's update_rate (at most "
+                    "one update per physics step)")
+UPDATE_TIME = Range("max update time", "s", 1e-6, 10.0, why="wall time a Python controller's update "
+                    "may take before it counts as an overrun")
+OVERRUNS = Range("max overruns", "", 1, 1_000_000, integer=True, why="consecutive overrunning "
+                 "updates that stop a Python controller")
+HANG_TIMEOUT = Range("hang timeout", "s", 0.05, 3600.0, why="wall time after which an update that "
+                     "has not returned is interrupted")
 
 RANGES: tuple[Range, ...] = tuple(v for v in globals().values() if isinstance(v, Range))
 
@@ -143,12 +152,12 @@ def markdown_table() -> str:
 
 
 def docs_page() -> str:
-    """docs/ranges.md: `python -m mexone.ranges > docs/ranges.md` (a test says when it is stale)."""
+    """docs/ranges.md, written when the docs are built (docs/_ext/mexone_docs.py); never kept in git."""
     return ("# Valid ranges\n\n"
             "Every number a user sets (on the command line, on the page, in the model editor, in a ROS\n"
             "service call, in a model or world file) is checked against its quantity's range here, and\n"
-            "refused in one line outside it. Generated from `src/mexone/ranges.py` (their one home) by\n"
-            "`python -m mexone.ranges > docs/ranges.md`; do not edit by hand.\n\n"
+            "refused in one line outside it. Generated from `mexone/ranges.py` (their one home) when\n"
+            "these pages are built; `python -m mexone.ranges` prints the same.\n\n"
             + markdown_table() + "\n")
 
 

@@ -200,10 +200,7 @@ def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
 
     timer = sim.add_periodic(0.01, sample)
     try:
-        runner = RoutineRunner(lab, spec.routine)
-        runner.run(spec.duration)
-        if runner.error:
-            raise InputError(f"routine failed: {runner.error.splitlines()[-1]}")
+        RoutineRunner(lab, spec.routine).run(spec.duration, hold=True)  # failed: RoutineError
     finally:
         sim.remove_periodic(timer)
     return {"rise_time": None, "overshoot": None, "settling_time": None, **totals}

@@ -1,6 +1,7 @@
 """Safe YAML for a user's files: compose to line-numbered nodes, then construct values.
 
 PyYAML's safe loader still lets a file hurt or fool us, so on top of it:
+
 - aliases may expand to at most ``MAX_EXPANDED_NODES`` values (an alias bomb is 9^9 values
   from 600 bytes) and may not refer to themselves;
 - flow nesting deeper than ``MAX_DEPTH`` is refused before parsing (libyaml's composer

@@ -43,3 +43,11 @@ def test_bad_option_value_is_one_line():
     assert out.returncode == 2
     assert out.stderr == ("mexone: run: argument --duration: -1 must be a finite number >= 0.001 "
                           "and <= 1e+09; s of sim time (see 'mexone run --help')\n")
+
+
+@pytest.mark.parametrize("verb", ["sim", "check", "run", "record", "render", "sweep", "identify",
+                                  "controllers", "convert"])
+def test_every_verb_that_reads_a_robot_names_mjcf(verb, capsys):
+    with pytest.raises(SystemExit):
+        build_parser().parse_args([verb, "--help"])
+    assert "MJCF" in capsys.readouterr().out

@@ -12,6 +12,7 @@ import time
 import pytest
 
 import mexone.motion  # noqa: F401 - imported here: the routine's import is not what is timed
+from mexone.errors import RoutineError
 from mexone.lab import Lab
 from mexone.routines.runner import RoutineRunner
 from mexone.routines.runtime import busy
@@ -51,7 +52,12 @@ def _run(tmp_path, text: str) -> RoutineRunner:
     path = tmp_path / "routine.py"
     path.write_text(text)
     runner = RoutineRunner(Lab.create(), path, stall=STALL)
-    runner.run(9.0)
+    try:
+        runner.run(9.0)
+    except RoutineError as exc:  # raised exactly when the runner holds an error: that one
+        assert exc.details == runner.error
+    else:
+        assert runner.error is None
     return runner
 
 

@@ -10,6 +10,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from mexone.errors import RoutineError
 from mexone.lab import Lab
 from mexone.routines.runner import RoutineRunner
 
@@ -29,7 +30,12 @@ def _run(lab, folder, body: str) -> RoutineRunner:
                     "rospy.sleep(0.01)\n" + body + "rospy.logerr('after the exit')\n")
     runner = RoutineRunner(lab, path)
     start = lab.sim.time
-    runner.run(0.2)
+    try:
+        runner.run(0.2)
+    except RoutineError as exc:  # raised exactly when the runner holds an error: that one
+        assert exc.details == runner.error and exc.file == str(path)
+    else:
+        assert runner.error is None
     assert lab.sim.time > start  # the lab is here, and its simulation ran
     assert not any(level == "ERROR" for _, level, _ in runner.log_lines)  # the exit ended it
     return runner

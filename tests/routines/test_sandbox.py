@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from helpers import free_port, wait_until
+from mexone.errors import RoutineError
 from mexone.lab import Lab
 from mexone.routines.runner import RoutineRunner
 
@@ -196,8 +197,10 @@ def test_in_the_labs_process_a_hostile_routine_ends_itself_not_the_lab(tmp_path,
     threads, children = set(threading.enumerate()), my_children()
     runner = RoutineRunner(lab, path)
     start = lab.sim.time
-    runner.run(1.0)
+    with pytest.raises(RoutineError) as raised:
+        runner.run(1.0)
     assert runner.error is not None and said in runner.error, runner.error
+    assert raised.value.details == runner.error
     assert lab.sim.time > start  # this process and its simulation are here to tell
     assert wait_until(lambda: not left_behind(str(tmp_path)), timeout=5), left_behind(str(tmp_path))
     assert wait_until(lambda: my_children() <= children, timeout=5)

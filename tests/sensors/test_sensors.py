@@ -196,6 +196,36 @@ def test_sole_contact_forces_carry_the_whole_weight():
     assert np.hypot(total[0], total[1]) < 0.02 * weight
 
 
+def test_state_interfaces_agree_with_statics_and_with_the_messages(standing):
+    """What a controller reads (`state.sensors[name]`) against statics, and against what the
+    broadcasters publish at the same instant: the IMU's proper acceleration is g up in its
+    frame, the ankle FT states carry the weight above the ankles, the soles' contact states
+    carry the whole robot, and a camera has no state interfaces (one-line KeyError)."""
+    states = standing.sensors.states
+    assert set(states) == {"imu", "l_ankle_ft", "r_ankle_ft", "l_foot_contact", "r_foot_contact"}
+    imu = states["imu"]
+    x, y, z, w = imu.orientation
+    rot = _rotation(msgs.Quaternion(x, y, z, w))
+    np.testing.assert_allclose(imu.linear_acceleration, rot.T @ [0.0, 0.0, G], atol=0.05)  # noisy
+    feet = sum(p.mass for p in params.parts() if p.name.endswith("_foot"))
+    robot = sum(p.mass for p in params.parts())
+    ankles = states["l_ankle_ft"].force[2] + states["r_ankle_ft"].force[2]
+    assert ankles == pytest.approx((robot - feet) * G, rel=0.03)
+    soles = states["l_foot_contact"].force + states["r_foot_contact"].force
+    assert states["l_foot_contact"].in_contact and states["r_foot_contact"].in_contact
+    assert soles[2] == pytest.approx(robot * G, rel=0.03)
+    # the broadcaster's message at an instant carries that instant's state
+    box: list = []
+    sub = standing.bus.subscribe("/mex_rb/l_ankle_ft", msgs.WrenchStamped, box.append)
+    standing.sim.run(0.02)
+    sub.unregister()
+    force = states["l_ankle_ft"].force  # the same instant as the last message (100 Hz)
+    last = box[-1].wrench.force
+    np.testing.assert_allclose([last.x, last.y, last.z], force, rtol=1e-12)
+    with pytest.raises(KeyError, match="no sensor named 'kinect' with state interfaces"):
+        states["kinect"]
+
+
 def test_centre_of_pressure_follows_the_com_as_statics_predicts():
     """Standing, the ZMP measured by the ankle sensors is the COM's ground projection (on
     average: the robot sways on its ankles); leaning on the ankles moves both forward alike."""

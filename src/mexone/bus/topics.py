@@ -127,7 +127,12 @@ class Bus:
         return sub
 
     def publish(self, name: str, msg: object) -> None:
-        topic = self.topic(name, type(msg))
+        self.deliver(self.topic(name, type(msg)), msg)
+
+    def deliver(self, topic: Topic, msg: object) -> None:
+        """publish() on a Topic already looked up and typed (advertise's): a publisher on a hot
+        path (the sensors' broadcasters) skips the lookup."""
+        name = topic.name
         with topic.lock:
             topic.count += 1
             topic.last = msg

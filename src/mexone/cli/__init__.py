@@ -45,6 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
         controllers,
         convert,
         edit,
+        example_robot,
         identify,
         plot,
         record,
@@ -63,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
     for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
-                   bench, edit, rosenv):
+                   bench, edit, rosenv, example_robot):
         module.add_parser(sub)
     return parser
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 from dataclasses import replace
 from pathlib import Path
@@ -13,6 +14,7 @@ from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree, summary
 from mexone.description.loader import load_model, model_format
 from mexone.robots import mex_one
+from mexone.sensors import SENSOR_CLASSES
 
 HELP = """\
 Read a robot (URDF, .urdf.xacro or Gazebo SDF), print its kinematic tree the way ROS's
@@ -38,7 +40,7 @@ def add_parser(sub) -> None:
     parser = sub.add_parser("check", help="print the kinematic tree and lint a robot model",
                             description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("model", nargs="?", type=Path,
-                        help="URDF, .urdf.xacro, .sdf or Gazebo model folder "
+                        help="URDF, .urdf.xacro, .sdf, Gazebo model folder or MJCF (.xml) "
                              "(default: the built-in Mex-One with its controllers)")
     parser.add_argument("--controllers", type=Path, metavar="YAML",
                         help="ros_control controller YAML to check against the model")
@@ -62,10 +64,17 @@ def run(args: argparse.Namespace) -> int:
         findings = [f if f.file else replace(f, line=None) for f in findings]
     failing = [f for f in findings if f.severity != "info"]
     if args.json:
-        print(json.dumps(summary(model, findings), indent=2))
+        print(json.dumps(summary(model, findings) | {"sensors": sensor_rows(model)}, indent=2))
         return 1 if failing else 0
     print(format_tree(model))
     print()
+    rows = sensor_rows(model)
+    if rows:
+        print("sensors (a controller reads state.sensors[name]; see docs/sensors.md):")
+        for row in rows:
+            print(f"  {row['name']:<16} {row['type']:<13} on {row['on']:<16} "
+                  f"{row['rate_hz']:>6g} Hz  {', '.join(row['state']) or '(topics only)'}")
+        print()
     print(f"physics lint: {len(model.links)} links, {len(model.joints)} joints "
           f"({len(model.actuated_joints)} actuated), {model.mass:.3f} kg")
     for finding in findings:
@@ -74,3 +83,18 @@ def run(args: argparse.Namespace) -> int:
     warnings = sum(f.severity == "warning" for f in findings)
     print(f"{errors} error(s), {warnings} warning(s)" if failing else "no problems found")
     return 1 if failing else 0
+
+
+def sensor_rows(model) -> list[dict]:
+    """Every declared sensor: name, type, where it sits, its rate (0: every step) and its
+    state interfaces (the fields of its type's state object)."""
+    rows = []
+    for spec in model.sensors:
+        cls = SENSOR_CLASSES.get(spec.type)
+        state = cls.state_type if cls is not None else None
+        names = [f.name for f in dataclasses.fields(state)] if state is not None else []
+        if state is not None and isinstance(getattr(state, "in_contact", None), property):
+            names.insert(0, "in_contact")
+        rows.append({"name": spec.name, "type": spec.type, "on": spec.joint or spec.link or "",
+                     "rate_hz": spec.update_rate, "state": names})
+    return rows

@@ -145,7 +145,7 @@ def recording(lab: Lab, path: Path | None, force: bool):
 def add_model_options(p: argparse.ArgumentParser, model_positional: bool = False) -> None:
     if not model_positional:
         p.add_argument("--model", type=Path,
-                       help="URDF, .urdf.xacro or SDF robot (default: the built-in Mex-One)")
+                       help="URDF, .urdf.xacro, SDF or MJCF robot (default: the built-in Mex-One)")
     p.add_argument("--controllers", type=controllers_arg, metavar="YAML|auto",
                    help="ros_control controller YAML (default: the built-in robot's own), or "
                         "'auto': a position controller on every moving joint, gains from the "

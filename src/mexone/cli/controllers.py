@@ -9,7 +9,9 @@ from pathlib import Path
 from mexone.cli import add_input_limit_option
 from mexone.cli.common import add_joint_pose_options, joint_pose_from_args
 from mexone.control.autotune import controllers_yaml, transmissions_xacro, tune
+from mexone.control.skeleton import class_name, skeleton_files
 from mexone.description.loader import load_model
+from mexone.description.packages import package_name
 from mexone.errors import InputError
 from mexone.files import check_output, write_text
 from mexone.lab import robot_namespace
@@ -29,15 +31,21 @@ each controller says how its gains were derived.
 
 Also writes the <transmission> blocks ros_control needs (and the gazebo_ros_control plugin if
 the robot has none) as a xacro to include from the robot's own: OUT's name with
-_transmissions.xacro, or --transmissions. Existing files are not replaced without --force."""
+_transmissions.xacro, or --transmissions. Existing files are not replaced without --force.
+
+`mexone controllers new NAME [DIR]` writes your own controller instead: DIR/<name>.py, a
+commented PythonController holding Mex-One's left arm, and DIR/controllers.yaml running it
+beside the shipped controllers (DIR defaults to NAME; see docs/controllers.md)."""
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("controllers", help="write controllers with gains from the robot's physics",
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("model", type=Path, help="URDF, .urdf.xacro, SDF or MJCF robot")
-    p.add_argument("-o", "--output", type=Path, required=True, metavar="YAML",
-                   help="controller YAML to write")
+    p.add_argument("model", type=Path, help="URDF, .urdf.xacro, SDF or MJCF robot; or 'new'")
+    p.add_argument("new_args", nargs="*", metavar="NAME [DIR]",
+                   help="after 'new': the controller's name and the folder to write it in")
+    p.add_argument("-o", "--output", type=Path, metavar="YAML",
+                   help="controller YAML to write (required unless 'new')")
     p.add_argument("--transmissions", type=Path, metavar="XACRO",
                    help="where the transmissions go (default: next to YAML, "
                         "<name>_transmissions.xacro)")
@@ -51,7 +59,24 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def include_name(path: Path) -> str:
+    """How a xacro includes `path`: `$(find pkg)/...` from the ROS package it is in (the nearest
+    folder above with a package.xml), else its absolute path."""
+    path = path.resolve()
+    for folder in path.parents:
+        if (name := package_name(folder)) is not None:
+            return f"$(find {name})/{path.relative_to(folder).as_posix()}"
+    return str(path)
+
+
 def run(args: argparse.Namespace) -> int:
+    if str(args.model) == "new" and not args.model.is_file():
+        return _new(args)
+    if args.new_args:
+        raise InputError(f"unexpected argument '{args.new_args[0]}'",
+                         hint="mexone controllers ROBOT -o YAML, or mexone controllers new NAME [DIR]")
+    if args.output is None:
+        raise InputError("no output given", hint="mexone controllers ROBOT -o controllers.yaml")
     out: Path = args.output
     if out.suffix.lower() not in (".yaml", ".yml"):
         raise InputError(f"'{out}' is not a .yaml file", hint="name the output controllers.yaml")
@@ -68,9 +93,35 @@ def run(args: argparse.Namespace) -> int:
     namespace = robot_namespace(robot)
     write_text(out, controllers_yaml(robot, world.step, namespace, pose, floating,
                                      source=args.model.name), args.force)
-    write_text(xacro, transmissions_xacro(robot, namespace, out.name), args.force)
+    write_text(xacro, transmissions_xacro(robot, namespace, out.name, include_name(xacro)),
+               args.force)
     print(f"wrote {out}: {len(tunings)} position controllers and a joint_state_controller")
     print(f"wrote {xacro}: include it from {args.model.name} for ros_control's <transmission>s")
     sag = max(tunings, key=lambda t: t.sag)
     print(f"standing, the largest steady error is {sag.sag:.2g} at '{sag.joint}'")
+    return 0
+
+
+def _new(args: argparse.Namespace) -> int:
+    """`mexone controllers new NAME [DIR]`: a skeleton controller and its YAML, runnable as
+    written; nothing is overwritten without --force (a refusal writes nothing)."""
+    if not args.new_args or len(args.new_args) > 2:
+        raise InputError("usage: mexone controllers new NAME [DIR]",
+                         hint="e.g. mexone controllers new my_controller")
+    name = args.new_args[0]
+    files = skeleton_files(name)
+    folder = Path(args.new_args[1]) if len(args.new_args) > 1 else Path(class_name(name)[0])
+    if folder.exists() and not folder.is_dir():
+        raise InputError("is a file, not a folder", file=folder, hint="name a folder")
+    paths = [folder / file for file in files]
+    if folder.is_dir():
+        for path in paths:
+            check_output(path, args.force)
+    folder.mkdir(parents=True, exist_ok=True)
+    for path, text in zip(paths, files.values(), strict=True):
+        write_text(path, text, args.force)
+    yaml_path = paths[1]
+    print(f"wrote {paths[0]}: the controller (edit update())")
+    print(f"wrote {yaml_path}: Mex-One's controllers with the left arm driven by it")
+    print(f"run it: mexone sim --controllers {yaml_path}")
     return 0

@@ -46,7 +46,7 @@ def add_parser(sub) -> None:
     p = sub.add_parser("identify", help="fit damping, friction, armature, masses to bags",
                        description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("bags", nargs="+", type=Path, metavar="BAG", help=".bag or .mcap files to fit")
-    p.add_argument("--model", type=Path, help="robot (URDF, xacro, SDF; default: the built-in Mex-One)")
+    p.add_argument("--model", type=Path, help="robot (URDF, xacro, SDF, MJCF; default: the built-in Mex-One)")
     p.add_argument("--controllers", type=Path,
                    help="controller YAML the bags were recorded with (default: the robot's own)")
     p.add_argument("--params", dest="fit_params", type=_names,

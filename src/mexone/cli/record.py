@@ -4,11 +4,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from mexone import signals
 from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording
-from mexone.errors import InputError
+from mexone.errors import InputError, RoutineError
 from mexone.files import check_output, move_into_place, temporary_path, usable
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
@@ -60,15 +61,15 @@ def run(args: argparse.Namespace) -> int:
     with recording(lab, args.output, args.force):
         try:
             if runner:
-                runner.run(args.duration)
+                runner.run(args.duration, hold=True)
             else:
                 lab.sim.run(args.duration, until=signals.requested)  # a signal ends it early
+        except RoutineError as exc:  # the bag keeps what happened up to the failure
+            print(exc.details, file=sys.stderr)
+            status = 1
         except DivergenceError as exc:
             print(f"mexone: {exc.one_line()}")
             status = 1
-    if runner and runner.error:
-        print(runner.error)
-        status = 1
     return status
 
 

@@ -9,6 +9,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from mexone.cli.common import DURATION, Number, add_model_options, lab_from_args
+from mexone.errors import RoutineError
 from mexone.files import check_output, replacing
 from mexone.physics.watchdog import DivergenceError
 from mexone.record.video import Camera, VideoWriter, check_video_path, ensure_gl_backend
@@ -19,7 +20,11 @@ Run a routine headless and film it with MuJoCo's offscreen renderer (EGL, fallin
 OSMesa), one frame per 1/fps s of sim time, so the video plays at real-time speed. --camera:
 track (default, follows the robot), fixed, or 'azimuth,elevation,distance' (degrees, metres).
 The video is written as it renders and gets its name when complete; Ctrl-C keeps what was
-rendered so far."""
+rendered so far. A routine that fails (or a simulation that diverges) leaves no video: one line
+naming the routine's FILE:LINE, exit 1 (`mexone run` shows its whole traceback).
+
+exit status: 0 written, 1 the routine failed or the simulation diverged (nothing written),
+2 bad input, 130/143 stopped by Ctrl-C/SIGTERM (the frames so far are kept)"""
 
 FPS = Number(1, 240, hint="a frame per 1/fps s of sim time")
 AZIMUTH, ELEVATION = Number(-360, 360), Number(-90, 90)
@@ -84,29 +89,26 @@ def run(args: argparse.Namespace) -> int:
     lab = lab_from_args(args)
     runner = RoutineRunner(lab, args.routine, params)
     root = lab.sim.compiled.root_body
-    status = 0
-    with replacing(out, args.force) as temporary:
-        video = VideoWriter(temporary, lab.sim.model, args.fps, args.size)
-        total = round(args.duration * args.fps) if args.duration is not None else None
-        bar = tqdm(total=total, unit="frame",
-                   desc=f"rendering {out.name}")
+    try:  # a failed routine or simulation leaves no video: the temporary file is deleted
+        with replacing(out, args.force) as temporary:
+            video = VideoWriter(temporary, lab.sim.model, args.fps, args.size)
+            total = round(args.duration * args.fps) if args.duration is not None else None
+            bar = tqdm(total=total, unit="frame", desc=f"rendering {out.name}")
 
-        def frame(sim) -> None:
-            video.capture(sim.data, args.camera, root)
-            bar.update(1)
+            def frame(sim) -> None:
+                video.capture(sim.data, args.camera, root)
+                bar.update(1)
 
-        try:
-            frame(lab.sim)
-            length = None if args.duration is None else args.duration - 1.0 / args.fps
-            runner.run(length, on_tick=frame, tick=1.0 / args.fps, default=6.0 - 1.0 / args.fps)
-        except DivergenceError as exc:
-            print(f"mexone: {exc.one_line()}")
-            status = 1
-        finally:
-            bar.close()
-            video.close()
+            try:
+                frame(lab.sim)
+                length = None if args.duration is None else args.duration - 1.0 / args.fps
+                runner.run(length, on_tick=frame, tick=1.0 / args.fps, default=6.0 - 1.0 / args.fps,
+                           hold=True)
+            finally:
+                bar.close()
+                video.close()
+    except (RoutineError, DivergenceError) as exc:
+        print(f"mexone: {exc.one_line()}; no video written", file=sys.stderr)
+        return 1
     print(f"wrote {out}: {video.frames} frames at {args.fps:g} fps")
-    if runner.error:
-        print(runner.error)
-        status = 1
-    return status
+    return 0

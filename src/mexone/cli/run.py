@@ -20,7 +20,7 @@ from mexone.cli.common import (
 )
 from mexone.cli.ros import add_ros_options, connect_bridges, urdf_text
 from mexone.control.metrics import TrackingRecorder
-from mexone.errors import InputError
+from mexone.errors import InputError, RoutineError
 from mexone.physics.monitor import has_fallen
 from mexone.physics.watchdog import DivergenceError
 from mexone.routines import supervisor
@@ -33,7 +33,8 @@ Run a control routine (a Python file using `from mexone import rospy`, or a ship
 sweep, arms, home) against the robot with its controllers, headless and as fast as the physics
 allows, in lockstep with sim time. Then print per-joint tracking of every position-controlled
 joint: RMS and max error (rad), worst overshoot (% of a setpoint change) and settling time (s,
-to within 2% or 5 mrad), and whether the robot stayed standing.
+to within 2% or 5 mrad), and whether the robot stayed standing (or when it fell: any time in
+the run, which lasts its duration even when the routine ends first).
 
 Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint.
 
@@ -58,9 +59,12 @@ def add_parser(sub) -> None:
     p.add_argument("routine", help="routine file, or one of: " + ", ".join(shipped_routines()))
     p.add_argument("params", nargs="*", metavar="name:=value", help="routine parameters")
     p.add_argument("--duration", type=DURATION, default=None, metavar="S",
-                   help="seconds of sim time at most (default: the routine's ~duration if it "
-                        "sets one, else 10; ends earlier if the routine does)")
-    p.add_argument("--json", action="store_true", help="print the report as one JSON object")
+                   help="seconds of sim time (default: the routine's ~duration if it sets one, "
+                        "else 10); a routine that ends earlier leaves its last commands held "
+                        "to the end, so a fall it set off shows; one that fails ends the run")
+    p.add_argument("--json", action="store_true",
+                   help="print the report as one JSON object on stdout (the routine's log goes "
+                        "to stderr)")
     p.add_argument("--quiet", action="store_true", help="do not print the routine's log")
     p.add_argument("--rtf", type=RTF, metavar="R",
                    help="target real-time factor (default: unlimited, or 1 with --ros)")
@@ -98,11 +102,11 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     start_height = sim.base_height
     start_pose = _base_xy_yaw(sim)
     recorder = TrackingRecorder(sim, lab.controllers)
-    echo = not (args.json or args.quiet)
+    log_stream = sys.stderr if args.json else sys.stdout  # stdout: the JSON alone, for scripts
 
     def log(level: str, text: str) -> None:
-        if echo:
-            print(f"[{level}] [{sim.time:.3f}]: {text}")
+        if not args.quiet:
+            print(f"[{level}] [{sim.time:.3f}]: {text}", file=log_stream)
 
     runner = RoutineRunner(lab, args.routine, params, log)
     on_tick, tick = None, 0.05
@@ -113,23 +117,35 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
               file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
     track: list[np.ndarray] = []  # (t, x, y, yaw) of the base, for the routine's phases
-    sim.add_periodic(TRACK_PERIOD, lambda s: track.append(np.array([s.time, *_base_xy_yaw(s)])))
+    fell_at: list[float] = []  # when it first fell, if it did: a fall is one even if it gets up
+
+    def watch(s) -> None:
+        track.append(np.array([s.time, *_base_xy_yaw(s)]))
+        if not fell_at and has_fallen(s, start_height):
+            fell_at.append(s.time)
+
+    sim.add_periodic(TRACK_PERIOD, watch)
     diverged = None
     with recording(lab, args.record, args.force):
         try:
-            runner.run(args.duration, on_tick=on_tick, tick=tick)
+            runner.run(args.duration, on_tick=on_tick, tick=tick, hold=True)
+        except RoutineError:
+            pass  # runner.error: reported with the run's report below, exit 1
         except DivergenceError as exc:
             diverged = exc.one_line()
             runner.stop()
     tilt, height = sim.base_tilt, sim.base_height
-    fell = has_fallen(sim, start_height)
+    if not fell_at and has_fallen(sim, start_height):
+        fell_at.append(sim.time)
+    fell = bool(fell_at)
     metrics = recorder.metrics()
     x, y, yaw = _base_xy_yaw(sim) - start_pose
     phases = _phases(runner.params.get(f"/{Path(runner.path).stem}/phases"),
                      [np.array([0.0, *start_pose]), *track])
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
-        "fell": fell, "base_height": round(height, 6), "tilt": round(tilt, 6),
+        "fell": fell, "fell_at": round(fell_at[0], 3) if fell else None,
+        "base_height": round(height, 6), "tilt": round(tilt, 6),
         "error": runner.error or diverged,
         "notices": runner.notices,
         # where the base went (walking): along and across its starting heading, turn in degrees
@@ -142,7 +158,7 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
         "phases": phases,
         "joints": {name: m.as_json() for name, m in sorted(metrics.items())},
     }
-    if not echo:  # echoed with the routine's log otherwise
+    if args.quiet:  # echoed with the routine's log otherwise
         for notice in runner.notices:
             print(f"mexone: warning: {notice}", file=sys.stderr)
     if args.json:
@@ -152,8 +168,9 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
         for p in phases:
             print(f"{p['leg']:<10} {p['seconds']:6.2f} s: {p['distance_x']:+.3f} m ahead, "
                   f"{p['drift_y']:+.3f} m aside, turned {p['yaw']:+.1f} deg, {p['speed']:.3f} m/s")
-        print(f"{'fell over' if fell else 'stayed standing'}: base height {height:.3f} m, "
-              f"tilt {np.degrees(tilt):.1f} deg after {sim.time:.2f} s")
+        verdict = f"fell over at {fell_at[0]:.2f} s" if fell else "stayed standing"
+        print(f"{verdict}: base height {height:.3f} m, tilt {np.degrees(tilt):.1f} deg after "
+              f"{sim.time:.2f} s")
         if runner.error:
             print(runner.error, file=sys.stderr)
         if diverged:

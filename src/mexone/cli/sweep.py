@@ -84,7 +84,7 @@ def add_parser(sub) -> None:
     p.add_argument("--address", help="Ray cluster address (default: start a local Ray)")
     p.add_argument("--resume", action="store_true", help="continue the sweep in OUT")
     p.add_argument("--force", action="store_true", help="start over, replacing OUT's results")
-    p.add_argument("--model", help="robot (default: the built-in Mex-One)")
+    p.add_argument("--model", help="robot: URDF, xacro, SDF or MJCF (default: the built-in Mex-One)")
     p.add_argument("--controllers", help="controller YAML (default: the robot's own)")
     p.set_defaults(run=run)
 

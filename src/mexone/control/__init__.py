@@ -6,6 +6,7 @@ from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import BEST_EFFORT, STRICT, ControllerInfo, ControllerManager
 from mexone.control.pid import PidArray
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
+from mexone.control.student import Param, PythonController, State
 
 __all__ = [
     "CONTROLLER_TYPES",
@@ -23,4 +24,7 @@ __all__ = [
     "SimHardware",
     "build_actuators",
     "PidArray",
+    "PythonController",
+    "Param",
+    "State",
 ]

@@ -1,7 +1,7 @@
 """Controllers for a robot that has none: one JointPositionController per moving joint, with
 gains from the robot's physics instead of a student's guesses.
 
-For each joint, in the standing pose (the initial joint positions):
+For each joint, in the standing pose (the initial joint positions)::
 
     I   the inertia the joint moves about its axis: the composite rigid-body inertia of the links
         beyond it, or, for a joint between the robot and the ground it stands on (a leg), of the
@@ -210,14 +210,15 @@ def controllers_yaml(robot: RobotModel, timestep: float, namespace: str,
     return "\n".join(lines) + "\n"
 
 
-def transmissions_xacro(robot: RobotModel, namespace: str, yaml_name: str | None = None) -> str:
+def transmissions_xacro(robot: RobotModel, namespace: str, yaml_name: str | None = None,
+                        include: str = "$(find PKG)/config/controllers_transmissions.xacro") -> str:
     """The <transmission> of every joint the YAML drives (and the gazebo_ros_control plugin if
-    the robot has none), as a xacro a student includes from the robot's own."""
+    the robot has none), as a xacro a student includes from the robot's own; `include` is this
+    file's name as that include says it (`$(find pkg)/path` inside a ROS package)."""
     lines = ['<?xml version="1.0"?>',
              f"<!-- ros_control transmissions for '{robot.name}', written by 'mexone controllers'"
              + (f" with {yaml_name}" if yaml_name else "") + ".",
-             '     Include it from the robot\'s xacro: <xacro:include filename="$(find PKG)/urdf/'
-             'transmissions.xacro"/> -->',
+             f'     Include it from the robot\'s xacro: <xacro:include filename="{include}"/> -->',
              '<robot xmlns:xacro="http://www.ros.org/wiki/xacro">']
     have = {t.joint for t in robot.transmissions}
     for joint in robot.moving_joints:

@@ -14,6 +14,13 @@ import yaml
 
 from mexone import yamlio
 from mexone.control.controllers import CONTROLLER_TYPES
+from mexone.control.resolve import (
+    RESERVED_KEYS,
+    Plugin,
+    check_settings,
+    resolve_class,
+    validate_params,
+)
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.errors import InputError
 from mexone.inputs import read_input_text
@@ -108,8 +115,7 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     type_node = fields["type"][1]
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
-        raise reader.error(type_node, f"controller '{name}' has unknown type '{ctype}'",
-                           "valid types: " + ", ".join(sorted(CONTROLLER_TYPES)))
+        return _plugin(reader, name, key, ctype, type_node, fields)
     kind, single = CONTROLLER_TYPES[ctype].kind, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
     if kind != "state":
@@ -167,3 +173,42 @@ def _pid_gains(reader: _Reader, node: yaml.Node, config: ControlConfig) -> None:
     if "pid_gains" in fields:
         for joint, _, gains in reader.mapping(fields["pid_gains"], "pid_gains"):
             config.pid_gains[joint] = _pid(reader, f"pid_gains/{joint}", gains)
+
+
+def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: yaml.Node,
+            fields: dict[str, tuple[yaml.Node, yaml.Node]]) -> ControllerSpec:
+    """A student's Python controller (control/resolve.py): its class found as pluginlib finds
+    C++ types, its declared parameters and settings checked with this file's lines."""
+    where = reader.path or "<yaml>"
+    yaml_dir = reader.path.resolve().parent if reader.path is not None else Path.cwd()
+    try:
+        cls, origin = resolve_class(ctype, yaml_dir, list(CONTROLLER_TYPES))
+    except InputError as exc:
+        raise exc.located(where, type_node.start_mark.line + 1) from None
+    if "joints" in fields:
+        value = reader.value(fields["joints"][1])
+        if not isinstance(value, list) or not value or not all(isinstance(j, str) for j in value):
+            raise reader.error(fields["joints"][1], f"controller '{name}': 'joints' must be a "
+                                                    "non-empty list of joint names")
+        joints = tuple(value)
+    elif "joint" in fields:
+        joints = (str(reader.value(fields["joint"][1])),)
+    else:
+        raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joints' list",
+                           "add joints: [joint, ...]")
+    if len(set(joints)) != len(joints):
+        raise reader.error(fields.get("joints", fields.get("joint"))[1],
+                           f"controller '{name}' names a joint twice")
+    lines = {k: (reader.value(v), v.start_mark.line + 1) for k, (_, v) in fields.items()}
+    settings = check_settings(lines, name, where)
+    raw = {k: lines[k] for k in fields if k not in RESERVED_KEYS}
+    params = validate_params(cls, raw, name, where)
+    pid = _pid(reader, name, fields["pid"][1]) if "pid" in fields else None
+    gains = None
+    if "gains" in fields:
+        gains = {joint: _pid(reader, f"{name}/gains/{joint}", node)
+                 for joint, _, node in reader.mapping(fields["gains"][1], f"'{name}' gains")}
+    plugin = Plugin(ctype, cls, origin, yaml_dir, raw, params, source=reader.path,
+                    line=key.start_mark.line + 1, **settings)
+    return ControllerSpec(name, ctype, joints, pid, None, key.start_mark.line + 1, gains, False,
+                          reader.path, plugin)

@@ -1,7 +1,7 @@
 """SimHardware: ros_control's hardware interface on MuJoCo, and the only code that touches actuators.
 
 `build_actuators` edits the MjSpec before the model compiles (as mjlab's actuator configs do) and
-gives every joint with a <transmission> two MuJoCo actuators:
+gives every joint with a <transmission> two MuJoCo actuators::
 
     <joint>     MuJoCo's native PID servo with the P and D terms and a feed-forward input,
                     torque = kp (q_ref - q) + kd (v_ref - qdot) + ff
@@ -31,7 +31,7 @@ from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware", "JointCommands", "JointStates", "build_actuators", "bake_gains",
+__all__ = ["SimHardware", "strided_view", "JointCommands", "JointStates", "build_actuators", "bake_gains",
            "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "gain_to_biasprm",
            "biasprm_to_gain",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
@@ -128,6 +128,19 @@ def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotM
     return edit
 
 
+def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """A view of array[index] when the indices are evenly spaced and increasing (a limb's joints
+    usually are), else None."""
+    if len(index) == 0:
+        return None
+    if len(index) == 1:
+        return array[int(index[0]):int(index[0]) + 1]
+    step = int(index[1] - index[0])
+    if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
+        return None
+    return array[int(index[0]):int(index[-1]) + 1:step]
+
+
 @dataclass
 class JointStates:
     """The state interfaces, as read at the start of an update (joint space)."""
@@ -207,6 +220,9 @@ class SimHardware:
         self._ctrl_motor = model.actuator_ctrladr[self.motor]  # [q_ref, v_ref, ff] each
         self._ctrl_integral = model.actuator_ctrladr[self.integral]
         self._act_integral = model.actuator_actadr[self.integral]
+        motor = self._ctrl_motor
+        self._ctrl_all = np.concatenate((motor, motor + 1, motor + 2, self._ctrl_integral))
+        self._ctrl_values = np.zeros(len(self._ctrl_all))
 
     def rows(self, names) -> np.ndarray:
         missing = [n for n in names if n not in self.index]
@@ -227,9 +243,10 @@ class SimHardware:
         return self.sim.data.qfrc_actuator[self.dof_adr[rows]]
 
     def read(self) -> None:
-        self.state.position[:] = self.position()
-        self.state.velocity[:] = self.velocity()
-        self.state.effort[:] = self.effort()
+        data, state = self.sim.data, self.state
+        state.position[:] = data.qpos[self.qpos_adr]
+        state.velocity[:] = data.qvel[self.dof_adr]
+        state.effort[:] = data.qfrc_actuator[self.dof_adr]
 
     # ----- commands ------------------------------------------------------------------------------
     def gains_changed(self, rows: np.ndarray) -> None:
@@ -250,16 +267,60 @@ class SimHardware:
         self.gains_changed(rows)
         self.reset_integral(rows)
 
+    def rows_writer(self, rows: np.ndarray, interface: str) -> Callable[[np.ndarray], None]:
+        """write() of one command interface ("effort", "position", "velocity") on `rows` alone,
+        taking the new values: for a loop cycle in which nothing else changed (a Python
+        controller's update), a few numpy calls instead of every actuator's. Built after the
+        controller started (its teleport mode is read now); rebuilt when the model changes."""
+        rows = np.asarray(rows, dtype=int)
+        sim, gear = self.sim, self.gear[rows].copy()
+        motor = self._ctrl_motor[rows]
+        teleport = bool(np.count_nonzero(self.command.teleport[rows]))
+        if interface == "effort":
+            ff = motor + 2
+            view = strided_view(sim.data.ctrl, ff)
+            if view is not None:  # one ufunc into MuJoCo's ctrl, no temporary
+                def write_effort_view(values: np.ndarray) -> None:
+                    np.divide(values, gear, out=view)
+                return write_effort_view
+
+            def write_effort(values: np.ndarray) -> None:
+                sim.data.ctrl[ff] = values / gear
+            return write_effort
+        if interface == "velocity":
+            v_ref, dofs = motor + 1, self.dof_adr[rows]
+
+            def write_velocity(values: np.ndarray) -> None:
+                data = sim.data
+                data.ctrl[v_ref] = gear * values
+                if teleport:
+                    data.qvel[dofs] = values
+            return write_velocity
+        index = np.concatenate((motor, self._ctrl_integral[rows]))
+        both = np.concatenate((gear, np.ones(len(rows))))
+        qpos, dofs = self.qpos_adr[rows], self.dof_adr[rows]
+
+        def write_position(values: np.ndarray) -> None:
+            data = sim.data
+            data.ctrl[index] = both * np.concatenate((values, values))
+            if teleport:
+                data.qpos[qpos] = values
+                data.qvel[dofs] = 0.0
+        return write_position
+
     def write(self) -> None:
         """Send the commands to MuJoCo: the only place that writes ctrl, act and actuator
         parameters (and, for ideal servos, qpos/qvel)."""
         model, data, c, r = self.sim.model, self.sim.data, self.command, self.gear
         self.writes += 1
-        data.ctrl[self._ctrl_motor] = r * c.position
-        data.ctrl[self._ctrl_motor + 1] = r * c.velocity
-        data.ctrl[self._ctrl_motor + 2] = c.effort / r
-        data.ctrl[self._ctrl_integral] = c.position
-        if self._gains_changed.any():
+        out = self._ctrl_values  # one gather-free scatter: q_ref, v_ref, ff of the motors, q_ref
+        n = len(r)
+        np.multiply(r, c.position, out=out[:n])
+        np.multiply(r, c.velocity, out=out[n:2 * n])
+        np.divide(c.effort, r, out=out[2 * n:3 * n])
+        out[3 * n:] = c.position
+        data.ctrl[self._ctrl_all] = out
+        if np.count_nonzero(self._gains_changed):
             rows = np.flatnonzero(self._gains_changed)
             self._gains_changed[:] = False
             motor, integral = self.motor[rows], self.integral[rows]
@@ -275,12 +336,12 @@ class SimHardware:
                 a, b = c.i_min[rows] / ki, c.i_max[rows] / ki
             model.actuator_actrange[integral[wind], 0] = np.minimum(a, b)[wind]
             model.actuator_actrange[integral[wind], 1] = np.maximum(a, b)[wind]
-        if self._integral_reset.any():
+        if np.count_nonzero(self._integral_reset):
             rows = np.flatnonzero(self._integral_reset)
             self._integral_reset[:] = False
             data.act[self._act_integral[rows]] = 0.0
         teleport = c.teleport
-        if teleport.any():
+        if np.count_nonzero(teleport):
             pos = teleport == TELEPORT_POSITION
             data.qpos[self.qpos_adr[pos]] = c.position[pos]
             moving = teleport != TELEPORT_NONE

@@ -12,10 +12,12 @@ PIDs themselves run in MuJoCo, so with nothing waiting the loop costs nothing.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -25,11 +27,15 @@ from mexone.control.controllers import (
     CONTROLLER_TYPES,
     Controller,
     ControllerContext,
+    PythonRunner,
     controller_type,
 )
+from mexone.control.controllers.python import ControllerHang, period_ns
 from mexone.control.hardware import SimHardware
 from mexone.control.notes import gazebo_differences
+from mexone.control.resolve import resolve_class, validate_params
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
+from mexone.control.student import sensor_states
 from mexone.errors import InputError
 from mexone.physics.simulation import NS, Periodic, Simulation
 
@@ -48,6 +54,10 @@ class ControllerInfo:
     state: str  # "running" or "stopped"
     joints: tuple[str, ...]
     interface: str
+    update_rate: float | None = None  # Hz a Python controller updates at (None: shipped types)
+    update_time: float | None = None  # s of wall time per update (Python controllers)
+    fault: str | None = None  # why a Python controller was stopped
+    params: dict[str, Any] | None = None  # a Python controller's declared parameters now
 
 
 class ControllerManager:
@@ -64,6 +74,12 @@ class ControllerManager:
         self._ctx = ControllerContext(sim, hw, bus, namespace, config.pid_gains)
         self._periodic: list[Controller] = []  # running controllers that need every period
         self._running: list[Controller] = []
+        self._timed: list[PythonRunner] = []  # running Python controllers (own update rates)
+        self._every: list[Controller] = []  # running controllers that update every period
+        self._waiting = False  # a command was buffered since the last update
+        self._half_step_ns = 0
+        self._direct = False  # only Python controllers reading MuJoCo directly run every period
+        self._dt = self.control_period  # cached for the loop; _schedule refreshes it
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
         self._state_timer: Periodic | None = None
@@ -73,6 +89,7 @@ class ControllerManager:
         sim.add_control(self)
         sim.on_reset(self.restart)
         sim.on_timestep_change(self.on_timestep_change)
+        sim.on_model_change(self._rebind)  # after the hardware's own rebind (registered first)
         sim.watchdog.suspects.append(self._suspect)
         for note in gazebo_differences(config):
             log.warning("%s: %s", note.spec.name, note.text)
@@ -92,12 +109,57 @@ class ControllerManager:
             if now >= self._next_period_ns - sim.timestep * NS / 2:
                 self._next_period_ns = now + period
             self.wake_ns = self._next_period_ns
+        if self._timed:
+            half = self._half_step_ns
+            for ctrl in self._timed:
+                if now >= ctrl.next_ns - half:
+                    ctrl.due = True
+                    ctrl.next_ns += ctrl.period_ns
+                    if ctrl.next_ns < now + half:  # fell behind (a step longer than the period)
+                        ctrl.next_ns = now + ctrl.period_ns
+                if ctrl.next_ns < self.wake_ns:
+                    self.wake_ns = ctrl.next_ns
         self.updates += 1
-        self.hw.read()
+        waiting, self._waiting = self._waiting, False
+        if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
+            self.hw.read()
         t = now / NS
-        for ctrl in self._running:
-            ctrl.update(t, self.control_period)
+        dt = self._dt
+        try:  # an idle controller (no command waiting, no period) has nothing to do
+            for ctrl in self._running if waiting else self._every:
+                if ctrl.every_period or ctrl._pending is not None:
+                    ctrl.update(t, dt)
+        except ControllerHang:  # the watchdog's interrupt landed just after a student's update
+            log.error("a controller's update was interrupted after it returned; no harm done")
+        if self._ctx.faults:
+            self._stop_faulted()
+        elif not waiting and self._every is self._timed:  # only Python controllers ran
+            for ctrl in self._timed:
+                ctrl.flush()
+            return
         self.hw.write()
+
+    def _rebind(self) -> None:
+        """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
+        for ctrl in self.controllers.values():
+            if isinstance(ctrl, PythonRunner):
+                ctrl.rebind()
+        self._schedule()
+
+    def _stop_faulted(self) -> None:
+        """Stop the controllers that faulted (their joints hold); the lab runs on."""
+        names, self._ctx.faults[:] = list(self._ctx.faults), []
+        running = [n for n in dict.fromkeys(names) if n in self.controllers
+                   and self.controllers[n].running]
+        if running:
+            self.switch(stop=running)
+
+    def use_sensors(self, suite) -> None:
+        """Python controllers read `state.sensors` from `suite` (a mexone.sensors.SensorSuite)."""
+        self._ctx.sensors = lambda: sensor_states(suite)
+        for ctrl in self.controllers.values():
+            if isinstance(ctrl, PythonRunner):
+                ctrl.state._sensor_source = self._ctx.sensors
 
     def _wake(self) -> None:
         self.wake_ns = -math.inf
@@ -105,7 +167,7 @@ class ControllerManager:
     def on_timestep_change(self, timestep: float) -> None:
         """The physics step changed: the period follows it; the PIDs in MuJoCo already do."""
         self._next_period_ns = self.sim.time_ns
-        self._wake()
+        self._schedule()
 
     def _suspect(self) -> str | None:
         if any(c.kind != "state" for c in self._running):
@@ -130,7 +192,8 @@ class ControllerManager:
                              "does not have", file=spec.source, line=spec.line,
                              hint="joints: " + ", ".join(self.hw.joints))
         try:
-            ctrl = controller_type(spec.type).cls(spec, self._ctx)
+            cls = PythonRunner if spec.plugin is not None else controller_type(spec.type).cls
+            ctrl = cls(spec, self._ctx)
         except InputError as exc:
             raise exc.located(spec.source or "<controllers>", spec.line) from None
         self.controllers[name] = ctrl
@@ -249,24 +312,50 @@ class ControllerManager:
             ctrl = self.controllers[name]
             ctrl.starting(t)
             ctrl.running = True
-            if ctrl.kind != "state":
+            if ctrl.kind != "state" and ctrl.msg_type is not None:
                 self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
                                                       self._buffer(ctrl), node=name)
             if ctrl.has_state:
                 self._watch_state(self.state_topic(name))
         self._schedule()
+        if self._ctx.faults:  # a Python controller whose activate failed
+            names, self._ctx.faults[:] = list(self._ctx.faults), []
+            for name in dict.fromkeys(names):
+                ctrl = self.controllers.get(name)
+                if ctrl is not None and ctrl.running:
+                    ctrl.running = False
+                    ctrl.stopping()
+            self._schedule()
         self.hw.write()
 
     def _buffer(self, ctrl: Controller):
         def on_message(msg) -> None:  # the publisher's thread: buffer only
             if ctrl.on_command(msg):
+                self._waiting = True
                 self._wake()
         return on_message
 
     def _schedule(self) -> None:
         self._running = [c for c in self.controllers.values() if c.running]
         self._periodic = [c for c in self._running if c.periodic]
-        self._next_period_ns = self.sim.time_ns
+        self._timed = [c for c in self._running if c.timed]
+        for ctrl in self._running:
+            ctrl.every_period = ctrl.periodic or ctrl.timed
+        self._every = [c for c in self._running if c.every_period]
+        if self._every == self._timed:
+            self._every = self._timed  # the same list: update() takes its fast write
+        self._direct = self._every is self._timed and all(c.direct for c in self._timed)
+        self._waiting = True  # a command buffered before the switch is not lost
+        now = self.sim.time_ns
+        self._half_step_ns = round(self.sim.timestep * NS / 2)
+        self._dt = self.control_period
+        for ctrl in self._timed:
+            ctrl.writer = self.hw.rows_writer(ctrl.rows, ctrl.interface_name)
+            ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
+            ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
+            if ctrl.next_ns < 0:  # just started: its first update is now
+                ctrl.next_ns = now
+        self._next_period_ns = now
         self._wake()
 
     # ----- `state` topics (published only while someone listens) ---------------------------------
@@ -315,8 +404,52 @@ class ControllerManager:
         self.switch(start=running)
 
     def list(self) -> list[ControllerInfo]:
-        return [ControllerInfo(c.name, c.type.name, "running" if c.running else "stopped",
-                               tuple(c.joints), c.interface) for c in self.controllers.values()]
+        out = []
+        for c in self.controllers.values():
+            info = ControllerInfo(c.name, c.type.name, "running" if c.running else "stopped",
+                                  tuple(c.joints), c.interface)
+            if isinstance(c, PythonRunner):
+                info = replace(info, update_rate=NS / c.period_ns if c.running else
+                               c.plugin.update_rate, update_time=c.update_time, fault=c.fault,
+                               params=c.params)
+            out.append(info)
+        return out
+
+    # ----- Python controllers: reload and live parameters (simulation thread) -------------------
+    def reload(self, name: str) -> None:
+        """Import the student's file again and restart controller `name` in place (if it ran, or
+        was stopped by a fault). An import, parameter or configure error raises (one line, their
+        file:line) and leaves the old controller as it was."""
+        old = self._get(name)
+        if not isinstance(old, PythonRunner):
+            raise InputError(f"controller '{name}' is a shipped type ({old.type.name}): nothing "
+                             "to reload", hint="reload re-imports a Python controller's file")
+        spec, plugin = old.spec, old.plugin
+        cls, origin = resolve_class(spec.type, plugin.yaml_dir, list(CONTROLLER_TYPES), fresh=True)
+        params = validate_params(cls, plugin.raw, name, plugin.source)
+        declared = cls.declared_params()
+        for key, value in old.params.items():  # live changes survive when still valid
+            if key in declared:
+                with contextlib.suppress(InputError):
+                    params[key] = declared[key].check(value)
+        new_spec = replace(spec, plugin=replace(plugin, cls=cls, origin=origin, params=params))
+        new = PythonRunner(new_spec, self._ctx)  # creates and configures: may raise
+        restart = old.running or old.fault is not None
+        if old.running:
+            self.switch(stop=[name])
+        self.controllers[name] = new
+        self.config.controllers[name] = new_spec
+        if restart:
+            self.switch(start=[name])
+        log.info("%s: reloaded from %s", name, origin)
+
+    def set_param(self, name: str, key: str, value) -> Any:
+        """Set a Python controller's declared parameter live (validated as the YAML's)."""
+        ctrl = self._get(name)
+        if not isinstance(ctrl, PythonRunner):
+            raise InputError(f"controller '{name}' ({ctrl.type.name}) has no declared parameters",
+                             hint="PID gains: set_gains")
+        return ctrl.set_param(key, value)
 
     @staticmethod
     def list_types() -> list[str]:
@@ -354,6 +487,9 @@ class ControllerManager:
         """Publish a command to controller `name` on its topic, as any node would: `values` per
         joint (a dict may name some joints; the others keep their setpoint)."""
         ctrl = self._get(name)
+        if ctrl.msg_type is None:
+            raise InputError(f"controller '{name}' computes its own commands; it takes none",
+                             hint="change its parameters (set_param) or stop it")
         if isinstance(values, dict):
             current = ctrl.setpoint
             unknown = [j for j in values if j not in ctrl.joints]

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
 
@@ -77,16 +78,24 @@ class ControllerSpec:
     gains: dict[str, PidGains] | None = None  # per joint (joint_trajectory_controller's gains:)
     ideal_servo: bool = False  # teleport the joint as Gazebo 7's position interface did
     source: Path | None = None
+    # a student's Python controller (mexone.control.resolve.Plugin): its class, parameters and
+    # running settings; None for the shipped types
+    plugin: Any = field(default=None, compare=False, repr=False)
 
     @property
     def kind(self) -> str:
-        """position, velocity, effort, trajectory or state (from the controller registry)."""
+        """position, velocity, effort, trajectory, state (from the controller registry) or
+        python (a student's controller)."""
+        if self.plugin is not None:
+            return "python"
         from mexone.control.controllers import controller_type
 
         return controller_type(self.type).kind
 
     @property
     def interface(self) -> str:
+        if self.plugin is not None:
+            return self.plugin.interface
         from mexone.control.controllers import controller_type
 
         return controller_type(self.type).interface

@@ -276,7 +276,7 @@ def _effort(model, a: int) -> float:
 
 
 def _transmissions(model, robot: RobotModel, lines) -> None:
-    for a in range(model.nu):
+    for a in range(model.nactuator):  # MuJoCo 4: nu counts control inputs (a PID has 3)
         if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
             continue
         joint = model.joint(model.actuator_trnid[a][0]).name

@@ -462,7 +462,7 @@ def write_sdf(model: RobotModel) -> str:
     for joint in model.joints.values():
         _write_joint(el_model, model, joint)
     for sensor in model.sensors:
-        if sensor.type == "force_torque":
+        if sensor.joint:  # a joint's sensor (force-torque) lives in its joint
             holder = el_model.find(f"joint[@name='{sensor.joint}']")
         else:
             holder = el_model.find(f"link[@name='{sensor.link}']")

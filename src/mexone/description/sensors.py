@@ -20,9 +20,11 @@ from mexone.description.xmlio import XmlReader
 
 __all__ = ["Noise", "CameraSpec", "SensorSpec", "SENSOR_TYPES", "MODEL_PLUGINS", "read_sensor",
            "read_model_plugin", "write_sensor", "write_model_plugin", "needs_sensor_element",
-           "merge_model_plugin"]
+           "merge_model_plugin", "add_sensor_type"]
 
-SENSOR_TYPES = ("imu", "force_torque", "contact", "camera", "depth")
+# the sensor types the reader accepts: the built-in ones, and every plug-in mexone.sensors
+# registers (mexone.sensors.register_sensor calls add_sensor_type)
+SENSOR_TYPES = ["imu", "force_torque", "contact", "camera", "depth"]
 MODEL_PLUGINS = ("libgazebo_ros_imu.so", "libgazebo_ros_ft_sensor.so")  # plugins of the model,
 # not of a <sensor>: they name their body or joint themselves
 IMU_CHANNELS = tuple(f"{group}/{axis}" for group in ("angular_velocity", "linear_acceleration")
@@ -90,6 +92,12 @@ class SensorSpec:
     collisions: tuple[str, ...] = ()  # contact: the collision elements it watches
     range: tuple[float, float] | None = None  # depth: the valid range (point cloud cutoffs)
     line: int | None = None
+
+
+def add_sensor_type(kind: str) -> None:
+    """Let the reader accept `<sensor type="kind">` (a sensor plug-in registered it)."""
+    if kind not in SENSOR_TYPES:
+        SENSOR_TYPES.append(kind)
 
 
 # ----- reading -------------------------------------------------------------------------------

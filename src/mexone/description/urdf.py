@@ -389,7 +389,7 @@ def _write_gazebo(robot: etree._Element, model: RobotModel) -> None:
         _sub(dynamics, "damping", fmt(dyn.damping))
         _sub(dynamics, "friction", fmt(dyn.friction))
     for sensor in model.sensors:
-        holder = sensor.link if sensor.type != "force_torque" else sensor.joint
+        holder = sensor.joint or sensor.link  # a joint's sensor (force-torque) in its joint's block
         if needs_sensor_element(sensor):
             write_sensor(_sub(robot, "gazebo", reference=holder), sensor, fmt)
         if sensor.plugin in MODEL_PLUGINS:

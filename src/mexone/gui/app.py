@@ -25,6 +25,7 @@ from mexone import signals
 from mexone.control.controllers import Controller
 from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
+from mexone.gui.controllers import ControllersPanel
 from mexone.gui.fields import NumberFields
 from mexone.gui.handles import IkHandles
 from mexone.gui.health import Health
@@ -67,8 +68,10 @@ class _GuiLog(logging.Handler):
         self.app = app
 
     def emit(self, record: logging.LogRecord) -> None:
-        self.app.console.append(f"[WARN] {record.getMessage()}")
-        self.app.notify("Warning", record.getMessage(), color="yellow")
+        error = record.levelno >= logging.ERROR  # e.g. a student's controller stopped by a fault
+        self.app.console.append(f"[{'ERROR' if error else 'WARN'}] {record.getMessage()}")
+        self.app.notify("Error" if error else "Warning", record.getMessage(),
+                        color="red" if error else "yellow")
 
 
 class GuiApp:
@@ -233,6 +236,7 @@ class GuiApp:
             self.record_panel.update()
         if self._frames % 30 == 0:
             self.topics_panel.update()
+            self.controllers_panel.update()
         if self.routine and not self.routine.running:
             self._routine_done()
 
@@ -325,6 +329,7 @@ class GuiApp:
         self._build_routines()
         self._build_physics()
         self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
+        self.controllers_panel = ControllersPanel(self.server, self.lab, self.do, self.refuse)
         self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
                                         self.record_folder)
         self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,

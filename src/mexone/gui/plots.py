@@ -27,7 +27,6 @@ import viser.uplot as uplot
 
 from mexone.lab import Lab
 from mexone.ranges import PLOT_WINDOW
-from mexone.sensors import ForceTorqueSensor, ImuSensor
 
 __all__ = ["SignalLog", "PlotPanel", "Pane", "PLOT_PERIOD", "MAX_WINDOW", "axis_scale", "PANES",
            "numeric_fields", "field_value"]
@@ -139,14 +138,10 @@ class SignalLog:
                     Signal("base/tilt", "rad")]
         root = sim.compiled.root_body
         readers.append(lambda: np.r_[sim.data.xpos[root], sim.base_tilt])
-        for name, sensor in lab.sensors.sensors.items():
-            if isinstance(sensor, ImuSensor):
-                signals += [Signal(f"{name}/angular_velocity/{a}", "rad/s") for a in "xyz"]
-                signals += [Signal(f"{name}/linear_acceleration/{a}", "m/s²") for a in "xyz"]
-                readers.append(lambda s=sensor: np.concatenate(s.read()[1:]))
-            elif isinstance(sensor, ForceTorqueSensor):
-                signals += [Signal(f"{name}/force/{a}", "N") for a in "xyz"]
-                readers.append(lambda s=sensor: s.read()[0])
+        for sensor in lab.sensors.sensors.values():  # each sensor type's plot signals
+            if sensor.state_type is not None and sensor.plot:
+                signals += [Signal(n, u) for n, u in sensor.signals()]
+                readers.append(sensor.values)
         self.signals: list[Signal] = signals
         self.index = {s.name: i for i, s in enumerate(signals)}
         self._readers: list[Callable[[], np.ndarray]] = readers

@@ -15,9 +15,9 @@ import viser
 
 from mexone.gui.plots import Pane, SignalLog
 from mexone.lab import Lab
-from mexone.sensors import CameraSensor, ContactSensor, ForceTorqueSensor, ImuSensor
+from mexone.sensors import CameraSensor, ForceTorqueSensor, Sensor
 
-__all__ = ["SensorPanel", "BALANCE"]
+__all__ = ["SensorPanel", "BALANCE", "sensor_panes"]
 
 BALANCE = "Balance"  # the View menu's entry
 CAMERA_FPS = 5.0  # images sent to the page per second of wall time
@@ -37,14 +37,34 @@ def _depth_colours(depth: np.ndarray) -> np.ndarray:
     return out
 
 
+def sensor_panes(sensors) -> list[tuple[str, list[str]]]:
+    """(title, signal names) of the Sensors panel's plots, from each sensor type's `pane`: a
+    type's field/axis over all its sensors ("force-torque sensors, Fz"), or, for a field that
+    is a vector of its own (field/"linear_acceleration"), the first sensor's three axes."""
+    by_type: dict[type, list] = {}
+    for sensor in sensors:
+        if sensor.pane is not None and sensor.state_type is not None:
+            by_type.setdefault(type(sensor), []).append(sensor)
+    out = []
+    for kind, group in by_type.items():
+        title, path = kind.pane
+        if "/" in path:
+            out.append((title, [f"{s.spec.name}/{path}" for s in group]))
+        else:
+            first = group[0]
+            out.append((f"{first.spec.name}: {title}",
+                        [n for n, _ in first.signals() if n.startswith(f"{first.spec.name}/{path}/")]))
+    return out
+
+
 class SensorPanel:
     def __init__(self, server: viser.ViserServer, lab: Lab, log: SignalLog):
         self.server, self.lab, self.log = server, lab, log
         suite = lab.sensors
         self.cameras = {n: s for n, s in suite.sensors.items() if isinstance(s, CameraSensor)}
-        self.imus = {n: s for n, s in suite.sensors.items() if isinstance(s, ImuSensor)}
         self.fts = {n: s for n, s in suite.sensors.items() if isinstance(s, ForceTorqueSensor)}
-        self.contacts = {n: s for n, s in suite.sensors.items() if isinstance(s, ContactSensor)}
+        # every other sensor type's view: a markdown line each (contact lights, ...)
+        self.viewed = [s for s in suite.sensors.values() if type(s).view is not Sensor.view]
         self.images: dict[str, viser.GuiImageHandle] = {}
         self.show_camera: dict[str, viser.GuiCheckboxHandle] = {}
         self._last_image = -1.0
@@ -68,14 +88,8 @@ class SensorPanel:
                     self.images[name + "/depth"] = gui.add_image(blank, label=f"{name} (depth)",
                                                                  format="jpeg", jpeg_quality=70)
             self.contact_view = gui.add_markdown("")
-            imu = next(iter(self.imus), None)
-            self.panes = []
-            if imu is not None:
-                self.panes.append(Pane(self.server, self.log, folder, f"{imu}: linear acceleration",
-                                       [f"{imu}/linear_acceleration/{a}" for a in "xyz"], 1.8))
-            if self.fts:
-                self.panes.append(Pane(self.server, self.log, folder, "force-torque sensors, Fz",
-                                       [f"{n}/force/z" for n in self.fts], 1.8))
+            self.panes = [Pane(self.server, self.log, folder, title, names, 1.8)
+                          for title, names in sensor_panes(self.lab.sensors.sensors.values())]
 
     def _build_overlay(self) -> None:
         scene = self.server.scene
@@ -99,13 +113,9 @@ class SensorPanel:
     def update(self, now_wall: float) -> None:
         if self.com_marker.visible:
             self._update_balance()
-        if self.contacts:
-            lights = []
-            for sensor in self.contacts.values():
-                states = sensor.contacts()
-                load = sum(w.force.z for s in states for w in s.wrenches)
-                lights.append(f"{'🟢' if states else '⚪'} `{sensor.link}` {load:5.1f} N")
-            self.contact_view.content = " &nbsp; ".join(lights)
+        if self.viewed:
+            lines = [sensor.view() for sensor in self.viewed]
+            self.contact_view.content = " &nbsp; ".join(line for line in lines if line)
         if now_wall - self._last_image >= 1.0 / CAMERA_FPS:
             self._last_image = now_wall
             self._update_images()

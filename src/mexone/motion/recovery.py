@@ -51,11 +51,7 @@ def survives(trial: PushTrial, impulse: float, make_lab: Callable[[], Lab] = Lab
     if trial.routine is None:
         sim.run(duration)
     else:
-        runner = RoutineRunner(lab, trial.routine, dict(trial.params))
-        runner.run(duration)
-        if runner.error:
-            raise RuntimeError(runner.error)
-        sim.run(max(0.0, duration - sim.time))
+        RoutineRunner(lab, trial.routine, dict(trial.params)).run(duration, hold=True)
     return not has_fallen(sim, start_height)
 
 

@@ -197,6 +197,9 @@ class Simulation:
         self._since_watch = 0
         self._time_ns = 0
         self.steps = 0  # physics steps taken, never reset: measures time across resets
+        # the thread that last ran the loop (run): others reach MuJoCo through `work` (None: no
+        # loop ever ran, so the thread that made the simulation steps it by hand)
+        self.loop_thread: int | None = None
         self.outside: OutsideInput | None = None  # the last outside input (note_input)
         # a front end that serves a graph (ROS) sets this: a divergence an outside input caused
         # resets the world with a warning instead of ending the run (see _diverged)
@@ -205,6 +208,14 @@ class Simulation:
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
         self.reset()
+
+    def loop_elsewhere(self) -> bool:
+        """True while another thread, alive, runs the loop: reach MuJoCo through `work.call`
+        (else the caller is the only one stepping and may read the data directly)."""
+        loop = self.loop_thread
+        if loop is None or loop == threading.get_ident():
+            return False
+        return any(t.ident == loop for t in threading.enumerate())
 
     # ----- clock ---------------------------------------------------------------------------------
     @property
@@ -367,6 +378,7 @@ class Simulation:
         running in lockstep with sim time (routines): when it is busy the run returns early, so
         the caller stays responsive. `until()` true ends the run early. Progress is counted in
         steps, so a reset during the run (a service call, a button) restarts nothing."""
+        self.loop_thread = threading.get_ident()
         budget = math.inf if duration == math.inf else round(duration * NS)
         tick_ns = max(1, round(tick * NS))
         done = 0

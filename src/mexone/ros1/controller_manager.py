@@ -28,7 +28,7 @@ from mexone.errors import InputError, MexoneError
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, TIMEOUT, number_text
 from mexone.ros1 import convert
 
-__all__ = ["ControllerManagerNode", "pid_config_type"]
+__all__ = ["ControllerManagerNode", "pid_config_type", "params_config_type"]
 
 log = logging.getLogger("mexone.ros")
 _INTERFACE_PREFIX = "hardware_interface::"
@@ -180,6 +180,9 @@ class ControllerManagerNode:
         extras = []
         if ctrl.gains is not None and len(ctrl.joints) == 1:
             extras.append(self._reconfigure(name, ctrl.gains[0]))
+        params = getattr(ctrl, "plugin", None) and ctrl.plugin.cls.declared_params()
+        if params:
+            extras.append(self._reconfigure_params(name, params, ctrl.params))
         if ctrl.kind == "trajectory":
             self.trajectories[name] = TrajectoryInterfaces(self, name)
             extras += self.trajectories[name].handles
@@ -227,6 +230,35 @@ class ControllerManagerNode:
             return config
 
         return Server(pid_config_type(gains), on_change, namespace=f"{self.ns}/{name}/pid")
+
+
+    def _reconfigure_params(self, name: str, declared: dict, values: dict):
+        """dynamic_reconfigure server at <ns>/<ctrl> with a Python controller's declared
+        parameters; each change checked by the same Param as the YAML, a refusal put back."""
+        from dynamic_reconfigure.server import Server
+
+        def on_change(config, _level):  # rospy thread (and once at start)
+            current = self.bridge.call(lambda: dict(self.manager.controllers[name].params))
+            try:
+                changed = {k: config[k] for k in declared if k in config and config[k] != current.get(k)}
+
+                def put() -> None:
+                    for key, value in changed.items():
+                        self.manager.set_param(name, key, value)
+                if changed:
+                    self.bridge.call(put)
+                    shown = ", ".join(f"{k} {v}" for k, v in changed.items())
+                    self.lab.sim.note_input(f"{self.ns}/{name} ({shown})")
+            except Exception as exc:  # noqa: BLE001 - a refusal keeps the values, never a crash
+                log.error("%s: %s", name, _text(exc))
+                try:
+                    current = self.bridge.call(lambda: dict(self.manager.controllers[name].params))
+                    config.update({k: current[k] for k in declared if k in current})
+                except Exception:  # noqa: BLE001 - the controller went meanwhile
+                    pass
+            return config
+
+        return Server(params_config_type(declared, values), on_change, namespace=f"{self.ns}/{name}")
 
 
 class TrajectoryInterfaces:
@@ -386,6 +418,44 @@ def pid_config_type(current: PidGains):
                    "parentname": "Default", "field": "default", "upper": "DEFAULT", "lower": "groups"}
     return SimpleNamespace(
         config_description=description, defaults=dict(values),
+        min={p["name"]: p["min"] for p in parameters}, max={p["name"]: p["max"] for p in parameters},
+        level={p["name"]: 1 for p in parameters}, type={p["name"]: p["type"] for p in parameters},
+        all_level=1)
+
+
+_DR_TYPES = {bool: "bool", int: "int", float: "double", str: "str"}
+_DR_C = {"bool": ("bool", "const bool"), "int": ("int", "const int"),
+         "double": ("double", "const double"), "str": ("std::string", "const char * const")}
+_DR_BOUND = 1e300  # dynamic_reconfigure wants numbers for min and max: "unbounded"
+
+
+def params_config_type(declared: dict, values: dict):
+    """A Python controller's declared parameters (mexone.control.Param) as dynamic_reconfigure's
+    generated module would describe them, defaulting to their current `values`."""
+    from types import SimpleNamespace
+
+    parameters = []
+    for key, param in declared.items():
+        kind = _DR_TYPES[param.kind]
+        lo = param.low if param.low is not None else -_DR_BOUND
+        hi = param.high if param.high is not None else _DR_BOUND
+        if kind == "bool":
+            lo, hi = False, True
+        elif kind == "str":
+            lo, hi = "", ""
+        elif kind == "int":
+            lo, hi = int(max(lo, -2**31)), int(min(hi, 2**31 - 1))
+        ctype, cconst = _DR_C[kind]
+        parameters.append({"name": key, "type": kind, "default": values.get(key, param.default),
+                           "level": 1, "description": param.doc or key, "min": lo, "max": hi,
+                           "srcline": 0, "srcfile": "mexone", "edit_method": "",
+                           "ctype": ctype, "cconsttype": cconst})
+    description = {"name": "Default", "type": "", "state": True, "cstate": "true", "id": 0,
+                   "parent": 0, "parameters": parameters, "groups": [], "srcline": 0,
+                   "srcfile": "mexone", "class": "DEFAULT", "parentclass": "",
+                   "parentname": "Default", "field": "default", "upper": "DEFAULT", "lower": "groups"}
+    return SimpleNamespace(
+        config_description=description, defaults={p["name"]: p["default"] for p in parameters},
         min={p["name"]: p["min"] for p in parameters}, max={p["name"]: p["max"] for p in parameters},
         level={p["name"]: 1 for p in parameters}, type={p["name"]: p["type"] for p in parameters},
         all_level=1)

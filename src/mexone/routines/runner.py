@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import sys
 import threading
+import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 from mexone import signals, yamlio
 from mexone.description.urdf import write_urdf
-from mexone.errors import InputError
+from mexone.errors import InputError, RoutineError
 from mexone.lab import Lab
 from mexone.routines import processes, sandbox
 from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Shutdown, bind
@@ -94,6 +95,7 @@ class Routine:
     private: dict[str, object]
     thread: threading.Thread | None = None
     error: str | None = None
+    line: int | None = None  # the routine's line that raised (its innermost frame in its file)
 
     @property
     def running(self) -> bool:
@@ -187,6 +189,7 @@ class RoutineRunner:
                 entry.error = f"routine exited with status {exc.code}"
         except BaseException:  # noqa: BLE001 - the student's error, shown as their traceback
             entry.error = _students_traceback(entry.path)
+            entry.line = _students_line(entry.path)
         finally:
             if context.abandoned and not entry.error:
                 entry.error = context.abandoned
@@ -194,10 +197,17 @@ class RoutineRunner:
             bind(None)
 
     def run(self, duration: float | None, on_tick=None, tick: float = 0.05,
-            default: float = DEFAULT_DURATION) -> None:
+            default: float = DEFAULT_DURATION, hold: bool = False) -> None:
         """Simulate until every routine ends or `duration` s of sim time pass (a routine that
         stops yielding is abandoned after the stall time, with an error). duration None: as
-        long as the routines declare (declared_duration), else `default` s."""
+        long as the routines declare (declared_duration), else `default` s. hold: when the
+        routines end first (without an error), simulate on to the duration with the
+        controllers holding their last commands, so what a routine's last lines set off (a
+        push, a step) shows: the CLI's runs last their duration.
+
+        Raises RoutineError (after the run ended and the routines stopped) when a routine
+        failed: its FILE:LINE and exception in one line, the whole report in `.details` (also
+        `self.error`). A signal (Ctrl-C) ends the run without an error."""
         self.start()
         sim = self.lab.sim
         if duration is None:
@@ -213,6 +223,19 @@ class RoutineRunner:
                                      until=lambda: not self.scheduler.active or signals.requested())
         finally:
             self.stop()
+        self.check()
+        while hold and remaining > sim.timestep / 2 and not signals.requested():
+            remaining -= sim.run(remaining, on_tick=on_tick, tick=tick, until=signals.requested)
+
+    def check(self) -> None:
+        """Raise RoutineError if a routine failed (run() calls it; a caller of start() may)."""
+        if (details := self.error) is None:
+            return
+        failed = next((r for r in self.routines if r.error), None)
+        first = (failed.error if failed else details).strip().splitlines()[-1]
+        path = failed.path if failed else self.path
+        raise RoutineError(first, file=path, line=failed.line if failed else None,
+                           details=details)
 
     def declared_duration(self) -> float | None:
         """The longest ~duration (s of sim time) the routines set themselves, e.g.
@@ -240,6 +263,12 @@ class RoutineRunner:
                 for line in sandbox.stop_threads(entry.context):
                     entry.context.notices.append(line)
                     self._log("WARN", line)
+
+
+def _students_line(path: Path) -> int | None:
+    """The line of the routine's file where the exception being handled passed last."""
+    lines = [f.lineno for f in traceback.extract_tb(sys.exc_info()[2]) if f.filename == str(path)]
+    return lines[-1] if lines else None
 
 
 def _students_traceback(path: Path) -> str:

@@ -1,23 +1,41 @@
-"""What every simulated sensor shares: its topics, its header, and lazily measured MuJoCo data.
+"""What every simulated sensor type shares, and the registry that makes one module a sensor type.
 
-A sensor publishes at its update rate in sim time, from the simulation thread, and only while
-someone listens to one of its topics (as gazebo_ros plugins do): nobody listening, no timer, no
-cost. MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however many
-sensors ask.
+A sensor type is ONE plug-in (a `Sensor` subclass registered with `register_sensor`), as a
+ros2_control semantic component plus its broadcaster:
+
+- `build`: its MjSpec edit (sites, MuJoCo sensors, cameras) before the model compiles;
+- `state_type` and `read`: its state interfaces, a small dataclass of numpy arrays with
+  ros2_control's field names, filled lazily once per instant (`Sensor.state()`): only sensors
+  somebody reads cost anything;
+- `message_type` and `message`: what its broadcaster publishes, built from that state, at the
+  sensor's update rate, only while someone listens to its topic (as gazebo_ros plugins and
+  ros2_control's broadcasters do);
+- `plot`: its plot signals (`<name>/<field>/<axis>`), and `pane`/`view`: its GUI view.
+
+MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however many sensors ask.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import mujoco
+import numpy as np
 
 from mexone.bus.msgs import Header, Time
 from mexone.bus.topics import Bus, resolve_name
+from mexone.description import sensors as declared
+from mexone.description.model import RobotModel
 from mexone.description.sensors import SensorSpec
 from mexone.physics.simulation import Simulation
 
-__all__ = ["Output", "Measure", "Sensor", "topic_name"]
+__all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "register_sensor",
+           "SENSOR_CLASSES", "sensor_type", "AXES"]
+
+_SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+AXES = {3: "xyz", 4: "xyzw", 6: ("x", "y", "z", "rx", "ry", "rz")}  # plot signals per array size
 
 
 def topic_name(namespace: str, name: str) -> str:
@@ -47,32 +65,152 @@ class Output:
 
 
 class Measure:
-    """MuJoCo's sensor values at the current instant, computed on the first request (the
-    simulation steps with MuJoCo's sensor pass turned off)."""
+    """MuJoCo's sensor values at the current instant (keyed by Simulation.steps, which never
+    repeats; a reset invalidates), computed on the first request (the
+    simulation steps with MuJoCo's sensor pass turned off), and the light sensors' state arrays.
+
+    Sensor types whose state is a fixed linear function of MuJoCo's sensordata (reordering,
+    signs, sums, constant rotations) register it with `linear`; `refresh` then fills every such
+    array with one matrix-vector product per instant, and their state arrays are views into one
+    buffer. Python work per reading is what makes sensors cost: this keeps it to a few calls
+    however many sensors are read.
+    """
 
     def __init__(self, sim: Simulation):
         self.sim = sim
-        self._at = -1
-        sim.model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_SENSOR
+        self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
+        self._stamp = Time()
+        self._contacts: tuple = ([], [], [], [], [])
+        self._cone_model: mujoco.MjModel | None = None
+        self._elliptic = False
+        self._force6 = np.zeros(6)
+        self._terms: list[tuple[int, np.ndarray, np.ndarray]] = []  # (offset, rows, matrix)
+        self._size = 0
+        self._matrix: np.ndarray | None = None
+        self.buffer = np.zeros(0)
+        self._views: list[tuple[Callable[[np.ndarray], None], int, int]] = []
+        sim.on_reset(self.invalidate)
+        sim.on_model_change(self._model_changed)
+        self._model_changed()
 
-    def data(self):
+    def _model_changed(self) -> None:
+        """A model added or removed (and at the start): our sensors' addresses stay (attached
+        models come after), sensordata may grow, and a new model would step with the sensor
+        pass on. What the pass touches is looked up here once: each call into MuJoCo's
+        bindings costs, at 100 Hz between steps."""
+        self.sim.model.opt.disableflags |= _SENSOR_OFF
+        self._opt = self.sim.model.opt
+        self._sensordata = self.sim.data.sensordata
+        self._matrix = None
+        self.invalidate()
+
+    def invalidate(self) -> None:
+        self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
+
+    def stamp(self) -> Time:
+        """This instant's sim time as a message stamp, one (immutable) object for every message
+        of the instant."""
         sim = self.sim
-        if self._at != sim.time_ns:
+        if self._stamp_at != sim.steps:
+            self._stamp = Time.from_nsec(sim.time_ns)
+            self._stamp_at = sim.steps
+        return self._stamp
+
+    def contacts(self) -> tuple:
+        """This instant's contacts as plain lists, read once for every contact sensor: (geom
+        pairs, frames (9 each: normal, two tangents, world), positions, distances, each
+        contact's (normal, tangent, tangent) force on geom2 in its frame). Elliptic cones
+        (mexone's default) read those forces straight from efc_force; others ask
+        mj_contactForce. Plain Python floats: at a handful of contacts, numpy per contact costs
+        more than the arithmetic."""
+        sim = self.sim
+        if self._contacts_at != sim.steps:
+            self._contacts_at = sim.steps
             model, data = sim.model, sim.data
-            flags = model.opt.disableflags
-            model.opt.disableflags = flags & ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+            contact, ncon = data.contact, data.ncon
+            if not ncon:
+                self._contacts = ([], [], [], [], [])
+                return self._contacts
+            if self._cone_model is not model:  # once per compiled model: enum reads are slow
+                self._cone_model = model
+                self._elliptic = int(model.opt.cone) == int(mujoco.mjtCone.mjCONE_ELLIPTIC)
+            # data.contact is already the ncon contacts: no slicing (each numpy call counts here)
+            adrs, dims = contact.efc_address.tolist(), contact.dim.tolist()
+            if self._elliptic:
+                efc = data.efc_force.tolist()
+                local = [(efc[a], efc[a + 1], efc[a + 2]) if d == 3 and a >= 0
+                         else self._contact_force(i)
+                         for i, (a, d) in enumerate(zip(adrs, dims, strict=True))]
+            else:
+                local = [self._contact_force(i) for i in range(ncon)]
+            self._contacts = (contact.geom.tolist(), contact.frame.tolist(), contact.pos.tolist(),
+                              contact.dist.tolist(), local)
+        return self._contacts
+
+    def _contact_force(self, i: int) -> tuple[float, float, float]:
+        mujoco.mj_contactForce(self.sim.model, self.sim.data, i, self._force6)
+        return tuple(self._force6[:3].tolist())
+
+    def data(self) -> np.ndarray:
+        sim = self.sim
+        if self._at != sim.steps:
+            model, data, opt = sim.model, sim.data, self._opt
+            flags = opt.disableflags
+            opt.disableflags = flags & ~_SENSOR_OFF
             try:  # the state the last step computed (positions, velocities, accelerations)
                 mujoco.mj_sensorPos(model, data)
                 mujoco.mj_sensorVel(model, data)
                 mujoco.mj_sensorAcc(model, data)
             finally:
-                model.opt.disableflags = flags
-            self._at = sim.time_ns
-        return sim.data.sensordata
+                opt.disableflags = flags
+            self._at = sim.steps
+        return self._sensordata
+
+    def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
+        """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
+        receives out's view into the shared buffer once the buffer exists (before the first
+        refresh), to make it the state's arrays."""
+        rows = np.asarray(rows, dtype=int)
+        matrix = np.asarray(matrix, dtype=float).reshape(-1, len(rows))
+        self._terms.append((self._size, rows, matrix))
+        self._views.append((bind, self._size, self._size + len(matrix)))
+        self._size += len(matrix)
+        self._matrix = None
+
+    def _build(self) -> None:
+        nsensordata = self.sim.model.nsensordata
+        self._matrix = np.zeros((self._size, nsensordata))
+        for offset, rows, matrix in self._terms:
+            for j, row in enumerate(rows):
+                self._matrix[offset:offset + len(matrix), row] += matrix[:, j]
+        self.buffer = np.zeros(self._size)
+        for bind, start, stop in self._views:
+            bind(self.buffer[start:stop])
+
+    def refresh(self) -> None:
+        """Every registered linear state at this instant (once per instant)."""
+        if self._refreshed_at == self.sim.steps:
+            return
+        if self._matrix is None:
+            self._build()
+        np.dot(self._matrix, self.data(), out=self.buffer)
+        self._refreshed_at = self.sim.steps
 
 
 @dataclass
 class Sensor:
+    """One declared sensor in a running simulation. Subclasses (one per sensor type) set the
+    class attributes and override `build`, `setup`, `read` and `message`."""
+
+    type_name: ClassVar[str] = ""  # the SDF <sensor type="...">; set by register_sensor
+    state_type: ClassVar[type | None] = None  # its state interfaces; None: no state (cameras)
+    message_type: ClassVar[type | None] = None  # the message of its main topic
+    broadcaster: ClassVar[str] = ""  # the ros2_control broadcaster that would publish it
+    plot: ClassVar[dict[str, str]] = {}  # state field -> unit: the plot signals it offers
+    pane: ClassVar[tuple[str, str] | None] = None  # GUI: (title, "field/axis") per sensor type
+    linear: ClassVar[bool] = False  # its state comes from Measure.linear (read() then only
+    # adds what is not linear: noise, a rotation that moves)
+
     spec: SensorSpec
     sim: Simulation
     bus: Bus
@@ -82,8 +220,66 @@ class Sensor:
     outputs: list[Output] = field(default_factory=list)
     seq: int = 0
 
+    # ----- the type's model edit (before the model compiles) ---------------------------------
+    @classmethod
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
+        """Add what this type needs to the MjSpec (a site, MuJoCo sensors, a camera) on `body`,
+        the MuJoCo body of the sensor's link. Nothing by default."""
+
+    # ----- runtime -------------------------------------------------------------------------------
     def __post_init__(self) -> None:
-        """Each sensor type finds its MuJoCo data and names its outputs here."""
+        self._state = self.state_type() if self.state_type is not None else None
+        self._at = -1
+        self.setup()
+        if not self.outputs and self.message_type is not None:
+            self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
+                                   self.message_type)]
+        self._frame_id = self.frame  # fixed once set up: the messages' frame_id
+        self._topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
+            if self.outputs else None
+        if not hasattr(self, "_needs_read"):  # setup may say a reading needs no read() call
+            self._needs_read = type(self).read is not Sensor.read
+
+    def setup(self) -> None:
+        """Find this sensor's MuJoCo data (ids, addresses); name its outputs if it has several."""
+
+    def read(self, state: Any) -> None:
+        """Fill `state` (this type's state_type) with the values at the current instant (for a
+        `linear` type: finish what Measure.refresh filled in, if anything: noise, a rotation
+        that moves; a linear type that leaves this alone costs no call)."""
+
+    def bind(self, **slices: slice) -> Callable[[np.ndarray], None]:
+        """For Measure.linear: make the state's fields views into the buffer, field -> slice of
+        the registered output."""
+
+        def bind(view: np.ndarray) -> None:
+            for name, part in slices.items():
+                setattr(self._state, name, view[part])
+            self._linear_view = view
+
+        return bind
+
+    def message(self, state: Any) -> object:
+        """The broadcaster's message for the main topic, built from `state`."""
+        raise NotImplementedError
+
+    def state(self) -> Any:
+        """The state interfaces at this instant, read on the first request of the instant (the
+        same object each time: copy an array to keep it past the instant)."""
+        if self._state is None:
+            raise KeyError(f"{self.type_name} sensor '{self.spec.name}' has no state interfaces")
+        now = self.sim.steps  # an instant: steps never repeat (a reset invalidates)
+        if self._at != now:
+            if self.linear and self.measure._refreshed_at != now:
+                self.measure.refresh()
+            if self._needs_read:
+                self.read(self._state)
+            self._at = now
+        return self._state
+
+    def invalidate(self) -> None:
+        self._at = -1
 
     @property
     def frame(self) -> str:
@@ -96,7 +292,7 @@ class Sensor:
 
     def header(self, frame: str | None = None) -> Header:
         self.seq += 1
-        return Header(self.seq, Time.from_nsec(self.sim.time_ns), frame or self.frame)
+        return Header(self.seq, self.measure.stamp(), frame or self._frame_id)
 
     def wanted(self, output: Output) -> bool:
         topic = self.bus.topics.get(output.topic)
@@ -105,4 +301,84 @@ class Sensor:
         return self.bus.wanted(output.topic)
 
     def publish(self, sim: Simulation) -> None:
-        raise NotImplementedError
+        """The broadcaster's tick: the main topic's message from this instant's state."""
+        self.bus.deliver(self._topic, self.message(self.state()))
+
+    # ----- plots and the page --------------------------------------------------------------------
+    def signals(self) -> list[tuple[str, str]]:
+        """(signal name, unit) of every plot signal: `<name>/<field>/<axis>` (`<name>/<field>`
+        for a single value), in `values` order."""
+        state = self._state
+        out = []
+        for name, unit in self.plot.items():
+            size = np.size(getattr(state, name))
+            if size == 1:
+                out.append((f"{self.spec.name}/{name}", unit))
+            else:
+                out += [(f"{self.spec.name}/{name}/{a}", unit) for a in AXES.get(size, range(size))]
+        return out
+
+    def values(self) -> np.ndarray:
+        """The plot signals' values now (`signals` order)."""
+        state = self.state()
+        return np.concatenate([np.ravel(getattr(state, name)) for name in self.plot]) \
+            if self.plot else np.zeros(0)
+
+    def view(self) -> str | None:
+        """A line of markdown for the page's Sensors panel (None: nothing to show)."""
+        return None
+
+
+SENSOR_CLASSES: dict[str, type[Sensor]] = {}  # SDF sensor type -> its plug-in
+
+
+def register_sensor(type_name: str) -> Callable[[type[Sensor]], type[Sensor]]:
+    """Class decorator: make `cls` the plug-in of SDF sensor type `type_name` (declared in a
+    URDF's `<gazebo reference=...><sensor type="type_name">`), everywhere at once: the URDF/SDF
+    reader accepts the type, the model builder calls its `build`, the suite runs it."""
+
+    def add(cls: type[Sensor]) -> type[Sensor]:
+        cls.type_name = cls.type_name or type_name
+        SENSOR_CLASSES[type_name] = cls
+        declared.add_sensor_type(type_name)
+        return cls
+
+    return add
+
+
+def sensor_type(type_name: str) -> type[Sensor]:
+    try:
+        return SENSOR_CLASSES[type_name]
+    except KeyError:
+        raise KeyError(f"no sensor plug-in for type '{type_name}' (registered: "
+                       f"{', '.join(SENSOR_CLASSES)})") from None
+
+
+class SensorStates(Mapping[str, Any]):
+    """name -> the sensor's state object at this instant (see `Sensor.state`): what controllers
+    read as `state.sensors[name]`. Only the sensors looked up are read."""
+
+    def __init__(self, sensors: Mapping[str, Sensor]):
+        self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
+
+    def __getitem__(self, name: str) -> Any:
+        sensor = self._sensors.get(name)
+        if sensor is None:
+            raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
+                           f"{', '.join(self._sensors) or 'none'})")
+        if sensor._at == sensor.sim.steps:  # read already this instant: no call
+            return sensor._state
+        return sensor.state()
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._sensors)
+
+    def __len__(self) -> int:
+        return len(self._sensors)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._sensors
+
+    def kinds(self) -> dict[str, str]:
+        """name -> sensor type, for listings."""
+        return {n: s.type_name for n, s in self._sensors.items()}

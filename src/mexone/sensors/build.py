@@ -1,5 +1,6 @@
-"""The sensors' part of the MuJoCo model: a site per IMU and force-torque sensor with MuJoCo's own
-sensors on it, and a MuJoCo camera per RGB or depth camera (a physics.compile SpecEdit).
+"""The sensors' part of the MuJoCo model (a physics.compile SpecEdit): each declared sensor's
+plug-in adds what it needs (`Sensor.build`): a site with MuJoCo's own sensors on it for an IMU
+or a force-torque sensor, a MuJoCo camera for an RGB or depth camera.
 
 MuJoCo computes these only when asked (the suite turns its per-step sensor pass off and asks at
 each sensor's update), so a declared sensor nobody reads costs nothing.
@@ -14,8 +15,10 @@ from mexone.description.model import Pose, RobotModel
 from mexone.description.sensors import SensorSpec
 from mexone.description.transforms import rpy_to_matrix
 from mexone.errors import ModelError
+from mexone.sensors.base import sensor_type
 
-__all__ = ["build_sensors", "sensor_link", "site_name", "camera_name", "OPTICAL_FROM_LINK"]
+__all__ = ["build_sensors", "sensor_link", "site_name", "camera_name", "add_site",
+           "add_mujoco_sensors", "OPTICAL_FROM_LINK", "quat"]
 
 # A Gazebo camera looks along its link's +x with +z up; MuJoCo's looks along -z with +y up.
 # Columns: the MuJoCo camera's x (right), y (up), z (back) in the link frame.
@@ -31,11 +34,12 @@ def camera_name(spec: SensorSpec) -> str:
 
 
 def sensor_link(robot: RobotModel, spec: SensorSpec) -> str:
-    """The link a sensor sits on (a force-torque sensor: its joint's child), checked."""
-    if spec.type == "force_torque":
+    """The link a sensor sits on (a sensor on a joint, as force-torque: the joint's child),
+    checked."""
+    if spec.joint is not None or spec.type == "force_torque":
         joint = robot.joints.get(spec.joint or "")
         if joint is None:
-            raise ModelError(f"force_torque sensor '{spec.name}' names joint '{spec.joint}', which "
+            raise ModelError(f"{spec.type} sensor '{spec.name}' names joint '{spec.joint}', which "
                              "the robot does not have", file=robot.source, line=spec.line,
                              hint="joints: " + ", ".join(robot.joints))
         return joint.child
@@ -46,37 +50,36 @@ def sensor_link(robot: RobotModel, spec: SensorSpec) -> str:
     return spec.link
 
 
-def _quat(rotation: np.ndarray) -> np.ndarray:
+def quat(rotation: np.ndarray) -> np.ndarray:
+    """MuJoCo's (w, x, y, z) of a rotation matrix."""
     out = np.zeros(4)
     mujoco.mju_mat2Quat(out, np.ascontiguousarray(rotation).ravel())
     return out
 
 
-def _add_sensor(spec: mujoco.MjSpec, name: str, kind: mujoco.mjtSensor, site: str) -> None:
-    spec.add_sensor(name=name, type=kind, objtype=mujoco.mjtObj.mjOBJ_SITE, objname=site)
+def add_site(body: mujoco.MjsBody, sensor: SensorSpec, pose: Pose | None = None) -> str:
+    """A hidden site for `sensor` on `body` at `pose` (default: the sensor's own); its name."""
+    pose = sensor.pose if pose is None else pose
+    site = body.add_site(name=site_name(sensor), pos=pose.xyz,
+                         quat=quat(rpy_to_matrix(pose.rpy)))
+    site.group = 5  # hidden in MuJoCo's viewers by default
+    return site.name
+
+
+def add_mujoco_sensors(spec: mujoco.MjSpec, sensor: SensorSpec, objtype: mujoco.mjtObj,
+                       objname: str, kinds: tuple[tuple[str, mujoco.mjtSensor], ...]) -> None:
+    """MuJoCo sensors named `<sensor>/<suffix>` on one object (read back with `Measure`)."""
+    for suffix, kind in kinds:
+        spec.add_sensor(name=f"{sensor.name}/{suffix}", type=kind, objtype=objtype,
+                        objname=objname)
 
 
 def build_sensors(spec: mujoco.MjSpec, robot: RobotModel) -> None:
-    """A physics.compile SpecEdit for every sensor the robot declares."""
+    """A physics.compile SpecEdit: every declared sensor's plug-in edits the spec."""
     for sensor in robot.sensors:
         link = sensor_link(robot, sensor)
         body = spec.body(link)
         if body is None:
             raise ModelError(f"sensor '{sensor.name}' sits on link '{link}', which has no body in "
                              "the simulated model", file=robot.source, line=sensor.line)
-        pose = sensor.pose if sensor.type != "force_torque" else Pose()  # FT: at the joint
-        rotation = rpy_to_matrix(pose.rpy)
-        if sensor.type in ("imu", "force_torque"):
-            site = body.add_site(name=site_name(sensor), pos=pose.xyz, quat=_quat(rotation))
-            site.group = 5  # hidden in MuJoCo's viewers by default
-            kinds = {"imu": (("acc", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
-                             ("gyro", mujoco.mjtSensor.mjSENS_GYRO),
-                             ("quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)),
-                     "force_torque": (("force", mujoco.mjtSensor.mjSENS_FORCE),
-                                      ("torque", mujoco.mjtSensor.mjSENS_TORQUE))}[sensor.type]
-            for suffix, kind in kinds:
-                _add_sensor(spec, f"{sensor.name}/{suffix}", kind, site.name)
-        elif sensor.type in ("camera", "depth"):
-            cam = body.add_camera(name=camera_name(sensor), pos=pose.xyz,
-                                  quat=_quat(rotation @ OPTICAL_FROM_LINK))
-            cam.fovy = float(np.degrees(sensor.camera.vertical_fov))  # MuJoCo: degrees, always
+        sensor_type(sensor.type).build(spec, body, sensor, robot)

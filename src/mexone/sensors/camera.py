@@ -17,8 +17,9 @@ import mujoco
 import numpy as np
 
 from mexone.bus.msgs import CameraInfo, Image, PointCloud2, PointField
-from mexone.sensors.base import Output, Sensor, topic_name
-from mexone.sensors.build import camera_name
+from mexone.description.transforms import rpy_to_matrix
+from mexone.sensors.base import Output, Sensor, register_sensor, topic_name
+from mexone.sensors.build import OPTICAL_FROM_LINK, camera_name, quat
 from mexone.sensors.noise import NoiseModel
 
 __all__ = ["CameraSensor", "camera_info", "cloud_from_depth"]
@@ -60,8 +61,20 @@ def _release_gl_context() -> None:
                                egl.EGL.EGL_NO_CONTEXT)
 
 
+@register_sensor("depth")
+@register_sensor("camera")
 class CameraSensor(Sensor):
-    def __post_init__(self) -> None:
+    """An RGB or depth camera: no state interfaces (images are topics, rendered for
+    subscribers only)."""
+
+    @classmethod
+    def build(cls, spec, body, sensor, robot) -> None:
+        rotation = rpy_to_matrix(sensor.pose.rpy)
+        cam = body.add_camera(name=camera_name(sensor), pos=sensor.pose.xyz,
+                              quat=quat(rotation @ OPTICAL_FROM_LINK))
+        cam.fovy = float(np.degrees(sensor.camera.vertical_fov))  # MuJoCo: degrees, always
+
+    def setup(self) -> None:
         spec, ns = self.spec, self.namespace
         self.camera = spec.camera
         self.cam_id = self.sim.model.camera(camera_name(spec)).id

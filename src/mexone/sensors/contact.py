@@ -1,4 +1,5 @@
-"""Contact sensor (gazebo_ros_bumper): gazebo_msgs/ContactsState naming what touches the link.
+"""Contact sensor (gazebo_ros_bumper): gazebo_msgs/ContactsState naming what touches the link; its
+state interfaces are whether it touches anything and the total force on it.
 
 One ContactState per pair of colliding collision elements, named as Gazebo names them
 (`model::link::collision`; the ground is `ground_plane::link::collision`), with every contact
@@ -7,16 +8,32 @@ point, its normal, depth and the force on the sensor's link, in the world frame.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import mujoco
 import numpy as np
 
 from mexone.bus.msgs import ContactsState, ContactState, Vector3, Wrench
 from mexone.physics.compile import GROUP_VISUAL
-from mexone.sensors.base import Output, Sensor, topic_name
+from mexone.sensors.base import Sensor, register_sensor
 
-__all__ = ["ContactSensor", "collision_names"]
+__all__ = ["ContactSensor", "ContactSensorState", "collision_names"]
 
 GROUND_NAME = "ground_plane::link::collision"
+# MuJoCo's contact sensor: whether a geom touches anything and the net force it applies, summed
+# in C in the sensor pass every other sensor shares
+_FOUND_AND_FORCE = (1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)) \
+    | (1 << int(mujoco.mjtConDataField.mjCONDATA_FORCE))
+_NETFORCE = 3  # mjtConReduce's netforce: the sum over matching contacts, world frame
+
+
+def watched_collisions(robot, link: str, wanted: tuple[str, ...]) -> list[int]:
+    """Indices of the link's collision elements a contact sensor watches: those it names (by
+    Gazebo's element name), or all of them when it names none or none of those it names."""
+    names = [col.name or (f"{link}_collision" if i == 0 else f"{link}_collision_{i}")
+             for i, col in enumerate(robot.links[link].collisions)]
+    picked = [i for i, n in enumerate(names) if n in set(wanted)] if wanted else []
+    return picked or list(range(len(names)))
 
 
 def collision_names(sim) -> dict[int, tuple[str, str]]:
@@ -35,8 +52,63 @@ def collision_names(sim) -> dict[int, tuple[str, str]]:
     return out
 
 
+@dataclass
+class ContactSensorState:
+    """The contact sensor's state interfaces."""
+
+    force: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """N, world frame: the total force the contacts apply to the sensor's link"""
+    count: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    """how many contact points touch its collision elements"""
+
+    @property
+    def in_contact(self) -> bool:
+        """Whether any of its collision elements touches something."""
+        return bool(self.count[0] > 0)
+
+
+@register_sensor("contact")
 class ContactSensor(Sensor):
-    def __post_init__(self) -> None:
+    state_type = ContactSensorState
+    message_type = ContactsState
+    broadcaster = "gazebo_ros_bumper"
+    plot = {"force": "N"}
+    linear = True
+
+    @classmethod
+    def build(cls, spec, body, sensor, robot) -> None:
+        """A MuJoCo contact sensor per watched collision geom (found, net force): the state
+        interfaces come out of the shared sensor pass, with no Python per contact."""
+        link = sensor.link
+        for i in watched_collisions(robot, link, sensor.collisions):
+            geom = f"{link}/collision/{i}"
+            if spec.geom(geom) is None:
+                continue
+            mj = spec.add_sensor(name=f"{sensor.name}/{i}", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                                 objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=geom)
+            params = np.zeros(len(mj.intprm), dtype=int)
+            params[:3] = (_FOUND_AND_FORCE, _NETFORCE, 1)
+            mj.intprm = params
+
+    def setup(self) -> None:
+        model = self.sim.model
+        adrs = []
+        for i in watched_collisions(self.sim.robot, self.link, self.spec.collisions):
+            try:
+                adrs.append(int(model.sensor_adr[model.sensor(f"{self.spec.name}/{i}").id]))
+            except KeyError:
+                continue
+        # sensordata per geom: found, then the net force it applies (3): the force on the link
+        # is minus their sum, and the count their sum
+        rows = np.array([a + k for a in adrs for k in range(4)], dtype=int)
+        matrix = np.zeros((4, len(rows)))
+        for j in range(len(adrs)):
+            matrix[0:3, 4 * j + 1:4 * j + 4] = -np.eye(3)
+            matrix[3, 4 * j] = 1.0
+        if len(rows):
+            self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), count=slice(3, 4)))
+        else:
+            self.linear = False  # nothing to watch: never in contact (the state stays zero)
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them
@@ -44,56 +116,55 @@ class ContactSensor(Sensor):
             mine = {g for g in mine if self.names[g][1].rsplit("::", 1)[1] in wanted} or mine
         self.geoms = mine
         self._mine_list = [g in mine for g in range(self.sim.model.ngeom)]  # geom id -> ours
-        self._force6 = np.zeros(6)
-        self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
-                               ContactsState)]
 
     def contacts(self) -> list[ContactState]:
-        """Our contacts, grouped by pair of collision elements. MuJoCo's contact arrays are
-        read once each and the few contacts of one sole handled in plain Python: at a handful
-        of points per sole, per-point numpy calls cost more than the arithmetic."""
-        model, data = self.sim.model, self.sim.data
-        ncon = data.ncon
-        if ncon == 0:
-            return []
+        """Our contacts at this instant, grouped by pair of collision elements (the message's
+        states), from the instant's contact lists every contact sensor shares: a handful of
+        points per sole, handled in plain Python."""
+        geoms, frames, positions, dists, local = self.measure.contacts()
         mine = self._mine_list
-        picked = [(i, g1, g2) for i, (g1, g2) in enumerate(data.contact.geom[:ncon].tolist())
-                  if mine[g1] or mine[g2]]
-        if not picked:
-            return []
-        index = [i for i, _, _ in picked]
-        frames = data.contact.frame[index].tolist()  # rows: normal, two tangents (world)
-        positions = data.contact.pos[index].tolist()
-        dists = data.contact.dist[index].tolist()
-        local = self._force6
-        states: dict[tuple[int, int], ContactState] = {}
-        totals: dict[tuple[int, int], list[float]] = {}
-        for k, (i, g1, g2) in enumerate(picked):
+        pairs: dict[tuple[int, int], list] = {}  # (own, other) -> [first index, points...]
+        for i, (g1, g2) in enumerate(geoms):
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
-            own, other, sign = (g1, g2, -1.0) if mine[g1] else (g2, g1, 1.0)
-            mujoco.mj_contactForce(model, data, i, local)
-            fn, t1, t2 = local[0] * sign, local[1] * sign, local[2] * sign
-            f = frames[k]
-            force = [fn * f[0] + t1 * f[3] + t2 * f[6], fn * f[1] + t1 * f[4] + t2 * f[7],
-                     fn * f[2] + t1 * f[5] + t2 * f[8]]
-            pair = (own, other)
-            state = states.get(pair)
-            if state is None:
-                state = states[pair] = ContactState(
-                    info=f"Debug: i:({i}/{ncon})", collision1_name=self.names[own][1],
-                    collision2_name=self.names[other][1] if other in self.names
-                    else model.geom(other).name)
-                totals[pair] = [0.0, 0.0, 0.0]
-            total = totals[pair]
-            total[0], total[1], total[2] = total[0] + force[0], total[1] + force[1], total[2] + force[2]
-            state.wrenches.append(Wrench(Vector3(*force), Vector3()))
-            state.contact_positions.append(Vector3(*positions[k]))
-            state.contact_normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
-            state.depths.append(max(-dists[k], 0.0))
-        for pair, state in states.items():
-            state.total_wrench.force = Vector3(*totals[pair])
-        return list(states.values())
+            if mine[g1]:
+                pair, sign = (g1, g2), -1.0
+            elif mine[g2]:
+                pair, sign = (g2, g1), 1.0
+            else:
+                continue
+            points = pairs.get(pair)
+            if points is None:
+                points = pairs[pair] = [i]
+            points.append((i, sign))
+        if not pairs:
+            return []
+        names, ncon = self.names, len(geoms)
+        out = []
+        for (own, other), (first, *points) in pairs.items():
+            wrenches, positions_out, normals, depths = [], [], [], []
+            tx = ty = tz = 0.0
+            for i, sign in points:
+                fn, t1, t2 = local[i]
+                fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
+                f = frames[i]  # rows: normal, two tangents (world)
+                fx = fn * f[0] + t1 * f[3] + t2 * f[6]
+                fy = fn * f[1] + t1 * f[4] + t2 * f[7]
+                fz = fn * f[2] + t1 * f[5] + t2 * f[8]
+                tx, ty, tz = tx + fx, ty + fy, tz + fz
+                wrenches.append(Wrench(Vector3(fx, fy, fz), Vector3()))
+                p = positions[i]
+                positions_out.append(Vector3(p[0], p[1], p[2]))
+                normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
+                depths.append(-dists[i] if dists[i] < 0 else 0.0)
+            out.append(ContactState(
+                f"Debug: i:({first}/{ncon})", names[own][1],
+                names[other][1] if other in names else self.sim.model.geom(other).name,
+                wrenches, Wrench(Vector3(tx, ty, tz), Vector3()), positions_out, normals, depths))
+        return out
 
-    def publish(self, sim) -> None:
-        msg = ContactsState(self.header("world"), self.contacts())
-        self.bus.publish(self.outputs[0].topic, msg)
+    def message(self, state: ContactSensorState) -> ContactsState:
+        return ContactsState(self.header("world"), self.contacts())
+
+    def view(self) -> str:
+        state = self.state()
+        return f"{'🟢' if state.in_contact else '⚪'} `{self.link}` {float(state.force[2]):5.1f} N"

@@ -1,5 +1,5 @@
-"""Force-torque sensor on a joint (SDF force_torque / gazebo_ros_ft_sensor):
-geometry_msgs/WrenchStamped.
+"""Force-torque sensor on a joint (SDF force_torque / gazebo_ros_ft_sensor; ros2_control's
+ForceTorqueSensor + force_torque_sensor_broadcaster): geometry_msgs/WrenchStamped.
 
 Sign and frame, as SDF defines them: `measure_direction` parent_to_child is the wrench the parent
 link applies to the child through the joint (what MuJoCo's force and torque sensors measure, and
@@ -12,22 +12,52 @@ child_to_parent, and -M g with parent_to_child.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
+import mujoco
 import numpy as np
 
 from mexone.bus.msgs import Vector3, Wrench, WrenchStamped
+from mexone.description.model import Pose
 from mexone.description.sensors import Noise
 from mexone.description.transforms import rpy_to_matrix
-from mexone.sensors.base import Output, Sensor, topic_name
-from mexone.sensors.build import site_name
+from mexone.sensors.base import Sensor, register_sensor
+from mexone.sensors.build import add_mujoco_sensors, add_site, site_name
 from mexone.sensors.noise import NoiseModel
 
-__all__ = ["ForceTorqueSensor"]
+__all__ = ["ForceTorqueSensor", "ForceTorqueState"]
 
 _CHANNELS = tuple(f"{g}/{a}" for g in ("force", "torque") for a in "xyz")
 
 
+@dataclass
+class ForceTorqueState:
+    """ros2_control's force-torque state interfaces, as the sensor reports them (its frame,
+    measure direction and noise)."""
+
+    force: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """N"""
+    torque: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """N m"""
+
+
+@register_sensor("force_torque")
 class ForceTorqueSensor(Sensor):
-    def __post_init__(self) -> None:
+    state_type = ForceTorqueState
+    message_type = WrenchStamped
+    broadcaster = "force_torque_sensor_broadcaster"
+    plot = {"force": "N"}
+    pane = ("force-torque sensors, Fz", "force/z")
+    linear = True
+
+    @classmethod
+    def build(cls, spec, body, sensor, robot) -> None:
+        site = add_site(body, sensor, Pose())  # at the joint, in the child's frame
+        add_mujoco_sensors(spec, sensor, mujoco.mjtObj.mjOBJ_SITE, site,
+                           (("force", mujoco.mjtSensor.mjSENS_FORCE),
+                            ("torque", mujoco.mjtSensor.mjSENS_TORQUE)))
+
+    def setup(self) -> None:
         model, robot = self.sim.model, self.sim.robot
         name = self.spec.name
         self.force = int(model.sensor_adr[model.sensor(f"{name}/force").id])
@@ -36,7 +66,22 @@ class ForceTorqueSensor(Sensor):
         joint = robot.joints[self.spec.joint]
         self.parent_body = self.sim.compiled.bodies.get(joint.parent)
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in _CHANNELS], name)
-        self.outputs = [Output(topic_name(self.namespace, self.spec.topic or name), WrenchStamped)]
+        spec = self.spec
+        # what MuJoCo measures (parent on child, child frame at the joint) -> what the sensor
+        # reports: a constant linear map (sign; the sensor frame's rotation and offset) and, for
+        # the parent frame, a rotation that moves with the joint (read())
+        matrix = np.eye(6)
+        if spec.ft_frame == "sensor":
+            rot_t = rpy_to_matrix(spec.pose.rpy).T
+            x, y, z = spec.pose.xyz  # the sensor's origin in the child frame
+            skew = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+            matrix = np.block([[rot_t, np.zeros((3, 3))], [-rot_t @ skew, rot_t]])
+        if spec.measure_direction == "child_to_parent":
+            matrix = -matrix
+        rows = np.r_[self.force:self.force + 3, self.torque:self.torque + 3]
+        self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), torque=slice(3, 6)))
+        self._to_parent = spec.ft_frame == "parent" and self.parent_body is not None
+        self._needs_read = self._to_parent or self.noise.active
 
     @property
     def frame(self) -> str:
@@ -54,28 +99,16 @@ class ForceTorqueSensor(Sensor):
         return (rot @ data[self.force:self.force + 3], rot @ data[self.torque:self.torque + 3],
                 self.sim.data.site_xpos[self.site].copy())
 
-    def read(self) -> tuple[np.ndarray, np.ndarray]:
-        """(force, torque) as the sensor reports them: its frame, direction, noise."""
-        data = self.measure.data()
-        force, torque = data[self.force:self.force + 3].copy(), data[self.torque:self.torque + 3].copy()
-        spec = self.spec
-        if spec.ft_frame == "parent" and self.parent_body is not None:
-            rot = self.sim.data.xmat[self.parent_body].reshape(3, 3).T \
-                @ self.sim.data.site_xmat[self.site].reshape(3, 3)
-            force, torque = rot @ force, rot @ torque
-        elif spec.ft_frame == "sensor":
-            rot = rpy_to_matrix(spec.pose.rpy)
-            offset = np.asarray(spec.pose.xyz)  # the sensor's origin, in the child frame
-            torque = torque - np.cross(offset, force)  # about the sensor's origin
-            force, torque = rot.T @ force, rot.T @ torque
-        if spec.measure_direction == "child_to_parent":
-            force, torque = -force, -torque
+    def read(self, state: ForceTorqueState) -> None:
+        if self._to_parent:
+            data = self.sim.data
+            rot = data.xmat[self.parent_body].reshape(3, 3).T @ data.site_xmat[self.site].reshape(3, 3)
+            state.force[:] = rot @ state.force
+            state.torque[:] = rot @ state.torque
         if self.noise.active:
-            values = self.noise.apply(np.concatenate((force, torque)))
-            force, torque = values[:3], values[3:]
-        return force, torque
+            self.noise.add_to(self._linear_view)
 
-    def publish(self, sim) -> None:
-        force, torque = self.read()
-        msg = WrenchStamped(self.header(), Wrench(Vector3(*force.tolist()), Vector3(*torque.tolist())))
-        self.bus.publish(self.outputs[0].topic, msg)
+    def message(self, state: ForceTorqueState) -> WrenchStamped:
+        v = self._linear_view.tolist()
+        return WrenchStamped(self.header(), Wrench(Vector3(v[0], v[1], v[2]),
+                                                   Vector3(v[3], v[4], v[5])))

@@ -1,4 +1,5 @@
-"""IMU (gazebo_ros_imu_sensor / gazebo_ros_imu): sensor_msgs/Imu in the sensor's frame.
+"""IMU (gazebo_ros_imu_sensor / gazebo_ros_imu; ros2_control's IMUSensor + imu_sensor_broadcaster):
+sensor_msgs/Imu in the sensor's frame.
 
 Orientation relative to the world (REP-145), angular velocity, and proper linear acceleration
 (MuJoCo's accelerometer: +9.81 m/s^2 up at rest), with Gazebo's noise per axis and covariances
@@ -7,41 +8,71 @@ on the message's diagonals (the variance of the declared noise, 0 where there is
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
+import mujoco
 import numpy as np
 
 from mexone.bus.msgs import Imu, Quaternion, Vector3
 from mexone.description.sensors import IMU_CHANNELS, Noise
-from mexone.sensors.base import Output, Sensor, topic_name
+from mexone.sensors.base import Sensor, register_sensor
+from mexone.sensors.build import add_mujoco_sensors, add_site
 from mexone.sensors.noise import NoiseModel
 
-__all__ = ["ImuSensor"]
+__all__ = ["ImuSensor", "ImuState"]
 
 
+@dataclass
+class ImuState:
+    """ros2_control's IMU state interfaces, in the sensor's frame (noise included)."""
+
+    orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
+    """(x, y, z, w) relative to the world"""
+    angular_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """rad/s"""
+    linear_acceleration: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    """m/s^2, proper acceleration: +g up at rest"""
+
+
+@register_sensor("imu")
 class ImuSensor(Sensor):
-    def __post_init__(self) -> None:
+    state_type = ImuState
+    message_type = Imu
+    broadcaster = "imu_sensor_broadcaster"
+    plot = {"angular_velocity": "rad/s", "linear_acceleration": "m/s²"}
+    pane = ("linear acceleration", "linear_acceleration")
+    linear = True
+
+    @classmethod
+    def build(cls, spec, body, sensor, robot) -> None:
+        site = add_site(body, sensor)
+        add_mujoco_sensors(spec, sensor, mujoco.mjtObj.mjOBJ_SITE, site,
+                           (("acc", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
+                            ("gyro", mujoco.mjtSensor.mjSENS_GYRO),
+                            ("quat", mujoco.mjtSensor.mjSENS_FRAMEQUAT)))
+
+    def setup(self) -> None:
         model = self.sim.model
         name = self.spec.name
-        self.acc = int(model.sensor_adr[model.sensor(f"{name}/acc").id])
-        self.gyro = int(model.sensor_adr[model.sensor(f"{name}/gyro").id])
-        self.quat = int(model.sensor_adr[model.sensor(f"{name}/quat").id])
+        acc = int(model.sensor_adr[model.sensor(f"{name}/acc").id])
+        gyro = int(model.sensor_adr[model.sensor(f"{name}/gyro").id])
+        quat = int(model.sensor_adr[model.sensor(f"{name}/quat").id])
+        rows = np.r_[quat + 1:quat + 4, quat, gyro:gyro + 3, acc:acc + 3]  # x y z w, gyro, acc
+        self.measure.linear(rows, np.eye(len(rows)), self.bind(
+            orientation=slice(0, 4), angular_velocity=slice(4, 7), linear_acceleration=slice(7, 10),
+            _rates=slice(4, 10)))
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in IMU_CHANNELS], name)
-        var = self.noise.variance
+        self._needs_read = self.noise.active
+        var = self.noise.variance.tolist()
         self.gyro_cov = [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]]
         self.acc_cov = [var[3], 0.0, 0.0, 0.0, var[4], 0.0, 0.0, 0.0, var[5]]
-        self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name), Imu)]
 
-    def read(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(w x y z orientation, angular velocity, linear acceleration), noise added."""
-        data = self.measure.data()
-        gyro, acc = data[self.gyro:self.gyro + 3], data[self.acc:self.acc + 3]
-        if self.noise.active:
-            values = self.noise.apply(np.concatenate((gyro, acc)))
-            gyro, acc = values[:3], values[3:]
-        return data[self.quat:self.quat + 4].copy(), gyro.copy(), acc.copy()
+    def read(self, state: ImuState) -> None:
+        if self.noise.active:  # angular velocity and linear acceleration: one view of 6
+            self.noise.add_to(state._rates)
 
-    def publish(self, sim) -> None:
-        quat, gyro, acc = self.read()
-        msg = Imu(self.header(), Quaternion(quat[1], quat[2], quat[3], quat[0]), [0.0] * 9,
-                  Vector3(*gyro.tolist()), list(self.gyro_cov),
-                  Vector3(*acc.tolist()), list(self.acc_cov))
-        self.bus.publish(self.outputs[0].topic, msg)
+    def message(self, state: ImuState) -> Imu:
+        v = self._linear_view.tolist()
+        return Imu(self.header(), Quaternion(v[0], v[1], v[2], v[3]), [0.0] * 9,
+                   Vector3(v[4], v[5], v[6]), list(self.gyro_cov),
+                   Vector3(v[7], v[8], v[9]), list(self.acc_cov))

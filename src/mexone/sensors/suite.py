@@ -1,11 +1,17 @@
-"""SensorSuite: a robot's sensors in a running simulation, publishing on the bus.
+"""SensorSuite: a robot's sensors in a running simulation: their state interfaces for controllers
+(`states`) and their broadcasters publishing on the bus.
 
-Each sensor runs on a timer at its update rate in sim time (simulation thread), and only while
-someone listens to one of its topics: the timer is added when the first subscriber comes and
-removed when the last one leaves, so declared sensors nobody reads cost nothing per step.
+`states[name]` is the sensor's state object at this instant, read on the first request of the
+instant (the hardware's read phase: controllers and broadcasters at the same instant share one
+reading). Each sensor's broadcaster runs on a timer at the sensor's update rate in sim time
+(simulation thread), and only while someone listens to one of its topics: the timer is added when
+the first subscriber comes and removed when the last one leaves, so declared sensors nobody reads
+cost nothing per step.
 """
 
 from __future__ import annotations
+
+from functools import partial
 
 import numpy as np
 
@@ -14,19 +20,18 @@ from mexone.physics.compile import lowest_point
 from mexone.physics.simulation import Periodic, Simulation
 from mexone.sensors.balance import RATE as BALANCE_RATE
 from mexone.sensors.balance import Balance
-from mexone.sensors.base import Measure, Sensor, sensor_namespace
+from mexone.sensors.base import SENSOR_CLASSES, Measure, Sensor, SensorStates, sensor_namespace
 from mexone.sensors.build import sensor_link
-from mexone.sensors.camera import CameraSensor
-from mexone.sensors.contact import ContactSensor
 from mexone.sensors.force_torque import ForceTorqueSensor
-from mexone.sensors.imu import ImuSensor
 
 __all__ = ["SensorSuite", "SENSOR_CLASSES"]
 
-SENSOR_CLASSES: dict[str, type[Sensor]] = {"imu": ImuSensor, "force_torque": ForceTorqueSensor,
-                                           "contact": ContactSensor, "camera": CameraSensor,
-                                           "depth": CameraSensor}
 _ANKLE_HEIGHT = 0.25  # m: an FT sensor on a leaf link this close above the soles is a foot's
+
+
+def _broadcast(sim: Simulation, sensors: list[Sensor]) -> None:
+    for sensor in sensors:
+        sensor.publish(sim)
 
 
 class SensorSuite:
@@ -40,15 +45,25 @@ class SensorSuite:
             link = sensor_link(sim.robot, spec)
             self.sensors[spec.name] = SENSOR_CLASSES[spec.type](
                 spec, sim, bus, sensor_namespace(spec, namespace, override), self.measure, link)
+        self.states = SensorStates(self.sensors)
+        """name -> the sensor's state object at this instant (controllers' `state.sensors`)"""
         self.balance = Balance(sim, bus, namespace, self._feet())
         sim.on_model_change(self.close)  # a spawned model: renderers were built on the old one
-        self._timers: dict[str, Periodic] = {}
+        sim.on_reset(self._invalidate)
+        self._timers: dict[str, Periodic] = {}  # "balance" -> its timer
+        # the broadcasters: one timer per update period, publishing every listened-to sensor of
+        # that period at once (one Python burst per tick, not one per sensor)
+        self._groups: dict[int, tuple[Periodic, list[Sensor]]] = {}
         for name, sensor in self.sensors.items():
             for output in sensor.outputs:
                 bus.advertise(output.topic, output.type)
                 bus.on_subscribers(output.topic, lambda _n, key=name: self._listeners_changed(key))
         for topic in self.balance.topics.values():
             bus.on_subscribers(topic, lambda _n: self._listeners_changed("balance"))
+
+    def _invalidate(self) -> None:
+        for sensor in self.sensors.values():
+            sensor.invalidate()
 
     def _feet(self) -> list[ForceTorqueSensor]:
         """Force-torque sensors on leaf links near the soles: what the ZMP is measured with."""
@@ -75,6 +90,11 @@ class SensorSuite:
         heavy = {o.topic for s in self.sensors.values() for o in s.outputs if o.heavy}
         return [t for t in self.topics if t not in heavy]
 
+    def broadcasting(self) -> list[str]:
+        """The sensors (and "balance") whose broadcaster runs now: someone listens."""
+        return [s.spec.name for _, group in self._groups.values() for s in group] \
+            + list(self._timers)
+
     def _wanted(self, key: str) -> bool:
         if key == "balance":
             return any(self.bus.wanted(t) for t in self.balance.topics.values())
@@ -82,28 +102,36 @@ class SensorSuite:
         return any(sensor.wanted(o) for o in sensor.outputs)
 
     def _listeners_changed(self, key: str) -> None:
-        wanted, timer = self._wanted(key), self._timers.get(key)
-        if wanted and timer is None:
-            if key == "balance":
+        wanted = self._wanted(key)
+        if key == "balance":
+            timer = self._timers.get(key)
+            if wanted and timer is None:
                 self._timers[key] = self.sim.add_periodic(1.0 / BALANCE_RATE, self.balance.publish)
-            else:
-                sensor = self.sensors[key]
-                self._timers[key] = self.sim.add_periodic(1.0 / sensor.rate, sensor.publish)
-        elif not wanted and timer is not None:
-            self.sim.remove_periodic(self._timers.pop(key))
+            elif not wanted and timer is not None:
+                self.sim.remove_periodic(self._timers.pop(key))
+            return
+        sensor = self.sensors[key]
+        period = max(1, round(1e9 / sensor.rate))
+        timer, group = self._groups.get(period, (None, []))
+        if wanted and sensor not in group:
+            group.append(sensor)
+            if timer is None:
+                timer = self.sim.add_periodic(period / 1e9, partial(_broadcast, sensors=group))
+                self._groups[period] = (timer, group)
+        elif not wanted and sensor in group:
+            group.remove(sensor)
+            if not group:
+                self.sim.remove_periodic(timer)
+                del self._groups[period]
 
     def close(self) -> None:
         for sensor in self.sensors.values():
-            if isinstance(sensor, CameraSensor):
-                sensor.close()
+            close = getattr(sensor, "close", None)
+            if close is not None:
+                close()
 
     def readings(self) -> dict[str, np.ndarray]:
-        """Every sensor's current values as plain arrays, for GUIs and tests."""
-        out: dict[str, np.ndarray] = {}
-        for name, sensor in self.sensors.items():
-            if isinstance(sensor, ImuSensor):
-                quat, gyro, acc = sensor.read()
-                out[name] = np.r_[quat, gyro, acc]
-            elif isinstance(sensor, ForceTorqueSensor):
-                out[name] = np.r_[sensor.read()]
-        return out
+        """Every sensor's plot signals now as plain arrays (see `Sensor.signals`), for GUIs and
+        tests."""
+        return {name: sensor.values() for name, sensor in self.sensors.items()
+                if sensor.state_type is not None and sensor.plot}

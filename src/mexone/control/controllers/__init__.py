@@ -16,6 +16,7 @@ from mexone.control.controllers.base import (
 from mexone.control.controllers.effort import EffortController
 from mexone.control.controllers.joint_state import JointStateController
 from mexone.control.controllers.position import PositionController
+from mexone.control.controllers.python import PythonRunner
 from mexone.control.controllers.trajectory import TrajectoryController
 from mexone.control.controllers.velocity import VelocityController
 
@@ -29,6 +30,7 @@ __all__ = [
     "EffortController",
     "JointStateController",
     "PositionController",
+    "PythonRunner",
     "TrajectoryController",
     "VelocityController",
 ]

@@ -10,8 +10,8 @@ what they need from the attributes here (`kind`, `joints`, `setpoint`, `gains`, 
 from __future__ import annotations
 
 import logging
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
@@ -74,6 +74,8 @@ class ControllerContext:
     bus: Bus
     namespace: str
     pid_gains: dict[str, PidGains]  # gazebo_ros_control/pid_gains/<joint>
+    sensors: Callable[[], Mapping] | None = None  # state.sensors of Python controllers
+    faults: list[str] = field(default_factory=list)  # controllers that faulted this cycle
 
 
 class Controller:
@@ -84,7 +86,7 @@ class Controller:
     def __init__(self, spec: ControllerSpec, ctx: ControllerContext):
         self.spec = spec
         self.name = spec.name
-        self.type = controller_type(spec.type)
+        self.type = self.type_of(spec)
         self.ctx = ctx
         self.hw = ctx.hw
         self.joints = list(spec.joints)
@@ -92,9 +94,20 @@ class Controller:
         self.running = False
         self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
         self._pending = None  # the latest command, waiting for the next update
+        self.every_period = False  # the manager's: update runs every period (periodic or timed)
         self._warned: set[str] = set()
 
+    @classmethod
+    def type_of(cls, spec: ControllerSpec) -> ControllerType:
+        """The registry entry of `spec`'s type (a student's type overrides this)."""
+        return controller_type(spec.type)
+
     # ----- what front ends read ---------------------------------------------------------------
+    @property
+    def timed(self) -> bool:
+        """Whether it keeps its own update_rate (the manager marks it `due`)."""
+        return False
+
     @property
     def interface(self) -> str:
         return self.type.interface

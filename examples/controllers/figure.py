@@ -1,0 +1,127 @@
+"""The worked controllers' figure for docs/worked-controllers.md: each one's experiment, plotted.
+
+    PYTHONPATH=src python examples/controllers/figure.py [out.png]
+
+(default: docs/images/worked-controllers.png)
+
+Every curve is sampled from the simulation each 1 ms step (read between steps, in the
+simulation thread); the experiments are those of tests/examples/test_worked_controllers.py.
+"""
+
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from mexone.cli.common import read_pose  # noqa: E402
+from mexone.lab import Lab  # noqa: E402
+from mexone.motion.push import PUSH_SECONDS  # noqa: E402
+from mexone.physics.compile import Spawn  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def lab_of(name: str, shipped: bool = False) -> Lab:
+    """The example's YAML (or Mex-One's own controllers) with the example's pose."""
+    folder = HERE / name
+    pose = folder / "pose.yaml"
+    joints = tuple(read_pose(pose).items()) if pose.exists() else ()
+    return Lab.create(controllers=None if shipped else folder / "controllers.yaml",
+                      spawn=Spawn(joints=joints))
+
+
+def record(lab: Lab, seconds: float, value) -> tuple[np.ndarray, np.ndarray]:
+    times, values = [], []
+
+    def sample(sim) -> None:
+        times.append(sim.time)
+        values.append(value(sim))
+
+    lab.sim.add_periodic(lab.sim.timestep, sample)
+    lab.sim.run(seconds)
+    return np.array(times), np.array(values)
+
+
+def joint(lab: Lab, name: str):
+    adr = int(lab.sim.model.joint(name).qposadr[0])
+    return lambda sim: sim.data.qpos[adr]
+
+
+def main() -> None:
+    default = ROOT / "docs" / "images" / "worked-controllers.png"
+    out = Path(sys.argv[1]) if len(sys.argv) > 1 else default
+    fig, axes = plt.subplots(2, 2, figsize=(10, 7))
+
+    ax = axes[0, 0]
+    for label, gravity in (("gravity compensation + PD", 1.0), ("plain PD, same gains", 0.0)):
+        lab = lab_of("01_gravity_compensation")
+        lab.controllers.controllers["gravity_compensation"].set_param("gravity", gravity)
+        q = joint(lab, "l_shoulder_pitch")
+        q0 = q(lab.sim)
+        t, v = record(lab, 1.0, lambda sim, q=q, q0=q0: 1e3 * (q(sim) - q0))
+        ax.plot(t, v, label=label)
+    ax.set(title="1. hold the raised arm (kp = 5)", xlabel="t (s)", ylabel="shoulder pitch error (mrad)")
+
+    ax = axes[0, 1]
+    sys.path.insert(0, str(HERE / "02_computed_torque"))
+    from computed_torque import reference
+
+    q0 = np.array(list(read_pose(HERE / "02_computed_torque" / "pose.yaml").values()))
+    for label, shipped in (("computed torque", False), ("shipped PID", True)):
+        lab = lab_of("02_computed_torque", shipped)
+        if shipped:
+            def command(sim, lab=lab):
+                q = reference(sim.time, q0, 0.5, 0.5)[0]
+                lab.controllers.command("l_shoulder_pitch_position_controller", [q[0]])
+                lab.controllers.command("l_elbow_position_controller", [q[1]])
+            lab.sim.add_periodic(lab.sim.timestep, command)
+        elbow = joint(lab, "l_elbow")
+        t, v = record(lab, 2.0, lambda sim, e=elbow: 1e3 * (e(sim) - reference(sim.time, q0, 0.5, 0.5)[0][1]))
+        ax.plot(t, v, label=label)
+    ax.set(title="2. track q0 + 0.5 sin(pi t)", xlabel="t (s)", ylabel="elbow error (mrad)")
+
+    ax = axes[1, 0]
+    lab = lab_of("03_hand_impedance")
+    sim = lab.sim
+    body = sim.body_id("l_forearm")
+    point = np.array([0.0, 0.0, -0.17])
+
+    def hand(s):
+        return s.data.xpos[body] + s.data.xmat[body].reshape(3, 3) @ point
+
+    sim.run(0.3)
+    start = hand(sim)
+    sim.apply_wrench("l_forearm", (0.0, 10.0, 0.0), point=start, duration=1.2)
+    t, v = record(lab, 1.9, lambda s: 1e3 * (hand(s) - start)[1])
+    stiffness = lab.controllers.controllers["hand_impedance"].params["stiffness"]
+    ax.plot(t, v, label="hand, sideways")
+    ax.axhline(1e3 * 10.0 / stiffness, ls="--", c="k", label="F / K")
+    ax.set(title="3. push the hand: 10 N for 1.2 s", xlabel="t (s)", ylabel="displacement (mm)")
+
+    ax = axes[1, 1]
+    balance = HERE / "04_lqr_balance" / "controllers.yaml"
+    for label, make in (("LQR balance", lambda: Lab.create(controllers=balance)),
+                        ("PD alone", Lab.create)):
+        lab = make()
+        lab.sim.run(0.5)
+        lab.sim.apply_wrench("torso", (5.0 / PUSH_SECONDS, 0.0, 0.0), duration=PUSH_SECONDS)
+        t, v = record(lab, 2.0, lambda s: s.data.qpos[2])
+        ax.plot(t, v, label=label)
+    ax.set(title="4. 5 N s forward push at the torso", xlabel="t (s)", ylabel="pelvis height (m)")
+
+    for ax in axes.flat:
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=90)
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()

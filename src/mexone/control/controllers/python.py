@@ -1,0 +1,566 @@
+"""PythonRunner: a student's PythonController inside the manager's read -> update -> write.
+
+The runner is the framework around the student's `update`: it builds the `State`, times the call,
+checks what comes back (numbers, one per joint, finite), clamps it to the joint's limits (said
+once), and writes it to the claimed command interface. The student's faults are theirs: an
+exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time` (an update the
+OS preempted meanwhile is the machine's, not counted), or an update
+that has not returned after `hang_timeout` (a watchdog thread interrupts it) -> the manager stops
+the controller, its joints hold their measured position (or are damped: `on_fault: damp`), the
+lab runs on, and one line names the controller and the student's file:line.
+
+Holding uses the joint's PID gains from the YAML (pid:, gains:, gazebo_ros_control/pid_gains)
+if it has any, else autotune's rule on the live inertia: w dt = 0.1, p = I w^2, d = 2 I w, with I
+the joint's diagonal entry of M(q) (MuJoCo's servo; its D term is implicit, so this is stable).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import inspect
+import logging
+import threading
+import time
+import traceback
+from typing import Any
+
+try:
+    import resource
+except ImportError:  # Windows
+    resource = None
+
+import numpy as np
+
+from mexone.control.controllers.base import Controller, ControllerType
+from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
+from mexone.control.resolve import Plugin, student_line
+from mexone.control.student import PythonController, State, unit_of
+from mexone.errors import InputError, MexoneError
+from mexone.physics.simulation import NS
+from mexone.ranges import number_text
+
+__all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH"]
+
+log = logging.getLogger("mexone.control")
+# the students' own lines: info and up (mexone's own loggers say only warnings); the terminal
+# shows them all, the page and /rosout their warnings and errors
+STUDENT_LOG = logging.getLogger("mexone.control.student")
+STUDENT_LOG.setLevel(logging.INFO)
+HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
+_SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
+
+
+class ControllerHang(BaseException):
+    """Raised inside a student's update that ran past its hang_timeout (a BaseException, so the
+    student's own `except Exception` does not swallow it)."""
+
+
+class _StudentLog(logging.LoggerAdapter):
+    def process(self, msg, kwargs):
+        return f"{self.extra['name']}: {msg}", kwargs
+
+
+class PythonRunner(Controller):
+    kind = "python"
+    sliders = False
+
+    def __init__(self, spec, ctx):
+        plugin: Plugin = spec.plugin
+        self.plugin = plugin
+        super().__init__(spec, ctx)
+        self.msg_type = None  # it listens to no command topic: its update computes the command
+        self.interface_name = plugin.cls.command_interface
+        self.unit = unit_of(self.interface_name)
+        hw = self.hw
+        self.dofs = hw.dof_adr[self.rows].copy()
+        self.fault: str | None = None
+        self.updates = 0
+        self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
+        self._update_time = 0.0
+        self.due = False
+        self.next_ns = 0
+        self.period_ns = 1
+        self._last_t: float | None = None
+        self._overruns = 0
+        self._suspect = False  # the last update overran: the next are checked for preemption
+        self._dyn = None
+        self._dyn_at = -1
+        self._limits_said: set[str] = set()
+        self._command = np.zeros(len(self.rows))
+        self._effort_limit = hw.effort_limit[self.rows].copy()
+        # the same, as Python floats capped finite: an inf command never passes the fast check
+        self._limits = [min(float(v), 1e300) for v in self._effort_limit]
+        self._n = len(self.rows)
+        self._wrote = False  # a command to send at the manager's fast write
+        self.writer = lambda values: None  # the manager's: hw.rows_writer for these joints
+        self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
+        self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
+        self._span: slice | None = None
+        self.direct = False  # state views of MuJoCo's arrays: no hardware read needed
+        self._views()
+        self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
+        self.impl = self._instantiate(plugin)
+
+    @classmethod
+    def type_of(cls, spec) -> ControllerType:
+        return ControllerType(spec.type, cls, spec.plugin.interface, False)
+
+    # ----- what front ends read -----------------------------------------------------------------
+    @property
+    def setpoint(self) -> np.ndarray:
+        return self._command.copy()
+
+    @property
+    def update_time(self) -> float:
+        """s of wall time per update: the mean since the last time this was read."""
+        if self._timed_updates:
+            self._update_time = self._spent / self._timed_updates
+            self._spent, self._timed_updates = 0.0, 0
+        return self._update_time
+
+    @property
+    def timed(self) -> bool:
+        return True
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return dict(self.impl.params)
+
+    def set_param(self, key: str, value) -> Any:
+        """Change a declared parameter live (simulation thread), validated as the YAML's."""
+        param = self.plugin.cls.declared_params().get(key)
+        if param is None:
+            raise InputError(f"controller '{self.name}' has no parameter '{key}'",
+                             hint="its parameters: " + (", ".join(self.impl.params) or "none"))
+        value = param.check(value, f"controller '{self.name}': {key}")
+        self.impl.params[key] = value
+        return value
+
+    # ----- loading ------------------------------------------------------------------------------
+    def _base_joint(self) -> tuple[int, int] | None:
+        """(qpos, qvel) address of this robot's free joint, or None (fixed to the world)."""
+        import mujoco
+
+        model, prefix = self.ctx.sim.model, self.hw.prefix
+        for j in range(model.njnt):
+            if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE and model.joint(j).name.startswith(prefix):
+                return int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        return None
+
+    def _instantiate(self, plugin: Plugin) -> PythonController:
+        """The student's object, set up and configured; an error in their code is one line with
+        their file:line (the load fails; a reload keeps the old controller)."""
+        impl = self._call(plugin.cls, "creating")
+        impl.name, impl.joints = self.name, list(self.joints)
+        impl.dofs = self.dofs.copy()
+        impl.params = dict(plugin.params)
+        impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
+        impl.__dict__["_mexone_binding"] = self
+        self._call(impl.configure, "configure")
+        return impl
+
+    def _call(self, fn, what: str, *args):
+        try:
+            return fn(*args)
+        except MexoneError:
+            raise
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's error, said in one line
+            raise InputError(f"controller '{self.name}': {what} failed: {self._where(exc)}",
+                             hint="fix it, then reload") from None
+
+    def _where(self, exc: BaseException) -> str:
+        file = self.plugin.file
+        line = student_line(file, exc.__traceback__)
+        text = str(exc).splitlines()[0] if str(exc) else ""
+        return f"{file}:{line or '?'}: {type(exc).__name__}" + (f": {text}" if text else "")
+
+    def update_line(self) -> str:
+        """file:line of the student's update method (what a NaN or an overrun points at)."""
+        try:
+            line = inspect.getsourcelines(type(self.impl).update)[1]
+        except (OSError, TypeError):
+            line = "?"
+        return f"{self.plugin.file}:{line}"
+
+    # ----- dynamics at the live state -----------------------------------------------------------
+    def dynamics(self):
+        sim = self.ctx.sim
+        if self._dyn is None or self._dyn.model is not sim.model or self._dyn._source is not sim.data:
+            from mexone.dynamics import Dynamics
+
+            links = sim.compiled.bodies  # one scratch MjData for the run: refreshed per update
+            self._dyn = Dynamics(sim.model, sim.data, links, links.values())
+            self._dyn_at = self.updates
+        elif self._dyn_at != self.updates:
+            self._dyn.refresh()
+            self._dyn_at = self.updates
+        return self._dyn
+
+    # ----- lifecycle (simulation thread) --------------------------------------------------------
+    def starting(self, t: float) -> None:
+        super().starting(t)
+        hw, rows = self.hw, self.rows
+        hw.release(rows)
+        c = hw.command
+        self.fault, self._overruns, self._last_t, self._suspect = None, 0, None, False
+        self.next_ns, self.due = -1, False  # the manager schedules the first update now
+        self._limits_said.clear()
+        if self.interface_name == "position":
+            c.position[rows] = hw.state.position[rows]
+            if not self._write_pid():
+                c.teleport[rows] = TELEPORT_POSITION
+            self._command = hw.state.position[rows].copy()
+        elif self.interface_name == "velocity":
+            gains = [self.pid_for(j) for j in self.joints]
+            if None in gains:
+                c.teleport[rows] = TELEPORT_VELOCITY
+            else:
+                c.kd[rows] = [g.p for g in gains]
+                hw.gains_changed(rows)
+            self._command = np.zeros(len(rows))
+        else:
+            self._command = np.zeros(len(rows))
+        self._read(t)
+        try:
+            self.impl.activate(self.state)
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
+            self._fault(f"activate raised {self._where(exc)}")
+        except ControllerHang:
+            self._fault(f"activate ran past hang_timeout ({self.update_line()})")
+
+    def _write_pid(self, damp: bool = False) -> bool:
+        """The YAML's PID gains on the claimed joints (p, d only when damping); False if a joint
+        has none."""
+        gains = [self.pid_for(j) for j in self.joints]
+        if None in gains:
+            return False
+        c, rows = self.hw.command, self.rows
+        c.kp[rows] = 0.0 if damp else [g.p for g in gains]
+        c.kd[rows] = [g.d for g in gains]
+        if not damp:
+            c.ki[rows] = [g.i for g in gains]
+            c.i_min[rows] = [g.i_clamp_min for g in gains]
+            c.i_max[rows] = [g.i_clamp_max for g in gains]
+            c.antiwindup[rows] = [g.antiwindup for g in gains]
+        self.hw.gains_changed(rows)
+        return True
+
+    def stopping(self) -> None:
+        try:
+            self.impl.deactivate()
+        except Exception as exc:  # noqa: BLE001 - said, and the stop goes on
+            log.warning("%s: deactivate raised %s", self.name, self._where(exc))
+        if self.fault is None:
+            super().stopping()
+            return
+        self.hold(damp=self.plugin.on_fault == "damp")
+
+    def hold(self, damp: bool = False) -> None:
+        """The joints hold their measured position (or are only damped) by MuJoCo's servo."""
+        hw, rows = self.hw, self.rows
+        hw.release(rows)
+        c = hw.command
+        c.position[rows] = hw.position(rows)
+        if self._write_pid(damp):
+            return
+        sim = self.ctx.sim
+        inertia = _inertia_diagonal(sim.model, sim.data, self.dofs)
+        w = np.full(len(rows), HOLD_BANDWIDTH / sim.timestep)
+        limit = hw.effort_limit[rows]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w_effort = np.sqrt(limit / (inertia * _SATURATION_ERROR))
+        w = np.where(np.isfinite(w_effort), np.minimum(w, w_effort), w)
+        c.kp[rows] = 0.0 if damp else inertia * w**2
+        c.kd[rows] = 2.0 * inertia * w
+        hw.gains_changed(rows)
+
+    def rebind(self) -> None:
+        """The model changed (a robot spawned or deleted): MuJoCo addresses moved."""
+        self.dofs = self.hw.dof_adr[self.rows].copy()
+        self.impl.dofs = self.dofs.copy()
+        self.state._base_joint = self._base_joint()
+        self._views()
+        self._dyn = None
+
+    def flush(self) -> None:
+        """Send this controller's last command to MuJoCo (the manager's fast write)."""
+        if self._wrote:
+            self._wrote = False
+            self.writer(self._command)
+
+    def _views(self) -> None:
+        """state.q, dq, effort as read-only views, so reading them costs nothing per update:
+        of MuJoCo's qpos, qvel and qfrc_actuator when the joints' addresses are evenly spaced
+        (a limb's are; `direct`: the manager need not read the hardware for us), else of the
+        hardware's state when the rows are; else gathered each update."""
+        hw, rows, state = self.hw, self.rows, self.state
+        data = self.ctx.sim.data
+        self.direct, self._span = False, None
+        views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
+                 strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
+        if any(v is None for v in views):
+            self._span = _span_of(rows)
+            if self._span is None:
+                state.q, state.dq, state.effort = (np.zeros(len(rows)) for _ in range(3))
+                return
+            views = [hw.state.position[self._span], hw.state.velocity[self._span],
+                     hw.state.effort[self._span]]
+        else:
+            self.direct = True
+        for view in views:
+            view.flags.writeable = False
+        state.q, state.dq, state.effort = views
+
+    def _read(self, t: float) -> None:
+        state = self.state
+        if not self.direct and self._span is None:
+            joints, rows = self.hw.state, self.rows
+            state.q[:] = joints.position[rows]
+            state.dq[:] = joints.velocity[rows]
+            state.effort[:] = joints.effort[rows]
+        state._data = self.ctx.sim.data
+        state.time, state._sensors, state._base = t, None, None
+
+    def update(self, t: float, dt: float) -> None:
+        if not self.due:
+            return
+        self.due = False
+        dt = t - self._last_t if self._last_t is not None else self.period_ns / NS
+        self._last_t = t
+        self._read(t)
+        self.updates += 1
+        guard = _GUARD
+        switches = _preemptions() if self._suspect else 0  # only after an overrun: a syscall
+        start = time.perf_counter()
+        guard.enter(self, start)
+        try:
+            out = self.impl.update(self.state, t, dt)
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
+            guard.leave()
+            self._fault(f"update raised {self._where(exc)} at t = {t:.3f} s")
+            return
+        except ControllerHang as exc:
+            guard.leave()
+            self._fault(f"update did not return within hang_timeout "
+                        f"{number_text(self.plugin.hang_timeout)} s (interrupted at "
+                        f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'})")
+            return
+        elapsed = time.perf_counter() - start
+        if guard.leave():
+            self._fault(f"update did not return within hang_timeout ({self.update_line()})")
+            return
+        self._spent += elapsed
+        self._timed_updates += 1
+        if elapsed > self._max_time:
+            if not self._suspect:  # the first: measure the next ones for preemption
+                self._suspect = True
+            elif _preemptions() == switches:  # not the machine's doing: theirs
+                self._overruns += 1
+            if self._overruns >= self.plugin.max_overruns:
+                self._fault(f"update overran its period: {self._overruns} updates in a row took "
+                            f"longer than {number_text(self._max_time * 1e3)} ms (the last "
+                            f"{number_text(elapsed * 1e3)} ms) ({self.update_line()})")
+                return
+        elif self._suspect:
+            self._suspect, self._overruns = False, 0
+        if out is not None:
+            self._write(out, t)
+
+    def _write(self, out, t: float) -> None:
+        n = self._n
+        try:
+            values = np.asarray(out, dtype=float)
+        except Exception:  # noqa: BLE001 - whatever their object raises
+            self._fault(f"update returned {type(out).__name__} {str(out)[:40]!r}, not numbers "
+                        f"({self.update_line()})")
+            return
+        if values.shape != (n,):
+            if values.size == n:
+                values = values.reshape(n)
+            else:
+                self._fault(f"update returned {values.size} values for {n} joints "
+                            f"({self.update_line()})")
+                return
+        if self.interface_name == "effort" and _within(values.tolist(), self._limits):
+            self.hw.command.effort[self._cmd_index] = values  # usual: finite, within limits
+            self._command = values
+            self._wrote = True
+            return
+        if not np.isfinite(values).all():
+            bad = [f"{self.joints[i]} {number_text(values[i])}"
+                   for i in np.flatnonzero(~np.isfinite(values))]
+            self._fault(f"update returned {', '.join(bad)} at t = {t:.3f} s "
+                        f"({self.update_line()})")
+            return
+        hw, rows, kind = self.hw, self.rows, self.interface_name
+        if kind == "effort":
+            limit = hw.effort_limit[rows]
+            if (np.abs(values) > limit).any():
+                values = self._clamped(values, -limit, limit, "URDF effort limit")
+            hw.command.effort[rows] = values
+        elif kind == "position":
+            lo, hi = hw.lower[rows], hw.upper[rows]
+            if (values < lo).any() or (values > hi).any():
+                values = self._clamped(values, lo, hi, "joint limits")
+            hw.command.position[rows] = values
+        else:
+            limit = hw.velocity_limit[rows]
+            if (np.abs(values) > limit).any():
+                values = self._clamped(values, -limit, limit, "URDF velocity limit")
+            hw.command.velocity[rows] = values
+        self._command = values
+        self._wrote = True
+
+    def _clamped(self, values, lower, upper, what: str) -> np.ndarray:
+        """Clamp, saying once per joint (Gazebo clamps efforts to the URDF limit too)."""
+        clamped = np.clip(values, lower, upper)
+        fresh = [i for i in np.flatnonzero(clamped != values) if self.joints[i] not in self._limits_said]
+        if fresh:
+            self._limits_said.update(self.joints[i] for i in fresh)
+            parts = [f"{self.joints[i]} {number_text(values[i])} -> {number_text(clamped[i])}"
+                     for i in fresh]
+            log.warning("%s: command beyond the %s, clamped (said once per joint): %s",
+                        self.name, what, ", ".join(parts))
+        return clamped
+
+    def _fault(self, text: str) -> None:
+        """Stop at the end of this cycle, joints held; one line on the terminal, page, /rosout."""
+        if self.fault is not None:
+            return
+        held = "damped" if self.plugin.on_fault == "damp" else "holding their position"
+        self.fault = text
+        log.error("controller '%s' stopped, its joints %s: %s", self.name, held, text)
+        self.ctx.faults.append(self.name)
+
+
+class _HangGuard:
+    """One watchdog thread: interrupts a student's update that has not returned after its
+    hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in that thread at its next
+    bytecode). It lives only while updates run: idle for half a second, it ends. Updates are
+    tracked per thread (two labs may step in two threads)."""
+
+    _IDLE = 0.5  # s without updates after which the thread ends
+    _POLL = 0.05  # s
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._entries: dict[int, tuple[float, PythonRunner]] = {}  # thread -> update in progress
+        self._injected: set[int] = set()
+        self._running = False
+        self._last = 0.0
+
+    def enter(self, runner: PythonRunner, now: float) -> None:
+        """An update starts in this thread (`now`: time.perf_counter())."""
+        self._last = now
+        self._entries[threading.get_ident()] = (now, runner)
+        if not self._running:
+            self._running = True
+            threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
+
+    def leave(self) -> bool:
+        """The update returned; True if the watchdog had interrupted it (the pending exception
+        is withdrawn: it must not land in the manager)."""
+        tid = threading.get_ident()
+        with self._lock:
+            self._entries.pop(tid, None)
+            if tid not in self._injected:
+                return False
+            self._injected.discard(tid)
+            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+        return True
+
+    def _watch(self) -> None:
+        said_stuck: set[tuple[int, float]] = set()
+        while True:
+            time.sleep(self._POLL)
+            said: list[tuple[str, tuple]] = []
+            with self._lock:
+                now = time.perf_counter()
+                if not self._entries:
+                    said_stuck.clear()
+                    if now - self._last > self._IDLE:
+                        self._running = False
+                        if not self._entries:
+                            return
+                        self._running = True
+                    continue
+                for tid, (since, runner) in list(self._entries.items()):
+                    timeout = runner.plugin.hang_timeout
+                    if now - since < timeout:
+                        continue
+                    where = _where_running(tid, runner.plugin.file)
+                    if tid not in self._injected:
+                        self._injected.add(tid)
+                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
+                            ctypes.c_ulong(tid), ctypes.py_object(ControllerHang))
+                        said.append(("controller '%s': update has not returned for %s s (%s): "
+                                     "interrupting it", (runner.name, number_text(round(now - since, 2)),
+                                                         where)))
+                    elif now - since > 2 * timeout + 1.0 and (tid, since) not in said_stuck:
+                        said_stuck.add((tid, since))
+                        said.append(("controller '%s': update cannot be interrupted: it is blocked "
+                                     "outside Python (%s); the lab is frozen: press Ctrl-C twice "
+                                     "to end it", (runner.name, where)))
+            for text, args in said:  # outside the lock: a log handler may take its time
+                log.error(text, *args)
+
+
+def _span_of(rows: np.ndarray) -> slice | None:
+    """rows as a slice when they are consecutive (a limb's joints usually are), else None."""
+    if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
+        return None
+    return slice(int(rows[0]), int(rows[0]) + len(rows))
+
+
+def _preemptions() -> int:
+    """Times the OS took the CPU from this thread (involuntary context switches): an update
+    that overran while this moved was slowed by the machine, not by its code. Linux's
+    RUSAGE_THREAD; elsewhere 0 (every overrun counts)."""
+    who = getattr(resource, "RUSAGE_THREAD", None) if resource is not None else None
+    return 0 if who is None else resource.getrusage(who).ru_nivcsw
+
+
+def _within(values: list[float], limits: list[float]) -> bool:
+    """Every value finite and within +-its limit (a NaN fails every comparison): the fast check
+    of an update's efforts, in Python floats (a few numpy calls cost more for a limb's joints)."""
+    return all(-limit <= value <= limit for value, limit in zip(values, limits, strict=True))
+
+
+def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
+    """M(q)[i, i] for each dof i: the inertia the joint moves now (armature included)."""
+    import mujoco
+
+    unit, column = np.zeros(model.nv), np.zeros(model.nv)
+    out = np.empty(len(dofs))
+    for k, dof in enumerate(dofs):
+        unit[:] = 0.0
+        unit[dof] = 1.0
+        mujoco.mj_mulM(model, data, column, unit)
+        out[k] = column[dof]
+    return out
+
+
+def _where_running(tid: int, file: str) -> str:
+    """file:line where thread `tid` runs now, in `file` if it is there."""
+    import sys
+
+    frame = sys._current_frames().get(tid)
+    stack = traceback.extract_stack(frame) if frame is not None else []
+    ours = [f for f in stack if f.filename == file]
+    frame_info = ours[-1] if ours else (stack[-1] if stack else None)
+    return f"{frame_info.filename}:{frame_info.lineno}" if frame_info else file
+
+
+_GUARD = _HangGuard()
+
+
+def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:
+    """The runner's period: 1/update_rate (at least one physics step), else the control period."""
+    rate = runner.plugin.update_rate
+    period = 1.0 / rate if rate else control_period
+    if period < timestep * (1 - 1e-9):
+        runner.warn_once("rate", f"update_rate {number_text(rate)} Hz is faster than the physics "
+                                 f"step ({number_text(1 / timestep)} Hz): it updates every step")
+        period = timestep
+    return max(1, round(period * NS))
+

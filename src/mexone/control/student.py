@@ -1,0 +1,240 @@
+"""A student's own controller: `PythonController`, its declared `Param`s and the `State` it reads.
+
+ros_control's controller plug-in, in Python: a class with the lifecycle configure -> activate ->
+update (every period, in the simulation thread, inside the manager's read -> update -> write) ->
+deactivate, claiming one command interface ("effort", "position" or "velocity") on its joints and
+reading the joints' state, the whole robot's state, the sensors and the robot's dynamics. The
+framework (control/controllers/python.py) does everything around `update`: it builds the
+`State`, checks what `update` returns, clamps it and writes it to the hardware, and turns the
+student's mistakes (an exception, a NaN, an overrun, an update that never returns) into one line
+naming their file and line while the lab runs on.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+from mexone.errors import InputError
+from mexone.ranges import Range, number_text
+
+__all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES"]
+
+# command_interface -> ros_control's hardware interface (what a <transmission> offers)
+COMMAND_INTERFACES = {"effort": "EffortJointInterface", "position": "PositionJointInterface",
+                      "velocity": "VelocityJointInterface"}
+_UNITS = {"effort": "N m", "position": "rad", "velocity": "rad/s"}
+
+_MISSING = object()
+
+
+class Param:
+    """A declared parameter: its type comes from the default (float, int, bool or str), numbers
+    are checked against [low, high], and the YAML's value (or a live change from the page or
+    dynamic_reconfigure) is validated the same way, with the YAML's file:line. Reads as
+    `self.<name>` inside the controller."""
+
+    def __init__(self, default: float | int | bool | str, low: float | None = None,
+                 high: float | None = None, doc: str = "", unit: str = "",
+                 choices: tuple[str, ...] | None = None):
+        if not isinstance(default, bool | int | float | str):
+            raise TypeError(f"Param default must be a float, int, bool or str, not "
+                            f"{type(default).__name__}")
+        self.kind: type = type(default)
+        self.low, self.high, self.doc, self.unit = low, high, doc, unit
+        self.choices = tuple(choices) if choices else None
+        self.name = ""
+        self.default = default
+        if self.numeric:
+            self.range = Range(self.name or "parameter", unit,
+                               -math.inf if low is None else float(low),
+                               math.inf if high is None else float(high),
+                               integer=self.kind is int)
+            if low is not None and high is not None and low > high:
+                raise TypeError(f"Param low {low} > high {high}")
+
+    @property
+    def numeric(self) -> bool:
+        return self.kind in (int, float)
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+        if self.numeric:
+            self.range = Range(name, self.unit, self.range.low, self.range.high,
+                               integer=self.kind is int)
+
+    def __get__(self, obj, owner=None):
+        if obj is None:
+            return self
+        return obj.params.get(self.name, self.default)
+
+    def __set__(self, obj, value) -> None:
+        obj.params[self.name] = self.check(value)
+
+    def describe(self) -> str:
+        """What a valid value is, in words (for errors, the page and `mexone controllers`)."""
+        if self.kind is bool:
+            return "true or false"
+        if self.kind is str:
+            return "one of " + ", ".join(self.choices) if self.choices else "a string"
+        kind = "a whole number" if self.kind is int else "a finite number"
+        parts = []
+        if self.low is not None:
+            parts.append(f">= {number_text(self.low)}")
+        if self.high is not None:
+            parts.append(f"<= {number_text(self.high)}")
+        unit = f" ({self.unit})" if self.unit else ""
+        return f"{kind} {' and '.join(parts)}{unit}".replace("  ", " ").strip()
+
+    def check(self, value: Any, what: str | None = None, **where) -> Any:
+        """`value` converted to this parameter's type, or an InputError (one line, located by
+        `where`: file=, line=) saying what a valid value is."""
+        label = what or self.name
+        if self.kind is bool:
+            if isinstance(value, bool):
+                return value
+        elif self.kind is str:
+            if isinstance(value, str) and (self.choices is None or value in self.choices):
+                return value
+        elif not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
+            number = float(value)
+            if self.range.contains(number):
+                return int(number) if self.kind is int else number
+        shown = number_text(value) if isinstance(value, int | float) and not isinstance(value, bool) \
+            else repr(value)[:60]
+        raise InputError(f"{label} {shown} must be {self.describe()}", **where)
+
+
+@dataclass
+class BaseState:
+    """The floating base in the world frame: position (3), quaternion w x y z (4), linear and
+    angular velocity (3 each). None on a robot fixed to the world."""
+
+    position: np.ndarray
+    quaternion: np.ndarray
+    linear_velocity: np.ndarray
+    angular_velocity: np.ndarray
+
+
+def sensor_states(suite) -> Mapping:
+    """`state.sensors`: the sensors' state interfaces of `suite` (a mexone.sensors SensorSuite,
+    or None), by name (`SensorSuite.states`: each read only when looked up, once an instant)."""
+    return {} if suite is None else suite.states
+
+
+class State:
+    """What a controller reads in `update`, filled in the hardware's read phase: `q`, `dq`,
+    `effort` of the claimed joints (rad, rad/s, N m: arrays owned by the framework, valid during
+    the call: copy what you keep), `all_q`/`all_dq` (MuJoCo's qpos, nq long, and qvel, nv long:
+    index qvel-sized vectors with `self.dofs`), `time` (s of sim time), `base` (BaseState or
+    None) and `sensors` (name -> the sensor's state: mexone.sensors ImuState, ForceTorqueState,
+    ContactSensorState). `base` and `sensors` are computed only when read."""
+
+    __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
+                 "_sensors", "_base")
+
+    def __init__(self, n: int, data, base_joint: int | None, sensor_source=None):
+        self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
+        self.time = 0.0
+        self._data = data
+        self._base_joint = base_joint  # qpos/qvel address of the free joint, or None
+        self._sensor_source = sensor_source  # () -> mapping, or None
+        self._sensors: Mapping | None = None
+        self._base: BaseState | None = None
+
+    def _refresh(self, time: float) -> None:
+        self.time = time
+        self._sensors = None
+        self._base = None
+
+    @property
+    def all_q(self) -> np.ndarray:
+        return self._data.qpos
+
+    @property
+    def all_dq(self) -> np.ndarray:
+        return self._data.qvel
+
+    @property
+    def base(self) -> BaseState | None:
+        if self._base is None and self._base_joint is not None:
+            qa, va = self._base_joint
+            data = self._data
+            self._base = BaseState(data.qpos[qa:qa + 3].copy(), data.qpos[qa + 3:qa + 7].copy(),
+                                   data.qvel[va:va + 3].copy(), data.qvel[va + 3:va + 6].copy())
+        return self._base
+
+    @property
+    def sensors(self) -> Mapping:
+        if self._sensors is None:
+            self._sensors = self._sensor_source() if self._sensor_source is not None else {}
+        return self._sensors
+
+
+class PythonController:
+    """A controller of your own, run by the controller manager like ros_control's plug-ins.
+
+    Subclass it, set `command_interface`, declare parameters with `Param`, and write `update`.
+    Before `configure` the framework sets `name`, `joints`, `dofs` (each joint's index into
+    nv-long vectors: columns of M and Jacobians, entries of g), `params` and `log`; `dynamics`
+    is the robot's dynamics at the live state (mexone.dynamics.Dynamics), computed when first
+    read in an update. See docs/controllers.md.
+    """
+
+    command_interface: ClassVar[str] = "effort"  # "effort" | "position" | "velocity"
+    _declared: ClassVar[dict[str, Param]] = {}
+
+    name: str
+    joints: list[str]
+    dofs: np.ndarray
+    params: dict[str, Any]
+    log: logging.LoggerAdapter
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        declared: dict[str, Param] = {}
+        for klass in reversed(cls.__mro__):
+            for key, value in vars(klass).items():
+                if isinstance(value, Param):
+                    declared[key] = value
+        cls._declared = declared
+        if cls.command_interface not in COMMAND_INTERFACES:
+            raise TypeError(f"{cls.__name__}.command_interface must be one of "
+                            f"{', '.join(COMMAND_INTERFACES)}, not {cls.command_interface!r}")
+
+    @classmethod
+    def declared_params(cls) -> dict[str, Param]:
+        """The parameters this class declares (name -> Param), base classes' included."""
+        return dict(cls._declared)
+
+    @property
+    def dynamics(self):
+        """The robot's dynamics at the state of this update (mexone.dynamics.Dynamics)."""
+        binding = self.__dict__.get("_mexone_binding")
+        if binding is None:
+            raise AttributeError("dynamics is set by the controller manager (not yet loaded)")
+        return binding.dynamics()
+
+    # ----- the lifecycle: override what you need ---------------------------------------------------
+    def configure(self) -> None:
+        """Once, after the parameters were validated: precompute what you can."""
+
+    def activate(self, state: State) -> None:
+        """ros_control's starting(): the controller takes over its joints at `state`."""
+
+    def update(self, state: State, t: float, dt: float):
+        """Every period (simulation thread): return one command per joint in the claimed
+        interface's unit (N m, rad, rad/s), or None to keep the last command."""
+        return None
+
+    def deactivate(self) -> None:
+        """ros_control's stopping()."""
+
+
+def unit_of(interface: str) -> str:
+    return _UNITS[interface]

@@ -1,0 +1,472 @@
+"""A student's PythonController in the 1 kHz loop: its rate against sim time, its effort reaching
+MuJoCo exactly (clamped at the limit), its parameters validated with the YAML's file:line, type
+resolution (file next to the YAML, dotted module, entry point, unknown), and its faults -- an
+exception on the 1000th update, a NaN, an overrun, an update that never returns -- stopping it
+with the joints held and one line naming the student's file:line while the lab runs on; reload
+and live parameters; `mexone controllers new` writing a skeleton that runs as written."""
+
+from __future__ import annotations
+
+import importlib.metadata
+import logging
+import math
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from mexone.cli import main
+from mexone.control import Param, PythonController, load_control_config, parse_control_config
+from mexone.control.skeleton import ARM_JOINTS, skeleton_files
+from mexone.description.urdf import read_urdf
+from mexone.errors import InputError
+from mexone.lab import Lab
+
+RAISE_AT = 1000
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+def turntable_lab(folder: Path, turntable, body: str, extra: str = "", effort: float = 50.0) -> Lab:
+    """The turntable (I q'' = torque, no gravity torque) driven by class Ctl of `body`."""
+    write_urdf, _ = turntable
+    write(folder, "ctl.py", "import numpy as np\nfrom mexone.control import Param, PythonController\n\n"
+          + textwrap.dedent(body))
+    yaml_path = write(folder, "controllers.yaml", """\
+        turntable:
+          joint_state_controller: {type: joint_state_controller/JointStateController, publish_rate: 50}
+          ctl:
+            type: ctl/Ctl
+            joints: [yaw]
+        """ + textwrap.indent(textwrap.dedent(extra), " " * 4))
+    return Lab.create(read_urdf(write_urdf(folder, effort=effort)), load_control_config(yaml_path))
+
+
+def errors(caplog) -> list[str]:
+    return [r.getMessage() for r in caplog.records if r.levelno >= logging.ERROR]
+
+
+# ----- the loop ----------------------------------------------------------------------------------
+def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def configure(self):
+                self.times, self.dts = [], []
+            def update(self, state, t, dt):
+                self.times.append(t)
+                self.dts.append(dt)
+                assert state.time == t
+        """, "update_rate: 250\n")
+    ctrl = lab.controllers.controllers["ctl"]
+    lab.sim.step(1000)  # 1 s of 1 ms steps
+    times = np.array(ctrl.impl.times)
+    assert len(times) == 251  # t = 0, 0.004, ..., 1.0
+    assert np.allclose(np.diff(times), 0.004) and np.allclose(ctrl.impl.dts, 0.004)
+    info = {i.name: i for i in lab.controllers.list()}["ctl"]
+    assert info.update_rate == pytest.approx(250.0) and info.update_time > 0
+
+
+def test_effort_reaches_qfrc_actuator_exactly_and_is_clamped_once(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            tau = Param(1.5, low=-1e3, high=1e3)
+            def update(self, state, t, dt):
+                return [self.tau]
+        """)
+    sim, dof = lab.sim, lab.controllers.hw.dof_adr[0]
+    sim.step(3)
+    assert sim.data.qfrc_actuator[dof] == 1.5
+    lab.controllers.set_param("ctl", "tau", 80.0)  # beyond the 50 N m limit
+    sim.step(20)
+    assert sim.data.qfrc_actuator[dof] == 50.0
+    said = [r for r in caplog.records if "clamped" in r.getMessage()]
+    assert len(said) == 1 and "yaw 80 -> 50" in said[0].getMessage()
+    with pytest.raises(InputError, match="tau NaN must be a finite number >= -1000"):
+        lab.controllers.set_param("ctl", "tau", math.nan)
+    assert lab.controllers.controllers["ctl"].impl.tau == 80.0
+
+
+def test_position_interface_without_gains_is_an_ideal_servo(tmp_path, turntable):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            command_interface = "position"
+            def update(self, state, t, dt):
+                return [0.3]
+        """)
+    lab.sim.step(5)
+    assert lab.sim.joint_positions()[0] == pytest.approx(0.3)
+
+
+# ----- faults --------------------------------------------------------------------------------------
+def test_nan_output_stops_it_and_names_update(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                return [np.nan] if t >= 0.01 else [0.0]
+        """)
+    lab.sim.step(50)
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.running and "yaw NaN" in ctrl.fault
+    [line] = errors(caplog)
+    assert "controller 'ctl' stopped" in line and f"{tmp_path / 'ctl.py'}:6)" in line
+    assert "\n" not in line
+    assert lab.sim.time == pytest.approx(0.05)
+
+
+def test_overrun_stops_it(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        import time
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                time.sleep(0.003)   # a 3 ms blocking call at 1 kHz: the lab waits on it
+        """, "max_overruns: 3\n")
+    lab.sim.step(30)
+    ctrl = lab.controllers.controllers["ctl"]
+    # the first overrun starts the watch; the next three are counted (a sleep is the update's own
+    # doing; a busy loop the OS preempted on a loaded machine would not be)
+    assert not ctrl.running and ctrl.updates == 4
+    [line] = errors(caplog)
+    assert "overran its period: 3 updates in a row took longer than 1 ms" in line
+    assert f"{tmp_path / 'ctl.py'}:7)" in line  # def update
+
+
+def test_an_update_that_never_returns_is_interrupted(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                n = 0
+                while True:
+                    n += 1
+        """, "hang_timeout: 0.2\n")
+    lab.sim.step(10)  # returns: the watchdog interrupted the loop
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.running and "hang_timeout" in ctrl.fault
+    assert f"{tmp_path / 'ctl.py'}:8)" in ctrl.fault or f"{tmp_path / 'ctl.py'}:9)" in ctrl.fault
+    assert lab.sim.time == pytest.approx(0.01)
+
+
+# ----- Mex-One: a fault on the 1000th update, the joints hold, reload ---------------------------
+ARM = f"""\
+import numpy as np
+from mexone.control import Param, PythonController
+
+
+class MyPd(PythonController):
+    kp = Param(20.0, low=0.0, high=1e4)
+    kd = Param(1.0, low=0.0, high=1e3)
+    gravity_compensation = Param(False)
+
+    def activate(self, state):
+        self.q0, self.n = state.q.copy(), 0
+        self.acc0 = state.sensors["imu"].linear_acceleration.copy()  # sensors ready at activate
+
+    def update(self, state, t, dt):
+        self.n += 1
+        if self.n == {RAISE_AT}:
+            raise RuntimeError("my bug")
+        return self.kp * (self.q0 - state.q) - self.kd * state.dq
+"""
+
+
+def arm_line(text: str) -> int:
+    """The line of ARM holding `text` (what the messages must name)."""
+    return next(i for i, line in enumerate(ARM.splitlines(), 1) if text in line)
+
+
+@pytest.fixture(scope="module")
+def arm(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("arm")
+    for name, text in skeleton_files("my_pd").items():
+        (folder / name).write_text(text)
+    (folder / "my_pd.py").write_text(ARM)
+    return folder, Lab.create(controllers=folder / "controllers.yaml")
+
+
+def test_raise_on_1000th_update_holds_then_reload_restores(arm, caplog):
+    folder, lab = arm
+    manager, sim = lab.controllers, lab.sim
+    ctrl = manager.controllers["my_pd_controller"]
+    sim.step(RAISE_AT + 1)
+    assert not ctrl.running and ctrl.updates == RAISE_AT
+    [line] = errors(caplog)
+    assert line.startswith("controller 'my_pd_controller' stopped, its joints holding their position")
+    assert f"{folder / 'my_pd.py'}:{arm_line('raise RuntimeError')}: RuntimeError: my bug" in line
+    rows = manager.hw.rows(ARM_JOINTS)
+    held = sim.joint_positions()[rows].copy()
+    sim.step(500)  # the lab runs on; gravity pulls the arm, the hold keeps it
+    assert sim.time == pytest.approx((RAISE_AT + 501) * 0.001)
+    assert np.abs(sim.joint_positions()[rows] - held).max() < 0.01
+    # a reload whose file does not import keeps the stopped one and says where
+    (folder / "my_pd.py").write_text(ARM.replace("self.n += 1", "self.n += 1 +"))
+    with pytest.raises(InputError, match=rf"my_pd.py:{arm_line('self.n += 1')}: SyntaxError"):
+        manager.reload("my_pd_controller")
+    assert manager.controllers["my_pd_controller"] is ctrl
+    (folder / "my_pd.py").write_text(ARM.replace(f"== {RAISE_AT}", "== -1"))
+    manager.reload("my_pd_controller")
+    new = manager.controllers["my_pd_controller"]
+    assert new is not ctrl and new.running and new.fault is None
+    sim.step(RAISE_AT + 10)
+    assert new.running and new.updates == RAISE_AT + 11  # at the restart, then every step
+
+
+def test_reload_keeps_the_running_one_when_configure_fails(arm):
+    folder, lab = arm
+    manager = lab.controllers
+    manager.reload("my_pd_controller")
+    ctrl = manager.controllers["my_pd_controller"]
+    assert ctrl.running
+    (folder / "my_pd.py").write_text(ARM + "\n    def configure(self):\n        1 / 0\n")
+    line = len(ARM.splitlines()) + 3  # the appended `1 / 0`
+    with pytest.raises(InputError, match=rf"configure failed: .*my_pd.py:{line}: ZeroDivisionError"):
+        manager.reload("my_pd_controller")
+    assert manager.controllers["my_pd_controller"] is ctrl and ctrl.running
+    (folder / "my_pd.py").write_text(ARM)
+
+
+def test_state_reads_sensors_and_base(arm):
+    _, lab = arm
+    ctrl = lab.controllers.controllers["my_pd_controller"]
+    lab.controllers.hw.read()
+    ctrl._read(lab.sim.time)
+    state = ctrl.state
+    assert ctrl.impl.acc0[2] == pytest.approx(9.81, abs=0.5)  # read in activate, at Lab.create
+    imu = state.sensors["imu"]
+    assert imu.linear_acceleration[2] == pytest.approx(9.81, abs=0.5)  # at rest: proper acc up
+    assert np.linalg.norm(imu.orientation) == pytest.approx(1.0)
+    assert state.base.position[2] > 0.3 and state.all_q.shape == (lab.sim.model.nq,)
+    assert list(ctrl.impl.dofs) == list(lab.controllers.hw.dof_adr[lab.controllers.hw.rows(ARM_JOINTS)])
+
+
+# ----- the YAML -------------------------------------------------------------------------------------
+CTL = """\
+from mexone.control import Param, PythonController
+
+class Ctl(PythonController):
+    kp = Param(5.0, low=0.0, high=1e4)
+    steps = Param(3, low=1, high=10)
+"""
+
+
+def yaml_with(folder: Path, kp_text: str) -> Path:
+    write(folder, "ctl.py", CTL)
+    return write(folder, "c.yaml", f"ns:\n  ctl:\n    type: ctl/Ctl\n    joints: [a]\n    kp: {kp_text}\n")
+
+
+@settings(max_examples=40, derandomize=True, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.integers(), st.text(max_size=8),
+                 st.booleans(), st.lists(st.floats(), max_size=2)))
+def test_hostile_params_are_one_line_naming_file_line(tmp_path, value):
+    path = yaml_with(tmp_path, yaml.safe_dump(value, default_flow_style=True).splitlines()[0]
+                     if not isinstance(value, str) else yaml.safe_dump(value).splitlines()[0])
+    loaded = yaml.safe_load(path.read_text())["ns"]["ctl"]["kp"]
+    valid = (isinstance(loaded, int | float) and not isinstance(loaded, bool)
+             and math.isfinite(loaded) and 0 <= loaded <= 1e4)
+    try:
+        config = load_control_config(path)
+    except InputError as exc:
+        assert not valid
+        text = exc.one_line()
+        assert text.startswith(f"{path}:5: controller 'ctl': kp ") and "\n" not in text
+        assert "must be a finite number >= 0 and <= 10000" in text
+    else:
+        assert valid and config.controllers["ctl"].plugin.params["kp"] == float(loaded)
+
+
+def test_undeclared_parameter_and_bad_settings(tmp_path):
+    write(tmp_path, "ctl.py", CTL)
+    for text, message in (("kq: 1", "c.yaml:5: controller 'ctl': Ctl has no parameter 'kq' "
+                                     "(its parameters: kp, steps)"),
+                          ("steps: 2.5", "c.yaml:5: controller 'ctl': steps 2.5 must be a whole number"),
+                          ("update_rate: -1", "c.yaml:5: controller 'ctl': update_rate -1 must be"),
+                          ("on_fault: explode", "c.yaml:5: controller 'ctl': on_fault 'explode' must "
+                                                "be hold or damp")):
+        path = write(tmp_path, "c.yaml", f"ns:\n  ctl:\n    type: ctl/Ctl\n    joints: [a]\n    {text}\n")
+        with pytest.raises(InputError) as info:
+            load_control_config(path)
+        assert message in info.value.one_line()
+
+
+def test_unknown_type_lists_what_was_searched(tmp_path):
+    path = write(tmp_path, "c.yaml", "ns:\n  ctl:\n    type: nope/Ctl\n    joints: [a]\n")
+    with pytest.raises(InputError) as info:
+        load_control_config(path)
+    text = info.value.one_line()
+    assert text.startswith(f"{path}:3: unknown controller type 'nope/Ctl': searched "
+                           f"{tmp_path / 'nope.py'}, {tmp_path / 'nope' / '__init__.py'}, module "
+                           "'nope' on sys.path, entry points 'mexone.controllers'")
+    assert "shipped types: effort_controllers/JointEffortController" in text and "\n" not in text
+    write(tmp_path, "ctl.py", CTL)
+    path = write(tmp_path, "c.yaml", "ns:\n  ctl:\n    type: ctl/Other\n    joints: [a]\n")
+    with pytest.raises(InputError, match=r"c.yaml:3: ctl.py has no class 'Other' \(its controllers: Ctl\)"):
+        load_control_config(path)
+
+
+def test_dotted_module_and_entry_point(tmp_path, monkeypatch):
+    package = tmp_path / "studentpkg"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    (package / "laws.py").write_text(CTL)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    config = parse_control_config("ns:\n  ctl:\n    type: studentpkg.laws.Ctl\n    joints: [a]\n")
+    assert config.controllers["ctl"].plugin.cls.__name__ == "Ctl"
+    point = importlib.metadata.EntryPoint("my_law", "studentpkg.laws:Ctl", "mexone.controllers")
+    real = importlib.metadata.entry_points
+    monkeypatch.setattr(importlib.metadata, "entry_points",
+                        lambda **kw: [point] if kw.get("group") == "mexone.controllers" else real(**kw))
+    config = parse_control_config("ns:\n  ctl:\n    type: my_law\n    joints: [a]\n    kp: 7\n")
+    assert config.controllers["ctl"].plugin.params == {"kp": 7.0, "steps": 3}
+
+
+def test_import_error_names_the_students_line(tmp_path):
+    write(tmp_path, "ctl.py", CTL + "\nundefined_name\n")
+    path = write(tmp_path, "c.yaml", "ns:\n  ctl:\n    type: ctl/Ctl\n    joints: [a]\n")
+    with pytest.raises(InputError) as info:
+        load_control_config(path)
+    assert f"importing ctl.py failed: {tmp_path / 'ctl.py'}:7: NameError" in info.value.one_line()
+
+
+def test_exported_names():
+    import mexone
+
+    assert mexone.Controller is PythonController and mexone.Param is Param
+
+
+# ----- the CLI ----------------------------------------------------------------------------------------
+def test_controllers_new_writes_a_skeleton_that_runs_and_checks(tmp_path, capsys):
+    folder = tmp_path / "mine"
+    assert main(["controllers", "new", "my_law", str(folder)]) == 0
+    assert sorted(p.name for p in folder.iterdir()) == ["controllers.yaml", "my_law.py"]
+    before = (folder / "my_law.py").read_text()
+    (folder / "my_law.py").write_text(before + "# mine\n")
+    assert main(["controllers", "new", "my_law", str(folder)]) == 2  # refused, nothing written
+    assert (folder / "my_law.py").read_text() == before + "# mine\n"
+    assert "already exists" in capsys.readouterr().err
+    assert main(["controllers", "new", "my_law", str(folder), "--force"]) == 0
+    assert (folder / "my_law.py").read_text() == before
+    assert main(["check", "--controllers", str(folder / "controllers.yaml")]) == 0
+    assert main(["sim", "--headless", "--duration", "0.3", "--controllers",
+                 str(folder / "controllers.yaml")]) == 0
+
+
+def test_velocity_interface_without_gains_is_an_ideal_servo(tmp_path, turntable):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            command_interface = "velocity"
+            def update(self, state, t, dt):
+                return [1.25]
+        """)
+    lab.sim.step(5)
+    assert lab.sim.joint_velocities()[0] == pytest.approx(1.25)
+
+
+def test_on_fault_damp_leaves_only_damping(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                raise ValueError("no")
+        """, "on_fault: damp\n")
+    lab.sim.step(2)
+    hw = lab.controllers.hw
+    assert hw.command.kp[0] == 0.0 and hw.command.kd[0] > 0.0
+    assert "its joints damped: update raised" in errors(caplog)[0]
+
+
+def test_dynamics_is_the_live_state_refreshed_each_update(arm):
+    """self.dynamics reads the state of the update it is used in: its q is state.all_q, and at
+    rest its g(q) is MuJoCo's bias force of that instant (no velocity: only gravity)."""
+    folder, lab = arm
+    manager, sim = lab.controllers, lab.sim
+    (folder / "my_pd.py").write_text(ARM.replace(
+        "        return self.kp", "        self.seen = getattr(self, 'seen', []) + [(state.all_q.copy(), "
+        "self.dynamics.q.copy(), self.dynamics.gravity()[self.dofs].copy(), "
+        "self.dynamics is self.dynamics)]\n        return self.kp"))
+    manager.reload("my_pd_controller")
+    sim.reset()
+    ctrl = manager.controllers["my_pd_controller"]
+    bias = sim.data.qfrc_bias[ctrl.dofs].copy()  # after the reset's mj_forward, dq = 0
+    sim.step(3)
+    seen = ctrl.impl.seen
+    assert len(seen) >= 3
+    np.testing.assert_allclose(seen[0][2], bias, rtol=1e-9, atol=1e-12)
+    for all_q, dyn_q, _, same in seen:
+        np.testing.assert_array_equal(all_q, dyn_q)
+        assert same
+    assert not np.array_equal(seen[0][0], seen[-1][0])  # the state moved, the dynamics followed
+    (folder / "my_pd.py").write_text(ARM)
+    manager.reload("my_pd_controller")
+
+
+def test_sys_exit_and_a_hostile_return_value_are_faults(tmp_path, turntable, caplog):
+    lab = turntable_lab(tmp_path, turntable, """
+        import sys
+        class Bad:
+            def __array__(self, *args, **kwargs):
+                raise RuntimeError("no array")
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                if t < 0.0005:
+                    return Bad()
+                if t > 0.0025:
+                    sys.exit(3)
+                return [0.0]
+        """)
+    lab.sim.step(1)
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.running and "update returned Bad" in ctrl.fault
+    lab.controllers.switch(start=["ctl"])
+    lab.sim.step(5)  # sys.exit inside update: a fault, not the end of the lab
+    assert not ctrl.running and "SystemExit: 3" in ctrl.fault and lab.sim.time == pytest.approx(0.006)
+
+
+@settings(max_examples=30, derandomize=True, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.text(alphabet="ab/._-:0 \\\x00é", min_size=1, max_size=12))
+def test_hostile_type_names_are_one_line(tmp_path, ctype):
+    path = tmp_path / "c.yaml"
+    path.write_text(yaml.safe_dump({"ns": {"ctl": {"type": ctype, "joints": ["a"]}}}))
+    line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if "type:" in text)
+    try:
+        config = load_control_config(path)
+    except InputError as exc:
+        assert exc.one_line().startswith(f"{path}:{line}: ") and "\n" not in exc.one_line()
+    else:
+        assert ctype in config.controllers["ctl"].type  # a shipped type (never, from this alphabet)
+
+
+def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
+    """Joints out of the hardware's order: state gathered, efforts scattered, each to its dof."""
+    write(tmp_path, "ctl.py", """\
+        import numpy as np
+        from mexone.control import PythonController
+
+        class Ctl(PythonController):
+            def configure(self):
+                self.seen = []
+            def update(self, state, t, dt):
+                self.seen.append((state.q.copy(), state.all_q[self.dofs + 1].copy()))
+                return np.array([0.5, -0.25, 0.125])
+        """)
+    path = write(tmp_path, "c.yaml", """\
+        mex_rb:
+          ctl:
+            type: ctl/Ctl
+            joints: [r_elbow, l_shoulder_pitch, waist_yaw]
+        """)
+    lab = Lab.create(controllers=path)
+    ctrl = lab.controllers.controllers["ctl"]
+    assert not ctrl.direct
+    lab.sim.step(3)
+    dofs = lab.controllers.hw.dof_adr[lab.controllers.hw.rows(["r_elbow", "l_shoulder_pitch",
+                                                                 "waist_yaw"])]
+    assert list(lab.sim.data.qfrc_actuator[dofs]) == [0.5, -0.25, 0.125]
+    q, q_from_all = ctrl.impl.seen[-1]  # qpos has one more entry than qvel (the base quaternion)
+    np.testing.assert_array_equal(q, q_from_all)

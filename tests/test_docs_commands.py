@@ -1,0 +1,121 @@
+"""Every ```bash and ```python block in README.md and docs/**/*.md runs, from the wheel installed
+in a fresh venv (the session's `venv`, tests/wheelenv.py), in a scratch folder per page, each
+within its time budget; blocks marked `<!-- needs: ros1 -->` or `display` run with a roscore or
+under Xvfb (skipped where those are missing: a failure in CI). The convention is in
+tests/docblocks.py and docs/contributing.md. A page gone stale (tests/data/docs/stale.md) fails.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("markdown_it", reason="the docs extra (markdown-it-py, with myst-parser)")
+
+import docblocks  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+BLOCKS = [b for page in docblocks.pages(ROOT) for b in docblocks.blocks(page)]
+TOTAL: dict[str, float] = {}
+
+
+@pytest.fixture(scope="module")
+def outcomes(venv, tmp_path_factory, request):
+    """Each selected block's Outcome as a Future, the pages two at a time, a page's blocks in order."""
+    selected = {item.callspec.params["block"] for item in request.session.items
+                if item.module is request.module and hasattr(item, "callspec")
+                and "block" in item.callspec.params}
+    futures: dict[docblocks.Block, Future] = {b: Future() for b in BLOCKS if b in selected}
+    by_page: dict[Path, list] = {}
+    for block in futures:
+        by_page.setdefault(block.page, []).append(block)
+    env = dict(venv.env)
+    start = time.monotonic()
+
+    def follow(page: Path, page_blocks: list) -> None:
+        scratch = tmp_path_factory.mktemp(page.stem)
+        state = tmp_path_factory.mktemp("shell") / "state.sh"
+        for block in page_blocks:
+            try:
+                futures[block].set_result(docblocks.run_block(block, env, scratch,
+                                                              str(venv.bin / "python"), state))
+            except Exception as error:  # noqa: BLE001 (the test reports it)
+                futures[block].set_exception(error)
+        TOTAL[str(page.relative_to(ROOT))] = time.monotonic() - start
+
+    pool = ThreadPoolExecutor(max_workers=2)
+    for page, page_blocks in by_page.items():
+        pool.submit(follow, page, page_blocks)
+    yield futures
+    pool.shutdown(wait=True, cancel_futures=True)
+    if TOTAL:
+        print(f"\ndocs blocks: {len(futures)} in {time.monotonic() - start:.1f} s")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("block", BLOCKS, ids=[b.where(ROOT) for b in BLOCKS])
+def test_documented_block_runs(outcomes, block):
+    outcome = outcomes[block].result(timeout=block.timeout + 120)
+    if outcome.skipped:
+        pytest.skip(f"{block.where(ROOT)}: {outcome.skipped}")
+    assert outcome.problem is None, docblocks.report(outcome, ROOT)
+
+
+def test_the_harness_finds_every_page_and_block():
+    """README.md and every docs page, other helpers' too; the generated pages are not sources."""
+    pages = docblocks.pages(ROOT)
+    assert pages[0] == ROOT / "README.md"
+    assert ROOT / "docs" / "contributing.md" in pages
+    assert not [p for p in pages if "_generated" in p.parts or "_build" in p.parts]
+    assert any(b.page == ROOT / "README.md" for b in BLOCKS)
+
+
+def test_a_stale_page_fails_the_harness(tmp_path):
+    """The fixture page's stale command, stale import, wrong figure and slow block each fail,
+    naming the page and line; its text and console blocks are not run; a good block passes."""
+    page = ROOT / "tests" / "data" / "docs" / "stale.md"
+    found = docblocks.blocks(page)
+    assert [(b.lang, b.line) for b in found] == [("bash", 5), ("python", 11), ("bash", 18),
+                                                 ("bash", 25), ("bash", 41), ("bash", 46)]
+    env = dict(os.environ, PATH=f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
+    state = tmp_path / "state.sh"
+    results = [docblocks.run_block(b, env, tmp_path, sys.executable, state) for b in found]
+    problems = [r.problem for r in results]
+    assert problems[0] == "exit 2" and "--no-such-option" in results[0].output
+    assert problems[1] == "exit 1" and "LabThatWasRenamed" in results[1].output
+    assert problems[2] == "its output does not say 'pelvis at 9.999 m'"
+    assert problems[3] == "still running after its budget of 1 s" and results[3].seconds < 10
+    assert problems[4] is None and (tmp_path / "there" / "here.txt").is_file()
+    assert results[5].problem is None and "carried" in results[5].output  # its cd and export
+    assert docblocks.report(results[0], ROOT).startswith("tests/data/docs/stale.md:5: ```bash block: exit 2")
+
+
+def test_a_misspelt_marker_is_an_error(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("<!-- need: ros1 -->\n```bash\ntrue\n```\n")
+    with pytest.raises(ValueError, match="page.md:1: unknown block marker 'need: ros1'"):
+        docblocks.blocks(page)
+    page.write_text("<!-- needs: ros2 -->\n```bash\ntrue\n```\n")
+    with pytest.raises(ValueError, match="unknown need"):
+        docblocks.blocks(page)
+    page.write_text("<!-- the robot, as drawn above -->\n```bash\ntrue\n```\n")  # prose: no marker
+    assert docblocks.blocks(page)[0].needs == frozenset()
+
+
+def test_a_display_block_gets_a_virtual_display(tmp_path):
+    """`needs: display` runs the block under Xvfb (its DISPLAY is set; without the marker none is)."""
+    page = tmp_path / "page.md"
+    page.write_text("<!-- needs: display -->\n```bash\nxdpyinfo >/dev/null || test -n \"$DISPLAY\"\n"
+                    "echo \"display $DISPLAY\"\n```\n\n```bash\necho \"display [${DISPLAY:-}]\"\n```\n")
+    shown, plain = docblocks.blocks(page)
+    env = dict(os.environ, DISPLAY=":99")  # a display of the test's own is not passed on
+    outcome = docblocks.run_block(shown, env, tmp_path)
+    if outcome.skipped:
+        pytest.skip(outcome.skipped)
+    assert outcome.problem is None and "display :" in outcome.output
+    assert "display []" in docblocks.run_block(plain, env, tmp_path).output

@@ -1,0 +1,94 @@
+"""The wheel a user gets from `pip install .`, installed into a fresh venv: built once per test
+session (the `wheel` and `venv` fixtures in conftest.py) and shared by tests/test_wheel.py and
+tests/test_docs_commands.py, which run the shipped commands and the documented ones from it.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+TIMES: dict[str, float] = {}  # what building and installing cost, for the report
+
+
+# a clean environment: with this checkout's src/ on PYTHONPATH, pip sees its mexone.egg-info
+# (left by an editable install) as mexone "already installed" and skips the wheel
+CLEAN_ENV = {k: v for k, v in os.environ.items()
+             if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV", "ROS_PACKAGE_PATH")}
+
+
+def git(*args: str) -> str:
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        pytest.skip("the wheel tests compare with git: run them in a git checkout")
+    return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True,
+                          check=True).stdout
+
+
+def build_wheel(tmp_path_factory) -> Path:
+    """The wheel built from a copy of the files git knows (tracked, or new and not ignored): a
+    stale build/ or egg-info in the checkout cannot leak into it."""
+    tree = tmp_path_factory.mktemp("tree")
+    for name in git("ls-files", "-z", "--cached", "--others", "--exclude-standard").split("\0"):
+        if name and (ROOT / name).is_file():
+            (tree / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, tree / name)
+    out = tmp_path_factory.mktemp("dist")
+    start = time.monotonic()
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
+                            "--disable-pip-version-check", "-w", str(out), str(tree)],
+                           capture_output=True, text=True, timeout=600, env=CLEAN_ENV)
+    TIMES["build wheel"] = time.monotonic() - start
+    assert built.returncode == 0, built.stderr[-3000:]
+    (path,) = out.glob("mexone-*.whl")
+    return path
+
+
+@dataclass(frozen=True)
+class Venv:
+    bin: Path
+    work: Path  # a folder outside the source tree, where the commands run
+    env: dict
+
+    def run(self, *args: str, cwd: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+        """A command (the venv's own if it has one by that name); failing is an AssertionError
+        naming the command and the end of its stderr."""
+        exe = str(self.bin / args[0]) if (self.bin / args[0]).exists() else args[0]
+        out = subprocess.run([exe, *args[1:]], cwd=cwd or self.work, env=self.env,
+                             capture_output=True, text=True, timeout=timeout)
+        said = (out.stderr + out.stdout)[-3000:]  # `run --json` reports a routine's error on stdout
+        assert out.returncode == 0, f"{' '.join(args)}: exit {out.returncode}\n{said}"
+        return out
+
+
+def make_venv(wheel: Path, tmp_path_factory) -> Venv:
+    """A fresh venv (no system site-packages: those hold the editable mexone) with the wheel."""
+    root = tmp_path_factory.mktemp("venv")
+    env = dict(CLEAN_ENV, PATH=f"{root / 'bin'}{os.pathsep}{CLEAN_ENV.get('PATH', '/usr/bin:/bin')}",
+               VIRTUAL_ENV=str(root))
+    start = time.monotonic()
+    subprocess.run([sys.executable, "-m", "venv", str(root)], check=True, timeout=300, env=env)
+    TIMES["create venv"] = time.monotonic() - start
+    start = time.monotonic()
+    python = str(root / "bin" / "python")
+    pip = subprocess.run([python, "-m", "pip", "install", "-q", "--no-compile",
+                          "--disable-pip-version-check", str(wheel)],
+                         capture_output=True, text=True, timeout=1200, env=env)
+    TIMES["pip install wheel + deps"] = time.monotonic() - start
+    assert pip.returncode == 0, pip.stderr[-3000:]
+    # the byte-code pip would have compiled one file after another, on every core: a user's
+    # install has it, and compiling scipy on first import is no part of a routine's first step
+    start = time.monotonic()
+    subprocess.run([python, "-m", "compileall", "-q", "-j", "0", str(root / "lib")], check=True,
+                   capture_output=True, timeout=1200, env=env)
+    TIMES["compile byte-code"] = time.monotonic() - start
+    work = tmp_path_factory.mktemp("work")
+    assert not work.resolve().is_relative_to(ROOT)
+    return Venv(root / "bin", work, env)
