@@ -8,7 +8,9 @@ cd "$(dirname "$0")/.."
 
 apt_packages=()
 command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
+command -v cmake >/dev/null 2>&1 || apt_packages+=(cmake)  # building tf2_msgs for ROS 2
 command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's browser tests
+command -v npm >/dev/null 2>&1 || apt_packages+=(nodejs npm)  # Foxglove's own client (tests/foxglove_ws)
 # ROS 1 from Debian: the real roscore, rostopic, robot_state_publisher, rospy and tf2 to test against
 ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher python3-std-msgs
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
@@ -36,5 +38,15 @@ if ((${#apt_packages[@]})); then
 fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs: tests/test_docs*.py
+# ROS 2's wheels name their packages as ROS 1's (std_msgs, ...): a venv of their own for the
+# --ros2 tests (tests/ros2), which start the simulator and their rclpy client with its python
+[ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2
+.venv-ros2/bin/python -m pip install -q --disable-pip-version-check -e ".[ros2,ros2-build]"
+# tf2_msgs, control_msgs have no wheel: built from their official definitions with PyPI's
+# rosidl tools (~20 s each, only when missing)
+.venv-ros2/bin/python -m mexone.ros2.interfaces
+export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
+# Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
+npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
 python3 -m ruff check .
 python3 -m pytest "$@"

@@ -20,7 +20,7 @@ FRONT_END_ORDER = (
     {"signals", "msgs"},
     {"lab"},
     {"routines"},
-    {"rospy", "motion", "record", "ros1", "bench"},
+    {"rospy", "motion", "record", "ros1", "ros2", "foxglove", "bench"},
     {"sweep", "identify", "gui"},
     {"editor"},
     {"cli"},

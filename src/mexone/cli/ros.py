@@ -4,19 +4,28 @@ from __future__ import annotations
 
 import argparse
 
+from mexone.cli.common import PORT
 from mexone.description.loader import load_model
 from mexone.description.urdf import write_urdf
 from mexone.lab import robot_namespace
 from mexone.robots import mex_one
 from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
 
-__all__ = ["add_ros_options", "connect_ros", "urdf_text"]
+__all__ = ["add_ros_options", "connect_ros", "connect_bridges", "Bridges", "urdf_text"]
 
 
 def add_ros_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ros", action="store_true",
                    help="join the ROS 1 graph at ROS_MASTER_URI (topics, /clock, TF, /gazebo "
                         "services); needs Debian's ROS: " + ROS_INSTALL)
+    p.add_argument("--ros2", action="store_true",
+                   help="join the ROS 2 graph (ROS_DOMAIN_ID) as a node: /clock, "
+                        "/robot_description, topics, ros2_control's command names, parameters, "
+                        "std_srvs services; needs pip install 'mexone[ros2]' (docs/ros2.md)")
+    p.add_argument("--foxglove", nargs="?", type=PORT, const=8765, metavar="PORT",
+                   help="serve every topic, the robot (URDF, meshes, TF) and sim time on the "
+                        "Foxglove WebSocket protocol at ws://HOST:PORT (default 8765, on --host: "
+                        "this machine only); needs pip install 'mexone[foxglove]' (docs/foxglove.md)")
     p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
                    help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
                         "/gazebo, another simulator's under /NAME): one per simulator on a master")
@@ -45,6 +54,58 @@ def connect_ros(args: argparse.Namespace):
             # gazebo_ros_control: a controller manager with nothing loaded, for the spawner
             args.controllers = ControlConfig(ns, {}, config.pid_gains if config else {})
     return bridge
+
+
+class Bridges:
+    """The front ends a run joins (ROS 1, ROS 2): attached, pumped and shut down together."""
+
+    def __init__(self, bridges: list) -> None:
+        self.bridges = bridges
+
+    def attach(self, lab, urdf: str) -> None:
+        for bridge in self.bridges:
+            bridge.attach(lab, urdf)
+
+    def pump(self, sim=None) -> None:
+        for bridge in self.bridges:
+            bridge.pump()
+
+    def shutdown(self) -> None:
+        for bridge in reversed(self.bridges):
+            bridge.shutdown()
+
+    def where(self) -> str:
+        """Where the robot is now visible, for the line the CLI prints."""
+        import os
+
+        names = {"Ros1Bridge": f"ROS at {os.environ.get('ROS_MASTER_URI', '?')}",
+                 "Ros2Bridge": f"ROS 2 (domain {os.environ.get('ROS_DOMAIN_ID', '0')})"}
+        return " and ".join(b.where() if hasattr(b, "where") else names[type(b).__name__]
+                            for b in self.bridges)
+
+
+def connect_bridges(args: argparse.Namespace) -> Bridges | None:
+    """The bridges the command line asks for (--ros, --ros2), connected; None for none."""
+    from mexone.ros2 import check_not_both
+
+    ros2 = getattr(args, "ros2", False)
+    check_not_both(args.ros, ros2)
+    bridges = []
+    try:
+        if args.ros:
+            bridges.append(connect_ros(args))
+        if ros2:
+            from mexone.ros2 import Ros2Bridge
+
+            bridges.append(Ros2Bridge(args.name))
+        if getattr(args, "foxglove", None) is not None:
+            from mexone.foxglove import FoxgloveBridge
+
+            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1")))
+    except BaseException:
+        Bridges(bridges).shutdown()
+        raise
+    return Bridges(bridges) if bridges else None
 
 
 def _ros_name(text: str) -> str:

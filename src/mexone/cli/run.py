@@ -18,7 +18,7 @@ from mexone.cli.common import (
     lab_from_args,
     recording,
 )
-from mexone.cli.ros import add_ros_options, connect_ros, urdf_text
+from mexone.cli.ros import add_ros_options, connect_bridges, urdf_text
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError, RoutineError
 from mexone.physics.monitor import has_fallen
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
         if status is not None:
             supervisor.leave(status)
             return status
-    bridge = connect_ros(args) if args.ros else None
+    bridge = connect_bridges(args)
     try:
         status = _run(args, params, bridge)
     finally:
@@ -112,7 +112,8 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     on_tick, tick = None, 0.05
     if bridge is not None:
         bridge.attach(lab, urdf_text(args, sim.robot))
-        print(f"mexone: {sim.robot.name} is on ROS (namespace {lab.namespace}); Ctrl-C stops",
+        print(f"mexone: {sim.robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
+              "Ctrl-C stops",
               file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
     track: list[np.ndarray] = []  # (t, x, y, yaw) of the base, for the routine's phases

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
@@ -22,7 +21,7 @@ from mexone.cli.common import (
     options_from_args,
     recording,
 )
-from mexone.cli.ros import add_ros_options, connect_ros, urdf_text
+from mexone.cli.ros import add_ros_options, connect_bridges, urdf_text
 from mexone.errors import InputError
 from mexone.physics import GAZEBO_MAPPING, DivergenceError, Simulation
 from mexone.physics.monitor import RunMonitor
@@ -99,6 +98,8 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
     note = "" if port == args.port or args.port == 0 else f" (port {args.port} was taken)"
     print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
           file=sys.stderr)
+    if bridge is not None:
+        print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
             app.serve_forever(duration)  # until a signal asks it to stop (signals.requested)
@@ -113,12 +114,13 @@ def run(args: argparse.Namespace) -> int:
             print(f"{gazebo}\n    -> {mujoco_name}" + (f": {how}" if how else ""))
         return 0
     headless = args.headless or args.json
-    forever = not headless or args.ros
+    joined = args.ros or args.ros2 or args.foxglove is not None
+    forever = not headless or joined
     duration = args.duration if args.duration is not None else (None if forever else 5.0)
-    rtf = args.rtf if args.rtf is not None else (0.0 if headless and not args.ros else 1.0)
+    rtf = args.rtf if args.rtf is not None else (0.0 if headless and not joined else 1.0)
     if not headless:
         check_can_serve(args.host)
-    bridge = connect_ros(args) if args.ros else None
+    bridge = connect_bridges(args)
     try:
         if not headless:
             return _serve_gui(args, rtf, duration, bridge)
@@ -153,8 +155,8 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
     sim, robot = lab.sim, lab.sim.robot
     if bridge is not None:
         bridge.attach(lab, urdf_text(args, robot))
-        print(f"mexone: {robot.name} is on ROS at {os.environ.get('ROS_MASTER_URI', '?')} "
-              f"(namespace {lab.namespace}); Ctrl-C stops", file=sys.stderr)
+        print(f"mexone: {robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
+              "Ctrl-C stops", file=sys.stderr)
     monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
 
     def tick(s: Simulation) -> None:

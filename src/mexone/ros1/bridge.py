@@ -25,7 +25,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from mexone.bus import msgs
+from mexone.bus import msgs, ros_map
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
@@ -54,6 +54,7 @@ _START_WAIT = 120.0  # s a service call made while the simulator starts waits fo
 def import_rospy():
     """rospy from the system's ROS (Debian packages), usable from this environment, with
     mexone's generated message packages (gazebo_msgs, controller_manager_msgs, control_msgs)."""
+    _refuse_ros2_messages()
     try:
         rospy = importlib.import_module("rospy")
     except ImportError:
@@ -69,6 +70,22 @@ def import_rospy():
                               hint=f"reinstall with: {ROS_INSTALL}") from None
     interfaces.use_generated()
     return rospy
+
+
+def _refuse_ros2_messages() -> None:
+    """ROS 2's message wheels (mexone[ros2]) install `std_msgs`, `sensor_msgs`, ... under the
+    names ROS 1's packages have: in one environment Python finds only one of each. rospy with
+    ROS 2's messages fails deep inside; say so at once instead."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("rosgraph_msgs")
+    origin = spec.submodule_search_locations[0] if spec and spec.submodule_search_locations \
+        else None
+    if origin and os.path.exists(os.path.join(origin, "msg", "_clock.py")):  # rosidl's naming
+        raise MexoneError(f"this Python environment has ROS 2's message packages ({origin}), "
+                          "which hide ROS 1's of the same names",
+                          hint="run --ros from an environment without mexone[ros2] (a venv), or "
+                               "use --ros2")
 
 
 class _Mirror:
@@ -216,7 +233,7 @@ class Ros1Bridge:
                                     ros_type.split("/")[0].replace("_", "-"))
                     continue
                 self._mirrors[name] = _Mirror(self, name, topic.type)
-            elif topic.subscriptions and convert.FROM_ROS.get(msgs.ROS_TYPES.get(topic.type, "")):
+            elif topic.subscriptions and ros_map.is_command(topic.type):
                 # commands: ask publishers for TCP_NODELAY (no Nagle batching of small messages)
                 self._inbound[name] = self.rospy.Subscriber(name, convert.ros_class(topic.type),
                                                             self._relay(name), queue_size=100,

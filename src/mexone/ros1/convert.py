@@ -12,7 +12,7 @@ import dataclasses
 from collections.abc import Callable
 from typing import Any
 
-from mexone.bus import msgs
+from mexone.bus import msgs, ros_map
 
 __all__ = ["TO_ROS", "FROM_ROS", "ros_class", "to_ros", "from_ros", "ros_time", "bus_time",
            "can_send"]
@@ -173,8 +173,8 @@ def _full_type(slot_type: str) -> str:
 
 
 def can_send(bus_type: type) -> bool:
-    """Whether the bridge can publish this bus type on ROS: a converter, or ROS's own fields."""
-    return bus_type in TO_ROS or (bus_type in msgs.ROS_TYPES and dataclasses.is_dataclass(bus_type))
+    """Whether the bridge can publish this bus type on ROS (the shared table, `bus.ros_map`)."""
+    return ros_map.can_send(bus_type)
 
 
 def to_ros(msg, cls):

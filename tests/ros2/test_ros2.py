@@ -1,0 +1,206 @@
+"""`mexone sim --ros2` against a real rclpy node in its own process (client.py, none of mexone's
+code in it), on PyPI's ROS 2 wheels.
+
+The wheels install `std_msgs`, `sensor_msgs`, ... under ROS 1's Python names, so they live in an
+environment of their own (scripts/test.sh makes `.venv-ros2`, MEXONE_ROS2_PYTHON names its
+python); this process only starts the two. DDS traffic stays on this machine
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in a domain of this test run's own (from its pid), so
+parallel runs and other tests do not see each other.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from helpers import run_cli
+from mexone.bus import msgs, ros_map
+from mexone.robots.mex_one import params
+
+HERE = Path(__file__).parent
+SRC = HERE.parents[1] / "src"
+G = 9.81
+WHEELLESS = {"tf2_msgs", "control_msgs", "gazebo_msgs"}  # no ROS 2 wheel on PyPI (docs/ros2.md)
+
+
+def ros2_python() -> str | None:
+    """A Python with rclpy: MEXONE_ROS2_PYTHON, else this one if it has rclpy."""
+    candidate = os.environ.get("MEXONE_ROS2_PYTHON") or sys.executable
+    if shutil.which(candidate) is None and not Path(candidate).exists():
+        return None
+    ok = subprocess.run([candidate, "-c", "import rclpy, std_srvs.srv"], capture_output=True,
+                        timeout=60).returncode == 0
+    return candidate if ok else None
+
+
+def ros2_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env.update({"ROS_DOMAIN_ID": str(1 + os.getpid() % 100),  # 1..100: this run's own
+                "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": "1",
+                "PYTHONPATH": os.pathsep.join([str(SRC), env.get("PYTHONPATH", "")]).rstrip(":")})
+    return env
+
+
+@pytest.fixture(scope="module")
+def python():
+    found = ros2_python()
+    if found is None:
+        pytest.skip("no Python with the ROS 2 wheels: pip install 'mexone[ros2]' into a venv and "
+                    "set MEXONE_ROS2_PYTHON (scripts/test.sh does)")
+    return found
+
+
+def controllers_with_a_trajectory_controller(folder: Path) -> Path:
+    """Mex-One's controllers with the right arm under one joint_trajectory_controller."""
+    import yaml
+
+    from mexone.robots import mex_one
+
+    config = yaml.safe_load(mex_one.controllers_path().read_text())
+    ns = config["mex_rb"]
+    gains = {}
+    for joint in ("r_shoulder_pitch", "r_elbow"):
+        gains[joint] = {k: ns[f"{joint}_position_controller"]["pid"][k] for k in ("p", "i", "d")}
+        del ns[f"{joint}_position_controller"]
+    ns["r_arm_controller"] = {"type": "effort_controllers/JointTrajectoryController",
+                              "joints": list(gains), "gains": gains}
+    path = folder / "controllers.yaml"
+    path.write_text(yaml.safe_dump(config))
+    return path
+
+
+@pytest.fixture(scope="module")
+def acceptance(python, tmp_path_factory):
+    """Run the simulator and the client once; every test below reads what the client saw."""
+    env = ros2_env()
+    controllers = controllers_with_a_trajectory_controller(tmp_path_factory.mktemp("ros2"))
+    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless",
+                            "--controllers", str(controllers)], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        client = subprocess.run([python, str(HERE / "client.py"), "mexone"], env=env,
+                                capture_output=True, text=True, timeout=180)
+    finally:
+        sim.terminate()
+        _, sim_err = sim.communicate(timeout=30)
+    assert client.returncode == 0, client.stderr[-3000:] + sim_err[-2000:]
+    return json.loads(client.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err,
+                                                                   "sim_status": sim.returncode}
+
+
+def test_clock_joint_states_and_description_flow(acceptance):
+    assert acceptance["description"].lstrip().startswith(("<?xml", "<robot"))
+    assert 'name="mex_rb"' in acceptance["description"]
+    assert acceptance["clock_sim_span"] >= 2.0
+    # 1 kHz sent (gazebo_ros' rate); best-effort, depth 1 drops what a busy reader misses
+    assert acceptance["clock_count"] / acceptance["clock_sim_span"] >= 250
+    assert acceptance["joint_states_rate"] == pytest.approx(params.JOINT_STATE_RATE, rel=0.02)
+
+
+def test_tf_has_world_to_base(acceptance):
+    """/tf needs tf2_msgs, which has no wheel: built by `python -m mexone.ros2.interfaces`
+    (scripts/test.sh does) from its official definition."""
+    assert acceptance.get("tf"), "tf2_msgs is not built in the ROS 2 environment"
+    tf = acceptance["tf"]
+    assert (tf["parent"], tf["child"]) == ("world", "pelvis")  # the URDF root link
+    assert 0.3 < tf["z"] < 1.0 and tf["w"] == pytest.approx(1.0, abs=0.01)  # standing upright
+
+
+def test_imu_reads_plus_g_and_ankles_carry_the_weight_above_them(acceptance):
+    assert acceptance["imu_z"] == pytest.approx(G, rel=0.01)
+    assert acceptance["imu_xy"] < 0.05 * G
+    feet = sum(p.mass for p in params.parts() if p.name.endswith("_foot"))
+    robot = sum(p.mass for p in params.parts())
+    assert acceptance["ankle_fz"] == pytest.approx((robot - feet) * G, rel=0.02)
+
+
+def test_commands_reach_the_joints_within_one_percent(acceptance):
+    """ros2_control's `<ctrl>/commands` (Float64MultiArray) and the ROS 1 `command`."""
+    target = acceptance["commanded"]
+    assert acceptance["reached"] == pytest.approx(target, rel=0.01)
+    assert acceptance["waist_reached"] == pytest.approx(-0.2, rel=0.01)
+
+
+def test_joint_trajectory_reaches_its_point(acceptance):
+    """joint_trajectory_controller's `joint_trajectory` topic (trajectory_msgs/JointTrajectory)."""
+    for joint, goal in acceptance["trajectory_goal"].items():
+        assert acceptance["trajectory_reached"][joint] == pytest.approx(goal, rel=0.01)
+
+
+def test_bad_commands_are_refused_on_rosout_and_the_sim_goes_on(acceptance):
+    warnings = " | ".join(acceptance["bad_command_warnings"])
+    assert "data is nan" in warnings and "data is inf" in warnings
+    assert "2 values for a one-joint controller" in warnings
+    assert acceptance["still_running"]
+    assert acceptance["held_after_bad"] == pytest.approx(acceptance["commanded"], rel=0.01)
+    assert "Traceback" not in acceptance["sim_stderr"]
+
+
+def test_gain_parameter_sets_and_bad_values_are_refused(acceptance):
+    assert acceptance["gain_set"] == [True, ""]
+    assert acceptance["gain_read"] == 77.5
+    # the controller's own state topic (control_msgs, built like tf2_msgs) shows the new gain
+    assert acceptance["state_p_before"] == 15.0 and acceptance["state_p_after"] == 77.5
+    ok, reason = acceptance["gain_wrong_type"]
+    assert not ok and "must be a double" in reason
+    ok, reason = acceptance["gain_nan"]
+    assert not ok and "must be finite" in reason
+    assert len(acceptance["gain_warnings"]) == 2
+    assert acceptance["gain_after_refusals"] == 77.5  # a refused set changes nothing
+
+
+def test_reset_restarts_clock_at_zero(acceptance):
+    assert acceptance["clock_before_reset"] > 1.0
+    assert acceptance["clock_after_reset"] == pytest.approx(0.0, abs=0.05)
+
+
+def test_sim_stops_cleanly(acceptance):
+    assert acceptance["sim_status"] in (0, 143, -15)
+
+
+def test_ros1_and_ros2_together_are_refused_in_one_line():
+    code, out, err = run_cli(["sim", "--ros", "--ros2", "--headless", "--duration", "0.01"])
+    assert code == 2 and err.count("\n") == 1 and "--ros and --ros2" in err
+
+
+def test_ros1_refuses_ros2s_messages_in_one_line(python):
+    """In an environment with the ROS 2 wheels, --ros says why it cannot work (same names)."""
+    done = subprocess.run([python, "-m", "mexone", "sim", "--ros", "--headless"], env=ros2_env(),
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0 and "Traceback" not in done.stderr
+    assert "ROS 2's message packages" in done.stderr and done.stderr.count("\n") == 1
+
+
+def test_one_table_serves_both_bridges():
+    """The ROS 1 converters take exactly the shared table's command types; every bus type with a
+    ROS name has a ROS 2 class unless its package has no wheel (then documented)."""
+    from mexone.ros1 import convert
+
+    assert set(convert.FROM_ROS) == set(ros_map.COMMAND_TYPES)
+    assert {ros_map.package_of(t) for t in msgs.ROS_TYPES} - WHEELLESS <= {
+        "std_msgs", "sensor_msgs", "geometry_msgs", "trajectory_msgs", "nav_msgs", "rosgraph_msgs"}
+    docs = (HERE.parents[1] / "docs" / "ros2.md").read_text()
+    for package in WHEELLESS:
+        assert package in docs
+    assert ros_map.ros2_control_aliases("/ns/c/command", msgs.Float64) == [
+        ("/ns/c/commands", "std_msgs/Float64MultiArray")]
+    assert ros_map.ros2_control_aliases("/ns/c/command", msgs.JointTrajectory) == [
+        ("/ns/c/joint_trajectory", "trajectory_msgs/JointTrajectory")]
+
+
+def test_building_messages_without_tools_is_one_line(monkeypatch, tmp_path):
+    from mexone.errors import MexoneError
+    from mexone.ros2 import interfaces
+
+    monkeypatch.setenv("PATH", str(tmp_path))  # no cmake, no compiler
+    with pytest.raises(MexoneError) as caught:
+        interfaces.build(tmp_path, log=lambda _line: None)
+    assert "needs 'cmake'" in caught.value.one_line() and "ros2-build" in caught.value.one_line()
+    assert (interfaces.SHARE / "tf2_msgs" / "msg" / "TFMessage.msg").read_text().strip() == \
+        "geometry_msgs/TransformStamped[] transforms"  # the official definition, field for field
