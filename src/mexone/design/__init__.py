@@ -1,7 +1,17 @@
 """Control design on the simulated robot: linear models (`linearize`) at operating points
-(`operating_point`), as python-control systems. A core layer above `control` (it reads the
-hardware's actuator layout) and `dynamics`; it imports no front end."""
+(`operating_point`), as python-control systems; designs deployed into the loop (`deploy`). A
+core layer above `control` (it reads the hardware's actuator layout)
+and `dynamics`; it imports no front end."""
 
+from mexone.design.deploy import (
+    METHODS,
+    LinearController,
+    StateFeedback,
+    deploy,
+    load_design,
+    lqr,
+    save_design,
+)
 from mexone.design.linear import (
     INPUT_KINDS,
     SUPPORTS,
@@ -13,4 +23,5 @@ from mexone.design.linear import (
 )
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
-           "INPUT_KINDS", "SUPPORTS"]
+           "INPUT_KINDS", "SUPPORTS", "deploy", "StateFeedback", "LinearController", "save_design",
+           "load_design", "lqr", "METHODS"]
