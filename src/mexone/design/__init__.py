@@ -3,6 +3,16 @@
 core layer above `control` (it reads the hardware's actuator layout)
 and `dynamics`; it imports no front end."""
 
+from mexone.design.check import (
+    Comparison,
+    FrequencyResponse,
+    closed_loop,
+    compare,
+    loop_gain,
+    measure_frequency_response,
+    plot_comparison,
+    plot_frequency_response,
+)
 from mexone.design.deploy import (
     METHODS,
     LinearController,
@@ -24,4 +34,6 @@ from mexone.design.linear import (
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS", "deploy", "StateFeedback", "LinearController", "save_design",
-           "load_design", "lqr", "METHODS"]
+           "load_design", "lqr", "METHODS", "compare", "Comparison", "plot_comparison",
+           "measure_frequency_response", "FrequencyResponse", "plot_frequency_response",
+           "closed_loop", "loop_gain"]

@@ -175,7 +175,13 @@ def system_design(system, plant=None, rate: float | None = None, method: str = "
     if isinstance(system, tuple):  # create_statefbk_iosystem's (controller, closed loop)
         system = system[0]
     if isinstance(system, control.TransferFunction):
-        system = control.ss(system, inputs=system.input_labels, outputs=system.output_labels)
+        try:
+            system = control.ss(system, inputs=system.input_labels, outputs=system.output_labels)
+        except ValueError as exc:
+            raise _fail(f"{who}: the controller cannot be discretised or run: "
+                        f"{str(exc).splitlines()[0]}",
+                        hint="a non-proper transfer function (a pure derivative s) needs a "
+                             "filter: kd s / (1 + s / N)") from None
     if not isinstance(system, control.StateSpace):
         raise ArgumentTypeError(f"{who}: a design is a gain matrix K (with the plant), a python-control "
                                 f"StateSpace or TransferFunction, or what create_statefbk_iosystem "
@@ -452,8 +458,9 @@ class LinearController(_Deployed):
         self.x = np.zeros(self.design.A.shape[0])
         self.reference = np.zeros(len(self.design.inputs))
 
-    def measured(self) -> np.ndarray:
-        """The controller's inputs' measured signals (deviations from the point, or readings)."""
+    def measured(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """The controller's inputs' measured signals (deviations from the point, or readings),
+        and the plant's state deviation dx (None without a point)."""
         dx = self.deviation() if self.design.point is not None else None
         data = self._sim.data
         y = np.zeros(len(self._rows))
@@ -464,17 +471,17 @@ class LinearController(_Deployed):
                 y[i] = data.qpos[row]
             elif kind == "dq":
                 y[i] = data.qvel[row]
-        return y
+        return y, dx
 
     def update(self, state, t: float, dt: float):
         d = self.design
-        y = self.measured()
+        y, dx = self.measured()
         r = self.reference if self.excitation is None else self.reference + self.excitation(t)
         e = np.where(np.array(self._kinds) == "x", y, r) if d.direct else r - y
         u = d.u0 + d.C @ self.x + d.D @ e
         self.x = d.A @ self.x + d.B @ e
         if self.trace is not None:
-            self.trace.append((t, y, r, u))
+            self.trace.append((t, dx, r, u))
         return u
 
 
