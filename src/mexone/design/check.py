@@ -29,7 +29,7 @@ from mexone.errors import ArgumentTypeError, InputError
 from mexone.ranges import number_text
 
 __all__ = ["compare", "Comparison", "plot_comparison", "measure_frequency_response",
-           "FrequencyResponse", "plot_frequency_response", "closed_loop", "loop_gain"]
+           "FrequencyResponse", "plot_frequency_response", "closed_loop", "loop_gain", "margins"]
 
 
 # ----- the linear closed loop ----------------------------------------------------------------
@@ -346,17 +346,37 @@ def measure_frequency_response(lab, controller, plant, signal: str, output: str 
     gm = pm = wcg = wcp = None
     loop = loop_gain(controller, plant)
     if loop is not None:
-        g, p, wg, wp = control.margin(loop)
-        gm = float(20 * np.log10(g)) if np.isfinite(g) and g > 0 else None
-        pm = float(p) if np.isfinite(p) else None
-        wcg = float(wg) / (2 * np.pi) if np.isfinite(wg) else None
-        wcp = float(wp) / (2 * np.pi) if np.isfinite(wp) else None
+        gm, pm, wcg, wcp = margins(loop)
     inside = freqs <= bandwidth * (1 + 1e-9)
     mag_err = np.abs(20 * np.log10(np.abs(measured) / np.abs(model)))
     phase_err = np.abs(np.degrees(np.angle(measured / model)))
     return FrequencyResponse(freqs, measured, model, bandwidth, gm, pm, wcp, wcg,
                              float(mag_err[inside].max(initial=0.0)),
                              float(phase_err[inside].max(initial=0.0)), siso)
+
+
+def margins(loop: control.StateSpace) -> tuple[float | None, float | None, float | None,
+                                               float | None]:
+    """(gain margin dB, phase margin deg, phase-crossover Hz, gain-crossover Hz) of a discrete
+    SISO loop gain, read off a dense frequency grid up to the Nyquist frequency (python-control's
+    `margin` falls back to an inaccurate method on the tens of lightly damped states of a robot
+    model); None where the loop never crosses."""
+    dt = float(loop.dt)
+    f = np.geomspace(1e-2, 0.5 / dt, 3000)
+    h = np.asarray(loop(np.exp(2j * np.pi * f * dt))).reshape(-1)
+    gain, phase = np.abs(h), np.unwrap(np.angle(h))
+    gm = pm = wcg = wcp = None
+    down = np.flatnonzero((gain[:-1] >= 1) & (gain[1:] < 1))
+    if down.size:
+        k = down[0]
+        wcp = float(f[k])
+        pm = float(np.degrees(phase[k]) % 360 - 180)
+    cross = np.flatnonzero(np.diff(np.floor((phase + np.pi) / (2 * np.pi))) != 0)
+    if cross.size:
+        k = cross[0]
+        wcg = float(f[k])
+        gm = float(-20 * np.log10(gain[k]))
+    return gm, pm, wcg, wcp
 
 
 def _bandwidth(siso: control.StateSpace) -> float:
