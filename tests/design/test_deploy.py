@@ -183,3 +183,16 @@ def test_yaml_names_the_state_feedback_and_reads_its_gains_beside_it(lab, arm, t
     result = compare(lab, controller, arm, {"l_elbow:q": 0.05}, duration=0.5)
     assert result.relative < 0.05
     manager.switch(stop=["yaml_lqr"], start=busy)
+
+
+def test_create_statefbk_iosystem_controller_runs_as_its_gain(lab, arm):
+    K, _, _ = lqr(arm, np.diag([1000.0] * 3 + [1.0] * 3), np.eye(3))
+    controller = deploy(lab, control.create_statefbk_iosystem(arm, K), arm, name="arm_fbk")
+    assert isinstance(controller, LinearController) and controller.design.direct
+    assert controller.design.inputs[-1] == "l_elbow:dq"  # its y[5], named after the plant
+    # no state of its own: u = ud - K (x - xd), the same law as the gain
+    np.testing.assert_allclose(controller.design.D[:, -6:], -K, rtol=1e-12)
+    result = compare(lab, controller, arm, {"l_elbow:q": 0.05}, duration=0.5)
+    assert np.abs(result.measured[-1, :3]).max() < 0.005
+    assert result.relative < 0.05, result.relative
+    lab.controllers.switch(stop=["arm_fbk"], start=[f"{j}_position_controller" for j in ARM])
