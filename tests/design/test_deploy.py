@@ -9,6 +9,8 @@ from __future__ import annotations
 import control
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mexone.control.config import load_control_config
 from mexone.control.metrics import overshoot, rise_time
@@ -27,6 +29,7 @@ from mexone.design import (
     plot_frequency_response,
     save_design,
 )
+from mexone.design.deploy import gain_design
 from mexone.errors import InputError
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions
@@ -196,3 +199,57 @@ def test_create_statefbk_iosystem_controller_runs_as_its_gain(lab, arm):
     assert np.abs(result.measured[-1, :3]).max() < 0.005
     assert result.relative < 0.05, result.relative
     lab.controllers.switch(stop=["arm_fbk"], start=[f"{j}_position_controller" for j in ARM])
+
+
+def test_a_position_design_runs_through_the_joints_pid(fixed_lab):
+    manager = fixed_lab.controllers
+    busy = [c.name for c in manager.controllers.values() if c.running and "l_elbow" in c.joints]
+    manager.switch(stop=busy, start=["l_elbow_position_controller"])  # the PID the model closes
+    fixed_lab.sim.run(0.3)  # at rest, so the model's point is an equilibrium
+    plant = linearize(fixed_lab, inputs="position", joints=["l_elbow"], period=0.001)
+    controller = deploy(fixed_lab, np.zeros((1, plant.nstates)), plant, name="elbow_position")
+    assert controller.command_interface == "position"
+    running = fixed_lab.controllers.controllers["elbow_position"]
+    assert running.pid_for("l_elbow").p == 60.0  # the shipped controller's, which the model has
+    result = compare(fixed_lab, controller, plant, {"l_elbow:q": -0.05}, duration=0.5)
+    assert result.relative < 0.05, result.relative
+    fixed_lab.controllers.switch(stop=["elbow_position"], start=["l_elbow_position_controller"])
+
+
+def test_a_bad_design_file_is_one_line_naming_it(lab, tmp_path):
+    (tmp_path / "controllers.yaml").write_text(
+        "mex_rb:\n"
+        "  broken:\n"
+        "    type: mexone/StateFeedback\n"
+        f"    joints: [{', '.join(ARM)}]\n"
+        "    design_file: missing.npz\n")
+    config = load_control_config(tmp_path / "controllers.yaml")
+    lab.controllers.define(config.controllers["broken"])
+    with pytest.raises(InputError, match="missing.npz does not exist") as info:
+        lab.controllers.load("broken")
+    assert "\n" not in str(info.value)
+    (tmp_path / "missing.npz").write_bytes(b"not a zip")
+    with pytest.raises(InputError, match="cannot be read"):
+        lab.controllers.load("broken")
+
+
+@settings(derandomize=True, max_examples=40, deadline=None)
+@given(rows=st.integers(0, 4), cols=st.integers(0, 8),
+       poison=st.sampled_from([None, np.nan, np.inf, -np.inf]), where=st.integers(0, 100))
+def test_any_gain_is_checked_before_the_lab_is_touched(arm_plant, rows, cols, poison, where):
+    K = np.ones((rows, cols))
+    if poison is not None and K.size:
+        K.flat[where % K.size] = poison
+    good = (rows, cols) == (3, 6) and (poison is None)
+    if good:
+        assert gain_design(K, arm_plant).K.shape == (3, 6)
+    else:
+        with pytest.raises(InputError) as info:
+            gain_design(K, arm_plant)
+        assert "\n" not in str(info.value)
+        assert "(3, 6)" in str(info.value) or "NaN or inf" in str(info.value)
+
+
+@pytest.fixture(scope="module")
+def arm_plant(arm):
+    return arm

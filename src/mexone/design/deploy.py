@@ -537,10 +537,20 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         missing = [j for j in built.joints if j not in manager.hw.robot.joints]
         if missing:
             raise _fail(f"deploy: the design drives joint {missing[0]!r}, which the robot does not have")
-        manager.config.controllers[name] = spec
-        manager.load(name)
         busy = sorted({c.name for c in manager.controllers.values()
                        if c.running and c.name != name and set(c.joints) & set(built.joints)})
+        gains = None
+        if built.interface != "effort":  # the model closed the joints' PIDs as set: keep them
+            drivers = {j: c for c in manager.controllers.values() if c.name in busy for j in c.joints}
+            gains = {j: drivers[j].pid_for(j) if j in drivers else None for j in built.joints}
+            missing = [j for j, g in gains.items() if g is None]
+            if missing:
+                raise _fail(f"deploy: a {built.interface} design runs through the joints' PIDs, "
+                            f"and no running controller gives {missing[0]!r} its gains",
+                            hint="start the joint's position controller first, or design on "
+                                 "inputs='effort'")
+        manager.config.controllers[name] = replace(spec, gains=gains)
+        manager.load(name)
         manager.switch(start=[name], stop=busy)
         return manager.controllers[name].impl
 
