@@ -367,6 +367,10 @@ class _Deployed(PythonController):
         self._sim = binding.ctx.sim
         runner_rate = binding.plugin.update_rate
         self.design = self._given if self._given is not None else self._load(binding)
+        if isinstance(self, LinearController) and not isinstance(self.design, SystemDesign):
+            raise InputError(f"controller '{self.name}': a LinearController runs a python-control "
+                             "system given from Python (deploy); a design file holds a gain",
+                             hint="use type: mexone/StateFeedback for a gain file")
         self.rate = runner_rate or 1.0 / self._sim.model.opt.timestep
         dt = getattr(self.design, "dt", None)
         if dt is not None and abs(dt * self.rate - 1.0) > 1e-6:
@@ -488,7 +492,7 @@ class LinearController(_Deployed):
 # ----- from Python -------------------------------------------------------------------------------
 def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None = None,
            method: str = "zoh", u0: Sequence[float] | None = None,
-           reference: Mapping[str, float] | None = None) -> _Deployed:
+           reference: Mapping[str, float] | None = None) -> StateFeedback | LinearController:
     """Run a design in the lab's loop and return the running controller (its `reference`,
     `deviation()`, `trace` are live: touch them between runs).
 
