@@ -6,12 +6,15 @@ one line while the lab runs on."""
 
 from __future__ import annotations
 
+import threading
+
 import control
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from helpers import wait_until
 from mexone.control.config import load_control_config
 from mexone.control.metrics import overshoot, rise_time
 from mexone.design import (
@@ -253,3 +256,22 @@ def test_any_gain_is_checked_before_the_lab_is_touched(arm_plant, rows, cols, po
 @pytest.fixture(scope="module")
 def arm_plant(arm):
     return arm
+
+
+def test_checks_wait_for_a_loop_running_in_another_thread(fixed_lab, elbow):
+    """A notebook's or the page's lab steps in its own thread: compare waits for the updates."""
+    controller = elbow_controller(fixed_lab, elbow, PD)
+    stop = threading.Event()
+    loop = threading.Thread(target=fixed_lab.sim.run, args=(60.0,), kwargs={"until": stop.is_set})
+    loop.start()
+    try:
+        wait_until(fixed_lab.sim.loop_elsewhere, timeout=10)
+        result = compare(fixed_lab, controller, elbow, {"l_elbow:q": -0.05}, duration=0.3)
+        bode = measure_frequency_response(fixed_lab, controller, elbow, "l_elbow:q",
+                                          amplitude=0.02, frequencies=(2, 4, 6), settle=0.3,
+                                          duration=0.5)
+    finally:
+        stop.set()
+        loop.join(10)
+    assert len(result.t) == 300 and result.relative < 0.05, result.relative
+    assert bode.magnitude_error < 1.0 and bode.phase_error < 5.0

@@ -121,9 +121,9 @@ def _on_sim(lab, fn):
     return sim.work.call(fn) if sim.loop_elsewhere() else fn()
 
 
-def _start(lab, controller, dx0: np.ndarray | None) -> None:
+def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
     """Put the robot at the point + dx0 (the model's coordinates; the joints outside the model
-    as they are) and clear the controller's state and trace."""
+    as they are) and clear the controller's state; it records `duration` s of updates."""
     sim, point = lab.sim, controller.design.point
 
     def set_state():
@@ -139,13 +139,24 @@ def _start(lab, controller, dx0: np.ndarray | None) -> None:
             data.qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
             mujoco.mj_forward(model, data)
         controller.reset()
+        controller.trace_full.clear()
+        controller.trace_length = max(2, round(duration * controller.rate))
         controller.trace = []
     _on_sim(lab, set_state)
 
 
 def _run(lab, controller, duration: float) -> list:
-    lab.sim.run(duration)
-    trace = controller.trace or []
+    """`duration` s of the controller's updates: simulated here, or, while another thread runs
+    the loop (the page, a notebook's live lab), waited for as it runs them."""
+    sim = lab.sim
+    if sim.loop_elsewhere():
+        if not controller.trace_full.wait(timeout=30.0 + 20.0 * duration):
+            controller.trace = None
+            raise InputError("the simulation did not run the controller's updates in time "
+                             "(is it paused?)", hint="resume it, then check again")
+    else:
+        sim.run(duration)
+    trace = list(controller.trace or [])[:controller.trace_length]
     controller.trace = None
     return trace
 
@@ -205,7 +216,7 @@ def compare(lab, controller, plant, deviation=None, reference=None,
     r = _vector(reference, ref_labels, "reference")
     if not np.isfinite(duration) or duration <= 0:
         raise InputError(f"duration {duration} is not a positive number of seconds")
-    _start(lab, controller, dx0)
+    _start(lab, controller, dx0, duration)
     controller.reference = r.copy()
     trace = _run(lab, controller, duration)
     controller.reference = np.zeros_like(r)
@@ -317,23 +328,22 @@ def measure_frequency_response(lab, controller, plant, signal: str, output: str 
     if output not in labels:
         raise InputError(f"output {output!r} is not a state of the plant", hint=", ".join(labels[:8]))
     i, o = ref_labels.index(signal), labels.index(output)
-    _start(lab, controller, np.zeros(plant.nstates))
-    start = float(lab.sim.time)
+    _start(lab, controller, np.zeros(plant.nstates), settle + duration)
     omega = 2 * np.pi * freqs
     unit = np.zeros(len(ref_labels))
     unit[i] = amplitude
 
-    def excite(t: float) -> np.ndarray:
-        return unit * float(np.sin(omega * (t - start)).sum())
+    def excite(t: float) -> np.ndarray:  # phases from t = 0: the fit's too
+        return unit * float(np.sin(omega * t).sum())
 
     controller.excitation = excite
     try:
         trace = _run(lab, controller, settle + duration)
     finally:
         controller.excitation = None
-    t = np.array([row[0] for row in trace]) - start
+    t = np.array([row[0] for row in trace])
     y = np.array([row[1][o] for row in trace])
-    window = t >= settle - 1e-9
+    window = t >= t[0] + settle - 1e-9
     t, y = t[window], y[window]
     columns = [np.sin(np.outer(t, omega)), np.cos(np.outer(t, omega)), np.ones((t.size, 1))]
     coef, *_ = np.linalg.lstsq(np.hstack(columns), y, rcond=None)

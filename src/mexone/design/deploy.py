@@ -25,6 +25,7 @@ with that line and the lab runs on.
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -388,6 +389,8 @@ class _Deployed(PythonController):
             self.design = replace(self.design, point=replace(point, act_index=np.asarray(live, int)))
         self.excitation: Callable[[float], np.ndarray] | None = None
         self.trace: list | None = None
+        self.trace_full = threading.Event()  # set when `trace` holds `trace_length` rows
+        self.trace_length = 0
         self.reset()
 
     def _load(self, binding):
@@ -405,6 +408,13 @@ class _Deployed(PythonController):
 
     def reset(self) -> None:
         """Forget the controller's own state (a LinearController's x)."""
+
+    def _record(self, *row) -> None:
+        trace = self.trace
+        if trace is not None:
+            trace.append(row)
+            if len(trace) >= self.trace_length:
+                self.trace_full.set()
 
     def deviation(self) -> np.ndarray:
         """The live state's deviation from the design's point (the model's x)."""
@@ -425,8 +435,7 @@ class StateFeedback(_Deployed):
         dx = self.deviation()
         r = self.reference if self.excitation is None else self.reference + self.excitation(t)
         u = self.design.u0 - self.design.K @ (dx - r)
-        if self.trace is not None:
-            self.trace.append((t, dx, r, u))
+        self._record(t, dx, r, u)
         return u
 
 
@@ -484,8 +493,7 @@ class LinearController(_Deployed):
         e = np.where(np.array(self._kinds) == "x", y, r) if d.direct else r - y
         u = d.u0 + d.C @ self.x + d.D @ e
         self.x = d.A @ self.x + d.B @ e
-        if self.trace is not None:
-            self.trace.append((t, dx, r, u))
+        self._record(t, dx, r, u)
         return u
 
 
