@@ -154,6 +154,12 @@ def test_singular_r_and_undiscretisable_designs_are_one_line(lab, arm):
     wrong_dt = control.tf([1.0], [1.0, -0.5], 0.002, inputs="l_elbow:q", outputs="l_elbow:effort")
     with pytest.raises(InputError, match=r"dt = 0.002 s but runs at 1000 Hz"):
         deploy(lab, wrong_dt, rate=1000)
+    K, _, _ = lqr(arm, np.eye(6), np.eye(3))
+    with pytest.raises(InputError, match=r"designed for a period of 0.002 s; rate 1000 Hz"):
+        deploy(lab, K, arm, rate=1000)
+    with pytest.raises(InputError, match="reference names 'nope:q'"):
+        deploy(lab, K, arm, name="never", reference={"nope:q": 1.0})
+    assert "never" not in lab.controllers.controllers  # refused before anything changed
     unnamed = control.tf([1.0], [1.0, 1.0])
     with pytest.raises(InputError, match="output 'y\\[0\\]' is not '<joint>:effort'"):
         deploy(lab, unnamed, rate=1000)

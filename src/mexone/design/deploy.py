@@ -529,6 +529,19 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         if rate is None and built.dt is not None:
             rate = 1.0 / built.dt
     rate = rate if rate is not None else 1.0 / built.dt if isinstance(built, SystemDesign) else None
+    if isinstance(built, GainDesign) and built.dt is not None and abs(built.dt * rate - 1) > 1e-6:
+        raise _fail(f"deploy: K was designed for a period of {number_text(built.dt)} s; rate "
+                    f"{number_text(rate)} Hz runs it at {number_text(1.0 / rate)} s",
+                    hint=f"rate={number_text(1.0 / built.dt)}, or linearize at period=1/rate")
+    labels = list(built.inputs) if isinstance(built, SystemDesign) else list(built.point.states)
+    r = np.zeros(len(labels))
+    for label, value in (reference or {}).items():
+        if label not in labels:
+            raise _fail(f"deploy: reference names {label!r}, not one of the controller's signals",
+                        hint=", ".join(labels[:8]) + (", ..." if len(labels) > 8 else ""))
+        r[labels.index(label)] = float(value)
+    if not np.all(np.isfinite(r)):
+        raise _fail("deploy: the reference has a NaN or inf")
     attrs = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
     if built.interface != "effort":
         attrs["command_interface"] = built.interface
@@ -567,11 +580,5 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         return manager.controllers[name].impl
 
     impl = sim.work.call(install) if sim.loop_elsewhere() else install()
-    if reference:
-        labels = list(impl.design.inputs) if isinstance(built, SystemDesign) else list(built.point.states)
-        for label, value in reference.items():
-            if label not in labels:
-                raise _fail(f"deploy: reference names {label!r}, not one of the controller's signals",
-                            hint=", ".join(labels[:8]))
-            impl.reference[labels.index(label)] = float(value)
+    impl.reference[:] = r
     return impl
