@@ -85,7 +85,7 @@ class Design:
 
 def design(lab: Lab, point: OperatingPoint, balance_cost: float = 1000.0,
            balance_joint_cost: float = 3.0, other_joint_cost: float = 0.3,
-           base_cost: float = 0.01, velocity_cost: float = 0.01, r: float = 1.0) -> Design:
+           base_cost: float = 0.01, velocity_cost: float = 0.01, r: float = 0.05) -> Design:
     """The tutorial's Q (COM over the foot, joint costs) and R = r I, K from control.dlqr;
     unlike the tutorial, small costs on the base and the velocities (the Riccati solve refuses
     undetected modes on the unit circle)."""
@@ -277,11 +277,11 @@ def largest_push(point: OperatingPoint, controller, direction: str, high: float 
 
 
 def noise_std(d: Design, balance: float = 0.01, other: float = 0.08) -> np.ndarray:
-    """The noise's std per input, as fractions of each joint's effort limit (the tutorial's
-    controls are normalised to the motors' range): `balance` on BALANCE_JOINTS, `other` else."""
+    """The noise's std per input, on the controls as they are (joint torques, N m): `balance` on
+    BALANCE_JOINTS, `other` else. (As fractions of the effort limits, as the tutorial's
+    normalised controls would read, the noise is 40-100x larger: pass scale=effort limits.)"""
     names = [n.split(":")[0] for n in d.sys.input_labels]
-    limit = _EFFORT_LIMITS
-    return np.array([(balance if n in BALANCE_JOINTS else other) * limit[n] for n in names])
+    return np.array([balance if n in BALANCE_JOINTS else other for n in names])
 
 
 _EFFORT_LIMITS: dict[str, float] = {}
@@ -315,8 +315,8 @@ def main() -> None:
     both = run(point, lqr(d, noise=noise, noise_from=10.0), duration=22.0)
     print(f"LQR: stands 10 s then 12 s with noise: fell at {both.fell_at} "
           f"(RTF {both.sim_time / both.cpu:.2f} per CPU second)")
-    alone = run(point, lqr(d, feedback=False), duration=5.0)
-    print(f"u0 alone: fell at {alone.fell_at}")
+    alone = run(point, lqr(d, feedback=False), duration=10.0)
+    print(f"u0 alone: fell at {alone.fell_at} s")
     if not args.no_push:
         for name in DIRECTIONS:
             pd = largest_push(point, "pd", name, resolution=args.resolution)
