@@ -1,7 +1,7 @@
 """Resolving a controller YAML's `type:` to a student's PythonController, as pluginlib resolves C++
 controller types, and validating its declared parameters.
 
-A type that is not a shipped ros_controllers type is looked up, in this order:
+A type that is not a shipped ros_controllers type is looked up, in this order::
 
     <stem>/<Class>       the file <stem>.py (or package <stem>/) next to the YAML, then the module
                          <stem> on sys.path
