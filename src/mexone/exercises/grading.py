@@ -187,7 +187,8 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     for check in combined.values():
         top = exercise.points * max(check.weight, 0.0) / total
         rows.append((check, round(top * check.fraction, 4), round(top, 4)))
-    score = round(sum(s for _, s, _ in rows), 4)
+    score = round(exercise.points * sum(max(c.weight, 0.0) * c.fraction
+                                        for c in combined.values()) / total, 4)
     return Result(exercise, submission, score, rows, plots=saved)
 
 

@@ -26,6 +26,7 @@ from mexone.routines import processes
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated"]
 
+TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
 
 
@@ -152,6 +153,9 @@ def _collect(pid: int, fd: int, out, limits: Limits):
                                output) from None
     if kind == "failed":
         raise SubmissionFailed(value, output)
+    if TRACEBACK in output:  # it caught its own error and printed it: a crash all the same
+        last = [line for line in output.splitlines() if line.strip()][-1].strip()
+        raise SubmissionFailed(f"the submission printed a traceback ({last[:200]})", output)
     return value
 
 
