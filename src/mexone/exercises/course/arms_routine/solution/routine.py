@@ -1,6 +1,8 @@
 """Arms routine, the reference: ramp smoothly from pose to pose (1 s each), then hold it until
 its window ends, so the robot keeps its balance."""
 
+from itertools import pairwise
+
 from mexone import rospy
 from mexone.msgs import Float64
 
@@ -18,15 +20,15 @@ rate = rospy.Rate(100)
 
 
 def command(t):
-    for (_, p0), (t1, p1) in zip(PLAN, PLAN[1:]):
+    for (_, p0), (t1, p1) in pairwise(PLAN):
         if t < t1 + RAMP:
             share = min(max((t - t1) / RAMP, 0.0), 1.0)
             share = share * share * (3 - 2 * share)  # smooth start and stop
-            return [a + (b - a) * share for a, b in zip(p0, p1)]
+            return [a + (b - a) * share for a, b in zip(p0, p1, strict=True)]
     return list(PLAN[-1][1])
 
 
 while not rospy.is_shutdown():
-    for joint, value in zip(JOINTS, command(rospy.get_time())):
+    for joint, value in zip(JOINTS, command(rospy.get_time()), strict=True):
         pubs[joint].publish(Float64(value))
     rate.sleep()
