@@ -10,6 +10,7 @@ import csv
 import hashlib
 import json
 import os
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -134,6 +135,7 @@ class Result:
     failure: str | None = None  # why the submission could not be graded (0 points)
     output: str = ""  # the submission's own output, its tail, when it failed
     plots: list[Path] = field(default_factory=list)
+    seconds: float = 0.0  # wall time the grading took
 
     @property
     def max_score(self) -> float:
@@ -159,6 +161,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
     grader = exercise.grader()
+    began = time.monotonic()
     per_seed: list[list[Check]] = []
     saved: list[Path] = []
     for seed in exercise.seeds:
@@ -168,7 +171,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         except SubmissionFailed as exc:
             return Result(exercise, submission, 0.0,
                           [(Check("runs", 0.0, 1.0, exc.reason), 0.0, exercise.points)],
-                          exc.reason, exc.output)
+                          exc.reason, exc.output, seconds=time.monotonic() - began)
         saved += ctx.save_figures()
         if not checks or not all(isinstance(c, Check) for c in checks):
             raise InputError("grade(ctx) must return a non-empty list of Check",
@@ -189,11 +192,15 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         rows.append((check, round(top * check.fraction, 4), round(top, 4)))
     score = round(exercise.points * sum(max(c.weight, 0.0) * c.fraction
                                         for c in combined.values()) / total, 4)
-    return Result(exercise, submission, score, rows, plots=saved)
+    return Result(exercise, submission, score, rows, plots=saved,
+                  seconds=time.monotonic() - began)
 
 
 def gradescope_json(result: Result) -> dict:
-    """Gradescope's results.json: score, max_score, output and one test per check."""
+    """Gradescope's results.json (its documented fields only: score, execution_time, output,
+    visibility, stdout_visibility, extra_data and one test per check with score, max_score,
+    status, name, output, visibility); the exercise's maximum is each test's max_score summed,
+    and in extra_data."""
     tests = []
     for check, score, top in result.checks:
         tests.append({"name": check.name, "score": score, "max_score": top,
@@ -205,8 +212,12 @@ def gradescope_json(result: Result) -> dict:
         summary += f" -- {result.failure}"
         if result.output.strip():
             summary += "\n\nthe submission's output (its end):\n" + result.output
-    return {"score": result.score, "max_score": result.max_score, "output": summary,
-            "visibility": "visible", "stdout_visibility": "hidden", "tests": tests}
+    return {"score": result.score, "execution_time": max(0, round(result.seconds)),
+            "output": summary, "visibility": "visible", "stdout_visibility": "hidden",
+            "tests": tests,
+            "extra_data": {"exercise": result.exercise.name, "max_score": result.max_score,
+                           "pass_mark": result.exercise.pass_mark, "passed": result.passed,
+                           "failure": result.failure}}
 
 
 def submissions_in(folder: Path, file: str) -> dict[str, Path]:

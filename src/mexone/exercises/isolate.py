@@ -78,9 +78,14 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
             os.dup2(null, 0)
             os.dup2(out.fileno(), 1)
             os.dup2(out.fileno(), 2)
+            sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
+            sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
             _limit(limits)
             try:
                 payload = ("ok", target(*args, **kwargs))
+                for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
+                    with contextlib.suppress(Exception):
+                        stream.flush()
             except SubmissionFailed as exc:
                 payload = ("failed", exc.reason)
             except MemoryError:
@@ -95,6 +100,9 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
         except BaseException:  # noqa: BLE001
             code = 3
         finally:
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(Exception):
+                    stream.flush()
             os._exit(code)
     os.close(write_fd)
     with contextlib.suppress(OSError):
