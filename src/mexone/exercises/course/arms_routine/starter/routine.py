@@ -4,7 +4,7 @@ Run it: mexone run routine.py --duration 6.5     Check it: python3 check.py
 """
 
 from mexone import rospy
-from mexone.msgs import Float64  # noqa: F401 - for your commands
+from mexone.msgs import Float64
 
 rospy.init_node("arms_routine")
 ns = "mex_rb"
