@@ -123,8 +123,11 @@ def _collect(pid: int, fd: int, out, limits: Limits):
         left = deadline - time.monotonic()
         if left <= 0:
             timed_out = True
-            _kill(pid)
-            _, status = os.waitpid(pid, 0)
+            _signal_group(pid)
+            try:
+                _, status = os.waitpid(pid, 0)
+            except ChildProcessError:  # reaped already
+                status = signal.SIGKILL
             break
         if select.select([fd], [], [], min(left, 0.05))[0]:
             data = os.read(fd, 1 << 16)
@@ -174,11 +177,16 @@ def _read_rest(fd: int) -> bytes:
     return b""
 
 
-def _kill(pid: int) -> None:
+def _signal_group(pid: int) -> None:
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(pid, signal.SIGKILL)
     with contextlib.suppress(ProcessLookupError):
         os.kill(pid, signal.SIGKILL)
+
+
+def _kill(pid: int) -> None:
+    """End the run's process group: whatever the submission started goes with it."""
+    _signal_group(pid)
     with contextlib.suppress(Exception):
         left = processes.group(pid)
         if left:
