@@ -92,7 +92,7 @@ class GradeContext:
         return Variation(*(float(1 + rng.uniform(-s, s)) for s in (mass, damping, friction)))
 
     def run(self, target: Callable, *args, **kwargs):
-        """target(*args, **kwargs) in an isolated child under the exercise's limits (it loads
+        """`target(*args, **kwargs)` in an isolated child under the exercise's limits (it loads
         and runs the student's part); its return value. A failure there ends the grading of
         this submission with 0 points and its reason."""
         return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)

@@ -59,7 +59,7 @@ def _limit(limits: Limits) -> None:
 
 
 def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
-    """target(*args, **kwargs) in a child process under `limits`; its return value (picklable).
+    """`target(*args, **kwargs)` in a child process under `limits`; its return value (picklable).
     Raises SubmissionFailed(reason) if it raised, ended the process, was killed or ran out of
     time. `target` must be importable code of the grader's, never the student's: it is the one
     that loads and runs the student's part."""
