@@ -2,15 +2,19 @@
 tracking (each pose held within TOLERANCE over its window) and on staying upright, on a robot
 with hidden mass and damping changes."""
 
-import sys
-from pathlib import Path
-
 import numpy as np
 
 from mexone.exercises import Check
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from poses import DURATION, JOINTS, POSES  # noqa: E402
+# the poses (rad) and when each must be held, as the statement's table gives them
+JOINTS = ("l_shoulder_pitch", "r_shoulder_pitch", "l_elbow", "r_elbow")
+POSES = (  # (from s, to s): the window where the arms must be at the pose
+    ((1.5, 2.0), (-0.6, -0.6, -0.5, -0.5)),   # arms forward, elbows a little bent
+    ((3.0, 3.5), (-1.2, 0.0, -1.2, 0.0)),     # left arm up, right arm down
+    ((4.5, 5.0), (0.0, -1.2, 0.0, -1.2)),     # the other way round
+    ((6.0, 6.5), (-0.3, -0.3, -1.0, -1.0)),   # elbows bent
+)
+DURATION = 6.5
 
 TOLERANCE = 0.05  # rad, each arm joint over each pose's window
 
