@@ -120,3 +120,17 @@ def test_start_new_and_bad_exercises(tmp_path):
     code, out, _ = run_cli(["exercise", "list"])
     assert code == 0 and all(n in out for n in ("model_checks", "home_hold", "pid_spec",
                                                  "arms_routine"))
+
+
+def test_beside_puts_the_submission_next_to_the_graders_files(tmp_path):
+    from mexone.exercises import GradeContext
+
+    ex = find_exercise("arms_routine")
+    law = tmp_path / "handed_in.py"
+    law.write_text("class MyLaw: ...\n")
+    ctx = GradeContext(ex, law, seed=1)
+    folder = ctx.beside({"controllers.yaml": "mex_rb: {}\n"}, as_name="my_law.py")
+    assert (folder / "my_law.py").read_text() == law.read_text()
+    assert (folder / "controllers.yaml").read_text() == "mex_rb: {}\n"
+    ctx.cleanup()
+    assert not folder.exists() and law.exists()

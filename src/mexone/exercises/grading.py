@@ -10,6 +10,8 @@ import csv
 import hashlib
 import json
 import os
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -72,6 +74,7 @@ class GradeContext:
     local: bool = False  # the self-check: no hidden variation
     plots: Path | None = None  # where ctx.figure()s are saved (grade --plots DIR)
     _figures: list = field(default_factory=list, repr=False)
+    _scratch: Path | None = field(default=None, repr=False)
 
     @property
     def rng(self) -> np.random.Generator:
@@ -100,6 +103,23 @@ class GradeContext:
     def simulate(self, duration: float, **kwargs):
         """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays."""
         return self.run(simulate, duration, **kwargs)
+
+    def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:
+        """A scratch folder holding a copy of the submission (named `as_name`, default its own
+        name) and `files` (name: text), e.g. a controller YAML whose `type: my_law/MyLaw`
+        finds the student's my_law.py next to it; the folder's path. Removed after grading."""
+        if self._scratch is None:
+            self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-"))
+        folder = Path(tempfile.mkdtemp(dir=self._scratch))
+        shutil.copyfile(self.submission, folder / (as_name or self.submission.name))
+        for name, text in files.items():
+            (folder / name).write_text(text)
+        return folder
+
+    def cleanup(self) -> None:
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
 
     def figure(self, name: str):
         """A matplotlib figure saved as PLOTS/<seed>-<name>.png when grading with --plots."""
@@ -172,6 +192,8 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
             return Result(exercise, submission, 0.0,
                           [(Check("runs", 0.0, 1.0, exc.reason), 0.0, exercise.points)],
                           exc.reason, exc.output, seconds=time.monotonic() - began)
+        finally:
+            ctx.cleanup()
         saved += ctx.save_figures()
         if not checks or not all(isinstance(c, Check) for c in checks):
             raise InputError("grade(ctx) must return a non-empty list of Check",
