@@ -92,6 +92,8 @@ def test_gradescope_json_and_folder_csv(tmp_path):
     code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
                               tmp_path / "grades.csv"])
     assert code == 2 and "exists" in err  # nothing overwritten without --force
+    code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--json"])
+    assert code == 2 and "--json writes one submission" in err
     results = json.loads(run_cli(["exercise", "grade", "home_hold",
                                   folder / "ada" / "controllers.yaml", "--json"])[1])
     jsonschema.validate(results, SCHEMA)

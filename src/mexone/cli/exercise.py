@@ -142,6 +142,9 @@ def _grade(args) -> int:
         if out is not None and out != Path("-") and out.exists() and not args.force:
             raise OutputExistsError(f"{out} exists", hint="give another file or --force")
     if args.submission.is_dir():
+        if args.json is not None:
+            raise InputError("--json writes one submission's results.json",
+                             hint="grade a folder with --csv, or each file with --json")
         found = submissions_in(args.submission, ex.file)
         if not found:
             raise InputError(f"no submissions in {args.submission}",
@@ -149,7 +152,8 @@ def _grade(args) -> int:
                                   f"STUDENT{Path(ex.file).suffix} files")
         results = {}
         for student, path in found.items():
-            result = grade(ex, path, local=args.local, plots=args.plots)
+            plots = args.plots / student if args.plots else None
+            result = grade(ex, path, local=args.local, plots=plots)
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
