@@ -136,3 +136,27 @@ def test_beside_puts_the_submission_next_to_the_graders_files(tmp_path):
     assert (folder / "controllers.yaml").read_text() == "mex_rb: {}\n"
     ctx.cleanup()
     assert not folder.exists() and law.exists()
+
+
+def test_sigterm_stops_the_grading_and_the_submissions_process(tmp_path):
+    import signal
+    import subprocess
+    import sys
+
+    from helpers import wait_until
+    from mexone.routines import processes
+
+    path = tmp_path / "routine.py"
+    path.write_text("import time\ntime.sleep(60)\n")
+    grader = subprocess.Popen([sys.executable, "-m", "mexone", "exercise", "grade",
+                               "arms_routine", str(path)], stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True)
+    try:
+        assert wait_until(lambda: processes.children(grader.pid), timeout=30)
+        (child,) = processes.children(grader.pid)
+        grader.send_signal(signal.SIGTERM)
+        _, err = grader.communicate(timeout=15)
+    finally:
+        grader.kill()
+    assert grader.returncode == 143 and "interrupted by SIGTERM" in err
+    assert wait_until(lambda: not processes.group(child), timeout=5)

@@ -22,6 +22,7 @@ import traceback
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from mexone import signals
 from mexone.routines import processes
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated"]
@@ -120,6 +121,9 @@ def _collect(pid: int, fd: int, out, limits: Limits):
     status = None
     timed_out = False
     while status is None:
+        if signals.requested():  # Ctrl-C or SIGTERM to the grader: the run ends with it
+            _kill(pid)
+            signals.check()
         left = deadline - time.monotonic()
         if left <= 0:
             timed_out = True
