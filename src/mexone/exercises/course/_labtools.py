@@ -1,0 +1,117 @@
+"""What the graders of course exercises 5-10 share: a lab with the student's controller on some
+joints (the shipped PIDs on the rest), the hidden variant drawn from the grading seed, a check's
+result. The graders run in the grading process; the student's code is imported by the lab's
+controller loader (the framework's sandbox decides which process that is)."""
+
+from __future__ import annotations
+
+import shutil
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import yaml
+
+from mexone.errors import InputError
+from mexone.lab import Lab
+from mexone.physics.compile import CompileOptions, Spawn
+from mexone.robots import mex_one
+
+__all__ = ["Check", "rng", "student_yaml", "controller_lab", "scale_mass", "JointLog",
+           "controller_fault", "HAND", "HAND_POINT", "ARM", "score"]
+
+HAND = "l_forearm"  # the link that carries Mex-One's left hand
+HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
+ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One graded check: `fraction` of `weight` points earned, `output` says why (one line)."""
+
+    name: str
+    weight: float
+    fraction: float
+    output: str
+
+    @property
+    def score(self) -> float:
+        return self.weight * max(0.0, min(1.0, self.fraction))
+
+    @property
+    def passed(self) -> bool:
+        return self.fraction >= 1.0
+
+
+def score(checks: Sequence[Check]) -> float:
+    """The share of all points earned, 0..1."""
+    total = sum(c.weight for c in checks)
+    return sum(c.score for c in checks) / total if total else 0.0
+
+
+def rng(seed: int, exercise: str) -> np.random.Generator:
+    """The hidden variant's random numbers: from the grading seed and the exercise's name, so
+    two exercises graded with one seed draw different variants."""
+    return np.random.default_rng([int(seed) & 0xFFFFFFFF, *exercise.encode()])
+
+
+def student_yaml(workdir: Path, source: Path, cls: str, name: str, joints: Sequence[str],
+                 params: dict[str, float]) -> Path:
+    """A controllers YAML in `workdir`: the student's class `cls` of file `source` (copied next
+    to it) on `joints`, the shipped PID on every other joint."""
+    if not source.is_file():
+        raise InputError(f"{source}: no such file", hint=f"the submission must hold {source.name}")
+    shutil.copyfile(source, workdir / source.name)
+    shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
+    ns, controllers = next(iter(shipped.items()))
+    kept = {k: v for k, v in controllers.items() if v.get("joint") not in joints}
+    entry = {"type": f"{source.stem}/{cls}", "joints": list(joints), **params}
+    out = workdir / "controllers.yaml"
+    out.write_text(yaml.safe_dump({ns: {name: entry, **kept}}, sort_keys=False))
+    return out
+
+
+def scale_mass(body: str, factor: float) -> Callable:
+    """A spec edit: `body`'s mass and inertia times `factor` (a heavier or lighter link)."""
+
+    def edit(spec: mujoco.MjSpec, robot) -> None:
+        b = spec.body(body)
+        b.mass *= factor
+        b.inertia = np.asarray(b.inertia) * factor
+    return edit
+
+
+def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Callable] = (),
+                   fixed_base: bool = False) -> Lab:
+    """Mex-One with the controllers of `yaml_path`, its joints at `pose`, the variant's edits."""
+    return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
+                      edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+
+
+def controller_fault(lab: Lab, name: str) -> str | None:
+    """Why the student's controller is not running (a fault, or it never started), else None."""
+    ctrl = lab.controllers.controllers.get(name)
+    if ctrl is None:
+        return f"controller {name} was not loaded"
+    if getattr(ctrl, "fault", None):
+        return str(ctrl.fault)
+    if not ctrl.running:
+        return f"controller {name} stopped"
+    return None
+
+
+class JointLog:
+    """Every step's positions of `joints`, read in the simulation thread between steps."""
+
+    def __init__(self, lab: Lab, joints: Sequence[str]):
+        model = lab.sim.model
+        self.adr = [int(model.joint(j).qposadr[0]) for j in joints]
+        self.times: list[float] = []
+        self.q: list[np.ndarray] = []
+        self.timer = lab.sim.add_periodic(lab.sim.timestep, self.sample)
+
+    def sample(self, sim) -> None:
+        self.times.append(sim.time)
+        self.q.append(sim.data.qpos[self.adr].copy())
