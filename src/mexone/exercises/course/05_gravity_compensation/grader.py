@@ -10,8 +10,17 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.exercises.course._labtools import (ARM, HAND, Check, JointLog, controller_fault,
-                                               controller_lab, rng, scale_mass, student_yaml)
+from mexone.exercises.course._labtools import (
+    ARM,
+    HAND,
+    Check,
+    JointLog,
+    controller_fault,
+    controller_lab,
+    rng,
+    scale_mass,
+    student_yaml,
+)
 
 NAME = "gravity_compensation"
 FILE, CLASS = "gravity_compensation.py", "GravityCompensation"

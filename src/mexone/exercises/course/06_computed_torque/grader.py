@@ -11,8 +11,16 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.exercises.course._labtools import (HAND, Check, JointLog, controller_fault,
-                                               controller_lab, rng, scale_mass, student_yaml)
+from mexone.exercises.course._labtools import (
+    HAND,
+    Check,
+    JointLog,
+    controller_fault,
+    controller_lab,
+    rng,
+    scale_mass,
+    student_yaml,
+)
 from mexone.lab import Lab
 from mexone.physics.compile import Spawn
 

@@ -10,8 +10,17 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.exercises.course._labtools import (ARM, HAND, HAND_POINT, Check, controller_fault,
-                                               controller_lab, rng, scale_mass, student_yaml)
+from mexone.exercises.course._labtools import (
+    ARM,
+    HAND,
+    HAND_POINT,
+    Check,
+    controller_fault,
+    controller_lab,
+    rng,
+    scale_mass,
+    student_yaml,
+)
 
 NAME = "hand_impedance"
 FILE, CLASS = "hand_impedance.py", "HandImpedance"

@@ -12,8 +12,14 @@ from pathlib import Path
 
 import mujoco
 
-from mexone.exercises.course._labtools import (Check, controller_fault, controller_lab, rng,
-                                               scale_mass, student_yaml)
+from mexone.exercises.course._labtools import (
+    Check,
+    controller_fault,
+    controller_lab,
+    rng,
+    scale_mass,
+    student_yaml,
+)
 from mexone.lab import Lab
 from mexone.motion.recovery import PushTrial, survives
 

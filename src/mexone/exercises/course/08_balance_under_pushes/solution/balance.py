@@ -8,7 +8,7 @@ import numpy as np
 
 from mexone.control import Param, PythonController
 
-__all__ = ["LqrBalance", "pendulum"]
+__all__ = ["Balance", "pendulum"]
 
 G = 9.81
 IMU, IMU_FRAME = "imu", "sensor/imu"  # Mex-One's torso IMU: its name and its frame (a site)
