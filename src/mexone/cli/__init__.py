@@ -46,6 +46,7 @@ def build_parser() -> argparse.ArgumentParser:
         convert,
         edit,
         example_robot,
+        exercise,
         identify,
         plot,
         record,
@@ -64,7 +65,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
     for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
-                   bench, edit, rosenv, example_robot):
+                   bench, edit, rosenv, example_robot, exercise):
         module.add_parser(sub)
     return parser
 

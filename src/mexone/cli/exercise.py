@@ -1,0 +1,190 @@
+"""`mexone exercise list | show | start | grade | new`: exercises a teacher assigns and grades."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+
+from mexone.errors import InputError, OutputExistsError
+
+HELP = """\
+Exercises: a statement, a starter file, a grader with fixed seeds and a hidden variation of the
+robot (mass, damping, friction) drawn from a secret seed. `start` writes an exercise's statement,
+starter and a self-check (check.py) into a folder for a student; `grade` runs a submission
+headless in its own process with CPU-time and memory limits and prints each check and the
+score (--json: Gradescope's results.json); given a folder of submissions, --csv writes one row
+per student. `new` writes a teacher's own exercise that grades as written (docs/exercises.md).
+
+A submission that raises, hangs, exits or runs out of memory gets 0 points with the reason:
+that is a grade, exit status 0. exit status: 0 graded, 2 bad input (a missing file, a broken
+exercise)"""
+
+CHECK_PY = '''"""Self-check for the exercise {name}: grades your {file} on the nominal robot.
+The real grade uses other seeds and a hidden variation of the robot."""
+
+import sys
+from pathlib import Path
+
+from mexone.exercises import self_check
+
+sys.exit(self_check({name!r}, str(Path(__file__).resolve().parent / {file!r})))
+'''
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("exercise", help="list, start and grade exercises",
+                       description=HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    verbs = p.add_subparsers(dest="action", metavar="<action>", required=True)
+    verbs.add_parser("list", help="the exercises there are")
+    s = verbs.add_parser("show", help="print an exercise's statement")
+    s.add_argument("name", help="exercise name or folder")
+    s = verbs.add_parser("start", help="write an exercise's statement, starter and check.py")
+    s.add_argument("name", help="exercise name or folder")
+    s.add_argument("dir", nargs="?", type=Path, help="where (default: ./NAME)")
+    s.add_argument("--force", action="store_true", help="overwrite files already there")
+    s = verbs.add_parser("grade", help="grade a submission (or a folder of them)")
+    s.add_argument("name", help="exercise name or folder")
+    s.add_argument("submission", type=Path,
+                   help="the student's file, or a folder of submissions (one per student: a "
+                        "subfolder holding the file, or NAME.<same suffix>)")
+    s.add_argument("--json", type=Path, nargs="?", const=Path("-"), metavar="FILE",
+                   help="write Gradescope's results.json (to FILE, default stdout)")
+    s.add_argument("--csv", type=Path, metavar="FILE", help="a folder's grades as CSV")
+    s.add_argument("--plots", type=Path, metavar="DIR", help="save the grader's plots here")
+    s.add_argument("--local", action="store_true",
+                   help="the self-check: the nominal robot, no hidden variation")
+    s.add_argument("--force", action="store_true", help="overwrite --json/--csv files")
+    s = verbs.add_parser("new", help="write a new exercise folder that grades as written")
+    s.add_argument("name", help="the new exercise's name (letters, digits, _)")
+    s.add_argument("dir", nargs="?", type=Path, help="where (default: ./NAME)")
+    s.add_argument("--force", action="store_true", help="overwrite files already there")
+    p.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    return {"list": _list, "show": _show, "start": _start, "grade": _grade,
+            "new": _new}[args.action](args)
+
+
+def _list(_args) -> int:
+    from mexone.exercises.exercise import exercises, load_exercise
+
+    for name, folder in exercises().items():
+        try:
+            ex = load_exercise(folder)
+            print(f"{name:<16} {ex.points:>4g} pts  {ex.submission:<10} {ex.title}"
+                  + (f": {ex.summary}" if ex.summary else ""))
+        except InputError as exc:
+            print(f"{name:<16} broken: {exc.one_line()}")
+    return 0
+
+
+def _show(args) -> int:
+    from mexone.exercises.exercise import find_exercise
+
+    ex = find_exercise(args.name)
+    print(ex.statement.read_text() if ex.statement.is_file() else ex.title)
+    print(f"\nhand in: {ex.file} ({ex.submission}); {ex.points:g} points, pass mark "
+          f"{ex.pass_mark:g}; {ex.limits.time:g} s per episode, {len(ex.seeds)} episodes")
+    return 0
+
+
+def _copy_tree(files: dict[Path, Path | str], force: bool) -> None:
+    """Write every (destination: source path or text) or none: refused if one exists."""
+    clash = [d for d in files if d.exists()]
+    if clash and not force:
+        raise OutputExistsError(f"{clash[0]} exists", hint="give another folder or --force")
+    for dest, source in files.items():
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        if isinstance(source, Path):
+            shutil.copyfile(source, dest)
+        else:
+            dest.write_text(source)
+
+
+def _start(args) -> int:
+    from mexone.exercises.exercise import find_exercise
+
+    ex = find_exercise(args.name)
+    dest = args.dir or Path(ex.name)
+    files: dict[Path, Path | str] = {dest / "README.md": ex.statement}
+    starter = ex.folder / "starter"
+    for path in sorted(starter.rglob("*")) if starter.is_dir() else []:
+        if path.is_file():
+            files[dest / path.relative_to(starter)] = path
+    figures = ex.folder / "figures"
+    for path in sorted(figures.rglob("*")) if figures.is_dir() else []:
+        if path.is_file():
+            files[dest / "figures" / path.relative_to(figures)] = path
+    files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
+                                               else str(ex.folder), file=ex.file)
+    _copy_tree(files, args.force)
+    print(f"mexone: wrote {ex.title} to {dest}/: README.md (the statement), {ex.file} (your "
+          f"starting point), check.py (python3 {dest}/check.py checks it)")
+    return 0
+
+
+def _grade(args) -> int:
+    from mexone.exercises.exercise import find_exercise
+    from mexone.exercises.grading import (
+        as_text,
+        grade,
+        gradescope_json,
+        submissions_in,
+        write_csv,
+    )
+
+    ex = find_exercise(args.name)
+    for out in (args.json, args.csv):
+        if out is not None and out != Path("-") and out.exists() and not args.force:
+            raise OutputExistsError(f"{out} exists", hint="give another file or --force")
+    if args.submission.is_dir():
+        found = submissions_in(args.submission, ex.file)
+        if not found:
+            raise InputError(f"no submissions in {args.submission}",
+                             hint=f"one subfolder per student holding {ex.file}, or "
+                                  f"STUDENT{Path(ex.file).suffix} files")
+        results = {}
+        for student, path in found.items():
+            result = grade(ex, path, local=args.local, plots=args.plots)
+            results[student] = result
+            print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
+                  f"{'passed' if result.passed else 'not passed':<11} "
+                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True)
+        if args.csv:
+            write_csv(results, args.csv)
+            print(f"mexone: wrote {args.csv} ({len(results)} submissions)")
+        return 0
+    if args.csv:
+        raise InputError("--csv grades a folder of submissions", hint="give a folder")
+    result = grade(ex, args.submission, local=args.local, plots=args.plots)
+    if args.json is not None:
+        text = json.dumps(gradescope_json(result), indent=2)
+        if args.json == Path("-"):
+            print(text)
+            print(as_text(result), file=sys.stderr)
+            return 0
+        args.json.write_text(text + "\n")
+    print(as_text(result))
+    return 0
+
+
+def _new(args) -> int:
+    from mexone.exercises.exercise import COURSE
+
+    name = args.name
+    if not name.replace("_", "").isalnum() or not name[0].isalpha():
+        raise InputError(f"'{name}' is not a name", hint="letters, digits and _, e.g. my_arms")
+    dest = args.dir or Path(name)
+    template = COURSE.parent / "template"
+    files: dict[Path, Path | str] = {}
+    for path in sorted(template.rglob("*")):
+        if path.is_file() and "__pycache__" not in path.parts:
+            files[dest / path.relative_to(template)] = path.read_text().replace("TEMPLATE", name)
+    _copy_tree(files, args.force)
+    print(f"mexone: wrote the exercise {name} to {dest}/ (grade its solution: mexone exercise "
+          f"grade {dest} {dest}/solution/routine.py)")
+    return 0

@@ -1,0 +1,155 @@
+"""An exercise is a folder: exercise.yaml (what it is and its limits), grader.py (its checks),
+statement.md, starter/ and solution/. This module reads one and finds them: shipped ones under
+mexone/exercises/course/, a teacher's from a path or the `mexone.exercises` entry-point group."""
+
+from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from pathlib import Path
+from types import ModuleType
+
+from mexone import yamlio
+from mexone.errors import InputError
+from mexone.exercises.isolate import Limits
+from mexone.inputs import read_input_text
+
+__all__ = ["Exercise", "SUBMISSION_KINDS", "load_exercise", "find_exercise", "exercises",
+           "COURSE", "ENTRY_POINT_GROUP"]
+
+COURSE = Path(__file__).resolve().parent / "course"
+ENTRY_POINT_GROUP = "mexone.exercises"
+SUBMISSION_KINDS = ("routine", "controller", "gains", "urdf", "json")
+_FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
+           "secret_seed", "submission", "file", "summary"}
+
+
+@dataclass(frozen=True)
+class Exercise:
+    """One exercise, as its exercise.yaml says."""
+
+    folder: Path
+    name: str
+    title: str
+    points: float
+    pass_mark: float
+    submission: str  # one of SUBMISSION_KINDS
+    file: str  # the file the student edits and hands in (in starter/ and solution/)
+    seeds: tuple[int, ...]  # the fixed episodes every submission runs
+    secret_seed: int  # draws the hidden variation (mixed with $MEXONE_EXERCISE_SECRET)
+    limits: Limits
+    summary: str = ""
+
+    @property
+    def statement(self) -> Path:
+        return self.folder / "statement.md"
+
+    @property
+    def starter(self) -> Path:
+        return self.folder / "starter" / self.file
+
+    @property
+    def solution(self) -> Path:
+        return self.folder / "solution" / self.file
+
+    def grader(self) -> ModuleType:
+        """The exercise's grader.py, imported (it is the teacher's code, run in the grader)."""
+        path = self.folder / "grader.py"
+        if not path.is_file():
+            raise InputError("the exercise has no grader.py", file=self.folder,
+                             hint="write grader.py with a grade(ctx) function (docs/exercises.md)")
+        spec = importlib.util.spec_from_file_location(f"mexone_exercise_{self.name}", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        if not callable(getattr(module, "grade", None)):
+            raise InputError("grader.py has no grade(ctx) function", file=path,
+                             hint="def grade(ctx): return [Check(...), ...]")
+        return module
+
+
+def _number(data: dict, key: str, path: Path, low: float, high: float, default=None,
+            integer: bool = False) -> float:
+    value = data.get(key, default)
+    if value is None:
+        raise InputError(f"'{key}' is missing", file=path, hint=f"add '{key}: <number>'")
+    if isinstance(value, bool) or not isinstance(value, int | float) or not low <= value <= high \
+            or (integer and not isinstance(value, int)):
+        kind = "an integer" if integer else "a number"
+        raise InputError(f"'{key}' is {value!r}: it must be {kind} from {low:g} to {high:g}",
+                         file=path)
+    return value
+
+
+def load_exercise(folder: str | Path) -> Exercise:
+    """Read a folder's exercise.yaml (every field checked, one line per mistake)."""
+    folder = Path(folder)
+    path = folder / "exercise.yaml"
+    if not path.is_file():
+        raise InputError(f"no exercise.yaml in {folder}", hint="an exercise is a folder with "
+                         "exercise.yaml, grader.py, statement.md, starter/ (mexone exercise new)")
+    data = yamlio.load(read_input_text(path), path)
+    if not isinstance(data, dict):
+        raise InputError("exercise.yaml is not a mapping", file=path, hint="name: ..., title: ...")
+    unknown = sorted(set(data) - _FIELDS)
+    if unknown:
+        raise InputError(f"unknown field '{unknown[0]}'", file=path,
+                         hint="fields: " + ", ".join(sorted(_FIELDS)))
+    name = data.get("name", folder.name)
+    if not isinstance(name, str) or not name.replace("_", "").replace("-", "").isalnum():
+        raise InputError(f"'name' is {name!r}: use letters, digits, _ and -", file=path)
+    kind = data.get("submission")
+    if kind not in SUBMISSION_KINDS:
+        raise InputError(f"'submission' is {kind!r}", file=path,
+                         hint="one of: " + ", ".join(SUBMISSION_KINDS))
+    file = data.get("file")
+    if not isinstance(file, str) or not file or "/" in file or file.startswith("."):
+        raise InputError(f"'file' is {file!r}: the name of the file the student hands in",
+                         file=path, hint="e.g. file: routine.py")
+    points = _number(data, "points", path, 0.0, 1e6, default=10)
+    if points <= 0:
+        raise InputError("'points' must be > 0", file=path)
+    pass_mark = _number(data, "pass_mark", path, 0.0, points, default=points / 2)
+    seeds = data.get("seeds", [0])
+    if not isinstance(seeds, list) or not seeds or not all(
+            isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+        raise InputError(f"'seeds' is {seeds!r}: a list of integers >= 0", file=path,
+                         hint="e.g. seeds: [1, 2, 3]")
+    wall = _number(data, "time_limit", path, 1.0, 3600.0, default=60.0)
+    limits = Limits(time=wall, cpu=_number(data, "cpu_limit", path, 1.0, 7200.0, default=wall),
+                    memory_mb=int(_number(data, "memory_mb", path, 256, 65536, default=2048,
+                                          integer=True)))
+    return Exercise(folder.resolve(), name, str(data.get("title", name)), float(points),
+                    float(pass_mark), kind, file, tuple(seeds),
+                    int(_number(data, "secret_seed", path, 0, 2**63, default=0, integer=True)),
+                    limits, str(data.get("summary", "")))
+
+
+def exercises() -> dict[str, Path]:
+    """Every exercise by name: the shipped course, then the entry points' (a teacher's package
+    declares `[project.entry-points."mexone.exercises"] name = "package.module"`, the module's
+    folder being the exercise's, or "package:FOLDER" for a folder inside it)."""
+    found = {p.name: p for p in sorted(COURSE.iterdir()) if (p / "exercise.yaml").is_file()}
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        try:
+            module, _, sub = ep.value.partition(":")
+            spec = importlib.util.find_spec(module)
+        except (ImportError, ValueError):
+            continue
+        if spec is None or spec.origin is None:
+            continue
+        base = Path(spec.origin).parent
+        found.setdefault(ep.name, base / sub if sub else base)
+    return found
+
+
+def find_exercise(name_or_path: str | Path) -> Exercise:
+    """An exercise by name (shipped or an entry point's) or by its folder's path."""
+    known = exercises()
+    if str(name_or_path) in known:
+        return load_exercise(known[str(name_or_path)])
+    path = Path(name_or_path)
+    if path.is_dir():
+        return load_exercise(path)
+    raise InputError(f"no exercise '{name_or_path}'",
+                     hint="give a folder with exercise.yaml or one of: " + ", ".join(known))

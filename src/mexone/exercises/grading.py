@@ -1,0 +1,259 @@
+"""Grade one submission: the exercise's grader.py draws the hidden variation from the secret
+seed here, in the grading process, and runs the student's part through GradeContext.run /
+simulate in an isolated child. A submission that fails (raises, hangs, ends the process, runs
+out of memory) gets 0 points with the reason; only a broken exercise is an error of the grader.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from mexone.errors import InputError
+from mexone.exercises.exercise import Exercise
+from mexone.exercises.isolate import SubmissionFailed, run_isolated
+from mexone.exercises.sim import Variation, simulate
+
+__all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
+           "submissions_in", "SECRET_ENV"]
+
+SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret, mixed into every exercise's
+
+
+@dataclass
+class Check:
+    """One check of a submission: the share of its weight it earned (0..1) and why."""
+
+    name: str
+    fraction: float
+    weight: float = 1.0
+    output: str = ""
+    visibility: str = "visible"  # Gradescope's: visible, hidden, after_due_date, after_published
+
+    @classmethod
+    def at_most(cls, name: str, value: float | None, limit: float, unit: str = "",
+                weight: float = 1.0) -> Check:
+        """Passes when value <= limit (None, e.g. "never settled", fails)."""
+        ok = value is not None and np.isfinite(value) and value <= limit
+        shown = "none" if value is None else f"{value:.4g}{unit}"
+        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (limit {limit:g}{unit})")
+
+    @classmethod
+    def at_least(cls, name: str, value: float | None, limit: float, unit: str = "",
+                 weight: float = 1.0) -> Check:
+        ok = value is not None and np.isfinite(value) and value >= limit
+        shown = "none" if value is None else f"{value:.4g}{unit}"
+        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (at least {limit:g}{unit})")
+
+    @classmethod
+    def true(cls, name: str, ok: bool, output: str = "", weight: float = 1.0) -> Check:
+        return cls(name, 1.0 if ok else 0.0, weight, output)
+
+    @property
+    def passed(self) -> bool:
+        return self.fraction >= 1.0
+
+
+@dataclass
+class GradeContext:
+    """What grader.py's grade(ctx) gets, once per seed of the exercise."""
+
+    exercise: Exercise
+    submission: Path
+    seed: int
+    local: bool = False  # the self-check: no hidden variation
+    plots: Path | None = None  # where ctx.figure()s are saved (grade --plots DIR)
+    _figures: list = field(default_factory=list, repr=False)
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The hidden variation's generator for this seed: the exercise's secret seed (and the
+        teacher's $MEXONE_EXERCISE_SECRET) with the episode's seed. Draw from it here, in the
+        grader; hand only the drawn values to ctx.simulate."""
+        secret = os.environ.get(SECRET_ENV, "")
+        mixed = int.from_bytes(hashlib.sha256(secret.encode()).digest()[:8], "little")
+        return np.random.default_rng([self.exercise.secret_seed, mixed, self.seed])
+
+    def variation(self, mass: float = 0.0, damping: float = 0.0,
+                  friction: float = 0.0) -> Variation:
+        """A Variation with each scale drawn uniformly within +-the given share (0.1: +-10%);
+        the nominal robot for the self-check."""
+        if self.local:
+            return Variation()
+        rng = self.rng
+        return Variation(*(float(1 + rng.uniform(-s, s)) for s in (mass, damping, friction)))
+
+    def run(self, target: Callable, *args, **kwargs):
+        """target(*args, **kwargs) in an isolated child under the exercise's limits (it loads
+        and runs the student's part); its return value. A failure there ends the grading of
+        this submission with 0 points and its reason."""
+        return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)
+
+    def simulate(self, duration: float, **kwargs):
+        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays."""
+        return self.run(simulate, duration, **kwargs)
+
+    def figure(self, name: str):
+        """A matplotlib figure saved as PLOTS/<seed>-<name>.png when grading with --plots."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(6, 3.5), tight_layout=True)
+        self._figures.append((name, fig))
+        return fig
+
+    def save_figures(self) -> list[Path]:
+        saved = []
+        if self.plots is not None:
+            self.plots.mkdir(parents=True, exist_ok=True)
+            for name, fig in self._figures:
+                path = self.plots / f"{self.exercise.name}-seed{self.seed}-{name}.png"
+                fig.savefig(path, dpi=80)
+                saved.append(path)
+        self._figures.clear()
+        return saved
+
+
+@dataclass
+class Result:
+    """A graded submission: its score and each check's (the worst over the seeds)."""
+
+    exercise: Exercise
+    submission: Path
+    score: float
+    checks: list[tuple[Check, float, float]]  # (check, score, max_score)
+    failure: str | None = None  # why the submission could not be graded (0 points)
+    output: str = ""  # the submission's own output, its tail, when it failed
+    plots: list[Path] = field(default_factory=list)
+
+    @property
+    def max_score(self) -> float:
+        return self.exercise.points
+
+    @property
+    def passed(self) -> bool:
+        return self.score >= self.exercise.pass_mark
+
+    @property
+    def failing(self) -> list[str]:
+        """The names of the checks that did not pass (the submission's failure if it had one)."""
+        if self.failure:
+            return ["runs"]
+        return [c.name for c, _, _ in self.checks if not c.passed]
+
+
+def grade(exercise: Exercise, submission: str | Path, local: bool = False,
+          plots: Path | None = None) -> Result:
+    """Grade `submission` (the student's file) on every seed of the exercise."""
+    submission = Path(submission)
+    if not submission.is_file():
+        raise InputError(f"no submission file {submission}",
+                         hint=f"hand in the exercise's {exercise.file}")
+    grader = exercise.grader()
+    per_seed: list[list[Check]] = []
+    saved: list[Path] = []
+    for seed in exercise.seeds:
+        ctx = GradeContext(exercise, submission.resolve(), seed, local, plots)
+        try:
+            checks = list(grader.grade(ctx))
+        except SubmissionFailed as exc:
+            return Result(exercise, submission, 0.0,
+                          [(Check("runs", 0.0, 1.0, exc.reason), 0.0, exercise.points)],
+                          exc.reason, exc.output)
+        saved += ctx.save_figures()
+        if not checks or not all(isinstance(c, Check) for c in checks):
+            raise InputError("grade(ctx) must return a non-empty list of Check",
+                             file=exercise.folder / "grader.py")
+        per_seed.append(checks)
+    combined: dict[str, Check] = {}
+    for checks in per_seed:  # the worst episode counts
+        for check in checks:
+            fraction = float(np.clip(np.nan_to_num(check.fraction), 0.0, 1.0))
+            seen = combined.get(check.name)
+            if seen is None or fraction < seen.fraction:
+                combined[check.name] = Check(check.name, fraction, check.weight,
+                                             check.output, check.visibility)
+    total = sum(max(c.weight, 0.0) for c in combined.values()) or 1.0
+    rows = []
+    for check in combined.values():
+        top = exercise.points * max(check.weight, 0.0) / total
+        rows.append((check, round(top * check.fraction, 4), round(top, 4)))
+    score = round(sum(s for _, s, _ in rows), 4)
+    return Result(exercise, submission, score, rows, plots=saved)
+
+
+def gradescope_json(result: Result) -> dict:
+    """Gradescope's results.json: score, max_score, output and one test per check."""
+    tests = []
+    for check, score, top in result.checks:
+        tests.append({"name": check.name, "score": score, "max_score": top,
+                      "output": check.output or ("passed" if check.passed else "failed"),
+                      "visibility": check.visibility, "status": "passed" if check.passed
+                      else "failed"})
+    summary = f"{result.exercise.title}: {result.score:g}/{result.max_score:g}"
+    if result.failure:
+        summary += f" -- {result.failure}"
+        if result.output.strip():
+            summary += "\n\nthe submission's output (its end):\n" + result.output
+    return {"score": result.score, "max_score": result.max_score, "output": summary,
+            "visibility": "visible", "stdout_visibility": "hidden", "tests": tests}
+
+
+def submissions_in(folder: Path, file: str) -> dict[str, Path]:
+    """A folder of submissions: each student a subfolder holding `file`, or a file of the
+    same kind (its stem is the student's name)."""
+    found = {}
+    suffix = Path(file).suffix
+    for entry in sorted(folder.iterdir()):
+        if entry.is_dir() and (entry / file).is_file():
+            found[entry.name] = entry / file
+        elif entry.is_file() and entry.suffix == suffix:
+            found[entry.stem] = entry
+    return found
+
+
+def write_csv(results: dict[str, Result], path: Path) -> None:
+    """One row per student: score, passed, each check's score, why it failed."""
+    names: list[str] = []
+    for result in results.values():
+        for check, _, _ in result.checks:
+            if check.name not in names and check.name != "runs":
+                names.append(check.name)
+    with open(path, "w", newline="") as f:
+        out = csv.writer(f)
+        out.writerow(["student", "score", "max_score", "passed", *names, "failing", "reason"])
+        for student, r in results.items():
+            by_name = {c.name: s for c, s, _ in r.checks}
+            out.writerow([student, f"{r.score:g}", f"{r.max_score:g}", "yes" if r.passed else "no",
+                          *(f"{by_name.get(n, 0):g}" for n in names), " ".join(r.failing),
+                          r.failure or ""])
+
+
+def as_text(result: Result) -> str:
+    """The report `mexone exercise grade` prints."""
+    lines = [f"{result.exercise.title} ({result.exercise.name}): {result.submission}"]
+    for check, score, top in result.checks:
+        mark = "PASS" if check.passed else "FAIL"
+        lines.append(f"  {mark} {check.name:<28} {score:6.2f}/{top:<6.2f} {check.output}")
+    if result.failure and result.output.strip():
+        lines.append("  the submission's output (its end):")
+        lines += ["    " + line for line in result.output.strip().splitlines()[-15:]]
+    for path in result.plots:
+        lines.append(f"  plot: {path}")
+    verdict = "passed" if result.passed else "not passed"
+    lines.append(f"score {result.score:g}/{result.max_score:g} ({verdict}; pass mark "
+                 f"{result.exercise.pass_mark:g})")
+    return "\n".join(lines)
+
+
+def dumps(data: dict) -> str:
+    return json.dumps(data, indent=2)
