@@ -1,49 +1,48 @@
-"""Course exercises 5-8 (issue 27): each one's reference solution scores full marks on the given
-robot and on a hidden variant, its starter scores low, a deliberately wrong solution scores below
-the pass mark with the failing check named, and the same submission graded twice scores the
-same. Graded in-process through each exercise's grader.py (the framework's sandbox aside)."""
+"""Course exercises 5-8 (issue 27), graded through the framework (`grade`, the student's part in
+an isolated child): each one's reference solution scores full marks on the given robot (the
+self-check) and on the hidden variant, its starter scores low, a deliberately wrong solution
+scores below the pass mark with the failing check named, and grading twice scores the same."""
 
 from __future__ import annotations
 
 import importlib.util
 from pathlib import Path
 
+import numpy as np
 import pytest
 
-from mexone.exercises.course._labtools import score
+from mexone.exercises import find_exercise, grade
 
 COURSE = Path(__file__).resolve().parents[2] / "src" / "mexone" / "exercises" / "course"
 WRONG = Path(__file__).resolve().parent / "wrong"
-PASS_MARK = 0.7
-SEED = 12345  # the hidden variant's seed in these tests
 
-# exercise folder, the check the wrong solution fails
-CASES = [("05_gravity_compensation", "holds the arm"),
-         ("06_computed_torque", "tracks the sine"),
-         ("07_task_space_impedance", "F/K up"),
-         ("08_balance_under_pushes", "survives 4.5 N s")]
+# exercise, the check its wrong solution fails
+CASES = [("gravity_compensation", "holds the arm"),
+         ("computed_torque", "tracks the sine"),
+         ("task_space_impedance", "F/K up"),
+         ("balance_under_pushes", "survives 4.5 N s")]
 
 
-def grader(folder: str):
-    spec = importlib.util.spec_from_file_location(f"grader_{folder}", COURSE / folder / "grader.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def failed(result) -> list[str]:
+    return [c.name for c, _, _ in result.checks if not c.passed]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("folder, failing", CASES, ids=[c[0] for c in CASES])
-def test_reference_full_starter_low_wrong_fails_its_check(folder, failing):
-    g = grader(folder)
-    here = COURSE / folder
-    assert g.variant(SEED) != g.variant(None)  # the hidden robot is not the given one
-    for seed in (None, SEED):
-        checks = g.grade(here / "solution", seed)
-        assert score(checks) == pytest.approx(1.0), [c.output for c in checks]
-    again = g.grade(here / "solution", SEED)
-    assert [c.output for c in again] == [c.output for c in checks]  # deterministic
-    starter = score(g.grade(here / "starter", SEED))
-    assert starter < 0.5, starter
-    wrong = g.grade(WRONG / folder, SEED)
-    assert score(wrong) < PASS_MARK, [c.output for c in wrong]
-    assert not next(c for c in wrong if c.name == failing).passed, [c.output for c in wrong]
+@pytest.mark.parametrize("name, failing", CASES, ids=[c[0] for c in CASES])
+def test_reference_full_starter_low_wrong_fails_its_check(name, failing):
+    exercise = find_exercise(name)
+    file = exercise.file
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", COURSE / name / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.variant(np.random.default_rng(1)) != module.variant(None)  # hidden != given
+    for local in (True, False):
+        result = grade(exercise, COURSE / name / "solution" / file, local=local)
+        assert result.score == pytest.approx(exercise.points), [c.output for c, _, _ in result.checks]
+    again = grade(exercise, COURSE / name / "solution" / file)
+    assert [c.output for c, _, _ in again.checks] == [c.output for c, _, _ in result.checks]
+    starter = grade(exercise, COURSE / name / "starter" / file)
+    assert starter.score < 0.5 * exercise.points, [c.output for c, _, _ in starter.checks]
+    wrong = grade(exercise, WRONG / name / file)
+    assert wrong.score < exercise.pass_mark, [c.output for c, _, _ in wrong.checks]
+    assert failing in failed(wrong), [c.output for c, _, _ in wrong.checks]

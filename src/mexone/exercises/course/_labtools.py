@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import shutil
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -15,11 +14,12 @@ import numpy as np
 import yaml
 
 from mexone.errors import InputError
+from mexone.exercises.grading import Check
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions, Spawn
 from mexone.robots import mex_one
 
-__all__ = ["Check", "rng", "student_yaml", "controller_lab", "scale_mass", "JointLog",
+__all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
            "controller_fault", "HAND", "HAND_POINT", "ARM", "score"]
 
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
@@ -27,43 +27,26 @@ HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, 
 ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
 
 
-@dataclass(frozen=True)
-class Check:
-    """One graded check: `fraction` of `weight` points earned, `output` says why (one line)."""
-
-    name: str
-    weight: float
-    fraction: float
-    output: str
-
-    @property
-    def score(self) -> float:
-        return self.weight * max(0.0, min(1.0, self.fraction))
-
-    @property
-    def passed(self) -> bool:
-        return self.fraction >= 1.0
+def check(name: str, weight: float, fraction: float, output: str) -> Check:
+    """A framework Check from (name, weight, share earned 0..1, why)."""
+    return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output)
 
 
 def score(checks: Sequence[Check]) -> float:
     """The share of all points earned, 0..1."""
     total = sum(c.weight for c in checks)
-    return sum(c.score for c in checks) / total if total else 0.0
+    return sum(c.weight * c.fraction for c in checks) / total if total else 0.0
 
 
-def rng(seed: int, exercise: str) -> np.random.Generator:
-    """The hidden variant's random numbers: from the grading seed and the exercise's name, so
-    two exercises graded with one seed draw different variants."""
-    return np.random.default_rng([int(seed) & 0xFFFFFFFF, *exercise.encode()])
-
-
-def student_yaml(workdir: Path, source: Path, cls: str, name: str, joints: Sequence[str],
-                 params: dict[str, float]) -> Path:
+def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
+                 joints: Sequence[str], params: dict[str, float]) -> Path:
     """A controllers YAML in `workdir`: the student's class `cls` of file `source` (copied next
-    to it) on `joints`, the shipped PID on every other joint."""
+    to it as `file`, whatever the student named it) on `joints`, the shipped PID on every other
+    joint."""
     if not source.is_file():
-        raise InputError(f"{source}: no such file", hint=f"the submission must hold {source.name}")
-    shutil.copyfile(source, workdir / source.name)
+        raise InputError(f"{source}: no such file", hint=f"hand in {file}")
+    shutil.copyfile(source, workdir / file)
+    source = workdir / file
     shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
     ns, controllers = next(iter(shipped.items()))
     kept = {k: v for k, v in controllers.items() if v.get("joint") not in joints}

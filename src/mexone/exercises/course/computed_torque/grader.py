@@ -13,11 +13,10 @@ import numpy as np
 
 from mexone.exercises.course._labtools import (
     HAND,
-    Check,
     JointLog,
+    check,
     controller_fault,
     controller_lab,
-    rng,
     scale_mass,
     student_yaml,
 )
@@ -34,10 +33,9 @@ GOOD, BAD = 3e-3, 15e-3  # rad RMS: full marks within GOOD, none beyond BAD
 RATIO = 5.0  # times closer than the shipped PIDs
 
 
-def variant(seed: int | None) -> dict:
-    if seed is None:
+def variant(r: np.random.Generator | None) -> dict:
+    if r is None:
         return GIVEN
-    r = rng(seed, NAME)
     return {"amplitude": float(r.uniform(0.3, 0.5)), "frequency": float(r.uniform(0.4, 0.7)),
             "payload": float(r.uniform(0.6, 0.8) if r.random() < 0.5 else r.uniform(1.3, 1.6))}
 
@@ -56,7 +54,7 @@ def rms(log: JointLog, var: dict) -> float:
 def student_rms(submission: Path, var: dict) -> tuple[float, str | None]:
     params = {"amplitude": var["amplitude"], "frequency": var["frequency"]}
     with tempfile.TemporaryDirectory() as tmp:
-        path = student_yaml(Path(tmp), submission / FILE, CLASS, NAME, JOINTS, params)
+        path = student_yaml(Path(tmp), submission, FILE, CLASS, NAME, JOINTS, params)
         lab = controller_lab(path, POSE, [scale_mass(HAND, var["payload"])])
         log = JointLog(lab, JOINTS)
         lab.sim.run(SECONDS)
@@ -79,18 +77,18 @@ def shipped_rms(var: dict) -> float:
     return rms(log, var)
 
 
-def grade(submission: Path, seed: int | None) -> list[Check]:
-    var = variant(seed)
-    error, fault = student_rms(submission, var)
-    shipped = shipped_rms(var)
-    runs = Check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
+def grade(ctx) -> list:
+    var = variant(None if ctx.local else ctx.rng)
+    error, fault = ctx.run(student_rms, ctx.submission, var)
+    shipped = ctx.run(shipped_rms, var)
+    runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
     frac = 0.0 if fault else float(np.clip((BAD - error) / (BAD - GOOD), 0.0, 1.0))
     what = (f"A {var['amplitude']:.2f} rad, f {var['frequency']:.2f} Hz, payload "
             f"x{var['payload']:.2f}")
-    track = Check("tracks the sine", 3.0, frac, f"RMS error {error * 1e3:.2f} mrad (full marks "
+    track = check("tracks the sine", 3.0, frac, f"RMS error {error * 1e3:.2f} mrad (full marks "
                   f"<= {GOOD * 1e3:g}, none >= {BAD * 1e3:g}), {what}")
     ratio = shipped / error if error > 0 else math.inf
-    beats = Check("beats the shipped PIDs", 1.0, 0.0 if fault else min(1.0, ratio / RATIO),
+    beats = check("beats the shipped PIDs", 1.0, 0.0 if fault else min(1.0, ratio / RATIO),
                   f"{ratio:.1f}x closer than the shipped PIDs ({shipped * 1e3:.2f} mrad RMS), "
                   f"{RATIO:g}x asked")
     return [runs, track, beats]

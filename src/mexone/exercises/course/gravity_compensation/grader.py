@@ -13,11 +13,10 @@ import numpy as np
 from mexone.exercises.course._labtools import (
     ARM,
     HAND,
-    Check,
     JointLog,
+    check,
     controller_fault,
     controller_lab,
-    rng,
     scale_mass,
     student_yaml,
 )
@@ -30,11 +29,10 @@ SECONDS = 1.0
 HOLD, SAG = 2e-3, 20e-3  # rad: full marks within HOLD, none beyond SAG
 
 
-def variant(seed: int | None) -> dict:
+def variant(r: np.random.Generator | None) -> dict:
     """The given arm (seed None, what `start` shows) or the hidden one drawn from the seed."""
-    if seed is None:
-        return GIVEN
-    r = rng(seed, NAME)  # always away from the given arm: lighter or heavier, another pose
+    if r is None:
+        return GIVEN  # always away from the given arm: lighter or heavier, another pose
     side = r.choice([-1.0, 1.0], size=2)
     return {"pose": {"l_shoulder_pitch": -1.2 + side[0] * float(r.uniform(0.2, 0.35)),
                      "l_elbow": -0.6 + side[1] * float(r.uniform(0.2, 0.3))},
@@ -44,7 +42,7 @@ def variant(seed: int | None) -> dict:
 def measure(submission: Path, var: dict) -> tuple[float, str | None]:
     """The arm's largest joint error (rad) over SECONDS, and the controller's fault if any."""
     with tempfile.TemporaryDirectory() as tmp:
-        path = student_yaml(Path(tmp), submission / FILE, CLASS, NAME, ARM, {"kp": KP, "kd": KD})
+        path = student_yaml(Path(tmp), submission, FILE, CLASS, NAME, ARM, {"kp": KP, "kd": KD})
         lab = controller_lab(path, var["pose"], [scale_mass(HAND, var["payload"])])
         start = lab.sim.data.qpos[[int(lab.sim.model.joint(j).qposadr[0]) for j in ARM]].copy()
         log = JointLog(lab, ARM)
@@ -52,12 +50,12 @@ def measure(submission: Path, var: dict) -> tuple[float, str | None]:
         return float(np.abs(np.array(log.q) - start).max()), controller_fault(lab, NAME)
 
 
-def grade(submission: Path, seed: int | None) -> list[Check]:
-    var = variant(seed)
-    sag, fault = measure(submission, var)
-    runs = Check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
+def grade(ctx) -> list:
+    var = variant(None if ctx.local else ctx.rng)
+    sag, fault = ctx.run(measure, ctx.submission, var)
+    runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
     frac = 0.0 if fault else float(np.clip((SAG - sag) / (SAG - HOLD), 0.0, 1.0))
-    hold = Check("holds the arm", 4.0, frac,
+    hold = check("holds the arm", 4.0, frac,
                  f"largest joint error {sag * 1e3:.2f} mrad (full marks <= {HOLD * 1e3:g}, none "
                  f">= {SAG * 1e3:g}) at kp {KP:g}, payload x{var['payload']:.2f}")
     return [runs, hold]

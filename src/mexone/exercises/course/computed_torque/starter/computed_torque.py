@@ -27,5 +27,5 @@ class ComputedTorque(PythonController):
         q_ref = self.q0 + self.amplitude * math.sin(w * (t - self.t0))
         dq_ref = np.full_like(self.q0, self.amplitude * w * math.cos(w * (t - self.t0)))
         gravity = self.dynamics.gravity()[self.dofs]
-        # TODO: computed torque. These PD gains, in N m/rad, lag the sine by tens of mrad.
-        return gravity + 20.0 * (q_ref - state.q) + 1.0 * (dq_ref - state.dq)
+        # TODO: computed torque. This weak PD (N m/rad, N m s/rad) lags the sine by far.
+        return gravity + 5.0 * (q_ref - state.q) + 0.5 * (dq_ref - state.dq)

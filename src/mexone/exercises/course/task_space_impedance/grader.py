@@ -14,10 +14,9 @@ from mexone.exercises.course._labtools import (
     ARM,
     HAND,
     HAND_POINT,
-    Check,
+    check,
     controller_fault,
     controller_lab,
-    rng,
     scale_mass,
     student_yaml,
 )
@@ -31,10 +30,9 @@ TOLERANCE, NONE = 0.10, 0.30  # relative error of F/K: full marks within, none b
 BACK = 8e-3  # m: the hand returns within this after the push
 
 
-def variant(seed: int | None) -> dict:
-    if seed is None:
+def variant(r: np.random.Generator | None) -> dict:
+    if r is None:
         return GIVEN
-    r = rng(seed, NAME)
     return {"stiffness": float(r.uniform(120.0, 300.0)), "force": float(r.uniform(6.0, 12.0)),
             "payload": float(r.uniform(0.6, 0.8) if r.random() < 0.5 else r.uniform(1.3, 1.6))}
 
@@ -44,7 +42,7 @@ def measure(submission: Path, var: dict) -> tuple[dict[str, float], float, str |
     last 0.5 s); the largest distance from its start 0.5 s after the pushes; the fault if any."""
     params = {"stiffness": var["stiffness"], "damping": 0.1 * var["stiffness"]}
     with tempfile.TemporaryDirectory() as tmp:
-        path = student_yaml(Path(tmp), submission / FILE, CLASS, NAME, ARM, params)
+        path = student_yaml(Path(tmp), submission, FILE, CLASS, NAME, ARM, params)
         lab = controller_lab(path, POSE, [scale_mass(HAND, var["payload"])])
     sim = lab.sim
     body = sim.body_id(HAND)
@@ -68,19 +66,19 @@ def measure(submission: Path, var: dict) -> tuple[dict[str, float], float, str |
     return moved, back, controller_fault(lab, NAME)
 
 
-def grade(submission: Path, seed: int | None) -> list[Check]:
-    var = variant(seed)
-    moved, back, fault = measure(submission, var)
+def grade(ctx) -> list:
+    var = variant(None if ctx.local else ctx.rng)
+    moved, back, fault = ctx.run(measure, ctx.submission, var)
     expected = var["force"] / var["stiffness"]
-    checks = [Check("runs", 1.0, 0.0 if fault else 1.0, fault or "ran the pushes without a fault")]
+    checks = [check("runs", 1.0, 0.0 if fault else 1.0, fault or "ran the pushes without a fault")]
     for name, value in moved.items():
         err = abs(value / expected - 1)
-        checks.append(Check(f"F/K {name}", 2.0, 0.0 if fault else float(
+        checks.append(check(f"F/K {name}", 2.0, 0.0 if fault else float(
             np.clip((NONE - err) / (NONE - TOLERANCE), 0.0, 1.0)),
             f"{var['force']:.1f} N {name} moved the hand {value * 1e3:.1f} mm; F/K = "
             f"{expected * 1e3:.1f} mm (K {var['stiffness']:.0f} N/m), off by {err:.0%} "
             f"(full marks within {TOLERANCE:.0%}, none beyond {NONE:.0%})"))
-    checks.append(Check("springs back", 1.0, 0.0 if fault or back > BACK else 1.0,
+    checks.append(check("springs back", 1.0, 0.0 if fault or back > BACK else 1.0,
                         f"the hand ended {back * 1e3:.1f} mm from where it was pushed from "
                         f"(<= {BACK * 1e3:g} mm asked)"))
     return checks

@@ -11,12 +11,12 @@ import tempfile
 from pathlib import Path
 
 import mujoco
+import numpy as np
 
 from mexone.exercises.course._labtools import (
-    Check,
+    check,
     controller_fault,
     controller_lab,
-    rng,
     scale_mass,
     student_yaml,
 )
@@ -32,10 +32,9 @@ SCAN = (5.0, 5.5)  # N s: then these, in order, until a fall; full marks at the 
 TRIAL = PushTrial(direction=(1.0, 0.0, 0.0), settle=0.5, after=2.0)
 
 
-def variant(seed: int | None) -> dict:
-    if seed is None:
+def variant(r: np.random.Generator | None) -> dict:
+    if r is None:
         return GIVEN
-    r = rng(seed, NAME)
     return {"torso": float(r.uniform(0.75, 0.85) if r.random() < 0.5 else r.uniform(1.2, 1.35))}
 
 
@@ -46,12 +45,12 @@ def mass_ratio(var: dict) -> float:
     return mujoco.mj_getTotalmass(variant_lab.sim.model) / mujoco.mj_getTotalmass(given.sim.model)
 
 
-def grade(submission: Path, seed: int | None) -> list[Check]:
-    var = variant(seed)
-    scale = mass_ratio(var)
+def trials(submission: Path, var: dict, scale: float) -> tuple[bool, float, str | None]:
+    """In the isolated child: the push at PASS, then SCAN until a fall -> (PASS survived, the
+    largest survived, the controller's first fault)."""
     faults: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
-        path = student_yaml(Path(tmp), submission / FILE, CLASS, NAME, JOINTS, {})
+        path = student_yaml(Path(tmp), submission, FILE, CLASS, NAME, JOINTS, {})
 
         def make_lab():
             lab = controller_lab(path, {}, [scale_mass("torso", var["torso"])])
@@ -72,12 +71,18 @@ def grade(submission: Path, seed: int | None) -> list[Check]:
             if not trial(impulse):
                 break
             largest = impulse
-    fault = faults[0] if faults else None
+    return passed, largest, (faults[0] if faults else None)
+
+
+def grade(ctx) -> list:
+    var = variant(None if ctx.local else ctx.rng)
+    scale = mass_ratio(var)
+    passed, largest, fault = ctx.run(trials, ctx.submission, var, scale)
     what = (f"torso x{var['torso']:.2f}, pushed forward at the torso over 0.1 s, every push x"
             f"{scale:.3f}, the robot's mass ratio")
-    return [Check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault in any trial"),
-            Check(f"survives {PASS:g} N s", 3.0, 1.0 if passed else 0.0,
+    return [check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault in any trial"),
+            check(f"survives {PASS:g} N s", 3.0, 1.0 if passed else 0.0,
                   f"{'stood' if passed else 'fell'} after {PASS:g} N s ({what})"),
-            Check("largest push", 2.0, (largest - PASS) / (SCAN[-1] - PASS) if passed else 0.0,
+            check("largest push", 2.0, (largest - PASS) / (SCAN[-1] - PASS) if passed else 0.0,
                   f"survived every push up to {largest:g} N s of {PASS:g}, "
                   f"{', '.join(f'{s:g}' for s in SCAN)} (full marks at {SCAN[-1]:g})")]
