@@ -1,4 +1,4 @@
-"""Course exercises 5-8 (issue 27), graded through the framework (`grade`, the student's part in
+"""Course exercises 5-10 (issue 27), graded through the framework (`grade`, the student's part in
 an isolated child): each one's reference solution scores full marks on the given robot (the
 self-check) and on the hidden variant, its starter scores low, a deliberately wrong solution
 scores below the pass mark with the failing check named, and grading twice scores the same."""
@@ -20,7 +20,8 @@ WRONG = Path(__file__).resolve().parent / "wrong"
 CASES = [("gravity_compensation", "holds the arm"),
          ("computed_torque", "tracks the sine"),
          ("task_space_impedance", "F/K up"),
-         ("balance_under_pushes", "survives 4.5 N s")]
+         ("balance_under_pushes", "survives 4.5 N s"),
+         ("walk_course", "stays up")]
 
 
 def failed(result) -> list[str]:
