@@ -21,7 +21,8 @@ CASES = [("gravity_compensation", "holds the arm"),
          ("computed_torque", "tracks the sine"),
          ("task_space_impedance", "F/K up"),
          ("balance_under_pushes", "survives 4.5 N s"),
-         ("walk_course", "stays up")]
+         ("walk_course", "stays up"),
+         ("identify_damping", "damping")]
 
 
 def failed(result) -> list[str]:
