@@ -13,14 +13,15 @@ import mujoco
 import numpy as np
 import yaml
 
-from mexone.errors import InputError
+from mexone.errors import InputError, MexoneError
 from mexone.exercises.grading import Check
+from mexone.exercises.isolate import SubmissionFailed
 from mexone.lab import Lab
 from mexone.physics.compile import CompileOptions, Spawn
 from mexone.robots import mex_one
 
 __all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
-           "controller_fault", "HAND", "HAND_POINT", "ARM", "score"]
+           "controller_fault", "HAND", "HAND_POINT", "ARM"]
 
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
 HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
@@ -32,19 +33,13 @@ def check(name: str, weight: float, fraction: float, output: str) -> Check:
     return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output)
 
 
-def score(checks: Sequence[Check]) -> float:
-    """The share of all points earned, 0..1."""
-    total = sum(c.weight for c in checks)
-    return sum(c.weight * c.fraction for c in checks) / total if total else 0.0
-
-
 def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
                  joints: Sequence[str], params: dict[str, float]) -> Path:
     """A controllers YAML in `workdir`: the student's class `cls` of file `source` (copied next
     to it as `file`, whatever the student named it) on `joints`, the shipped PID on every other
     joint."""
     if not source.is_file():
-        raise InputError(f"{source}: no such file", hint=f"hand in {file}")
+        raise SubmissionFailed(InputError(f"{source}: no such file", hint=f"hand in {file}").one_line())
     shutil.copyfile(source, workdir / file)
     source = workdir / file
     shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
@@ -69,8 +64,12 @@ def scale_mass(body: str, factor: float) -> Callable:
 def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Callable] = (),
                    fixed_base: bool = False) -> Lab:
     """Mex-One with the controllers of `yaml_path`, its joints at `pose`, the variant's edits."""
-    return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
-                      edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+    try:
+        return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
+                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+    except MexoneError as exc:  # the student's class did not load: its one line is the reason
+        raise SubmissionFailed(exc.one_line().replace(str(yaml_path), "the grader's "
+                                                      "controllers.yaml")) from None
 
 
 def controller_fault(lab: Lab, name: str) -> str | None:
