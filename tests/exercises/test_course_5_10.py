@@ -50,3 +50,21 @@ def test_reference_full_starter_low_wrong_fails_its_check(name, failing, thoroug
     wrong = grade(exercise, WRONG / name / file)
     assert wrong.score < exercise.pass_mark, [c.output for c, _, _ in wrong.checks]
     assert failing in failed(wrong), [c.output for c, _, _ in wrong.checks]
+
+
+@pytest.mark.parametrize("text, reason", [
+    ("x = 1\n", "has no class 'GravityCompensation'"),
+    ("from mexone.control import Param, PythonController\n\n\n"
+     "class GravityCompensation(PythonController):\n    command_interface = 'effort'\n"
+     "    kp = Param(5.0)\n    kd = Param(0.5)\n\n    def update(self, state, t, dt):\n"
+     "        raise ValueError('oops')\n", "ValueError: oops"),
+], ids=["no class", "update raises"])
+def test_a_controller_that_does_not_load_or_raises_scores_zero_with_its_line(tmp_path, text, reason):
+    exercise = find_exercise("gravity_compensation")
+    submission = tmp_path / "mine.py"  # any name: the grader copies it under the one it needs
+    submission.write_text(text)
+    result = grade(exercise, submission)
+    assert result.score == 0, [c.output for c, _, _ in result.checks]
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    assert reason in runs.output and "Traceback" not in runs.output
+    assert "/tmp" not in runs.output  # the student's file by its name, not the grader's copy

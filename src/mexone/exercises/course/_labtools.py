@@ -5,6 +5,7 @@ controller loader (the framework's sandbox decides which process that is)."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -77,8 +78,8 @@ def controller_fault(lab: Lab, name: str) -> str | None:
     ctrl = lab.controllers.controllers.get(name)
     if ctrl is None:
         return f"controller {name} was not loaded"
-    if getattr(ctrl, "fault", None):
-        return str(ctrl.fault)
+    if getattr(ctrl, "fault", None):  # the student's file named without the grader's temp folder
+        return re.sub(r"(?:/[^/\s:]+)+/([^/\s:]+\.py)", r"\1", str(ctrl.fault))
     if not ctrl.running:
         return f"controller {name} stopped"
     return None
