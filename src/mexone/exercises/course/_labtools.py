@@ -1,7 +1,7 @@
 """What the graders of course exercises 5-10 share: a lab with the student's controller on some
-joints (the shipped PIDs on the rest), the hidden variant drawn from the grading seed, a check's
-result. The graders run in the grading process; the student's code is imported by the lab's
-controller loader (the framework's sandbox decides which process that is)."""
+joints (the shipped PIDs on the rest), a heavier or lighter link for the hidden variant, the
+controller's fault, a check. grade(ctx) runs in the grading process and draws the variant there;
+these helpers run inside ctx.run's isolated child, where the lab imports the student's file."""
 
 from __future__ import annotations
 

@@ -30,7 +30,7 @@ HOLD, SAG = 2e-3, 20e-3  # rad: full marks within HOLD, none beyond SAG
 
 
 def variant(r: np.random.Generator | None) -> dict:
-    """The given arm (seed None, what `start` shows) or the hidden one drawn from the seed."""
+    """The given arm (r None: the self-check) or the hidden one drawn from the secret seed."""
     if r is None:
         return GIVEN  # always away from the given arm: lighter or heavier, another pose
     side = r.choice([-1.0, 1.0], size=2)

@@ -5,8 +5,9 @@ for the left elbow. The bag is made here, by the grader, from the seed: Mex-One 
 
 Why generated and not shipped: a recorded bag is about 0.75 MB per second (3 MB for these 4 s),
 over what the repository should hold, and a fixed bag fixes the answer -- a student could hand in
-the number. Drawn from the seed, the truth is new for every grading; the self-check (--local)
-makes the given bag (the truth 2.5x the URDF's 0.2)."""
+the number. The truth comes from the exercise's secret seed (and the teacher's
+$MEXONE_EXERCISE_SECRET), which the student never sees; the self-check (--local) records the
+given bag (the truth 2.5x the URDF's 0.2)."""
 
 from __future__ import annotations
 
