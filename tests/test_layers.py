@@ -21,7 +21,7 @@ FRONT_END_ORDER = (
     {"lab"},
     {"routines"},
     {"rospy", "motion", "record", "ros1", "bench"},
-    {"sweep", "identify", "gui"},
+    {"sweep", "identify", "gui", "exercises"},
     {"editor"},
     {"cli"},
     {"__main__"},

@@ -20,9 +20,9 @@ __all__ = ["Exercise", "SUBMISSION_KINDS", "load_exercise", "find_exercise", "ex
 
 COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
-SUBMISSION_KINDS = ("routine", "controller", "gains", "urdf", "json")
+SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json")
 _FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
-           "secret_seed", "submission", "file", "summary"}
+           "secret_seed", "submission", "file", "summary", "number"}
 
 
 @dataclass(frozen=True)
@@ -40,6 +40,7 @@ class Exercise:
     secret_seed: int  # draws the hidden variation (mixed with $MEXONE_EXERCISE_SECRET)
     limits: Limits
     summary: str = ""
+    number: int | None = None  # its place in a course (`exercise list` sorts by it)
 
     @property
     def statement(self) -> Path:
@@ -122,14 +123,28 @@ def load_exercise(folder: str | Path) -> Exercise:
     return Exercise(folder.resolve(), name, str(data.get("title", name)), float(points),
                     float(pass_mark), kind, file, tuple(seeds),
                     int(_number(data, "secret_seed", path, 0, 2**63, default=0, integer=True)),
-                    limits, str(data.get("summary", "")))
+                    limits, str(data.get("summary", "")),
+                    None if data.get("number") is None else
+                    int(_number(data, "number", path, 0, 10000, integer=True)))
+
+
+def _course_order(folder: Path) -> tuple:
+    """A shipped exercise's place: its exercise.yaml's `number:` (read without checks: a
+    broken one is listed as broken), then its name."""
+    try:
+        data = yamlio.load(read_input_text(folder / "exercise.yaml"))
+        number = data.get("number") if isinstance(data, dict) else None
+    except Exception:  # noqa: BLE001 - `exercise list` shows why it is broken
+        number = None
+    return (number if isinstance(number, int) else 10**6, folder.name)
 
 
 def exercises() -> dict[str, Path]:
     """Every exercise by name: the shipped course, then the entry points' (a teacher's package
     declares `[project.entry-points."mexone.exercises"] name = "package.module"`, the module's
     folder being the exercise's, or "package:FOLDER" for a folder inside it)."""
-    found = {p.name: p for p in sorted(COURSE.iterdir()) if (p / "exercise.yaml").is_file()}
+    found = {p.name: p for p in sorted(COURSE.iterdir(), key=_course_order)
+             if (p / "exercise.yaml").is_file()}
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:
             module, _, sub = ep.value.partition(":")

@@ -10,6 +10,9 @@ import csv
 import hashlib
 import json
 import os
+import shutil
+import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,6 +74,7 @@ class GradeContext:
     local: bool = False  # the self-check: no hidden variation
     plots: Path | None = None  # where ctx.figure()s are saved (grade --plots DIR)
     _figures: list = field(default_factory=list, repr=False)
+    _scratch: Path | None = field(default=None, repr=False)
 
     @property
     def rng(self) -> np.random.Generator:
@@ -91,7 +95,7 @@ class GradeContext:
         return Variation(*(float(1 + rng.uniform(-s, s)) for s in (mass, damping, friction)))
 
     def run(self, target: Callable, *args, **kwargs):
-        """target(*args, **kwargs) in an isolated child under the exercise's limits (it loads
+        """`target(*args, **kwargs)` in an isolated child under the exercise's limits (it loads
         and runs the student's part); its return value. A failure there ends the grading of
         this submission with 0 points and its reason."""
         return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)
@@ -99,6 +103,23 @@ class GradeContext:
     def simulate(self, duration: float, **kwargs):
         """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays."""
         return self.run(simulate, duration, **kwargs)
+
+    def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:
+        """A scratch folder holding a copy of the submission (named `as_name`, default its own
+        name) and `files` (name: text), e.g. a controller YAML whose `type: my_law/MyLaw`
+        finds the student's my_law.py next to it; the folder's path. Removed after grading."""
+        if self._scratch is None:
+            self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-"))
+        folder = Path(tempfile.mkdtemp(dir=self._scratch))
+        shutil.copyfile(self.submission, folder / (as_name or self.submission.name))
+        for name, text in files.items():
+            (folder / name).write_text(text)
+        return folder
+
+    def cleanup(self) -> None:
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
 
     def figure(self, name: str):
         """A matplotlib figure saved as PLOTS/<seed>-<name>.png when grading with --plots."""
@@ -134,6 +155,7 @@ class Result:
     failure: str | None = None  # why the submission could not be graded (0 points)
     output: str = ""  # the submission's own output, its tail, when it failed
     plots: list[Path] = field(default_factory=list)
+    seconds: float = 0.0  # wall time the grading took
 
     @property
     def max_score(self) -> float:
@@ -159,6 +181,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
     grader = exercise.grader()
+    began = time.monotonic()
     per_seed: list[list[Check]] = []
     saved: list[Path] = []
     for seed in exercise.seeds:
@@ -168,7 +191,9 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         except SubmissionFailed as exc:
             return Result(exercise, submission, 0.0,
                           [(Check("runs", 0.0, 1.0, exc.reason), 0.0, exercise.points)],
-                          exc.reason, exc.output)
+                          exc.reason, exc.output, seconds=time.monotonic() - began)
+        finally:
+            ctx.cleanup()
         saved += ctx.save_figures()
         if not checks or not all(isinstance(c, Check) for c in checks):
             raise InputError("grade(ctx) must return a non-empty list of Check",
@@ -187,12 +212,17 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     for check in combined.values():
         top = exercise.points * max(check.weight, 0.0) / total
         rows.append((check, round(top * check.fraction, 4), round(top, 4)))
-    score = round(sum(s for _, s, _ in rows), 4)
-    return Result(exercise, submission, score, rows, plots=saved)
+    score = round(exercise.points * sum(max(c.weight, 0.0) * c.fraction
+                                        for c in combined.values()) / total, 4)
+    return Result(exercise, submission, score, rows, plots=saved,
+                  seconds=time.monotonic() - began)
 
 
 def gradescope_json(result: Result) -> dict:
-    """Gradescope's results.json: score, max_score, output and one test per check."""
+    """Gradescope's results.json (its documented fields only: score, execution_time, output,
+    visibility, stdout_visibility, extra_data and one test per check with score, max_score,
+    status, name, output, visibility); the exercise's maximum is each test's max_score summed,
+    and in extra_data."""
     tests = []
     for check, score, top in result.checks:
         tests.append({"name": check.name, "score": score, "max_score": top,
@@ -204,8 +234,12 @@ def gradescope_json(result: Result) -> dict:
         summary += f" -- {result.failure}"
         if result.output.strip():
             summary += "\n\nthe submission's output (its end):\n" + result.output
-    return {"score": result.score, "max_score": result.max_score, "output": summary,
-            "visibility": "visible", "stdout_visibility": "hidden", "tests": tests}
+    return {"score": result.score, "execution_time": max(0, round(result.seconds)),
+            "output": summary, "visibility": "visible", "stdout_visibility": "hidden",
+            "tests": tests,
+            "extra_data": {"exercise": result.exercise.name, "max_score": result.max_score,
+                           "pass_mark": result.exercise.pass_mark, "passed": result.passed,
+                           "failure": result.failure}}
 
 
 def submissions_in(folder: Path, file: str) -> dict[str, Path]:

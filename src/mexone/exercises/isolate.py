@@ -26,6 +26,7 @@ from mexone.routines import processes
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated"]
 
+TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
 
 
@@ -58,7 +59,7 @@ def _limit(limits: Limits) -> None:
 
 
 def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
-    """target(*args, **kwargs) in a child process under `limits`; its return value (picklable).
+    """`target(*args, **kwargs)` in a child process under `limits`; its return value (picklable).
     Raises SubmissionFailed(reason) if it raised, ended the process, was killed or ran out of
     time. `target` must be importable code of the grader's, never the student's: it is the one
     that loads and runs the student's part."""
@@ -77,9 +78,14 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
             os.dup2(null, 0)
             os.dup2(out.fileno(), 1)
             os.dup2(out.fileno(), 2)
+            sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
+            sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
             _limit(limits)
             try:
                 payload = ("ok", target(*args, **kwargs))
+                for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
+                    with contextlib.suppress(Exception):
+                        stream.flush()
             except SubmissionFailed as exc:
                 payload = ("failed", exc.reason)
             except MemoryError:
@@ -94,6 +100,9 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
         except BaseException:  # noqa: BLE001
             code = 3
         finally:
+            for stream in (sys.stdout, sys.stderr):
+                with contextlib.suppress(Exception):
+                    stream.flush()
             os._exit(code)
     os.close(write_fd)
     with contextlib.suppress(OSError):
@@ -114,8 +123,11 @@ def _collect(pid: int, fd: int, out, limits: Limits):
         left = deadline - time.monotonic()
         if left <= 0:
             timed_out = True
-            _kill(pid)
-            _, status = os.waitpid(pid, 0)
+            _signal_group(pid)
+            try:
+                _, status = os.waitpid(pid, 0)
+            except ChildProcessError:  # reaped already
+                status = signal.SIGKILL
             break
         if select.select([fd], [], [], min(left, 0.05))[0]:
             data = os.read(fd, 1 << 16)
@@ -152,6 +164,9 @@ def _collect(pid: int, fd: int, out, limits: Limits):
                                output) from None
     if kind == "failed":
         raise SubmissionFailed(value, output)
+    if TRACEBACK in output:  # it caught its own error and printed it: a crash all the same
+        last = [line for line in output.splitlines() if line.strip()][-1].strip()
+        raise SubmissionFailed(f"the submission printed a traceback ({last[:200]})", output)
     return value
 
 
@@ -162,11 +177,16 @@ def _read_rest(fd: int) -> bytes:
     return b""
 
 
-def _kill(pid: int) -> None:
+def _signal_group(pid: int) -> None:
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(pid, signal.SIGKILL)
     with contextlib.suppress(ProcessLookupError):
         os.kill(pid, signal.SIGKILL)
+
+
+def _kill(pid: int) -> None:
+    """End the run's process group: whatever the submission started goes with it."""
+    _signal_group(pid)
     with contextlib.suppress(Exception):
         left = processes.group(pid)
         if left:

@@ -1,0 +1,43 @@
+"""PID to a specification: the grader's step.py steps l_elbow from 0 to -1 rad at 0.5 s; the
+student's controller YAML must meet SPEC on a robot with hidden mass and damping changes.
+The metrics are mexone's own (control/metrics.py), as `mexone run` reports them."""
+
+from pathlib import Path
+
+import numpy as np
+
+from mexone.control.metrics import overshoot, rise_time, settling_time
+from mexone.exercises import Check
+
+STEP = Path(__file__).resolve().parent / "step.py"
+JOINT, AT, TARGET = "l_elbow", 0.5, -1.0
+DURATION = 2.0
+SPEC = {"rise time": 0.1, "overshoot": 0.05, "settling time": 0.3, "steady-state error": 0.003}
+
+
+def grade(ctx):
+    variation = ctx.variation(mass=0.1, damping=0.3)
+    run = ctx.simulate(DURATION, routine=STEP, controllers=ctx.submission, variation=variation)
+    _, q = run.joint(JOINT)
+    after = run.t >= AT
+    t, q = run.t[after] - AT, q[after]
+    ok = bool(np.isfinite(q).all())
+    rise = rise_time(t, q, 0.0, TARGET) if ok else None
+    over = overshoot(q, 0.0, TARGET) if ok else None
+    settle = settling_time(t, q, TARGET, TARGET) if ok else None
+    error = float(np.abs(q[t >= t[-1] - 0.5] - TARGET).max()) if ok else None
+    fig = ctx.figure("step")
+    ax = fig.add_subplot()
+    ax.plot(t, q, label=JOINT)
+    ax.axhline(TARGET, color="k", lw=0.5)
+    ax.set_xlabel("time after the step (s)")
+    ax.set_ylabel("rad")
+    return [
+        Check.true("stays upright", run.fell_at is None,
+                   "stood" if run.fell_at is None else f"fell at {run.fell_at:.2f} s"),
+        Check.at_most("rise time", rise, SPEC["rise time"], " s", weight=2),
+        Check.at_most("overshoot", None if over is None else over * 100,
+                      SPEC["overshoot"] * 100, " %", weight=2),
+        Check.at_most("settling time", settle, SPEC["settling time"], " s", weight=2),
+        Check.at_most("steady-state error", error, SPEC["steady-state error"], " rad", weight=2),
+    ]

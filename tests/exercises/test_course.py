@@ -1,0 +1,86 @@
+"""The shipped exercises 1-4: the reference scores full marks, the starter low, a deliberately
+wrong solution below the pass mark with the failing check named; grading is repeatable."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from mexone.exercises import find_exercise, grade
+
+COURSE = ("model_checks", "home_hold", "pid_spec", "arms_routine")
+
+
+def _wrong_model_checks(ex, folder: Path) -> Path:
+    """COM and inertia fixed, but the misplaced foot collision deleted instead of moved: check
+    is silent, the fall is not the reference's."""
+    text = ex.starter.read_text()
+    text = text.replace('<origin xyz="0.01 0.3 0.13"', '<origin xyz="0.01 0 0.13"')
+    text = text.replace('izz="0.08"', 'izz="0.0008"')
+    start = text.index('<collision name="l_foot_collision_0">')
+    end = text.index("</collision>", start) + len("</collision>")
+    return _write(folder / ex.file, text[:start] + text[end:])
+
+
+def _scaled_gains(text: str, p: float, d: float) -> str:
+    text = re.sub(r"(\n\s+p: )([0-9.]+)", lambda m: f"{m.group(1)}{float(m.group(2)) * p:g}", text)
+    return re.sub(r"(\n\s+d: )([0-9.]+)", lambda m: f"{m.group(1)}{float(m.group(2)) * d:g}", text)
+
+
+def _wrong_home_hold(ex, folder: Path) -> Path:
+    """Gains a fifth of the reference's: it stands, but sags off home."""
+    return _write(folder / ex.file, _scaled_gains(ex.solution.read_text(), 0.2, 1.0))
+
+
+def _wrong_pid_spec(ex, folder: Path) -> Path:
+    """Fast and stiff but with no derivative gain: it overshoots."""
+    text = re.sub(r"(l_elbow\n    pid:\n      p: )[0-9.]+(\n      i: )[0-9.]+(\n      d: )[0-9.]+",
+                  r"\g<1>150.0\g<2>0.0\g<3>0.0", ex.solution.read_text())
+    return _write(folder / ex.file, text)
+
+
+def _wrong_arms_routine(ex, folder: Path) -> Path:
+    """The seed's Listing 4.2 mistake: the poses in degrees, sent as radians."""
+    text = ex.solution.read_text().replace("for joint, value in zip(JOINTS, command(",
+                                           "for joint, value in zip(JOINTS, command_deg(")
+    text = text.replace("\n\nwhile not", "\n\ndef command_deg(t):\n"
+                        "    return [math.degrees(v) for v in command(t)]\n\n\nwhile not")
+    return _write(folder / ex.file, "import math\n" + text)
+
+
+WRONG = {"model_checks": (_wrong_model_checks, {"fall time like the reference",
+                                                "rest pose like the reference"}),
+         "home_hold": (_wrong_home_hold, {"holds home"}),
+         "pid_spec": (_wrong_pid_spec, {"overshoot"}),
+         "arms_routine": (_wrong_arms_routine, {"pose 1 at 1.5-2 s"})}
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("name", COURSE)
+def test_reference_full_marks_starter_low_wrong_named(name, tmp_path):
+    ex = find_exercise(name)
+    reference = grade(ex, ex.solution)
+    assert reference.failure is None, reference.failure
+    assert reference.score == ex.points, [(c.name, c.output) for c, _, _ in reference.checks]
+    starter = grade(ex, ex.starter)
+    assert starter.score <= 0.4 * ex.points, starter.score
+    make, failing = WRONG[name]
+    wrong = grade(ex, make(ex, tmp_path))
+    assert wrong.failure is None, wrong.failure
+    assert wrong.score < ex.pass_mark and not wrong.passed
+    assert failing <= set(wrong.failing), wrong.failing
+
+
+def test_same_submission_same_score_and_hidden_variation_differs():
+    ex = find_exercise("home_hold")
+    first, second = grade(ex, ex.solution), grade(ex, ex.solution)
+    assert [(c.name, c.output, s) for c, s, _ in first.checks] == \
+        [(c.name, c.output, s) for c, s, _ in second.checks]
+    local = grade(ex, ex.solution, local=True)  # the nominal robot: other numbers
+    assert [c.output for c, _, _ in local.checks] != [c.output for c, _, _ in first.checks]

@@ -1,0 +1,136 @@
+"""A submission that loops, exits, raises, prints a traceback or allocates 10 GB: 0 points with
+the reason, within the time limit + 10 s, and the grader goes on (exit status 0)."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from helpers import run_cli
+from mexone.exercises import Limits, SubmissionFailed, find_exercise, grade, run_isolated
+
+SCHEMA = json.loads((Path(__file__).parent.parent / "data" / "exercises" /
+                     "gradescope_results.schema.json").read_text())
+
+HOSTILE = {  # routine text: a piece of the reason it must get
+    "loop": ("from mexone import rospy\nrospy.init_node('x')\nwhile True:\n    pass\n",
+             "did not yield"),
+    "os_exit": ("import os\nos._exit(3)\n", "os._exit(3)"),
+    "posix_exit": ("import posix\nposix._exit(0)\n", "ended the grading process"),
+    "raises": ("from mexone import rospy\nrospy.init_node('x')\nraise ValueError('boom')\n",
+               "ValueError: boom"),
+    "traceback": ("import traceback\ntry:\n    1 / 0\nexcept Exception:\n"
+                  "    traceback.print_exc()\n", "printed a traceback"),
+    "memory": ("x = bytearray(10 * 1024 ** 3)\nx[-1] = 1\n", "MemoryError"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(HOSTILE))
+def test_hostile_routine_scores_zero_with_reason(name, tmp_path):
+    ex = find_exercise("arms_routine")
+    path = tmp_path / "routine.py"
+    path.write_text(HOSTILE[name][0])
+    began = time.monotonic()
+    code, out, err = run_cli(["exercise", "grade", "arms_routine", path, "--json",
+                              tmp_path / "results.json"])
+    assert time.monotonic() - began <= ex.limits.time + 10
+    assert code == 0, err
+    results = json.loads((tmp_path / "results.json").read_text())
+    jsonschema.validate(results, SCHEMA)
+    assert results["score"] == 0
+    assert results["tests"][0]["name"] == "runs"
+    assert HOSTILE[name][1] in results["tests"][0]["output"], results["tests"][0]["output"]
+    assert "FAIL runs" in out
+
+
+def _spin() -> None:
+    while True:
+        pass
+
+
+def _sleep() -> None:
+    time.sleep(60)
+
+
+def _bye() -> None:
+    os._exit(0)
+
+
+def test_run_isolated_limits_cpu_and_wall_time():
+    began = time.monotonic()
+    with pytest.raises(SubmissionFailed, match="CPU time"):
+        run_isolated(_spin, limits=Limits(time=20, cpu=1))
+    with pytest.raises(SubmissionFailed, match="time limit of 1 s"):
+        run_isolated(_sleep, limits=Limits(time=1, cpu=10))
+    with pytest.raises(SubmissionFailed, match="ended the grading process"):
+        run_isolated(_bye)
+    assert time.monotonic() - began < 10
+    assert run_isolated(sum, [1, 2, 3]) == 6  # and a good one returns its value
+
+
+def test_gradescope_json_and_folder_csv(tmp_path):
+    ex = find_exercise("home_hold")
+    folder = tmp_path / "submissions"
+    (folder / "ada").mkdir(parents=True)
+    (folder / "ada" / "controllers.yaml").write_text(ex.solution.read_text())
+    (folder / "bob.yaml").write_text(ex.starter.read_text())
+    (folder / "eve.yaml").write_text("mex_rb: [unclosed\n")
+    code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
+                              tmp_path / "grades.csv"])
+    assert code == 0, err
+    rows = (tmp_path / "grades.csv").read_text().splitlines()
+    assert rows[0].startswith("student,score,max_score,passed,stays upright")
+    by_student = {row.split(",")[0]: row.split(",") for row in rows[1:]}
+    assert by_student["ada"][1:4] == ["10", "10", "yes"]
+    assert by_student["bob"][3] == "no"
+    assert by_student["eve"][1] == "0" and "runs" in by_student["eve"]
+    code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
+                              tmp_path / "grades.csv"])
+    assert code == 2 and "exists" in err  # nothing overwritten without --force
+    results = json.loads(run_cli(["exercise", "grade", "home_hold",
+                                  folder / "ada" / "controllers.yaml", "--json"])[1])
+    jsonschema.validate(results, SCHEMA)
+    assert results["score"] == 10 == sum(t["max_score"] for t in results["tests"])
+    assert {t["name"] for t in results["tests"]} == {"stays upright", "holds home",
+                                                      "no oscillation"}
+
+
+def test_start_new_and_bad_exercises(tmp_path):
+    code, out, err = run_cli(["exercise", "start", "pid_spec", tmp_path / "st"])
+    assert code == 0, err
+    assert {p.name for p in (tmp_path / "st").iterdir()} == {"README.md", "controllers.yaml",
+                                                             "check.py"}
+    code, _, err = run_cli(["exercise", "start", "pid_spec", tmp_path / "st"])
+    assert code == 2 and "exists" in err and err[-1] == "\n" and err.count("\n") == 1
+    code, _, err = run_cli(["exercise", "new", "mine", tmp_path / "mine"])
+    assert code == 0, err
+    mine = find_exercise(tmp_path / "mine")
+    assert grade(mine, mine.solution).score == mine.points
+    assert not grade(mine, mine.starter).passed
+    (tmp_path / "mine" / "exercise.yaml").write_text("name: mine\nsubmission: essay\n")
+    code, _, err = run_cli(["exercise", "grade", tmp_path / "mine", mine.solution])
+    assert code == 2 and "exercise.yaml" in err and "'submission' is 'essay'" in err
+    code, _, err = run_cli(["exercise", "show", "no_such_exercise"])
+    assert code == 2 and "no exercise 'no_such_exercise'" in err
+    code, out, _ = run_cli(["exercise", "list"])
+    assert code == 0 and all(n in out for n in ("model_checks", "home_hold", "pid_spec",
+                                                 "arms_routine"))
+
+
+def test_beside_puts_the_submission_next_to_the_graders_files(tmp_path):
+    from mexone.exercises import GradeContext
+
+    ex = find_exercise("arms_routine")
+    law = tmp_path / "handed_in.py"
+    law.write_text("class MyLaw: ...\n")
+    ctx = GradeContext(ex, law, seed=1)
+    folder = ctx.beside({"controllers.yaml": "mex_rb: {}\n"}, as_name="my_law.py")
+    assert (folder / "my_law.py").read_text() == law.read_text()
+    assert (folder / "controllers.yaml").read_text() == "mex_rb: {}\n"
+    ctx.cleanup()
+    assert not folder.exists() and law.exists()
