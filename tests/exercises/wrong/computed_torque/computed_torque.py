@@ -1,9 +1,5 @@
 """Exercise 6, deliberately wrong: computed torque with the inertia left out (M taken as the
-identity) -- the error is no longer linear, and the arm lags. Was: computed-torque tracking of q_ref(t) = q0 + A sin(w t) on Mex-One's left shoulder and elbow.
-
-tau = M(q) (ddq_ref + kp e + kd de) + h(q, dq) - tau_damping(dq), e = q_ref - q: the error
-obeys dde + kd de + kp e = 0 whatever the arm's inertia and speed. See README.md.
-"""
+identity, tau = ddq + h): the error is no longer linear, the arm lags the sine by tens of mrad."""
 
 from __future__ import annotations
 

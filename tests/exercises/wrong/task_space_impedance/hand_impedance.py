@@ -1,6 +1,5 @@
-"""Exercise 7, deliberately wrong: the force mapped to torques through J instead of its transpose
-(the arm is 3 x 3, so it runs). Was: task-space impedance; the hand behaves as a spring K and damper D to
-where it started, tau = J(q)^T (K (x0 - x) - D v) + g(q). See README.md."""
+"""Exercise 7, deliberately wrong: the hand's force mapped to joint torques through J instead of
+its transpose (the arm's J is 3 x 3, so it runs): pushed up, the hand moves 5-8x F/K."""
 
 from __future__ import annotations
 

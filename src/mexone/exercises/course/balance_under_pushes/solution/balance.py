@@ -1,5 +1,6 @@
 """Standing balance of Mex-One by LQR state feedback on the linear inverted pendulum, with the
-ankle pitch torques. See README.md for the model and the derivation."""
+ankle pitch torques. Exercise 8's reference: examples/controllers/04_lqr_balance (its README derives
+it), the class renamed Balance."""
 
 from __future__ import annotations
 
