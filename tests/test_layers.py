@@ -15,7 +15,8 @@ CORE = {"errors": 0, "inputs": 0, "yamlio": 0, "files": 0, "ranges": 0, "descrip
 # front ends, lowest first; a module may import its own front end, the core and the front ends
 # of the layers below. routines/ is the machinery that runs routines in lockstep with the
 # simulation (runtime, runner); rospy and motion are the libraries routines call, above it. The
-# shipped routines are user programs, which may import any front end as a student's may.
+# shipped routines are user programs, which may import any front end as a student's may; so is
+# the shipped course (exercises' graders, starters, solutions: exercise 10's uses identify).
 FRONT_END_ORDER = (
     {"signals", "msgs"},
     {"lab"},
@@ -27,7 +28,7 @@ FRONT_END_ORDER = (
     {"__main__"},
 )
 FRONT_ENDS = set().union(*FRONT_END_ORDER)
-USER_PROGRAMS = (SRC / "routines" / "shipped",)
+USER_PROGRAMS = (SRC / "routines" / "shipped", SRC / "exercises" / "course")
 
 
 def _layer(module: str) -> str:

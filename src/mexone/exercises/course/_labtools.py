@@ -1,0 +1,100 @@
+"""What the graders of course exercises 5-10 share: a lab with the student's controller on some
+joints (the shipped PIDs on the rest), a heavier or lighter link for the hidden variant, the
+controller's fault, a check. grade(ctx) runs in the grading process and draws the variant there;
+these helpers run inside ctx.run's isolated child, where the lab imports the student's file."""
+
+from __future__ import annotations
+
+import re
+import shutil
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import yaml
+
+from mexone.errors import InputError, MexoneError
+from mexone.exercises.grading import Check
+from mexone.exercises.isolate import SubmissionFailed
+from mexone.lab import Lab
+from mexone.physics.compile import CompileOptions, Spawn
+from mexone.robots import mex_one
+
+__all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
+           "controller_fault", "HAND", "HAND_POINT", "ARM"]
+
+HAND = "l_forearm"  # the link that carries Mex-One's left hand
+HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
+ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
+
+
+def check(name: str, weight: float, fraction: float, output: str) -> Check:
+    """A framework Check from (name, weight, share earned 0..1, why)."""
+    return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output)
+
+
+def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
+                 joints: Sequence[str], params: dict[str, float]) -> Path:
+    """A controllers YAML in `workdir`: the student's class `cls` of file `source` (copied next
+    to it as `file`, whatever the student named it) on `joints`, the shipped PID on every other
+    joint."""
+    if not source.is_file():
+        raise SubmissionFailed(InputError(f"{source}: no such file", hint=f"hand in {file}").one_line())
+    shutil.copyfile(source, workdir / file)
+    source = workdir / file
+    shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
+    ns, controllers = next(iter(shipped.items()))
+    kept = {k: v for k, v in controllers.items() if v.get("joint") not in joints}
+    entry = {"type": f"{source.stem}/{cls}", "joints": list(joints), **params}
+    out = workdir / "controllers.yaml"
+    out.write_text(yaml.safe_dump({ns: {name: entry, **kept}}, sort_keys=False))
+    return out
+
+
+def scale_mass(body: str, factor: float) -> Callable:
+    """A spec edit: `body`'s mass and inertia times `factor` (a heavier or lighter link)."""
+
+    def edit(spec: mujoco.MjSpec, robot) -> None:
+        b = spec.body(body)
+        b.mass *= factor
+        b.inertia = np.asarray(b.inertia) * factor
+    return edit
+
+
+def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Callable] = (),
+                   fixed_base: bool = False) -> Lab:
+    """Mex-One with the controllers of `yaml_path`, its joints at `pose`, the variant's edits."""
+    try:
+        return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
+                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+    except MexoneError as exc:  # the student's class did not load: its one line is the reason
+        raise SubmissionFailed(exc.one_line().replace(str(yaml_path), "the grader's "
+                                                      "controllers.yaml")) from None
+
+
+def controller_fault(lab: Lab, name: str) -> str | None:
+    """Why the student's controller is not running (a fault, or it never started), else None."""
+    ctrl = lab.controllers.controllers.get(name)
+    if ctrl is None:
+        return f"controller {name} was not loaded"
+    if getattr(ctrl, "fault", None):  # the student's file named without the grader's temp folder
+        return re.sub(r"(?:/[^/\s:]+)+/([^/\s:]+\.py)", r"\1", str(ctrl.fault))
+    if not ctrl.running:
+        return f"controller {name} stopped"
+    return None
+
+
+class JointLog:
+    """Every step's positions of `joints`, read in the simulation thread between steps."""
+
+    def __init__(self, lab: Lab, joints: Sequence[str]):
+        model = lab.sim.model
+        self.adr = [int(model.joint(j).qposadr[0]) for j in joints]
+        self.times: list[float] = []
+        self.q: list[np.ndarray] = []
+        self.timer = lab.sim.add_periodic(lab.sim.timestep, self.sample)
+
+    def sample(self, sim) -> None:
+        self.times.append(sim.time)
+        self.q.append(sim.data.qpos[self.adr].copy())

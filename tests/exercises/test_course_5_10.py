@@ -1,0 +1,70 @@
+"""Course exercises 5-10 (issue 27), graded through the framework (`grade`, the student's part in
+an isolated child): each one's reference solution scores full marks on the given robot (the
+self-check) and on the hidden variant, its starter scores low, a deliberately wrong solution
+scores below the pass mark with the failing check named, and grading twice scores the same."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mexone.exercises import find_exercise, grade
+
+COURSE = Path(__file__).resolve().parents[2] / "src" / "mexone" / "exercises" / "course"
+WRONG = Path(__file__).resolve().parent / "wrong"
+
+# exercise, the check its wrong solution fails, whether the self-check (the given robot) and a
+# second grading are also run (the cheap ones: the suite's time; the others take 5-10 s a grading)
+CASES = [("gravity_compensation", "holds the arm", True),
+         ("computed_torque", "tracks the sine", True),
+         ("task_space_impedance", "F/K up", True),
+         ("balance_under_pushes", "survives 4.5 N s", False),
+         ("walk_course", "stays up", False),
+         ("identify_damping", "damping", False)]
+
+
+def failed(result) -> list[str]:
+    return [c.name for c, _, _ in result.checks if not c.passed]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, failing, thorough", CASES, ids=[c[0] for c in CASES])
+def test_reference_full_starter_low_wrong_fails_its_check(name, failing, thorough):
+    exercise = find_exercise(name)
+    file = exercise.file
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", COURSE / name / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.variant(np.random.default_rng(1)) != module.variant(None)  # hidden != given
+    for local in (True, False) if thorough else (False,):
+        result = grade(exercise, COURSE / name / "solution" / file, local=local)
+        assert result.score == pytest.approx(exercise.points), [c.output for c, _, _ in result.checks]
+    if thorough:  # graded twice: the same numbers
+        again = grade(exercise, COURSE / name / "solution" / file)
+        assert [c.output for c, _, _ in again.checks] == [c.output for c, _, _ in result.checks]
+    starter = grade(exercise, COURSE / name / "starter" / file)
+    assert starter.score <= 0.4 * exercise.points, [c.output for c, _, _ in starter.checks]
+    wrong = grade(exercise, WRONG / name / file)
+    assert wrong.score < exercise.pass_mark, [c.output for c, _, _ in wrong.checks]
+    assert failing in failed(wrong), [c.output for c, _, _ in wrong.checks]
+
+
+@pytest.mark.parametrize("text, reason", [
+    ("x = 1\n", "has no class 'GravityCompensation'"),
+    ("from mexone.control import Param, PythonController\n\n\n"
+     "class GravityCompensation(PythonController):\n    command_interface = 'effort'\n"
+     "    kp = Param(5.0)\n    kd = Param(0.5)\n\n    def update(self, state, t, dt):\n"
+     "        raise ValueError('oops')\n", "ValueError: oops"),
+], ids=["no class", "update raises"])
+def test_a_controller_that_does_not_load_or_raises_scores_zero_with_its_line(tmp_path, text, reason):
+    exercise = find_exercise("gravity_compensation")
+    submission = tmp_path / "mine.py"  # any name: the grader copies it under the one it needs
+    submission.write_text(text)
+    result = grade(exercise, submission)
+    assert result.score == 0, [c.output for c, _, _ in result.checks]
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    assert reason in runs.output and "Traceback" not in runs.output
+    assert "/tmp" not in runs.output  # the student's file by its name, not the grader's copy
