@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import html
 import io
+import math
 import threading
 from collections.abc import Callable
 from concurrent.futures import Future
@@ -70,6 +71,10 @@ class Replay:
             self._pose(data, 0)
             scene = RobotScene(server, ghost)  # type: ignore[arg-type]  # a Simulation's fields
             scene.build()
+            base = data.xpos[1] if sim.model.nbody > 1 else np.zeros(3)  # the first link's start
+            server.initial_camera.fov = math.radians(45.0)  # as the live page: the robot fills half
+            server.initial_camera.position = tuple(base + (1.3, -1.35, 0.45))
+            server.initial_camera.look_at = tuple(base + (0.0, 0.0, 0.02))
             recorder = server.get_scene_serializer()
             for i in range(1, len(self.times)):
                 recorder.insert_sleep(self.times[i] - self.times[i - 1])
