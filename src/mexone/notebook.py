@@ -178,7 +178,8 @@ class LivePage:
         """Stop the page and its simulation thread; the lab is the notebook's again."""
         self.app.stopping.set()  # the loop ends its frame, then the page closes
         self.thread.join(timeout=10.0)
-        self.app.stop()
+        with contextlib.redirect_stdout(io.StringIO()):
+            self.app.stop()
         self.app.lab._live_page = None
 
     @property
@@ -203,8 +204,9 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     check_can_serve(host)
     if getattr(lab, "_live_page", None) is not None:
         raise InputError("this lab already has a live page", hint="page.stop() first")
-    app = GuiApp(lambda _options: lab, CompileOptions(), host=host, port=port, target_rtf=rtf,
-                 paused=paused)
+    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the page's repr says it
+        app = GuiApp(lambda _options: lab, CompileOptions(), host=host, port=port,
+                     target_rtf=rtf, paused=paused)
     shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
     thread = threading.Thread(target=app.serve_forever, name="mexone-live-page", daemon=True)
     page = LivePage(app, thread, f"http://{shown}:{app.server.get_port()}")
