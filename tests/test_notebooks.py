@@ -161,9 +161,20 @@ def test_the_saved_html_plays_the_robot_in_the_inline_replay(executed):
         frame.scroll_into_view_if_needed()
         inner = frame.element_handle().content_frame()
         slider = inner.wait_for_selector(".mantine-Slider-root", timeout=60_000)
-        inner.locator("button").first.click()  # pause: what is on screen is one frame
         box = slider.bounding_box()
+        middle = box["y"] + box["height"] / 2
+        play = min((b for b in inner.query_selector_all("button")
+                    if (bb := b.bounding_box()) and abs(bb["y"] + bb["height"] / 2 - middle) < 30
+                    and bb["x"] < box["x"]), key=lambda b: b.bounding_box()["x"])
         clock = inner.locator("input").first  # the player's time, s
+        play.click()  # pause: what is on screen is one frame
+        seen: list[str] = []
+
+        def still() -> bool:  # the clock reads the same twice in a row
+            seen.append(clock.input_value())
+            return len(seen) > 2 and seen[-1] == seen[-2] == seen[-3]
+
+        assert wait_until(still, timeout=30, poll=0.2), f"the player did not pause: {seen}"
 
         def seek(fraction: float, reached) -> np.ndarray:
             tab.mouse.click(box["x"] + fraction * box["width"], box["y"] + box["height"] / 2)
