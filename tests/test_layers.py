@@ -25,6 +25,7 @@ FRONT_END_ORDER = (
     {"sweep", "identify", "gui", "exercises"},
     {"editor"},
     {"cli"},
+    {"notebook"},  # the lab in Jupyter: the GUI beside a notebook, checked as the CLI checks
     {"__main__"},
 )
 FRONT_ENDS = set().union(*FRONT_END_ORDER)

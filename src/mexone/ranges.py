@@ -131,6 +131,10 @@ OVERRUNS = Range("max overruns", "", 1, 1_000_000, integer=True, why="consecutiv
                  "updates that stop a Python controller")
 HANG_TIMEOUT = Range("hang timeout", "s", 0.05, 3600.0, why="wall time after which an update that "
                      "has not returned is interrupted")
+REPLAY_FPS = Range("replay frames per second", "Hz", 1.0, 120.0,
+                   why="a notebook's inline replay: each frame is a pose per body in the page")
+REPLAY_SECONDS = Range("seconds simulated in one call", "s", 0.0, 3600.0,
+                       why="notebook.simulate; the replay holds every frame in memory")
 
 RANGES: tuple[Range, ...] = tuple(v for v in globals().values() if isinstance(v, Range))
 
