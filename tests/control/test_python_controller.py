@@ -300,13 +300,17 @@ def test_unknown_type_lists_what_was_searched(tmp_path):
     with pytest.raises(InputError) as info:
         load_control_config(path)
     text = info.value.one_line()
-    assert text.startswith(f"{path}:3: unknown controller type 'nope/Ctl': searched "
-                           f"{tmp_path / 'nope.py'}, {tmp_path / 'nope' / '__init__.py'}, module "
-                           "'nope' on sys.path, entry points 'mexone.controllers'")
+    assert text.startswith(f"{path}:3: controller 'ctl': unknown controller type 'nope/Ctl': "
+                           "searched nope.py beside the YAML, nope/__init__.py beside the YAML, "
+                           "module 'nope' on sys.path, entry points 'mexone.controllers'")
     assert "shipped types: effort_controllers/JointEffortController" in text and "\n" not in text
+    path = write(tmp_path, "c.yaml", "ns:\n  ctl:\n    type: position_controllers/JointPositonController"
+                                     "\n    joints: [a]\n")
+    with pytest.raises(InputError, match=r"did you mean 'position_controllers/JointPositionController'\?"):
+        load_control_config(path)  # a shipped type misspelt: the close one named
     write(tmp_path, "ctl.py", CTL)
     path = write(tmp_path, "c.yaml", "ns:\n  ctl:\n    type: ctl/Other\n    joints: [a]\n")
-    with pytest.raises(InputError, match=r"c.yaml:3: ctl.py has no class 'Other' \(its controllers: Ctl\)"):
+    with pytest.raises(InputError, match=r"c.yaml:3: controller 'ctl': ctl.py has no class 'Other' \(its controllers: Ctl\)"):
         load_control_config(path)
 
 

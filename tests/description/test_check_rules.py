@@ -198,7 +198,7 @@ def test_cli_exit_codes_and_json(tmp_path, capsys):
     assert report["mass"] == pytest.approx(15.0)
     assert {"code": "com-outside", "severity": "error", "element": 'link "head"'}.items() <= \
         report["findings"][0].items()
-    assert set(report) == {"robot", "root", "links", "joints", "actuated", "mass", "findings"}
+    assert set(report) == {"robot", "root", "links", "joints", "actuated", "mass", "sensors", "findings"}
 
 
 def test_findings_name_file_and_line(tmp_path, capsys):

@@ -184,6 +184,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
     try:
         cls, origin = resolve_class(ctype, yaml_dir, list(CONTROLLER_TYPES))
     except InputError as exc:
+        exc.what = f"controller '{name}': {exc.what}"
         raise exc.located(where, type_node.start_mark.line + 1) from None
     if "joints" in fields:
         value = reader.value(fields["joints"][1])

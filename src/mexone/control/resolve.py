@@ -16,6 +16,7 @@ the file again (the manager's reload).
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import importlib.metadata
 import importlib.util
@@ -179,10 +180,15 @@ def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
     searched: list[str] = []
     if "/" in ctype:
         stem, _, cls_name = ctype.rpartition("/")
+        if stem in {known.partition("/")[0] for known in shipped}:  # a shipped type, misspelt
+            close = difflib.get_close_matches(ctype, shipped, n=1)
+            raise InputError(f"unknown controller type '{ctype}'",
+                             hint=(f"did you mean '{close[0]}'? " if close else "")
+                             + "shipped types: " + ", ".join(sorted(shipped)))
         if stem and cls_name and "/" not in stem and stem.isidentifier():
             if yaml_dir is not None:
                 for path in (yaml_dir / f"{stem}.py", yaml_dir / stem / "__init__.py"):
-                    searched.append(str(path))
+                    searched.append(f"{path.relative_to(yaml_dir)} beside the YAML")
                     if path.is_file():
                         return _class_from(_exec_file(path, stem), cls_name, path.name), str(path)
             searched.append(f"module '{stem}' on sys.path")
