@@ -82,11 +82,18 @@ def _api_pages(out: Path) -> None:
         parts = name.split(".")
         group = "mexone" if len(parts) == 1 or (len(parts) == 2 and not hasattr(module, "__path__")) \
             else ".".join(parts[:2])
-        excluded, elsewhere = [], []
+        excluded, elsewhere, lazy = [], [], []
         for member in module.__all__:
             value = getattr(module, member, None)
             key = _identity(value)
-            if key is not None and key in seen:
+            if _directive(value) != "autodata" and getattr(value, "__name__", member) != member:
+                # an alias under another name (`mexone.Controller`): named here as an alias,
+                # documented where it is defined under its own name
+                lazy.append(member)
+            elif member not in vars(module):  # a module __getattr__'s: automodule cannot see it
+                excluded.append(member)
+                elsewhere.append(f"`{member}` ({{py:obj}}`{value.__module__}.{member}`)")
+            elif key is not None and key in seen:
                 excluded.append(member)
                 elsewhere.append(f"`{member}` ({{py:obj}}`{seen[key]}.{member}`)")
             elif key is not None:
@@ -103,14 +110,21 @@ def _api_pages(out: Path) -> None:
         else:
             # data (constants, tables) is listed by name after the module's classes and functions:
             # autodoc skips a module attribute without a `#:` comment even with undoc-members
-            data = [m for m in module.__all__ if m not in excluded
+            data = [m for m in module.__all__ if m not in excluded and m not in lazy
                     and _directive(getattr(module, m, None)) == "autodata"]
             block.append(f".. automodule:: {name}")
-            if excluded or data:
-                block.append(f"   :exclude-members: {', '.join(excluded + data)}")
+            if excluded or data or lazy:
+                block.append(f"   :exclude-members: {', '.join(excluded + data + lazy)}")
             block.append("")
             for member in data:
                 block += [f".. autodata:: {name}.{member}", "   :no-value:", ""]
+            for member in lazy:
+                value = getattr(module, member)
+                kind = "class" if _directive(value) in ("autoclass", "autoexception") else \
+                    "function" if _directive(value) == "autofunction" else "data"
+                target = f"{value.__module__}.{value.__qualname__}"
+                block += [f".. py:{kind}:: {member}", f"   :module: {name}", "",
+                          f"   An alias of :py:obj:`{target}`.", ""]
         block += ["```", ""]
         if elsewhere:
             block += ["Also exported here: " + ", ".join(elsewhere) + ".", ""]

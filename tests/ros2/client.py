@@ -170,6 +170,8 @@ out["still_running"] = sim_time(seen["clock"][-1][1]) > clock_before + 0.2
 out["held_after_bad"] = position(JOINT)
 
 # 4. a gain as a parameter; then a wrong type and a NaN, refused with a warning
+if JointControllerState is not None:  # its first message may come after discovery settles
+    spin_until(lambda: bool(seen["state"]), 10)
 out["state_p_before"] = seen["state"][-1][1].p if JointControllerState and seen["state"] else None
 out["gain_set"] = set_gain(77.5)
 if JointControllerState is not None:
