@@ -40,7 +40,9 @@ def ros2_python() -> str | None:
 
 
 def ros2_env() -> dict[str, str]:
-    env = dict(os.environ)
+    # not ROS 1's (the session's ros_master fixture exports `mexone ros-env`'s: its genpy
+    # control_msgs on PYTHONPATH would shadow the ROS 2 one)
+    env = {k: v for k, v in os.environ.items() if not k.startswith("ROS_") and k != "PYTHONPATH"}
     env.update({"ROS_DOMAIN_ID": str(1 + os.getpid() % 100),  # 1..100: this run's own
                 "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": "1",
                 "PYTHONPATH": os.pathsep.join([str(SRC), env.get("PYTHONPATH", "")]).rstrip(":")})

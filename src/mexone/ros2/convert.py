@@ -8,12 +8,15 @@ from __future__ import annotations
 import array
 import dataclasses
 import importlib
+import logging
 import math
 from collections.abc import Callable
 from typing import Any
 
 from mexone.bus import msgs, ros_map
 from mexone.errors import InputError
+
+log = logging.getLogger("mexone.ros2")
 
 __all__ = ["ros2_class", "to_ros2", "from_ros2", "message_class"]
 
@@ -26,9 +29,18 @@ def message_class(name: str):
     key = f"{package}/{message}"
     if key not in _CLASSES:
         try:
-            _CLASSES[key] = getattr(importlib.import_module(f"{package}.msg"), message)
+            module = importlib.import_module(f"{package}.msg")
+            cls = getattr(module, message)
         except (ImportError, AttributeError):
-            _CLASSES[key] = None
+            cls = None
+        if cls is not None and not hasattr(type(cls), "__import_type_support__"):
+            # ROS 1's package of that name (genpy) earlier on the path: `mexone ros-env` puts
+            # mexone's own there, for --ros; rclpy cannot use it
+            log.warning("%s on this Python's path is a ROS 1 package (%s), not ROS 2's: its "
+                        "topics are left out (remove ROS 1's folders from PYTHONPATH for --ros2)",
+                        package, getattr(module, "__file__", "?"))
+            cls = None
+        _CLASSES[key] = cls
     return _CLASSES[key]
 
 
