@@ -129,6 +129,15 @@ def drag_gizmo_onto(tab, editor, hole: np.ndarray) -> None:
         tab.mouse.up(button="right")
         assert wait_until(lambda: np.linalg.norm(np.array(camera.look_at) - look_at) > 0.1)
     time.sleep(1.0)  # the gizmo (and the panned camera) arrive on the page and the server
+    # the page's camera reaches the server in messages: project only once it holds still
+    held = {"at": None, "since": time.monotonic()}
+
+    def camera_still() -> bool:
+        now = (tuple(np.round(camera.position, 6)), tuple(np.round(camera.look_at, 6)))
+        if now != held["at"]:
+            held.update(at=now, since=time.monotonic())
+        return time.monotonic() - held["since"] > 0.5
+    assert wait_until(camera_still, timeout=10)
     handle = np.array([0.6 * editor._gizmo.scale, 0.0, 0.0])  # its x arrow, along +x from the centre
     aim = hole + [0.008, 0.0, 0.0]  # 8 mm short of the hole's centre, 3 mm off its rim: the magnet's job
     grab, to = np.array(helpers.on_screen(tab, editor.server, start + handle)), np.array(helpers.on_screen(tab, editor.server, aim + handle))
