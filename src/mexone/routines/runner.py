@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 import threading
 import traceback
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +26,7 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 
 _HERE = Path(__file__).resolve().parent
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
+LOG_KEEP = 10_000  # routine log lines a runner keeps in memory (RoutineRunner.log_lines)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
            "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
            "reach_goals": "reach_goals.py"}
@@ -115,7 +117,8 @@ class RoutineRunner:
         if lab.controllers:  # the controller YAML, as it was read
             _flatten("", lab.controllers.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
-        self.log_lines: list[tuple[float, str, str]] = []
+        # the latest LOG_KEEP lines (a long run's routine may log without end; each is printed)
+        self.log_lines: deque[tuple[float, str, str]] = deque(maxlen=LOG_KEEP)
         self._sink = log
         self.routines: list[Routine] = []
         self._children: set[int] | None = None  # this process's children before the routines ran
