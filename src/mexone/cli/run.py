@@ -36,7 +36,8 @@ joint: RMS and max error (rad), worst overshoot (% of a setpoint change) and set
 to within 2% or 5 mrad), and whether the robot stayed standing (or when it fell: any time in
 the run, which lasts its duration even when the routine ends first).
 
-Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint.
+Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint (under
+the name its init_node gives, as rosrun; `__name:=n` renames it).
 
 With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and the run keeps
 real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
@@ -116,12 +117,11 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
               "Ctrl-C stops",
               file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
-    phases_key = f"/{Path(runner.path).stem}/phases"
     marks = PhaseMarks(np.array([0.0, *start_pose]))  # the base at the routine's phase bounds
     fell_at: list[float] = []  # when it first fell, if it did: a fall is one even if it gets up
 
     def watch(s) -> None:
-        marks.add(runner.params.get(phases_key), np.array([s.time, *_base_xy_yaw(s)]))
+        marks.add(runner.param("phases"), np.array([s.time, *_base_xy_yaw(s)]))
         if not fell_at and has_fallen(s, start_height):
             fell_at.append(s.time)
 
@@ -141,7 +141,7 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     fell = bool(fell_at)
     metrics = recorder.metrics()
     x, y, yaw = _base_xy_yaw(sim) - start_pose
-    phases = _phases(runner.params.get(phases_key), marks)
+    phases = _phases(runner.param("phases"), marks)
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "fell_at": round(fell_at[0], 3) if fell else None,
