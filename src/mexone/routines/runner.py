@@ -10,7 +10,6 @@ import re
 import sys
 import threading
 import traceback
-from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +27,7 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 _HERE = Path(__file__).resolve().parent
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
 _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # a ROS base name (a node's)
-LOG_KEEP = 10_000  # routine log lines a runner keeps in memory (RoutineRunner.log_lines)
+LOG_KEEP = 10_000  # routine log lines a runner keeps in memory at least (log_lines)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
            "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
            "reach_goals": "reach_goals.py"}
@@ -129,8 +128,8 @@ class RoutineRunner:
         if lab.controllers:  # the controller YAML, as it was read
             _flatten("", lab.controllers.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
-        # the latest LOG_KEEP lines (a long run's routine may log without end; each is printed)
-        self.log_lines: deque[tuple[float, str, str]] = deque(maxlen=LOG_KEEP)
+        # the latest LOG_KEEP to 2 x LOG_KEEP lines (a long run's routine may log without end)
+        self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
         self.routines: list[Routine] = []
         self._children: set[int] | None = None  # this process's children before the routines ran
@@ -172,6 +171,8 @@ class RoutineRunner:
 
     def _log(self, level: str, text: str) -> None:
         self.log_lines.append((self.lab.sim.time, level, text))
+        if len(self.log_lines) >= 2 * LOG_KEEP:
+            del self.log_lines[:LOG_KEEP]
         if self._sink:
             self._sink(level, text)
 
