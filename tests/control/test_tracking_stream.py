@@ -38,6 +38,10 @@ class _Ctrl:
 class _Manager:
     controllers: dict = field(default_factory=dict)
 
+    @property
+    def hw(self):
+        return next(iter(self.controllers.values())).hw
+
 
 @dataclass
 class _Sim:
@@ -47,15 +51,18 @@ class _Sim:
         return None
 
 
-def _feed(series: np.ndarray, chunk: int, monkeypatch, history: float = 0.0):
-    """A recorder fed `series` (rows of t, setpoint, actual) of one joint 'j'."""
+def _feed(series: np.ndarray, chunk: int, monkeypatch, history: float = 0.0, recorder=None):
+    """A recorder (new, or `recorder` fed on) fed `series` (rows of t, setpoint, actual) of
+    one joint 'j'."""
     monkeypatch.setattr(metrics, "CHUNK", chunk)
-    hw = _Hw(np.zeros(1))
-    ctrl = _Ctrl(["j"], hw, np.zeros(1), np.array([0]))
+    if recorder is None:
+        hw = _Hw(np.zeros(1))
+        ctrl = _Ctrl(["j"], hw, np.zeros(1), np.array([0]))
+        recorder = TrackingRecorder(_Sim(), _Manager({"c": ctrl}), history=history)
+    ctrl = recorder.manager.controllers["c"]
     sim = _Sim()
-    recorder = TrackingRecorder(sim, _Manager({"c": ctrl}), history=history)
     for t, sp, q in series:
-        sim.time, ctrl.setpoint[0], hw.q[0] = t, sp, q
+        sim.time, ctrl.setpoint[0], ctrl.hw.q[0] = t, sp, q
         recorder.sample(sim)
     return recorder
 
@@ -92,8 +99,7 @@ def test_metrics_mid_run_then_on(monkeypatch):
     series = _series([0.0, 0.5, -0.2, 0.5], 50, 1)
     recorder = _feed(series[:77], 16, monkeypatch)
     assert recorder.metrics()["j"] == full_metrics("j", series[:77])
-    for t, sp, q in series[77:]:
-        recorder.streams["j"].add(t, sp, q)
+    _feed(series[77:], 16, monkeypatch, recorder=recorder)
     got, want = recorder.metrics()["j"], full_metrics("j", series)
     assert got.as_json() == want.as_json()
 
@@ -132,3 +138,51 @@ def test_memory_does_not_grow_with_the_run():
     short, long = _held_memory(2 * metrics.CHUNK), _held_memory(8 * metrics.CHUNK)
     assert long < short + 200_000, (short, long)
 
+
+
+def test_a_joint_handed_to_another_controller(monkeypatch):
+    """Samples of 'j' from two controllers in turn (a switch mid-chunk) are one series."""
+    monkeypatch.setattr(metrics, "CHUNK", 64)
+    series = _series([0.0, 0.4, -0.3], 70, 3)
+    hw = _Hw(np.zeros(2))
+    first = _Ctrl(["k", "j"], hw, np.zeros(2), np.array([0, 1]))
+    second = _Ctrl(["j"], hw, np.zeros(1), np.array([1]), kind="trajectory", running=False)
+    sim = _Sim()
+    recorder = TrackingRecorder(sim, _Manager({"a": first, "b": second}))
+    for n, (t, sp, q) in enumerate(series):
+        if n == 100:
+            first.running, second.running = False, True
+        sim.time, hw.q[1] = t, q
+        first.setpoint[1] = second.setpoint[0] = sp
+        recorder.sample(sim)
+    got = recorder.metrics()
+    assert got["j"].as_json() == full_metrics("j", series).as_json()
+    assert got["k"] == full_metrics("k", np.c_[series[:100, 0], np.zeros((100, 2))])
+
+
+def test_the_robots_run_equals_its_whole_series(monkeypatch):
+    """Mex-One's position controllers (read in one go from the position commands) during 2 s
+    of the shipped sweep: each joint's metrics equal those of every sample, kept the old way
+    (each controller's setpoint and position at each 5 ms)."""
+    from mexone.lab import Lab
+    from mexone.routines.runner import RoutineRunner
+
+    monkeypatch.setattr(metrics, "CHUNK", 64)  # folds in the run, not only at its end
+    lab = Lab.create()
+    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    rows: dict[str, list] = {}
+
+    def keep(sim) -> None:
+        for ctrl in lab.controllers.controllers.values():
+            if ctrl.running and ctrl.kind in ("position", "trajectory"):
+                q = ctrl.hw.position(ctrl.rows)
+                for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
+                    rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
+
+    lab.sim.add_periodic(1.0 / SAMPLE_RATE, keep)
+    RoutineRunner(lab, "sweep").run(2.0)
+    got = recorder.metrics()
+    assert set(got) == set(rows) and len(rows) > 10
+    assert any(m.steps for m in got.values())  # the sweep moved something
+    for joint, series in rows.items():
+        assert got[joint].as_json() == full_metrics(joint, np.array(series)).as_json(), joint

@@ -8,6 +8,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from mexone.control.controllers.position import PositionController
 from mexone.control.manager import ControllerManager
 from mexone.physics.simulation import Simulation
 
@@ -46,29 +47,80 @@ class TrackingRecorder:
         self.manager = manager
         self.keep = int(round(history * rate)) + 1 if history > 0 else 0
         self.streams: dict[str, _JointStream] = {}
+        self._layouts: dict[tuple[int, ...], _Layout] = {}  # by the tracked controllers' ids
+        self._pending: list[tuple[float, _Layout, np.ndarray, np.ndarray]] = []  # not folded yet
         self.timer = sim.add_periodic(1.0 / rate, self.sample)
 
     def sample(self, sim: Simulation) -> None:
-        now = sim.time
-        for ctrl in self.manager.controllers.values():
-            if ctrl.running and ctrl.kind in ("position", "trajectory"):
-                q = ctrl.hw.position(ctrl.rows)
-                for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
-                    stream = self.streams.get(joint)
-                    if stream is None:
-                        stream = self.streams[joint] = _JointStream(self.keep)
-                    stream.add(now, float(sp), float(actual))
+        tracked = [c for c in self.manager.controllers.values()
+                   if c.running and c.kind in ("position", "trajectory")]
+        if not tracked:
+            return
+        key = tuple(map(id, tracked))
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = self._layouts[key] = _Layout.of(tracked)
+        hw = self.manager.hw
+        if layout.commanded:  # every setpoint is the position command: one read for all
+            sp = hw.command.position[layout.rows]
+        else:
+            sp = np.concatenate([np.asarray(c.setpoint, dtype=float) for c in tracked])
+        self._pending.append((sim.time, layout, sp, hw.position(layout.rows)))
+        if len(self._pending) >= CHUNK:
+            self._fold()
 
     def metrics(self) -> dict[str, JointTracking]:
+        self._fold()
         return {joint: s.metrics(joint) for joint, s in self.streams.items()}
 
     def history(self, joint: str) -> np.ndarray:
         """The latest samples of `joint` (up to `history` s): rows of (t, setpoint, actual)."""
+        self._fold()
         stream = self.streams.get(joint)
         return np.array(stream.recent if stream else [], dtype=float).reshape(-1, 3)
 
+    def _fold(self) -> None:
+        """Hand the pending samples to each joint's statistics, in time order."""
+        if not self._pending:
+            return
+        groups: dict[int, tuple[_Layout, list]] = {}
+        for row in self._pending:
+            groups.setdefault(id(row[1]), (row[1], []))[1].append(row)
+        self._pending = []
+        parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        for layout, rows in groups.values():
+            t = np.array([r[0] for r in rows])
+            sp, q = np.stack([r[2] for r in rows]), np.stack([r[3] for r in rows])
+            for i, joint in enumerate(layout.joints):
+                parts.setdefault(joint, []).append((t, sp[:, i], q[:, i]))
+        for joint, chunks in parts.items():
+            t, sp, q = (np.concatenate(c) for c in zip(*chunks, strict=True))
+            if len(chunks) > 1:  # the joint changed controllers meanwhile (or has two)
+                order = np.argsort(t, kind="stable")
+                t, sp, q = t[order], sp[order], q[order]
+            stream = self.streams.get(joint)
+            if stream is None:
+                stream = self.streams[joint] = _JointStream(self.keep)
+            stream.fold(t, sp, q)
 
-CHUNK = 1024  # samples (5 s) per joint buffered before they are folded into the running statistics
+
+@dataclass(frozen=True)
+class _Layout:
+    """The joints a set of tracked controllers hold, in their order, and their hardware rows."""
+    joints: tuple[str, ...]
+    rows: np.ndarray
+    commanded: bool  # every controller's setpoint is its joints' position command
+
+    @staticmethod
+    def of(controllers: list) -> _Layout:
+        return _Layout(tuple(j for c in controllers for j in c.joints),
+                       np.concatenate([np.asarray(c.rows, dtype=int).reshape(-1)
+                                       for c in controllers]),
+                       all(getattr(type(c), "setpoint", None) is PositionController.setpoint
+                           for c in controllers))
+
+
+CHUNK = 1024  # samples (5 s) buffered before they are folded into the running statistics
 
 
 @dataclass
@@ -105,7 +157,6 @@ class _JointStream:
     """One joint's running tracking statistics (see TrackingRecorder)."""
 
     def __init__(self, keep: int):
-        self.rows: list[tuple[float, float, float]] = []  # not yet folded
         self.recent: deque[tuple[float, float, float]] = deque(maxlen=keep)
         self.n, self.sum_sq, self.max_abs = 0, 0.0, 0.0
         self.last_sp: float | None = None
@@ -113,18 +164,10 @@ class _JointStream:
         self.worst, self.settling = 0.0, 0.0  # over the closed segments
         self.steps = 0
 
-    def add(self, t: float, sp: float, q: float) -> None:
-        self.rows.append((t, sp, q))
+    def fold(self, t: np.ndarray, sp: np.ndarray, q: np.ndarray) -> None:
+        """The next samples, in time order."""
         if self.recent.maxlen:
-            self.recent.append((t, sp, q))
-        if len(self.rows) >= CHUNK:
-            self.fold()
-
-    def fold(self) -> None:
-        if not self.rows:
-            return
-        t, sp, q = np.array(self.rows).T
-        self.rows = []
+            self.recent.extend(zip(t.tolist(), sp.tolist(), q.tolist(), strict=True))
         error = sp - q
         self.n += len(t)
         self.sum_sq += float(np.sum(error**2))
@@ -151,7 +194,6 @@ class _JointStream:
                 self.settling = None if s is None else max(self.settling, s)
 
     def metrics(self, joint: str) -> JointTracking:
-        self.fold()
         worst, settling = self.worst, self.settling
         if self.segment is not None:  # the latest change is open to the end of the run
             worst = max(worst, self.segment.overshoot)
