@@ -22,7 +22,7 @@ COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
 SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json")
 _FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
-           "secret_seed", "submission", "file", "summary", "number"}
+           "secret_seed", "submission", "file", "summary", "number", "live"}
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,7 @@ class Exercise:
     limits: Limits
     summary: str = ""
     number: int | None = None  # its place in a course (`exercise list` sorts by it)
+    live: bool = True  # the page's Check puts the file into the running lab (docs/exercises.md)
 
     @property
     def statement(self) -> Path:
@@ -79,6 +80,13 @@ def _number(data: dict, key: str, path: Path, low: float, high: float, default=N
         kind = "an integer" if integer else "a number"
         raise InputError(f"'{key}' is {value!r}: it must be {kind} from {low:g} to {high:g}",
                          file=path)
+    return value
+
+
+def _flag(data: dict, key: str, path: Path, default: bool = True) -> bool:
+    value = data.get(key, default)
+    if not isinstance(value, bool):
+        raise InputError(f"'{key}' is {value!r}: write true or false", file=path)
     return value
 
 
@@ -125,7 +133,8 @@ def load_exercise(folder: str | Path) -> Exercise:
                     int(_number(data, "secret_seed", path, 0, 2**63, default=0, integer=True)),
                     limits, str(data.get("summary", "")),
                     None if data.get("number") is None else
-                    int(_number(data, "number", path, 0, 10000, integer=True)))
+                    int(_number(data, "number", path, 0, 10000, integer=True)),
+                    _flag(data, "live", path))
 
 
 def _course_order(folder: Path) -> tuple:

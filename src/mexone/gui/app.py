@@ -25,13 +25,12 @@ from mexone import signals
 from mexone.control.controllers import Controller
 from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
-from mexone.gui.controllers import ControllersPanel
 from mexone.gui.fields import NumberFields
 from mexone.gui.handles import IkHandles
 from mexone.gui.health import Health
 from mexone.gui.inspector import Inspector
-from mexone.gui.load import LoadPanel
 from mexone.gui.move import MoveTool
+from mexone.gui.panels import Panel, panel_types
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
 from mexone.gui.screenshot import Screenshots, page_picture
@@ -79,9 +78,10 @@ class GuiApp:
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
                  record_folder: Path | None = None, model_folder: Path | None = None,
-                 server: viser.ViserServer | None = None):
+                 server: viser.ViserServer | None = None, exercise=None):
         """`server`: draw into that page (guarded by its owner, who stops it) instead of
-        serving one (the model editor's Simulate)."""
+        serving one (the model editor's Simulate). `exercise`: an ExerciseTarget
+        (gui/exercises.py) for the Exercises panel."""
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
@@ -109,6 +109,11 @@ class GuiApp:
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self.screenshots = Screenshots(self.record_folder or Path.cwd())
         self.last_screenshot: Path | None = None
+        self.exercise = exercise
+        # the plug-in panels (gui/panels.py): one instance each for the page's life
+        self.panels: dict[str, Panel] = {cls.name: cls(self) for cls in panel_types()
+                                         if cls.wanted(self)}
+        self._failed_panels: set[str] = set()
         self._build_all()
         # one click handler for the page's life: it reaches whichever robot is loaded now
         self._on_click = self.server.scene.on_click()(lambda e: self.do(
@@ -189,6 +194,8 @@ class GuiApp:
             logger.removeHandler(handler)
         if self.routine:
             self.routine.stop(join=0.5)
+        for panel in self.panels.values():
+            panel.stop()
         self.screenshots.close()
         self.ik_handles.close()
         if self.owns_server:
@@ -236,7 +243,9 @@ class GuiApp:
             self.record_panel.update()
         if self._frames % 30 == 0:
             self.topics_panel.update()
-            self.controllers_panel.update()
+        for name, panel in self.panels.items():
+            if self._frames % panel.period == 0 and name not in self._failed_panels:
+                self._panel_call(name, panel.update)
         if self.routine and not self.routine.running:
             self._routine_done()
 
@@ -329,14 +338,33 @@ class GuiApp:
         self._build_routines()
         self._build_physics()
         self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
-        self.controllers_panel = ControllersPanel(self.server, self.lab, self.do, self.refuse)
         self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
                                         self.record_folder)
-        self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,
-                                    self.model_label)
+        for name, panel in self.panels.items():
+            self._panel_call(name, panel.build)
         self.walk_pad = WalkPad(self.server, self.lab, self.do)
         self.walk_plan = WalkPlanView(self.server, self.lab)
         self.ik_handles = IkHandles(self.server, self.lab, self.do)
+
+    def _panel_call(self, name: str, method: Callable[[], None]) -> None:
+        """A plug-in panel's build or update: one that raises is said once and left out (a
+        panel's bug never ends the simulation)."""
+        try:
+            method()
+        except Exception as exc:  # noqa: BLE001 - any panel's bug; the lab goes on
+            self._failed_panels.add(name)
+            text = exc.one_line() if isinstance(exc, MexoneError) else f"{type(exc).__name__}: {exc}"
+            log.error("the %s panel stopped: %s", name, text)
+
+    @property
+    def controllers_panel(self):
+        """The Controllers panel (gui/controllers.py)."""
+        return self.panels["controllers"]
+
+    @property
+    def load_panel(self):
+        """The Load robot panel (gui/load.py)."""
+        return self.panels["load"]
 
     def _screenshot_clicked(self, client) -> None:
         if client is None:
@@ -385,6 +413,8 @@ class GuiApp:
         lab = Lab.create(model=path, controllers=AUTO, world=self.lab.sim.compiled.world,
                          options=self.options, target_rtf=self.target_rtf or None)
         self.stop_routine()
+        for panel in self.panels.values():
+            panel.unload()
         self.record_panel.stop()
         if self.topics_panel.echo_sub is not None:
             self.topics_panel.echo_sub.unregister()
@@ -583,9 +613,16 @@ class GuiApp:
         if path is None:
             raise InputError(f"'{choice}' is not one of the routines this server offers",
                              hint="pick one from the list (mexone sim --routines DIR adds a folder)")
+        self.start_routine_file(path)
+
+    def start_routine_file(self, path: Path, args: dict[str, object] | None = None) -> None:
+        """Simulation thread: start a routine file the server chose (never a path a page
+        sent), as the Routines panel's Start does."""
+        if self.lab.controllers is None:
+            raise MexoneError("no controllers loaded: a routine has nothing to command")
         self.stop_routine()
         self.console.clear()
-        self.routine = RoutineRunner(self.lab, path, log=self._log, poll=1.0 / FPS)
+        self.routine = RoutineRunner(self.lab, path, args, log=self._log, poll=1.0 / FPS)
         self.routine.start()
         self._log("INFO", f"started {self.routine.path.name}")
 
