@@ -110,6 +110,7 @@ class GuiApp:
         self.screenshots = Screenshots(self.record_folder or Path.cwd())
         self.last_screenshot: Path | None = None
         self.exercise = exercise
+        self.extra_routines: dict[str, Path] = {}  # routines a panel offers (an exercise's)
         # the plug-in panels (gui/panels.py): one instance each for the page's life
         self.panels: dict[str, Panel] = {cls.name: cls(self) for cls in panel_types()
                                          if cls.wanted(self)}
@@ -585,7 +586,7 @@ class GuiApp:
     def _build_routines(self) -> None:
         gui = self.server.gui
         with gui.add_folder("Routines"):
-            self.routine_files = routine_choices(self.routine_dirs)
+            self.routine_files = routine_choices(self.routine_dirs) | self.extra_routines
             names = tuple(self.routine_files)
             self.routine_choice = gui.add_dropdown("Routine", names, initial_value=names[0],
                                                    hint="shipped routines and the .py files of "
@@ -598,7 +599,7 @@ class GuiApp:
             self.console_view = gui.add_markdown("*console: no routine yet*")
 
     def _refresh_routines(self) -> None:
-        self.routine_files = routine_choices(self.routine_dirs)
+        self.routine_files = routine_choices(self.routine_dirs) | self.extra_routines
         self.routine_choice.options = tuple(self.routine_files)
 
     def _log(self, level: str, text: str) -> None:
@@ -613,16 +614,9 @@ class GuiApp:
         if path is None:
             raise InputError(f"'{choice}' is not one of the routines this server offers",
                              hint="pick one from the list (mexone sim --routines DIR adds a folder)")
-        self.start_routine_file(path)
-
-    def start_routine_file(self, path: Path, args: dict[str, object] | None = None) -> None:
-        """Simulation thread: start a routine file the server chose (never a path a page
-        sent), as the Routines panel's Start does."""
-        if self.lab.controllers is None:
-            raise MexoneError("no controllers loaded: a routine has nothing to command")
         self.stop_routine()
         self.console.clear()
-        self.routine = RoutineRunner(self.lab, path, args, log=self._log, poll=1.0 / FPS)
+        self.routine = RoutineRunner(self.lab, path, log=self._log, poll=1.0 / FPS)
         self.routine.start()
         self._log("INFO", f"started {self.routine.path.name}")
 

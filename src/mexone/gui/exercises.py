@@ -5,10 +5,12 @@ Check does two things with the file the student edits (the started folder's, nev
 page sends):
 
 1. it puts the file into the running lab where that means something (simulation thread):
-   a gains YAML retunes the running controllers of the same names; a Python controller the
-   lab runs from that file is reloaded in place (the Controllers panel's Reload); a routine is
-   started from t = 0 after Reset model (the Routines panel's runner); a URDF is opened by
-   Load (the View panel's Center of Mass and Inertia show what the checks mean);
+   a gains YAML retunes the running controllers of the same names and resets the robot (the
+   episode from t = 0, with your gains, on the page); a Python controller the lab runs from
+   that file is reloaded in place (the Controllers panel's Reload); a URDF is opened by Load
+   (the View panel's Center of Mass and Inertia show what the checks mean). A routine is never
+   started by Check (a routine runs in the simulator's process: one that hangs would stall the
+   lab): it is listed in the Routines panel, to Start by hand;
 2. it runs the exercise's self-check (`python3 check.py`: the grader on the nominal robot, the
    student's part in a process of its own with the exercise's limits) in a worker process, and
    shows each check, its points, the score and the failing checks' names.
@@ -44,9 +46,10 @@ __all__ = ["ExercisesPanel", "ExerciseTarget", "open_exercise", "CheckOutcome", 
            "LIVE"]
 
 LIVE = {  # what Check does in the running lab, per submission kind (docs/exercises.md)
-    "gains": "retunes the running controllers of the same names with your gains",
+    "gains": "retunes the running controllers of the same names with your gains and resets "
+             "the robot",
     "controller": "reloads your controller in place where the lab runs it from your file",
-    "routine": "resets the robot and starts your routine (Routines panel's console)",
+    "routine": "starts nothing: your routine is in the Routines panel's list, to Start by hand",
     "urdf": "opens your model (Load): see View > Center of Mass / Inertia",
     "params": "nothing: the self-check runs it",
     "json": "nothing: the self-check runs it",
@@ -72,8 +75,8 @@ class ExerciseTarget:
         """The submission kind's live step, or "" when the exercise says it has none."""
         if not self.exercise.live:
             return ""
-        return self.exercise.submission if self.exercise.submission in ("gains", "controller",
-                                                                          "routine", "urdf") else ""
+        kind = self.exercise.submission
+        return kind if kind in ("gains", "controller", "routine", "urdf") else ""
 
 
 def _started_name(check_py: Path) -> str | None:
@@ -261,6 +264,9 @@ class ExercisesPanel(Panel):
     def __init__(self, app):
         super().__init__(app)
         self.target: ExerciseTarget = app.exercise
+        if self.target.folder is not None and self.target.exercise.submission == "routine" \
+                and self.target.live:  # the Routines panel lists the student's routine
+            app.extra_routines[f"exercise: {self.target.exercise.file}"] = self.target.submission
         self.outcome: CheckOutcome | None = None
         self.running_since: float | None = None
         self._worker: threading.Thread | None = None
@@ -394,10 +400,6 @@ class ExercisesPanel(Panel):
                 return self._live_gains(submission)
             if kind == "controller":
                 return self._live_controller(submission)
-            if kind == "routine":
-                self.app.reset_model()
-                self.app.start_routine_file(submission)
-                return f"started {submission.name} after Reset model (Routines: its console)"
             if kind == "urdf":
                 self.app.load(submission)  # rebuilds every panel, this one too
                 return f"opened {submission.name} (Load)"
@@ -428,7 +430,22 @@ class ExercisesPanel(Panel):
             done.append(name)
         if not done:
             return "not applied: no controller of your file runs in this lab with PID gains"
-        return f"your gains retune {len(done)} running controllers"
+        self._show_gains(done)
+        self.app.reset_model()  # the episode from t = 0, with the new gains
+        return f"your gains retune {len(done)} running controllers; the robot was reset"
+
+    def _show_gains(self, names: list[str]) -> None:
+        """The Joints panel's Gains fields show what the controllers now hold."""
+        from mexone.control.spec import joint_label
+
+        manager = self.app.lab.controllers
+        fields = {getattr(f.handle, "label", None): f.handle for f in self.app.fields.fields}
+        for name in names:
+            gains = manager.controllers[name].gains[0]
+            for key in ("p", "i", "d"):
+                handle = fields.get(f"{key} ({joint_label(name)})")
+                if handle is not None:
+                    self.app.fields.set_held(handle, [float(getattr(gains, key))])
 
     def _live_controller(self, submission: Path) -> str:
         from mexone.control.controllers.python import PythonRunner
