@@ -110,6 +110,12 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
           file=sys.stderr)
     if bridge is not None:
         print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
+    if exercise is not None:
+        ex = exercise.exercise
+        print(f"mexone: Exercises panel: {ex.title} ({ex.name}); Check grades "
+              + (str(exercise.submission) if exercise.folder else
+                 f"nothing yet (mexone exercise start {ex.name} DIR, then --exercise DIR)"),
+              file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
             app.serve_forever(duration)  # until a signal asks it to stop (signals.requested)
