@@ -9,6 +9,7 @@ from __future__ import annotations
 import shutil
 import socket
 import threading
+from pathlib import Path
 
 import pytest
 import viser
@@ -204,3 +205,30 @@ def test_the_panel_registry():
     with pytest.raises(TypeError, match="two panels are named 'controllers'"):
         register_panel(Twin)
     assert PANELS["controllers"].__module__ == "mexone.gui.controllers"
+
+
+def test_check_runs_a_controller_plug_in_in_the_lab_and_grades_it(tmp_path):
+    """gravity_compensation's exercise.yaml says how: the student's class on the arm, the arm
+    raised; the reference then holds the raised arm on the page and scores full marks."""
+    folder = tmp_path / "gc"
+    assert run_cli(["exercise", "start", "gravity_compensation", str(folder)])[0] == 0
+    shutil.copyfile(find_exercise("gravity_compensation").solution,
+                    folder / "gravity_compensation.py")
+    app, loop = _serve(open_exercise(folder))
+    try:
+        panel = app.panels["exercises"]
+        call(app, panel.check)
+        text = _result(panel, timeout=90)
+        assert "the lab restarted with your GravityCompensation" in text
+        assert "**score 10/10** (passed" in text
+        manager = app.lab.controllers
+        ctrl = manager.controllers["gravity_compensation"]
+        assert ctrl.running and ctrl.fault is None
+        assert Path(ctrl.plugin.file).read_text() == (folder / "gravity_compensation.py").read_text()
+        elbow = app.lab.sim.model.joint("l_elbow").qposadr[0]
+        assert abs(app.lab.sim.data.qpos[elbow] + 0.6) < 0.02  # the raised arm, held
+        assert "l_elbow_position_controller" not in manager.controllers
+        assert "r_elbow_position_controller" in manager.controllers
+    finally:
+        app.stop()
+        loop.join(timeout=5)

@@ -41,7 +41,7 @@ from mexone.gui.topics import RecordPanel, TopicsPanel
 from mexone.gui.walkpad import WalkPad
 from mexone.gui.walkplan import WALK_PLAN, WalkPlanView
 from mexone.lab import AUTO, Lab
-from mexone.physics.compile import CompileOptions
+from mexone.physics.compile import CompileOptions, Spawn
 from mexone.physics.simulation import WorkQueue
 from mexone.physics.watchdog import DivergenceError
 from mexone.ranges import GAINS, GRAVITY, RTF, STEPS, TIMESTEP, number_text
@@ -402,17 +402,21 @@ class GuiApp:
         return path
 
     # ----- Load: another robot, same server ----------------------------------------------------
-    def load(self, path: Path) -> None:
-        """Simulation thread: open the robot in `path` with controllers from its physics and
-        rebuild the scene and every panel. A file that fails to load changes nothing."""
+    def load(self, path: Path | None, controllers: Path | str = AUTO,
+             spawn: Spawn | None = None) -> None:
+        """Simulation thread: open the robot in `path` (None: the robot loaded now, again) with
+        controllers from its physics (or the `controllers` YAML) and rebuild the scene and every
+        panel. A file that fails to load changes nothing."""
         if self.tick_hooks:
             raise MexoneError("Load: not while joined to ROS (--ros): the ROS graph knows this "
                               "robot", hint="restart mexone sim with the other robot")
         if self.lab.bus.taps and self.record_panel.recorder is None:
             raise MexoneError("Load: not while --record records this robot",
                               hint="stop mexone sim (the bag closes), then open the other robot")
-        lab = Lab.create(model=path, controllers=AUTO, world=self.lab.sim.compiled.world,
-                         options=self.options, target_rtf=self.target_rtf or None)
+        lab = Lab.create(model=self.lab.sim.robot if path is None else path,
+                         controllers=controllers, world=self.lab.sim.compiled.world,
+                         spawn=spawn or Spawn(), options=self.options,
+                         target_rtf=self.target_rtf or None)
         self.stop_routine()
         for panel in self.panels.values():
             panel.unload()
@@ -427,14 +431,16 @@ class GuiApp:
             if camera.renderer is not None:
                 camera.renderer.close()
                 camera.renderer = None
-        self.lab, self.model_label = lab, path.name
+        self.lab = lab
+        self.model_label = self.model_label if path is None else path.name
         self.steps_left, self.error = 0, None
         self.follow_offset.clear()
         self.server.scene.reset()
         self.server.gui.reset()
         self._build_all()
-        self.notify("Loaded", f"{lab.sim.robot.name} from {path.name} (controllers from its "
-                              "physics)", color="green")
+        self.notify("Loaded", f"{lab.sim.robot.name} from {self.model_label} ("
+                    + ("controllers from its physics)" if controllers == AUTO else
+                       f"controllers of {Path(controllers).name})"), color="green")
         if (self.start_paused or self.paused_after_reset.value) and not self.lab.sim.paused:
             self._toggle_pause()
 

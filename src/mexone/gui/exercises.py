@@ -30,6 +30,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -41,6 +42,7 @@ from mexone import yamlio
 from mexone.errors import InputError, MexoneError
 from mexone.exercises.exercise import Exercise, find_exercise
 from mexone.gui.panels import Panel, register_panel
+from mexone.physics.compile import Spawn
 
 __all__ = ["ExercisesPanel", "ExerciseTarget", "open_exercise", "CheckOutcome", "run_self_check",
            "LIVE"]
@@ -275,6 +277,7 @@ class ExercisesPanel(Panel):
         self._lock = threading.Lock()
         self._shown_outcome: object = None
         self.shown_file: str | None = None
+        self._scratch: Path | None = None  # the live controller's YAML and file copy
 
     @classmethod
     def wanted(cls, app) -> bool:
@@ -453,12 +456,50 @@ class ExercisesPanel(Panel):
         manager = self.app.lab.controllers
         mine = [n for n, c in (manager.controllers.items() if manager else ())
                 if isinstance(c, PythonRunner) and Path(c.plugin.file).resolve() == submission.resolve()]
-        for name in mine:
+        for name in mine:  # the lab runs it from the student's own file: the panel's Reload
             manager.reload(name)
-        if not mine:
+        if mine:
+            return f"reloaded {', '.join(mine)} from {submission.name}"
+        live = self.target.exercise.live_controller
+        if live is None:
             return (f"not reloaded: this lab runs no controller from {submission.name} (give mexone "
                     "sim --controllers a YAML that uses it to watch it here)")
-        return f"reloaded {', '.join(mine)} from {submission.name}"
+        yaml_path = self._live_yaml(submission, live)
+        self.app.load(None, controllers=yaml_path, spawn=Spawn(joints=live.pose))
+        return (f"the lab restarted with your {live.cls} on {', '.join(live.joints)} (the "
+                "Controllers panel shows it; a fault there is your controller's)")
+
+    def _live_yaml(self, submission: Path, live) -> Path:
+        """A controllers YAML in a scratch folder of the panel's: a copy of the student's file,
+        its class on the exercise's joints, the running lab's controllers on the others."""
+        import yaml
+
+        from mexone.robots import mex_one
+
+        if self._scratch is None:
+            self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-page-"))
+        manager = self.app.lab.controllers
+        given = manager.config.parameters if manager is not None else None
+        if not isinstance(given, dict) or not given:
+            given = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
+        spaces = [(k, v) for k, v in given.items() if isinstance(v, dict) and "type" not in v]
+        ns, controllers = spaces[0] if len(spaces) == 1 and len(given) == 1 else (None, given)
+        claimed = set(live.joints)
+
+        def free(entry) -> bool:
+            if not isinstance(entry, dict) or "type" not in entry:
+                return True
+            joints = {entry.get("joint"), *(entry.get("joints") or [])} - {None}
+            return not joints & claimed
+
+        kept = {k: v for k, v in controllers.items() if free(v) and k != live.name}
+        stem = f"exercise_{self.target.exercise.name}"  # the copy's module name
+        shutil.copyfile(submission, self._scratch / f"{stem}.py")
+        entry = {"type": f"{stem}/{live.cls}", "joints": list(live.joints), **dict(live.params)}
+        body = {live.name: entry, **kept}
+        path = self._scratch / "controllers.yaml"
+        path.write_text(yaml.safe_dump({ns: body} if ns else body, sort_keys=False))
+        return path
 
     def update(self) -> None:
         """Simulation thread: the result block (a worker's outcome lands here)."""
@@ -484,6 +525,8 @@ class ExercisesPanel(Panel):
             _end(proc)
         if self._worker is not None:
             self._worker.join(timeout=5)
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
 
 
 def outcome_summary(outcome: CheckOutcome) -> str:
