@@ -6,6 +6,7 @@ exercise folder is refused; the panel plug-in registry."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import socket
 import threading
@@ -232,3 +233,19 @@ def test_check_runs_a_controller_plug_in_in_the_lab_and_grades_it(tmp_path):
     finally:
         app.stop()
         loop.join(timeout=5)
+
+
+@pytest.mark.parametrize("bad, said", [
+    ("live_controller: [1]", "'live_controller' must be a mapping"),
+    ("live_controller: {class: 'no way', joints: [a]}", "'class' is 'no way'"),
+    ("live_controller: {class: A, joints: []}", "'joints' is []"),
+    ("live_controller: {class: A, joints: [a], pose: {a: yes}}", "'pose' must map joint names"),
+    ("live: maybe", "'live' is 'maybe': write true or false"),
+])
+def test_a_bad_live_setting_is_one_line(tmp_path, bad, said):
+    assert run_cli(["exercise", "new", "tpl", str(tmp_path / "tpl")])[0] == 0
+    yaml = tmp_path / "tpl" / "exercise.yaml"
+    yaml.write_text(yaml.read_text() + bad + "\n")
+    with pytest.raises(InputError, match=re.escape(said)) as caught:
+        find_exercise(tmp_path / "tpl")
+    assert str(yaml) in caught.value.one_line() and "\n" not in caught.value.one_line()
