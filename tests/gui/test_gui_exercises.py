@@ -122,6 +122,28 @@ def test_check_names_the_starters_failing_checks_then_gives_the_solution_full_ma
         assert app.lab.controllers.controllers[name].gains[0] == wanted[name].pid  # retuned live
 
 
+def test_the_exercise_list_shows_another_statement_and_refuses_what_it_does_not_offer(home):
+    app, folder = home
+    panel = app.panels["exercises"]
+    labels = list(panel.choices())
+    assert labels[0] == "home_hold (hh/)" and {"pid_spec", "identify_damping"} <= set(labels)
+    with page(app) as ws:
+        join(ws)
+        send(ws, panel.pick, "../../etc")
+        assert wait_until(lambda: any("'../../etc' is not an exercise this page offers" in r
+                                      for r in app.refusals))
+        assert wait_until(lambda: panel.pick.value == "home_hold (hh/)")  # restored
+        send(ws, panel.pick, "pid_spec")
+        assert wait_until(lambda: "PID to a specification" in panel.statement.content)
+        assert panel.target.exercise.name == "pid_spec" and panel.target.folder is None
+        send(ws, _button(app, "Check"), True)
+        assert wait_until(lambda: any("pid_spec is not started: there is no file to check" in r
+                                      for r in app.refusals))
+        send(ws, panel.pick, "home_hold (hh/)")
+        assert wait_until(lambda: "Home hold" in panel.statement.content)
+    assert panel.target is panel.started and panel.shown_file == "controllers.yaml" and not panel.running
+
+
 @pytest.fixture()
 def hanging(tmp_path, monkeypatch):
     """A teacher's routine exercise with a 2 s limit, started, its routine never ending; and a

@@ -597,14 +597,14 @@ class GuiApp:
             self.routine_choice = gui.add_dropdown("Routine", names, initial_value=names[0],
                                                    hint="shipped routines and the .py files of "
                                                         "the folders mexone sim --routines named")
-            gui.add_button("Refresh list").on_click(lambda _: self.do(self._refresh_routines))
+            gui.add_button("Refresh list").on_click(lambda _: self.do(self.refresh_routines))
             start = gui.add_button("Start", icon=viser.Icon.PLAYER_PLAY)
             start.on_click(lambda _: self.do(self.start_routine))
             stop = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP)
             stop.on_click(lambda _: self.do(self.stop_routine))
             self.console_view = gui.add_markdown("*console: no routine yet*")
 
-    def _refresh_routines(self) -> None:
+    def refresh_routines(self) -> None:
         self.routine_files = routine_choices(self.routine_dirs) | self.extra_routines
         self.routine_choice.options = tuple(self.routine_files)
 

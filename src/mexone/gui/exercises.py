@@ -40,7 +40,7 @@ import viser
 
 from mexone import yamlio
 from mexone.errors import InputError, MexoneError
-from mexone.exercises.exercise import Exercise, find_exercise
+from mexone.exercises.exercise import Exercise, exercises, find_exercise
 from mexone.gui.panels import Panel, register_panel
 from mexone.physics.compile import Spawn
 
@@ -265,10 +265,10 @@ class ExercisesPanel(Panel):
 
     def __init__(self, app):
         super().__init__(app)
-        self.target: ExerciseTarget = app.exercise
-        if self.target.folder is not None and self.target.exercise.submission == "routine" \
-                and self.target.live:  # the Routines panel lists the student's routine
-            app.extra_routines[f"exercise: {self.target.exercise.file}"] = self.target.submission
+        self.started: ExerciseTarget = app.exercise  # what --exercise named
+        self.cwd = Path.cwd()  # where `mexone exercise start NAME` puts ./NAME
+        self.target = self.started
+        self._offer_routine()
         self.outcome: CheckOutcome | None = None
         self.running_since: float | None = None
         self._worker: threading.Thread | None = None
@@ -276,12 +276,60 @@ class ExercisesPanel(Panel):
         self._cancel = threading.Event()
         self._lock = threading.Lock()
         self._shown_outcome: object = None
+        self._notified: object = None
         self.shown_file: str | None = None
         self._scratch: Path | None = None  # the live controller's YAML and file copy
 
     @classmethod
     def wanted(cls, app) -> bool:
         return getattr(app, "exercise", None) is not None
+
+    def _offer_routine(self) -> None:
+        """A started routine exercise's file in the Routines panel's list (to Start by hand)."""
+        routines = self.app.extra_routines
+        for key in [k for k in routines if k.startswith("exercise: ")]:
+            del routines[key]
+        if self.target.folder is not None and self.target.live == "routine":
+            routines[f"exercise: {self.target.exercise.file}"] = self.target.submission
+
+    def choices(self) -> dict[str, ExerciseTarget | str]:
+        """The Exercise list: the one --exercise named (its started folder), then the course's
+        and the entry points' by name."""
+        first = self.started.exercise.name
+        if self.started.folder is not None:
+            first += f" ({self.started.folder.name}/)"
+        return {first: self.started, **{name: name for name in exercises()
+                                         if name != first}}
+
+    def _label(self) -> str:
+        for label, choice in self.choices().items():
+            if choice is self.target or (isinstance(choice, str) and self.target is not
+                                         self.started and choice == self.target.exercise.name):
+                return label
+        return next(iter(self.choices()))
+
+    def choose(self, label: str) -> None:
+        """Simulation thread: show another exercise (one of the list; never a path a page
+        sent), with ./NAME as its started folder if it is one."""
+        try:
+            if self.running:
+                raise InputError("a check is running: pick another exercise when it ends")
+            choice = self.choices().get(label)
+            if choice is None:
+                raise InputError(f"'{str(label)[:80]}' is not an exercise this page offers",
+                                 hint="pick one from the list")
+        except InputError:
+            self.pick.value = self._label()
+            raise
+        if label == self._label():
+            return
+        self.target = choice if isinstance(choice, ExerciseTarget) else \
+            open_exercise(choice, cwd=self.cwd)
+        self.outcome = None
+        self._offer_routine()
+        self.app.refresh_routines()
+        self.folder.remove()
+        self.build()
 
     # ----- the page ----------------------------------------------------------------------------
     def files(self) -> dict[str, Path]:
@@ -303,6 +351,12 @@ class ExercisesPanel(Panel):
         self.folder = gui.add_folder("Exercises", order=order)
         folder = self.target.folder
         with self.folder:
+            labels = tuple(self.choices())
+            self.pick = gui.add_dropdown("Exercise", labels, initial_value=self._label(),
+                                         hint="the one mexone sim --exercise named, and the "
+                                              "course's (./NAME if you started it there)")
+            self.pick.on_update(lambda e: e.client is not None and self.app.do(
+                lambda v=e.target.value: self.choose(v)))
             gui.add_markdown(f"### {ex.number or ''}{'. ' if ex.number else ''}{ex.title}\n"
                              f"hand in **{ex.file}** ({ex.submission}): {ex.points:g} points, pass "
                              f"mark {ex.pass_mark:g}")
@@ -514,6 +568,8 @@ class ExercisesPanel(Panel):
         if outcome is not None and outcome is not self._shown_outcome:
             self.result.content = outcome_markdown(self.target.exercise, outcome)
             self._shown_outcome = outcome
+        if outcome is not None and outcome is not self._notified:
+            self._notified = outcome
             title = "Check" if outcome.error is None else "Check failed"
             self.app.notify(title, outcome_summary(outcome),
                             color="green" if outcome.report and outcome.report.get(
