@@ -23,7 +23,14 @@ from mexone.control.config import load_control_config
 from mexone.errors import InputError
 from mexone.exercises.exercise import find_exercise
 from mexone.gui.app import GuiApp
-from mexone.gui.exercises import ExercisesPanel, inside, open_exercise
+from mexone.gui.exercises import (
+    CheckOutcome,
+    ExercisesPanel,
+    fenced,
+    inside,
+    open_exercise,
+    outcome_markdown,
+)
 from mexone.gui.panels import PANELS, Panel, panel_types, register_panel
 from mexone.lab import Lab
 from mexone.physics import CompileOptions
@@ -271,3 +278,17 @@ def test_a_bad_live_setting_is_one_line(tmp_path, bad, said):
     with pytest.raises(InputError, match=re.escape(said)) as caught:
         find_exercise(tmp_path / "tpl")
     assert str(yaml) in caught.value.one_line() and "\n" not in caught.value.one_line()
+
+
+@settings(derandomize=True, max_examples=60, deadline=None)
+@given(st.text(max_size=60), st.text(max_size=60))
+def test_what_a_grader_or_a_submission_says_is_plain_text_on_the_page(name, output):
+    exercise = find_exercise("home_hold")
+    test = {"name": name, "output": output, "status": "failed", "score": 0, "max_score": 10}
+    report = {"score": 0, "tests": [test], "extra_data": {"max_score": 10, "failure": output}}
+    text = outcome_markdown(exercise, CheckOutcome(report=report, checks=[test],
+                                                   live=output))
+    assert "<" not in text and ">" not in text.replace("&gt;", "")
+    rows = [line for line in text.splitlines() if line.startswith("| ❌")]
+    assert len(rows) == 1 and len(re.split(r"(?<!\\)\|", rows[0])) == 6  # its 4 cells, no more
+    assert fenced(output + "```", "yaml").splitlines()[-1] not in output + "```"

@@ -26,6 +26,7 @@ import ast
 import contextlib
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -168,12 +169,12 @@ def run_self_check(exercise: Exercise, submission: Path, cancel: threading.Event
     its report. Ends the group at the budget or when `cancel` is set. (A worker thread's.)"""
     began = time.monotonic()
     budget = check_budget(exercise)
-    with contextlib.suppress(OSError):
+    try:
         proc = subprocess.Popen(_command(exercise, submission), cwd=submission.parent,
                                 stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                 stderr=subprocess.PIPE, start_new_session=True)
-    if "proc" not in locals():
-        return CheckOutcome(error="could not start the grading process")
+    except OSError as exc:
+        return CheckOutcome(error=f"could not start the grading process: {exc.strerror}")
     if started is not None:
         started.append(proc)
     reason = None
@@ -196,11 +197,7 @@ def run_self_check(exercise: Exercise, submission: Path, cancel: threading.Event
     seconds = time.monotonic() - began
     if reason:
         return CheckOutcome(error=reason, seconds=seconds)
-    text = out.decode("utf-8", "replace")
-    try:
-        report = json.loads(text[text.index("{"):]) if "{" in text else None
-    except ValueError:
-        report = None
+    report = _report(out.decode("utf-8", "replace"))
     if proc.returncode != 0 or not isinstance(report, dict):
         lines = [line for line in err.decode("utf-8", "replace").splitlines() if line.strip()]
         said = next((line for line in reversed(lines) if line.startswith("mexone:")),
@@ -208,6 +205,18 @@ def run_self_check(exercise: Exercise, submission: Path, cancel: threading.Event
         return CheckOutcome(error=f"the self-check did not run: {said.strip()[:300]}",
                             seconds=seconds)
     return CheckOutcome(report=report, seconds=seconds, checks=list(report.get("tests", [])))
+
+
+def _report(text: str) -> dict | None:
+    """The results.json `grade --json -` printed last (a grader's own prints may come first)."""
+    at = 0 if text.startswith("{") else text.rfind("\n{\n") + 1
+    if at == 0 and not text.startswith("{"):
+        return None
+    try:
+        report = json.loads(text[at:])
+    except ValueError:
+        return None
+    return report if isinstance(report, dict) else None
 
 
 def _end(proc: subprocess.Popen) -> None:
@@ -223,17 +232,28 @@ def _end(proc: subprocess.Popen) -> None:
 
 
 def _cell(text: object) -> str:
-    return str(text).replace("|", "\\|").replace("\n", " ")[:300]
+    """Text from a grader or a submission's error as plain text in a table cell (no markup of
+    its own: a student's exception message is not HTML for the page)."""
+    one_line = " ".join(str(text)[:300].splitlines())  # \r, \x1e, \u2028 break lines too
+    return (one_line.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+            .replace("|", "\\|"))
+
+
+def fenced(text: str, lang: str = "") -> str:
+    """`text` as a code block no line of it can close (a fence longer than its backtick runs)."""
+    longest = max((len(run) for run in re.findall(r"`+", text)), default=0)
+    fence = "`" * max(3, longest + 1)
+    return f"{fence}{lang}\n{text}\n{fence}"
 
 
 def outcome_markdown(exercise: Exercise, outcome: CheckOutcome) -> str:
     """The result block the page shows: each check, its points, the score, what failed."""
     lines = []
     if outcome.live:
-        lines.append(f"*in the lab:* {outcome.live}")
+        lines.append(f"*in the lab:* {_cell(outcome.live)}")
         lines.append("")
     if outcome.error:
-        lines.append(f"**Check failed to run** — {outcome.error}")
+        lines.append(f"**Check failed to run** — {_cell(outcome.error)}")
         return "\n".join(lines)
     report = outcome.report or {}
     extra = report.get("extra_data", {})
@@ -405,10 +425,9 @@ class ExercisesPanel(Panel):
         if path.suffix == ".md":
             shown = text
         else:
-            fence = "````" if "```" in text else "```"
             lang = {".py": "python", ".yaml": "yaml", ".yml": "yaml", ".urdf": "xml"}.get(
                 path.suffix, "")
-            shown = f"{fence}{lang}\n{text}\n{fence}"
+            shown = fenced(text, lang)
         self.shown_file = path.name
         self.file_view.content = shown
 
