@@ -292,3 +292,21 @@ def test_what_a_grader_or_a_submission_says_is_plain_text_on_the_page(name, outp
     rows = [line for line in text.splitlines() if line.startswith("| ❌")]
     assert len(rows) == 1 and len(re.split(r"(?<!\\)\|", rows[0])) == 6  # its 4 cells, no more
     assert fenced(output + "```", "yaml").splitlines()[-1] not in output + "```"
+
+
+def test_check_opens_a_urdf_in_the_lab_and_the_panel_survives_the_load(tmp_path):
+    folder = tmp_path / "mc"
+    assert run_cli(["exercise", "start", "model_checks", str(folder)])[0] == 0
+    shutil.copyfile(find_exercise("model_checks").solution, folder / "mex_rb.urdf")
+    app, loop = _serve(open_exercise(folder))
+    try:
+        panel = app.panels["exercises"]
+        before = panel.result
+        call(app, panel.check)
+        text = _result(panel, timeout=90)
+        assert "opened mex_rb.urdf (Load)" in text and "**score 10/10** (passed" in text
+        assert app.model_label == "mex_rb.urdf" and panel.result is not before  # rebuilt
+        assert "Model checks" in panel.statement.content
+    finally:
+        app.stop()
+        loop.join(timeout=5)
