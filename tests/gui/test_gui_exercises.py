@@ -12,6 +12,8 @@ import socket
 import threading
 from pathlib import Path
 
+import imageio.v3 as iio
+import numpy as np
 import pytest
 import viser
 from hypothesis import given, settings
@@ -170,6 +172,10 @@ def hanging(tmp_path, monkeypatch):
     yaml = tmp_path / "tpl" / "exercise.yaml"
     yaml.write_text(yaml.read_text().replace("time_limit: 30", "time_limit: 2")
                     .replace("cpu_limit: 30", "cpu_limit: 2"))
+    (tmp_path / "tpl" / "figures").mkdir()  # a statement's figure: start copies it
+    iio.imwrite(tmp_path / "tpl" / "figures" / "dot.png", np.zeros((4, 4, 3), np.uint8))
+    with open(tmp_path / "tpl" / "statement.md", "a") as f:
+        f.write("\n![the arms](figures/dot.png)\n")
     assert run_cli(["exercise", "start", str(tmp_path / "tpl"), str(tmp_path / "mine")])[0] == 0
     (tmp_path / "mine" / "routine.py").write_text("while True:\n    pass\n")
     app, loop = _serve(open_exercise(tmp_path / "mine"))
@@ -182,6 +188,8 @@ def test_a_hanging_submission_shows_its_reason_and_the_lab_runs_on(hanging):
     app = hanging
     panel = app.panels["exercises"]
     assert app.routine_files["exercise: routine.py"].name == "routine.py"  # to Start by hand
+    sent = panel.statement._impl.props._markdown  # what the page gets: the figure inlined
+    assert "![the arms](data:image/png;base64," in sent
     assert wait_until(lambda: any("broken_for_test panel stopped: RuntimeError: a panel's bug"
                                   in line for line in app.console), timeout=5)
     t0 = app.lab.sim.time
