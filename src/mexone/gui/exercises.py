@@ -46,7 +46,7 @@ from mexone.gui.panels import Panel, register_panel
 from mexone.physics.compile import Spawn
 
 __all__ = ["ExercisesPanel", "ExerciseTarget", "open_exercise", "CheckOutcome", "run_self_check",
-           "LIVE"]
+           "check_budget", "inside", "fenced", "outcome_markdown", "outcome_summary", "LIVE"]
 
 LIVE = {  # what Check does in the running lab, per submission kind (docs/exercises.md)
     "gains": "retunes the running controllers of the same names with your gains and resets "
