@@ -250,11 +250,19 @@ def test_check_runs_a_controller_plug_in_in_the_lab_and_grades_it(tmp_path):
     raised; the reference then holds the raised arm on the page and scores full marks."""
     folder = tmp_path / "gc"
     assert run_cli(["exercise", "start", "gravity_compensation", str(folder)])[0] == 0
-    shutil.copyfile(find_exercise("gravity_compensation").solution,
-                    folder / "gravity_compensation.py")
+    mine = folder / "gravity_compensation.py"
+    mine.write_text("import os\nos._exit(3)\n")  # ends whatever process imports it
     app, loop = _serve(open_exercise(folder))
     try:
         panel = app.panels["exercises"]
+        call(app, panel.check)
+        text = _result(panel, timeout=90)
+        assert "not applied: your file did not run in the self-check" in text
+        assert "failing: **runs**" in text and "score 0/10" in text
+        assert "gravity_compensation" not in app.lab.controllers.controllers  # never imported
+        t0 = app.lab.sim.time
+        assert wait_until(lambda: app.lab.sim.time > t0 + 0.1)  # the page's lab runs on
+        shutil.copyfile(find_exercise("gravity_compensation").solution, mine)
         call(app, panel.check)
         text = _result(panel, timeout=90)
         assert "the lab restarted with your GravityCompensation" in text

@@ -8,7 +8,9 @@ page sends):
    a gains YAML retunes the running controllers of the same names and resets the robot (the
    episode from t = 0, with your gains, on the page); a Python controller the lab runs from
    that file is reloaded in place (the Controllers panel's Reload); a URDF is opened by Load
-   (the View panel's Center of Mass and Inertia show what the checks mean). A routine is never
+   (the View panel's Center of Mass and Inertia show what the checks mean) -- code and models
+   only after the self-check below ran them (one that hangs or crashes there is never imported
+   into the page's process). A routine is never
    started by Check (a routine runs in the simulator's process: one that hangs would stall the
    lab): it is listed in the Routines panel, to Start by hand;
 2. it runs the exercise's self-check (`python3 check.py`: the grader on the nominal robot, the
@@ -437,7 +439,9 @@ class ExercisesPanel(Panel):
         return self.running_since is not None
 
     def check(self) -> None:
-        """Simulation thread: the live step, then the self-check in a worker."""
+        """Simulation thread: the self-check in a worker; the live step now for a gains file
+        (no code of the student's runs), after the self-check for a file of code or a model
+        (only one that ran there is imported into the page's process)."""
         ex = self.target.exercise
         if self.running:
             raise InputError(f"a check of {ex.name} is running ({time.monotonic() - self.running_since:.0f} "
@@ -447,23 +451,44 @@ class ExercisesPanel(Panel):
                              hint=f"mexone exercise start {ex.name} DIR, then mexone sim "
                                   "--exercise DIR")
         submission = inside(self.target.folder, ex.file)
-        live = self._live(submission)
+        later = self.target.live in ("controller", "urdf")
+        live = "" if later else self._live(submission)
         self.running_since = time.monotonic()
         self.outcome = None
         self._cancel.clear()
-        self._worker = threading.Thread(target=self._work, args=(submission, live), daemon=True,
-                                        name="exercise-check")
+        self._worker = threading.Thread(target=self._work, args=(submission, live, later),
+                                        daemon=True, name="exercise-check")
         self._worker.start()
         self.update()
 
-    def _work(self, submission: Path, live: str) -> None:
+    def _work(self, submission: Path, live: str, later: bool) -> None:
+        """Worker thread: the self-check; then the live step handed to the simulation thread."""
         try:
             outcome = run_self_check(self.target.exercise, submission, self._cancel, self._procs)
         except Exception as exc:  # noqa: BLE001 - shown on the page; the lab goes on
             outcome = CheckOutcome(error=f"{type(exc).__name__}: {exc}")
-        outcome.live = live
         with self._lock:
             self._procs.clear()
+        outcome.live = live
+        if not later:
+            self._publish(outcome)
+        elif outcome.report is None or outcome.report.get("extra_data", {}).get("failure"):
+            outcome.live = "not applied: your file did not run in the self-check"
+            self._publish(outcome)
+        elif not self._cancel.is_set():
+            self.app.do(lambda: self._live_then_publish(submission, outcome))
+
+    def _live_then_publish(self, submission: Path, outcome: CheckOutcome) -> None:
+        """Simulation thread: the live step after a self-check the file ran in."""
+        try:
+            outcome.live = self._live(submission)
+        except Exception as exc:  # noqa: BLE001 - a bug here must not end the page's loop
+            outcome.live = f"not applied: {type(exc).__name__}: {exc}"
+        self._publish(outcome)
+        self.update()
+
+    def _publish(self, outcome: CheckOutcome) -> None:
+        with self._lock:
             self.outcome = outcome
             self.running_since = None
 
