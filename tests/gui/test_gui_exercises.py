@@ -123,6 +123,7 @@ def test_check_names_the_starters_failing_checks_then_gives_the_solution_full_ma
         shutil.copyfile(find_exercise("home_hold").solution, folder / "controllers.yaml")
         send(ws, check, True)
         assert wait_until(lambda: panel.running, timeout=5)
+        assert "p: 150.0" in panel.file_view.content  # the file as checked (the solution)
         text = _result(panel, timeout=120)
     assert "**score 10/10** (passed" in text and "failing" not in text
     assert text.count("✅") == 3
@@ -196,6 +197,7 @@ def test_a_hanging_submission_shows_its_reason_and_the_lab_runs_on(hanging):
     call(app, panel.check)
     text = _result(panel, timeout=2 + 60)
     assert "exceeded the time limit of 2 s" in text and "failing: **runs**" in text
+    assert panel.outcome.seconds < 2 + 10  # within the limit (+ the grader's start-up)
     assert app.lab.sim.time > t0 + 0.5 and app.routine is None  # nothing ran in the lab
     assert sum("a panel's bug" in line for line in app.console) == 1  # said once, left out
 
