@@ -452,7 +452,8 @@ class ExercisesPanel(Panel):
                                   "--exercise DIR")
         submission = inside(self.target.folder, ex.file)
         self.file_choice.options = tuple(self.files()) or ("(not started)",)
-        self.show_file(self.shown_file if self.shown_file in self.files() else ex.file)  # as checked
+        self.file_choice.value = ex.file
+        self.show_file(ex.file)  # the file as it is checked
         later = self.target.live in ("controller", "urdf")
         live = "" if later else self._live(submission)
         self.running_since = time.monotonic()
