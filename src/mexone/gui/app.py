@@ -37,7 +37,6 @@ from mexone.gui.screenshot import Screenshots, page_picture
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
-from mexone.gui.topics import RecordPanel, TopicsPanel
 from mexone.gui.walkpad import WalkPad
 from mexone.gui.walkplan import WALK_PLAN, WalkPlanView
 from mexone.lab import AUTO, Lab
@@ -241,9 +240,6 @@ class GuiApp:
             self.plot_panel.update()
             self.sensor_panel.update_plots()
             self._sync_sliders()
-            self.record_panel.update()
-        if self._frames % 30 == 0:
-            self.topics_panel.update()
         for name, panel in self.panels.items():
             if self._frames % panel.period == 0 and name not in self._failed_panels:
                 self._panel_call(name, panel.update)
@@ -338,9 +334,6 @@ class GuiApp:
         self.sensor_panel = SensorPanel(self.server, self.lab, self.log)
         self._build_routines()
         self._build_physics()
-        self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
-        self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
-                                        self.record_folder)
         for name, panel in self.panels.items():
             self._panel_call(name, panel.build)
         self.walk_pad = WalkPad(self.server, self.lab, self.do)
@@ -361,6 +354,16 @@ class GuiApp:
     def controllers_panel(self):
         """The Controllers panel (gui/controllers.py)."""
         return self.panels["controllers"]
+
+    @property
+    def topics_panel(self):
+        """The Topics panel (gui/topics.py)."""
+        return self.panels["topics"]
+
+    @property
+    def record_panel(self):
+        """The Record panel (gui/topics.py)."""
+        return self.panels["record"]
 
     @property
     def load_panel(self):
@@ -419,10 +422,7 @@ class GuiApp:
                          target_rtf=self.target_rtf or None)
         self.stop_routine()
         for panel in self.panels.values():
-            panel.unload()
-        self.record_panel.stop()
-        if self.topics_panel.echo_sub is not None:
-            self.topics_panel.echo_sub.unregister()
+            panel.unload()  # Record ends its recording, Topics its echo
         self.log.close()
         self.walk_plan.close()
         self.ik_handles.close(join=0)  # this is the simulation thread, which its worker may await

@@ -37,7 +37,8 @@ __all__ = ["Panel", "register_panel", "panel_types", "PANELS", "BUILTIN_PANELS",
 log = logging.getLogger(__name__)
 
 ENTRY_POINT_GROUP = "mexone.gui_panels"
-BUILTIN_PANELS = ("mexone.gui.controllers", "mexone.gui.load", "mexone.gui.exercises")
+BUILTIN_PANELS = ("mexone.gui.topics", "mexone.gui.controllers", "mexone.gui.load",
+                  "mexone.gui.exercises")
 PANELS: dict[str, type[Panel]] = {}
 
 
