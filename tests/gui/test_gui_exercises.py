@@ -93,6 +93,10 @@ def test_the_panel_shows_the_statement_and_the_students_file(home):
     with page(app) as ws:
         join(ws)
         shown = panel.file_view.content
+        (folder / ".hidden.yaml").write_text("secret: 1\n")  # in the folder, not listed
+        send(ws, panel.file_choice, ".hidden.yaml")
+        assert wait_until(lambda: any("'.hidden.yaml' is not one of the files this page shows"
+                                      in r for r in app.refusals))
         for hostile in ("../../../etc/passwd", "/etc/passwd", "..", ""):
             send(ws, panel.file_choice, hostile)
             assert wait_until(lambda h=hostile: any(
@@ -215,14 +219,15 @@ def test_the_server_refuses_a_file_outside_the_folder(tmp_path):
 
 @settings(derandomize=True, max_examples=60, deadline=None)
 @given(st.text(max_size=40))
-def test_any_name_but_the_folders_own_files_is_refused(tmp_path_factory, name):
+def test_any_name_but_the_folders_own_files_is_refused_in_one_line(tmp_path_factory, name):
     folder = tmp_path_factory.getbasetemp() / "hyp"
     folder.mkdir(exist_ok=True)
     (folder / "mine.py").write_text("")
     if name == "mine.py":
         return
-    with pytest.raises(InputError, match="is not a file of the exercise folder"):
+    with pytest.raises(InputError, match="is not a file of the exercise folder") as caught:
         inside(folder, name)
+    assert len(caught.value.one_line().splitlines()) == 1
 
 
 def test_sim_exercise_refusals_are_one_line():

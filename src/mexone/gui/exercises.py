@@ -10,9 +10,9 @@ page sends):
    that file is reloaded in place (the Controllers panel's Reload); a URDF is opened by Load
    (the View panel's Center of Mass and Inertia show what the checks mean) -- code and models
    only after the self-check below ran them (one that hangs or crashes there is never imported
-   into the page's process). A routine is never
-   started by Check (a routine runs in the simulator's process: one that hangs would stall the
-   lab): it is listed in the Routines panel, to Start by hand;
+   into the page's process). A routine is never started by Check (a routine runs in the
+   simulator's process: one that hangs would stall the lab): it is listed in the Routines
+   panel, to Start by hand;
 2. it runs the exercise's self-check (`python3 check.py`: the grader on the nominal robot, the
    student's part in a process of its own with the exercise's limits) in a worker process, and
    shows each check, its points, the score and the failing checks' names.
@@ -53,7 +53,8 @@ __all__ = ["ExercisesPanel", "ExerciseTarget", "open_exercise", "CheckOutcome", 
 LIVE = {  # what Check does in the running lab, per submission kind (docs/exercises.md)
     "gains": "retunes the running controllers of the same names with your gains and resets "
              "the robot",
-    "controller": "reloads your controller in place where the lab runs it from your file",
+    "controller": "reloads your controller where the lab runs it from your file, or restarts "
+                  "the lab with it where the exercise says how (once the self-check ran it)",
     "routine": "starts nothing: your routine is in the Routines panel's list, to Start by hand",
     "urdf": "opens your model (Load): see View > Center of Mass / Inertia",
     "params": "nothing: the self-check runs it",
@@ -125,14 +126,14 @@ def inside(folder: Path, name: str) -> Path:
     """`folder/name` if that names a regular file directly in `folder` (no other folder, no
     link out of it), else a refusal: a page's message may name anything."""
     text = str(name)
-    candidate = folder / text
+    refusal = InputError(f"'{' '.join(text[:80].splitlines())}' is not a file of the exercise "
+                         f"folder {folder}", hint="pick one from the list")
     if not text or "/" in text or "\\" in text or text in (".", "..") or "\0" in text:
-        raise InputError(f"'{text[:80]}' is not a file of the exercise folder {folder}",
-                         hint="pick one from the list")
+        raise refusal
+    candidate = folder / text
     if candidate.is_symlink() or not candidate.is_file() \
             or candidate.resolve().parent != folder.resolve():
-        raise InputError(f"'{text[:80]}' is not a file of the exercise folder {folder}",
-                         hint="pick one from the list")
+        raise refusal
     return candidate
 
 
@@ -423,6 +424,9 @@ class ExercisesPanel(Panel):
             raise InputError(f"{self.target.exercise.name} is not started",
                              hint=f"mexone exercise start {self.target.exercise.name} DIR")
         path = inside(self.target.folder, name)
+        if path.name not in self.files():  # a hidden or binary file of the folder: not listed
+            raise InputError(f"'{path.name}' is not one of the files this page shows",
+                             hint="pick one from the list")
         text = self._read(path)
         if path.suffix == ".md":
             shown = text
