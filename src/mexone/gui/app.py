@@ -111,9 +111,11 @@ class GuiApp:
         self.exercise = exercise
         self.extra_routines: dict[str, Path] = {}  # routines a panel offers (an exercise's)
         # the plug-in panels (gui/panels.py): one instance each for the page's life
-        self.panels: dict[str, Panel] = {cls.name: cls(self) for cls in panel_types()
-                                         if cls.wanted(self)}
+        self.panels: dict[str, Panel] = {}
         self._failed_panels: set[str] = set()
+        for cls in panel_types():
+            self._panel_call(cls.name, lambda c=cls: c.wanted(self) and self.panels.update(
+                {c.name: c(self)}))
         self._build_all()
         # one click handler for the page's life: it reaches whichever robot is loaded now
         self._on_click = self.server.scene.on_click()(lambda e: self.do(
