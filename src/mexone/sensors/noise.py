@@ -53,8 +53,13 @@ class NoiseModel:
         """Add this reading's noise to `values` in place (one value per channel)."""
         if self._quantized:
             values[:] = self.apply(values)
+            return
+        row = self._row  # _next, inlined: this runs for every noisy reading, between steps
+        if row >= len(self._draws):
+            self._next()
         else:
-            values += self._next()
+            self._row = row + 1
+        values += self._draws[self._row - 1]
 
     def apply(self, values: np.ndarray) -> np.ndarray:
         """`values` with this reading's noise (one value per channel, or one channel over many
