@@ -311,7 +311,8 @@ class Sensor:
 
     def publish(self, sim: Simulation) -> None:
         """The broadcaster's tick: the main topic's message from this instant's state."""
-        self.bus.deliver(self._topic, self.message(self.state()))
+        state = self._state if self._at == sim.steps else self.state()  # read this instant?
+        self.bus.deliver(self._topic, self.message(state))
 
     # ----- plots and the page --------------------------------------------------------------------
     def signals(self) -> list[tuple[str, str]]:
@@ -371,10 +372,11 @@ class SensorStates(Mapping[str, Any]):
         self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
 
     def __getitem__(self, name: str) -> Any:
-        sensor = self._sensors.get(name)
-        if sensor is None:
+        try:
+            sensor = self._sensors[name]
+        except KeyError:
             raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
-                           f"{', '.join(self._sensors) or 'none'})")
+                           f"{', '.join(self._sensors) or 'none'})") from None
         if sensor._at == sensor.sim.steps:  # read already this instant: no call
             return sensor._state
         return sensor.state()
