@@ -474,3 +474,28 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
     assert list(lab.sim.data.qfrc_actuator[dofs]) == [0.5, -0.25, 0.125]
     q, q_from_all = ctrl.impl.seen[-1]  # qpos has one more entry than qvel (the base quaternion)
     np.testing.assert_array_equal(q, q_from_all)
+
+
+def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
+    """A Python controller's fast write (a few joints, Python floats) sends the same bits to
+    MuJoCo's ctrl and to the hardware's effort commands as the numpy writer does."""
+    _, lab = arm
+    hw, data = lab.controllers.hw, lab.sim.data
+    saved = data.ctrl.copy(), hw.command.effort.copy()
+    values = np.random.default_rng(25).normal(0.0, 30.0, 3)
+    try:
+        for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # a strided view
+                       ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
+            rows = hw.rows(joints)
+            hw.effort_floats_writer(rows)(values.tolist())
+            fast = data.ctrl.copy(), hw.command.effort.copy()
+            data.ctrl[:], hw.command.effort[:] = saved
+            hw.command.effort[rows] = values
+            hw.rows_writer(rows, "effort")(values)
+            np.testing.assert_array_equal(fast[0], data.ctrl)
+            np.testing.assert_array_equal(fast[1], hw.command.effort)
+            assert list(fast[0][hw._ctrl_motor[rows] + 2]) == list(values / hw.gear[rows])
+            data.ctrl[:], hw.command.effort[:] = saved
+        assert hw.effort_floats_writer(np.arange(len(hw.joints))) is None  # many joints: numpy
+    finally:
+        data.ctrl[:], hw.command.effort[:] = saved

@@ -83,7 +83,7 @@ class Time(_Stamp):
         return Time.from_sec(self.to_sec() - other.to_sec())
 
 
-@dataclass
+@dataclass(slots=True)
 class Header:
     seq: int = 0
     stamp: Time = field(default_factory=Time)
@@ -144,7 +144,7 @@ class TFMessage:
 
 
 # ----- geometry and sensors (sensor_msgs, geometry_msgs, gazebo_msgs) ------------------------------
-@dataclass
+@dataclass(slots=True)
 class Vector3:
     x: float = 0.0
     y: float = 0.0
@@ -165,7 +165,7 @@ class Point32:
     z: float = 0.0
 
 
-@dataclass
+@dataclass(slots=True)
 class Quaternion:
     x: float = 0.0
     y: float = 0.0
@@ -173,19 +173,19 @@ class Quaternion:
     w: float = 1.0
 
 
-@dataclass
+@dataclass(slots=True)
 class Wrench:
     force: Vector3 = field(default_factory=Vector3)
     torque: Vector3 = field(default_factory=Vector3)
 
 
-@dataclass
+@dataclass(slots=True)
 class WrenchStamped:
     header: Header = field(default_factory=Header)
     wrench: Wrench = field(default_factory=Wrench)
 
 
-@dataclass
+@dataclass(slots=True)
 class Imu:
     header: Header = field(default_factory=Header)
     orientation: Quaternion = field(default_factory=Quaternion)
@@ -196,7 +196,7 @@ class Imu:
     linear_acceleration_covariance: list[float] = field(default_factory=lambda: [0.0] * 9)
 
 
-@dataclass
+@dataclass(slots=True)
 class ContactState:
     info: str = ""
     collision1_name: str = ""
@@ -208,7 +208,7 @@ class ContactState:
     depths: list[float] = field(default_factory=list)
 
 
-@dataclass
+@dataclass(slots=True)
 class ContactsState:
     header: Header = field(default_factory=Header)
     states: list[ContactState] = field(default_factory=list)

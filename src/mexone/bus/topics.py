@@ -132,12 +132,13 @@ class Bus:
     def deliver(self, topic: Topic, msg: object) -> None:
         """publish() on a Topic already looked up and typed (advertise's): a publisher on a hot
         path (the sensors' broadcasters) skips the lookup."""
-        name = topic.name
         with topic.lock:
             topic.count += 1
             topic.last = msg
-            subs = list(topic.subscriptions)
-        for tap in self.taps:
-            tap(name, msg)
+            subs = topic.subscriptions[:]
+        if self.taps:
+            name = topic.name
+            for tap in self.taps:
+                tap(name, msg)
         for sub in subs:
             sub.callback(msg)

@@ -20,6 +20,7 @@ transmission's mechanicalReduction r is folded in here (actuator length = r q, t
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
@@ -38,6 +39,7 @@ __all__ = ["SimHardware", "strided_view", "JointCommands", "JointStates", "build
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
 INTEGRAL_SUFFIX = "/i"
+FLOAT_WRITE_JOINTS = 6  # effort_floats_writer up to this many joints (numpy beyond)
 TELEPORT_NONE, TELEPORT_POSITION, TELEPORT_VELOCITY = 0, 1, 2
 _MOTOR_INPUTS = int(mujoco.mjtCtrlInput.mjINPUT_POS | mujoco.mjtCtrlInput.mjINPUT_VEL
                     | mujoco.mjtCtrlInput.mjINPUT_FF)
@@ -304,6 +306,26 @@ class SimHardware:
         c.teleport[rows] = TELEPORT_NONE
         self.gains_changed(rows)
         self.reset_integral(rows)
+
+    def effort_floats_writer(self, rows: np.ndarray) -> Callable[[list[float]], None] | None:
+        """For a few joints: their effort commands from Python floats (checked already), into
+        the hardware's commands and MuJoCo's ctrl at once, float by float (a handful of stores
+        cost less than two numpy calls); None for more joints (rows_writer then). Rebuilt with
+        rows_writer."""
+        rows = [int(r) for r in rows]
+        gears = [float(self.gear[r]) for r in rows]
+        if len(rows) > FLOAT_WRITE_JOINTS or not all(g != 0.0 and math.isfinite(g) for g in gears):
+            return None
+        effort, ctrl = self.command.effort, self.sim.data.ctrl
+        slots = [(row, int(self._ctrl_motor[row]) + 2, gear)
+                 for row, gear in zip(rows, gears, strict=True)]
+
+        def write_effort_floats(values: list[float]) -> None:
+            for (row, ff, gear), value in zip(slots, values):  # noqa: B905 - both n long
+                effort[row] = value
+                ctrl[ff] = value / gear
+
+        return write_effort_floats
 
     def rows_writer(self, rows: np.ndarray, interface: str) -> Callable[[np.ndarray], None]:
         """write() of one command interface ("effort", "position", "velocity") on `rows` alone,

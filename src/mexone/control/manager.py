@@ -79,6 +79,7 @@ class ControllerManager:
         self._waiting = False  # a command was buffered since the last update
         self._half_step_ns = 0
         self._direct = False  # only Python controllers reading MuJoCo directly run every period
+        self._fast = False  # _direct and no shipped controller's period: update's fast path
         self._dt = self.control_period  # cached for the loop; _schedule refreshes it
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
@@ -102,8 +103,11 @@ class ControllerManager:
 
     def update(self, sim: Simulation) -> None:
         """read -> every running controller's update -> write."""
-        now = sim.time_ns
+        now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
+        if self._fast and not self._waiting:
+            self._update_python(now)
+            return
         if self._periodic:
             period = round(self.control_period * NS)
             if now >= self._next_period_ns - sim.timestep * NS / 2:
@@ -133,11 +137,38 @@ class ControllerManager:
             log.error("a controller's update was interrupted after it returned; no harm done")
         if self._ctx.faults:
             self._stop_faulted()
-        elif not waiting and self._every is self._timed:  # only Python controllers ran
-            for ctrl in self._timed:
-                ctrl.flush()
-            return
+        elif not waiting and self._every is self._timed:  # only Python controllers ran: each
+            return  # wrote its own joints' commands (its hardware writer)
         self.hw.write()
+
+    def _update_python(self, now: int) -> None:
+        """update() when only Python controllers that read MuJoCo directly run and no command
+        waits (the common case with a student's controller): no hardware read, and each
+        controller's command goes out through its own writer, so no full write either. What
+        this costs per update is the framework's cost of a Python controller (benchmarks/
+        RESULTS.md): keep it to plain attribute work."""
+        half, timed = self._half_step_ns, self._timed
+        wake = math.inf
+        for ctrl in timed:  # scheduled first, all of them: a hang below must not lose a wake
+            if now >= ctrl.next_ns - half:
+                ctrl.due = True
+                ctrl.next_ns += ctrl.period_ns
+                if ctrl.next_ns < now + half:  # fell behind (a step longer than the period)
+                    ctrl.next_ns = now + ctrl.period_ns
+            if ctrl.next_ns < wake:
+                wake = ctrl.next_ns
+        if wake < self.wake_ns:  # a command buffered meanwhile (another thread) set -inf
+            self.wake_ns = wake
+        self.updates += 1
+        t = now / NS
+        try:
+            for ctrl in timed:
+                ctrl.update(t, 0.0)  # a Python controller takes its own dt
+        except ControllerHang:  # the watchdog's interrupt landed just after a student's update
+            log.error("a controller's update was interrupted after it returned; no harm done")
+        if self._ctx.faults:
+            self._stop_faulted()
+            self.hw.write()
 
     def _rebind(self) -> None:
         """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
@@ -345,12 +376,15 @@ class ControllerManager:
         if self._every == self._timed:
             self._every = self._timed  # the same list: update() takes its fast write
         self._direct = self._every is self._timed and all(c.direct for c in self._timed)
+        self._fast = self._direct and not self._periodic
         self._waiting = True  # a command buffered before the switch is not lost
         now = self.sim.time_ns
         self._half_step_ns = round(self.sim.timestep * NS / 2)
         self._dt = self.control_period
         for ctrl in self._timed:
             ctrl.writer = self.hw.rows_writer(ctrl.rows, ctrl.interface_name)
+            ctrl.float_writer = self.hw.effort_floats_writer(ctrl.rows) \
+                if ctrl.interface_name == "effort" else None
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
             ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now

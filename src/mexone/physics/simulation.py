@@ -272,30 +272,40 @@ class Simulation:
             hooks[:] = [h for h in hooks if getattr(h, "__self__", None) is not control]
 
     def _fire_due(self) -> None:
+        # runs between every two chunks of steps (every step while a control needs each one):
+        # plain loops, no temporaries, no property calls
         now, half = self._time_ns, self._step_ns // 2
-        for timer in list(self.periodic):
-            if now >= timer.next_ns - half:
-                timer.next_ns += timer.period_ns
-                if timer.next_ns < now - half:  # fell behind (a step longer than the period)
-                    timer.next_ns = now + timer.period_ns
-                timer.callback(self)
+        if self.periodic:
+            for timer in list(self.periodic):  # a callback may add or remove timers
+                if now >= timer.next_ns - half:
+                    timer.next_ns += timer.period_ns
+                    if timer.next_ns < now - half:  # fell behind (a step longer than the period)
+                        timer.next_ns = now + timer.period_ns
+                    timer.callback(self)
+        due = now + half
         for control in self.controls:
-            if control.wake_ns <= now + half:
+            if control.wake_ns <= due:
                 control.update(self)
         forces = self.forces
-        if forces.changed or forces.active:
+        if forces.changed or forces.wrenches or forces.efforts:
             forces.apply(self.data, now, half)
 
     def _steps_until_due(self) -> int:
-        soonest = min([t.next_ns for t in self.periodic] + [c.wake_ns for c in self.controls],
-                      default=math.inf)
-        if self.forces.changed or self.forces.active:
-            soonest = min(soonest, self.forces.next_change_ns(self._time_ns, self._step_ns))
+        soonest = math.inf
+        for timer in self.periodic:
+            if timer.next_ns < soonest:
+                soonest = timer.next_ns
+        for control in self.controls:
+            if control.wake_ns < soonest:
+                soonest = control.wake_ns
+        forces, now, step = self.forces, self._time_ns, self._step_ns
+        if forces.changed or forces.wrenches or forces.efforts:
+            soonest = min(soonest, forces.next_change_ns(now, step))
+        if soonest <= now + step:  # due now or at the next step (the usual case below)
+            return 1
         if soonest == math.inf:
             return _WATCH_EVERY
-        if soonest <= self._time_ns:
-            return 1
-        return max(1, math.ceil((soonest - self._time_ns) / self._step_ns - 0.5))
+        return max(1, math.ceil((soonest - now) / step - 0.5))
 
     # ----- stepping ----------------------------------------------------------------------------------
     def step(self, n: int = 1) -> None:

@@ -35,6 +35,8 @@ __all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "registe
            "SENSOR_CLASSES", "sensor_type", "AXES"]
 
 _SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
+# looked up once: the sensor pass runs between steps, where every attribute lookup counts
+_sensor_pos, _sensor_vel, _sensor_acc = mujoco.mj_sensorPos, mujoco.mj_sensorVel, mujoco.mj_sensorAcc
 AXES = {3: "xyz", 4: "xyzw", 6: ("x", "y", "z", "rx", "ry", "rz")}  # plot signals per array size
 
 
@@ -154,17 +156,20 @@ class Measure:
     def data(self) -> np.ndarray:
         sim = self.sim
         if self._at != sim.steps:
-            model, data, opt = sim.model, sim.data, self._opt
-            flags = opt.disableflags
-            opt.disableflags = flags & ~_SENSOR_OFF
-            try:  # the state the last step computed (positions, velocities, accelerations)
-                mujoco.mj_sensorPos(model, data)
-                mujoco.mj_sensorVel(model, data)
-                mujoco.mj_sensorAcc(model, data)
-            finally:
-                opt.disableflags = flags
-            self._at = sim.steps
+            self._sensor_pass(sim)
         return self._sensordata
+
+    def _sensor_pass(self, sim: Simulation) -> None:
+        model, data, opt = sim.model, sim.data, self._opt
+        flags = opt.disableflags
+        opt.disableflags = flags & ~_SENSOR_OFF
+        try:  # the state the last step computed (positions, velocities, accelerations)
+            _sensor_pos(model, data)
+            _sensor_vel(model, data)
+            _sensor_acc(model, data)
+        finally:
+            opt.disableflags = flags
+        self._at = sim.steps
 
     def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
         """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
@@ -189,12 +194,16 @@ class Measure:
 
     def refresh(self) -> None:
         """Every registered linear state at this instant (once per instant)."""
-        if self._refreshed_at == self.sim.steps:
+        sim = self.sim
+        now = sim.steps
+        if self._refreshed_at == now:
             return
         if self._matrix is None:
             self._build()
-        np.dot(self._matrix, self.data(), out=self.buffer)
-        self._refreshed_at = self.sim.steps
+        if self._at != now:
+            self._sensor_pass(sim)
+        self._matrix.dot(self._sensordata, out=self.buffer)  # the method: no dispatch layer
+        self._refreshed_at = now
 
 
 @dataclass
@@ -291,8 +300,8 @@ class Sensor:
         return self.spec.update_rate or 1.0 / self.sim.timestep
 
     def header(self, frame: str | None = None) -> Header:
-        self.seq += 1
-        return Header(self.seq, self.measure.stamp(), frame or self._frame_id)
+        self.seq = seq = self.seq + 1
+        return Header(seq, self.measure.stamp(), frame or self._frame_id)
 
     def wanted(self, output: Output) -> bool:
         topic = self.bus.topics.get(output.topic)
@@ -302,7 +311,8 @@ class Sensor:
 
     def publish(self, sim: Simulation) -> None:
         """The broadcaster's tick: the main topic's message from this instant's state."""
-        self.bus.deliver(self._topic, self.message(self.state()))
+        state = self._state if self._at == sim.steps else self.state()  # read this instant?
+        self.bus.deliver(self._topic, self.message(state))
 
     # ----- plots and the page --------------------------------------------------------------------
     def signals(self) -> list[tuple[str, str]]:
@@ -362,10 +372,11 @@ class SensorStates(Mapping[str, Any]):
         self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
 
     def __getitem__(self, name: str) -> Any:
-        sensor = self._sensors.get(name)
-        if sensor is None:
+        try:
+            sensor = self._sensors[name]
+        except KeyError:
             raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
-                           f"{', '.join(self._sensors) or 'none'})")
+                           f"{', '.join(self._sensors) or 'none'})") from None
         if sensor._at == sensor.sim.steps:  # read already this instant: no call
             return sensor._state
         return sensor.state()

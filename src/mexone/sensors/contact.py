@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from mexone.bus.msgs import ContactsState, ContactState, Vector3, Wrench
+from mexone.bus.msgs import ContactsState, ContactState, Header, Vector3, Wrench
 from mexone.physics.compile import GROUP_VISUAL
 from mexone.sensors.base import Sensor, register_sensor
 
@@ -120,50 +120,63 @@ class ContactSensor(Sensor):
     def contacts(self) -> list[ContactState]:
         """Our contacts at this instant, grouped by pair of collision elements (the message's
         states), from the instant's contact lists every contact sensor shares: a handful of
-        points per sole, handled in plain Python."""
+        points per sole, handled in plain Python (this runs between steps with the interpreter
+        cold: every call and temporary counts, so the loop is written out flat)."""
         geoms, frames, positions, dists, local = self.measure.contacts()
         mine = self._mine_list
         pairs: dict[tuple[int, int], list] = {}  # (own, other) -> [first index, points...]
-        for i, (g1, g2) in enumerate(geoms):
+        i = 0
+        for g1, g2 in geoms:
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
             if mine[g1]:
                 pair, sign = (g1, g2), -1.0
             elif mine[g2]:
                 pair, sign = (g2, g1), 1.0
             else:
+                i += 1
                 continue
             points = pairs.get(pair)
             if points is None:
                 points = pairs[pair] = [i]
             points.append((i, sign))
+            i += 1
         if not pairs:
             return []
         names, ncon = self.names, len(geoms)
+        vector, wrench = Vector3, Wrench
         out = []
         for (own, other), (first, *points) in pairs.items():
             wrenches, positions_out, normals, depths = [], [], [], []
             tx = ty = tz = 0.0
             for i, sign in points:
                 fn, t1, t2 = local[i]
-                fn, t1, t2 = fn * sign, t1 * sign, t2 * sign
-                f = frames[i]  # rows: normal, two tangents (world)
-                fx = fn * f[0] + t1 * f[3] + t2 * f[6]
-                fy = fn * f[1] + t1 * f[4] + t2 * f[7]
-                fz = fn * f[2] + t1 * f[5] + t2 * f[8]
-                tx, ty, tz = tx + fx, ty + fy, tz + fz
-                wrenches.append(Wrench(Vector3(fx, fy, fz), Vector3()))
-                p = positions[i]
-                positions_out.append(Vector3(p[0], p[1], p[2]))
-                normals.append(Vector3(sign * f[0], sign * f[1], sign * f[2]))
-                depths.append(-dists[i] if dists[i] < 0 else 0.0)
+                n0, n1, n2, a0, a1, a2, b0, b1, b2 = frames[i]  # normal, two tangents (world)
+                fx = sign * (fn * n0 + t1 * a0 + t2 * b0)
+                fy = sign * (fn * n1 + t1 * a1 + t2 * b1)
+                fz = sign * (fn * n2 + t1 * a2 + t2 * b2)
+                tx += fx
+                ty += fy
+                tz += fz
+                wrenches.append(wrench(vector(fx, fy, fz), vector()))
+                positions_out.append(vector(*positions[i]))
+                normals.append(vector(sign * n0, sign * n1, sign * n2))
+                depth = dists[i]
+                depths.append(-depth if depth < 0 else 0.0)
             out.append(ContactState(
                 f"Debug: i:({first}/{ncon})", names[own][1],
                 names[other][1] if other in names else self.sim.model.geom(other).name,
-                wrenches, Wrench(Vector3(tx, ty, tz), Vector3()), positions_out, normals, depths))
+                wrenches, wrench(vector(tx, ty, tz), vector()), positions_out, normals, depths))
         return out
 
     def message(self, state: ContactSensorState) -> ContactsState:
         return ContactsState(self.header("world"), self.contacts())
+
+    def publish(self, sim) -> None:
+        """The broadcaster's tick: the message is built from the contacts alone (the state
+        interfaces need not be read for it)."""
+        self.seq = seq = self.seq + 1
+        self.bus.deliver(self._topic, ContactsState(Header(seq, self.measure.stamp(), "world"),
+                                                    self.contacts()))
 
     def view(self) -> str:
         state = self.state()

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from mexone.bus.msgs import Vector3, Wrench, WrenchStamped
+from mexone.bus.msgs import Header, Vector3, Wrench, WrenchStamped
 from mexone.description.model import Pose
 from mexone.description.sensors import Noise
 from mexone.description.transforms import rpy_to_matrix
@@ -109,6 +109,7 @@ class ForceTorqueSensor(Sensor):
             self.noise.add_to(self._linear_view)
 
     def message(self, state: ForceTorqueState) -> WrenchStamped:
-        v = self._linear_view.tolist()
-        return WrenchStamped(self.header(), Wrench(Vector3(v[0], v[1], v[2]),
-                                                   Vector3(v[3], v[4], v[5])))
+        fx, fy, fz, tx, ty, tz = self._linear_view.tolist()
+        self.seq = seq = self.seq + 1
+        return WrenchStamped(Header(seq, self.measure.stamp(), self._frame_id),
+                             Wrench(Vector3(fx, fy, fz), Vector3(tx, ty, tz)))

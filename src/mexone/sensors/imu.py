@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
-from mexone.bus.msgs import Imu, Quaternion, Vector3
+from mexone.bus.msgs import Header, Imu, Quaternion, Vector3
 from mexone.description.sensors import IMU_CHANNELS, Noise
 from mexone.sensors.base import Sensor, register_sensor
 from mexone.sensors.build import add_mujoco_sensors, add_site
@@ -72,7 +72,8 @@ class ImuSensor(Sensor):
             self.noise.add_to(state._rates)
 
     def message(self, state: ImuState) -> Imu:
-        v = self._linear_view.tolist()
-        return Imu(self.header(), Quaternion(v[0], v[1], v[2], v[3]), [0.0] * 9,
-                   Vector3(v[4], v[5], v[6]), list(self.gyro_cov),
-                   Vector3(v[7], v[8], v[9]), list(self.acc_cov))
+        x, y, z, w, gx, gy, gz, ax, ay, az = self._linear_view.tolist()
+        self.seq = seq = self.seq + 1
+        return Imu(Header(seq, self.measure.stamp(), self._frame_id), Quaternion(x, y, z, w),
+                   [0.0] * 9, Vector3(gx, gy, gz), self.gyro_cov[:], Vector3(ax, ay, az),
+                   self.acc_cov[:])

@@ -33,6 +33,7 @@ class NoiseModel:
         self.active = bool(any(n.active for n in channels))
         self.offset = self.mean + self.bias  # what every reading adds before its draw
         self._draws = np.zeros((0, len(channels)))
+        self._rows: list[np.ndarray] = []
         self._row = 0
         self._quantized = bool((self.precision > 0).any())
 
@@ -45,6 +46,7 @@ class NoiseModel:
         if self._row >= len(self._draws):
             self._draws = self.rng.normal(0.0, 1.0, (BLOCK, len(self.stddev))) * self.stddev \
                 + self.offset
+            self._rows = list(self._draws)  # each reading's row as a view, sliced once
             self._row = 0
         self._row += 1
         return self._draws[self._row - 1]
@@ -53,8 +55,13 @@ class NoiseModel:
         """Add this reading's noise to `values` in place (one value per channel)."""
         if self._quantized:
             values[:] = self.apply(values)
+            return
+        row = self._row  # _next, inlined: this runs for every noisy reading, between steps
+        if row >= len(self._draws):
+            self._next()
         else:
-            values += self._next()
+            self._row = row + 1
+        values += self._rows[self._row - 1]
 
     def apply(self, values: np.ndarray) -> np.ndarray:
         """`values` with this reading's noise (one value per channel, or one channel over many

@@ -91,14 +91,17 @@ class PythonRunner(Controller):
         # the same, as Python floats capped finite: an inf command never passes the fast check
         self._limits = [min(float(v), 1e300) for v in self._effort_limit]
         self._n = len(self.rows)
-        self._wrote = False  # a command to send at the manager's fast write
+        self._effort = self.interface_name == "effort"
         self.writer = lambda values: None  # the manager's: hw.rows_writer for these joints
+        self.float_writer = None  # the manager's: hw.effort_floats_writer (effort, few joints)
         self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
         self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
         self._span: slice | None = None
         self.direct = False  # state views of MuJoCo's arrays: no hardware read needed
+        self._gather = False  # neither: state.q, dq, effort are gathered each update
         self._views()
         self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
+        self._efforts = hw.command.effort  # the hardware's effort commands (a fixed array)
         self.impl = self._instantiate(plugin)
 
     @classmethod
@@ -282,12 +285,6 @@ class PythonRunner(Controller):
         self._views()
         self._dyn = None
 
-    def flush(self) -> None:
-        """Send this controller's last command to MuJoCo (the manager's fast write)."""
-        if self._wrote:
-            self._wrote = False
-            self.writer(self._command)
-
     def _views(self) -> None:
         """state.q, dq, effort as read-only views, so reading them costs nothing per update:
         of MuJoCo's qpos, qvel and qfrc_actuator when the joints' addresses are evenly spaced
@@ -295,13 +292,15 @@ class PythonRunner(Controller):
         hardware's state when the rows are; else gathered each update."""
         hw, rows, state = self.hw, self.rows, self.state
         data = self.ctx.sim.data
-        self.direct, self._span = False, None
+        state._data = data  # MuJoCo's data is replaced only with the model (then we are here)
+        self.direct, self._span, self._gather = False, None, False
         views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
                  strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
         if any(v is None for v in views):
             self._span = _span_of(rows)
             if self._span is None:
                 state.q, state.dq, state.effort = (np.zeros(len(rows)) for _ in range(3))
+                self._gather = True
                 return
             views = [hw.state.position[self._span], hw.state.velocity[self._span],
                      hw.state.effort[self._span]]
@@ -322,31 +321,38 @@ class PythonRunner(Controller):
         state.time, state._sensors, state._base = t, None, None
 
     def update(self, t: float, dt: float) -> None:
+        """The framework around the student's update, every period: what runs here is what a
+        Python controller costs beyond its own code (benchmarks/RESULTS.md), so it is kept to
+        plain attribute work; the student's own update is timed alone."""
         if not self.due:
             return
         self.due = False
-        dt = t - self._last_t if self._last_t is not None else self.period_ns / NS
-        self._last_t = t
-        self._read(t)
+        last, self._last_t = self._last_t, t
+        dt = t - last if last is not None else self.period_ns / NS
+        state = self.state
+        if self._gather:
+            self._read(t)
+        else:  # q, dq, effort are views: nothing to copy
+            state.time, state._sensors, state._base = t, None, None
         self.updates += 1
         guard = _GUARD
         switches = _preemptions() if self._suspect else 0  # only after an overrun: a syscall
-        start = time.perf_counter()
-        guard.enter(self, start)
+        start = _clock()
+        tid = guard.enter(self, start)
         try:
-            out = self.impl.update(self.state, t, dt)
+            out = self.impl.update(state, t, dt)
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
-            guard.leave()
+            guard.leave(tid)
             self._fault(f"update raised {self._where(exc)} at t = {t:.3f} s")
             return
         except ControllerHang as exc:
-            guard.leave()
+            guard.leave(tid)
             self._fault(f"update did not return within hang_timeout "
                         f"{number_text(self.plugin.hang_timeout)} s (interrupted at "
                         f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'})")
             return
-        elapsed = time.perf_counter() - start
-        if guard.leave():
+        elapsed = _clock() - start
+        if guard.leave(tid):
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
         self._spent += elapsed
@@ -367,6 +373,8 @@ class PythonRunner(Controller):
             self._write(out, t)
 
     def _write(self, out, t: float) -> None:
+        """Check the student's commands, clamp them, and send them to MuJoCo (through the
+        hardware's writer for these joints: the manager's fast write needs nothing else)."""
         n = self._n
         try:
             values = np.asarray(out, dtype=float)
@@ -381,11 +389,20 @@ class PythonRunner(Controller):
                 self._fault(f"update returned {values.size} values for {n} joints "
                             f"({self.update_line()})")
                 return
-        if self.interface_name == "effort" and _within(values.tolist(), self._limits):
-            self.hw.command.effort[self._cmd_index] = values  # usual: finite, within limits
-            self._command = values
-            self._wrote = True
-            return
+        if self._effort:  # the usual case, checked in Python floats (numpy calls cost more for
+            # a limb's joints): every value finite and within +-its limit (NaN fails every test)
+            floats = values.tolist()
+            for value, limit in zip(floats, self._limits):  # noqa: B905 - both n long
+                if not -limit <= value <= limit:
+                    break
+            else:
+                self._command = values
+                if self.float_writer is not None:  # a few joints: float stores
+                    self.float_writer(floats)
+                else:
+                    self._efforts[self._cmd_index] = values
+                    self.writer(values)
+                return
         if not np.isfinite(values).all():
             bad = [f"{self.joints[i]} {number_text(values[i])}"
                    for i in np.flatnonzero(~np.isfinite(values))]
@@ -409,7 +426,7 @@ class PythonRunner(Controller):
                 values = self._clamped(values, -limit, limit, "URDF velocity limit")
             hw.command.velocity[rows] = values
         self._command = values
-        self._wrote = True
+        self.writer(values)
 
     def _clamped(self, values, lower, upper, what: str) -> np.ndarray:
         """Clamp, saying once per joint (Gazebo clamps efforts to the URDF limit too)."""
@@ -449,18 +466,22 @@ class _HangGuard:
         self._running = False
         self._last = 0.0
 
-    def enter(self, runner: PythonRunner, now: float) -> None:
-        """An update starts in this thread (`now`: time.perf_counter())."""
+    def enter(self, runner: PythonRunner, now: float) -> int:
+        """An update starts in this thread (`now`: time.perf_counter()); returns the thread's id
+        for `leave`."""
         self._last = now
-        self._entries[threading.get_ident()] = (now, runner)
+        tid = _thread_id()
+        self._entries[tid] = (now, runner)
         if not self._running:
             self._running = True
             threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
+        return tid
 
-    def leave(self) -> bool:
-        """The update returned; True if the watchdog had interrupted it (the pending exception
-        is withdrawn: it must not land in the manager)."""
-        tid = threading.get_ident()
+    def leave(self, tid: int | None = None) -> bool:
+        """The update returned (in thread `tid`, default this one); True if the watchdog had
+        interrupted it (the pending exception is withdrawn: it must not land in the manager)."""
+        if tid is None:
+            tid = _thread_id()
         with self._lock:
             self._entries.pop(tid, None)
             if tid not in self._injected:
@@ -520,12 +541,6 @@ def _preemptions() -> int:
     return 0 if who is None else resource.getrusage(who).ru_nivcsw
 
 
-def _within(values: list[float], limits: list[float]) -> bool:
-    """Every value finite and within +-its limit (a NaN fails every comparison): the fast check
-    of an update's efforts, in Python floats (a few numpy calls cost more for a limb's joints)."""
-    return all(-limit <= value <= limit for value, limit in zip(values, limits, strict=True))
-
-
 def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
     """M(q)[i, i] for each dof i: the inertia the joint moves now (armature included)."""
     import mujoco
@@ -552,6 +567,8 @@ def _where_running(tid: int, file: str) -> str:
 
 
 _GUARD = _HangGuard()
+_clock = time.perf_counter
+_thread_id = threading.get_ident
 
 
 def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:
