@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 __all__ = ["Stop", "stop_on_signals", "requested", "check", "exit_code", "hold", "release",
            "finishing", "uninterrupted", "ignore_from_now", "leave_to_parent", "interrupted",
-           "final_status"]
+           "final_status", "recover"]
 
 SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
                 if hasattr(signal, name))
@@ -55,6 +55,7 @@ class _State:
     held: list[str] = field(default_factory=list)  # recordings open
     pending: int | None = None  # library user's process: a signal deferred by finishing()
     noted: bool = False
+    wakeup: int | None = None  # read end of the signal wakeup pipe (recover())
 
 
 _state = _State()
@@ -102,6 +103,48 @@ def stop_on_signals() -> None:
             continue
         signal.signal(signum, _on_signal)
     _state.installed = True
+    if _state.wakeup is None:  # the C-level record of every signal (recover())
+        read, write = os.pipe()
+        os.set_blocking(read, False)
+        os.set_blocking(write, False)
+        try:
+            signal.set_wakeup_fd(write, warn_on_full_buffer=False)
+        except ValueError:  # another fd is set (an event loop's): leave it to its owner
+            os.close(read)
+            os.close(write)
+        else:
+            _state.wakeup = read
+            os.register_at_fork(after_in_child=_forget_wakeup)
+
+
+def _forget_wakeup() -> None:
+    """A forked child's signals are its own: its handler must not write into its parent's pipe."""
+    if _state.wakeup is None:
+        return
+    try:
+        signal.set_wakeup_fd(-1)  # only the main thread may (a fork from another keeps it)
+    except ValueError:
+        return
+    _state.wakeup = None
+
+
+def recover() -> None:
+    """Record a signal the handler never saw. An asynchronous exception pending in the main
+    thread (a controller's hang watchdog interrupting an update blocked in C) is raised at the
+    handler's first bytecode, before it records anything: Python's C-level handler has written
+    the signal to the wakeup pipe all the same. Call it where such an exception is caught."""
+    state = _state
+    if state.wakeup is None:
+        return
+    try:
+        data = os.read(state.wakeup, 512)
+    except (BlockingIOError, OSError):
+        return
+    if state.first is None:
+        for signum in data:
+            if signum in SIGNALS:
+                state.first, state.at = signum, time.monotonic()
+                break
 
 
 def requested() -> bool:

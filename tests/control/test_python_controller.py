@@ -499,3 +499,54 @@ def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
         assert hw.effort_floats_writer(np.arange(len(hw.joints))) is None  # many joints: numpy
     finally:
         data.ctrl[:], hw.command.effort[:] = saved
+
+
+def test_a_signal_while_an_update_is_blocked_outside_python_still_stops_the_run(tmp_path):
+    """The watchdog's exception waits, pending, while the update sleeps in C; a SIGTERM then
+    wakes the sleep and that exception lands in the signal handler before it records anything.
+    The signal must still stop the run (exit 143), not be swallowed into a long run that
+    exits 0."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    from tests.helpers import wait_until
+
+    for name, text in skeleton_files("sleepy").items():
+        (tmp_path / name).write_text(text.replace("# hang_timeout: 2.0", "hang_timeout: 0.1"))
+    (tmp_path / "sleepy.py").write_text(textwrap.dedent("""\
+        import time
+        from mexone.control import Param, PythonController
+
+
+        class Sleepy(PythonController):
+            kp = Param(20.0)
+            kd = Param(1.0)
+
+            def update(self, state, t, dt):
+                if t > 0.05:
+                    time.sleep(1e9)  # blocked in C: the watchdog cannot interrupt it
+                return 0.0 * state.q
+        """))
+    child = subprocess.Popen(
+        [sys.executable, "-m", "mexone", "sim", "--headless", "--rtf", "0", "--duration", "600",
+         "--controllers", str(tmp_path / "controllers.yaml")],
+        cwd=tmp_path, stderr=subprocess.PIPE, text=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(child.stderr), daemon=True)
+    reader.start()
+    try:
+        assert wait_until(lambda: child.poll() is not None
+                          or any("interrupting it" in line for line in lines), 60), lines
+        assert child.poll() is None, lines
+        os.kill(child.pid, signal.SIGTERM)
+        assert child.wait(30) == 128 + signal.SIGTERM, lines
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    reader.join(5)
+    assert any("interrupted by SIGTERM" in line for line in lines), lines
+    assert any("hang_timeout" in line and "sleepy.py:11" in line for line in lines), lines

@@ -31,6 +31,7 @@ except ImportError:  # Windows
 
 import numpy as np
 
+from mexone import signals
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
 from mexone.control.resolve import Plugin, student_line
@@ -229,6 +230,7 @@ class PythonRunner(Controller):
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
             self._fault(f"activate raised {self._where(exc)}")
         except ControllerHang:
+            signals.recover()
             self._fault(f"activate ran past hang_timeout ({self.update_line()})")
 
     def _write_pid(self, damp: bool = False) -> bool:
@@ -347,6 +349,7 @@ class PythonRunner(Controller):
             return
         except ControllerHang as exc:
             guard.leave(tid)
+            signals.recover()  # a Ctrl-C or SIGTERM may have woken the blocked update
             self._fault(f"update did not return within hang_timeout "
                         f"{number_text(self.plugin.hang_timeout)} s (interrupted at "
                         f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'})")
