@@ -231,6 +231,43 @@ def test_reload_keeps_the_running_one_when_configure_fails(arm):
     (folder / "my_pd.py").write_text(ARM)
 
 
+def test_a_student_loop_at_import_configure_or_activate_never_freezes_the_lab(arm, monkeypatch):
+    """Reload runs in the simulation thread: a module-level `while True`, a configure or an
+    activate that never returns is interrupted by the watchdog, the reload refused in one line
+    naming the line, the running controller kept, and the lab steps on."""
+    from mexone.control import watchdog
+
+    monkeypatch.setattr(watchdog, "STUDENT_SETUP_TIMEOUT", 0.3)
+    folder, lab = arm
+    manager = lab.controllers
+    manager.reload("my_pd_controller")
+    ctrl = manager.controllers["my_pd_controller"]
+    loops = {
+        "importing my_pd.py did not finish": ARM + "\nwhile True:\n    pass\n",
+        "configure did not return": ARM + "\n    def configure(self):\n        while True:\n"
+                                          "            pass\n",
+    }
+    for message, text in loops.items():
+        (folder / "my_pd.py").write_text(text)
+        line = len(text.splitlines())  # the loop's `pass`
+        with pytest.raises(InputError, match=rf"{message} within 0.3 s .*my_pd.py:{line - 1}|"
+                                             rf"{message} within 0.3 s .*my_pd.py:{line}\)"):
+            manager.reload("my_pd_controller")
+        assert manager.controllers["my_pd_controller"] is ctrl and ctrl.running
+    (folder / "my_pd.py").write_text(ARM.replace("self.q0, self.n = state.q.copy(), 0",
+                                                 "self.q0, self.n = state.q.copy(), 0\n"
+                                                 "        while True:\n            pass"))
+    manager.reload("my_pd_controller")  # imports and configures: activate loops, then faults
+    new = manager.controllers["my_pd_controller"]
+    assert not new.running and "activate did not return within 0.3 s" in new.fault
+    before = lab.sim.time
+    lab.sim.step(10)
+    assert lab.sim.time == pytest.approx(before + 0.01)
+    (folder / "my_pd.py").write_text(ARM)
+    manager.reload("my_pd_controller")
+    assert manager.controllers["my_pd_controller"].running
+
+
 def test_state_reads_sensors_and_base(arm):
     _, lab = arm
     ctrl = lab.controllers.controllers["my_pd_controller"]

@@ -28,9 +28,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import Any
 
+from mexone import signals
+from mexone.control import watchdog
 from mexone.control.student import COMMAND_INTERFACES, PythonController
+from mexone.control.watchdog import GUARD, ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
-from mexone.ranges import HANG_TIMEOUT, OVERRUNS, UPDATE_RATE, UPDATE_TIME
+from mexone.ranges import HANG_TIMEOUT, OVERRUNS, UPDATE_RATE, UPDATE_TIME, number_text
 
 __all__ = ["Plugin", "resolve_class", "validate_params", "student_line", "ENTRY_POINT_GROUP",
            "RESERVED_KEYS", "FAULT_MODES"]
@@ -99,9 +102,20 @@ def _import_failure(exc: BaseException, file: str | None, what: str) -> InputErr
     ours = [f for f in frames if file and _same(f.filename, file)]
     frame = ours[-1] if ours else (frames[-1] if frames else None)
     where = f"{frame.filename}:{frame.lineno}: " if frame else ""
+    if isinstance(exc, ControllerHang):
+        signals.recover()  # a signal may have woken a blocked import
+        return InputError(f"importing {what} did not finish within "
+                          f"{number_text(watchdog.STUDENT_SETUP_TIMEOUT)} s (interrupted at "
+                          f"{where.rstrip(': ') or what})", hint="fix the file; Reload imports it again")
     text = exc.one_line() if isinstance(exc, MexoneError) else str(exc)
     return InputError(f"importing {what} failed: {where}{type(exc).__name__}: {text}",
                       hint="fix the file; Reload imports it again")
+
+
+def _watched(what: str, file: str | None):
+    """An import of a student's code under the watchdog: a module-level infinite loop is
+    interrupted (ControllerHang, then one line) instead of freezing the lab."""
+    return GUARD.watching(Watched(f"controller code {what}", file or what, "import"))
 
 
 def _exec_file(path: Path, stem: str) -> ModuleType:
@@ -121,7 +135,8 @@ def _exec_file(path: Path, stem: str) -> ModuleType:
     previous = sys.modules.get(name)
     sys.modules[name] = module  # dataclasses and pickle look their module up here
     try:
-        spec.loader.exec_module(module)
+        with _watched(path.name, str(path)):
+            spec.loader.exec_module(module)
     except BaseException as exc:
         if previous is not None:
             sys.modules[name] = previous
@@ -141,9 +156,10 @@ def _import_module(name: str, fresh: bool) -> ModuleType | None:
     except (ImportError, ValueError):
         return None
     try:
-        module = importlib.import_module(name)
-        if fresh:
-            module = importlib.reload(module)
+        with _watched(f"module {name}", None):
+            module = importlib.import_module(name)
+            if fresh:
+                module = importlib.reload(module)
     except BaseException as exc:
         if isinstance(exc, KeyboardInterrupt):
             raise
@@ -207,7 +223,8 @@ def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
     point = _entry_point(ctype)
     if point is not None:
         try:
-            cls = point.load()
+            with _watched(f"entry point {point.value}", None):
+                cls = point.load()
             if fresh:
                 cls = getattr(importlib.reload(sys.modules[cls.__module__]), cls.__name__)
         except BaseException as exc:

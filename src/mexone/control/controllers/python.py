@@ -16,12 +16,9 @@ the joint's diagonal entry of M(q) (MuJoCo's servo; its D term is implicit, so t
 
 from __future__ import annotations
 
-import ctypes
 import inspect
 import logging
-import threading
 import time
-import traceback
 from typing import Any
 
 try:
@@ -32,10 +29,13 @@ except ImportError:  # Windows
 import numpy as np
 
 from mexone import signals
+from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
 from mexone.control.resolve import Plugin, student_line
 from mexone.control.student import PythonController, State, unit_of
+from mexone.control.watchdog import GUARD as _GUARD
+from mexone.control.watchdog import ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
@@ -49,11 +49,6 @@ STUDENT_LOG = logging.getLogger("mexone.control.student")
 STUDENT_LOG.setLevel(logging.INFO)
 HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
 _SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
-
-
-class ControllerHang(BaseException):
-    """Raised inside a student's update that ran past its hang_timeout (a BaseException, so the
-    student's own `except Exception` does not swallow it)."""
 
 
 class _StudentLog(logging.LoggerAdapter):
@@ -165,12 +160,22 @@ class PythonRunner(Controller):
 
     def _call(self, fn, what: str, *args):
         try:
-            return fn(*args)
+            with _GUARD.watching(Watched(f"controller '{self.name}'", self.plugin.file, what)):
+                return fn(*args)
         except MexoneError:
             raise
+        except ControllerHang as exc:
+            signals.recover()
+            raise InputError(f"controller '{self.name}': {what} did not return within "
+                             f"{number_text(watchdog.STUDENT_SETUP_TIMEOUT)} s (interrupted at "
+                             f"{self._line(exc)})", hint="fix it, then reload") from None
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's error, said in one line
             raise InputError(f"controller '{self.name}': {what} failed: {self._where(exc)}",
                              hint="fix it, then reload") from None
+
+    def _line(self, exc: BaseException) -> str:
+        """file:line of the student's code an exception went through."""
+        return f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'}"
 
     def _where(self, exc: BaseException) -> str:
         file = self.plugin.file
@@ -226,12 +231,14 @@ class PythonRunner(Controller):
             self._command = np.zeros(len(rows))
         self._read(t)
         try:
-            self.impl.activate(self.state)
+            with _GUARD.watching(Watched(f"controller '{self.name}'", self.plugin.file, "activate")):
+                self.impl.activate(self.state)
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
             self._fault(f"activate raised {self._where(exc)}")
-        except ControllerHang:
+        except ControllerHang as exc:
             signals.recover()
-            self._fault(f"activate ran past hang_timeout ({self.update_line()})")
+            self._fault(f"activate did not return within {number_text(watchdog.STUDENT_SETUP_TIMEOUT)} s "
+                        f"(interrupted at {self._line(exc)})")
 
     def _write_pid(self, damp: bool = False) -> bool:
         """The YAML's PID gains on the claimed joints (p, d only when damping); False if a joint
@@ -453,82 +460,6 @@ class PythonRunner(Controller):
         self.ctx.faults.append(self.name)
 
 
-class _HangGuard:
-    """One watchdog thread: interrupts a student's update that has not returned after its
-    hang_timeout (PyThreadState_SetAsyncExc raises ControllerHang in that thread at its next
-    bytecode). It lives only while updates run: idle for half a second, it ends. Updates are
-    tracked per thread (two labs may step in two threads)."""
-
-    _IDLE = 0.5  # s without updates after which the thread ends
-    _POLL = 0.05  # s
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._entries: dict[int, tuple[float, PythonRunner]] = {}  # thread -> update in progress
-        self._injected: set[int] = set()
-        self._running = False
-        self._last = 0.0
-
-    def enter(self, runner: PythonRunner, now: float) -> int:
-        """An update starts in this thread (`now`: time.perf_counter()); returns the thread's id
-        for `leave`."""
-        self._last = now
-        tid = _thread_id()
-        self._entries[tid] = (now, runner)
-        if not self._running:
-            self._running = True
-            threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
-        return tid
-
-    def leave(self, tid: int | None = None) -> bool:
-        """The update returned (in thread `tid`, default this one); True if the watchdog had
-        interrupted it (the pending exception is withdrawn: it must not land in the manager)."""
-        if tid is None:
-            tid = _thread_id()
-        with self._lock:
-            self._entries.pop(tid, None)
-            if tid not in self._injected:
-                return False
-            self._injected.discard(tid)
-            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
-        return True
-
-    def _watch(self) -> None:
-        said_stuck: set[tuple[int, float]] = set()
-        while True:
-            time.sleep(self._POLL)
-            said: list[tuple[str, tuple]] = []
-            with self._lock:
-                now = time.perf_counter()
-                if not self._entries:
-                    said_stuck.clear()
-                    if now - self._last > self._IDLE:
-                        self._running = False
-                        if not self._entries:
-                            return
-                        self._running = True
-                    continue
-                for tid, (since, runner) in list(self._entries.items()):
-                    timeout = runner.plugin.hang_timeout
-                    if now - since < timeout:
-                        continue
-                    where = _where_running(tid, runner.plugin.file)
-                    if tid not in self._injected:
-                        self._injected.add(tid)
-                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
-                            ctypes.c_ulong(tid), ctypes.py_object(ControllerHang))
-                        said.append(("controller '%s': update has not returned for %s s (%s): "
-                                     "interrupting it", (runner.name, number_text(round(now - since, 2)),
-                                                         where)))
-                    elif now - since > 2 * timeout + 1.0 and (tid, since) not in said_stuck:
-                        said_stuck.add((tid, since))
-                        said.append(("controller '%s': update cannot be interrupted: it is blocked "
-                                     "outside Python (%s); the lab is frozen: press Ctrl-C twice "
-                                     "to end it", (runner.name, where)))
-            for text, args in said:  # outside the lock: a log handler may take its time
-                log.error(text, *args)
-
-
 def _span_of(rows: np.ndarray) -> slice | None:
     """rows as a slice when they are consecutive (a limb's joints usually are), else None."""
     if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
@@ -558,20 +489,7 @@ def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
     return out
 
 
-def _where_running(tid: int, file: str) -> str:
-    """file:line where thread `tid` runs now, in `file` if it is there."""
-    import sys
-
-    frame = sys._current_frames().get(tid)
-    stack = traceback.extract_stack(frame) if frame is not None else []
-    ours = [f for f in stack if f.filename == file]
-    frame_info = ours[-1] if ours else (stack[-1] if stack else None)
-    return f"{frame_info.filename}:{frame_info.lineno}" if frame_info else file
-
-
-_GUARD = _HangGuard()
 _clock = time.perf_counter
-_thread_id = threading.get_ident
 
 
 def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:

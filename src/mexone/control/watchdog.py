@@ -1,0 +1,157 @@
+"""The watchdog over a student's code in the simulation thread: an update past its hang_timeout,
+and importing the student's file, creating, configuring and activating the controller past
+STUDENT_SETUP_TIMEOUT, are interrupted (PyThreadState_SetAsyncExc raises ControllerHang in that
+thread at its next bytecode), so a student's infinite loop never freezes the lab: the controller
+faults, or the load or Reload is refused with one line, and the lab runs on."""
+
+from __future__ import annotations
+
+import ctypes
+import logging
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from mexone.ranges import number_text
+
+__all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running"]
+
+log = logging.getLogger("mexone.control")
+# wall s for importing a student's file or creating/configuring/activating the controller: a
+# module may import python-control or scipy and a configure may design an LQR, so far more than
+# an update's hang_timeout; an infinite loop there still ends, and the lab with it runs on
+STUDENT_SETUP_TIMEOUT = 30.0
+
+
+class ControllerHang(BaseException):
+    """Raised inside a student's code that ran past its time (a BaseException, so the student's
+    own `except Exception` does not swallow it)."""
+
+    def __str__(self) -> str:
+        return "did not finish in time: interrupted by mexone's watchdog"
+
+
+@dataclass(frozen=True)
+class Watched:
+    """What the watchdog names when it interrupts something other than an update."""
+
+    label: str  # "controller 'arm'", "controller type 'my_pd/MyPd'"
+    file: str  # the student's file (the line it is stuck on is looked up there)
+    doing: str  # "import", "configure", ...
+    timeout: float | None = None  # s; None: STUDENT_SETUP_TIMEOUT
+
+
+class _HangGuard:
+    """One watchdog thread: interrupts a student's update that has not returned after its
+    hang_timeout, or a Watched setup past its timeout. It lives only while student code runs:
+    idle for half a second, it ends. Entries are tracked per thread (two labs may step in two
+    threads)."""
+
+    _IDLE = 0.5  # s without updates after which the thread ends
+    _POLL = 0.05  # s
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        # thread -> (since, runner or Watched) of the student's code in progress there
+        self._entries: dict[int, tuple[float, object]] = {}
+        self._injected: set[int] = set()
+        self._running = False
+        self._last = 0.0
+
+    def enter(self, runner, now: float) -> int:
+        """A PythonRunner's update (or a Watched setup) starts in this thread (`now`:
+        time.perf_counter()); returns the thread's id for `leave`."""
+        self._last = now
+        tid = _thread_id()
+        self._entries[tid] = (now, runner)
+        if not self._running:
+            self._running = True
+            threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
+        return tid
+
+    def leave(self, tid: int | None = None) -> bool:
+        """The update returned (in thread `tid`, default this one); True if the watchdog had
+        interrupted it (the pending exception is withdrawn: it must not land in the manager)."""
+        if tid is None:
+            tid = _thread_id()
+        with self._lock:
+            self._entries.pop(tid, None)
+            if tid not in self._injected:
+                return False
+            self._injected.discard(tid)
+            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+        return True
+
+    @contextmanager
+    def watching(self, watched: Watched) -> Iterator[None]:
+        """Student code other than an update, under the watchdog: ControllerHang is raised in it
+        after `watched.timeout` s. A block inside another (an import inside a configure) leaves
+        the outer one watched as it was."""
+        tid = _thread_id()
+        outer = self._entries.get(tid)
+        if outer is not None:  # already watched: the outer entry's time runs on
+            yield
+            return
+        self.enter(watched, time.perf_counter())
+        try:
+            yield
+        finally:
+            self.leave(tid)
+
+    @staticmethod
+    def _describe(what) -> tuple[str, str, str, float]:
+        if isinstance(what, Watched):
+            timeout = STUDENT_SETUP_TIMEOUT if what.timeout is None else what.timeout
+            return what.label, what.file, what.doing, timeout
+        return f"controller '{what.name}'", what.plugin.file, "update", what.plugin.hang_timeout
+
+    def _watch(self) -> None:
+        said_stuck: set[tuple[int, float]] = set()
+        while True:
+            time.sleep(self._POLL)
+            said: list[tuple[str, tuple]] = []
+            with self._lock:
+                now = time.perf_counter()
+                if not self._entries:
+                    said_stuck.clear()
+                    if now - self._last > self._IDLE:
+                        self._running = False
+                        if not self._entries:
+                            return
+                        self._running = True
+                    continue
+                for tid, (since, what) in list(self._entries.items()):
+                    label, file, doing, timeout = self._describe(what)
+                    if now - since < timeout:
+                        continue
+                    where = where_running(tid, file)
+                    if tid not in self._injected:
+                        self._injected.add(tid)
+                        ctypes.pythonapi.PyThreadState_SetAsyncExc(
+                            ctypes.c_ulong(tid), ctypes.py_object(ControllerHang))
+                        said.append(("%s: %s has not returned for %s s (%s): interrupting it",
+                                     (label, doing, number_text(round(now - since, 2)), where)))
+                    elif now - since > 2 * timeout + 1.0 and (tid, since) not in said_stuck:
+                        said_stuck.add((tid, since))
+                        said.append(("%s: %s cannot be interrupted: it is blocked outside Python "
+                                     "(%s); the lab is frozen: press Ctrl-C twice to end it",
+                                     (label, doing, where)))
+            for text, args in said:  # outside the lock: a log handler may take its time
+                log.error(text, *args)
+
+
+def where_running(tid: int, file: str) -> str:
+    """file:line where thread `tid` runs now, in `file` if it is there."""
+    frame = sys._current_frames().get(tid)
+    stack = traceback.extract_stack(frame) if frame is not None else []
+    ours = [f for f in stack if f.filename == file]
+    frame_info = ours[-1] if ours else (stack[-1] if stack else None)
+    return f"{frame_info.filename}:{frame_info.lineno}" if frame_info else file
+
+
+GUARD = _HangGuard()
+_thread_id = threading.get_ident
