@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from mexone.errors import InputError, OutputExistsError
+from mexone.files import check_output, replacing, write_text
 
 HELP = """\
 Exercises: a statement, a starter file, a grader with fixed seeds and a hidden variation of the
@@ -138,9 +139,14 @@ def _grade(args) -> int:
     )
 
     ex = find_exercise(args.name)
-    for out in (args.json, args.csv):
-        if out is not None and out != Path("-") and out.exists() and not args.force:
-            raise OutputExistsError(f"{out} exists", hint="give another file or --force")
+    for out in (args.json, args.csv):  # before any grading: a class's grades take minutes
+        if out is not None and out != Path("-"):
+            if out.exists() and not out.is_dir() and not args.force:
+                raise OutputExistsError(f"{out} exists", hint="give another file or --force")
+            check_output(out, force=True)  # a folder, a missing or read-only folder
+    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
+        raise InputError("--plots names a file, not a folder", file=args.plots,
+                         hint="give a folder; it is created if missing")
     if args.submission.is_dir():
         if args.json is not None:
             raise InputError("--json writes one submission's results.json",
@@ -159,7 +165,8 @@ def _grade(args) -> int:
                   f"{'passed' if result.passed else 'not passed':<11} "
                   + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True)
         if args.csv:
-            write_csv(results, args.csv)
+            with replacing(args.csv, args.force) as temporary:
+                write_csv(results, temporary)
             print(f"mexone: wrote {args.csv} ({len(results)} submissions)")
         return 0
     if args.csv:
@@ -171,7 +178,7 @@ def _grade(args) -> int:
             print(text)
             print(as_text(result), file=sys.stderr)
             return 0
-        args.json.write_text(text + "\n")
+        write_text(args.json, text + "\n", args.force)
     print(as_text(result))
     return 0
 

@@ -1,0 +1,47 @@
+"""`mexone exercise grade`'s outputs are checked before any grading (a class's folder takes
+minutes to grade; a --csv into a missing folder must not be found out after it), and written
+whole or not at all."""
+
+from __future__ import annotations
+
+import json
+
+from helpers import run_cli
+from mexone.exercises import find_exercise
+
+
+def test_bad_outputs_are_refused_before_grading(tmp_path, monkeypatch):
+    import mexone.exercises.grading as grading
+
+    graded = []
+    monkeypatch.setattr(grading, "grade", lambda *a, **k: graded.append(a))
+    folder = tmp_path / "submissions"
+    folder.mkdir()
+    (folder / "ada.yaml").write_text(find_exercise("home_hold").solution.read_text())
+    (tmp_path / "plots.png").write_text("not a folder")
+    cases = {  # argv after the submission: a piece of the one line it must get
+        ("--csv", tmp_path / "missing" / "grades.csv"): "output folder does not exist",
+        ("--csv", tmp_path): "is a folder, not a file",
+        ("--plots", tmp_path / "plots.png"): "--plots names a file, not a folder",
+    }
+    for extra, message in cases.items():
+        code, _, err = run_cli(["exercise", "grade", "home_hold", folder, *extra])
+        assert code == 2 and message in err and len(err.strip().splitlines()) == 1, (extra, err)
+    code, _, err = run_cli(["exercise", "grade", "home_hold", folder / "ada.yaml", "--json",
+                            tmp_path / "missing" / "results.json"])
+    assert code == 2 and "output folder does not exist" in err, err
+    assert graded == [] and not (tmp_path / "missing").exists()
+
+
+def test_results_json_replaced_only_with_force(tmp_path):
+    submission = tmp_path / "controllers.yaml"
+    submission.write_text(find_exercise("home_hold").solution.read_text())
+    results = tmp_path / "results.json"
+    results.write_text("mine\n")
+    code, _, err = run_cli(["exercise", "grade", "home_hold", submission, "--json", results])
+    assert code == 2 and "exists" in err and results.read_text() == "mine\n"
+    code, _, err = run_cli(["exercise", "grade", "home_hold", submission, "--json", results,
+                            "--force"])
+    assert code == 0, err
+    assert json.loads(results.read_text())["score"] == 10
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["controllers.yaml", "results.json"]
