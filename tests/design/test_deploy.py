@@ -107,6 +107,19 @@ def test_pid_step_rise_time_and_overshoot_match_the_linear_prediction(fixed_lab,
     assert abs(measured[-1] - step) < 0.1 * abs(step)
 
 
+def test_a_static_gain_runs_as_a_p_controller(fixed_lab, elbow):
+    # control.tf(20, 1) has no timebase (dt None): a P controller, the first a course writes
+    p = control.tf(20.0, 1.0, inputs="l_elbow:q", outputs="l_elbow:effort")
+    with pytest.raises(InputError, match="a static gain needs the rate"):
+        deploy(fixed_lab, p, elbow, name="elbow_p")
+    controller = deploy(fixed_lab, p, elbow, name="elbow_p", rate=1000)
+    assert controller.design.A.shape == (0, 0) and controller.design.D[0, 0] == 20.0
+    result = compare(fixed_lab, controller, elbow, reference={"l_elbow:q": -0.1}, duration=0.3)
+    measured, predicted = result.signal("l_elbow:q")
+    assert measured[-1] == pytest.approx(predicted[-1], abs=0.005) and measured[-1] < -0.05
+    assert result.relative < 0.05, result.relative
+
+
 def test_pd_frequency_response_matches_the_model_up_to_the_bandwidth(fixed_lab, elbow):
     controller = elbow_controller(fixed_lab, elbow, PD)
     result = measure_frequency_response(fixed_lab, controller, elbow, "l_elbow:q", amplitude=0.02,
@@ -170,6 +183,9 @@ def test_yaml_names_the_state_feedback_and_reads_its_gains_beside_it(lab, arm, t
     save_design(tmp_path / "arm.npz", K, arm)
     with pytest.raises(InputError, match="exists"):
         save_design(tmp_path / "arm.npz", K, arm)
+    with pytest.raises(InputError, match="output folder does not exist"):
+        save_design(tmp_path / "missing" / "arm.npz", K, arm)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.npz"]  # no temporary left
     (tmp_path / "controllers.yaml").write_text(
         "mex_rb:\n"
         "  yaml_lqr:\n"
