@@ -45,3 +45,23 @@ def test_results_json_replaced_only_with_force(tmp_path):
     assert code == 0, err
     assert json.loads(results.read_text())["score"] == 10
     assert sorted(p.name for p in tmp_path.iterdir()) == ["controllers.yaml", "results.json"]
+
+
+def test_start_hands_out_the_starter_without_bytecode(tmp_path):
+    code, _, err = run_cli(["exercise", "new", "mine", tmp_path / "mine"])
+    assert code == 0, err
+    cache = tmp_path / "mine" / "starter" / "__pycache__"  # as pip compiles an installed one
+    cache.mkdir()
+    (cache / "routine.cpython-311.pyc").write_bytes(b"\x00stale")
+    (tmp_path / "mine" / "starter" / "old.pyc").write_bytes(b"\x00stale")
+    code, _, err = run_cli(["exercise", "start", tmp_path / "mine", tmp_path / "st"])
+    assert code == 0, err
+    assert sorted(p.name for p in (tmp_path / "st").iterdir()) == ["README.md", "check.py",
+                                                                   "routine.py"]
+
+
+def test_list_aligns_long_names():
+    code, out, _ = run_cli(["exercise", "list"])
+    assert code == 0
+    columns = {line.index(" pts ") for line in out.splitlines()}
+    assert len(columns) == 1, out  # gravity_compensation is longer than 16 characters

@@ -73,13 +73,15 @@ def run(args: argparse.Namespace) -> int:
 def _list(_args) -> int:
     from mexone.exercises.exercise import exercises, load_exercise
 
-    for name, folder in exercises().items():
+    found = exercises()
+    width = max((len(name) for name in found), default=0)
+    for name, folder in found.items():
         try:
             ex = load_exercise(folder)
-            print(f"{name:<16} {ex.points:>4g} pts  {ex.submission:<10} {ex.title}"
+            print(f"{name:<{width}} {ex.points:>4g} pts  {ex.submission:<10} {ex.title}"
                   + (f": {ex.summary}" if ex.summary else ""))
         except InputError as exc:
-            print(f"{name:<16} broken: {exc.one_line()}")
+            print(f"{name:<{width}} broken: {exc.one_line()}")
     return 0
 
 
@@ -106,6 +108,12 @@ def _copy_tree(files: dict[Path, Path | str], force: bool) -> None:
             dest.write_text(source)
 
 
+def _handed_out(path: Path) -> bool:
+    """A file of the exercise's folder the student gets: not the bytecode that pip (or a
+    teacher's test run) compiled next to the starter."""
+    return path.is_file() and "__pycache__" not in path.parts and path.suffix != ".pyc"
+
+
 def _start(args) -> int:
     from mexone.exercises.exercise import find_exercise
 
@@ -114,11 +122,11 @@ def _start(args) -> int:
     files: dict[Path, Path | str] = {dest / "README.md": ex.statement}
     starter = ex.folder / "starter"
     for path in sorted(starter.rglob("*")) if starter.is_dir() else []:
-        if path.is_file():
+        if _handed_out(path):
             files[dest / path.relative_to(starter)] = path
     figures = ex.folder / "figures"
     for path in sorted(figures.rglob("*")) if figures.is_dir() else []:
-        if path.is_file():
+        if _handed_out(path):
             files[dest / "figures" / path.relative_to(figures)] = path
     files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
                                                else str(ex.folder), file=ex.file)
