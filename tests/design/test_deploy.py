@@ -253,6 +253,8 @@ def test_a_bad_design_file_is_one_line_naming_it(lab, tmp_path):
     with pytest.raises(InputError, match="missing.npz does not exist") as info:
         lab.controllers.load("broken")
     assert "\n" not in str(info.value)
+    # located at the YAML's line, not at 'missing.npz:2' (a line of a file that does not exist)
+    assert str(info.value).startswith(f"{tmp_path / 'controllers.yaml'}:2: controller 'broken': ")
     (tmp_path / "missing.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="cannot be read"):
         lab.controllers.load("broken")

@@ -408,7 +408,10 @@ class _Deployed(PythonController):
         path = Path(self.design_file)
         if not path.is_absolute() and binding.plugin.yaml_dir is not None:
             path = binding.plugin.yaml_dir / path
-        design = load_design(path)
+        try:
+            design = load_design(path)
+        except InputError as exc:  # its message names the design file: locate it at the YAML's line
+            raise InputError(f"controller '{self.name}': {exc.what}", hint=exc.hint) from None
         if design.interface != self.command_interface:
             raise InputError(f"design file {path} drives the {design.interface} interface; "
                              f"{type(self).__name__} drives {self.command_interface}")
