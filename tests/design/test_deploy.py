@@ -93,6 +93,16 @@ def test_lqr_gain_runs_and_matches_the_closed_loop_prediction(lab, arm):
     lab.controllers.switch(stop=["arm_lqr"], start=[f"{j}_position_controller" for j in ARM])
 
 
+def test_a_deviation_past_a_joint_limit_is_refused_before_the_robot_moves(lab, arm):
+    K, _, _ = lqr(arm, np.diag([1000.0] * 3 + [1.0] * 3), np.eye(3))
+    controller = deploy(lab, K, arm, name="arm_limits")
+    before = lab.sim.data.qpos.copy()
+    with pytest.raises(InputError, match=r"puts l_elbow at 4\.99\d*, outside its limits \[-2.5, 0.1\]"):
+        compare(lab, controller, arm, {"l_elbow:q": 5.0})  # was: a divergence blaming the gains
+    np.testing.assert_array_equal(lab.sim.data.qpos, before)
+    lab.controllers.switch(stop=["arm_limits"], start=[f"{j}_position_controller" for j in ARM])
+
+
 def test_pid_step_rise_time_and_overshoot_match_the_linear_prediction(fixed_lab, elbow):
     controller = elbow_controller(fixed_lab, elbow, PID)
     assert isinstance(controller, LinearController) and controller.design.A.shape == (2, 2)
