@@ -65,3 +65,14 @@ def test_list_aligns_long_names():
     assert code == 0
     columns = {line.index(" pts ") for line in out.splitlines()}
     assert len(columns) == 1, out  # gravity_compensation is longer than 16 characters
+
+
+def test_start_and_new_into_a_file_are_one_line(tmp_path):
+    (tmp_path / "afile").write_text("mine\n")
+    for argv in (["start", "home_hold", tmp_path / "afile"],
+                 ["start", "home_hold", tmp_path / "afile" / "sub"],
+                 ["new", "zz", tmp_path / "afile" / "sub"]):
+        code, _, err = run_cli(["exercise", *argv])
+        assert code == 2 and err.strip() == f"mexone: {tmp_path / 'afile'}: is a file, not a " \
+                                             "folder (name a folder)", (argv, err)
+    assert (tmp_path / "afile").read_text() == "mine\n"

@@ -96,7 +96,14 @@ def _show(args) -> int:
 
 
 def _copy_tree(files: dict[Path, Path | str], force: bool) -> None:
-    """Write every (destination: source path or text) or none: refused if one exists."""
+    """Write every (destination: source path or text) or none: refused if one exists, or if
+    a folder it needs is a file."""
+    for dest in files:
+        folder = dest.parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            raise InputError("is a file, not a folder", file=folder, hint="name a folder")
     clash = [d for d in files if d.exists()]
     if clash and not force:
         raise OutputExistsError(f"{clash[0]} exists", hint="give another folder or --force")
