@@ -56,6 +56,14 @@ def test_a_bad_frame_rate_is_one_line(lab, fps):
         simulate(lab, 0.1, fps=fps, progress=False)
 
 
+@pytest.mark.parametrize("port", [70000, -1, 8.5])
+def test_a_bad_port_is_one_line_and_serves_nothing(lab, port):
+    # was: viser's thread died with an OverflowError traceback and serve() never returned
+    with pytest.raises(InputError, match="serve: port .* must be a whole number >= 0 and <= 65535"):
+        serve(lab, port=port)
+    assert getattr(lab, "_live_page", None) is None
+
+
 def test_nothing_recorded_is_one_line(lab):
     from mexone.notebook import Replay
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.lab import Lab
-from mexone.ranges import REPLAY_FPS, REPLAY_SECONDS, RTF
+from mexone.ranges import PORT, REPLAY_FPS, REPLAY_SECONDS, RTF
 
 __all__ = ["Replay", "simulate", "record", "LivePage", "serve"]
 
@@ -201,6 +201,7 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     from mexone.physics.compile import CompileOptions
 
     rtf = RTF.check(rtf, "serve: rtf")
+    port = int(PORT.check(port, "serve: port"))  # else viser's thread dies and serve waits on it
     check_can_serve(host)
     if getattr(lab, "_live_page", None) is not None:
         raise InputError("this lab already has a live page", hint="page.stop() first")
