@@ -68,3 +68,17 @@ def test_a_controller_that_does_not_load_or_raises_scores_zero_with_its_line(tmp
     runs = next(c for c, _, _ in result.checks if c.name == "runs")
     assert reason in runs.output and "Traceback" not in runs.output
     assert "/tmp" not in runs.output  # the student's file by its name, not the grader's copy
+
+
+@pytest.mark.parametrize("answer", ["None", "'0.5 N m s/rad'", "[0.5]"])
+def test_an_estimate_that_is_not_a_number_is_the_students_reason(tmp_path, answer):
+    from mexone.exercises import SubmissionFailed
+
+    spec = importlib.util.spec_from_file_location("grader_id", COURSE / "identify_damping" / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    submission = tmp_path / "identify_damping.py"
+    submission.write_text(f"def estimate(bag):\n    return {answer}\n")
+    # was: "the grader could not run the submission: TypeError: float() argument must be ..."
+    with pytest.raises(SubmissionFailed, match=r"estimate\(bag\) returned \w+ .*, not a number"):
+        module.estimate(submission, tmp_path / "unused.bag")
