@@ -1,10 +1,13 @@
-"""`mexone exercise grade`'s outputs are checked before any grading (a class's folder takes
-minutes to grade; a --csv into a missing folder must not be found out after it), and written
-whole or not at all."""
+"""`mexone exercise` as a teacher uses it: grade's outputs are checked before any grading (a
+class's folder takes minutes to grade; a --csv into a missing folder must not be found out after
+it) and written whole or not at all; start and new refuse a file for a folder; a grader.py that
+does not import is one line with its line."""
 
 from __future__ import annotations
 
 import json
+
+import pytest
 
 from helpers import run_cli
 from mexone.exercises import find_exercise
@@ -76,3 +79,20 @@ def test_start_and_new_into_a_file_are_one_line(tmp_path):
         assert code == 2 and err.strip() == f"mexone: {tmp_path / 'afile'}: is a file, not a " \
                                              "folder (name a folder)", (argv, err)
     assert (tmp_path / "afile").read_text() == "mine\n"
+
+
+@pytest.mark.parametrize("text, line, error", [
+    ("syntax error here(\n", 1, "SyntaxError: '(' was never closed"),
+    ("import numpy\nx = numpy.nope\n", 2, "AttributeError: module 'numpy' has no attribute 'nope'"),
+    ("import sys\n\nsys.exit(3)\n", 3, "SystemExit: 3"),
+], ids=["syntax", "raises", "exits"])
+def test_a_teachers_grader_that_does_not_import_is_one_line_with_its_line(tmp_path, text, line,
+                                                                           error):
+    code, _, err = run_cli(["exercise", "new", "mine", tmp_path / "mine"])
+    assert code == 0, err
+    grader = tmp_path / "mine" / "grader.py"
+    grader.write_text(text)
+    code, _, err = run_cli(["exercise", "grade", tmp_path / "mine",
+                            tmp_path / "mine" / "solution" / "routine.py"])
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+    assert err.startswith(f"mexone: {grader}:{line}: grader.py does not import: {error}"), err
