@@ -96,3 +96,12 @@ def test_a_teachers_grader_that_does_not_import_is_one_line_with_its_line(tmp_pa
                             tmp_path / "mine" / "solution" / "routine.py"])
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
     assert err.startswith(f"mexone: {grader}:{line}: grader.py does not import: {error}"), err
+
+
+def test_the_self_check_without_the_file_is_one_line(tmp_path, capsys):
+    from mexone.exercises import self_check
+
+    assert self_check("home_hold", str(tmp_path / "controllers.yaml")) == 2  # was a traceback
+    err = capsys.readouterr().err
+    assert err == f"mexone: no submission file {tmp_path / 'controllers.yaml'} (hand in the " \
+                  "exercise's controllers.yaml)\n"
