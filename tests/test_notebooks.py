@@ -35,6 +35,7 @@ def test_simulate_records_the_poses_at_the_frame_rate(lab):
     assert np.allclose(np.diff(replay.times), 0.02)
     assert np.array_equal(replay.qpos[-1], lab.sim.data.qpos)  # the last frame is the state now
     assert replay.qpos[0][2] > replay.qpos[-1][2]  # falling: the pelvis lower at the end
+    assert repr(replay) == "Replay(11 frames over 0.200 s at 50 fps)"  # not the lab, every qpos
 
 
 def test_record_samples_whatever_runs_the_simulation(lab):

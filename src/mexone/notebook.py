@@ -33,7 +33,7 @@ __all__ = ["Replay", "simulate", "record", "LivePage", "serve"]
 _CHUNK = 0.05  # s of sim time between progress-bar updates
 
 
-@dataclass
+@dataclass(repr=False)
 class Replay:
     """What a cell simulated: the generalised positions `qpos[i]` at sim times `times[i]` (s),
     for the lab's model. Shown inline by `show()`, or by being a cell's last value."""
@@ -42,6 +42,9 @@ class Replay:
     fps: float
     times: list[float] = field(default_factory=list)
     qpos: list[np.ndarray] = field(default_factory=list)
+
+    def __repr__(self) -> str:  # a cell's text output, print(): not every frame's qpos
+        return f"Replay({len(self.times)} frames over {self.duration:.3f} s at {self.fps:g} fps)"
 
     def sample(self, sim) -> None:
         """Record the state now (the simulation thread calls it, between steps)."""
