@@ -244,6 +244,14 @@ def test_bad_requests_are_one_line_errors(standing):
     model, data = pendulum(0.1)
     with pytest.raises(InputError, match="needs mexone's joint actuators"):
         linearize(model, data)
+    elbow = linearize(standing, joints=["l_elbow"], held="rigid", fixed_base=True)
+    nv = standing.sim.model.nv
+    with pytest.raises(InputError, match="qpos has 3 values; give the simulation's whole qpos or "
+                                         "the model's 1"):  # was an IndexError
+        state_deviation(elbow, np.zeros(3), np.zeros(nv))
+    with pytest.raises(InputError, match="qvel has a NaN or inf"):
+        state_deviation(elbow, standing.sim.data.qpos, np.full(nv, np.nan))
+    assert state_deviation(elbow, standing.sim.data.qpos, np.zeros(nv)).shape == (2,)
 
 
 def test_a_reduced_model_follows_the_pose_it_is_taken_at(standing):
