@@ -235,6 +235,10 @@ def test_bad_requests_are_one_line_errors(standing):
         linearize(standing, outputs=["gyro"])
     with pytest.raises(InputError, match="'knee': not an actuated joint.*l_knee"):
         linearize(standing, joints=["knee"])
+    with pytest.raises(InputError, match="joints is empty.*l_knee"):  # was: "this model has none"
+        linearize(standing, joints=[])
+    with pytest.raises(InputError, match="joints names 'l_elbow' twice"):
+        linearize(standing, joints=["l_elbow", "l_knee", "l_elbow"])
     with pytest.raises(InputError, match="support 'one' is not one of both, left, right, fixed"):
         operating_point(standing, support="one")
     with pytest.raises(InputError, match="'elbow', which is not a hinge"):

@@ -334,6 +334,12 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     if unknown and inputs != "ctrl":
         raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
                          hint="actuated joints: " + (", ".join(plant.joints) or "none (no controllers)"))
+    if inputs != "ctrl" and joints is not None and not chosen and plant.joints:
+        raise InputError("joints is empty: name the joints that get inputs",
+                         hint="actuated joints: " + ", ".join(plant.joints))
+    if len(set(chosen)) != len(chosen):
+        twice = next(j for j in chosen if chosen.count(j) > 1)
+        raise InputError(f"joints names {twice!r} twice")
     if inputs != "ctrl" and not chosen:
         raise InputError(f"inputs '{inputs}' needs mexone's joint actuators; this model has none",
                          hint="use inputs='ctrl', or a Lab with controllers")
