@@ -1,11 +1,12 @@
-"""A misspelt file stem in a controller's `type:` names the student's file beside the YAML, as a
-misspelt shipped type names the shipped one."""
+"""A student's slips caught where they are made: a misspelt file stem in a controller's `type:`
+names the student's file beside the YAML (as a misspelt shipped type names the shipped one), and
+a Param whose own default breaks its declaration is refused when the class is defined."""
 
 from __future__ import annotations
 
 import pytest
 
-from mexone.control import load_control_config
+from mexone.control import Param, load_control_config
 from mexone.errors import InputError
 
 CTL = "from mexone.control import PythonController\n\n\nclass Arm(PythonController):\n    pass\n"
@@ -26,3 +27,16 @@ def test_a_misspelt_stem_suggests_the_file_beside_the_yaml(tmp_path):
     with pytest.raises(InputError) as info:
         load_control_config(path)
     assert "did you mean" not in info.value.one_line()  # nothing close: no guess
+
+
+@pytest.mark.parametrize("args, kwargs, message", [
+    ((50.0,), {"low": 0.0, "high": 10.0}, "Param default 50 is not a finite number >= 0 and <= 10"),
+    ((float("nan"),), {}, "Param default NaN is not a finite number"),
+    ((-1,), {"low": 0}, "Param default -1 is not a whole number >= 0"),
+    (("x",), {"choices": ("a", "b")}, "Param default 'x' is not one of a, b"),
+])
+def test_a_param_default_outside_its_own_declaration_is_refused(args, kwargs, message):
+    # was: accepted, and a YAML that does not set it ran the controller with it
+    with pytest.raises(TypeError, match=message):
+        Param(*args, **kwargs)
+    assert Param(3, low=0, high=10).default == 3 and Param("a", choices=("a", "b")).default == "a"
