@@ -40,3 +40,14 @@ def test_a_param_default_outside_its_own_declaration_is_refused(args, kwargs, me
     with pytest.raises(TypeError, match=message):
         Param(*args, **kwargs)
     assert Param(3, low=0, high=10).default == 3 and Param("a", choices=("a", "b")).default == "a"
+
+
+def test_a_param_named_like_a_yaml_key_is_located_at_the_type_line(tmp_path):
+    (tmp_path / "law.py").write_text("from mexone.control import Param, PythonController\n\n\n"
+                                     "class Arm(PythonController):\n    joints = Param(1.0)\n")
+    path = tmp_path / "c.yaml"
+    path.write_text("ns:\n  arm:\n    type: law/Arm\n    joints: [a]\n")
+    with pytest.raises(InputError) as info:  # was: no file, no line, no controller
+        load_control_config(path)
+    assert info.value.one_line() == (f"{path}:3: controller 'arm': Arm declares parameter 'joints', "
+                                     "a name the YAML uses for itself (rename the Param)")

@@ -244,8 +244,8 @@ def validate_params(cls: type[PythonController], raw: dict[str, tuple[Any, int |
     declared = cls.declared_params()
     clash = sorted(set(declared) & set(RESERVED_KEYS))
     if clash:
-        raise InputError(f"{cls.__name__} declares parameter '{clash[0]}', a name the YAML "
-                         "uses for itself", hint="rename the Param")
+        raise InputError(f"controller '{controller}': {cls.__name__} declares parameter "
+                         f"'{clash[0]}', a name the YAML uses for itself", hint="rename the Param")
     values = {name: p.default for name, p in declared.items()}
     where = source or "<controllers>"
     for key, (value, line) in raw.items():
