@@ -198,7 +198,7 @@ def system_design(system, plant=None, rate: float | None = None, method: str = "
         if continuous:
             what = "static gain" if static else "continuous controller"
             raise _fail(f"{who}: a {what} needs the rate to run at",
-                        hint="pass rate=<Hz> (update_rate: in the YAML)")
+                        hint="pass rate=<Hz>, or update_rate: in the YAML")
         rate = 1.0 / float(system.dt) if system.dt not in (None, True) else None
         if rate is None:
             raise _fail(f"{who}: the discrete controller has no sampling time (dt=True)",
