@@ -98,3 +98,17 @@ def test_model_checks_gives_nothing_for_deleting_the_robot(tmp_path):
     model = [c for c, _, _ in result.checks if c.name.endswith(" fixed") or c.name == "check clean"]
     assert len(model) == 4 and all("not the given robot: link pelvis is missing" in c.output
                                    for c in model)
+
+
+def test_pid_spec_grades_a_pid_not_an_ideal_servo(tmp_path):
+    # was 10/10: ideal_servo teleports the elbow (rise time 0 s) and every metric passed
+    ex = find_exercise("pid_spec")
+    text = re.sub(r"(l_elbow_position_controller:\n)    type: effort_controllers/JointPositionController"
+                  r"\n    joint: l_elbow\n    pid:\n(      .*\n)+",
+                  r"\1    type: position_controllers/JointPositionController\n    joint: l_elbow\n"
+                  r"    ideal_servo: true\n", ex.solution.read_text())
+    assert "ideal_servo: true" in text
+    result = grade(ex, _write(tmp_path / ex.file, text))
+    assert result.score < 1.2 and "rise time" in result.failing, result.score
+    rise = next(c for c, _, _ in result.checks if c.name == "rise time")
+    assert rise.output.startswith("l_elbow_position_controller must stay effort_controllers/")
