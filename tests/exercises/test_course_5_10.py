@@ -82,3 +82,17 @@ def test_an_estimate_that_is_not_a_number_is_the_students_reason(tmp_path, answe
     # was: "the grader could not run the submission: TypeError: float() argument must be ..."
     with pytest.raises(SubmissionFailed, match=r"estimate\(bag\) returned \w+ .*, not a number"):
         module.estimate(submission, tmp_path / "unused.bag")
+
+
+@pytest.mark.parametrize("name", ["gravity_compensation", "computed_torque"])
+def test_a_position_interface_ideal_servo_scores_zero(tmp_path, name):
+    # was 10/10 on exercise 5: command_interface "position" without gains is an ideal servo
+    exercise = find_exercise(name)
+    text = (COURSE / name / "solution" / exercise.file).read_text()
+    submission = tmp_path / exercise.file
+    submission.write_text(text.replace('command_interface = "effort"',
+                                       'command_interface = "position"'))
+    result = grade(exercise, submission)
+    assert result.score == 0, [c.output for c, _, _ in result.checks]
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    assert runs.output.startswith("command_interface is 'position': the exercise is a torque law")
