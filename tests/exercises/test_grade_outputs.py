@@ -105,3 +105,14 @@ def test_the_self_check_without_the_file_is_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err == f"mexone: no submission file {tmp_path / 'controllers.yaml'} (hand in the " \
                   "exercise's controllers.yaml)\n"
+
+
+def test_csv_dash_is_stdout_not_a_file_named_dash(tmp_path):
+    folder = tmp_path / "submissions"
+    folder.mkdir()
+    (folder / "eve.yaml").write_text("mex_rb: [unclosed\n")  # fails at once: no simulation
+    code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv", "-"], cwd=tmp_path)
+    assert code == 0, err
+    assert out.splitlines()[0].startswith("student,score,max_score,passed")
+    assert out.splitlines()[1].startswith("eve,0,10,no,") and "eve " in err  # progress: stderr
+    assert not (tmp_path / "-").exists()

@@ -6,6 +6,7 @@ import argparse
 import json
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from mexone.errors import InputError, OutputExistsError
@@ -53,7 +54,8 @@ def add_parser(sub) -> None:
                         "subfolder holding the file, or NAME.<same suffix>)")
     s.add_argument("--json", type=Path, nargs="?", const=Path("-"), metavar="FILE",
                    help="write Gradescope's results.json (to FILE, default stdout)")
-    s.add_argument("--csv", type=Path, metavar="FILE", help="a folder's grades as CSV")
+    s.add_argument("--csv", type=Path, metavar="FILE", help="a folder's grades as CSV (-: on "
+                   "stdout, the progress on stderr)")
     s.add_argument("--plots", type=Path, metavar="DIR", help="save the grader's plots here")
     s.add_argument("--local", action="store_true",
                    help="the self-check: the nominal robot, no hidden variation")
@@ -172,14 +174,20 @@ def _grade(args) -> int:
                              hint=f"one subfolder per student holding {ex.file}, or "
                                   f"STUDENT{Path(ex.file).suffix} files")
         results = {}
+        to_stdout = args.csv == Path("-")
         for student, path in found.items():
             plots = args.plots / student if args.plots else None
             result = grade(ex, path, local=args.local, plots=plots)
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
-                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True)
-        if args.csv:
+                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
+                  file=sys.stderr if to_stdout else sys.stdout)
+        if to_stdout:  # was: a file named "-"
+            with tempfile.TemporaryDirectory() as tmp:
+                write_csv(results, Path(tmp) / "grades.csv")
+                sys.stdout.write((Path(tmp) / "grades.csv").read_text())
+        elif args.csv:
             with replacing(args.csv, args.force) as temporary:
                 write_csv(results, temporary)
             print(f"mexone: wrote {args.csv} ({len(results)} submissions)")
