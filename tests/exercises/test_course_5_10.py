@@ -96,3 +96,16 @@ def test_a_position_interface_ideal_servo_scores_zero(tmp_path, name):
     assert result.score == 0, [c.output for c, _, _ in result.checks]
     runs = next(c for c, _, _ in result.checks if c.name == "runs")
     assert runs.output.startswith("command_interface is 'position': the exercise is a torque law")
+
+
+def test_a_gait_the_walk_routine_refuses_is_named_by_the_students_file(tmp_path):
+    exercise = find_exercise("walk_course")
+    gait = tmp_path / "walk.yaml"
+    gait.write_text(exercise.starter.read_text().replace("step_length: 0.015", "step_length: -1"))
+    result = grade(exercise, gait)
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    # was: "the grader could not run the submission: mexone.errors.RoutineError: .../walk.py:20:
+    # mexone.errors.InputError: /tmp/tmp.../gait.yaml: ..."
+    assert runs.output.startswith("the walk routine cannot walk this gait: walk.yaml: period, dt, "
+                                  "step_length"), runs.output
+    assert "/tmp" not in runs.output and result.score == 0
