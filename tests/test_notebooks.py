@@ -35,6 +35,7 @@ def test_simulate_records_the_poses_at_the_frame_rate(lab):
     assert np.allclose(np.diff(replay.times), 0.02)
     assert np.array_equal(replay.qpos[-1], lab.sim.data.qpos)  # the last frame is the state now
     assert replay.qpos[0][2] > replay.qpos[-1][2]  # falling: the pelvis lower at the end
+    assert repr(replay) == "Replay(11 frames over 0.200 s at 50 fps)"  # not the lab, every qpos
 
 
 def test_record_samples_whatever_runs_the_simulation(lab):
@@ -54,6 +55,14 @@ def test_the_scene_page_embeds_the_recording(lab):
 def test_a_bad_frame_rate_is_one_line(lab, fps):
     with pytest.raises(InputError, match="fps .* must be a finite number"):
         simulate(lab, 0.1, fps=fps, progress=False)
+
+
+@pytest.mark.parametrize("port", [70000, -1, 8.5])
+def test_a_bad_port_is_one_line_and_serves_nothing(lab, port):
+    # was: viser's thread died with an OverflowError traceback and serve() never returned
+    with pytest.raises(InputError, match="serve: port .* must be a whole number >= 0 and <= 65535"):
+        serve(lab, port=port)
+    assert getattr(lab, "_live_page", None) is None
 
 
 def test_nothing_recorded_is_one_line(lab):

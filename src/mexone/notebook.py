@@ -26,14 +26,14 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.lab import Lab
-from mexone.ranges import REPLAY_FPS, REPLAY_SECONDS, RTF
+from mexone.ranges import PORT, REPLAY_FPS, REPLAY_SECONDS, RTF
 
 __all__ = ["Replay", "simulate", "record", "LivePage", "serve"]
 
 _CHUNK = 0.05  # s of sim time between progress-bar updates
 
 
-@dataclass
+@dataclass(repr=False)
 class Replay:
     """What a cell simulated: the generalised positions `qpos[i]` at sim times `times[i]` (s),
     for the lab's model. Shown inline by `show()`, or by being a cell's last value."""
@@ -42,6 +42,9 @@ class Replay:
     fps: float
     times: list[float] = field(default_factory=list)
     qpos: list[np.ndarray] = field(default_factory=list)
+
+    def __repr__(self) -> str:  # a cell's text output, print(): not every frame's qpos
+        return f"Replay({len(self.times)} frames over {self.duration:.3f} s at {self.fps:g} fps)"
 
     def sample(self, sim) -> None:
         """Record the state now (the simulation thread calls it, between steps)."""
@@ -201,6 +204,7 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     from mexone.physics.compile import CompileOptions
 
     rtf = RTF.check(rtf, "serve: rtf")
+    port = int(PORT.check(port, "serve: port"))  # else viser's thread dies and serve waits on it
     check_can_serve(host)
     if getattr(lab, "_live_page", None) is not None:
         raise InputError("this lab already has a live page", hint="page.stop() first")

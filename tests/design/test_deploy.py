@@ -93,6 +93,16 @@ def test_lqr_gain_runs_and_matches_the_closed_loop_prediction(lab, arm):
     lab.controllers.switch(stop=["arm_lqr"], start=[f"{j}_position_controller" for j in ARM])
 
 
+def test_a_deviation_past_a_joint_limit_is_refused_before_the_robot_moves(lab, arm):
+    K, _, _ = lqr(arm, np.diag([1000.0] * 3 + [1.0] * 3), np.eye(3))
+    controller = deploy(lab, K, arm, name="arm_limits")
+    before = lab.sim.data.qpos.copy()
+    with pytest.raises(InputError, match=r"puts l_elbow at 4\.99\d*, outside its limits \[-2.5, 0.1\]"):
+        compare(lab, controller, arm, {"l_elbow:q": 5.0})  # was: a divergence blaming the gains
+    np.testing.assert_array_equal(lab.sim.data.qpos, before)
+    lab.controllers.switch(stop=["arm_limits"], start=[f"{j}_position_controller" for j in ARM])
+
+
 def test_pid_step_rise_time_and_overshoot_match_the_linear_prediction(fixed_lab, elbow):
     controller = elbow_controller(fixed_lab, elbow, PID)
     assert isinstance(controller, LinearController) and controller.design.A.shape == (2, 2)
@@ -105,6 +115,19 @@ def test_pid_step_rise_time_and_overshoot_match_the_linear_prediction(fixed_lab,
     assert over_p > 0.05  # a step that overshoots, so the comparison means something
     assert over_m == pytest.approx(over_p, rel=0.10)  # measured here: 11.6 % vs 12.2 %
     assert abs(measured[-1] - step) < 0.1 * abs(step)
+
+
+def test_a_static_gain_runs_as_a_p_controller(fixed_lab, elbow):
+    # control.tf(20, 1) has no timebase (dt None): a P controller, the first a course writes
+    p = control.tf(20.0, 1.0, inputs="l_elbow:q", outputs="l_elbow:effort")
+    with pytest.raises(InputError, match="a static gain needs the rate"):
+        deploy(fixed_lab, p, elbow, name="elbow_p")
+    controller = deploy(fixed_lab, p, elbow, name="elbow_p", rate=1000)
+    assert controller.design.A.shape == (0, 0) and controller.design.D[0, 0] == 20.0
+    result = compare(fixed_lab, controller, elbow, reference={"l_elbow:q": -0.1}, duration=0.3)
+    measured, predicted = result.signal("l_elbow:q")
+    assert measured[-1] == pytest.approx(predicted[-1], abs=0.005) and measured[-1] < -0.05
+    assert result.relative < 0.05, result.relative
 
 
 def test_pd_frequency_response_matches_the_model_up_to_the_bandwidth(fixed_lab, elbow):
@@ -170,6 +193,9 @@ def test_yaml_names_the_state_feedback_and_reads_its_gains_beside_it(lab, arm, t
     save_design(tmp_path / "arm.npz", K, arm)
     with pytest.raises(InputError, match="exists"):
         save_design(tmp_path / "arm.npz", K, arm)
+    with pytest.raises(InputError, match="output folder does not exist"):
+        save_design(tmp_path / "missing" / "arm.npz", K, arm)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["arm.npz"]  # no temporary left
     (tmp_path / "controllers.yaml").write_text(
         "mex_rb:\n"
         "  yaml_lqr:\n"
@@ -237,6 +263,8 @@ def test_a_bad_design_file_is_one_line_naming_it(lab, tmp_path):
     with pytest.raises(InputError, match="missing.npz does not exist") as info:
         lab.controllers.load("broken")
     assert "\n" not in str(info.value)
+    # located at the YAML's line, not at 'missing.npz:2' (a line of a file that does not exist)
+    assert str(info.value).startswith(f"{tmp_path / 'controllers.yaml'}:2: controller 'broken': ")
     (tmp_path / "missing.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="cannot be read"):
         lab.controllers.load("broken")

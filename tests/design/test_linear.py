@@ -235,6 +235,10 @@ def test_bad_requests_are_one_line_errors(standing):
         linearize(standing, outputs=["gyro"])
     with pytest.raises(InputError, match="'knee': not an actuated joint.*l_knee"):
         linearize(standing, joints=["knee"])
+    with pytest.raises(InputError, match="joints is empty.*l_knee"):  # was: "this model has none"
+        linearize(standing, joints=[])
+    with pytest.raises(InputError, match="joints names 'l_elbow' twice"):
+        linearize(standing, joints=["l_elbow", "l_knee", "l_elbow"])
     with pytest.raises(InputError, match="support 'one' is not one of both, left, right, fixed"):
         operating_point(standing, support="one")
     with pytest.raises(InputError, match="'elbow', which is not a hinge"):
@@ -244,6 +248,14 @@ def test_bad_requests_are_one_line_errors(standing):
     model, data = pendulum(0.1)
     with pytest.raises(InputError, match="needs mexone's joint actuators"):
         linearize(model, data)
+    elbow = linearize(standing, joints=["l_elbow"], held="rigid", fixed_base=True)
+    nv = standing.sim.model.nv
+    with pytest.raises(InputError, match="qpos has 3 values; give the simulation's whole qpos or "
+                                         "the model's 1"):  # was an IndexError
+        state_deviation(elbow, np.zeros(3), np.zeros(nv))
+    with pytest.raises(InputError, match="qvel has a NaN or inf"):
+        state_deviation(elbow, standing.sim.data.qpos, np.full(nv, np.nan))
+    assert state_deviation(elbow, standing.sim.data.qpos, np.zeros(nv)).shape == (2,)
 
 
 def test_a_reduced_model_follows_the_pose_it_is_taken_at(standing):

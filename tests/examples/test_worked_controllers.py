@@ -182,3 +182,31 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
     assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
+
+
+def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
+    from mexone.cli.sim import controller_reports
+
+    lab = make_lab(GRAVITY)
+    impl = lab.controllers.controllers["gravity_compensation"].impl
+
+    def update(state, t, dt):
+        raise RuntimeError("student's bug")
+
+    impl.update = update
+    lab.sim.run(0.01)
+    assert not lab.controllers.controllers["gravity_compensation"].running
+    entry = controller_reports(lab)["gravity_compensation"]  # not a clean-looking run
+    assert entry["fault"].startswith("update raised") and "student's bug" in entry["fault"]
+    assert "max_error_mrad" in entry  # its report up to the fault
+
+
+def test_a_report_with_nan_is_strict_json():
+    from mexone.cli.sim import controller_reports
+
+    lab = make_lab(GRAVITY)
+    impl = lab.controllers.controllers["gravity_compensation"].impl
+    impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
+    text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
+    assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {
+        "gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}

@@ -84,3 +84,31 @@ def test_same_submission_same_score_and_hidden_variation_differs():
         [(c.name, c.output, s) for c, s, _ in second.checks]
     local = grade(ex, ex.solution, local=True)  # the nominal robot: other numbers
     assert [c.output for c, _, _ in local.checks] != [c.output for c, _, _ in first.checks]
+
+
+def test_model_checks_gives_nothing_for_deleting_the_robot(tmp_path):
+    # was 4.5/10: the three "fixed" checks passed because the links that held the mistakes
+    # were gone (with the rest of the robot)
+    ex = find_exercise("model_checks")
+    one_link = _write(tmp_path / ex.file, '<robot name="mex_rb"><link name="a"><inertial>'
+                      '<mass value="1"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" '
+                      'ixz="0" iyz="0"/></inertial></link></robot>\n')
+    result = grade(ex, one_link)
+    assert result.score == 0, [(c.name, c.output) for c, _, _ in result.checks]
+    model = [c for c, _, _ in result.checks if c.name.endswith(" fixed") or c.name == "check clean"]
+    assert len(model) == 4 and all("not the given robot: link pelvis is missing" in c.output
+                                   for c in model)
+
+
+def test_pid_spec_grades_a_pid_not_an_ideal_servo(tmp_path):
+    # was 10/10: ideal_servo teleports the elbow (rise time 0 s) and every metric passed
+    ex = find_exercise("pid_spec")
+    text = re.sub(r"(l_elbow_position_controller:\n)    type: effort_controllers/JointPositionController"
+                  r"\n    joint: l_elbow\n    pid:\n(      .*\n)+",
+                  r"\1    type: position_controllers/JointPositionController\n    joint: l_elbow\n"
+                  r"    ideal_servo: true\n", ex.solution.read_text())
+    assert "ideal_servo: true" in text
+    result = grade(ex, _write(tmp_path / ex.file, text))
+    assert result.score < 1.2 and "rise time" in result.failing, result.score
+    rise = next(c for c, _, _ in result.checks if c.name == "rise time")
+    assert rise.output.startswith("l_elbow_position_controller must stay effort_controllers/")

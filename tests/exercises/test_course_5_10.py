@@ -68,3 +68,44 @@ def test_a_controller_that_does_not_load_or_raises_scores_zero_with_its_line(tmp
     runs = next(c for c, _, _ in result.checks if c.name == "runs")
     assert reason in runs.output and "Traceback" not in runs.output
     assert "/tmp" not in runs.output  # the student's file by its name, not the grader's copy
+
+
+@pytest.mark.parametrize("answer", ["None", "'0.5 N m s/rad'", "[0.5]"])
+def test_an_estimate_that_is_not_a_number_is_the_students_reason(tmp_path, answer):
+    from mexone.exercises import SubmissionFailed
+
+    spec = importlib.util.spec_from_file_location("grader_id", COURSE / "identify_damping" / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    submission = tmp_path / "identify_damping.py"
+    submission.write_text(f"def estimate(bag):\n    return {answer}\n")
+    # was: "the grader could not run the submission: TypeError: float() argument must be ..."
+    with pytest.raises(SubmissionFailed, match=r"estimate\(bag\) returned \w+ .*, not a number"):
+        module.estimate(submission, tmp_path / "unused.bag")
+
+
+@pytest.mark.parametrize("name", ["gravity_compensation", "computed_torque"])
+def test_a_position_interface_ideal_servo_scores_zero(tmp_path, name):
+    # was 10/10 on exercise 5: command_interface "position" without gains is an ideal servo
+    exercise = find_exercise(name)
+    text = (COURSE / name / "solution" / exercise.file).read_text()
+    submission = tmp_path / exercise.file
+    submission.write_text(text.replace('command_interface = "effort"',
+                                       'command_interface = "position"'))
+    result = grade(exercise, submission)
+    assert result.score == 0, [c.output for c, _, _ in result.checks]
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    assert runs.output.startswith("command_interface is 'position': the exercise is a torque law")
+
+
+def test_a_gait_the_walk_routine_refuses_is_named_by_the_students_file(tmp_path):
+    exercise = find_exercise("walk_course")
+    gait = tmp_path / "walk.yaml"
+    gait.write_text(exercise.starter.read_text().replace("step_length: 0.015", "step_length: -1"))
+    result = grade(exercise, gait)
+    runs = next(c for c, _, _ in result.checks if c.name == "runs")
+    # was: "the grader could not run the submission: mexone.errors.RoutineError: .../walk.py:20:
+    # mexone.errors.InputError: /tmp/tmp.../gait.yaml: ..."
+    assert runs.output.startswith("the walk routine cannot walk this gait: walk.yaml: period, dt, "
+                                  "step_length"), runs.output
+    assert "/tmp" not in runs.output and result.score == 0

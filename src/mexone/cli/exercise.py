@@ -6,9 +6,11 @@ import argparse
 import json
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from mexone.errors import InputError, OutputExistsError
+from mexone.files import check_output, replacing, write_text
 
 HELP = """\
 Exercises: a statement, a starter file, a grader with fixed seeds and a hidden variation of the
@@ -52,7 +54,8 @@ def add_parser(sub) -> None:
                         "subfolder holding the file, or NAME.<same suffix>)")
     s.add_argument("--json", type=Path, nargs="?", const=Path("-"), metavar="FILE",
                    help="write Gradescope's results.json (to FILE, default stdout)")
-    s.add_argument("--csv", type=Path, metavar="FILE", help="a folder's grades as CSV")
+    s.add_argument("--csv", type=Path, metavar="FILE", help="a folder's grades as CSV (-: on "
+                   "stdout, the progress on stderr)")
     s.add_argument("--plots", type=Path, metavar="DIR", help="save the grader's plots here")
     s.add_argument("--local", action="store_true",
                    help="the self-check: the nominal robot, no hidden variation")
@@ -72,13 +75,15 @@ def run(args: argparse.Namespace) -> int:
 def _list(_args) -> int:
     from mexone.exercises.exercise import exercises, load_exercise
 
-    for name, folder in exercises().items():
+    found = exercises()
+    width = max((len(name) for name in found), default=0)
+    for name, folder in found.items():
         try:
             ex = load_exercise(folder)
-            print(f"{name:<16} {ex.points:>4g} pts  {ex.submission:<10} {ex.title}"
+            print(f"{name:<{width}} {ex.points:>4g} pts  {ex.submission:<10} {ex.title}"
                   + (f": {ex.summary}" if ex.summary else ""))
         except InputError as exc:
-            print(f"{name:<16} broken: {exc.one_line()}")
+            print(f"{name:<{width}} broken: {exc.one_line()}")
     return 0
 
 
@@ -93,7 +98,14 @@ def _show(args) -> int:
 
 
 def _copy_tree(files: dict[Path, Path | str], force: bool) -> None:
-    """Write every (destination: source path or text) or none: refused if one exists."""
+    """Write every (destination: source path or text) or none: refused if one exists, or if
+    a folder it needs is a file."""
+    for dest in files:
+        folder = dest.parent
+        while not folder.exists() and folder != folder.parent:
+            folder = folder.parent
+        if not folder.is_dir():
+            raise InputError("is a file, not a folder", file=folder, hint="name a folder")
     clash = [d for d in files if d.exists()]
     if clash and not force:
         raise OutputExistsError(f"{clash[0]} exists", hint="give another folder or --force")
@@ -105,6 +117,12 @@ def _copy_tree(files: dict[Path, Path | str], force: bool) -> None:
             dest.write_text(source)
 
 
+def _handed_out(path: Path) -> bool:
+    """A file of the exercise's folder the student gets: not the bytecode that pip (or a
+    teacher's test run) compiled next to the starter."""
+    return path.is_file() and "__pycache__" not in path.parts and path.suffix != ".pyc"
+
+
 def _start(args) -> int:
     from mexone.exercises.exercise import find_exercise
 
@@ -113,11 +131,11 @@ def _start(args) -> int:
     files: dict[Path, Path | str] = {dest / "README.md": ex.statement}
     starter = ex.folder / "starter"
     for path in sorted(starter.rglob("*")) if starter.is_dir() else []:
-        if path.is_file():
+        if _handed_out(path):
             files[dest / path.relative_to(starter)] = path
     figures = ex.folder / "figures"
     for path in sorted(figures.rglob("*")) if figures.is_dir() else []:
-        if path.is_file():
+        if _handed_out(path):
             files[dest / "figures" / path.relative_to(figures)] = path
     files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
                                                else str(ex.folder), file=ex.file)
@@ -138,9 +156,14 @@ def _grade(args) -> int:
     )
 
     ex = find_exercise(args.name)
-    for out in (args.json, args.csv):
-        if out is not None and out != Path("-") and out.exists() and not args.force:
-            raise OutputExistsError(f"{out} exists", hint="give another file or --force")
+    for out in (args.json, args.csv):  # before any grading: a class's grades take minutes
+        if out is not None and out != Path("-"):
+            if out.exists() and not out.is_dir() and not args.force:
+                raise OutputExistsError(f"{out} exists", hint="give another file or --force")
+            check_output(out, force=True)  # a folder, a missing or read-only folder
+    if args.plots is not None and args.plots.exists() and not args.plots.is_dir():
+        raise InputError("--plots names a file, not a folder", file=args.plots,
+                         hint="give a folder; it is created if missing")
     if args.submission.is_dir():
         if args.json is not None:
             raise InputError("--json writes one submission's results.json",
@@ -151,15 +174,22 @@ def _grade(args) -> int:
                              hint=f"one subfolder per student holding {ex.file}, or "
                                   f"STUDENT{Path(ex.file).suffix} files")
         results = {}
+        to_stdout = args.csv == Path("-")
         for student, path in found.items():
             plots = args.plots / student if args.plots else None
             result = grade(ex, path, local=args.local, plots=plots)
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
-                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True)
-        if args.csv:
-            write_csv(results, args.csv)
+                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
+                  file=sys.stderr if to_stdout else sys.stdout)
+        if to_stdout:  # was: a file named "-"
+            with tempfile.TemporaryDirectory() as tmp:
+                write_csv(results, Path(tmp) / "grades.csv")
+                sys.stdout.write((Path(tmp) / "grades.csv").read_text())
+        elif args.csv:
+            with replacing(args.csv, args.force) as temporary:
+                write_csv(results, temporary)
             print(f"mexone: wrote {args.csv} ({len(results)} submissions)")
         return 0
     if args.csv:
@@ -171,7 +201,7 @@ def _grade(args) -> int:
             print(text)
             print(as_text(result), file=sys.stderr)
             return 0
-        args.json.write_text(text + "\n")
+        write_text(args.json, text + "\n", args.force)
     print(as_text(result))
     return 0
 

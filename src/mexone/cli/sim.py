@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -155,17 +156,36 @@ def _plain(value):
     return tolist() if callable(tolist) else str(value)
 
 
+def _strict(value):
+    """A report's NaN and infinities as null: `json.dumps` would print NaN/Infinity, which is
+    not JSON (jq and JSON.parse refuse the whole summary)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _strict(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_strict(v) for v in value]
+    return value
+
+
 def controller_reports(lab) -> dict:
     """`report()` of every Python controller that defines one (the worked controllers' figures),
-    by controller name; a report that raises is its one-line error, not the end of the run."""
+    by controller name; a report that raises is its one-line error, not the end of the run. A
+    controller a fault stopped is there with `"fault"`, its one line: a script reading the
+    summary must not take a run whose controller died at t = 0.5 s for a clean one."""
     out: dict = {}
     for name, ctrl in (lab.controllers.controllers.items() if lab.controllers else ()):
+        fault = getattr(ctrl, "fault", None)
         report = getattr(getattr(ctrl, "impl", None), "report", None)
-        if callable(report) and ctrl.running:
+        if callable(report) and (ctrl.running or fault):
             try:
-                out[name] = json.loads(json.dumps(report(), default=_plain))
+                out[name] = _strict(json.loads(json.dumps(report(), default=_plain)))
             except Exception as exc:  # noqa: BLE001 - the student's code: said, the summary goes on
                 out[name] = {"error": f"report() raised {type(exc).__name__}: {exc}"}
+        if fault:  # first, and not hidden by a report's own "fault"
+            report = out.get(name, {})
+            out[name] = {"fault": fault} | (report if isinstance(report, dict) else
+                                            {"report": report}) | {"fault": fault}
     return out
 
 

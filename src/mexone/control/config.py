@@ -203,7 +203,10 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
     lines = {k: (reader.value(v), v.start_mark.line + 1) for k, (_, v) in fields.items()}
     settings = check_settings(lines, name, where)
     raw = {k: lines[k] for k in fields if k not in RESERVED_KEYS}
-    params = validate_params(cls, raw, name, where)
+    try:
+        params = validate_params(cls, raw, name, where)
+    except InputError as exc:  # a class that cannot run at all: at its type's line
+        raise exc.located(where, type_node.start_mark.line + 1) from None
     pid = _pid(reader, name, fields["pid"][1]) if "pid" in fields else None
     gains = None
     if "gains" in fields:

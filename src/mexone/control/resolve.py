@@ -235,7 +235,22 @@ def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
             raise InputError(f"entry point '{ctype}' ({point.value}) is not a PythonController")
         return cls, f"entry point {point.value}"
     raise InputError(f"unknown controller type '{ctype}': searched {', '.join(searched)}",
-                     hint="shipped types: " + ", ".join(sorted(shipped)))
+                     hint=_beside_hint(ctype, yaml_dir) + "shipped types: " + ", ".join(sorted(shipped)))
+
+
+def _beside_hint(ctype: str, yaml_dir: Path | None) -> str:
+    """'did you mean ...?' for a misspelt file stem: a student's typo in `type:`, with their
+    file right there beside the YAML."""
+    stem, _, cls_name = ctype.rpartition("/")
+    if not stem or yaml_dir is None or not yaml_dir.is_dir():
+        return ""
+    try:
+        beside = sorted(p.stem for p in yaml_dir.glob("*.py"))[:1000]
+    except OSError:
+        return ""
+    close = difflib.get_close_matches(stem, beside, n=1)
+    return (f"did you mean '{close[0]}/{cls_name}', the {close[0]}.py beside the YAML? "
+            if close else "")
 
 
 def validate_params(cls: type[PythonController], raw: dict[str, tuple[Any, int | None]],
@@ -246,8 +261,8 @@ def validate_params(cls: type[PythonController], raw: dict[str, tuple[Any, int |
     declared = cls.declared_params()
     clash = sorted(set(declared) & set(RESERVED_KEYS))
     if clash:
-        raise InputError(f"{cls.__name__} declares parameter '{clash[0]}', a name the YAML "
-                         "uses for itself", hint="rename the Param")
+        raise InputError(f"controller '{controller}': {cls.__name__} declares parameter "
+                         f"'{clash[0]}', a name the YAML uses for itself", hint="rename the Param")
     values = {name: p.default for name, p in declared.items()}
     where = source or "<controllers>"
     for key, (value, line) in raw.items():

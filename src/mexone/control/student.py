@@ -57,6 +57,10 @@ class Param:
                                integer=self.kind is int)
             if low is not None and high is not None and low > high:
                 raise TypeError(f"Param low {low} > high {high}")
+            if not self.range.contains(float(default)):  # a YAML without it would run with it
+                raise TypeError(f"Param default {number_text(default)} is not {self.describe()}")
+        elif self.choices is not None and default not in self.choices:
+            raise TypeError(f"Param default {default!r} is not {self.describe()}")
 
     @property
     def numeric(self) -> bool:

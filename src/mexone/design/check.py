@@ -121,6 +121,23 @@ def _on_sim(lab, fn):
     return sim.work.call(fn) if sim.loop_elsewhere() else fn()
 
 
+def _check_limits(model, qpos: np.ndarray, dofs: np.ndarray) -> None:
+    """A deviation that puts a limited joint past its range is refused before the state is
+    touched: the run would start inside a stop (or diverge), and the comparison mean nothing."""
+    for dof in dofs:
+        joint = int(model.dof_jntid[dof])
+        if not model.jnt_limited[joint] or int(model.jnt_type[joint]) not in (
+                int(mujoco.mjtJoint.mjJNT_HINGE), int(mujoco.mjtJoint.mjJNT_SLIDE)):
+            continue
+        low, high = model.jnt_range[joint]
+        value = qpos[model.jnt_qposadr[joint]]
+        if not low <= value <= high:
+            name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+            raise InputError(f"deviation puts {name} at {number_text(value)}, outside its limits "
+                             f"[{number_text(low)}, {number_text(high)}]",
+                             hint="a deviation the linear model holds is small: a few hundredths")
+
+
 def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
     """Put the robot at the point + dx0 (the model's coordinates; the joints outside the model
     as they are) and clear the controller's state; it records `duration` s of updates."""
@@ -135,6 +152,7 @@ def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
             v = np.zeros(model.nv)
             v[point.qvel_index] = dx0[:nv]
             mujoco.mj_integratePos(model, qpos, v, 1.0)
+            _check_limits(model, qpos, point.qvel_index[dx0[:nv] != 0])
             data.qpos[:] = qpos
             data.qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
             mujoco.mj_forward(model, data)

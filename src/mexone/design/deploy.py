@@ -38,6 +38,7 @@ import yaml
 
 from mexone.control.student import Param, PythonController
 from mexone.errors import ArgumentTypeError, InputError
+from mexone.files import replacing
 from mexone.ranges import number_text
 
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
@@ -191,11 +192,13 @@ def system_design(system, plant=None, rate: float | None = None, method: str = "
         _finite(f"the controller's {name}", np.asarray(getattr(system, name)), who)
     if method not in METHODS:
         raise _fail(f"{who}: method {method!r} is not one of {', '.join(METHODS)}")
-    continuous = system.dt == 0
+    static = system.dt is None  # python-control's static gain (tf(20, 1)): fits any timebase
+    continuous = system.dt == 0 or static
     if rate is None:
         if continuous:
-            raise _fail(f"{who}: a continuous controller needs the rate to discretise it at",
-                        hint="pass rate=<Hz> (update_rate: in the YAML)")
+            what = "static gain" if static else "continuous controller"
+            raise _fail(f"{who}: a {what} needs the rate to run at",
+                        hint="pass rate=<Hz>, or update_rate: in the YAML")
         rate = 1.0 / float(system.dt) if system.dt not in (None, True) else None
         if rate is None:
             raise _fail(f"{who}: the discrete controller has no sampling time (dt=True)",
@@ -296,13 +299,18 @@ def save_design(path: str | Path, K, plant) -> Path:
     if path.exists():
         raise _fail(f"save_design: {path} exists", hint="remove it first, or choose another name")
     p = design.point
+    with replacing(path, force=False) as temporary:  # its folder checked; never half-written
+        _save_npz(temporary, design, p)
+    return path
+
+
+def _save_npz(path: Path, design: GainDesign, p) -> None:
     np.savez(path, K=design.K, u0=design.u0, joints=np.array(design.joints),
              interface=design.interface, qpos=p.qpos, qvel=p.qvel, qpos_index=p.qpos_index,
              qvel_index=p.qvel_index, states=np.array(p.states), act=p.act,
              act_actuators=np.array([a for a, _ in p.act_index] if p.act_index.size else [], dtype=str),
              act_offsets=np.array([o for _, o in p.act_index] if p.act_index.size else [], dtype=int),
              dt=np.nan if design.dt is None else design.dt)
-    return path
 
 
 def load_design(path: str | Path) -> GainDesign:
@@ -400,7 +408,10 @@ class _Deployed(PythonController):
         path = Path(self.design_file)
         if not path.is_absolute() and binding.plugin.yaml_dir is not None:
             path = binding.plugin.yaml_dir / path
-        design = load_design(path)
+        try:
+            design = load_design(path)
+        except InputError as exc:  # its message names the design file: locate it at the YAML's line
+            raise InputError(f"controller '{self.name}': {exc.what}", hint=exc.hint) from None
         if design.interface != self.command_interface:
             raise InputError(f"design file {path} drives the {design.interface} interface; "
                              f"{type(self).__name__} drives {self.command_interface}")

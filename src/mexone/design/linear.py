@@ -291,6 +291,18 @@ def state_deviation(sys: control.StateSpace, qpos, qvel, act=None) -> np.ndarray
     point = getattr(sys, "linearization", None)
     if point is None:
         raise InputError("this StateSpace was not made by mexone.design.linearize")
+    for name, values, own, index in (("qpos", qpos, point.qpos, point.qpos_index),
+                                     ("qvel", qvel, point.qvel, point.qvel_index)):
+        try:
+            values = np.asarray(values, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise InputError(f"state_deviation: {name} is not a list of numbers") from None
+        full = int(index.max()) + 1 if index.size else 0
+        if values.size != own.size and values.size < full:  # neither the model's nor the robot's
+            raise InputError(f"state_deviation: {name} has {values.size} values; give the "
+                             f"simulation's whole {name} or the model's {own.size}")
+        if not np.all(np.isfinite(values)):
+            raise InputError(f"state_deviation: {name} has a NaN or inf")
     return point.dx(qpos, qvel, act)
 
 
@@ -322,6 +334,12 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     if unknown and inputs != "ctrl":
         raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
                          hint="actuated joints: " + (", ".join(plant.joints) or "none (no controllers)"))
+    if inputs != "ctrl" and joints is not None and not chosen and plant.joints:
+        raise InputError("joints is empty: name the joints that get inputs",
+                         hint="actuated joints: " + ", ".join(plant.joints))
+    if len(set(chosen)) != len(chosen):
+        twice = next(j for j in chosen if chosen.count(j) > 1)
+        raise InputError(f"joints names {twice!r} twice")
     if inputs != "ctrl" and not chosen:
         raise InputError(f"inputs '{inputs}' needs mexone's joint actuators; this model has none",
                          hint="use inputs='ctrl', or a Lab with controllers")

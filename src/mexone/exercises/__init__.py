@@ -15,9 +15,17 @@ __all__ = ["Exercise", "exercises", "find_exercise", "load_exercise", "Check", "
 
 def self_check(name: str, submission: str) -> int:
     """The local self-check `mexone exercise start` writes (check.py): grade the file on the
-    nominal robot (no hidden variation) and print the report; 0 if it passes."""
+    nominal robot (no hidden variation) and print the report; 0 if it passes, 1 if not, 2 (and
+    one line, as the CLI says it) if it cannot be graded: the file is missing, or not a file."""
+    import sys
+
+    from mexone.errors import MexoneError
     from mexone.exercises.grading import as_text
 
-    result = grade(find_exercise(name), submission, local=True)
+    try:
+        result = grade(find_exercise(name), submission, local=True)
+    except MexoneError as exc:
+        print(f"mexone: {exc.one_line()}", file=sys.stderr)
+        return 2
     print(as_text(result))
     return 0 if result.passed else 1

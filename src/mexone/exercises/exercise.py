@@ -5,6 +5,7 @@ mexone/exercises/course/, a teacher's from a path or the `mexone.exercises` entr
 from __future__ import annotations
 
 import importlib.util
+import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -77,11 +78,26 @@ class Exercise:
                              hint="write grader.py with a grade(ctx) function (docs/exercises.md)")
         spec = importlib.util.spec_from_file_location(f"mexone_exercise_{self.name}", path)
         module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        try:
+            spec.loader.exec_module(module)
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - the teacher's file: one line
+            raise InputError(f"grader.py does not import: {type(exc).__name__}: "
+                             f"{exc.msg if isinstance(exc, SyntaxError) else exc}",
+                             file=path, line=_line_in(exc, path),
+                             hint="fix the grader; `python3 grader.py` shows the traceback") from None
         if not callable(getattr(module, "grade", None)):
             raise InputError("grader.py has no grade(ctx) function", file=path,
                              hint="def grade(ctx): return [Check(...), ...]")
         return module
+
+
+def _line_in(exc: BaseException, path: Path) -> int | None:
+    """The line of `path` an exception came from (a SyntaxError's own, else the deepest frame
+    in that file)."""
+    if isinstance(exc, SyntaxError):
+        return exc.lineno
+    frames = [f for f in traceback.extract_tb(exc.__traceback__) if Path(f.filename) == path]
+    return frames[-1].lineno if frames else None
 
 
 def _number(data: dict, key: str, path: Path, low: float, high: float, default=None,

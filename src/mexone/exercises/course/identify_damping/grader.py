@@ -20,6 +20,7 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.exercises.course._labtools import check
+from mexone.exercises.isolate import SubmissionFailed
 
 JOINT = "l_elbow"
 NOMINAL = 0.2  # N m s/rad: the URDF's damping of l_elbow
@@ -72,7 +73,12 @@ def estimate(submission: Path, bag: Path) -> float:
     if not callable(getattr(module, "estimate", None)):
         raise InputError(f"{submission.name}: no function estimate(bag)",
                          hint="define estimate(bag: str) -> float")
-    return float(module.estimate(str(bag)))
+    value = module.estimate(str(bag))
+    try:
+        return float(value)
+    except (TypeError, ValueError):  # the student's answer, not the grader, is at fault
+        raise SubmissionFailed(f"estimate(bag) returned {type(value).__name__} "
+                               f"{str(value)[:40]!r}, not a number (N m s/rad)") from None
 
 
 def grade(ctx) -> list:

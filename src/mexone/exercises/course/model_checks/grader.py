@@ -21,8 +21,10 @@ PLANTED = {  # check: the finding codes that name the mistake
 }
 
 
-def findings(path: str) -> list[tuple[str, str, str]]:
-    """(code, severity, one line) of `mexone check`'s model rules; runs in the isolated child."""
+def findings(path: str) -> tuple[list[tuple[str, str, str]], list[str]]:
+    """(code, severity, one line) of `mexone check`'s model rules, and the model's links and
+    joints (a planted mistake is fixed only on the robot that had it); runs in the isolated
+    child."""
     from mexone.description.check import check_model
     from mexone.description.loader import load_model
     from mexone.errors import MexoneError
@@ -32,13 +34,27 @@ def findings(path: str) -> list[tuple[str, str, str]]:
         model = load_model(path)
     except MexoneError as exc:
         raise SubmissionFailed(f"mexone check cannot read it: {exc.one_line()}") from None
-    return [(f.code, f.severity, f"line {f.line}: {f.element}: {f.message}")
-            for f in check_model(model)]
+    return ([(f.code, f.severity, f"line {f.line}: {f.element}: {f.message}")
+             for f in check_model(model)],
+            sorted([f"link {n}" for n in model.links] + [f"joint {n}" for n in model.joints]))
+
+
+def _missing(names: list[str]) -> str | None:
+    """What of the given robot the submission lacks: deleting the links that held the mistakes
+    (or the whole robot) does not fix them."""
+    from mexone.description.loader import load_model
+
+    given = load_model(str(REFERENCE))
+    wanted = [f"link {n}" for n in given.links] + [f"joint {n}" for n in given.joints]
+    gone = [n for n in wanted if n not in set(names)]
+    return None if not gone else (f"not the given robot: {gone[0]} is missing"
+                                  + (f" (and {len(gone) - 1} more)" if len(gone) > 1 else ""))
 
 
 def grade(ctx):
     variation = ctx.variation(friction=0.3)
-    found = ctx.run(findings, str(ctx.submission))
+    found, names = ctx.run(findings, str(ctx.submission))
+    missing = _missing(names)
     try:
         student = ctx.simulate(DURATION, model=ctx.submission, controllers=False,
                                variation=variation)
@@ -50,12 +66,13 @@ def grade(ctx):
     for name, codes in PLANTED.items():
         hits = [line for code, _, line in found if code in codes]
         planted |= set(codes)
-        checks.append(Check.true(f"{name} fixed", not hits, hits[0] if hits else "clean",
-                                 weight=1.5))
+        checks.append(Check.true(f"{name} fixed", not hits and missing is None,
+                                 hits[0] if hits else missing or "clean", weight=1.5))
     other = [line for code, sev, line in found
              if code not in planted and sev in ("error", "warning")]
-    checks.append(Check.true("check clean", not other, other[0] if other else
-                             "no other errors or warnings", weight=0.5))
+    checks.append(Check.true("check clean", not other and missing is None,
+                             other[0] if other else missing or "no other errors or warnings",
+                             weight=0.5))
     if student is None:
         return [*checks, Check("fall time like the reference", 0.0, 2.0, why),
                 Check("rest pose like the reference", 0.0, 3.0, why)]

@@ -15,8 +15,25 @@ DURATION = 2.0
 SPEC = {"rise time": 0.1, "overshoot": 0.05, "settling time": 0.3, "steady-state error": 0.003}
 
 
+CONTROLLER, TYPE = f"{JOINT}_position_controller", "effort_controllers/JointPositionController"
+
+
+def not_a_pid(path: str) -> str | None:
+    """Why the submission's elbow is not a PID to grade (an ideal servo teleports the joint: a
+    0 s rise time), or None; runs in the isolated child (a YAML may import a .py beside it)."""
+    from mexone.control import load_control_config
+
+    spec = load_control_config(path).controllers.get(CONTROLLER)
+    if spec is None:
+        return f"no {CONTROLLER}: tune its pid, do not remove it"
+    if spec.type != TYPE or spec.pid is None or spec.ideal_servo:
+        return f"{CONTROLLER} must stay {TYPE} with pid gains (the PID is what is graded)"
+    return None
+
+
 def grade(ctx):
     variation = ctx.variation(mass=0.1, damping=0.3)
+    why = ctx.run(not_a_pid, str(ctx.submission))
     run = ctx.simulate(DURATION, routine=STEP, controllers=ctx.submission, variation=variation)
     _, q = run.joint(JOINT)
     after = run.t >= AT
@@ -32,9 +49,12 @@ def grade(ctx):
     ax.axhline(TARGET, color="k", lw=0.5)
     ax.set_xlabel("time after the step (s)")
     ax.set_ylabel("rad")
+    upright = Check.true("stays upright", run.fell_at is None,
+                         "stood" if run.fell_at is None else f"fell at {run.fell_at:.2f} s")
+    if why is not None:
+        return [upright, *(Check(name, 0.0, 2.0, why) for name in SPEC)]
     return [
-        Check.true("stays upright", run.fell_at is None,
-                   "stood" if run.fell_at is None else f"fell at {run.fell_at:.2f} s"),
+        upright,
         Check.at_most("rise time", rise, SPEC["rise time"], " s", weight=2),
         Check.at_most("overshoot", None if over is None else over * 100,
                       SPEC["overshoot"] * 100, " %", weight=2),

@@ -5,6 +5,7 @@ falls on some variants."""
 
 from __future__ import annotations
 
+import re
 import tempfile
 from pathlib import Path
 
@@ -12,8 +13,9 @@ import numpy as np
 import yaml
 
 from mexone import yamlio
-from mexone.errors import InputError
+from mexone.errors import InputError, RoutineError
 from mexone.exercises.course._labtools import check
+from mexone.exercises.isolate import SubmissionFailed
 from mexone.exercises.sim import Variation
 
 GOAL = 1.0  # m forward
@@ -58,7 +60,12 @@ def walk(gait: Path, variation: Variation) -> dict:
                 fell.append(s.time)
 
         sim.add_periodic(SAMPLE, sample)
-        RoutineRunner(lab, "walk", {"_gait": str(path)}).run(SECONDS, hold=True)
+        try:
+            RoutineRunner(lab, "walk", {"_gait": str(path)}).run(SECONDS, hold=True)
+        except RoutineError as exc:  # the gait's fault: said with the student's file, not ours
+            text = str(exc).replace(str(path), gait.name).split("mexone.errors.InputError: ")[-1]
+            text = re.sub(r"\S*/walk\.py(?::\d+)?: ", "", text)
+            raise SubmissionFailed(f"the walk routine cannot walk this gait: {text}") from None
     return {"t": [r[0] for r in rows], "x": [r[1] for r in rows], "y": [r[2] for r in rows],
             "fell": fell[0] if fell else None}
 
