@@ -21,7 +21,7 @@ HOSTILE = {  # routine text: a piece of the reason it must get
     "loop": ("from mexone import rospy\nrospy.init_node('x')\nwhile True:\n    pass\n",
              "did not yield"),
     "os_exit": ("import os\nos._exit(3)\n", "os._exit(3)"),
-    "posix_exit": ("import posix\nposix._exit(0)\n", "ended the grading process"),
+    "posix_exit": ("import posix\nposix._exit(0)\n", "process ended (exit status 0)"),
     "raises": ("from mexone import rospy\nrospy.init_node('x')\nraise ValueError('boom')\n",
                "ValueError: boom"),
     "traceback": ("import traceback\ntry:\n    1 / 0\nexcept Exception:\n"
@@ -160,3 +160,68 @@ def test_sigterm_stops_the_grading_and_the_submissions_process(tmp_path):
         grader.kill()
     assert grader.returncode == 143 and "interrupted by SIGTERM" in err
     assert wait_until(lambda: not processes.group(child), timeout=5)
+
+
+SPY = '''"""Looks for the grader's state in its own process's memory and reports what it found."""
+import gc
+import os
+import sys
+
+from mexone import rospy
+
+rospy.init_node("spy")
+SUSPECTS = {"MjModel", "MjData", "MjSpec", "Variation", "Lab", "Simulation", "GradeContext",
+            "Exercise", "Generator"}
+found = sorted({type(o).__name__ for o in gc.get_objects() if type(o).__name__ in SUSPECTS})
+found += [k for k, v in os.environ.items() if "teacher-secret" in v]
+found += ["mujoco imported"] if "mujoco" in sys.modules else []
+rospy.sleep(0.01)
+raise RuntimeError("found: " + (", ".join(found) or "nothing"))
+'''
+
+
+def _spy_run(path: Path, own_process: bool) -> str:
+    from mexone.exercises.sim import Variation, simulate
+
+    run = run_isolated(simulate, 0.05, routine=path, variation=Variation(mass=1.2345),
+                       raise_routine_errors=False, own_process=own_process)
+    return run.error
+
+
+def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
+    """The routine's process holds no model, no variation, no secret: the same spy run in the
+    simulator's process (own_process=False, what a fork would see) finds them."""
+    from mexone.exercises.grading import SECRET_ENV
+
+    monkeypatch.setenv(SECRET_ENV, "teacher-secret-xyz")
+    path = tmp_path / "spy.py"
+    path.write_text(SPY)
+    assert _spy_run(path, own_process=True).endswith("RuntimeError: found: nothing")
+    inside = _spy_run(path, own_process=False)
+    assert all(s in inside for s in ("Variation", "Lab", "mujoco imported")), inside
+
+
+def _scan_for_grader_state() -> list[str]:
+    """In the isolated child: what of the grading process's state a controller could find."""
+    import gc
+
+    from mexone.exercises.grading import SECRET_ENV
+
+    names = {"GradeContext", "Exercise", "Generator", "Result"}
+    found = sorted({type(o).__name__ for o in gc.get_objects() if type(o).__name__ in names})
+    found += [f"{SECRET_ENV} in the environment"] if SECRET_ENV in os.environ else []
+    found += [f"the secret seed {o!r}" for o in gc.get_objects()
+              if isinstance(o, dict) and isinstance(o.get("secret_seed"), int)]
+    return found
+
+
+def test_the_isolated_child_holds_no_seed_nor_secret(monkeypatch, tmp_path):
+    """A controller runs in the isolated child with the varied model; the secret seed, the
+    episode's seed and the teacher's secret stay in the grading process."""
+    from mexone.exercises import GradeContext
+    from mexone.exercises.grading import SECRET_ENV
+
+    monkeypatch.setenv(SECRET_ENV, "teacher-secret-xyz")
+    ctx = GradeContext(find_exercise("balance_under_pushes"), tmp_path / "balance.py", seed=1)
+    assert ctx.rng.random() >= 0 and ctx.exercise.secret_seed is not None
+    assert run_isolated(_scan_for_grader_state) == []

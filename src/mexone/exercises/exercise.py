@@ -5,6 +5,7 @@ mexone/exercises/course/, a teacher's from a path or the `mexone.exercises` entr
 from __future__ import annotations
 
 import importlib.util
+import sys
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -62,6 +63,7 @@ class Exercise:
                              hint="write grader.py with a grade(ctx) function (docs/exercises.md)")
         spec = importlib.util.spec_from_file_location(f"mexone_exercise_{self.name}", path)
         module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # its functions pickle by name into the isolated child
         spec.loader.exec_module(module)
         if not callable(getattr(module, "grade", None)):
             raise InputError("grader.py has no grade(ctx) function", file=path,

@@ -101,7 +101,13 @@ class GradeContext:
         return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)
 
     def simulate(self, duration: float, **kwargs):
-        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays."""
+        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays. A routine
+        runs in a process of its own there (no model, no variation), unless it is mexone's
+        shipped one or a file of the exercise's own folder (the teacher's, trusted)."""
+        routine = kwargs.get("routine")
+        if routine is not None and "own_process" not in kwargs and Path(routine).is_file() \
+                and Path(routine).resolve().is_relative_to(self.exercise.folder.resolve()):
+            kwargs["own_process"] = False
         return self.run(simulate, duration, **kwargs)
 
     def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:

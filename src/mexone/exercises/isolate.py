@@ -1,8 +1,10 @@
 """Run a student's submission in its own process: CPU-time, memory and wall-clock limits, its
 output captured, whatever it started stopped. The grading process never runs student code.
 
-The child is a fork of the grading process (MuJoCo and numpy already imported: a millisecond),
-in its own process group, with resource.setrlimit applied before anything of the student's runs.
+The child is a fresh interpreter (python -m mexone.exercises.child), not a fork: the grading
+process holds the secret seed and draws the hidden variation, and a fork would copy them into
+the student's reach. It gets only the call (the grader's target and its arguments, pickled), in
+its own process group, with resource.setrlimit applied before it imports anything.
 It sends back one picklable value through a pipe; anything else (a crash, os._exit, a kill by
 the kernel, a hang) is a `SubmissionFailed` with one line saying why, never the grader's crash.
 """
@@ -10,13 +12,17 @@ the kernel, a hang) is a `SubmissionFailed` with one line saying why, never the 
 from __future__ import annotations
 
 import contextlib
+import importlib
+import importlib.util
 import os
 import pickle
 import resource
 import select
 import signal
+import subprocess
 import sys
 import tempfile
+import threading
 import time
 import traceback
 from collections.abc import Callable
@@ -25,10 +31,11 @@ from dataclasses import dataclass
 from mexone import signals
 from mexone.routines import processes
 
-__all__ = ["Limits", "SubmissionFailed", "run_isolated"]
+__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits", "SECRET_ENVIRONMENT"]
 
 TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
+SECRET_ENVIRONMENT = ("MEXONE_EXERCISE_SECRET",)  # never in an isolated child's environment
 
 
 @dataclass(frozen=True)
@@ -49,6 +56,9 @@ class SubmissionFailed(Exception):  # noqa: N818 - it is what happened to the su
         self.output = output
 
 
+_ACTIVE: Limits | None = None  # in an isolated child: its limits
+
+
 def _limit(limits: Limits) -> None:
     cpu = max(1, int(limits.cpu))
     resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
@@ -62,57 +72,127 @@ def _limit(limits: Limits) -> None:
 def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
     """`target(*args, **kwargs)` in a child process under `limits`; its return value (picklable).
     Raises SubmissionFailed(reason) if it raised, ended the process, was killed or ran out of
-    time. `target` must be importable code of the grader's, never the student's: it is the one
-    that loads and runs the student's part."""
+    time. `target` must be importable code of the grader's, never the student's (a function of
+    a module or of the exercise's grader.py, not a lambda): it is the one that loads and runs
+    the student's part. The child is a fresh interpreter, not a fork: it holds only the call
+    (target and arguments), never the grader's state (the secret seed, the episode's seed,
+    $MEXONE_EXERCISE_SECRET)."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):
             stream.flush()
+    call = _call_bytes(target, args, kwargs)
     out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in the finally below
+    call_read, call_write = os.pipe()
     read_fd, write_fd = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: never returns
-        os.close(read_fd)
-        code = 0
-        try:
-            os.setpgid(0, 0)
-            null = os.open(os.devnull, os.O_RDONLY)
-            os.dup2(null, 0)
-            os.dup2(out.fileno(), 1)
-            os.dup2(out.fileno(), 2)
-            sys.stdout = open(1, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
-            sys.stderr = open(2, "w", buffering=1, closefd=False)  # noqa: SIM115 - the fd's
-            _limit(limits)
-            try:
-                payload = ("ok", target(*args, **kwargs))
-                for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
-                    with contextlib.suppress(Exception):
-                        stream.flush()
-            except SubmissionFailed as exc:
-                payload = ("failed", exc.reason)
-            except MemoryError:
-                payload = ("failed", f"ran out of memory (the limit is {limits.memory_mb} MB)")
-            except BaseException as exc:  # noqa: BLE001 - reported as the submission's failure
-                last = traceback.format_exception_only(type(exc), exc)[-1].strip()
-                payload = ("failed", f"the grader could not run the submission: {last}")
-            data = pickle.dumps(payload)
-            view = memoryview(data)
-            while view:
-                view = view[os.write(write_fd, view):]
-        except BaseException:  # noqa: BLE001
-            code = 3
-        finally:
-            for stream in (sys.stdout, sys.stderr):
-                with contextlib.suppress(Exception):
-                    stream.flush()
-            os._exit(code)
-    os.close(write_fd)
-    with contextlib.suppress(OSError):
-        os.setpgid(pid, pid)
+    env = {k: v for k, v in os.environ.items() if k not in SECRET_ENVIRONMENT}
     try:
-        return _collect(pid, read_fd, out, limits)
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "mexone.exercises.child", str(call_read), str(write_fd),
+             f"{limits.cpu:g}", str(int(limits.memory_mb))],
+            pass_fds=(call_read, write_fd), stdin=subprocess.DEVNULL, stdout=out, stderr=out,
+            env=env, process_group=0)
+    except BaseException:
+        for fd in (call_read, call_write, read_fd, write_fd):
+            os.close(fd)
+        out.close()
+        raise
+    os.close(call_read)
+    os.close(write_fd)
+    threading.Thread(target=_write_all, args=(call_write, call), daemon=True,
+                     name="isolated call").start()
+    try:
+        return _collect(proc.pid, read_fd, out, limits)
     finally:
+        proc.returncode = proc.returncode if proc.returncode is not None else -1  # reaped
         os.close(read_fd)
         out.close()
+
+
+def _call_bytes(target: Callable, args: tuple, kwargs: dict) -> bytes:
+    """What the child needs to make the call: this process's sys.path, the target's module
+    (a grader.py is loaded from its file) and the call, pickled by reference."""
+    module = sys.modules.get(getattr(target, "__module__", None) or "")
+    modules = []
+    if module is not None and getattr(module, "__file__", None):
+        modules.append((module.__name__, module.__file__))
+    payload = pickle.dumps((target, args, kwargs), protocol=pickle.HIGHEST_PROTOCOL)
+    return pickle.dumps((list(sys.path), modules, payload), protocol=pickle.HIGHEST_PROTOCOL)
+
+
+def _write_all(fd: int, data: bytes) -> None:
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+    except OSError:
+        pass  # the child ended before reading it: _collect says why
+    finally:
+        os.close(fd)
+
+
+def child_main(argv: list[str]) -> None:
+    """The child (python -m mexone.exercises.child CALL_FD RESULT_FD CPU MB): limits first,
+    then the call, then one pickled ("ok", value) or ("failed", reason) to RESULT_FD."""
+    call_fd, write_fd, cpu, memory_mb = argv[:4]
+    write_fd = int(write_fd)
+    limits = Limits(cpu=float(cpu), memory_mb=int(memory_mb))
+    code = 0
+    try:
+        sys.stdout.reconfigure(line_buffering=True)
+        sys.stderr.reconfigure(line_buffering=True)
+        _limit(limits)
+        global _ACTIVE
+        _ACTIVE = limits
+        try:
+            target, args, kwargs = _read_call(int(call_fd))
+            payload = ("ok", target(*args, **kwargs))
+            for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
+                with contextlib.suppress(Exception):
+                    stream.flush()
+        except SubmissionFailed as exc:
+            payload = ("failed", exc.reason)
+        except MemoryError:
+            payload = ("failed", f"ran out of memory (the limit is {limits.memory_mb} MB)")
+        except BaseException as exc:  # noqa: BLE001 - reported as the submission's failure
+            last = traceback.format_exception_only(type(exc), exc)[-1].strip()
+            payload = ("failed", f"the grader could not run the submission: {last}")
+        data = pickle.dumps(payload)
+        view = memoryview(data)
+        while view:
+            view = view[os.write(write_fd, view):]
+    except BaseException:  # noqa: BLE001
+        code = 3
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(code)
+
+
+def _read_call(fd: int) -> tuple:
+    chunks = []
+    while chunk := os.read(fd, 1 << 16):
+        chunks.append(chunk)
+    os.close(fd)
+    path, modules, payload = pickle.loads(b"".join(chunks))
+    sys.path.extend(p for p in path if p not in sys.path)
+    for name, file in modules:
+        if name in sys.modules:
+            continue
+        try:
+            importlib.import_module(name)
+        except ImportError:  # a grader.py, known by its file
+            spec = importlib.util.spec_from_file_location(name, file)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[name] = module
+            spec.loader.exec_module(module)
+    return pickle.loads(payload)
+
+
+def active_limits() -> Limits:
+    """The limits of the isolated child this code runs in (Limits() outside one): what a
+    routine's own process started from there gets too."""
+    return _ACTIVE or Limits()
 
 
 def _collect(pid: int, fd: int, out, limits: Limits):
