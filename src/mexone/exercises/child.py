@@ -1,9 +1,9 @@
-"""The isolated child of exercises.isolate.run_isolated: `python -m mexone.exercises.child
-CALL_FD RESULT_FD CPU_S MEMORY_MB` (a fresh interpreter, so nothing of the grader's is in it)."""
+"""The fork server of exercises.isolate.run_isolated: `python -m mexone.exercises.child --server
+FD` (a fresh interpreter, so nothing of the grader's is in it, or in the runs it forks)."""
 
 import sys
 
-from mexone.exercises.isolate import child_main
+from mexone.exercises.isolate import serve
 
-if __name__ == "__main__":
-    child_main(sys.argv[1:])
+if __name__ == "__main__" and sys.argv[1:2] == ["--server"]:
+    serve(int(sys.argv[2]))

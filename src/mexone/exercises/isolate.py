@@ -1,10 +1,11 @@
 """Run a student's submission in its own process: CPU-time, memory and wall-clock limits, its
 output captured, whatever it started stopped. The grading process never runs student code.
 
-The child is a fresh interpreter (python -m mexone.exercises.child), not a fork: the grading
-process holds the secret seed and draws the hidden variation, and a fork would copy them into
-the student's reach. It gets only the call (the grader's target and its arguments, pickled), in
-its own process group, with resource.setrlimit applied before it imports anything.
+The child is never a fork of the grading process: that one holds the secret seed and draws the
+hidden variation, and a fork would copy them into the student's reach. A fork server (a fresh
+interpreter started once, with MuJoCo and mexone imported, nothing of a grader's) forks each run;
+it gets only the call (the grader's target and its arguments, pickled, through a pipe), in its
+own process group, with resource.setrlimit applied before it reads the call.
 It sends back one picklable value through a pipe; anything else (a crash, os._exit, a kill by
 the kernel, a hang) is a `SubmissionFailed` with one line saying why, never the grader's crash.
 """
@@ -19,6 +20,8 @@ import pickle
 import resource
 import select
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -29,6 +32,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from mexone import signals
+from mexone.errors import MexoneError
 from mexone.routines import processes
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits", "SECRET_ENVIRONMENT"]
@@ -74,8 +78,9 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
     Raises SubmissionFailed(reason) if it raised, ended the process, was killed or ran out of
     time. `target` must be importable code of the grader's, never the student's (a function of
     a module or of the exercise's grader.py, not a lambda): it is the one that loads and runs
-    the student's part. The child is a fresh interpreter, not a fork: it holds only the call
-    (target and arguments), never the grader's state (the secret seed, the episode's seed,
+    the student's part. The child is forked from the fork server (a fresh interpreter with
+    MuJoCo and mexone imported, never anything of a grader's): it holds only the call (target
+    and arguments), never this process's state (the secret seed, the episode's seed,
     $MEXONE_EXERCISE_SECRET)."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):
@@ -84,28 +89,143 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
     out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in the finally below
     call_read, call_write = os.pipe()
     read_fd, write_fd = os.pipe()
-    env = {k: v for k, v in os.environ.items() if k not in SECRET_ENVIRONMENT}
+    status_read, status_write = os.pipe()
     try:
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "mexone.exercises.child", str(call_read), str(write_fd),
-             f"{limits.cpu:g}", str(int(limits.memory_mb))],
-            pass_fds=(call_read, write_fd), stdin=subprocess.DEVNULL, stdout=out, stderr=out,
-            env=env, process_group=0)
-    except BaseException:
-        for fd in (call_read, call_write, read_fd, write_fd):
-            os.close(fd)
-        out.close()
-        raise
-    os.close(call_read)
-    os.close(write_fd)
-    threading.Thread(target=_write_all, args=(call_write, call), daemon=True,
-                     name="isolated call").start()
-    try:
-        return _collect(proc.pid, read_fd, out, limits)
+        try:
+            _server().start(limits, (call_read, write_fd, out.fileno(), status_write))
+        finally:
+            for fd in (call_read, write_fd, status_write):
+                os.close(fd)
+        threading.Thread(target=_write_all, args=(call_write, call), daemon=True,
+                         name="isolated call").start()
+        call_write = None
+        pid = _read_int(status_read, timeout=60.0)
+        if pid is None:
+            raise MexoneError("the grader's fork server did not start the submission's process",
+                              hint="see its output above; is the machine out of memory?")
+        return _collect(pid, read_fd, status_read, out, limits)
     finally:
-        proc.returncode = proc.returncode if proc.returncode is not None else -1  # reaped
-        os.close(read_fd)
+        for fd in (read_fd, status_read, call_write):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
         out.close()
+
+
+class _ForkServer:
+    """A fresh interpreter (python -m mexone.exercises.child --server) that imports MuJoCo and
+    mexone once and forks one run per request: a run costs a fork, not an interpreter's start,
+    and holds nothing of the grading process's (it never forks the grader). It ends when this
+    process closes its socket (ends)."""
+
+    def __init__(self) -> None:
+        ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
+        env = {k: v for k, v in os.environ.items() if k not in SECRET_ENVIRONMENT}
+        try:
+            self.process = subprocess.Popen(
+                [sys.executable, "-m", "mexone.exercises.child", "--server",
+                 str(theirs.fileno())], pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL, env=env, process_group=0)
+        finally:
+            theirs.close()
+        self.sock = ours
+        self.lock = threading.Lock()
+
+    @property
+    def alive(self) -> bool:
+        return self.process.poll() is None
+
+    def start(self, limits: Limits, fds: tuple[int, int, int, int]) -> None:
+        """Fork a run: (call read end, result write end, output file, status write end)."""
+        request = f"{limits.cpu:g} {int(limits.memory_mb)}".encode()
+        with self.lock:
+            socket.send_fds(self.sock, [request], list(fds))
+
+
+_servers: list[_ForkServer] = []
+_servers_lock = threading.Lock()
+
+
+def _server() -> _ForkServer:
+    with _servers_lock:
+        if not _servers or not _servers[0].alive:
+            if _servers:
+                with contextlib.suppress(OSError):
+                    _servers[0].sock.close()
+            _servers[:] = [_ForkServer()]
+        return _servers[0]
+
+
+def _read_int(fd: int, timeout: float) -> int | None:
+    """One 4-byte integer from the run's status pipe (None: it closed, or nothing in time)."""
+    data = b""
+    deadline = time.monotonic() + timeout
+    while len(data) < 4:
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([fd], [], [], left)[0]:
+            return None
+        chunk = os.read(fd, 4 - len(data))
+        if not chunk:
+            return None
+        data += chunk
+    return struct.unpack("!i", data)[0]
+
+
+def serve(fd: int) -> None:
+    """The fork server's loop: one run forked per request, until the grader hangs up."""
+    import mexone.exercises.sim  # noqa: F401 - what every run imports, imported once
+    import mexone.lab  # noqa: F401
+    import mexone.routines.isolated  # noqa: F401
+
+    sock = socket.socket(fileno=fd)
+    while True:
+        with contextlib.suppress(ChildProcessError):
+            while os.waitpid(-1, os.WNOHANG)[0] > 0:  # the monitors that ended
+                pass
+        if not select.select([sock], [], [], 0.5)[0]:
+            continue
+        request, fds, _, _ = socket.recv_fds(sock, 256, 4)
+        if not request:
+            os._exit(0)
+        if len(fds) != 4:
+            for x in fds:
+                os.close(x)
+            continue
+        if os.fork() == 0:
+            sock.close()
+            _monitor(fds, *request.decode().split())
+        for x in fds:
+            os.close(x)
+
+
+def _monitor(fds: list[int], cpu: str, memory_mb: str) -> None:
+    """Between the fork server and one run: forks the run (its own process group), tells the
+    grader its pid, waits for it and tells the grader how it ended."""
+    call_fd, result_fd, out_fd, status_fd = fds
+    code = 0
+    try:
+        pid = os.fork()
+        if pid == 0:
+            os.setpgid(0, 0)
+            os.close(status_fd)
+            null = os.open(os.devnull, os.O_RDONLY)
+            os.dup2(null, 0)
+            os.dup2(out_fd, 1)
+            os.dup2(out_fd, 2)
+            for x in (null, out_fd):
+                os.close(x)
+            child_main([str(call_fd), str(result_fd), cpu, memory_mb])
+        with contextlib.suppress(OSError):
+            os.setpgid(pid, pid)
+        for x in (call_fd, result_fd, out_fd):
+            os.close(x)
+        os.write(status_fd, struct.pack("!i", pid))
+        _, status = os.waitpid(pid, 0)
+        os.write(status_fd, struct.pack("!i", status))
+    except BaseException:  # noqa: BLE001 - the grader sees the pipe close
+        code = 3
+    finally:
+        os._exit(code)
 
 
 def _call_bytes(target: Callable, args: tuple, kwargs: dict) -> bytes:
@@ -195,7 +315,7 @@ def active_limits() -> Limits:
     return _ACTIVE or Limits()
 
 
-def _collect(pid: int, fd: int, out, limits: Limits):
+def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits):
     deadline = time.monotonic() + limits.time
     chunks: list[bytes] = []
     status = None
@@ -208,19 +328,20 @@ def _collect(pid: int, fd: int, out, limits: Limits):
         if left <= 0:
             timed_out = True
             _signal_group(pid)
-            try:
-                _, status = os.waitpid(pid, 0)
-            except ChildProcessError:  # reaped already
+            status = _read_int(status_fd, timeout=10.0)
+            if status is None:
                 status = signal.SIGKILL
             break
-        if select.select([fd], [], [], min(left, 0.05))[0]:
+        ready = select.select([fd, status_fd], [], [], min(left, 0.05))[0]
+        if fd in ready:
             data = os.read(fd, 1 << 16)
             if data:
                 chunks.append(data)
                 continue
-        done, st = os.waitpid(pid, os.WNOHANG)
-        if done:
-            status = st
+        if status_fd in ready:
+            status = _read_int(status_fd, timeout=10.0)
+            if status is None:
+                status = signal.SIGKILL
     while data := _read_rest(fd):
         chunks.append(data)
     _kill(pid)  # whatever it left in its group
