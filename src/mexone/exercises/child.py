@@ -5,5 +5,7 @@ import sys
 
 from mexone.exercises.isolate import serve
 
+__all__: list[str] = []
+
 if __name__ == "__main__" and sys.argv[1:2] == ["--server"]:
     serve(int(sys.argv[2]))

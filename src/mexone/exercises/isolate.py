@@ -173,8 +173,7 @@ def _read_int(fd: int, timeout: float) -> int | None:
 
 def serve(fd: int) -> None:
     """The fork server's loop: one run forked per request, until the grader hangs up."""
-    import mexone.exercises.sim  # noqa: F401 - what every run imports, imported once
-    import mexone.lab  # noqa: F401
+    import mexone.lab  # noqa: F401 - what every run imports (MuJoCo), imported once
     import mexone.routines.isolated  # noqa: F401
 
     sock = socket.socket(fileno=fd)

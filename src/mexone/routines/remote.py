@@ -33,7 +33,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
-__all__ = ["send", "receive", "safe_loads", "ProtocolError", "NotOffered", "main", "MAX_FRAME"]
+__all__ = ["send", "receive", "receive_bytes", "safe_loads", "plain", "ProtocolError", "NotOffered",
+           "main", "MAX_FRAME"]
 
 MAX_FRAME = 64 << 20  # bytes one message may have (a routine's 10 GB message ends it)
 _HEADER = struct.Struct("!I")
