@@ -80,15 +80,28 @@ def test_gradescope_json_and_folder_csv(tmp_path):
     (folder / "ada" / "controllers.yaml").write_text(ex.solution.read_text())
     (folder / "bob.yaml").write_text(ex.starter.read_text())
     (folder / "eve.yaml").write_text("mex_rb: [unclosed\n")
+    (folder / "cat.yml").write_text("mex_rb: [unclosed\n")  # .yml is a YAML file too
+    (folder / "dan").mkdir()  # handed in nothing: a row all the same
+    (folder / "dan" / "Controllers.yaml").write_text("mex_rb: {}\n")
+    (folder / "notes.md").write_text("not a submission\n")
     code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
                               tmp_path / "grades.csv"])
     assert code == 0, err
     rows = (tmp_path / "grades.csv").read_text().splitlines()
     assert rows[0].startswith("student,score,max_score,passed,stays upright")
     by_student = {row.split(",")[0]: row.split(",") for row in rows[1:]}
+    assert set(by_student) == {"ada", "bob", "cat", "dan", "eve"}
     assert by_student["ada"][1:4] == ["10", "10", "yes"]
     assert by_student["bob"][3] == "no"
     assert by_student["eve"][1] == "0" and "runs" in by_student["eve"]
+    assert by_student["cat"][1] == "0" and "cat.yml:2: malformed YAML" in rows[3]
+    assert by_student["dan"][1] == "0" and "no controllers.yaml in" in rows[4] \
+        and "it holds Controllers.yaml" in rows[4]
+    (folder / "ada.yaml").write_text(ex.solution.read_text())
+    code, _, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
+                            tmp_path / "again.csv"])
+    assert code == 2 and "two submissions of ada" in err and not (tmp_path / "again.csv").exists()
+    (folder / "ada.yaml").unlink()
     code, out, err = run_cli(["exercise", "grade", "home_hold", folder, "--csv",
                               tmp_path / "grades.csv"])
     assert code == 2 and "exists" in err  # nothing overwritten without --force
@@ -228,3 +241,12 @@ def test_the_isolated_child_holds_no_seed_nor_secret(monkeypatch, tmp_path):
     ctx = GradeContext(find_exercise("balance_under_pushes"), tmp_path / "balance.py", seed=1)
     assert ctx.rng.random() >= 0 and ctx.exercise.secret_seed is not None
     assert run_isolated(_scan_for_grader_state) == []
+
+
+def test_a_controller_that_fails_to_import_is_named_as_the_student_knows_it(tmp_path):
+    """Its file by its name, not the grader's temporary copy; no hint about the GUI's Reload."""
+    path = tmp_path / "handed_in.py"
+    path.write_text("raise SystemExit(0)\n")
+    result = grade(find_exercise("gravity_compensation"), path)
+    assert result.score == 0 and "gravity_compensation.py:1: SystemExit: 0" in result.failure
+    assert "/tmp" not in result.failure and "Reload" not in result.failure, result.failure

@@ -25,7 +25,7 @@ from mexone.exercises.isolate import SubmissionFailed, run_isolated
 from mexone.exercises.sim import Variation, simulate
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
-           "submissions_in", "SECRET_ENV"]
+           "submissions_in", "not_handed_in", "SECRET_ENV"]
 
 SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret, mixed into every exercise's
 
@@ -250,15 +250,36 @@ def gradescope_json(result: Result) -> dict:
 
 def submissions_in(folder: Path, file: str) -> dict[str, Path]:
     """A folder of submissions: each student a subfolder holding `file`, or a file of the
-    same kind (its stem is the student's name)."""
-    found = {}
+    same kind (its stem is the student's name; .yml counts as .yaml). A subfolder without
+    `file` is a student too, mapped to the missing path (not_handed_in grades it 0, with why):
+    no student drops out of the CSV. Two submissions of one student are refused."""
+    found: dict[str, Path] = {}
     suffix = Path(file).suffix
+    kinds = {".yaml", ".yml"} if suffix in (".yaml", ".yml") else {suffix}
     for entry in sorted(folder.iterdir()):
-        if entry.is_dir() and (entry / file).is_file():
-            found[entry.name] = entry / file
-        elif entry.is_file() and entry.suffix == suffix:
-            found[entry.stem] = entry
+        if entry.name.startswith("."):
+            continue
+        if entry.is_dir():
+            student, path = entry.name, entry / file
+        elif entry.is_file() and entry.suffix in kinds:
+            student, path = entry.stem, entry
+        else:
+            continue
+        if student in found:
+            raise InputError(f"two submissions of {student}: {found[student]} and {path}",
+                             hint="keep one of them in the folder")
+        found[student] = path
     return found
+
+
+def not_handed_in(exercise: Exercise, path: Path) -> Result:
+    """0 points for a student's subfolder without the exercise's file, saying what it holds."""
+    held = sorted(p.name for p in path.parent.iterdir()) if path.parent.is_dir() else []
+    reason = f"no {exercise.file} in {path.parent}" + (
+        f" (it holds {', '.join(held[:5])}{', ...' if len(held) > 5 else ''}: hand in "
+        f"{exercise.file})" if held else " (it is empty)")
+    return Result(exercise, path, 0.0, [(Check("runs", 0.0, 1.0, reason), 0.0, exercise.points)],
+                  reason)
 
 
 def write_csv(results: dict[str, Result], path: Path) -> None:
