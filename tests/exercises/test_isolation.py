@@ -250,3 +250,13 @@ def test_a_controller_that_fails_to_import_is_named_as_the_student_knows_it(tmp_
     result = grade(find_exercise("gravity_compensation"), path)
     assert result.score == 0 and "gravity_compensation.py:1: SystemExit: 0" in result.failure
     assert "/tmp" not in result.failure and "Reload" not in result.failure, result.failure
+
+
+def test_a_run_after_the_fork_server_died_starts_a_new_one():
+    from mexone.exercises import isolate
+
+    assert run_isolated(sum, [1, 2]) == 3
+    server = isolate._server()
+    server.process.kill()
+    server.process.wait()
+    assert run_isolated(sum, [3, 4]) == 7 and isolate._server() is not server

@@ -21,13 +21,12 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.exercises.exercise import Exercise
-from mexone.exercises.isolate import SubmissionFailed, run_isolated
+from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, run_isolated
 from mexone.exercises.sim import Variation, simulate
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
            "submissions_in", "not_handed_in", "SECRET_ENV"]
 
-SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret, mixed into every exercise's
 
 
 @dataclass

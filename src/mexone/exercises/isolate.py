@@ -35,11 +35,10 @@ from mexone import signals
 from mexone.errors import MexoneError
 from mexone.routines import processes
 
-__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits", "SECRET_ENVIRONMENT"]
+__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits"]
 
 TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
-SECRET_ENVIRONMENT = ("MEXONE_EXERCISE_SECRET",)  # never in an isolated child's environment
 
 
 @dataclass(frozen=True)
@@ -61,6 +60,7 @@ class SubmissionFailed(Exception):  # noqa: N818 - it is what happened to the su
 
 
 _ACTIVE: Limits | None = None  # in an isolated child: its limits
+SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret (grading): never in a run's env
 
 
 def _limit(limits: Limits) -> None:
@@ -92,7 +92,11 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
     status_read, status_write = os.pipe()
     try:
         try:
-            _server().start(limits, (call_read, write_fd, out.fileno(), status_write))
+            try:
+                _server().start(limits, (call_read, write_fd, out.fileno(), status_write))
+            except OSError:  # it ended meanwhile (killed?): a new one
+                _server(restart=True).start(limits, (call_read, write_fd, out.fileno(),
+                                                     status_write))
         finally:
             for fd in (call_read, write_fd, status_write):
                 os.close(fd)
@@ -120,7 +124,7 @@ class _ForkServer:
 
     def __init__(self) -> None:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        env = {k: v for k, v in os.environ.items() if k not in SECRET_ENVIRONMENT}
+        env = {k: v for k, v in os.environ.items() if k != SECRET_ENV}
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "mexone.exercises.child", "--server",
@@ -146,9 +150,9 @@ _servers: list[_ForkServer] = []
 _servers_lock = threading.Lock()
 
 
-def _server() -> _ForkServer:
+def _server(restart: bool = False) -> _ForkServer:
     with _servers_lock:
-        if not _servers or not _servers[0].alive:
+        if restart or not _servers or not _servers[0].alive:
             if _servers:
                 with contextlib.suppress(OSError):
                     _servers[0].sock.close()

@@ -12,7 +12,6 @@ is abandoned after `stall` s) and determinism are those of `mexone run`.
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import socket
 import subprocess
@@ -26,10 +25,9 @@ from mexone.routines import remote
 from mexone.routines.runner import Routine, RoutineRunner
 from mexone.routines.runtime import RoutineContext, Shutdown, bind
 
-__all__ = ["IsolatedRoutineRunner", "SECRET_ENVIRONMENT"]
+__all__ = ["IsolatedRoutineRunner"]
 
 GRACE = 0.5  # wall s the routine's process gets to end by itself once the simulation ended
-SECRET_ENVIRONMENT = ("MEXONE_EXERCISE_SECRET",)  # never in a routine's environment
 
 
 class _Failed(Exception):
@@ -86,12 +84,11 @@ class _Proxy:
         self.lab = context.lab
         ours, theirs = socket.socketpair()
         self.sock = ours
-        env = {k: v for k, v in os.environ.items() if k not in SECRET_ENVIRONMENT}
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "mexone.routines.remote", str(theirs.fileno()),
                  f"{runner.cpu:g}", str(int(runner.memory_mb))],
-                pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL, env=env)
+                pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
         self.publishers: dict[str, rospy.Publisher] = {}
