@@ -24,6 +24,7 @@ import math
 import os
 import pickle
 import resource
+import select
 import socket
 import struct
 import sys
@@ -71,21 +72,14 @@ def receive(sock: socket.socket, poll: Callable[[], None] | None = None) -> obje
 
 def _read(sock: socket.socket, size: int, poll: Callable[[], None] | None) -> bytes:
     buf = bytearray()
-    if poll is not None:
-        sock.settimeout(0.05)
-    try:
-        while len(buf) < size:
-            try:
-                chunk = sock.recv(min(size - len(buf), 1 << 20))
-            except TimeoutError:
-                poll()
-                continue
-            if not chunk:
-                raise ProtocolError("the other side hung up")
-            buf += chunk
-    finally:
+    while len(buf) < size:
         if poll is not None:
-            sock.settimeout(None)
+            while not select.select([sock], [], [], 0.05)[0]:
+                poll()
+        chunk = sock.recv(min(size - len(buf), 1 << 20))
+        if not chunk:
+            raise ProtocolError("the other side hung up")
+        buf += chunk
     return bytes(buf)
 
 
