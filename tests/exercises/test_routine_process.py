@@ -83,3 +83,13 @@ def test_a_routine_sending_a_pickle_of_its_own_class_is_refused(tmp_path):
     run = run_isolated(simulate, 0.05, routine=path, raise_routine_errors=False)
     assert "posix.system is not a message type of mexone.msgs" in run.error, run.error
     assert not (tmp_path / "pwned").exists()
+
+
+def test_a_routine_talking_past_rospy_on_its_socket_ends_with_one_line(tmp_path):
+    path = tmp_path / "talker.py"
+    path.write_text("import gc, socket\nfrom mexone import rospy\nfrom mexone.routines import remote\n"
+                    "rospy.init_node('t')\n"
+                    "sock = next(o for o in gc.get_objects() if isinstance(o, socket.socket))\n"
+                    "remote.send(sock, ([], ('wait', 'soon')))\nrospy.sleep(1.0)\n")
+    run = run_isolated(simulate, 0.3, routine=path, raise_routine_errors=False)
+    assert "the routine's process sent a malformed request (ValueError" in run.error, run.error

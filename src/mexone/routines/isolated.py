@@ -58,14 +58,19 @@ class IsolatedRoutineRunner(RoutineRunner):
             for key, value in entry.private.items():
                 key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
                 self.params[key] = value
-            proxy = _Proxy(self, context, entry.path)
-            if self._children is not None:
-                self._children.add(proxy.process.pid)  # its process is ours to end, not a leak
+            with self.scheduler.busy("the start of the routine's process"):
+                proxy = _Proxy(self, context, entry.path)
+                if self._children is not None:
+                    self._children.add(proxy.process.pid)  # ours to end, not a leak
+                proxy.started()
             entry.error, entry.line = proxy.serve()
         except Shutdown:  # the simulation ended or gave up on the routine
             pass
         except _Failed as exc:
             entry.error = str(exc)
+        except Exception as exc:  # noqa: BLE001 - a malformed request of the routine's process
+            entry.error = (f"the routine's process sent a malformed request "
+                           f"({type(exc).__name__}: {exc})")
         finally:
             if proxy is not None:
                 proxy.close()
@@ -97,6 +102,13 @@ class _Proxy:
         plain = {k: v for k, v in self.runner.params.items() if remote.plain(v)}
         remote.send(ours, ("hello", str(path), context.node_name, plain, self.lab.sim.time,
                            self.lab.sim.time_ns))
+
+    def started(self) -> None:
+        """Wait for the routine's process to be ready to run the routine (an interpreter's
+        start is mexone's time, not the routine's: the stall watchdog allows it more)."""
+        _, call = self._receive()
+        if call != ("ready",):
+            raise _Failed("the routine's process did not start")
 
     def serve(self) -> tuple[str | None, int | None]:
         """Answer the routine until it ends: (its error, its line)."""

@@ -365,6 +365,7 @@ def main(argv: list[str] | None = None) -> None:
         scheduler.context = context
         sandbox.install()
         before = processes.children()
+        send(sock, ([], ("ready",)))  # no answer: the simulator serves the routine from here
         runtime.bind(context)
         error, line = _run(path)
         runtime.bind(None)
