@@ -260,3 +260,19 @@ def test_a_run_after_the_fork_server_died_starts_a_new_one():
     server.process.kill()
     server.process.wait()
     assert run_isolated(sum, [3, 4]) == 7 and isolate._server() is not server
+
+
+def test_which_routines_get_a_process_of_their_own():
+    """The submission always (even the reference, which lies in the exercise's folder); a
+    routine file of the exercise's own (the teacher's) and mexone's shipped ones do not."""
+    from mexone.exercises import GradeContext
+
+    ex = find_exercise("pid_spec")
+    ctx = GradeContext(ex, ex.folder / "step.py", seed=1)
+    calls = []
+    ctx.run = lambda target, *args, **kwargs: calls.append(kwargs.get("own_process"))
+    ctx.simulate(1.0, routine=ctx.submission)
+    ctx.simulate(1.0, routine=ex.folder / "step.py", controllers=ex.solution)
+    ctx.submission = ex.solution
+    ctx.simulate(1.0, routine=ex.folder / "step.py")
+    assert calls == [None, None, False]  # None: simulate's default, own process unless shipped

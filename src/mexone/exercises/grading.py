@@ -104,9 +104,11 @@ class GradeContext:
         runs in a process of its own there (no model, no variation), unless it is mexone's
         shipped one or a file of the exercise's own folder (the teacher's, trusted)."""
         routine = kwargs.get("routine")
-        if routine is not None and "own_process" not in kwargs and Path(routine).is_file() \
-                and Path(routine).resolve().is_relative_to(self.exercise.folder.resolve()):
-            kwargs["own_process"] = False
+        if routine is not None and "own_process" not in kwargs and Path(routine).is_file():
+            path = Path(routine).resolve()
+            if path != self.submission.resolve() \
+                    and path.is_relative_to(self.exercise.folder.resolve()):
+                kwargs["own_process"] = False
         return self.run(simulate, duration, **kwargs)
 
     def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:
