@@ -22,7 +22,8 @@ FRONT_END_ORDER = (
     {"lab"},
     {"routines"},
     {"rospy", "motion", "record", "ros1", "ros2", "foxglove", "bench"},
-    {"sweep", "identify", "gui", "exercises"},
+    {"exercises"},  # below the GUI: its Exercises panel shows them
+    {"sweep", "identify", "gui"},
     {"editor"},
     {"cli"},
     {"notebook"},  # the lab in Jupyter: the GUI beside a notebook, checked as the CLI checks

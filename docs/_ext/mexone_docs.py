@@ -43,8 +43,7 @@ def public_modules() -> list:
     found = [mexone] if getattr(mexone, "__all__", None) is not None else []
     for info in pkgutil.walk_packages(mexone.__path__, "mexone."):
         name = info.name
-        if (any(part.startswith("_") for part in name.split(".")) or any(s in name for s in SKIP_PARTS)
-                or (name.startswith("mexone.ros1.msgs.") and name.count(".") >= 3)):
+        if any(part.startswith("_") for part in name.split(".")) or any(s in name for s in SKIP_PARTS):
             continue
         module = importlib.import_module(name)
         if getattr(module, "__all__", None) is not None:

@@ -15,7 +15,8 @@ from pathlib import Path
 
 from mexone.errors import InputError, OutputExistsError
 
-__all__ = ["usable", "check_output", "replacing", "move_into_place", "write_text", "temporary_path"]
+__all__ = ["usable", "check_output", "replacing", "move_into_place", "write_text", "temporary_path",
+           "cache_dir"]
 
 
 def usable(path: Path) -> Path:
@@ -93,3 +94,12 @@ def replacing(path: Path, force: bool) -> Iterator[Path]:
 def write_text(path: Path, text: str, force: bool) -> None:
     with replacing(path, force) as temporary:
         temporary.write_text(text)
+
+
+def cache_dir(kind: str) -> Path:
+    """Where mexone keeps what it derives and can derive again (simplified meshes, generated
+    message classes): $MEXONE_CACHE, else $XDG_CACHE_HOME/mexone, else ~/.cache/mexone, with
+    `kind` below it. Not created here."""
+    base = os.environ.get("MEXONE_CACHE") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "mexone")
+    return Path(base) / kind

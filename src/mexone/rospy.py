@@ -48,10 +48,22 @@ def _resolve(name: str) -> str:
     return resolve_name(name, "/")
 
 
+_MISSING = object()
+
+
 # ----- node -------------------------------------------------------------------------------
 def init_node(name: str, anonymous: bool = False, **_ignored: Any) -> None:
+    """Name the node (`__name:=n` on the command line renames it, anonymous then off, as rospy)
+    and move its `_x:=v` arguments to its private ~x, where rospy sets them at init_node."""
     ctx = current()
+    if ctx.name_remap:
+        name, anonymous = ctx.name_remap, False
+    old = ctx.node_name
     ctx.node_name = "/" + name.strip("/") + (f"_{threading.get_ident()}" if anonymous else "")
+    for key, value in ctx.private.items():
+        if ctx.params.get(f"{old}/{key}", _MISSING) is value:  # not changed by the routine since
+            del ctx.params[f"{old}/{key}"]
+        ctx.params[f"{ctx.node_name}/{key}"] = value
 
 
 def get_name() -> str:

@@ -14,7 +14,7 @@ import pytest
 WHOLE_BODY = """from mexone import rospy
 from mexone.motion import reach, look_at, push
 
-rospy.init_node("whole_body")  # the file's name: where _impulse:= puts ~impulse
+rospy.init_node("whole_body")  # where _impulse:= puts ~impulse, as rosrun
 reach("l_hand", (0.25, 0.2, 0.75))
 look_at((1.0, 0.0, 0.3))
 rospy.loginfo("pushing")

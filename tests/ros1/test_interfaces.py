@@ -1,12 +1,15 @@
 """The interfaces mexone serves are ROS's: md5sums equal to the official packages' (the literals
 below are what genmsg computes from the official controller_manager_msgs and gazebo_msgs of
-Noetic and control_msgs 1.5), and the generated Python is what Debian's genpy makes of the
-definitions in mexone/ros1/share today."""
+Noetic and control_msgs 1.5), and their Python is generated from mexone/ros1/share by
+Debian's genpy into mexone's cache once per version of the definitions."""
 
 from __future__ import annotations
 
-import filecmp
 import importlib
+import os
+import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -66,17 +69,48 @@ def test_md5sum_equals_the_official_one(ros_type):
     assert cls._type == ros_type
 
 
-def test_the_generated_python_is_current(tmp_path):
-    """Regenerating from share/ with Debian's genpy gives the committed files byte for byte."""
+def test_generated_once_per_version_of_the_definitions(tmp_path, monkeypatch):
+    """The first use generates into the cache; later ones (other processes too) reuse it; a
+    changed definition gets a folder of its own."""
     _debian_genpy()
-    interfaces.generate(tmp_path)
+    monkeypatch.setenv("MEXONE_CACHE", str(tmp_path / "cache"))
+    first = interfaces.generated()
+    assert first.parent == tmp_path / "cache" / "ros1-msgs"
     for pkg in interfaces.PACKAGES:
-        fresh = sorted(p.relative_to(tmp_path) for p in (tmp_path / pkg).rglob("*.py"))
-        kept = sorted(p.relative_to(interfaces.MSGS) for p in (interfaces.MSGS / pkg).rglob("*.py"))
-        assert fresh == kept, pkg
-        _, mismatch, errors = filecmp.cmpfiles(tmp_path, interfaces.MSGS, [str(p) for p in fresh],
-                                               shallow=False)
-        assert mismatch == [] and errors == [], (pkg, mismatch, errors)
+        assert (first / pkg / "__init__.py").is_file()
+    assert (first / "controller_manager_msgs" / "srv" / "_SwitchController.py").is_file()
+    assert (first / "control_msgs" / "msg" / "_FollowJointTrajectoryActionGoal.py").is_file()
+    stamp = (first / "gazebo_msgs" / "__init__.py").stat().st_mtime_ns
+    again = subprocess.run([sys.executable, "-c", "from mexone.ros1 import interfaces; "
+                            "print(interfaces.generated())"], capture_output=True, text=True,
+                           env={**os.environ, "MEXONE_CACHE": str(tmp_path / "cache")})
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.strip() == str(first)
+    assert (first / "gazebo_msgs" / "__init__.py").stat().st_mtime_ns == stamp
+    assert [p.name for p in first.parent.iterdir()] == [first.name]  # no work folder left
+
+    share = tmp_path / "share"
+    shutil.copytree(interfaces.SHARE, share)
+    monkeypatch.setattr(interfaces, "SHARE", share)
+    with (share / "gazebo_msgs" / "msg" / "ContactsState.msg").open("a") as f:
+        f.write("# a comment changes the digest, not the md5sum\n")
+    changed = interfaces.generated()
+    assert changed != first and changed.parent == first.parent
+
+
+def test_without_genpy_one_line_says_what_to_install(tmp_path, monkeypatch):
+    monkeypatch.setenv("MEXONE_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(interfaces, "_DEBIAN_SITE", str(tmp_path / "nowhere"))
+    for name in [m for m in sys.modules if m.split(".")[0] in ("genpy", "genmsg")]:
+        monkeypatch.delitem(sys.modules, name)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if "dist-packages" not in p])
+    from mexone.errors import MexoneError
+
+    with pytest.raises(MexoneError, match="genpy") as caught:
+        interfaces.generated()
+    assert "apt-get install" in str(caught.value)
+    assert not (tmp_path / "cache" / "ros1-msgs").exists() or not any(
+        (tmp_path / "cache" / "ros1-msgs").iterdir())
 
 
 def test_an_action_expands_as_genaction_does(tmp_path):

@@ -41,7 +41,7 @@ def test_eval_appends_once_and_keeps_what_was_there(tmp_path):
     robots = str(mex_one.package_dir().parent)
     # what was there stays as it was (even a duplicate, even an empty entry: the cwd)
     assert ros_path.split(":") == [str(odd), "/usr/share", "/usr/share", str(interfaces.SHARE), robots]
-    assert py_path.split(":") == [str(Path(mexone.__file__).parents[1]), "", str(interfaces.MSGS)]
+    assert py_path.split(":") == [str(Path(mexone.__file__).parents[1]), "", str(interfaces.generated())]
     # the tests' ros_env() builds the same paths (interfaces.environment)
     expected = interfaces.environment({"ROS_PACKAGE_PATH": f"{odd}:/usr/share:/usr/share"})
     assert ros_path == expected["ROS_PACKAGE_PATH"]

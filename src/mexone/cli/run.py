@@ -36,7 +36,8 @@ joint: RMS and max error (rad), worst overshoot (% of a setpoint change) and set
 to within 2% or 5 mrad), and whether the robot stayed standing (or when it fell: any time in
 the run, which lasts its duration even when the routine ends first).
 
-Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint.
+Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint (under
+the name its init_node gives, as rosrun; `__name:=n` renames it).
 
 With --ros the robot also joins the ROS 1 graph, as `mexone sim --ros` does, and the run keeps
 real time (--rtf): ROS nodes command the routine (walk_cmd_vel follows /<ns>/cmd_vel,
@@ -116,11 +117,11 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
               "Ctrl-C stops",
               file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
-    track: list[np.ndarray] = []  # (t, x, y, yaw) of the base, for the routine's phases
+    marks = PhaseMarks(np.array([0.0, *start_pose]))  # the base at the routine's phase bounds
     fell_at: list[float] = []  # when it first fell, if it did: a fall is one even if it gets up
 
     def watch(s) -> None:
-        track.append(np.array([s.time, *_base_xy_yaw(s)]))
+        marks.add(runner.param("phases"), np.array([s.time, *_base_xy_yaw(s)]))
         if not fell_at and has_fallen(s, start_height):
             fell_at.append(s.time)
 
@@ -140,8 +141,7 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     fell = bool(fell_at)
     metrics = recorder.metrics()
     x, y, yaw = _base_xy_yaw(sim) - start_pose
-    phases = _phases(runner.params.get(f"/{Path(runner.path).stem}/phases"),
-                     [np.array([0.0, *start_pose]), *track])
+    phases = _phases(runner.param("phases"), marks)
     report = {
         "routine": str(Path(runner.path).stem), "sim_time": round(sim.time, 6),
         "fell": fell, "fell_at": round(fell_at[0], 3) if fell else None,
@@ -178,23 +178,52 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     return 1 if runner.error or diverged else 0
 
 
-def _phases(declared, track: list[np.ndarray]) -> list[dict]:
-    """Where the base went in each phase a routine declared in its ~phases parameter
-    ([[name, start s, end s], ...]): along and across its heading at the phase's start."""
-    if not isinstance(declared, list) or len(track) < 2:
+def _bounds(declared) -> list[tuple[str, float, float]]:
+    """The well-formed [name, start s, end s] items of a routine's ~phases parameter."""
+    if not isinstance(declared, list):
         return []
-    samples = np.array(track)
     out = []
     for item in declared:
         if not (isinstance(item, list | tuple) and len(item) == 3):
             continue
         name, start, end = item
-        if not (isinstance(start, int | float) and isinstance(end, int | float) and end > start):
-            continue
-        if start > samples[-1, 0]:
+        if isinstance(start, int | float) and isinstance(end, int | float) and end > start:
+            out.append((name, start, end))
+    return out
+
+
+class PhaseMarks:
+    """The base's samples (t, x, y, yaw) nearest each start and end time the routine's ~phases
+    declare, kept as the run goes rather than every sample (a long run's track grew without
+    bound). A time is matched among the samples from when it was first declared (the shipped
+    walks declare their legs before walking them)."""
+
+    def __init__(self, first: np.ndarray):
+        self.first, self.last = first, first
+        self.best: dict[float, np.ndarray] = {}
+
+    def add(self, declared, sample: np.ndarray) -> None:
+        for _, start, end in _bounds(declared):
+            for when in (start, end):
+                best = self.best.setdefault(when, self.first)
+                if abs(sample[0] - when) < abs(best[0] - when):  # the first of equals, as argmin
+                    self.best[when] = sample
+        self.last = sample
+
+    def nearest(self, when: float) -> np.ndarray:
+        return self.best.get(when, self.first)
+
+
+def _phases(declared, marks: PhaseMarks) -> list[dict]:
+    """Where the base went in each phase a routine declared in its ~phases parameter
+    ([[name, start s, end s], ...]): along and across its heading at the phase's start."""
+    if marks.last is marks.first:
+        return []
+    out = []
+    for name, start, end in _bounds(declared):
+        if start > marks.last[0]:
             break  # the run ended first
-        a = samples[np.argmin(np.abs(samples[:, 0] - start))]
-        b = samples[np.argmin(np.abs(samples[:, 0] - end))]
+        a, b = marks.nearest(start), marks.nearest(end)
         dx, dy = b[1:3] - a[1:3]
         c, s = np.cos(a[3]), np.sin(a[3])
         turn = (b[3] - a[3] + np.pi) % (2 * np.pi) - np.pi

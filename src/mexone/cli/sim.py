@@ -70,6 +70,10 @@ def add_parser(sub) -> None:
                    help="target real-time factor (default 1, or unlimited with --headless; "
                         "0 = unlimited)")
     p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    p.add_argument("--exercise", metavar="NAME_OR_DIR",
+                   help="an Exercises panel on the page: the statement, your file and Check "
+                        "(a folder `mexone exercise start` wrote, or an exercise's name; "
+                        "docs/exercises.md)")
     p.add_argument("--paused", action="store_true",
                    help="the GUI starts paused (and pauses after each reset): watch a fall from t = 0")
     add_ros_options(p)
@@ -83,10 +87,16 @@ def add_parser(sub) -> None:
 def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
     from mexone.gui.app import GuiApp
 
+    exercise = None
+    if args.exercise is not None:
+        from mexone.gui.exercises import open_exercise
+
+        exercise = open_exercise(args.exercise)
     try:
         app = GuiApp(lambda options: lab_from_args(args, options=options), options_from_args(args),
-                     host=args.host, port=args.port, target_rtf=rtf, routine_dirs=args.routines,
-                     paused=args.paused)
+                     host=args.host, port=args.port, target_rtf=rtf,
+                     routine_dirs=args.routines, paused=args.paused,
+                     exercise=exercise)
         if bridge is not None:
             bridge.attach(app.lab, urdf_text(args, app.lab.sim.robot))
             app.tick_hooks.append(lambda _sim: bridge.pump())
@@ -100,6 +110,12 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
           file=sys.stderr)
     if bridge is not None:
         print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
+    if exercise is not None:
+        ex = exercise.exercise
+        print(f"mexone: Exercises panel: {ex.title} ({ex.name}); Check grades "
+              + (str(exercise.submission) if exercise.folder else
+                 f"nothing yet (mexone exercise start {ex.name} DIR, then --exercise DIR)"),
+              file=sys.stderr)
     try:
         with recording(app.lab, args.record, args.force):
             app.serve_forever(duration)  # until a signal asks it to stop (signals.requested)
@@ -118,6 +134,9 @@ def run(args: argparse.Namespace) -> int:
     forever = not headless or joined
     duration = args.duration if args.duration is not None else (None if forever else 5.0)
     rtf = args.rtf if args.rtf is not None else (0.0 if headless and not joined else 1.0)
+    if headless and args.exercise is not None:
+        raise InputError("--exercise is a panel of the page: not with --headless or --json",
+                         hint="without a page: mexone exercise grade NAME FILE --local")
     if not headless:
         check_can_serve(args.host)
     bridge = connect_bridges(args)

@@ -3,15 +3,17 @@ reports them (RMS and max error, overshoot and settling time of each setpoint ch
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from mexone.control.controllers.position import PositionController
 from mexone.control.manager import ControllerManager
 from mexone.physics.simulation import Simulation
 
 __all__ = ["JointTracking", "TrackingRecorder", "SETTLE_BAND", "SAMPLE_RATE", "settling_time",
-           "settle_band", "rise_time", "overshoot", "step_progress"]
+           "settle_band", "rise_time", "overshoot", "step_progress", "full_metrics", "CHUNK"]
 
 SAMPLE_RATE = 200.0  # Hz: 5 ms resolution for settling times
 SETTLE_BAND = 0.02  # settled when within 2% of the step...
@@ -33,25 +35,177 @@ class JointTracking:
 
 
 class TrackingRecorder:
-    def __init__(self, sim: Simulation, manager: ControllerManager, rate: float = SAMPLE_RATE):
+    """Samples every running position/trajectory controller's joints (setpoint, actual) at
+    `rate` Hz of sim time and folds them into running statistics every CHUNK samples, so memory
+    stays bounded however long the run (a 66,000 s run kept 13 M tuples before) and metrics()
+    is quick. The numbers are those of the whole series: max error, overshoot, settling time
+    and steps exactly; the RMS error up to float rounding (chunked sums). `history` s of the
+    latest samples are kept for plots (history(joint))."""
+
+    def __init__(self, sim: Simulation, manager: ControllerManager, rate: float = SAMPLE_RATE,
+                 history: float = 0.0):
         self.manager = manager
-        self.t: list[float] = []
-        self.rows: dict[str, list[tuple[float, float]]] = {}
+        self.keep = int(round(history * rate)) + 1 if history > 0 else 0
+        self.streams: dict[str, _JointStream] = {}
+        self._layouts: dict[tuple[int, ...], _Layout] = {}  # by the tracked controllers' ids
+        self._pending: list[tuple[float, _Layout, np.ndarray, np.ndarray]] = []  # not folded yet
         self.timer = sim.add_periodic(1.0 / rate, self.sample)
 
     def sample(self, sim: Simulation) -> None:
-        self.t.append(sim.time)
-        for ctrl in self.manager.controllers.values():
-            if ctrl.running and ctrl.kind in ("position", "trajectory"):
-                q = ctrl.hw.position(ctrl.rows)
-                for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
-                    self.rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
+        tracked = [c for c in self.manager.controllers.values()
+                   if c.running and c.kind in ("position", "trajectory")]
+        if not tracked:
+            return
+        key = tuple(map(id, tracked))
+        layout = self._layouts.get(key)
+        if layout is None:
+            layout = self._layouts[key] = _Layout.of(tracked)
+        hw = self.manager.hw
+        if layout.commanded:  # every setpoint is the position command: one read for all
+            sp = hw.command.position[layout.rows]
+        else:
+            sp = np.concatenate([np.asarray(c.setpoint, dtype=float) for c in tracked])
+        self._pending.append((sim.time, layout, sp, hw.position(layout.rows)))
+        if len(self._pending) >= CHUNK:
+            self._fold()
 
     def metrics(self) -> dict[str, JointTracking]:
-        return {joint: _metrics(joint, np.array(rows)) for joint, rows in self.rows.items()}
+        self._fold()
+        return {joint: s.metrics(joint) for joint, s in self.streams.items()}
+
+    def history(self, joint: str) -> np.ndarray:
+        """The latest samples of `joint` (up to `history` s): rows of (t, setpoint, actual)."""
+        self._fold()
+        stream = self.streams.get(joint)
+        return np.array(stream.recent if stream else [], dtype=float).reshape(-1, 3)
+
+    def _fold(self) -> None:
+        """Hand the pending samples to each joint's statistics, in time order."""
+        if not self._pending:
+            return
+        groups: dict[int, tuple[_Layout, list]] = {}
+        for row in self._pending:
+            groups.setdefault(id(row[1]), (row[1], []))[1].append(row)
+        self._pending = []
+        parts: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        for layout, rows in groups.values():
+            t = np.array([r[0] for r in rows])
+            sp, q = np.stack([r[2] for r in rows]), np.stack([r[3] for r in rows])
+            for i, joint in enumerate(layout.joints):
+                parts.setdefault(joint, []).append((t, sp[:, i], q[:, i]))
+        for joint, chunks in parts.items():
+            t, sp, q = (np.concatenate(c) for c in zip(*chunks, strict=True))
+            if len(chunks) > 1:  # the joint changed controllers meanwhile (or has two)
+                order = np.argsort(t, kind="stable")
+                t, sp, q = t[order], sp[order], q[order]
+            stream = self.streams.get(joint)
+            if stream is None:
+                stream = self.streams[joint] = _JointStream(self.keep)
+            stream.fold(t, sp, q)
 
 
-def _metrics(joint: str, data: np.ndarray) -> JointTracking:
+@dataclass(frozen=True)
+class _Layout:
+    """The joints a set of tracked controllers hold, in their order, and their hardware rows."""
+    joints: tuple[str, ...]
+    rows: np.ndarray
+    commanded: bool  # every controller's setpoint is its joints' position command
+
+    @staticmethod
+    def of(controllers: list) -> _Layout:
+        return _Layout(tuple(j for c in controllers for j in c.joints),
+                       np.concatenate([np.asarray(c.rows, dtype=int).reshape(-1)
+                                       for c in controllers]),
+                       all(getattr(type(c), "setpoint", None) is PositionController.setpoint
+                           for c in controllers))
+
+
+CHUNK = 1024  # samples (5 s) buffered before they are folded into the running statistics
+
+
+@dataclass
+class _Segment:
+    """One setpoint change's samples so far: from `start` to `target`, from sim time t0."""
+    start: float
+    target: float
+    t0: float
+    peak: float = -np.inf  # highest step progress (1 = at the target)
+    settled_at: float = 0.0  # time from t0 of the sample after the last one outside the band
+    outside: bool = False  # the latest sample is outside the band
+
+    def fold(self, t: np.ndarray, q: np.ndarray) -> None:
+        self.peak = max(self.peak, float(step_progress(q, self.start, self.target).max()))
+        out = np.flatnonzero(np.abs(q - self.target) > settle_band(self.target - self.start))
+        if out.size == 0:
+            if self.outside:
+                self.settled_at, self.outside = float(t[0] - self.t0), False
+        elif out[-1] + 1 < len(t):
+            self.settled_at, self.outside = float(t[out[-1] + 1] - self.t0), False
+        else:
+            self.outside = True
+
+    @property
+    def overshoot(self) -> float:
+        return max(self.peak - 1.0, 0.0)
+
+    @property
+    def settling(self) -> float | None:
+        return None if self.outside else self.settled_at
+
+
+class _JointStream:
+    """One joint's running tracking statistics (see TrackingRecorder)."""
+
+    def __init__(self, keep: int):
+        self.recent: deque[tuple[float, float, float]] = deque(maxlen=keep)
+        self.n, self.sum_sq, self.max_abs = 0, 0.0, 0.0
+        self.last_sp: float | None = None
+        self.segment: _Segment | None = None  # the latest setpoint change's
+        self.worst, self.settling = 0.0, 0.0  # over the closed segments
+        self.steps = 0
+
+    def fold(self, t: np.ndarray, sp: np.ndarray, q: np.ndarray) -> None:
+        """The next samples, in time order."""
+        if self.recent.maxlen:
+            self.recent.extend(zip(t.tolist(), sp.tolist(), q.tolist(), strict=True))
+        error = sp - q
+        self.n += len(t)
+        self.sum_sq += float(np.sum(error**2))
+        self.max_abs = max(self.max_abs, float(np.abs(error).max()))
+        before = sp[0] if self.last_sp is None else self.last_sp
+        changes = np.flatnonzero(np.abs(np.diff(sp, prepend=before)) >= MIN_STEP)
+        bounds = [0, *changes.tolist(), len(t)]
+        for k in range(len(bounds) - 1):
+            a, b = bounds[k], bounds[k + 1]
+            if k > 0:  # a setpoint change at a: the previous segment ends
+                self._close()
+                self.segment = _Segment(float(sp[a - 1] if a else before), float(sp[a]),
+                                        float(t[a]))
+                self.steps += 1
+            if self.segment is not None and b > a:
+                self.segment.fold(t[a:b], q[a:b])
+        self.last_sp = float(sp[-1])
+
+    def _close(self) -> None:
+        if self.segment is not None:
+            self.worst = max(self.worst, self.segment.overshoot)
+            if self.settling is not None:
+                s = self.segment.settling
+                self.settling = None if s is None else max(self.settling, s)
+
+    def metrics(self, joint: str) -> JointTracking:
+        worst, settling = self.worst, self.settling
+        if self.segment is not None:  # the latest change is open to the end of the run
+            worst = max(worst, self.segment.overshoot)
+            s = self.segment.settling
+            settling = None if settling is None or s is None else max(settling, s)
+        return JointTracking(joint, float(np.sqrt(self.sum_sq / self.n)), self.max_abs, worst,
+                             settling, self.steps)
+
+
+def full_metrics(joint: str, data: np.ndarray) -> JointTracking:
+    """The tracking metrics of a whole series, rows of (t, setpoint, actual): what
+    TrackingRecorder's running statistics equal (kept as their reference)."""
     t, sp, q = data.T
     error = sp - q
     changes = np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1

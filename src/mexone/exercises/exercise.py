@@ -16,14 +16,27 @@ from mexone.errors import InputError
 from mexone.exercises.isolate import Limits
 from mexone.inputs import read_input_text
 
-__all__ = ["Exercise", "SUBMISSION_KINDS", "load_exercise", "find_exercise", "exercises",
+__all__ = ["Exercise", "LiveController", "SUBMISSION_KINDS", "load_exercise", "find_exercise", "exercises",
            "COURSE", "ENTRY_POINT_GROUP"]
 
 COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
 SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json")
 _FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
-           "secret_seed", "submission", "file", "summary", "number"}
+           "secret_seed", "submission", "file", "summary", "number", "live", "live_controller"}
+
+
+@dataclass(frozen=True)
+class LiveController:
+    """exercise.yaml's `live_controller:` how the page's Check runs a controller plug-in in the
+    running lab: its class on these joints (the shipped controllers on the rest), these
+    parameters, the robot's joints at `pose` (docs/exercises.md)."""
+
+    cls: str
+    joints: tuple[str, ...]
+    params: tuple[tuple[str, float | bool | str], ...] = ()
+    pose: tuple[tuple[str, float], ...] = ()
+    name: str = "student_controller"
 
 
 @dataclass(frozen=True)
@@ -42,6 +55,8 @@ class Exercise:
     limits: Limits
     summary: str = ""
     number: int | None = None  # its place in a course (`exercise list` sorts by it)
+    live: bool = True  # the page's Check puts the file into the running lab (docs/exercises.md)
+    live_controller: LiveController | None = None  # a controller exercise's run on the page
 
     @property
     def statement(self) -> Path:
@@ -82,6 +97,45 @@ def _number(data: dict, key: str, path: Path, low: float, high: float, default=N
         raise InputError(f"'{key}' is {value!r}: it must be {kind} from {low:g} to {high:g}",
                          file=path)
     return value
+
+
+def _flag(data: dict, key: str, path: Path, default: bool = True) -> bool:
+    value = data.get(key, default)
+    if not isinstance(value, bool):
+        raise InputError(f"'{key}' is {value!r}: write true or false", file=path)
+    return value
+
+
+def _live_controller(data: dict, path: Path, name: str) -> LiveController | None:
+    raw = data.get("live_controller")
+    if raw is None:
+        return None
+    example = "live_controller: {class: MyLaw, joints: [l_elbow], params: {kp: 5}}"
+    if not isinstance(raw, dict) or set(raw) - {"class", "joints", "params", "pose", "name"}:
+        raise InputError("'live_controller' must be a mapping of class, joints, params, pose, "
+                         "name", file=path, hint=example)
+    cls, joints = raw.get("class"), raw.get("joints")
+    if not isinstance(cls, str) or not cls.isidentifier():
+        raise InputError(f"live_controller: 'class' is {cls!r}: the class name in the file",
+                         file=path, hint=example)
+    if not isinstance(joints, list) or not joints or not all(isinstance(j, str) for j in joints):
+        raise InputError(f"live_controller: 'joints' is {joints!r}: a list of joint names",
+                         file=path, hint=example)
+    params, pose = raw.get("params") or {}, raw.get("pose") or {}
+    if not isinstance(params, dict) or not all(
+            isinstance(k, str) and isinstance(v, int | float | bool | str) for k, v in params.items()):
+        raise InputError("live_controller: 'params' must map names to values", file=path,
+                         hint=example)
+    if not isinstance(pose, dict) or not all(
+            isinstance(k, str) and isinstance(v, int | float) and not isinstance(v, bool)
+            for k, v in pose.items()):
+        raise InputError("live_controller: 'pose' must map joint names to angles (rad)",
+                         file=path, hint="pose: {l_elbow: -0.6}")
+    label = raw.get("name", name)
+    if not isinstance(label, str) or not label.replace("_", "").isalnum():
+        raise InputError(f"live_controller: 'name' is {label!r}", file=path)
+    return LiveController(cls, tuple(joints), tuple(params.items()),
+                          tuple((k, float(v)) for k, v in pose.items()), label)
 
 
 def load_exercise(folder: str | Path) -> Exercise:
@@ -127,7 +181,8 @@ def load_exercise(folder: str | Path) -> Exercise:
                     int(_number(data, "secret_seed", path, 0, 2**63, default=0, integer=True)),
                     limits, str(data.get("summary", "")),
                     None if data.get("number") is None else
-                    int(_number(data, "number", path, 0, 10000, integer=True)))
+                    int(_number(data, "number", path, 0, 10000, integer=True)),
+                    _flag(data, "live", path), _live_controller(data, path, name))
 
 
 def _course_order(folder: Path) -> tuple:

@@ -25,24 +25,22 @@ from mexone import signals
 from mexone.control.controllers import Controller
 from mexone.control.spec import joint_label
 from mexone.errors import InputError, MexoneError
-from mexone.gui.controllers import ControllersPanel
 from mexone.gui.fields import NumberFields
 from mexone.gui.handles import IkHandles
 from mexone.gui.health import Health
 from mexone.gui.inspector import Inspector
-from mexone.gui.load import LoadPanel
 from mexone.gui.move import MoveTool
+from mexone.gui.panels import Panel, panel_types
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
 from mexone.gui.screenshot import Screenshots, page_picture
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
-from mexone.gui.topics import RecordPanel, TopicsPanel
 from mexone.gui.walkpad import WalkPad
 from mexone.gui.walkplan import WALK_PLAN, WalkPlanView
 from mexone.lab import AUTO, Lab
-from mexone.physics.compile import CompileOptions
+from mexone.physics.compile import CompileOptions, Spawn
 from mexone.physics.simulation import WorkQueue
 from mexone.physics.watchdog import DivergenceError
 from mexone.ranges import GAINS, GRAVITY, RTF, STEPS, TIMESTEP, number_text
@@ -79,9 +77,10 @@ class GuiApp:
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
                  record_folder: Path | None = None, model_folder: Path | None = None,
-                 server: viser.ViserServer | None = None):
+                 server: viser.ViserServer | None = None, exercise=None):
         """`server`: draw into that page (guarded by its owner, who stops it) instead of
-        serving one (the model editor's Simulate)."""
+        serving one (the model editor's Simulate). `exercise`: an ExerciseTarget
+        (gui/exercises.py) for the Exercises panel."""
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
@@ -109,6 +108,14 @@ class GuiApp:
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self.screenshots = Screenshots(self.record_folder or Path.cwd())
         self.last_screenshot: Path | None = None
+        self.exercise = exercise
+        self.extra_routines: dict[str, Path] = {}  # routines a panel offers (an exercise's)
+        # the plug-in panels (gui/panels.py): one instance each for the page's life
+        self.panels: dict[str, Panel] = {}
+        self._failed_panels: set[str] = set()
+        for cls in panel_types():
+            self._panel_call(cls.name, lambda c=cls: c.wanted(self) and self.panels.update(
+                {c.name: c(self)}))
         self._build_all()
         # one click handler for the page's life: it reaches whichever robot is loaded now
         self._on_click = self.server.scene.on_click()(lambda e: self.do(
@@ -189,6 +196,8 @@ class GuiApp:
             logger.removeHandler(handler)
         if self.routine:
             self.routine.stop(join=0.5)
+        for panel in self.panels.values():
+            panel.stop()
         self.screenshots.close()
         self.ik_handles.close()
         if self.owns_server:
@@ -233,10 +242,9 @@ class GuiApp:
             self.plot_panel.update()
             self.sensor_panel.update_plots()
             self._sync_sliders()
-            self.record_panel.update()
-        if self._frames % 30 == 0:
-            self.topics_panel.update()
-            self.controllers_panel.update()
+        for name, panel in self.panels.items():
+            if self._frames % panel.period == 0 and name not in self._failed_panels:
+                self._panel_call(name, panel.update)
         if self.routine and not self.routine.running:
             self._routine_done()
 
@@ -328,15 +336,41 @@ class GuiApp:
         self.sensor_panel = SensorPanel(self.server, self.lab, self.log)
         self._build_routines()
         self._build_physics()
-        self.topics_panel = TopicsPanel(self.server, self.lab, self.do)
-        self.controllers_panel = ControllersPanel(self.server, self.lab, self.do, self.refuse)
-        self.record_panel = RecordPanel(self.server, self.lab, self.do, self.refuse,
-                                        self.record_folder)
-        self.load_panel = LoadPanel(self.server, self.model_folder, self.do, self.load,
-                                    self.model_label)
+        for name, panel in self.panels.items():
+            self._panel_call(name, panel.build)
         self.walk_pad = WalkPad(self.server, self.lab, self.do)
         self.walk_plan = WalkPlanView(self.server, self.lab)
         self.ik_handles = IkHandles(self.server, self.lab, self.do)
+
+    def _panel_call(self, name: str, method: Callable[[], None]) -> None:
+        """A plug-in panel's build or update: one that raises is said once and left out (a
+        panel's bug never ends the simulation)."""
+        try:
+            method()
+        except Exception as exc:  # noqa: BLE001 - any panel's bug; the lab goes on
+            self._failed_panels.add(name)
+            text = exc.one_line() if isinstance(exc, MexoneError) else f"{type(exc).__name__}: {exc}"
+            log.error("the %s panel stopped: %s", name, text)
+
+    @property
+    def controllers_panel(self):
+        """The Controllers panel (gui/controllers.py)."""
+        return self.panels["controllers"]
+
+    @property
+    def topics_panel(self):
+        """The Topics panel (gui/topics.py)."""
+        return self.panels["topics"]
+
+    @property
+    def record_panel(self):
+        """The Record panel (gui/topics.py)."""
+        return self.panels["record"]
+
+    @property
+    def load_panel(self):
+        """The Load robot panel (gui/load.py)."""
+        return self.panels["load"]
 
     def _screenshot_clicked(self, client) -> None:
         if client is None:
@@ -373,21 +407,24 @@ class GuiApp:
         return path
 
     # ----- Load: another robot, same server ----------------------------------------------------
-    def load(self, path: Path) -> None:
-        """Simulation thread: open the robot in `path` with controllers from its physics and
-        rebuild the scene and every panel. A file that fails to load changes nothing."""
+    def load(self, path: Path | None, controllers: Path | str = AUTO,
+             spawn: Spawn | None = None) -> None:
+        """Simulation thread: open the robot in `path` (None: the robot loaded now, again) with
+        controllers from its physics (or the `controllers` YAML) and rebuild the scene and every
+        panel. A file that fails to load changes nothing."""
         if self.tick_hooks:
             raise MexoneError("Load: not while joined to ROS (--ros): the ROS graph knows this "
                               "robot", hint="restart mexone sim with the other robot")
         if self.lab.bus.taps and self.record_panel.recorder is None:
             raise MexoneError("Load: not while --record records this robot",
                               hint="stop mexone sim (the bag closes), then open the other robot")
-        lab = Lab.create(model=path, controllers=AUTO, world=self.lab.sim.compiled.world,
-                         options=self.options, target_rtf=self.target_rtf or None)
+        lab = Lab.create(model=self.lab.sim.robot if path is None else path,
+                         controllers=controllers, world=self.lab.sim.compiled.world,
+                         spawn=spawn or Spawn(), options=self.options,
+                         target_rtf=self.target_rtf or None)
         self.stop_routine()
-        self.record_panel.stop()
-        if self.topics_panel.echo_sub is not None:
-            self.topics_panel.echo_sub.unregister()
+        for panel in self.panels.values():
+            panel.unload()  # Record ends its recording, Topics its echo
         self.log.close()
         self.walk_plan.close()
         self.ik_handles.close(join=0)  # this is the simulation thread, which its worker may await
@@ -396,14 +433,16 @@ class GuiApp:
             if camera.renderer is not None:
                 camera.renderer.close()
                 camera.renderer = None
-        self.lab, self.model_label = lab, path.name
+        self.lab = lab
+        self.model_label = self.model_label if path is None else path.name
         self.steps_left, self.error = 0, None
         self.follow_offset.clear()
         self.server.scene.reset()
         self.server.gui.reset()
         self._build_all()
-        self.notify("Loaded", f"{lab.sim.robot.name} from {path.name} (controllers from its "
-                              "physics)", color="green")
+        self.notify("Loaded", f"{lab.sim.robot.name} from {self.model_label} ("
+                    + ("controllers from its physics)" if controllers == AUTO else
+                       f"controllers of {Path(controllers).name})"), color="green")
         if (self.start_paused or self.paused_after_reset.value) and not self.lab.sim.paused:
             self._toggle_pause()
 
@@ -555,20 +594,20 @@ class GuiApp:
     def _build_routines(self) -> None:
         gui = self.server.gui
         with gui.add_folder("Routines"):
-            self.routine_files = routine_choices(self.routine_dirs)
+            self.routine_files = routine_choices(self.routine_dirs) | self.extra_routines
             names = tuple(self.routine_files)
             self.routine_choice = gui.add_dropdown("Routine", names, initial_value=names[0],
                                                    hint="shipped routines and the .py files of "
                                                         "the folders mexone sim --routines named")
-            gui.add_button("Refresh list").on_click(lambda _: self.do(self._refresh_routines))
+            gui.add_button("Refresh list").on_click(lambda _: self.do(self.refresh_routines))
             start = gui.add_button("Start", icon=viser.Icon.PLAYER_PLAY)
             start.on_click(lambda _: self.do(self.start_routine))
             stop = gui.add_button("Stop", icon=viser.Icon.PLAYER_STOP)
             stop.on_click(lambda _: self.do(self.stop_routine))
             self.console_view = gui.add_markdown("*console: no routine yet*")
 
-    def _refresh_routines(self) -> None:
-        self.routine_files = routine_choices(self.routine_dirs)
+    def refresh_routines(self) -> None:
+        self.routine_files = routine_choices(self.routine_dirs) | self.extra_routines
         self.routine_choice.options = tuple(self.routine_files)
 
     def _log(self, level: str, text: str) -> None:

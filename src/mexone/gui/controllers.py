@@ -15,6 +15,7 @@ import viser
 
 from mexone.control.controllers.python import PythonRunner
 from mexone.errors import InputError
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.ranges import number_text
 
@@ -42,12 +43,30 @@ def controllers_table(lab: Lab) -> str:
     return "\n".join(rows)
 
 
-class ControllersPanel:
-    def __init__(self, server: viser.ViserServer, lab: Lab, do: Callable[[Callable[[], None]], None],
-                 refuse: Callable[[str], None]):
-        self.server, self.lab, self.do, self.refuse = server, lab, do, refuse
+@register_panel
+class ControllersPanel(Panel):
+    """rqt_controller_manager's list, switch and reload, and the Python controllers' live
+    parameters (a plug-in panel: gui/panels.py)."""
+
+    name = "controllers"
+    order = 10
+    period = 30
+
+    @property
+    def lab(self) -> Lab:
+        return self.app.lab  # the robot loaded now (Load replaces it)
+
+    @property
+    def server(self) -> viser.ViserServer:
+        return self.app.server
+
+    def do(self, action: Callable[[], None]) -> None:
+        self.app.do(action)
+
+    def build(self) -> None:
         self.fields: dict[tuple[str, str], object] = {}
-        gui = server.gui
+        gui = self.server.gui
+        lab = self.lab
         self.folder = gui.add_folder("Controllers", expand_by_default=False)
         manager = lab.controllers
         with self.folder:

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from mexone import files
 from mexone.description.meshes import load_mesh, resolve_mesh
 from mexone.description.model import Mesh, RobotModel
 
@@ -27,10 +28,8 @@ _log = logging.getLogger("mexone.gui")
 
 
 def cache_dir() -> Path:
-    """$MEXONE_CACHE, else $XDG_CACHE_HOME/mexone, else ~/.cache/mexone; /meshes below it."""
-    base = os.environ.get("MEXONE_CACHE") or os.path.join(
-        os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache"), "mexone")
-    return Path(base) / "meshes"
+    """The simplified display meshes' folder in mexone's cache (`files.cache_dir`)."""
+    return files.cache_dir("meshes")
 
 
 def _uses(robot: RobotModel) -> dict[str, tuple[Path, int]]:

@@ -17,6 +17,7 @@ from pathlib import Path
 import viser
 
 from mexone.errors import InputError
+from mexone.gui.panels import Panel, register_panel
 
 __all__ = ["LoadPanel", "model_choices", "save_upload", "MODEL_SUFFIXES"]
 
@@ -65,17 +66,28 @@ def save_upload(name: str, content: bytes) -> Path:
     return path
 
 
-class LoadPanel:
-    def __init__(self, server: viser.ViserServer, folder: Path, do, load: Callable[[Path], None],
-                 current: str):
-        self.folder, self.do, self.load = folder, do, load
-        self.choices = model_choices(folder)
-        gui = server.gui
+@register_panel
+class LoadPanel(Panel):
+    """Open another robot from the server's list or an upload (a plug-in panel: gui/panels.py)."""
+
+    name = "load"
+    order = 90
+
+    def do(self, action: Callable[[], None]) -> None:
+        self.app.do(action)
+
+    def load(self, path: Path) -> None:
+        self.app.load(path)
+
+    def build(self) -> None:
+        self.folder = self.app.model_folder
+        self.choices = model_choices(self.folder)
+        gui = self.app.server.gui
         with gui.add_folder("Load robot", expand_by_default=False):
-            gui.add_markdown(f"now: `{current}`")
+            gui.add_markdown(f"now: `{self.app.model_label}`")
             names = tuple(self.choices) or ("(no robot files here)",)
             self.choice = gui.add_dropdown("File", names, initial_value=names[0],
-                                           hint=f"robot files under {folder}")
+                                           hint=f"robot files under {self.folder}")
             row = gui.add_button_group("", ("Open", "Refresh list"))
             row.on_click(lambda e: self.do(self.refresh if e.target.value == "Refresh list"
                                            else lambda: self.open(self.choice.value)))

@@ -59,7 +59,7 @@ class StepResponse:
         if not lo <= target <= hi:
             raise InputError(f"Step response: {joint} to {target:.3g} rad is outside "
                              f"{lo:g} to {hi:g}", hint="a smaller step, or the other sign")
-        recorder = TrackingRecorder(sim, manager)
+        recorder = TrackingRecorder(sim, manager, history=STEP_WINDOW + 1.0)
         recorder.sample(sim)  # the setpoint before the step
         manager.command(ctrl.name, {joint: target})
         self.started = sim.time
@@ -85,7 +85,7 @@ class StepResponse:
         sim.remove_periodic(recorder.timer)
         self.running = None
         m = recorder.metrics()[joint]
-        rows = np.array(recorder.rows[joint])
+        rows = recorder.history(joint)
         t, q = rows[:, 0] - t0, rows[:, 2]
         steady = float(np.mean(np.abs(target - q[t >= t[-1] - _STEADY])))
         rise = rise_time(t, q, start, target)

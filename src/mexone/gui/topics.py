@@ -18,6 +18,7 @@ import numpy as np
 import viser
 
 from mexone.errors import InputError
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.record.bag import BAG_SUFFIXES, BagRecorder
 
@@ -57,15 +58,40 @@ def _short(value) -> str:
     return str(value)
 
 
-class TopicsPanel:
-    def __init__(self, server: viser.ViserServer, lab: Lab, do):
-        self.server, self.lab, self.do = server, lab, do
+class _AppPanel(Panel):
+    """A panel of the page's lab (the one loaded now: Load replaces it)."""
+
+    @property
+    def lab(self) -> Lab:
+        return self.app.lab
+
+    @property
+    def server(self) -> viser.ViserServer:
+        return self.app.server
+
+    def do(self, action) -> None:
+        self.app.do(action)
+
+    def refuse(self, text: str) -> None:
+        self.app.refuse(text)
+
+
+@register_panel
+class TopicsPanel(_AppPanel):
+    """rostopic list/hz/info/echo for the lab's bus (a plug-in panel: gui/panels.py)."""
+
+    name = "topics"
+    order = 5
+    period = 30
+
+    def build(self) -> None:
+        lab = self.lab
         self._counts: dict[str, int] = {}
         self._last = time.monotonic()
         self._last_sim = lab.sim.time
         self.rates: dict[str, float] = {}
         self.echo_sub = None
-        gui = server.gui
+        gui = self.server.gui
         with gui.add_folder("Topics", expand_by_default=False):
             self.table = gui.add_markdown("")
             names = tuple(sorted(lab.bus.topics)) or ("(none)",)
@@ -74,6 +100,11 @@ class TopicsPanel:
             self.echoing.on_update(lambda _: self.do(self._resubscribe))
             self.choice.on_update(lambda _: self.do(self._resubscribe))
             self.echo_view = gui.add_markdown("")
+
+    def unload(self) -> None:
+        if self.echo_sub is not None:
+            self.echo_sub.unregister()
+            self.echo_sub = None
 
     def _resubscribe(self) -> None:
         if self.echo_sub is not None:
@@ -137,13 +168,20 @@ def recording_path(name: str, folder: Path) -> Path:
     return folder / name
 
 
-class RecordPanel:
-    def __init__(self, server: viser.ViserServer, lab: Lab, do, refuse, folder: Path | None = None):
-        self.server, self.lab, self.do, self.refuse = server, lab, do, refuse
+@register_panel
+class RecordPanel(_AppPanel):
+    """Record every topic to a bag from the page (a plug-in panel: gui/panels.py)."""
+
+    name = "record"
+    order = 20
+    period = 5
+
+    def build(self) -> None:
+        folder = self.app.record_folder
         self.folder = Path.cwd() if folder is None else folder
         self.recorder: BagRecorder | None = None
         self.last: Path | None = None
-        gui = server.gui
+        gui = self.server.gui
         with gui.add_folder("Record", expand_by_default=False):
             self.name = gui.add_text("File", initial_value="recording.mcap",
                                      hint="a new .mcap or .bag in the folder mexone started in")
@@ -152,6 +190,9 @@ class RecordPanel:
             download = gui.add_button("Download last recording")
             download.on_click(lambda e: self.download(e.client))
             self.status = gui.add_markdown("*not recording*")
+
+    def unload(self) -> None:
+        self.stop()  # the old robot's recording ends with it
 
     def flip(self) -> None:
         if self.recorder is None:

@@ -26,8 +26,8 @@ import time
 from collections.abc import Callable
 
 from mexone.bus import msgs, ros_map
+from mexone.bus.clock import clock_period_ns, respace
 from mexone.errors import InputError, MexoneError
-from mexone.physics.simulation import NS
 from mexone.ros1 import convert, interfaces
 
 __all__ = ["import_rospy", "Ros1Bridge", "ROS_INSTALL", "CLOCK_PERIOD", "DEFAULT_NODE",
@@ -282,9 +282,11 @@ class Ros1Bridge:
         run. Nodes still see time advance in steps of at most 1/FLAT_OUT_CLOCK wall seconds."""
         wall_rate = self.clock_frequency if sim.target_rtf else min(self.clock_frequency,
                                                                     FLAT_OUT_CLOCK)
-        # faster than real time, fire less often in sim time: about wall_rate per wall second
-        stride = min(max(1.0, sim.rtf.value * self.clock_frequency / wall_rate), _MAX_STRIDE)
-        self._clock_timer.period_ns = round(stride * NS / self.clock_frequency)
+        # faster than real time, fire less often in sim time: about wall_rate per wall second,
+        # on the run loop's batch boundaries (bus.clock)
+        respace(self._clock_timer, sim.time_ns,
+                clock_period_ns(sim.rtf.value, self.clock_frequency, wall_rate,
+                                _MAX_STRIDE / self.clock_frequency))
         now = time.perf_counter()  # a token bucket: wall_rate tokens per wall second
         self._clock_tokens = min(_CLOCK_BURST, self._clock_tokens
                                  + (now - self._bucket_wall) * wall_rate)

@@ -3,37 +3,74 @@ control_msgs and gazebo_msgs, plus the `controller_manager` package with its `sp
 
 `share/` is a ROS package path (put it on ROS_PACKAGE_PATH): each package's .msg/.srv/.action
 files reproduce the official definitions field for field, so their md5sums equal ROS's and
-clients built against ROS's own packages interoperate. `msgs/` holds their Python classes,
-generated from those files by Debian's genpy (`python -m mexone.ros1.interfaces` regenerates
-them; a test checks they are current); put it on PYTHONPATH for rostopic, rosservice and
-rospy nodes outside mexone. Actions are expanded as actionlib's genaction does.
+clients built against ROS's own packages interoperate. Their Python classes are generated
+from those files by Debian's genpy on first use (half a second) into mexone's cache, one folder
+per digest of the definitions, and reused after (`generated()`); `mexone ros-env` puts that
+folder on PYTHONPATH for rostopic, rosservice and rospy nodes outside mexone. Actions are
+expanded as actionlib's genaction does.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
 import shutil
 import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["SHARE", "MSGS", "PACKAGES", "generate", "use_generated", "environment",
+from mexone import files
+from mexone.errors import MexoneError
+
+__all__ = ["SHARE", "PACKAGES", "generate", "generated", "use_generated", "environment",
            "expand_action"]
 
 HERE = Path(__file__).resolve().parent
 SHARE = HERE / "share"  # a ROS package path
-MSGS = HERE / "msgs"  # generated Python, one top-level package per ROS package
+_FORMAT = "1"  # bumped when what generate() writes changes for the same definitions
 PACKAGES = ("controller_manager_msgs", "control_msgs", "gazebo_msgs")
 _SYSTEM_SHARE = Path("/usr/share")  # Debian's message definitions (std_msgs, geometry_msgs, ...)
 _DEPENDS = ("std_msgs", "geometry_msgs", "trajectory_msgs", "actionlib_msgs", "sensor_msgs")
 _DEBIAN_SITE = "/usr/lib/python3/dist-packages"
 
 
+def _digest() -> str:
+    """What the generated code depends on: every definition file of PACKAGES, and the format."""
+    sha = hashlib.sha256(_FORMAT.encode())
+    for pkg in PACKAGES:
+        for path in sorted((SHARE / pkg).rglob("*")):
+            if path.suffix in (".msg", ".srv", ".action"):
+                sha.update(str(path.relative_to(SHARE)).encode() + b"\0" + path.read_bytes())
+    return sha.hexdigest()[:16]
+
+
+def generated() -> Path:
+    """The folder holding the generated Python packages (one top-level package per ROS
+    package), generated now if this version of the definitions has none yet. Safe when several
+    processes start at once: each generates into a folder of its own and one rename wins."""
+    target = files.cache_dir("ros1-msgs") / _digest()
+    if (target / PACKAGES[-1] / "__init__.py").is_file():
+        return target
+    target.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f".{target.name}-", dir=target.parent))
+    try:
+        generate(work)
+        try:
+            os.rename(work, target)
+        except OSError:  # another process was first (its folder is complete: it renamed last)
+            if not (target / PACKAGES[-1] / "__init__.py").is_file():
+                raise
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return target
+
+
 def use_generated() -> None:
     """Make the generated packages importable as `gazebo_msgs`, `control_msgs`, ... (their code
     imports each other by those names, as every genpy package does)."""
-    if str(MSGS) not in sys.path:
-        sys.path.append(str(MSGS))
+    path = str(generated())
+    if path not in sys.path:
+        sys.path.append(path)
 
 
 def environment(env: dict[str, str] | None = None) -> dict[str, str]:
@@ -45,7 +82,7 @@ def environment(env: dict[str, str] | None = None) -> dict[str, str]:
 
     env = dict(os.environ if env is None else env)
     for key, paths in (("ROS_PACKAGE_PATH", (SHARE, mex_one.package_dir().parent)),
-                       ("PYTHONPATH", (MSGS,))):
+                       ("PYTHONPATH", (generated(),))):
         value = env.get(key, "")  # kept as it is (an empty PYTHONPATH entry means the cwd)
         missing = [str(path) for path in paths if str(path) not in value.split(os.pathsep)]
         env[key] = os.pathsep.join([value, *missing] if value else missing)
@@ -78,10 +115,16 @@ def expand_action(action: Path, out: Path) -> list[Path]:
 
 def _debian_tools():
     if _DEBIAN_SITE not in sys.path:
-        sys.path.append(_DEBIAN_SITE)
-    import genmsg.command_line  # noqa: F401 - Debian's python3-genmsg
-    import genpy.generate_initpy
-    import genpy.generator
+        sys.path.append(_DEBIAN_SITE)  # appended: pip's packages keep precedence
+    try:
+        import genmsg.command_line  # noqa: F401 - Debian's python3-genmsg
+        import genpy.generate_initpy
+        import genpy.generator
+    except ImportError:
+        raise MexoneError("ROS 1's message generator (genpy) is not installed: mexone generates "
+                          "its ROS 1 message classes with it",
+                          hint="install it with: apt-get install python3-genpy python3-genmsg "
+                               "(ROS 1's rospy brings both)") from None
 
     return genpy
 
@@ -100,7 +143,7 @@ def message_dirs(work: Path) -> dict[str, list[str]]:
     return search
 
 
-def generate(out: Path = MSGS) -> None:
+def generate(out: Path) -> None:
     """Generate the Python classes of every package into `out` (replacing what was there)."""
     genpy = _debian_tools()
     with tempfile.TemporaryDirectory() as tmp:
@@ -123,8 +166,3 @@ def generate(out: Path = MSGS) -> None:
             (target / "__init__.py").write_text("")
     for stale in out.rglob("__pycache__"):
         shutil.rmtree(stale, ignore_errors=True)
-
-
-if __name__ == "__main__":
-    generate()
-    print(f"generated {', '.join(PACKAGES)} into {MSGS}")

@@ -21,6 +21,7 @@ import time
 from collections.abc import Callable
 
 from mexone.bus import msgs, ros_map
+from mexone.bus.clock import clock_period_ns, respace
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros2 import convert
@@ -288,8 +289,7 @@ class Ros2Bridge:
         last_wall, last_ns = self._clock_last
         if now > last_wall and t_ns > last_ns:
             sim_rate = (t_ns - last_ns) / NS / (now - last_wall)  # sim s per wall s
-            period = min(max(1.0 / CLOCK_FREQUENCY, sim_rate / wall_rate), 0.2)
-            self._clock_timer.period_ns = round(period * NS)
+            respace(self._clock_timer, t_ns, clock_period_ns(sim_rate, CLOCK_FREQUENCY, wall_rate, 0.2))
         self._clock_last = (now, t_ns)
         self._clock_tokens = min(20.0, self._clock_tokens + (now - self._bucket_wall) * wall_rate)
         self._bucket_wall = now

@@ -6,6 +6,7 @@ arm routine) and the Scheduler they share, so their runs stay deterministic.
 
 from __future__ import annotations
 
+import re
 import sys
 import threading
 import traceback
@@ -25,6 +26,8 @@ __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "p
 
 _HERE = Path(__file__).resolve().parent
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
+_BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # a ROS base name (a node's)
+LOG_KEEP = 10_000  # routine log lines a runner keeps in memory at least (log_lines)
 SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
            "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
            "reach_goals": "reach_goals.py"}
@@ -61,8 +64,9 @@ def resolve_routine(name_or_path: str | Path) -> Path:
 
 
 def parse_param_args(args: list[str]) -> dict[str, object]:
-    """ROS-style `name:=value` arguments; `_name:=v` sets the node's private ~name. Values are
-    YAML, as rosrun reads them (safe types only)."""
+    """ROS-style `name:=value` arguments; `_name:=v` sets the node's private ~name (under its
+    init_node name, as rospy), `__name:=n` renames the node. Values are YAML, as rosrun reads
+    them (safe types only)."""
     out = {}
     for arg in args:
         shown = arg if len(arg) <= 60 else arg[:57] + "..."
@@ -70,6 +74,15 @@ def parse_param_args(args: list[str]) -> dict[str, object]:
         if not sep or not name:
             raise InputError(f"argument '{shown}' is not name:=value",
                              hint="e.g. _joint:=r_elbow for the routine's ~joint parameter")
+        if name.startswith("__") and name != "__name":
+            raise InputError(f"argument '{shown}': {name} is a ROS remapping routines do not take",
+                             hint="__name:=NODE renames the routine's node; _x:=v sets its ~x")
+        if name == "__name" and not _BASE_NAME.fullmatch(text):
+            raise InputError(f"argument '{shown}': a node name is a letter then letters, "
+                             "digits or _", hint="e.g. __name:=left_arm")
+        if name == "__name":
+            out[name] = text
+            continue
         try:
             out[name] = yamlio.load(text) if text else ""
         except InputError as exc:
@@ -115,6 +128,7 @@ class RoutineRunner:
         if lab.controllers:  # the controller YAML, as it was read
             _flatten("", lab.controllers.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
+        # the latest LOG_KEEP to 2 x LOG_KEEP lines (a long run's routine may log without end)
         self.log_lines: list[tuple[float, str, str]] = []
         self._sink = log
         self.routines: list[Routine] = []
@@ -136,6 +150,10 @@ class RoutineRunner:
     def path(self) -> Path:
         return self.routines[0].path
 
+    def param(self, key: str, default: object = None) -> object:
+        """The first routine's private parameter ~key (under its node name, init_node's)."""
+        return self.params.get(f"{self.routines[0].context.node_name}/{key}", default)
+
     @property
     def error(self) -> str | None:
         errors = [r.error for r in self.routines if r.error]
@@ -153,6 +171,8 @@ class RoutineRunner:
 
     def _log(self, level: str, text: str) -> None:
         self.log_lines.append((self.lab.sim.time, level, text))
+        if len(self.log_lines) >= 2 * LOG_KEEP:
+            del self.log_lines[:LOG_KEEP]
         if self._sink:
             self._sink(level, text)
 
@@ -175,10 +195,14 @@ class RoutineRunner:
         self.scheduler.enter(context)
         ready.set()
         try:
-            name = entry.path.stem
             for key, value in entry.private.items():
-                key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
-                self.params[key] = value
+                if key == "__name":
+                    context.name_remap = str(value)
+                elif key.startswith("_"):  # ~x under the node's name: init_node moves it
+                    context.private[key[1:]] = value
+                    self.params[f"{context.node_name}/{key[1:]}"] = value
+                else:
+                    self.params["/" + key.lstrip("/")] = value
             sandbox.run_path(entry.path)
         except Shutdown:  # rospy's ROSInterruptException is one
             pass
@@ -243,7 +267,7 @@ class RoutineRunner:
         them when not told (walk sets its course's length)."""
         declared = []
         for entry in self.routines:
-            value = self.params.get(f"/{entry.path.stem}/duration")
+            value = self.params.get(f"{entry.context.node_name}/duration")
             if isinstance(value, int | float) and not isinstance(value, bool) and 0 < value < 1e9:
                 declared.append(float(value))
         return max(declared, default=None)

@@ -65,6 +65,9 @@ class RoutineContext:
     notices: list[str] = field(default_factory=list)  # mexone's own warnings (unheard topics)
     source: str = ""  # the routine's file: its frames tell its threads from the lab's own
     errors: list[str] = field(default_factory=list)  # found besides its own end (a thread raised)
+    # `_x:=v` arguments (~x: v), kept under the node's name, init_node's as in rospy
+    private: dict[str, object] = field(default_factory=dict)
+    name_remap: str | None = None  # `__name:=n`: init_node's name is n (as rosrun)
 
     @property
     def time(self) -> float:

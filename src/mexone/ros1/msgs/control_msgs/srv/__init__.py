@@ -1,2 +1,0 @@
-from ._QueryCalibrationState import *
-from ._QueryTrajectoryState import *
