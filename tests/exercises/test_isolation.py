@@ -151,7 +151,7 @@ def test_beside_puts_the_submission_next_to_the_graders_files(tmp_path):
     assert not folder.exists() and law.exists()
 
 
-def test_sigterm_stops_the_grading_and_the_submissions_process(tmp_path):
+def test_sigterm_stops_the_grading_and_the_submissions_processes(tmp_path):
     import signal
     import subprocess
     import sys
@@ -164,9 +164,6 @@ def test_sigterm_stops_the_grading_and_the_submissions_process(tmp_path):
     grader = subprocess.Popen([sys.executable, "-m", "mexone", "exercise", "grade",
                                "arms_routine", str(path)], stdout=subprocess.PIPE,
                               stderr=subprocess.PIPE, text=True)
-    def running() -> set[int]:
-        return {p.pid for p in processes.table().values() if p.running}
-
     try:  # the fork server, the run's monitor, the run, the routine's own process
         assert wait_until(lambda: len(processes.descendants(grader.pid)) >= 4, timeout=30)
         below = set(processes.descendants(grader.pid))
@@ -175,7 +172,36 @@ def test_sigterm_stops_the_grading_and_the_submissions_process(tmp_path):
     finally:
         grader.kill()
     assert grader.returncode == 143 and "interrupted by SIGTERM" in err
-    assert wait_until(lambda: not below & running(), timeout=5)
+    assert wait_until(lambda: not below & _running(), timeout=5)
+
+
+def _running() -> set[int]:
+    from mexone.routines import processes
+
+    return {p.pid for p in processes.table().values() if p.running}
+
+
+def test_a_killed_grader_takes_its_runs_with_it():
+    """SIGKILL (the GUI's Exercises panel ends a self-check's process group so): the fork
+    server, the run's monitor and a run sleeping for a minute end with the grader."""
+    import signal
+    import subprocess
+    import sys
+
+    from helpers import wait_until
+    from mexone.routines import processes
+
+    grader = subprocess.Popen([sys.executable, "-c", "import time\n"
+                               "from mexone.exercises import run_isolated\n"
+                               "run_isolated(time.sleep, 60)\n"])
+    try:
+        assert wait_until(lambda: len(processes.descendants(grader.pid)) >= 3, timeout=30)
+        below = set(processes.descendants(grader.pid))
+        grader.send_signal(signal.SIGKILL)
+        grader.wait(timeout=5)
+    finally:
+        grader.kill()
+    assert wait_until(lambda: not below & _running(), timeout=5)
 
 
 SPY = '''"""Looks for the grader's state in its own process's memory and reports what it found."""

@@ -18,7 +18,9 @@ from mexone import rospy
 from mexone.msgs import Float64, JointState
 
 rospy.init_node("feedback")
-gain = rospy.get_param("~gain")
+gain = rospy.get_param("~gain")  # _gain:=0.2, moved under the node's name (__name:=renamed)
+if rospy.get_name() != "/renamed" or rospy.has_param("/feedback/gain"):
+    raise RuntimeError(f"the node is {rospy.get_name()}, not /renamed")
 first = rospy.wait_for_message("/mex_rb/joint_states", JointState, timeout=1.0)
 seen = []
 rospy.Subscriber("/mex_rb/joint_states", JointState,
@@ -46,7 +48,7 @@ def feedback(tmp_path_factory) -> Path:
 
 def _run(path: Path, own_process: bool):
     return run_isolated(simulate, 0.7, routine=path, variation=Variation(mass=1.05),
-                        params={"_gain": 0.2}, own_process=own_process)
+                        params={"_gain": 0.2, "__name": "renamed"}, own_process=own_process)
 
 
 def test_own_process_moves_the_robot_exactly_as_in_process(feedback):

@@ -125,6 +125,7 @@ class _ForkServer:
     def __init__(self) -> None:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         env = {k: v for k, v in os.environ.items() if k != SECRET_ENV}
+        env["MEXONE_GRADER_PID"] = str(os.getpid())  # the server ends with this process
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "mexone.exercises.child", "--server",
@@ -181,6 +182,8 @@ def serve(fd: int) -> None:
     import mexone.routines.isolated  # noqa: F401
 
     sock = socket.socket(fileno=fd)
+    processes.die_with_parent(int(os.environ.pop("MEXONE_GRADER_PID", "0")))
+    server = os.getpid()
     while True:
         with contextlib.suppress(ChildProcessError):
             while os.waitpid(-1, os.WNOHANG)[0] > 0:  # the monitors that ended
@@ -196,19 +199,22 @@ def serve(fd: int) -> None:
             continue
         if os.fork() == 0:
             sock.close()
-            _monitor(fds, *request.decode().split())
+            _monitor(fds, server, *request.decode().split())
         for x in fds:
             os.close(x)
 
 
-def _monitor(fds: list[int], cpu: str, memory_mb: str) -> None:
+def _monitor(fds: list[int], server: int, cpu: str, memory_mb: str) -> None:
     """Between the fork server and one run: forks the run (its own process group), tells the
     grader its pid, waits for it and tells the grader how it ended."""
     call_fd, result_fd, out_fd, status_fd = fds
     code = 0
     try:
+        processes.die_with_parent(server)
+        monitor = os.getpid()
         pid = os.fork()
         if pid == 0:
+            processes.die_with_parent(monitor)
             os.setpgid(0, 0)
             os.close(status_fd)
             null = os.open(os.devnull, os.O_RDONLY)

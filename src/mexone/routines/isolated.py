@@ -12,6 +12,7 @@ is abandoned after `stall` s) and determinism are those of `mexone run`.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import socket
 import subprocess
@@ -54,10 +55,7 @@ class IsolatedRoutineRunner(RoutineRunner):
         ready.set()
         proxy = None
         try:
-            name = entry.path.stem
-            for key, value in entry.private.items():
-                key = f"/{name}/{key[1:]}" if key.startswith("_") else "/" + key.lstrip("/")
-                self.params[key] = value
+            self._arguments(entry)
             with self.scheduler.busy("the start of the routine's process"):
                 proxy = _Proxy(self, context, entry.path)
                 if self._children is not None:
@@ -92,7 +90,7 @@ class _Proxy:
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "mexone.routines.remote", str(theirs.fileno()),
-                 f"{runner.cpu:g}", str(int(runner.memory_mb))],
+                 f"{runner.cpu:g}", str(int(runner.memory_mb)), str(os.getpid())],
                 pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
         finally:
             theirs.close()
@@ -100,8 +98,9 @@ class _Proxy:
         self.subscriptions: dict[int, object] = {}
         self.outbox: list[tuple[int, object]] = []
         plain = {k: v for k, v in self.runner.params.items() if remote.plain(v)}
+        private = {k: v for k, v in context.private.items() if remote.plain(v)}
         remote.send(ours, ("hello", str(path), context.node_name, plain, self.lab.sim.time,
-                           self.lab.sim.time_ns))
+                           self.lab.sim.time_ns, private, context.name_remap))
 
     def started(self) -> None:
         """Wait for the routine's process to be ready to run the routine (an interpreter's
@@ -226,6 +225,10 @@ class _Proxy:
                     sub.unregister()
             elif kind == "param" and len(args) == 2 and isinstance(args[0], str):
                 self.runner.params[args[0]] = args[1]
+            elif kind == "unparam" and len(args) == 1 and isinstance(args[0], str):
+                self.runner.params.pop(args[0], None)
+            elif kind == "node" and len(args) == 1 and isinstance(args[0], str):
+                self.context.node_name = args[0]  # init_node's: declared_duration reads it
             elif kind == "log" and len(args) == 2:
                 self.context.log(str(args[0]), str(args[1]))
             else:

@@ -1,7 +1,7 @@
 """A routine in a process of its own, in lockstep with the simulation in another: the routine's
 side, and the wire both sides speak. The simulator's side is routines.isolated.
 
-The routine's process is a fresh interpreter (``python -m mexone.routines.remote FD CPU MB``),
+The routine's process is a fresh interpreter (``python -m mexone.routines.remote FD CPU MB PID``),
 never a fork of the simulator: it has no lab, no model and nothing of a grader's in its memory,
 only what the simulator sends it (the routine's path, its node name, the parameters, the time,
 the messages of its subscriptions). Its ``mexone.rospy`` is the same module as in ``mexone run``,
@@ -265,6 +265,10 @@ class _Params(dict):
         if plain(value):
             self._client.post("param", key, value)
 
+    def __delitem__(self, key: str) -> None:
+        super().__delitem__(key)
+        self._client.post("unparam", key)
+
 
 class _Scheduler:
     """runtime.Scheduler's routine side, over the socket."""
@@ -310,6 +314,20 @@ class _Scheduler:
         yield
 
 
+def _context_class():
+    from mexone.routines.runtime import RoutineContext
+
+    class _Context(RoutineContext):
+        """The routine's context; its node's name (init_node's) goes to the simulator too."""
+
+        def __setattr__(self, name: str, value: object) -> None:
+            super().__setattr__(name, value)
+            if name == "node_name" and isinstance(self.params, _Params):
+                self.params._client.post("node", value)
+
+    return _Context
+
+
 def _limit(cpu: float, memory_mb: int) -> None:
     cpu_s = max(1, int(cpu))
     resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
@@ -347,21 +365,29 @@ def _run(path: Path) -> tuple[str | None, int | None]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """The routine's process: limits first, then the routine, then one last message."""
-    fd, cpu, memory_mb = (argv or sys.argv[1:])[:3]
+    """The routine's process (FD CPU_S MEMORY_MB SIMULATOR_PID): limits first, then the
+    routine, then one last message; it ends with the simulator's process."""
+    fd, cpu, memory_mb, parent = (argv or sys.argv[1:])[:4]
     _limit(float(cpu), int(memory_mb))
+    from mexone.routines import processes
+
+    processes.die_with_parent(int(parent))
     sock = socket.socket(fileno=int(fd))
     code = 0
     try:
         from mexone.routines import processes, runtime, sandbox
 
+        _Context = _context_class()  # noqa: N806 - a class
         client = _Client(sock)
-        _, path, node, params, client.time, client.time_ns = receive(sock)
+        _, path, node, params, client.time, client.time_ns, private, remap = receive(sock)
         path = Path(path)
+        for key, value in private.items():  # the same objects, as init_node tells them by identity
+            if params.get(f"{node}/{key}") == value:
+                params[f"{node}/{key}"] = value
         scheduler = _Scheduler(client)
-        context = runtime.RoutineContext(_Lab(client), scheduler, _Params(client, params),
-                                         client.log, node_name=node, source=str(path),
-                                         warned_topics=_Everything())
+        context = _Context(_Lab(client), scheduler, _Params(client, params), client.log,
+                           node_name=node, source=str(path), warned_topics=_Everything(),
+                           private=private, name_remap=remap)
         scheduler.context = context
         sandbox.install()
         before = processes.children()
