@@ -21,7 +21,7 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.exercises.exercise import Exercise
-from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, run_isolated
+from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, prewarm, run_isolated
 from mexone.exercises.sim import Variation, simulate
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
@@ -187,6 +187,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     if not submission.is_file():
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
+    prewarm()  # the runs' fork server starts while the grader imports and draws
     grader = exercise.grader()
     began = time.monotonic()
     per_seed: list[list[Check]] = []

@@ -35,7 +35,7 @@ from mexone import signals
 from mexone.errors import MexoneError
 from mexone.routines import processes
 
-__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits"]
+__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits", "prewarm"]
 
 TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
@@ -159,6 +159,11 @@ def _server(restart: bool = False) -> _ForkServer:
                     _servers[0].sock.close()
             _servers[:] = [_ForkServer()]
         return _servers[0]
+
+
+def prewarm() -> None:
+    """Start the fork server now (it imports MuJoCo while the grader prepares the first run)."""
+    _server()
 
 
 def _read_int(fd: int, timeout: float) -> int | None:
