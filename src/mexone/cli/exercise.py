@@ -151,6 +151,7 @@ def _grade(args) -> int:
         as_text,
         grade,
         gradescope_json,
+        not_handed_in,
         submissions_in,
         write_csv,
     )
@@ -177,7 +178,8 @@ def _grade(args) -> int:
         to_stdout = args.csv == Path("-")
         for student, path in found.items():
             plots = args.plots / student if args.plots else None
-            result = grade(ex, path, local=args.local, plots=plots)
+            result = grade(ex, path, local=args.local, plots=plots) if path.is_file() \
+                else not_handed_in(ex, path)
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "

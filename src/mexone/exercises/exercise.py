@@ -5,6 +5,7 @@ mexone/exercises/course/, a teacher's from a path or the `mexone.exercises` entr
 from __future__ import annotations
 
 import importlib.util
+import sys
 import traceback
 from dataclasses import dataclass
 from importlib.metadata import entry_points
@@ -78,9 +79,11 @@ class Exercise:
                              hint="write grader.py with a grade(ctx) function (docs/exercises.md)")
         spec = importlib.util.spec_from_file_location(f"mexone_exercise_{self.name}", path)
         module = importlib.util.module_from_spec(spec)
+        sys.modules[spec.name] = module  # its functions pickle by name into the isolated child
         try:
             spec.loader.exec_module(module)
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the teacher's file: one line
+            sys.modules.pop(spec.name, None)
             raise InputError(f"grader.py does not import: {type(exc).__name__}: "
                              f"{exc.msg if isinstance(exc, SyntaxError) else exc}",
                              file=path, line=_line_in(exc, path),

@@ -21,13 +21,12 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.exercises.exercise import Exercise
-from mexone.exercises.isolate import SubmissionFailed, run_isolated
+from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, prewarm, run_isolated
 from mexone.exercises.sim import Variation, simulate
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
-           "submissions_in", "SECRET_ENV"]
+           "submissions_in", "not_handed_in", "SECRET_ENV"]
 
-SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret, mixed into every exercise's
 
 
 @dataclass
@@ -101,7 +100,15 @@ class GradeContext:
         return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)
 
     def simulate(self, duration: float, **kwargs):
-        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays."""
+        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays. A routine
+        runs in a process of its own there (no model, no variation), unless it is mexone's
+        shipped one or a file of the exercise's own folder (the teacher's, trusted)."""
+        routine = kwargs.get("routine")
+        if routine is not None and "own_process" not in kwargs and Path(routine).is_file():
+            path = Path(routine).resolve()
+            if path != self.submission.resolve() \
+                    and path.is_relative_to(self.exercise.folder.resolve()):
+                kwargs["own_process"] = False
         return self.run(simulate, duration, **kwargs)
 
     def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:
@@ -180,6 +187,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     if not submission.is_file():
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
+    prewarm()  # the runs' fork server starts while the grader imports and draws
     grader = exercise.grader()
     began = time.monotonic()
     per_seed: list[list[Check]] = []
@@ -244,15 +252,36 @@ def gradescope_json(result: Result) -> dict:
 
 def submissions_in(folder: Path, file: str) -> dict[str, Path]:
     """A folder of submissions: each student a subfolder holding `file`, or a file of the
-    same kind (its stem is the student's name)."""
-    found = {}
+    same kind (its stem is the student's name; .yml counts as .yaml). A subfolder without
+    `file` is a student too, mapped to the missing path (not_handed_in grades it 0, with why):
+    no student drops out of the CSV. Two submissions of one student are refused."""
+    found: dict[str, Path] = {}
     suffix = Path(file).suffix
+    kinds = {".yaml", ".yml"} if suffix in (".yaml", ".yml") else {suffix}
     for entry in sorted(folder.iterdir()):
-        if entry.is_dir() and (entry / file).is_file():
-            found[entry.name] = entry / file
-        elif entry.is_file() and entry.suffix == suffix:
-            found[entry.stem] = entry
+        if entry.name.startswith("."):
+            continue
+        if entry.is_dir():
+            student, path = entry.name, entry / file
+        elif entry.is_file() and entry.suffix in kinds:
+            student, path = entry.stem, entry
+        else:
+            continue
+        if student in found:
+            raise InputError(f"two submissions of {student}: {found[student]} and {path}",
+                             hint="keep one of them in the folder")
+        found[student] = path
     return found
+
+
+def not_handed_in(exercise: Exercise, path: Path) -> Result:
+    """0 points for a student's subfolder without the exercise's file, saying what it holds."""
+    held = sorted(p.name for p in path.parent.iterdir()) if path.parent.is_dir() else []
+    reason = f"no {exercise.file} in {path.parent}" + (
+        f" (it holds {', '.join(held[:5])}{', ...' if len(held) > 5 else ''}: hand in "
+        f"{exercise.file})" if held else " (it is empty)")
+    return Result(exercise, path, 0.0, [(Check("runs", 0.0, 1.0, reason), 0.0, exercise.points)],
+                  reason)
 
 
 def write_csv(results: dict[str, Result], path: Path) -> None:

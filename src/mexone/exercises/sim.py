@@ -66,11 +66,15 @@ class Run:
 def simulate(duration: float, routine: str | Path | None = None,
              controllers: str | Path | None = None, model: str | Path | None = None,
              variation: Variation = Variation(), params: dict | None = None,
-             raise_routine_errors: bool = True) -> Run:
+             raise_routine_errors: bool = True, own_process: bool | None = None) -> Run:
     """Build the lab (the built-in Mex-One unless `model`; its controllers unless
     `controllers`), apply `variation`, run `routine` (a routine file or shipped name) for
     `duration` s of sim time (held to the end if it returns first), and sample every
-    position-controlled joint and the base. Call it through GradeContext.run: in the child."""
+    position-controlled joint and the base. Call it through GradeContext.run: in the child.
+
+    own_process: the routine runs in a process of its own (routines.isolated: no lab, no model,
+    the child's CPU and memory limits), talking to this one through mexone.rospy only; default:
+    every routine but mexone's shipped ones (which need the lab's model)."""
     try:
         lab = Lab.create(model=model, controllers=controllers, edits=[variation.edit])
     except MexoneError as exc:
@@ -99,9 +103,19 @@ def simulate(duration: float, routine: str | Path | None = None,
     error = None
     try:
         if routine is not None:
-            from mexone.routines.runner import RoutineRunner
+            from mexone.routines.runner import RoutineRunner, shipped_routines
 
-            runner = RoutineRunner(lab, routine, params or {})
+            if own_process is None:
+                own_process = str(routine) not in shipped_routines()
+            if own_process:
+                from mexone.exercises.isolate import active_limits
+                from mexone.routines.isolated import IsolatedRoutineRunner
+
+                limits = active_limits()
+                runner = IsolatedRoutineRunner(lab, routine, params or {}, cpu=limits.cpu,
+                                               memory_mb=limits.memory_mb)
+            else:
+                runner = RoutineRunner(lab, routine, params or {})
             runner.run(duration, hold=True)
         else:
             sim.run(duration)

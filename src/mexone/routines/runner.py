@@ -195,14 +195,7 @@ class RoutineRunner:
         self.scheduler.enter(context)
         ready.set()
         try:
-            for key, value in entry.private.items():
-                if key == "__name":
-                    context.name_remap = str(value)
-                elif key.startswith("_"):  # ~x under the node's name: init_node moves it
-                    context.private[key[1:]] = value
-                    self.params[f"{context.node_name}/{key[1:]}"] = value
-                else:
-                    self.params["/" + key.lstrip("/")] = value
+            self._arguments(entry)
             sandbox.run_path(entry.path)
         except Shutdown:  # rospy's ROSInterruptException is one
             pass
@@ -219,6 +212,18 @@ class RoutineRunner:
                 entry.error = context.abandoned
             self.scheduler.leave()
             bind(None)
+
+    def _arguments(self, entry: Routine) -> None:
+        """The routine's name:=value arguments, where rosrun puts them (its thread, first)."""
+        context = entry.context
+        for key, value in entry.private.items():
+            if key == "__name":
+                context.name_remap = str(value)
+            elif key.startswith("_"):  # ~x under the node's name: init_node moves it
+                context.private[key[1:]] = value
+                self.params[f"{context.node_name}/{key[1:]}"] = value
+            else:
+                self.params["/" + key.lstrip("/")] = value
 
     def run(self, duration: float | None, on_tick=None, tick: float = 0.05,
             default: float = DEFAULT_DURATION, hold: bool = False) -> None:

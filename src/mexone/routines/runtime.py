@@ -23,9 +23,12 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from mexone.errors import MexoneError
-from mexone.lab import Lab
+
+if TYPE_CHECKING:  # a routine's own process (routines.remote) has no lab: no MuJoCo to import
+    from mexone.lab import Lab
 
 __all__ = ["Scheduler", "RoutineContext", "Shutdown", "Forked", "current", "bind", "busy",
            "STALL_SECONDS", "BUSY_SECONDS"]

@@ -69,8 +69,16 @@ def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Call
         return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
                           edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
     except MexoneError as exc:  # the student's class did not load: its one line is the reason
-        raise SubmissionFailed(exc.one_line().replace(str(yaml_path), "the grader's "
-                                                      "controllers.yaml")) from None
+        raise SubmissionFailed(_students_line(exc, yaml_path)) from None
+
+
+def _students_line(exc: MexoneError, yaml_path: Path) -> str:
+    """The error's one line as the student reads it: their file by its name (not the grader's
+    temporary copy's path), the grader's YAML so named, no hint meant for the GUI's Reload."""
+    if exc.hint and "Reload" in exc.hint:
+        exc.hint = None
+    text = exc.one_line().replace(str(yaml_path), "the grader's controllers.yaml")
+    return text.replace(str(yaml_path.parent) + "/", "")
 
 
 def controller_fault(lab: Lab, name: str) -> str | None:
