@@ -162,6 +162,8 @@ class Scheduler:
             if not self._cond.wait_for(self._all_waiting, timeout=self.poll):
                 self._abandon_stalled()
                 return None
+            if self.stopped:  # the routines are ending: none of them gates the simulation now
+                return math.inf
             now = []
             for t in self._threads.values():
                 due = t.context.mailbox or (t.wait.ready is not None and t.wait.ready())
