@@ -147,6 +147,7 @@ class Ros2Bridge:
         self._tf_setup()
         self.sync_topics()
         self._services()
+        self._controller_manager()
         self.params = Parameters(self)
         lab.sim.recover_outside = True  # no input from the graph may end the simulation
         self.ready.set()
@@ -168,6 +169,19 @@ class Ros2Bridge:
                     log.warning("%s: %s", _name, _text(exc))
                 return response
             self._service_handles.append(self.node.create_service(Empty, name, handler))
+
+    def _controller_manager(self) -> None:
+        """ros2_control's services under /controller_manager/ when controller_manager_msgs is
+        built (`python -m mexone.ros2.interfaces`: it has no wheel)."""
+        self.controller_manager = None
+        if self.lab.controllers is None:
+            return
+        if convert.message_class("controller_manager_msgs/ControllerState") is None:
+            self._skip_package("/controller_manager/... services", "controller_manager_msgs")
+            return
+        from mexone.ros2.controller_manager import ControllerManagerServices
+
+        self.controller_manager = ControllerManagerServices(self)
 
     # ----- topics ------------------------------------------------------------------------------
     def sync_topics(self) -> None:
@@ -206,7 +220,9 @@ class Ros2Bridge:
     def _skip(self, name: str, bus_type: type) -> None:
         """A type whose message package has no ROS 2 wheel (tf2_msgs, control_msgs,
         gazebo_msgs): said once, at info level (docs/ros2.md says what to do instead)."""
-        package = ros_map.package_of(bus_type)
+        self._skip_package(name, ros_map.package_of(bus_type))
+
+    def _skip_package(self, name: str, package: str) -> None:
         if package not in self._skipped:
             self._skipped.add(package)
             from mexone.ros2 import interfaces

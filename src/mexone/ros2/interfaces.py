@@ -28,7 +28,7 @@ from mexone.errors import MexoneError
 __all__ = ["SHARE", "PACKAGES", "BUILD_INSTALL", "build", "missing"]
 
 SHARE = Path(__file__).resolve().parent / "share"
-PACKAGES = ("tf2_msgs", "control_msgs")
+PACKAGES = ("tf2_msgs", "control_msgs", "controller_manager_msgs")
 BUILD_INSTALL = "pip install 'mexone[ros2-build]' (and apt-get install cmake g++)"
 _PYTHON_TOOLS = ("ament_package", "catkin_pkg", "rosidl_adapter", "rosidl_generator_py")
 
