@@ -265,3 +265,14 @@ def test_building_messages_without_tools_is_one_line(monkeypatch, tmp_path):
     assert "needs 'cmake'" in caught.value.one_line() and "ros2-build" in caught.value.one_line()
     assert (interfaces.SHARE / "tf2_msgs" / "msg" / "TFMessage.msg").read_text().strip() == \
         "geometry_msgs/TransformStamped[] transforms"  # the official definition, field for field
+
+
+def test_hand_built_cdr_is_what_rclpy_serializes(python):
+    """The bridge sends joint states and /clock as CDR bytes it builds itself (cdr.py, for speed):
+    byte for byte rclpy's own serialization (rosidl's type support), for generated messages."""
+    done = subprocess.run([python, str(HERE / "cdr_check.py")], env=ros2_env(),
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["mismatch"] is None, report["mismatch"]
+    assert report["joint_states"] >= 300 and report["clocks"] >= 100

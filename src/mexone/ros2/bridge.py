@@ -15,6 +15,7 @@ node subscribes (polled between steps), so nobody pays for what nobody reads.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -23,7 +24,7 @@ from collections.abc import Callable
 from mexone.bus import msgs, ros_map
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
-from mexone.ros2 import convert
+from mexone.ros2 import cdr, convert
 
 __all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFAULT_NODE",
            "CLOCK_FREQUENCY"]
@@ -67,6 +68,9 @@ class _Mirror:
         self.bridge, self.topic, self.cls = bridge, topic, cls
         self.publisher = bridge.node.create_publisher(cls, topic, _qos(ros_map.qos_of(bus_type)))
         self.sub = None
+        encoder = cdr.ENCODERS.get(ros_map.ros_type(bus_type) or "")
+        # the busiest types go out as CDR bytes built here (cdr.py says why), the rest as objects
+        self.encode = encoder() if encoder is not None else lambda msg: convert.to_ros2(msg, cls)
 
     def update(self) -> None:  # simulation thread
         wanted = self.publisher.get_subscription_count() > 0
@@ -79,7 +83,7 @@ class _Mirror:
             self.sub = None
 
     def forward(self, msg) -> None:
-        self.publisher.publish(convert.to_ros2(msg, self.cls))
+        self.publisher.publish(self.encode(msg))
 
 
 class Ros2Bridge:
@@ -111,11 +115,11 @@ class Ros2Bridge:
         self.params = None
 
     def _spin_loop(self) -> None:
-        try:
-            while self.context.ok():
-                self.executor.spin_once(timeout_sec=0.2)
-        except Exception:  # noqa: BLE001 - shutdown while spinning
-            pass
+        """rclpy's callbacks, woken only by work (a message, a request) or by shutdown: a
+        timeout would rebuild the executor's wait set (every subscription and service) for
+        nothing, several times a second."""
+        with contextlib.suppress(Exception):  # shutdown while spinning
+            self.executor.spin()
 
     # ----- attach ------------------------------------------------------------------------------
     def attach(self, lab, urdf_text: str) -> None:
@@ -314,11 +318,8 @@ class Ros2Bridge:
             self._send_clock(t_ns, now)
 
     def _send_clock(self, t_ns: int, wall: float) -> None:
-        from builtin_interfaces.msg import Time
-
         self._last_clock_wall = wall
-        sec, nanosec = divmod(t_ns, 1_000_000_000)
-        self.pub_clock.publish(self._clock_cls(clock=Time(sec=sec, nanosec=nanosec)))
+        self.pub_clock.publish(cdr.clock(t_ns))
 
     def _after_reset(self) -> None:
         self._send_clock(0, time.perf_counter())
