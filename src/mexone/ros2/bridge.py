@@ -278,11 +278,21 @@ class Ros2Bridge:
             return
         self._tf_class = tf_class
         self.pub_tf = self.node.create_publisher(tf_class, "/tf", _qos(ros_map.TF))
-        self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+        self._update_tf()
+
+    def _update_tf(self) -> None:
+        """The 50 Hz /tf timer runs only while someone subscribes (polled with the mirrors): a
+        timer firing for nobody costs the simulation thread a pause 50 times a sim second."""
+        if self.pub_tf is None:
+            return
+        wanted = self.lab.sim.compiled.free and self.pub_tf.get_subscription_count() > 0
+        if wanted and self._tf_timer is None:
+            self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+        elif not wanted and self._tf_timer is not None:
+            self.lab.sim.remove_periodic(self._tf_timer)
+            self._tf_timer = None
 
     def _publish_base_tf(self, sim) -> None:
-        if not sim.compiled.free or self.pub_tf.get_subscription_count() == 0:
-            return
         base = self.lab.base_transform()
         if base is None:
             return
@@ -333,6 +343,7 @@ class Ros2Bridge:
             self._last_poll = now
             for mirror in self._mirrors.values():
                 mirror.update()
+            self._update_tf()
         lab_sim = self.lab.sim
         if lab_sim.paused and now - self._last_clock_wall >= _PAUSED_CLOCK:
             self._send_clock(lab_sim.time_ns, now)

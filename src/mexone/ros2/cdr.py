@@ -13,15 +13,12 @@ compares them), so a reader cannot tell the difference.
 from __future__ import annotations
 
 import struct
-import sys
-from array import array
 
 __all__ = ["clock", "joint_state", "ENCODERS"]
 
 _ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR_LE: the payload's offsets count from after it
 _STAMP = struct.Struct("<iI")
 _UINT32 = struct.Struct("<I")
-_SWAP = sys.byteorder != "little"
 
 
 def clock(t_ns: int) -> bytes:
@@ -35,16 +32,19 @@ def _string(out: bytearray, text: str) -> None:
     out += _UINT32.pack(len(data) + 1) + data + b"\x00"
 
 
-def _doubles(out: bytearray, values) -> None:
-    """A float64 sequence: its length (4-aligned), then the values (8-aligned if any)."""
-    out += b"\x00" * (-len(out) % 4)
-    out += _UINT32.pack(len(values))
-    if values:
-        out += b"\x00" * (-len(out) % 8)
-        data = array("d", values)
-        if _SWAP:
-            data.byteswap()
-        out += data.tobytes()
+def _doubles_format(offset: int, counts: tuple[int, ...]) -> struct.Struct:
+    """float64 sequences from payload offset `offset`: each its uint32 length (4-aligned), then
+    its values (8-aligned when there are any), padding as CDR puts it."""
+    fmt = ["<"]
+    for n in counts:
+        pad = -offset % 4
+        fmt.append(f"{pad}xI")
+        offset += pad + 4
+        if n:
+            pad = -offset % 8
+            fmt.append(f"{pad}x{n}d")
+            offset += pad + 8 * n
+    return struct.Struct("".join(fmt))
 
 
 class _JointStateEncoder:
@@ -54,6 +54,7 @@ class _JointStateEncoder:
     def __init__(self) -> None:
         self._key: tuple[str, list[str]] | None = None
         self._prefix = b""
+        self._tails: dict[tuple[int, ...], struct.Struct] = {}
 
     def __call__(self, msg) -> bytes:
         frame, names = msg.header.frame_id, msg.name
@@ -65,12 +66,16 @@ class _JointStateEncoder:
             for name in names:
                 _string(prefix, name)
             self._key, self._prefix = (frame, list(names)), bytes(prefix[8:])
+            self._tails = {}
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
+        counts = (len(position), len(velocity), len(effort))
+        tail = self._tails.get(counts)
+        if tail is None:
+            tail = self._tails[counts] = _doubles_format(8 + len(self._prefix), counts)
         stamp = msg.header.stamp
-        out = bytearray(_STAMP.pack(stamp.secs, stamp.nsecs))  # offset 0 of the payload
-        out += self._prefix
-        for values in (msg.position, msg.velocity, msg.effort):
-            _doubles(out, values)
-        return _ENCAPSULATION + out
+        return b"".join((_ENCAPSULATION, _STAMP.pack(stamp.secs, stamp.nsecs), self._prefix,
+                         tail.pack(counts[0], *position, counts[1], *velocity, counts[2],
+                                   *effort)))
 
 
 def joint_state() -> _JointStateEncoder:
