@@ -6,7 +6,8 @@
 Each mode's CPU (user + system of the simulator's process) is measured for a long and a shorter
 run (1/3 of it); the difference over the sim-time difference leaves every one-time cost out
 (imports, compiling, joining the graph, discovery with the listener). Best of 5 per mode, modes
-interleaved.
+interleaved. Then the paired measurement, steadier on a loaded machine: a plain Lab and a Lab
+with the bridge in one process, run back to back PAIRS times; the median of the pairs' ratios.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import sys
 import textwrap
 
 PYTHON = os.environ.get("MEXONE_ROS2_PYTHON", sys.executable)
+PAIRS = 9  # plain and bridged runs back to back in one process; the ratio is their median
 LISTENER = textwrap.dedent("""
     import os
     import rclpy
@@ -51,10 +53,10 @@ def cpu(args: list[str], seconds: float, env: dict) -> float:
 
 
 PAIRED = textwrap.dedent("""
-    import sys, time
+    import statistics, sys, time
     from mexone.lab import Lab
     from mexone.ros2.bridge import Ros2Bridge
-    seconds = float(sys.argv[1])
+    seconds, rounds = float(sys.argv[1]), int(sys.argv[2])
     plain, joined = Lab.create(), Lab.create()
     bridge = Ros2Bridge("bench")
     bridge.attach(joined, "<robot name='bench'/>")
@@ -63,12 +65,14 @@ PAIRED = textwrap.dedent("""
         lab.sim.run(seconds, tick=0.01, on_tick=hook)
         return (time.process_time() - start) / seconds
     cpu(joined, lambda _s: bridge.pump())  # discovery, the listener subscribes
-    per = {"plain": [], "ros2": []}
-    for _ in range(5):
+    ratios, per = [], {"plain": [], "ros2": []}
+    for _ in range(rounds):  # each pair back to back: the load's drift cancels in the ratio
         per["plain"].append(cpu(plain, None))
         per["ros2"].append(cpu(joined, lambda _s: bridge.pump()))
+        ratios.append(per["ros2"][-1] / per["plain"][-1])
     bridge.shutdown()
-    print(min(per["plain"]), min(per["ros2"]))
+    print(statistics.median(per["plain"]), statistics.median(per["ros2"]),
+          statistics.median(ratios), min(ratios), max(ratios))
 """)
 
 
@@ -86,9 +90,9 @@ def main() -> None:
                 start_up = cpu(args, short, env)
                 per[mode].append((long_run - start_up) / (sim_seconds - short))
         # the same two runs in one process, alternating: no start-up, less of the load's drift
-        out = subprocess.run([PYTHON, "-c", PAIRED, str(sim_seconds / 6)], env=env, check=True,
-                             capture_output=True, text=True).stdout.split()
-        paired_plain, paired_ros2 = float(out[-2]), float(out[-1])
+        out = subprocess.run([PYTHON, "-c", PAIRED, str(sim_seconds / 6), str(PAIRS)], env=env,
+                             check=True, capture_output=True, text=True).stdout.split()
+        paired_plain, paired_ros2, ratio, low, high = (float(v) for v in out[-5:])
     finally:
         listener.terminate()
         listener.wait(timeout=30)
@@ -96,8 +100,9 @@ def main() -> None:
     print(f"plain --headless --rtf 0, CPU s per sim s      {plain:.4f}")
     print(f"--ros2 (a node on /clock + joint_states), CPU s/sim s {ros2:.4f}")
     print(f"--ros2 cost ratio (target <= 1.25)             {ros2 / plain:.3f}")
-    print(f"same, one process, alternating 5 x {sim_seconds / 6:g} s: plain {paired_plain:.4f}, "
-          f"with the bridge {paired_ros2:.4f}, ratio {paired_ros2 / paired_plain:.3f}")
+    print(f"same, one process, {PAIRS} pairs x {sim_seconds / 6:g} s: plain {paired_plain:.4f}, "
+          f"with the bridge {paired_ros2:.4f} (medians), ratio median {ratio:.3f} "
+          f"({low:.2f}-{high:.2f}), load {os.getloadavg()[0]:.1f}")
 
 
 if __name__ == "__main__":

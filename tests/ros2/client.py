@@ -61,6 +61,10 @@ try:  # the same, for the controllers' state topics
     node.create_subscription(JointControllerState, f"{CONTROLLER}/state", keep("state"), 10)
 except ImportError:
     JointControllerState = None
+try:  # the same, for ros2_control's controller manager services
+    from controller_manager_msgs import srv as cm
+except ImportError:
+    cm = None
 commands = node.create_publisher(Float64MultiArray, f"{CONTROLLER}/commands", 10)
 command_ros1 = node.create_publisher(Float64, f"{NS}/waist_yaw_position_controller/command", 10)
 trajectory = node.create_publisher(JointTrajectory, f"{NS}/r_arm_controller/joint_trajectory", 10)
@@ -188,7 +192,76 @@ out["gain_warnings"] = rosout_since(start)
 out["gain_after_refusals"] = call(get_params, GetParameters.Request(names=[GAIN])).values[0] \
     .double_value
 
-# 5. reset: /clock starts again from 0
+# 5. ros2_control's controller manager services (controller_manager_msgs, built like tf2_msgs)
+if cm is not None:
+    cm_clients: dict = {}
+
+    def cm_call(name, request):
+        """/controller_manager/<name>; its type is the request's service (ListControllers, ...)."""
+        kind = getattr(cm, type(request).__name__.removesuffix("_Request"))
+        if name not in cm_clients:
+            cm_clients[name] = node.create_client(kind, f"/controller_manager/{name}")
+        return call(cm_clients[name], request)
+
+    def controllers():
+        reply = cm_call("list_controllers", cm.ListControllers.Request())
+        return {c.name: {"state": c.state, "type": c.type, "claimed": list(c.claimed_interfaces),
+                         "required": list(c.required_command_interfaces)}
+                for c in reply.controller}
+
+    def switch(activate=(), deactivate=(), strictness=cm.SwitchController.Request.STRICT):
+        start = time.monotonic()
+        reply = cm_call("switch_controller", cm.SwitchController.Request(
+            activate_controllers=list(activate), deactivate_controllers=list(deactivate),
+            strictness=strictness))
+        if not reply.ok:
+            spin_until(lambda: rosout_since(start), 10)
+        return [reply.ok, reply.message, rosout_since(start)]
+
+    def hold_for(seconds):
+        begin = sim_time(seen["clock"][-1][1])
+        spin_until(lambda: sim_time(seen["clock"][-1][1]) >= begin + seconds, 20)
+
+    ctrl, alt = f"{JOINT}_position_controller", f"{JOINT}_effort_controller"
+    out["cm_list"] = controllers()
+    hw = cm_call("list_hardware_interfaces", cm.ListHardwareInterfaces.Request())
+    out["cm_hw"] = {"command": [i.name for i in hw.command_interfaces],
+                    "claimed": [i.name for i in hw.command_interfaces if i.is_claimed],
+                    "state": [i.name for i in hw.state_interfaces]}
+    out["cm_types"] = list(cm_call("list_controller_types", cm.ListControllerTypes.Request()).types)
+    # refusals: unknown, a joint two controllers would claim, an active one to unload
+    out["cm_unknown"] = switch(activate=["no_such_controller"])
+    out["cm_conflict"] = switch(activate=[alt])
+    start = time.monotonic()
+    out["cm_unload_active"] = cm_call("unload_controller",
+                                      cm.UnloadController.Request(name=ctrl)).ok
+    out["cm_load_unknown"] = cm_call("load_controller",
+                                     cm.LoadController.Request(name="no_such_controller")).ok
+    spin_until(lambda: len(rosout_since(start)) >= 2, 10)
+    out["cm_refusal_warnings"] = rosout_since(start)
+    out["cm_best_effort_again"] = switch(activate=[ctrl],
+                                         strictness=cm.SwitchController.Request.BEST_EFFORT)[0]
+    # deactivate: a command then does nothing; activate again: it reaches its target
+    held = position(JOINT)
+    out["cm_deactivate"] = switch(deactivate=[ctrl])
+    out["cm_after_deactivate"] = controllers()[ctrl]
+    commands.publish(Float64MultiArray(data=[0.0]))
+    hold_for(0.5)
+    out["cm_held"], out["cm_while_inactive"] = held, position(JOINT)
+    out["cm_activate"] = switch(activate=[ctrl])
+    out["cm_after_activate"] = controllers()[ctrl]
+    commands.publish(Float64MultiArray(data=[0.1]))
+    spin_until(lambda: abs((position(JOINT) or 0) - 0.1) <= 0.001, 20)
+    out["cm_reached_after_activate"] = position(JOINT)
+    # unload, load and configure the inactive alternative
+    out["cm_unload"] = cm_call("unload_controller", cm.UnloadController.Request(name=alt)).ok
+    out["cm_unloaded_listed"] = alt in controllers()
+    out["cm_load"] = cm_call("load_controller", cm.LoadController.Request(name=alt)).ok
+    out["cm_configure"] = cm_call("configure_controller",
+                                  cm.ConfigureController.Request(name=alt)).ok
+    out["cm_loaded_state"] = controllers().get(alt, {}).get("state")
+
+# 6. reset: /clock starts again from 0
 before = sim_time(seen["clock"][-1][1])
 start = time.monotonic()
 call(reset, Empty.Request())

@@ -59,7 +59,8 @@ def python():
 
 
 def controllers_with_a_trajectory_controller(folder: Path) -> Path:
-    """Mex-One's controllers with the right arm under one joint_trajectory_controller."""
+    """Mex-One's controllers with the right arm under one joint_trajectory_controller, and an
+    alternative for the neck's yaw (loaded inactive: the position controller claims the joint)."""
     import yaml
 
     from mexone.robots import mex_one
@@ -72,8 +73,10 @@ def controllers_with_a_trajectory_controller(folder: Path) -> Path:
         del ns[f"{joint}_position_controller"]
     ns["r_arm_controller"] = {"type": "effort_controllers/JointTrajectoryController",
                               "joints": list(gains), "gains": gains}
+    ns["neck_yaw_effort_controller"] = {"type": "effort_controllers/JointEffortController",
+                                        "joint": "neck_yaw"}
     path = folder / "controllers.yaml"
-    path.write_text(yaml.safe_dump(config))
+    path.write_text(yaml.safe_dump(config, sort_keys=False))  # the YAML order: which starts
     return path
 
 
@@ -157,6 +160,62 @@ def test_gain_parameter_sets_and_bad_values_are_refused(acceptance):
     assert acceptance["gain_after_refusals"] == 77.5  # a refused set changes nothing
 
 
+def test_controller_manager_lists_controllers_and_interfaces(acceptance):
+    """ros2_control's /controller_manager/list_controllers and list_hardware_interfaces
+    (controller_manager_msgs, built from its official definitions like tf2_msgs)."""
+    assert "cm_list" in acceptance, "controller_manager_msgs is not built in the ROS 2 environment"
+    listed = acceptance["cm_list"]
+    neck = listed["neck_yaw_position_controller"]
+    assert neck == {"state": "active", "type": "effort_controllers/JointPositionController",
+                    "claimed": ["neck_yaw/effort"], "required": ["neck_yaw/effort"]}
+    assert listed["neck_yaw_effort_controller"]["state"] == "inactive"
+    assert listed["neck_yaw_effort_controller"]["claimed"] == []
+    assert listed["r_arm_controller"]["claimed"] == ["r_shoulder_pitch/effort", "r_elbow/effort"]
+    assert listed["joint_state_controller"] == {
+        "state": "active", "type": "joint_state_controller/JointStateController", "claimed": [],
+        "required": []}
+    joints = {h.name for h in params.hinges()}  # Mex-One's, every one with a transmission
+    assert set(acceptance["cm_hw"]["command"]) == {f"{j}/{i}" for j in joints
+                                                   for i in ("position", "velocity", "effort")}
+    claimed = {c for entry in listed.values() if entry["state"] == "active"
+               for c in entry["claimed"]}
+    assert set(acceptance["cm_hw"]["claimed"]) == claimed and "neck_yaw/effort" in claimed
+    assert "effort_controllers/JointTrajectoryController" in acceptance["cm_types"]
+
+
+def test_controller_manager_refuses_bad_requests_on_rosout(acceptance):
+    ok, message, warnings = acceptance["cm_unknown"]
+    assert not ok and "no_such_controller" in message and any("no_such_controller" in w
+                                                               for w in warnings)
+    ok, message, warnings = acceptance["cm_conflict"]
+    assert not ok and "driven by 'neck_yaw_position_controller'" in message
+    assert any("switch_controller" in w and "neck_yaw" in w for w in warnings)
+    assert acceptance["cm_unload_active"] is False and acceptance["cm_load_unknown"] is False
+    assert any("it is running" in w for w in acceptance["cm_refusal_warnings"])
+    assert acceptance["cm_best_effort_again"] is True  # already active: fine under BEST_EFFORT
+    assert acceptance["still_running"] and "Traceback" not in acceptance["sim_stderr"]
+
+
+def test_switch_controller_deactivates_and_restores(acceptance):
+    ok, message, _ = acceptance["cm_deactivate"]
+    assert ok and "deactivated neck_yaw_position_controller" in message
+    assert acceptance["cm_after_deactivate"]["state"] == "inactive"
+    assert acceptance["cm_after_deactivate"]["claimed"] == []
+    # a command to an inactive controller does nothing: the neck stays where it was, not at 0
+    assert acceptance["cm_while_inactive"] == pytest.approx(acceptance["cm_held"], abs=0.02)
+    assert abs(acceptance["cm_while_inactive"]) > 0.2
+    assert acceptance["cm_activate"][0] is True
+    assert acceptance["cm_after_activate"] == {**acceptance["cm_list"][
+        "neck_yaw_position_controller"]}
+    assert acceptance["cm_reached_after_activate"] == pytest.approx(0.1, abs=0.001)
+
+
+def test_controller_manager_unload_load_configure(acceptance):
+    assert acceptance["cm_unload"] is True and acceptance["cm_unloaded_listed"] is False
+    assert acceptance["cm_load"] is True and acceptance["cm_configure"] is True
+    assert acceptance["cm_loaded_state"] == "inactive"
+
+
 def test_reset_restarts_clock_at_zero(acceptance):
     assert acceptance["clock_before_reset"] > 1.0
     assert acceptance["clock_after_reset"] == pytest.approx(0.0, abs=0.05)
@@ -206,3 +265,14 @@ def test_building_messages_without_tools_is_one_line(monkeypatch, tmp_path):
     assert "needs 'cmake'" in caught.value.one_line() and "ros2-build" in caught.value.one_line()
     assert (interfaces.SHARE / "tf2_msgs" / "msg" / "TFMessage.msg").read_text().strip() == \
         "geometry_msgs/TransformStamped[] transforms"  # the official definition, field for field
+
+
+def test_hand_built_cdr_is_what_rclpy_serializes(python):
+    """The bridge sends joint states and /clock as CDR bytes it builds itself (cdr.py, for speed):
+    byte for byte rclpy's own serialization (rosidl's type support), for generated messages."""
+    done = subprocess.run([python, str(HERE / "cdr_check.py")], env=ros2_env(),
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-3000:]
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    assert report["mismatch"] is None, report["mismatch"]
+    assert report["joint_states"] >= 300 and report["clocks"] >= 100

@@ -15,6 +15,7 @@ node subscribes (polled between steps), so nobody pays for what nobody reads.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -24,7 +25,7 @@ from mexone.bus import msgs, ros_map
 from mexone.bus.clock import clock_period_ns, respace
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
-from mexone.ros2 import convert
+from mexone.ros2 import cdr, convert
 
 __all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFAULT_NODE",
            "CLOCK_FREQUENCY"]
@@ -68,6 +69,9 @@ class _Mirror:
         self.bridge, self.topic, self.cls = bridge, topic, cls
         self.publisher = bridge.node.create_publisher(cls, topic, _qos(ros_map.qos_of(bus_type)))
         self.sub = None
+        encoder = cdr.ENCODERS.get(ros_map.ros_type(bus_type) or "")
+        # the busiest types go out as CDR bytes built here (cdr.py says why), the rest as objects
+        self.encode = encoder() if encoder is not None else lambda msg: convert.to_ros2(msg, cls)
 
     def update(self) -> None:  # simulation thread
         wanted = self.publisher.get_subscription_count() > 0
@@ -80,7 +84,7 @@ class _Mirror:
             self.sub = None
 
     def forward(self, msg) -> None:
-        self.publisher.publish(convert.to_ros2(msg, self.cls))
+        self.publisher.publish(self.encode(msg))
 
 
 class Ros2Bridge:
@@ -112,11 +116,11 @@ class Ros2Bridge:
         self.params = None
 
     def _spin_loop(self) -> None:
-        try:
-            while self.context.ok():
-                self.executor.spin_once(timeout_sec=0.2)
-        except Exception:  # noqa: BLE001 - shutdown while spinning
-            pass
+        """rclpy's callbacks, woken only by work (a message, a request) or by shutdown: a
+        timeout would rebuild the executor's wait set (every subscription and service) for
+        nothing, several times a second."""
+        with contextlib.suppress(Exception):  # shutdown while spinning
+            self.executor.spin()
 
     # ----- attach ------------------------------------------------------------------------------
     def attach(self, lab, urdf_text: str) -> None:
@@ -148,6 +152,7 @@ class Ros2Bridge:
         self._tf_setup()
         self.sync_topics()
         self._services()
+        self._controller_manager()
         self.params = Parameters(self)
         lab.sim.recover_outside = True  # no input from the graph may end the simulation
         self.ready.set()
@@ -169,6 +174,19 @@ class Ros2Bridge:
                     log.warning("%s: %s", _name, _text(exc))
                 return response
             self._service_handles.append(self.node.create_service(Empty, name, handler))
+
+    def _controller_manager(self) -> None:
+        """ros2_control's services under /controller_manager/ when controller_manager_msgs is
+        built (`python -m mexone.ros2.interfaces`: it has no wheel)."""
+        self.controller_manager = None
+        if self.lab.controllers is None:
+            return
+        if convert.message_class("controller_manager_msgs/ControllerState") is None:
+            self._skip_package("/controller_manager/... services", "controller_manager_msgs")
+            return
+        from mexone.ros2.controller_manager import ControllerManagerServices
+
+        self.controller_manager = ControllerManagerServices(self)
 
     # ----- topics ------------------------------------------------------------------------------
     def sync_topics(self) -> None:
@@ -207,7 +225,9 @@ class Ros2Bridge:
     def _skip(self, name: str, bus_type: type) -> None:
         """A type whose message package has no ROS 2 wheel (tf2_msgs, control_msgs,
         gazebo_msgs): said once, at info level (docs/ros2.md says what to do instead)."""
-        package = ros_map.package_of(bus_type)
+        self._skip_package(name, ros_map.package_of(bus_type))
+
+    def _skip_package(self, name: str, package: str) -> None:
         if package not in self._skipped:
             self._skipped.add(package)
             from mexone.ros2 import interfaces
@@ -259,11 +279,21 @@ class Ros2Bridge:
             return
         self._tf_class = tf_class
         self.pub_tf = self.node.create_publisher(tf_class, "/tf", _qos(ros_map.TF))
-        self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+        self._update_tf()
+
+    def _update_tf(self) -> None:
+        """The 50 Hz /tf timer runs only while someone subscribes (polled with the mirrors): a
+        timer firing for nobody costs the simulation thread a pause 50 times a sim second."""
+        if self.pub_tf is None:
+            return
+        wanted = self.lab.sim.compiled.free and self.pub_tf.get_subscription_count() > 0
+        if wanted and self._tf_timer is None:
+            self._tf_timer = self.lab.sim.add_periodic(0.02, self._publish_base_tf)
+        elif not wanted and self._tf_timer is not None:
+            self.lab.sim.remove_periodic(self._tf_timer)
+            self._tf_timer = None
 
     def _publish_base_tf(self, sim) -> None:
-        if not sim.compiled.free or self.pub_tf.get_subscription_count() == 0:
-            return
         base = self.lab.base_transform()
         if base is None:
             return
@@ -298,11 +328,8 @@ class Ros2Bridge:
             self._send_clock(t_ns, now)
 
     def _send_clock(self, t_ns: int, wall: float) -> None:
-        from builtin_interfaces.msg import Time
-
         self._last_clock_wall = wall
-        sec, nanosec = divmod(t_ns, 1_000_000_000)
-        self.pub_clock.publish(self._clock_cls(clock=Time(sec=sec, nanosec=nanosec)))
+        self.pub_clock.publish(cdr.clock(t_ns))
 
     def _after_reset(self) -> None:
         self._send_clock(0, time.perf_counter())
@@ -316,6 +343,7 @@ class Ros2Bridge:
             self._last_poll = now
             for mirror in self._mirrors.values():
                 mirror.update()
+            self._update_tf()
         lab_sim = self.lab.sim
         if lab_sim.paused and now - self._last_clock_wall >= _PAUSED_CLOCK:
             self._send_clock(lab_sim.time_ns, now)

@@ -1,13 +1,15 @@
 """ROS 2 message packages PyPI has no wheel for, built on this machine from their official
 definitions with the rosidl tools that are on PyPI (`pip install 'mexone[ros2-build]'`):
-today tf2_msgs (TFMessage, for /tf) and control_msgs (JointControllerState, the
-controllers' state topics).
+today tf2_msgs (TFMessage, for /tf), control_msgs (JointControllerState, the
+controllers' state topics) and controller_manager_msgs (ros2_control's controller manager
+services, mexone.ros2.controller_manager).
 
 `share/<package>/` holds the official .msg files with a package.xml and a CMakeLists.txt;
 `build()` runs CMake's `rosidl_generate_interfaces` against the wheels' prefix (the venv) and
 installs the result there, as a colcon build of that package would: C and C++ type support
 libraries into `<prefix>/lib` (which the wheels' loader already searches), the Python package
-into site-packages. It needs CMake and a C/C++ compiler, and takes about 20 s.
+into site-packages. It needs CMake and a C/C++ compiler, and takes 20 s a package
+(controller_manager_msgs, 17 interfaces: 1-2 min).
 
     python -m mexone.ros2.interfaces        # build what is missing, into this Python's prefix
 """
@@ -28,7 +30,7 @@ from mexone.errors import MexoneError
 __all__ = ["SHARE", "PACKAGES", "BUILD_INSTALL", "build", "missing"]
 
 SHARE = Path(__file__).resolve().parent / "share"
-PACKAGES = ("tf2_msgs", "control_msgs")
+PACKAGES = ("tf2_msgs", "control_msgs", "controller_manager_msgs")
 BUILD_INSTALL = "pip install 'mexone[ros2-build]' (and apt-get install cmake g++)"
 _PYTHON_TOOLS = ("ament_package", "catkin_pkg", "rosidl_adapter", "rosidl_generator_py")
 
