@@ -129,6 +129,9 @@ stamps = [m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for _, m in seen["j
 out["description"] = seen["description"][0][1].data if seen["description"] else ""
 out["clock_sim_span"] = span
 out["clock_count"] = len(seen["clock"])
+clock_times = [sim_time(m) for _, m in seen["clock"]]
+gaps = [b - a for a, b in zip(clock_times, clock_times[1:], strict=False) if b > a]
+out["clock_min_gap"] = min(gaps) if gaps else None  # 1 ms when it is sent at 1 kHz of sim time
 out["joint_states_rate"] = (len(stamps) - 1) / (stamps[-1] - stamps[0]) if len(stamps) > 1 else 0
 out["imu_z"] = sum(m.linear_acceleration.z for _, m in seen["imu"]) / max(1, len(seen["imu"]))
 out["imu_xy"] = max(math.hypot(m.linear_acceleration.x, m.linear_acceleration.y)

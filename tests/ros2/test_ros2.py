@@ -103,8 +103,11 @@ def test_clock_joint_states_and_description_flow(acceptance):
     assert acceptance["description"].lstrip().startswith(("<?xml", "<robot"))
     assert 'name="mex_rb"' in acceptance["description"]
     assert acceptance["clock_sim_span"] >= 2.0
-    # 1 kHz sent (gazebo_ros' rate); best-effort, depth 1 drops what a busy reader misses
-    assert acceptance["clock_count"] / acceptance["clock_sim_span"] >= 250
+    # 1 kHz of sim time sent (gazebo_ros' rate): two consecutive ones arrive 1 ms of sim time
+    # apart. Best-effort, depth 1 drops what a busy reader misses, so how many this client
+    # takes depends on its machine's load: only a floor no loaded machine misses is asserted
+    assert acceptance["clock_min_gap"] == pytest.approx(0.001, abs=1e-6)
+    assert acceptance["clock_count"] / acceptance["clock_sim_span"] >= 50
     assert acceptance["joint_states_rate"] == pytest.approx(params.JOINT_STATE_RATE, rel=0.02)
 
 
