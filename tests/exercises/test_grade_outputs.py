@@ -116,3 +116,49 @@ def test_csv_dash_is_stdout_not_a_file_named_dash(tmp_path):
     assert out.splitlines()[0].startswith("student,score,max_score,passed")
     assert out.splitlines()[1].startswith("eve,0,10,no,") and "eve " in err  # progress: stderr
     assert not (tmp_path / "-").exists()
+
+
+def test_plots_replaced_only_with_force_checked_before_grading(tmp_path, monkeypatch):
+    # was: `grade --plots DIR` wrote over DIR's PNGs of an earlier grading without --force
+    import mexone.exercises.grading as grading
+
+    graded = []
+    monkeypatch.setattr(grading, "grade", lambda *a, **k: graded.append(k) or 1 / 0)
+    submission = tmp_path / "controllers.yaml"
+    submission.write_text(find_exercise("home_hold").solution.read_text())
+    plots = tmp_path / "plots"
+    (plots / "bob").mkdir(parents=True)
+    mine = [plots / "home_hold-seed2-joints.png", plots / "bob" / "home_hold-seed1-x.png"]
+    for path in mine:
+        path.write_text("mine\n")
+    folder = tmp_path / "class"
+    folder.mkdir()
+    for student in ("ada", "bob"):
+        (folder / f"{student}.yaml").write_text(submission.read_text())
+    for argv, clash in (([submission], mine[0]), ([folder, "--csv", tmp_path / "g.csv"], mine[1])):
+        code, _, err = run_cli(["exercise", "grade", "home_hold", *argv, "--plots", plots])
+        assert code == 2 and err == f"mexone: {clash}: already exists; nothing was graded (pass " \
+                                    "--force to overwrite the plots, or give another --plots " \
+                                    "folder)\n", err
+    assert graded == [] and all(path.read_text() == "mine\n" for path in mine)
+    assert not (tmp_path / "g.csv").exists()
+    with pytest.raises(ZeroDivisionError):  # --force: past the check, into grading
+        run_cli(["exercise", "grade", "home_hold", submission, "--plots", plots, "--force"])
+    assert graded == [{"local": False, "plots": plots, "force": True}]
+
+
+def test_saved_figures_replace_a_file_only_with_force(tmp_path):
+    from mexone.errors import OutputExistsError
+    from mexone.exercises.grading import GradeContext
+
+    ex = find_exercise("home_hold")
+    path = tmp_path / "home_hold-seed1-joints.png"
+    path.write_text("mine\n")  # appeared while the grader ran
+    ctx = GradeContext(ex, tmp_path / "controllers.yaml", 1, plots=tmp_path)
+    ctx.figure("joints").add_subplot().plot([0, 1])
+    with pytest.raises(OutputExistsError, match="already exists"):
+        ctx.save_figures()
+    assert path.read_text() == "mine\n" and [p.name for p in tmp_path.iterdir()] == [path.name]
+    ctx = GradeContext(ex, tmp_path / "controllers.yaml", 1, plots=tmp_path, force=True)
+    ctx.figure("joints").add_subplot().plot([0, 1])
+    assert ctx.save_figures() == [path] and path.read_bytes().startswith(b"\x89PNG")

@@ -59,7 +59,8 @@ def add_parser(sub) -> None:
     s.add_argument("--plots", type=Path, metavar="DIR", help="save the grader's plots here")
     s.add_argument("--local", action="store_true",
                    help="the self-check: the nominal robot, no hidden variation")
-    s.add_argument("--force", action="store_true", help="overwrite --json/--csv files")
+    s.add_argument("--force", action="store_true", help="overwrite --json/--csv files and "
+                   "--plots PNGs")
     s = verbs.add_parser("new", help="write a new exercise folder that grades as written")
     s.add_argument("name", help="the new exercise's name (letters, digits, _)")
     s.add_argument("dir", nargs="?", type=Path, help="where (default: ./NAME)")
@@ -149,6 +150,7 @@ def _grade(args) -> int:
     from mexone.exercises.exercise import find_exercise
     from mexone.exercises.grading import (
         as_text,
+        existing_plots,
         grade,
         gradescope_json,
         not_handed_in,
@@ -174,11 +176,15 @@ def _grade(args) -> int:
             raise InputError(f"no submissions in {args.submission}",
                              hint=f"one subfolder per student holding {ex.file}, or "
                                   f"STUDENT{Path(ex.file).suffix} files")
+        if args.plots is not None:
+            _plots_clear(ex, [args.plots / student for student in found], existing_plots,
+                         args.force)
         results = {}
         to_stdout = args.csv == Path("-")
         for student, path in found.items():
             plots = args.plots / student if args.plots else None
-            result = grade(ex, path, local=args.local, plots=plots) if path.is_file() \
+            result = grade(ex, path, local=args.local, plots=plots, force=args.force) \
+                if path.is_file() \
                 else not_handed_in(ex, path)
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
@@ -196,7 +202,9 @@ def _grade(args) -> int:
         return 0
     if args.csv:
         raise InputError("--csv grades a folder of submissions", hint="give a folder")
-    result = grade(ex, args.submission, local=args.local, plots=args.plots)
+    if args.plots is not None:
+        _plots_clear(ex, [args.plots], existing_plots, args.force)
+    result = grade(ex, args.submission, local=args.local, plots=args.plots, force=args.force)
     if args.json is not None:
         text = json.dumps(gradescope_json(result), indent=2)
         if args.json == Path("-"):
@@ -206,6 +214,19 @@ def _grade(args) -> int:
         write_text(args.json, text + "\n", args.force)
     print(as_text(result))
     return 0
+
+
+def _plots_clear(ex, folders: list[Path], existing_plots, force: bool) -> None:
+    """Before any grading: refuse --plots folders that hold this exercise's PNGs (without
+    --force), naming the first; or that cannot be written in."""
+    for folder in folders:
+        if folder.is_dir():
+            check_output(folder / "plot.png", force=True)  # a read-only folder
+        clash = [] if force else existing_plots(ex, folder)
+        if clash:
+            raise OutputExistsError("already exists; nothing was graded", file=clash[0],
+                                    hint="pass --force to overwrite the plots, or give another "
+                                         "--plots folder")
 
 
 def _new(args) -> int:

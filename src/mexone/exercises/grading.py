@@ -23,9 +23,10 @@ from mexone.errors import InputError
 from mexone.exercises.exercise import Exercise
 from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, prewarm, run_isolated
 from mexone.exercises.sim import Variation, simulate
+from mexone.files import replacing
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
-           "submissions_in", "not_handed_in", "SECRET_ENV"]
+           "submissions_in", "not_handed_in", "existing_plots", "SECRET_ENV"]
 
 
 
@@ -72,6 +73,7 @@ class GradeContext:
     seed: int
     local: bool = False  # the self-check: no hidden variation
     plots: Path | None = None  # where ctx.figure()s are saved (grade --plots DIR)
+    force: bool = False  # replace plots already there (grade --force)
     _figures: list = field(default_factory=list, repr=False)
     _scratch: Path | None = field(default=None, repr=False)
 
@@ -140,12 +142,18 @@ class GradeContext:
         return fig
 
     def save_figures(self) -> list[Path]:
+        """Write the figures whole (files.replacing): a PNG already there only with force."""
         saved = []
         if self.plots is not None:
-            self.plots.mkdir(parents=True, exist_ok=True)
+            try:
+                self.plots.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise InputError(f"cannot make the plots folder: {exc.strerror or exc}",
+                                 file=self.plots) from None
             for name, fig in self._figures:
-                path = self.plots / f"{self.exercise.name}-seed{self.seed}-{name}.png"
-                fig.savefig(path, dpi=80)
+                path = plot_path(self.exercise, self.plots, self.seed, name)
+                with replacing(path, self.force) as temporary:
+                    fig.savefig(temporary, dpi=80)
                 saved.append(path)
         self._figures.clear()
         return saved
@@ -180,9 +188,24 @@ class Result:
         return [c.name for c, _, _ in self.checks if not c.passed]
 
 
+def plot_path(exercise: Exercise, folder: Path, seed: int, name: str) -> Path:
+    """Where grading saves the figure `name` of episode `seed`."""
+    return folder / f"{exercise.name}-seed{seed}-{name}.png"
+
+
+def existing_plots(exercise: Exercise, folder: Path) -> list[Path]:
+    """The files in `folder` that grading with --plots there may replace: the figures' names
+    are known only once the grader ran, so any of the exercise's plots (checked before it runs)."""
+    if not folder.is_dir():
+        return []
+    return sorted(p for seed in exercise.seeds
+                  for p in folder.glob(plot_path(exercise, folder, seed, "*").name))
+
+
 def grade(exercise: Exercise, submission: str | Path, local: bool = False,
-          plots: Path | None = None) -> Result:
-    """Grade `submission` (the student's file) on every seed of the exercise."""
+          plots: Path | None = None, force: bool = False) -> Result:
+    """Grade `submission` (the student's file) on every seed of the exercise; its figures go to
+    `plots` (a PNG already there is replaced only with `force`)."""
     submission = Path(submission)
     if not submission.is_file():
         raise InputError(f"no submission file {submission}",
@@ -193,7 +216,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     per_seed: list[list[Check]] = []
     saved: list[Path] = []
     for seed in exercise.seeds:
-        ctx = GradeContext(exercise, submission.resolve(), seed, local, plots)
+        ctx = GradeContext(exercise, submission.resolve(), seed, local, plots, force)
         try:
             checks = list(grader.grade(ctx))
         except SubmissionFailed as exc:
