@@ -112,3 +112,18 @@ def test_pid_spec_grades_a_pid_not_an_ideal_servo(tmp_path):
     assert result.score < 1.2 and "rise time" in result.failing, result.score
     rise = next(c for c, _, _ in result.checks if c.name == "rise time")
     assert rise.output.startswith("l_elbow_position_controller must stay effort_controllers/")
+
+
+def test_a_fallen_robot_holds_no_home(tmp_path):
+    # was 3/10: the robot lay still on the floor with its joints near 0 and earned "holds home"
+    # (or "no oscillation"); what presumes standing now requires "stays upright"
+    ex = find_exercise("home_hold")
+    limp = _write(tmp_path / ex.file, _scaled_gains(ex.solution.read_text(), 0.01, 0.01))
+    result = grade(ex, limp, local=True)
+    assert result.failure is None, result.failure
+    assert result.score == 0, [(c.name, c.output) for c, _, _ in result.checks]
+    assert result.failing == ["stays upright", "holds home", "no oscillation"]
+    fell = next(c for c, _, _ in result.checks if c.name == "stays upright").output
+    assert fell.startswith("fell at ")
+    for check, _, _ in result.checks[1:]:
+        assert check.output == f"not counted: stays upright failed ({fell})"

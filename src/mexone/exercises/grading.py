@@ -14,7 +14,7 @@ import shutil
 import tempfile
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,36 +32,63 @@ __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write
 
 @dataclass
 class Check:
-    """One check of a submission: the share of its weight it earned (0..1) and why."""
+    """One check of a submission: the share of its weight it earned (0..1) and why.
+
+    `requires` names another check of the same episode that this one presumes (a pose held, a
+    joint at home: "stays upright"): when that one did not pass, this one earns nothing, so a
+    robot lying still on the floor scores no "holds home"."""
 
     name: str
     fraction: float
     weight: float = 1.0
     output: str = ""
     visibility: str = "visible"  # Gradescope's: visible, hidden, after_due_date, after_published
+    requires: str | None = None
 
     @classmethod
     def at_most(cls, name: str, value: float | None, limit: float, unit: str = "",
-                weight: float = 1.0) -> Check:
+                weight: float = 1.0, requires: str | None = None) -> Check:
         """Passes when value <= limit (None, e.g. "never settled", fails)."""
         ok = value is not None and np.isfinite(value) and value <= limit
         shown = "none" if value is None else f"{value:.4g}{unit}"
-        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (limit {limit:g}{unit})")
+        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (limit {limit:g}{unit})",
+                   requires=requires)
 
     @classmethod
     def at_least(cls, name: str, value: float | None, limit: float, unit: str = "",
-                 weight: float = 1.0) -> Check:
+                 weight: float = 1.0, requires: str | None = None) -> Check:
         ok = value is not None and np.isfinite(value) and value >= limit
         shown = "none" if value is None else f"{value:.4g}{unit}"
-        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (at least {limit:g}{unit})")
+        return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (at least {limit:g}{unit})",
+                   requires=requires)
 
     @classmethod
-    def true(cls, name: str, ok: bool, output: str = "", weight: float = 1.0) -> Check:
-        return cls(name, 1.0 if ok else 0.0, weight, output)
+    def true(cls, name: str, ok: bool, output: str = "", weight: float = 1.0,
+             requires: str | None = None) -> Check:
+        return cls(name, 1.0 if ok else 0.0, weight, output, requires=requires)
 
     @property
     def passed(self) -> bool:
         return self.fraction >= 1.0
+
+
+def presumed(checks: list[Check], grader: Path) -> list[Check]:
+    """The episode's checks with each whose `requires` did not pass set to 0 (the one rule:
+    a check that presumes another earns nothing without it)."""
+    by_name = {c.name: c for c in checks}
+    out = []
+    for check in checks:
+        if check.requires is not None:
+            needed = by_name.get(check.requires)
+            if needed is None:
+                raise InputError(f"check '{check.name}' requires '{check.requires}', which "
+                                 "grade(ctx) did not return", file=grader)
+            if not needed.passed:
+                check = replace(check, fraction=0.0, output=f"not counted: {needed.name} "
+                                f"failed ({needed.output})" if needed.output else
+                                f"not counted: {needed.name} failed")
+        out.append(check)
+    return out
 
 
 @dataclass
@@ -229,7 +256,7 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
         if not checks or not all(isinstance(c, Check) for c in checks):
             raise InputError("grade(ctx) must return a non-empty list of Check",
                              file=exercise.folder / "grader.py")
-        per_seed.append(checks)
+        per_seed.append(presumed(checks, exercise.folder / "grader.py"))
     combined: dict[str, Check] = {}
     for checks in per_seed:  # the worst episode counts
         for check in checks:

@@ -29,9 +29,11 @@ HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, 
 ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
 
 
-def check(name: str, weight: float, fraction: float, output: str) -> Check:
-    """A framework Check from (name, weight, share earned 0..1, why)."""
-    return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output)
+def check(name: str, weight: float, fraction: float, output: str,
+          requires: str | None = None) -> Check:
+    """A framework Check from (name, weight, share earned 0..1, why); `requires`: the check it
+    presumes (Check.requires: nothing earned when that one failed)."""
+    return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output, requires=requires)
 
 
 def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,

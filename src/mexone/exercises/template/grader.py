@@ -23,5 +23,7 @@ def grade(ctx):
     return [
         Check.true("stays upright", run.fell_at is None,
                    "stood" if run.fell_at is None else f"fell at {run.fell_at:.2f} s", weight=3),
-        Check.at_most("arms forward", error, TOLERANCE, " rad", weight=7),
+        # a fallen robot's arms earn nothing: the check requires the one above
+        Check.at_most("arms forward", error, TOLERANCE, " rad", weight=7,
+                      requires="stays upright"),
     ]

@@ -9,6 +9,7 @@ DURATION = 3.0  # s of sim time
 WINDOW = 1.0  # s at the end where the hold is judged
 TOLERANCE = 0.01  # rad: every joint within this of home
 STILL = 0.005  # rad: peak-to-peak of any joint over the window (no oscillation)
+UPRIGHT = "stays upright"  # a fallen robot lying still holds no home: the others require it
 
 
 def grade(ctx):
@@ -26,9 +27,9 @@ def grade(ctx):
     ax.set_xlabel("time (s)")
     ax.set_ylabel("joint position (rad)")
     return [
-        Check.true("stays upright", run.fell_at is None and finite,
+        Check.true(UPRIGHT, run.fell_at is None and finite,
                    "stood" if run.fell_at is None else f"fell at {run.fell_at:.2f} s"
                    + (f"; {run.error}" if run.error else ""), weight=4),
-        Check.at_most("holds home", worst, TOLERANCE, " rad", weight=3),
-        Check.at_most("no oscillation", swing, STILL, " rad", weight=3),
+        Check.at_most("holds home", worst, TOLERANCE, " rad", weight=3, requires=UPRIGHT),
+        Check.at_most("no oscillation", swing, STILL, " rad", weight=3, requires=UPRIGHT),
     ]

@@ -25,6 +25,7 @@ SECONDS = 11.0  # s of sim time the run lasts
 FAST, SLOW = 7.0, SECONDS  # s to REACHED: full marks within FAST, none at SLOW
 STRAIGHT, CROOKED = 0.05, 0.20  # m sideways at the end: full marks within, none beyond
 SAMPLE = 0.01  # s
+UP = "stays up"
 
 
 def variant(r: np.random.Generator | None) -> Variation:
@@ -76,18 +77,17 @@ def grade(ctx) -> list:
     t, x, y = (np.asarray(run[k]) for k in ("t", "x", "y"))
     x, y = x - x[0], y - y[0]
     what = f"mass x{var.mass:.2f}, friction x{var.friction:.2f}"
-    if run["fell"] is not None:
-        out = f"disqualified: fell at {run['fell']:.1f} s ({what})"
-        return [check("stays up", 1.0, 0.0, out), check("distance", 3.0, 0.0, out),
-                check("drift", 2.0, 0.0, out), check("time", 2.0, 0.0, out)]
+    up = run["fell"] is None  # a fall disqualifies: the others require "stays up"
     reached = t[np.argmax(x >= REACHED)] if (x >= REACHED).any() else None
     shown = "never" if reached is None else f"at {reached:.2f} s"
-    return [check("stays up", 1.0, 1.0, f"stood all {SECONDS:g} s ({what})"),
+    return [check(UP, 1.0, 1.0 if up else 0.0, f"stood all {SECONDS:g} s ({what})" if up
+                  else f"disqualified: fell at {run['fell']:.1f} s ({what})"),
             check("distance", 3.0, (x[-1] - SHORT) / (REACHED - SHORT), f"walked {x[-1]:.2f} m "
-                  f"forward, {GOAL:g} m planned (full marks from {REACHED:g}, none below {SHORT:g})"),
+                  f"forward, {GOAL:g} m planned (full marks from {REACHED:g}, none below {SHORT:g})",
+                  requires=UP),
             check("drift", 2.0, (CROOKED - abs(y[-1])) / (CROOKED - STRAIGHT),
                   f"ended {y[-1] * 100:+.1f} cm sideways (full marks within {STRAIGHT * 100:g} "
-                  f"cm, none beyond {CROOKED * 100:g})"),
+                  f"cm, none beyond {CROOKED * 100:g})", requires=UP),
             check("time", 2.0, 0.0 if reached is None else (SLOW - reached) / (SLOW - FAST),
                   f"reached {REACHED:g} m {shown} (full marks within {FAST:g} s, none at "
-                  f"{SLOW:g})")]
+                  f"{SLOW:g})", requires=UP)]
