@@ -13,6 +13,8 @@ from mexone.control.notes import gazebo_differences
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.description.findings import Finding
 from mexone.description.model import RobotModel
+from mexone.errors import InputError
+from mexone.physics.world import default_world
 
 __all__ = ["lint_controllers", "CONTROLLER_RULES"]
 
@@ -85,7 +87,25 @@ def _rule_pid(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
                                  pid, None)
 
 
-CONTROLLER_RULES: tuple[Rule, ...] = (_rule_joints, _rule_shared_joints, _rule_pid)
+def _rule_plugins(model: RobotModel, config: ControlConfig) -> Iterator[Finding]:
+    """What a Python controller's own class refuses at configure (a StateFeedback's missing
+    design file, a rate not the design's), asked of the class itself: what `mexone sim`
+    refuses, said here, at the line of the key it concerns."""
+    step = default_world().step
+    for spec in config.controllers.values():
+        if spec.plugin is None:
+            continue
+        try:
+            spec.plugin.cls.check_entry(spec.name, tuple(spec.joints), spec.plugin, step)
+        except InputError as exc:
+            hint = f" ({exc.hint})" if exc.hint else ""
+            prefix = f"controller '{spec.name}': "
+            yield _finding(config, "controller-configure", "error", _element(spec),
+                           f"{exc.what.removeprefix(prefix)}{hint}", exc.line or spec.line)
+
+
+CONTROLLER_RULES: tuple[Rule, ...] = (_rule_joints, _rule_shared_joints, _rule_pid,
+                                      _rule_plugins)
 
 
 def lint_controllers(model: RobotModel, config: ControlConfig) -> list[Finding]:

@@ -216,6 +216,14 @@ class PythonController:
         """The parameters this class declares (name -> Param), base classes' included."""
         return dict(cls._declared)
 
+    @classmethod
+    def check_entry(cls, name: str, joints: tuple[str, ...], plugin: Any,
+                    timestep: float) -> None:
+        """What `mexone check --controllers` asks of this class's YAML entry (`plugin`: the
+        resolved entry, control/resolve.py's Plugin; `timestep`: the physics step, s), with no
+        simulation: raise InputError (its line: the YAML key's) for what configure() would
+        refuse that the YAML alone shows. Nothing by default."""
+
     @property
     def dynamics(self):
         """The robot's dynamics at the state of this update (mexone.dynamics.Dynamics)."""

@@ -374,21 +374,9 @@ class _Deployed(PythonController):
     def configure(self) -> None:
         binding = self.__dict__["_mexone_binding"]
         self._sim = binding.ctx.sim
-        runner_rate = binding.plugin.update_rate
-        self.design = self._given if self._given is not None else self._load(binding)
-        if isinstance(self, LinearController) and not isinstance(self.design, SystemDesign):
-            raise InputError(f"controller '{self.name}': a LinearController runs a python-control "
-                             "system given from Python (deploy); a design file holds a gain",
-                             hint="use type: mexone/StateFeedback for a gain file")
-        self.rate = runner_rate or 1.0 / self._sim.model.opt.timestep
-        dt = getattr(self.design, "dt", None)
-        if dt is not None and abs(dt * self.rate - 1.0) > 1e-6:
-            raise InputError(f"controller '{self.name}': the design's period is {number_text(dt)} s "
-                             f"but the controller runs at {number_text(self.rate)} Hz",
-                             hint=f"set update_rate: {number_text(1.0 / dt)}")
-        if tuple(self.joints) != tuple(self.design.joints):
-            raise InputError(f"controller '{self.name}': joints {list(self.joints)} are not the "
-                             f"design's {list(self.design.joints)} (in that order)")
+        self.rate = binding.plugin.update_rate or 1.0 / self._sim.model.opt.timestep
+        self.design = self._checked_design(self.name, tuple(self.joints), self.design_file,
+                                           binding.plugin.yaml_dir, self.rate)
         model = self._sim.model
         self._scratch, self._dq = np.zeros(model.nq), np.zeros(model.nv)
         point = self.design.point
@@ -401,20 +389,67 @@ class _Deployed(PythonController):
         self.trace_length = 0
         self.reset()
 
-    def _load(self, binding):
-        if not self.design_file:
-            raise InputError(f"controller '{self.name}': no design: set design_file: <file.npz> "
+    @classmethod
+    def check_entry(cls, name: str, joints: tuple[str, ...], plugin, timestep: float) -> None:
+        """`mexone check --controllers`: what configure() refuses, from the YAML alone (the same
+        checks: a missing or unreadable design file, a rate that is not the design's, other
+        joints), at the line of the YAML key it concerns."""
+        raw = plugin.raw
+        try:
+            design = cls._design_of(name, plugin.params.get("design_file", ""), plugin.yaml_dir)
+        except InputError as exc:
+            exc.line = raw.get("design_file", (None, None))[1]
+            raise
+        try:
+            cls._check_design(name, joints, design, plugin.update_rate or 1.0 / timestep)
+        except InputError as exc:
+            exc.line = raw.get("update_rate" if "period" in exc.what else "joints",
+                               (None, None))[1]
+            raise
+
+    @classmethod
+    def _checked_design(cls, name: str, joints: tuple[str, ...], design_file: str,
+                        yaml_dir: Path | None, rate: float):
+        design = cls._design_of(name, design_file, yaml_dir)
+        cls._check_design(name, joints, design, rate)
+        return design
+
+    @classmethod
+    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None):
+        """The design given from Python (deploy), else the YAML's design_file."""
+        design = cls._given if cls._given is not None else cls._load(name, design_file, yaml_dir)
+        if issubclass(cls, LinearController) and not isinstance(design, SystemDesign):
+            raise InputError(f"controller '{name}': a LinearController runs a python-control "
+                             "system given from Python (deploy); a design file holds a gain",
+                             hint="use type: mexone/StateFeedback for a gain file")
+        return design
+
+    @classmethod
+    def _check_design(cls, name: str, joints: tuple[str, ...], design, rate: float) -> None:
+        dt = getattr(design, "dt", None)
+        if dt is not None and abs(dt * rate - 1.0) > 1e-6:
+            raise InputError(f"controller '{name}': the design's period is {number_text(dt)} s "
+                             f"but the controller runs at {number_text(rate)} Hz",
+                             hint=f"set update_rate: {number_text(1.0 / dt)}")
+        if tuple(joints) != tuple(design.joints):
+            raise InputError(f"controller '{name}': joints {list(joints)} are not the "
+                             f"design's {list(design.joints)} (in that order)")
+
+    @classmethod
+    def _load(cls, name: str, design_file: str, yaml_dir: Path | None):
+        if not design_file:
+            raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
                              "beside the YAML", hint="write one with mexone.design.save_design")
-        path = Path(self.design_file)
-        if not path.is_absolute() and binding.plugin.yaml_dir is not None:
-            path = binding.plugin.yaml_dir / path
+        path = Path(design_file)
+        if not path.is_absolute() and yaml_dir is not None:
+            path = yaml_dir / path
         try:
             design = load_design(path)
         except InputError as exc:  # its message names the design file: locate it at the YAML's line
-            raise InputError(f"controller '{self.name}': {exc.what}", hint=exc.hint) from None
-        if design.interface != self.command_interface:
+            raise InputError(f"controller '{name}': {exc.what}", hint=exc.hint) from None
+        if design.interface != cls.command_interface:
             raise InputError(f"design file {path} drives the {design.interface} interface; "
-                             f"{type(self).__name__} drives {self.command_interface}")
+                             f"{cls.__name__} drives {cls.command_interface}")
         return design
 
     def reset(self) -> None:
