@@ -282,6 +282,42 @@ def test_state_reads_sensors_and_base(arm):
     assert list(ctrl.impl.dofs) == list(lab.controllers.hw.dof_adr[lab.controllers.hw.rows(ARM_JOINTS)])
 
 
+
+def test_a_controller_cannot_write_into_what_the_sensors_hand_out(arm, caplog):
+    # was: state.sensors["imu"].linear_acceleration was a writable view of the one buffer every
+    # controller and broadcaster reads: one student's `+= 1` changed it for all of them
+    folder, lab = arm
+    manager = lab.controllers
+    ctrl = manager.controllers["my_pd_controller"]
+    manager.hw.read()
+    ctrl._read(lab.sim.time)
+    sensors = ctrl.state.sensors
+    for name in sensors:
+        state = sensors[name]
+        for field, value in vars(state).items():
+            assert isinstance(value, np.ndarray) and not value.flags.writeable, (name, field)
+            with pytest.raises(ValueError, match="read-only"):
+                value[...] = 0.0
+            with pytest.raises(AttributeError):  # nor swapped for an array of its own
+                setattr(state, field, np.zeros_like(value))
+    wrong = ARM.replace("        self.n += 1\n",
+                        "        self.n += 1\n        state.sensors['imu'].linear_acceleration[2] += 1.0\n")
+    (folder / "my_pd.py").write_text(wrong)
+    manager.reload("my_pd_controller")
+    caplog.clear()
+    lab.sim.step(2)
+    ctrl = manager.controllers["my_pd_controller"]
+    assert not ctrl.running
+    line = next(i for i, text in enumerate(wrong.splitlines(), 1) if "linear_acceleration[2]" in text)
+    [said] = errors(caplog)
+    assert f"{folder / 'my_pd.py'}:{line}: ValueError: assignment destination is read-only" in said
+    assert "\n" not in said
+    assert sensors["imu"].linear_acceleration[2] == pytest.approx(9.81, abs=0.5)
+    (folder / "my_pd.py").write_text(ARM)
+    manager.reload("my_pd_controller")
+    assert manager.controllers["my_pd_controller"].running
+
+
 # ----- the YAML -------------------------------------------------------------------------------------
 CTL = """\
 from mexone.control import Param, PythonController

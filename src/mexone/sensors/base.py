@@ -260,11 +260,20 @@ class Sensor:
 
     def bind(self, **slices: slice) -> Callable[[np.ndarray], None]:
         """For Measure.linear: make the state's fields views into the buffer, field -> slice of
-        the registered output."""
+        the registered output. The state's views are read-only (what a controller reads is
+        shared with every other reader of the instant: writing into it raises); a name starting
+        with `_` is a writable view set on the sensor, for its own read() (noise, a rotation),
+        as is `_linear_view`, the whole output. Set once: no cost per reading."""
 
         def bind(view: np.ndarray) -> None:
+            state = self._state
             for name, part in slices.items():
-                setattr(self._state, name, view[part])
+                if name.startswith("_"):
+                    setattr(self, name, view[part])
+                else:
+                    shown = view[part]
+                    shown.flags.writeable = False
+                    object.__setattr__(state, name, shown)  # a frozen state dataclass too
             self._linear_view = view
 
         return bind

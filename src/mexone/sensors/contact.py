@@ -52,7 +52,7 @@ def collision_names(sim) -> dict[int, tuple[str, str]]:
     return out
 
 
-@dataclass
+@dataclass(frozen=True)
 class ContactSensorState:
     """The contact sensor's state interfaces."""
 
@@ -109,6 +109,8 @@ class ContactSensor(Sensor):
             self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), count=slice(3, 4)))
         else:
             self.linear = False  # nothing to watch: never in contact (the state stays zero)
+            for array in (self._state.force, self._state.count):
+                array.flags.writeable = False
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
         if self.spec.collisions:  # only the collision elements it names, when it names them

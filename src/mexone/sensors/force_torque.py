@@ -30,7 +30,7 @@ __all__ = ["ForceTorqueSensor", "ForceTorqueState"]
 _CHANNELS = tuple(f"{g}/{a}" for g in ("force", "torque") for a in "xyz")
 
 
-@dataclass
+@dataclass(frozen=True)
 class ForceTorqueState:
     """ros2_control's force-torque state interfaces, as the sensor reports them (its frame,
     measure direction and noise)."""
@@ -79,7 +79,8 @@ class ForceTorqueSensor(Sensor):
         if spec.measure_direction == "child_to_parent":
             matrix = -matrix
         rows = np.r_[self.force:self.force + 3, self.torque:self.torque + 3]
-        self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), torque=slice(3, 6)))
+        self.measure.linear(rows, matrix, self.bind(
+            force=slice(0, 3), torque=slice(3, 6), _force=slice(0, 3), _torque=slice(3, 6)))
         self._to_parent = spec.ft_frame == "parent" and self.parent_body is not None
         self._needs_read = self._to_parent or self.noise.active
 
@@ -103,8 +104,8 @@ class ForceTorqueSensor(Sensor):
         if self._to_parent:
             data = self.sim.data
             rot = data.xmat[self.parent_body].reshape(3, 3).T @ data.site_xmat[self.site].reshape(3, 3)
-            state.force[:] = rot @ state.force
-            state.torque[:] = rot @ state.torque
+            self._force[:] = rot @ self._force  # the writable views behind the state's
+            self._torque[:] = rot @ self._torque
         if self.noise.active:
             self.noise.add_to(self._linear_view)
 

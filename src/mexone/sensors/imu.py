@@ -22,9 +22,10 @@ from mexone.sensors.noise import NoiseModel
 __all__ = ["ImuSensor", "ImuState"]
 
 
-@dataclass
+@dataclass(frozen=True)
 class ImuState:
-    """ros2_control's IMU state interfaces, in the sensor's frame (noise included)."""
+    """ros2_control's IMU state interfaces, in the sensor's frame (noise included); read-only
+    arrays, valid for the instant."""
 
     orientation: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 0.0, 1.0]))
     """(x, y, z, w) relative to the world"""
@@ -69,7 +70,7 @@ class ImuSensor(Sensor):
 
     def read(self, state: ImuState) -> None:
         if self.noise.active:  # angular velocity and linear acceleration: one view of 6
-            self.noise.add_to(state._rates)
+            self.noise.add_to(self._rates)
 
     def message(self, state: ImuState) -> Imu:
         x, y, z, w, gx, gy, gz, ax, ay, az = self._linear_view.tolist()
