@@ -150,7 +150,6 @@ def _grade(args) -> int:
     from mexone.exercises.exercise import find_exercise
     from mexone.exercises.grading import (
         as_text,
-        existing_plots,
         grade,
         gradescope_json,
         not_handed_in,
@@ -177,8 +176,7 @@ def _grade(args) -> int:
                              hint=f"one subfolder per student holding {ex.file}, or "
                                   f"STUDENT{Path(ex.file).suffix} files")
         if args.plots is not None:
-            _plots_clear(ex, [args.plots / student for student in found], existing_plots,
-                         args.force)
+            _plots_clear(ex, [args.plots / student for student in found], args.force)
         results = {}
         to_stdout = args.csv == Path("-")
         for student, path in found.items():
@@ -203,7 +201,7 @@ def _grade(args) -> int:
     if args.csv:
         raise InputError("--csv grades a folder of submissions", hint="give a folder")
     if args.plots is not None:
-        _plots_clear(ex, [args.plots], existing_plots, args.force)
+        _plots_clear(ex, [args.plots], args.force)
     result = grade(ex, args.submission, local=args.local, plots=args.plots, force=args.force)
     if args.json is not None:
         text = json.dumps(gradescope_json(result), indent=2)
@@ -216,10 +214,15 @@ def _grade(args) -> int:
     return 0
 
 
-def _plots_clear(ex, folders: list[Path], existing_plots, force: bool) -> None:
+def _plots_clear(ex, folders: list[Path], force: bool) -> None:
     """Before any grading: refuse --plots folders that hold this exercise's PNGs (without
     --force), naming the first; or that cannot be written in."""
+    from mexone.exercises.grading import existing_plots
+
     for folder in folders:
+        if folder.exists() and not folder.is_dir():
+            raise InputError("is a file, not a folder for the plots", file=folder,
+                             hint="give another --plots folder")
         if folder.is_dir():
             check_output(folder / "plot.png", force=True)  # a read-only folder
         clash = [] if force else existing_plots(ex, folder)
