@@ -26,8 +26,9 @@ contact stiffness, values given twice (a <gazebo reference> block overriding the
 <dynamics>, two <gazebo> blocks or tags disagreeing, a repeated URDF element: both lines and
 the one that wins), planar/floating joints and trees deeper than MuJoCo can build, <mimic>
 joints, duplicated or capitalised names, several roots or loops, and (with --controllers)
-controllers naming joints that have no transmission, two controllers on one joint and
-impossible PID gains, each with the YAML's file:line.
+controllers naming joints that have no transmission, two controllers on one joint,
+impossible PID gains and what a Python controller's class refuses (a StateFeedback's missing
+design file, a rate that is not its design's), each with the YAML's file:line.
 
 Only regular files up to 4 MB are read (--max-input-mb lifts that); xacro gets 6 s
 (MEXONE_XACRO_TIMEOUT) and finds $(find pkg) on ROS_PACKAGE_PATH, above the file, or among
