@@ -213,6 +213,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
         gains = {joint: _pid(reader, f"{name}/gains/{joint}", node)
                  for joint, _, node in reader.mapping(fields["gains"][1], f"'{name}' gains")}
     plugin = Plugin(ctype, cls, origin, yaml_dir, raw, params, source=reader.path,
-                    line=key.start_mark.line + 1, **settings)
+                    line=key.start_mark.line + 1, lines={k: n for k, (_, n) in lines.items()},
+                    **settings)
     return ControllerSpec(name, ctype, joints, pid, None, key.start_mark.line + 1, gains, False,
                           reader.path, plugin)

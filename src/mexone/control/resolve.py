@@ -62,6 +62,7 @@ class Plugin:
     hang_timeout: float = 2.0  # s of wall time after which a running update is interrupted
     source: Path | None = None  # the YAML
     line: int | None = None  # of the controller in the YAML
+    lines: dict[str, int] = field(default_factory=dict)  # each key of the entry -> its line
 
     @property
     def interface(self) -> str:

@@ -394,17 +394,17 @@ class _Deployed(PythonController):
         """`mexone check --controllers`: what configure() refuses, from the YAML alone (the same
         checks: a missing or unreadable design file, a rate that is not the design's, other
         joints), at the line of the YAML key it concerns."""
-        raw = plugin.raw
+        lines = plugin.lines
         try:
             design = cls._design_of(name, plugin.params.get("design_file", ""), plugin.yaml_dir)
         except InputError as exc:
-            exc.line = raw.get("design_file", (None, None))[1]
+            exc.line = lines.get("design_file")
             raise
         try:
             cls._check_design(name, joints, design, plugin.update_rate or 1.0 / timestep)
         except InputError as exc:
-            exc.line = raw.get("update_rate" if "period" in exc.what else "joints",
-                               (None, None))[1]
+            exc.line = lines.get("update_rate") if "period" in exc.what \
+                else lines.get("joints", lines.get("joint"))
             raise
 
     @classmethod
