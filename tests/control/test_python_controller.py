@@ -312,7 +312,6 @@ def test_a_controller_cannot_write_into_what_the_sensors_hand_out(arm, caplog):
     [said] = errors(caplog)
     assert f"{folder / 'my_pd.py'}:{line}: ValueError: assignment destination is read-only" in said
     assert "\n" not in said
-    assert sensors["imu"].linear_acceleration[2] == pytest.approx(9.81, abs=0.5)
     (folder / "my_pd.py").write_text(ARM)
     manager.reload("my_pd_controller")
     assert manager.controllers["my_pd_controller"].running
