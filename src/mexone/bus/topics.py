@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from mexone.bus.msgs import ROS_TYPES
 from mexone.errors import InputError
 
-__all__ = ["Bus", "Topic", "Subscription", "resolve_name"]
+__all__ = ["Bus", "Topic", "Subscription", "Relay", "resolve_name"]
 
 
 def resolve_name(name: str, namespace: str = "/") -> str:
@@ -142,3 +142,21 @@ class Bus:
                 tap(name, msg)
         for sub in subs:
             sub.callback(msg)
+
+
+class Relay:
+    """A bus subscription held exactly while someone outside the bus listens: a bridge's
+    mirror of one topic (ROS 1, ROS 2, Foxglove) says `want(...)` with whether its own
+    subscribers exist, so a topic nobody outside reads costs nothing. Simulation thread."""
+
+    def __init__(self, bus: Bus, topic: str, callback: Callable[[object], None], node: str):
+        self.bus, self.topic, self.callback, self.node = bus, topic, callback, node
+        self.sub: Subscription | None = None
+
+    def want(self, wanted: bool) -> None:
+        if wanted and self.sub is None:
+            self.sub = self.bus.subscribe(self.topic, self.bus.topics[self.topic].type,
+                                          self.callback, node=self.node)
+        elif not wanted and self.sub is not None:
+            self.sub.unregister()
+            self.sub = None

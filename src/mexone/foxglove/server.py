@@ -29,6 +29,7 @@ import typing
 from pathlib import Path
 
 from mexone.bus import msgs, ros_map
+from mexone.bus.topics import Relay
 from mexone.errors import InputError, MexoneError
 
 __all__ = ["FoxgloveBridge", "DEFAULT_PORT", "FOXGLOVE_INSTALL", "json_schema", "to_json"]
@@ -94,7 +95,8 @@ class _Mirror:
         import foxglove
         from foxglove.channels import RawImageChannel
 
-        self.bridge, self.topic, self.sub = bridge, topic, None
+        self.bridge, self.topic = bridge, topic
+        self.relay = Relay(bridge.lab.bus, topic, self.forward, "Foxglove")
         self.image = bus_type is msgs.Image
         if self.image:
             self.channel = RawImageChannel(topic, context=bridge.context)
@@ -106,14 +108,7 @@ class _Mirror:
                                             context=bridge.context)
 
     def update(self) -> None:  # simulation thread
-        wanted = self.channel.has_sinks()
-        bus = self.bridge.lab.bus
-        if wanted and self.sub is None:
-            self.sub = bus.subscribe(self.topic, bus.topics[self.topic].type, self.forward,
-                                     node="Foxglove")
-        elif not wanted and self.sub is not None:
-            self.sub.unregister()
-            self.sub = None
+        self.relay.want(self.channel.has_sinks())
 
     def forward(self, msg) -> None:
         log_time = self.bridge.lab.sim.time_ns

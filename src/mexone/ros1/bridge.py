@@ -27,6 +27,7 @@ from collections.abc import Callable
 
 from mexone.bus import msgs, ros_map
 from mexone.bus.clock import clock_period_ns, respace
+from mexone.bus.topics import Relay
 from mexone.errors import InputError, MexoneError
 from mexone.ros1 import convert, interfaces
 
@@ -94,7 +95,7 @@ class _Mirror:
     def __init__(self, bridge: Ros1Bridge, topic: str, bus_type: type):
         rospy = bridge.rospy
         self.bridge, self.topic, self.cls = bridge, topic, convert.ros_class(bus_type)
-        self.sub = None
+        self.relay = Relay(bridge.lab.bus, topic, self.forward, "ROS 1 bridge")
         # images and clouds are MBs each: a subscriber that falls behind gets the latest ones
         queue = 2 if bus_type in _HEAVY else 100
         self.publisher = rospy.Publisher(topic, self.cls, queue_size=queue,
@@ -112,15 +113,10 @@ class _Mirror:
                 self.mirror.bridge.lab.sim.work.put(self.mirror.stop)
 
     def start(self) -> None:  # simulation thread
-        if self.sub is None:
-            bus_type = self.bridge.lab.bus.topics[self.topic].type
-            self.sub = self.bridge.lab.bus.subscribe(self.topic, bus_type, self.forward,
-                                                     node="ROS 1 bridge")
+        self.relay.want(True)
 
     def stop(self) -> None:  # simulation thread
-        if self.sub is not None and self.publisher.get_num_connections() == 0:
-            self.sub.unregister()
-            self.sub = None
+        self.relay.want(self.publisher.get_num_connections() > 0)
 
     def forward(self, msg) -> None:
         self.publisher.publish(convert.to_ros(msg, self.cls))

@@ -23,6 +23,7 @@ from collections.abc import Callable
 
 from mexone.bus import msgs, ros_map
 from mexone.bus.clock import clock_period_ns, respace
+from mexone.bus.topics import Relay
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ros2 import cdr, convert
@@ -68,20 +69,13 @@ class _Mirror:
     def __init__(self, bridge: Ros2Bridge, topic: str, bus_type: type, cls: type):
         self.bridge, self.topic, self.cls = bridge, topic, cls
         self.publisher = bridge.node.create_publisher(cls, topic, _qos(ros_map.qos_of(bus_type)))
-        self.sub = None
+        self.relay = Relay(bridge.lab.bus, topic, self.forward, "ROS 2 bridge")
         encoder = cdr.ENCODERS.get(ros_map.ros_type(bus_type) or "")
         # the busiest types go out as CDR bytes built here (cdr.py says why), the rest as objects
         self.encode = encoder() if encoder is not None else lambda msg: convert.to_ros2(msg, cls)
 
     def update(self) -> None:  # simulation thread
-        wanted = self.publisher.get_subscription_count() > 0
-        bus = self.bridge.lab.bus
-        if wanted and self.sub is None:
-            self.sub = bus.subscribe(self.topic, bus.topics[self.topic].type, self.forward,
-                                     node="ROS 2 bridge")
-        elif not wanted and self.sub is not None:
-            self.sub.unregister()
-            self.sub = None
+        self.relay.want(self.publisher.get_subscription_count() > 0)
 
     def forward(self, msg) -> None:
         self.publisher.publish(self.encode(msg))
