@@ -185,7 +185,8 @@ class PythonController:
 
     Subclass it, set `command_interface`, declare parameters with `Param`, and write `update`.
     Before `configure` the framework sets `name`, `joints`, `dofs` (each joint's index into
-    nv-long vectors: columns of M and Jacobians, entries of g), `params` and `log`; `dynamics`
+    nv-long vectors: columns of M and Jacobians, entries of g), `effort_limits` (each joint's
+    URDF effort limit, N m: what the framework clamps to), `params` and `log`; `dynamics`
     is the robot's dynamics at the live state (mexone.dynamics.Dynamics), computed when first
     read in an update. See docs/controllers.md.
     """
@@ -196,6 +197,7 @@ class PythonController:
     name: str
     joints: list[str]
     dofs: np.ndarray
+    effort_limits: np.ndarray
     params: dict[str, Any]
     log: logging.LoggerAdapter
 

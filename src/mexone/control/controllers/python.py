@@ -152,6 +152,7 @@ class PythonRunner(Controller):
         impl = self._call(plugin.cls, "creating")
         impl.name, impl.joints = self.name, list(self.joints)
         impl.dofs = self.dofs.copy()
+        impl.effort_limits = self._effort_limit.copy()
         impl.params = dict(plugin.params)
         impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
         impl.__dict__["_mexone_binding"] = self
