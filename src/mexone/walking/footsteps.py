@@ -44,6 +44,7 @@ class Gait:
     max_turn: float = 0.3         # rad per step
     min_apart: float = 0.10       # m between the feet's centres, across
     start_delay: float = 0.6      # s from the first command to the first lift (the COM moves first)
+    max_change: float = 0.04      # m (and rad) a step's motion changes from the last one's at most
 
     @property
     def period(self) -> float:
@@ -134,6 +135,7 @@ class FootstepPlanner:
         self.swing: np.ndarray | None = None  # the step in the air (a row)
         self.origin = self.feet[0].copy()  # where the foot in the air lifted from
         self.body = self._body()
+        self.last_motion = np.zeros(3)  # the last committed step's motion
 
     def _body(self) -> np.ndarray:
         yaw = math.atan2(math.sin(self.feet[0, 3]) + math.sin(self.feet[1, 3]),
@@ -163,8 +165,11 @@ class FootstepPlanner:
         pitch, roll = math.atan2(nx, normal[2]), math.atan2(-ny, math.hypot(nx, normal[2]))
         return np.array([foot, pose[0], pose[1], z, pose[2], pitch, roll])
 
-    def _motion(self) -> np.ndarray:
-        return self.command if self.closing == 0 else np.zeros(3)
+    def _motion(self, last: np.ndarray, closing: int) -> np.ndarray:
+        """The next step's motion: the command (zero while closing), changed from the last
+        step's by at most max_change (the robot speeds up and slows down over a few steps)."""
+        want = self.command if closing == 0 else np.zeros(3)
+        return last + np.clip(want - last, -self.gait.max_change, self.gait.max_change)
 
     def _next_body(self, body: np.ndarray, foot: int, motion: np.ndarray) -> np.ndarray:
         # sideways and turning, the foot on that side leads: the body moves on its steps only,
@@ -189,7 +194,8 @@ class FootstepPlanner:
             self.swing = None
         while self.walking and t >= self.t_next:  # the next step lifts now: commit it
             foot = self.next_foot
-            self.body = self._next_body(self.body, foot, self._motion())
+            self.last_motion = self._motion(self.last_motion, self.closing)
+            self.body = self._next_body(self.body, foot, self.last_motion)
             row = self._target(foot, self.body, self.feet[1 - foot])
             lift = self.t_next
             self.swing = np.array([*row, lift, lift + g.single_support])
@@ -211,9 +217,9 @@ class FootstepPlanner:
         # the steps ahead, from the command as it is now
         body, feet, foot, lift, closing = self.body.copy(), self.feet.copy(), self.next_foot, \
             self.t_next, self.closing
-        walking = self.walking
+        walking, motion = self.walking, self.last_motion
         while walking and len(rows) < Steps.K:
-            motion = self.command if closing == 0 else np.zeros(3)
+            motion = self._motion(motion, closing)
             body = self._next_body(body, foot, motion)
             row = self._target(foot, body, feet[1 - foot])
             rows.append(np.array([*row, lift, lift + g.single_support]))

@@ -6,13 +6,16 @@ sample T: x+ = A x + B j. The zero-moment point of the cart-table is z = c - (h/
 samples ahead, stacked: Z = P_zs x0 + P_zu J. The QP (per solve, both axes and the landing
 shift d = (dx, dy)):
 
-    min  w_z ||Z - Z_ref - E d||² + w_j ||J||² + w_d ||d||²
+    min  w_z ||Z - Z_ref - E d||² + w_j ||J||² + w_d ||d||² + w_ξ ||ξ_N - Z_ref,N - E_N d||²
     s.t. |R(θ_k)^T (Z_k - centre_k - E_k d)| <= half_size_k    (the ZMP inside the support)
          |d| <= max_shift
 
 where E_k is 1 where the support at sample k is the shifted landing's (or later) and the
 support is the standing foot's sole (single support) or the corridor between both soles'
-centres (double support), shrunk by a margin. The first jerk is applied; the plan is solved again
+centres (double support), shrunk by a margin; ξ_N = c_N + ċ_N / ω, the divergent component of
+motion (the capture point) at the horizon's end, is brought onto the last ZMP reference, so the
+plan stays balanced beyond its horizon (without it a ZMP-tracking MPC lets the COM run away
+where it no longer looks). The first jerk is applied; the plan is solved again
 from the measured COM (position, velocity) at the controller's rate.
 """
 
@@ -135,13 +138,18 @@ class LipmMpc:
 
     def __init__(self, h: float, T: float = 0.1, n: int = 16, w_zmp: float = 1.0,
                  w_jerk: float = 1e-6, w_shift: float = 1.0, max_shift: float = 0.06,
-                 solver: str = "daqp"):
+                 w_dcm: float = 10.0, solver: str = "daqp"):
         self.h, self.T, self.n = h, T, n
+        self.w_dcm = w_dcm
         self.w_zmp, self.w_jerk, self.w_shift, self.max_shift = w_zmp, w_jerk, w_shift, max_shift
         self.solver = qp.check_solver(solver)
         (self.A, self.B, self.ps, self.pu, self.vs, self.vu, self.as_, self.au,
          self.zs, self.zu) = lipm_matrices(T, n, h)
-        self.qz = self.zu.T @ self.zu
+        omega = np.sqrt(G / h)
+        # the capture point at the last sample: xi = xs x0 + xu J
+        self.xi_s = self.ps[-1] + self.vs[-1] / omega
+        self.xi_u = self.pu[-1] + self.vu[-1] / omega
+        self.qz = self.zu.T @ self.zu + w_dcm / w_zmp * np.outer(self.xi_u, self.xi_u)
 
     def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -153,16 +161,19 @@ class LipmMpc:
         P = np.zeros((nx, nx))
         q = np.zeros(nx)
         hj = wz * self.qz + self.w_jerk * np.eye(n)
-        ze = wz * (self.zu.T @ E)
+        wd, eN = self.w_dcm, E[-1]
+        ze = wz * (self.zu.T @ E) + wd * eN * self.xi_u
         P[:n, :n] = P[n:2 * n, n:2 * n] = hj
         P[:n, 2 * n] = P[2 * n, :n] = -ze
         P[n:2 * n, 2 * n + 1] = P[2 * n + 1, n:2 * n] = -ze
-        P[2 * n, 2 * n] = P[2 * n + 1, 2 * n + 1] = wz * (E @ E) + self.w_shift
+        P[2 * n, 2 * n] = P[2 * n + 1, 2 * n + 1] = wz * (E @ E) + wd * eN * eN + self.w_shift
         ex, ey = zsx - support.ref[:, 0], zsy - support.ref[:, 1]
-        q[:n] = wz * (self.zu.T @ ex)
-        q[n:2 * n] = wz * (self.zu.T @ ey)
-        q[2 * n] = -wz * (E @ ex)
-        q[2 * n + 1] = -wz * (E @ ey)
+        xix = self.xi_s @ x0 - support.ref[-1, 0]
+        xiy = self.xi_s @ y0 - support.ref[-1, 1]
+        q[:n] = wz * (self.zu.T @ ex) + wd * xix * self.xi_u
+        q[n:2 * n] = wz * (self.zu.T @ ey) + wd * xiy * self.xi_u
+        q[2 * n] = -wz * (E @ ex) - wd * eN * xix
+        q[2 * n + 1] = -wz * (E @ ey) - wd * eN * xiy
         c, s = np.cos(support.yaw), np.sin(support.yaw)
         du = c * (zsx - support.centre[:, 0]) + s * (zsy - support.centre[:, 1])
         dw = -s * (zsx - support.centre[:, 0]) + c * (zsy - support.centre[:, 1])

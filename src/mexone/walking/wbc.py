@@ -201,9 +201,9 @@ class WholeBodyController(PythonController):
     kd_torso = Param(30.0, low=0.0, high=1e3, doc="torso attitude damping", unit="1/s")
     kp_posture = Param(50.0, low=0.0, high=1e5, doc="posture stiffness", unit="1/s^2")
     kd_posture = Param(10.0, low=0.0, high=1e3, doc="posture damping", unit="1/s")
-    w_com = Param(10.0, low=0.0, high=1e6, doc="COM task weight")
+    w_com = Param(100.0, low=0.0, high=1e6, doc="COM task weight")
     w_foot = Param(10.0, low=0.0, high=1e6, doc="swing foot task weight")
-    w_torso = Param(1.0, low=0.0, high=1e6, doc="torso task weight")
+    w_torso = Param(10.0, low=0.0, high=1e6, doc="torso task weight")
     w_posture = Param(0.05, low=0.0, high=1e6, doc="posture task weight")
     mu = Param(0.6, low=0.05, high=2.0, doc="friction coefficient the QP assumes")
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles when standing (0: as it starts)",
