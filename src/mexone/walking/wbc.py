@@ -9,11 +9,12 @@ four corners of each foot's sole (world frame). Subject to
   carries no force;
 - torque limits: |τ| <= τ_max with τ = M_a q̈ + h_a - Σ_c J_c,a^T f_c;
 
-it minimises the weighted task errors (each foot on the ground held there, J_foot q̈ + J̇_foot q̇
-= a_foot, with a large weight: no slip, no roll, yet never infeasible) Σ_i w_i ||J_i q̈ + J̇_i q̇ - a_i*||² (the COM, the swing
-foot, the torso, the posture: `Task`) plus a small regularisation of q̈ and f. τ follows from
-q̈ and f (the actuated rows of the equations of motion): the motors get torques, no PID under
-them. Solved by `qpsolvers` (daqp by default) at the loop's rate.
+it minimises the weighted task errors Σ_i w_i ||J_i q̈ + J̇_i q̇ - a_i*||² (the COM, the swing
+foot, the torso, the posture: `Task`; each foot on the ground held there, J_foot q̈ + J̇_foot q̇ =
+a_foot, with a large weight: no slip, no roll, yet never infeasible) plus a small
+regularisation of q̈ and f. τ follows from q̈ and f (the actuated rows of the equations of
+motion): the motors get torques, no PID under them. Solved by `qpsolvers` (daqp by default)
+at the loop's rate.
 """
 
 from __future__ import annotations
