@@ -180,6 +180,22 @@ class FootstepPlanner:
         lead[2] = 2 * motion[2] if motion[2] * moving_left > 0 else 0.0
         return _compose(body, lead)
 
+    def measured(self, feet: np.ndarray) -> None:
+        """Where the feet on the ground really are (2 x 4, rows of a foot in the air ignored):
+        the plan goes on from there, so a push's sideways drift or the feet's slip is walked
+        with rather than stepped back from."""
+        for f in range(2):
+            if self.swing is None or int(self.swing[0]) != f:
+                self.feet[f] = feet[f]
+
+    def _anchor(self, foot: int, feet: np.ndarray) -> np.ndarray:
+        """The body's pose the next step of `foot` is planned from: half the stance width in
+        from the standing foot."""
+        stance = feet[1 - foot]
+        side = 1.0 if foot == 0 else -1.0
+        return _compose(np.array([stance[0], stance[1], stance[3]]),
+                        np.array([0.0, side * self.gait.width / 2, 0.0]))
+
     def update(self, t: float) -> np.ndarray:
         """The plan at time `t` (s), as a `Steps` array."""
         g = self.gait
@@ -195,7 +211,7 @@ class FootstepPlanner:
         while self.walking and t >= self.t_next:  # the next step lifts now: commit it
             foot = self.next_foot
             self.last_motion = self._motion(self.last_motion, self.closing)
-            self.body = self._next_body(self.body, foot, self.last_motion)
+            self.body = self._next_body(self._anchor(foot, self.feet), foot, self.last_motion)
             row = self._target(foot, self.body, self.feet[1 - foot])
             lift = self.t_next
             self.swing = np.array([*row, lift, lift + g.single_support])
@@ -215,12 +231,11 @@ class FootstepPlanner:
             foot = int(self.swing[0])
             ground[foot] = self.origin
         # the steps ahead, from the command as it is now
-        body, feet, foot, lift, closing = self.body.copy(), self.feet.copy(), self.next_foot, \
-            self.t_next, self.closing
+        feet, foot, lift, closing = self.feet.copy(), self.next_foot, self.t_next, self.closing
         walking, motion = self.walking, self.last_motion
         while walking and len(rows) < Steps.K:
             motion = self._motion(motion, closing)
-            body = self._next_body(body, foot, motion)
+            body = self._next_body(self._anchor(foot, feet), foot, motion)
             row = self._target(foot, body, feet[1 - foot])
             rows.append(np.array([*row, lift, lift + g.single_support]))
             feet[foot] = row[[1, 2, 3, 4]]
@@ -242,6 +257,8 @@ class FootstepPlannerController(PythonController):
 
     command_interface = "effort"
     exports = {"steps": Steps.LENGTH}
+    inputs = {"base": 13}
+    optional_inputs = ("base",)
 
     vx = Param(0.0, low=-1.0, high=1.0, doc="forward speed without cmd_vel", unit="m/s")
     vy = Param(0.0, low=-1.0, high=1.0, doc="sideways speed (left +) without cmd_vel", unit="m/s")
@@ -257,24 +274,38 @@ class FootstepPlannerController(PythonController):
     def configure(self) -> None:
         self.model = self.dynamics.model
         self.ray = mujoco.MjData(self.model)
+        self.scratch = mujoco.MjData(self.model)
+        self.dyn = _body.state_dynamics(self.model, self.scratch)
         self.robot_bodies = set(range(1, self.model.nbody))
         self._latest: tuple[float, np.ndarray] | None = None  # (wall-clock-free sim time, twist)
         self._received: np.ndarray | None = None
         self._sub = None
         self.refused: str | None = None
 
-    def activate(self, state) -> None:
-        dyn = self.dynamics
-        self.ray.qpos[:] = state.all_q
-        mujoco.mj_kinematics(self.model, self.ray)  # the world's geoms' poses (they never move)
+    def _feet(self, state) -> np.ndarray:
+        """Each sole's (x, y, z, yaw) now, from the encoders and the base (the estimator's when
+        `base` is bound, else the simulator's)."""
+        d = self.scratch
+        d.qpos[:] = state.all_q
+        inputs = getattr(state, "inputs", None) or {}
+        base = inputs.get("base")
+        if base is not None and np.isfinite(base[0]):
+            d.qpos[:3], d.qpos[3:7] = base[:3], base[3:7]
+        self.dyn.refresh()
         feet = []
         for name in _body.FEET:
-            p, r = dyn.pose(name)
+            p, r = self.dyn.pose(name)
             sole = p + r @ _body.SOLE_OFFSET
             feet.append([sole[0], sole[1], sole[2], _body.yaw_of(r)])
+        return np.array(feet)
+
+    def activate(self, state) -> None:
+        self.ray.qpos[:] = state.all_q
+        mujoco.mj_kinematics(self.model, self.ray)  # the world's geoms' poses (they never move)
+        feet = self._feet(state)
         gait = Gait(self.single_support, self.double_support, self.width, self.max_forward,
                     max_sideways=self.max_sideways, max_turn=self.max_turn)
-        self.planner = FootstepPlanner(gait, np.array(feet), self.terrain)
+        self.planner = FootstepPlanner(gait, feet, self.terrain)
         self.refused = None
         self._heard_at: float | None = None
         bus, namespace = _bus(self)
@@ -320,6 +351,8 @@ class FootstepPlannerController(PythonController):
         else:
             command = np.array([self.vx, self.vy, self.wz])
         self.planner.set_command(*command)
+        if self.planner.walking:
+            self.planner.measured(self._feet(state))
         self.exports["steps"][:] = self.planner.update(t)
         return None
 
