@@ -180,12 +180,12 @@ class FootstepPlanner:
         lead[2] = 2 * motion[2] if motion[2] * moving_left > 0 else 0.0
         return _compose(body, lead)
 
-    def measured(self, feet: np.ndarray) -> None:
+    def measured(self, feet: np.ndarray, t: float) -> None:
         """Where the feet on the ground really are (2 x 4, rows of a foot in the air ignored):
         the plan goes on from there, so a push's sideways drift or the feet's slip is walked
         with rather than stepped back from."""
         for f in range(2):
-            if self.swing is None or int(self.swing[0]) != f:
+            if self.swing is None or int(self.swing[0]) != f or t >= self.swing[8]:
                 self.feet[f] = feet[f]
 
     def _anchor(self, foot: int, feet: np.ndarray) -> np.ndarray:
@@ -352,7 +352,7 @@ class FootstepPlannerController(PythonController):
             command = np.array([self.vx, self.vy, self.wz])
         self.planner.set_command(*command)
         if self.planner.walking:
-            self.planner.measured(self._feet(state))
+            self.planner.measured(self._feet(state), t)
         self.exports["steps"][:] = self.planner.update(t)
         return None
 

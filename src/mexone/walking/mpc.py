@@ -151,9 +151,12 @@ class LipmMpc:
         self.xi_u = self.pu[-1] + self.vu[-1] / omega
         self.qz = self.zu.T @ self.zu + w_dcm / w_zmp * np.outer(self.xi_u, self.xi_u)
 
-    def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(jerk x (n,), jerk y (n,), landing shift (2,)) from the COM's states x0, y0 (c, ċ, c̈)."""
+    def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True,
+              fixed_shift: np.ndarray | None = None,
+              apart: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(jerk x (n,), jerk y (n,), landing shift (2,)) from the COM's states x0, y0 (c, ċ, c̈).
+        Not `adjustable`: the shift is `fixed_shift` (default 0: the landing as planned).
+        `apart` = (n, b): the shift keeps n . d >= b (the foot stays clear of the other one)."""
         n, wz = self.n, self.w_zmp
         nx = 2 * n + 2
         E = support.shifted
@@ -182,9 +185,17 @@ class LipmMpc:
         Gm = np.vstack([U, -U, W, -W])
         hv = np.concatenate([support.half[:, 0] - du, support.half[:, 0] + du,
                              support.half[:, 1] - dw, support.half[:, 1] + dw])
-        bound = self.max_shift if adjustable else 0.0
-        lb = np.concatenate([np.full(2 * n, -np.inf), [-bound, -bound]])
-        ub = np.concatenate([np.full(2 * n, np.inf), [bound, bound]])
+        if adjustable:
+            low, high = np.full(2, -self.max_shift), np.full(2, self.max_shift)
+            if apart is not None:
+                row = np.zeros(nx)
+                row[2 * n:] = -np.asarray(apart[0])
+                Gm = np.vstack([Gm, row])
+                hv = np.append(hv, -apart[1])
+        else:
+            low = high = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
+        lb = np.concatenate([np.full(2 * n, -np.inf), low])
+        ub = np.concatenate([np.full(2 * n, np.inf), high])
         v = qp.solve(P, q, Gm, hv, lb=lb, ub=ub, solver=self.solver, what="COM MPC")
         return v[:n], v[n:2 * n], v[2 * n:]
 
@@ -215,6 +226,8 @@ class ComPlanner(PythonController):
     w_jerk = Param(1e-6, low=0.0, high=1e3, doc="weight on the jerk")
     w_shift = Param(0.3, low=0.0, high=1e6, doc="weight on moving the next landing")
     max_shift = Param(0.2, low=0.0, high=0.4, doc="how far a push may move the next landing", unit="m")
+    min_apart = Param(0.10, low=0.0, high=0.5, doc="a moved landing stays this far from the other foot",
+                      unit="m")
     margin = Param(0.015, low=0.0, high=0.04, doc="the ZMP keeps this far inside the soles", unit="m")
     feedback = Param(1.0, low=0.0, high=1.0, doc="share of the measured COM state the plan starts from")
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles (0: as it stands at start)", unit="m")
@@ -237,6 +250,7 @@ class ComPlanner(PythonController):
         self.mpc = LipmMpc(self.height, self.sample, self.horizon, w_jerk=self.w_jerk,
                            w_shift=self.w_shift, max_shift=self.max_shift, solver=self.solver)
         c = dyn.com()
+        self.shift_for, self.shift = np.nan, np.zeros(2)
         self.x = np.array([c[0], 0.0, 0.0])
         self.y = np.array([c[1], 0.0, 0.0])
         self.stopped = None
@@ -267,10 +281,18 @@ class ComPlanner(PythonController):
         self.y[:2] = k * np.array([c[1], v[1]]) + (1 - k) * self.y[:2]
         rows = Steps.rows(steps)
         adjustable = len(rows) > 0 and t < rows[0][8] - 0.05
+        if len(rows) and rows[0][8] != self.shift_for:  # a new step: nothing moved yet
+            self.shift_for, self.shift = rows[0][8], np.zeros(2)
+        apart = None
+        if len(rows):  # the landing stays min_apart clear of the other foot, across
+            row, other = rows[0], Steps.feet(steps)[1 - int(rows[0][0])]
+            side = 1.0 if int(row[0]) == 0 else -1.0
+            across = side * np.array([-np.sin(row[4]), np.cos(row[4])])
+            apart = (across, self.min_apart - float(across @ (row[1:3] - other[:2])))
         support = supports(steps, t, self.sample, self.horizon, _body.SOLE_SIZE, self.margin)
         start = time.perf_counter()
         try:
-            jx, jy, shift = self.mpc.solve(self.x, self.y, support, adjustable)
+            jx, jy, shift = self.mpc.solve(self.x, self.y, support, adjustable, self.shift, apart)
         except qp.Infeasible as exc:
             self.stopped = str(exc)
             self.log.error("%s at t = %.3f s: the COM reference holds still (a safe stop)", exc, t)
@@ -286,6 +308,7 @@ class ComPlanner(PythonController):
                          self.x[2], self.y[2], 0.0]
         if len(rows):
             row = rows[0]
+            self.shift = shift  # kept once the step can no longer move (its last 0.05 s)
             out["landing"][:] = [row[0], row[1] + shift[0], row[2] + shift[1], row[3], row[4]]
         else:
             out["landing"][:] = np.nan

@@ -30,7 +30,12 @@ def check_solver(name: str) -> str:
 def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarray | None = None,
           A: np.ndarray | None = None, b: np.ndarray | None = None, lb: np.ndarray | None = None,
           ub: np.ndarray | None = None, solver: str = "daqp", what: str = "QP") -> np.ndarray:
-    """argmin 1/2 x'Px + q'x  s.t.  Gx <= h, Ax = b, lb <= x <= ub; Infeasible when none."""
+    """argmin 1/2 x'Px + q'x  s.t.  Gx <= h, Ax = b, lb <= x <= ub; Infeasible when none (or
+    when the problem itself is not finite: a NaN from upstream never reaches the solver)."""
+    for name, value in (("cost", P), ("cost", q), ("constraints", G), ("constraints", h),
+                        ("constraints", A), ("constraints", b)):
+        if value is not None and not np.all(np.isfinite(value)):
+            raise Infeasible(f"the {what}'s {name} are not finite (NaN or inf in its inputs)")
     x = qpsolvers.solve_qp(P, q, G, h, A, b, lb, ub, solver=solver)
     if x is None or not np.all(np.isfinite(x)):
         raise Infeasible(f"the {what} has no solution ({solver})")
