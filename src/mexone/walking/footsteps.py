@@ -94,7 +94,7 @@ def _min_jerk(tau: float) -> tuple[float, float, float]:
 def swing_point(start: np.ndarray, target: np.ndarray, t_lift: float, t_land: float, t: float,
                 height: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The swing foot's (x, y, z, yaw), its velocity and acceleration at `t`: a minimum-jerk
-    move from `start` to `target`, lifted `height` on a bump 16 s^2 (1 - s)^2 (zero velocity
+    move from `start` to `target`, lifted `height` on a bump 64 u^3, u = s (1 - s) (zero velocity
     and acceleration at both ends: it lands softly)."""
     span = max(t_land - t_lift, 1e-6)
     tau = min(max((t - t_lift) / span, 0.0), 1.0)
@@ -104,9 +104,10 @@ def swing_point(start: np.ndarray, target: np.ndarray, t_lift: float, t_land: fl
     pos = start[:4] + delta * s
     vel = delta * ds / span
     acc = delta * dds / span**2
-    bump = 16 * tau**2 * (1 - tau) ** 2
-    dbump = 32 * tau * (1 - tau) * (1 - 2 * tau)
-    ddbump = 32 * ((1 - 2 * tau) ** 2 - 2 * tau * (1 - tau))
+    u = tau * (1 - tau)
+    bump = 64 * u**3
+    dbump = 192 * u**2 * (1 - 2 * tau)
+    ddbump = 384 * u * ((1 - 2 * tau) ** 2 - u)
     pos[2] += height * bump
     vel[2] += height * dbump / span
     acc[2] += height * ddbump / span**2
