@@ -11,7 +11,7 @@ import numpy as np
 
 from mexone.dynamics import Dynamics
 
-__all__ = ["Body", "FEET", "SOLE_OFFSET", "SOLE_SIZE", "STANCE_POSTURE", "yaw_of", "rot_z",
+__all__ = ["Body", "FEET", "SOLE_OFFSET", "SOLE_SIZE", "STANCE_POSTURE", "yaw_of", "rot_z", "rot_y", "rot_x",
            "quat_to_matrix", "matrix_to_quat", "state_dynamics"]
 
 FEET = ("l_foot", "r_foot")  # the foot links, left first (index 0 left, 1 right everywhere)
@@ -28,6 +28,16 @@ STANCE_POSTURE = {"l_hip_pitch": -0.35, "l_knee": 0.7, "l_ankle_pitch": -0.35,
 def rot_z(yaw: float) -> np.ndarray:
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rot_y(pitch: float) -> np.ndarray:
+    c, s = np.cos(pitch), np.sin(pitch)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_x(roll: float) -> np.ndarray:
+    c, s = np.cos(roll), np.sin(roll)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def yaw_of(rotation: np.ndarray) -> float:

@@ -35,6 +35,7 @@ from mexone.walking.footsteps import Steps
 __all__ = ["LipmMpc", "Support", "supports", "lipm_matrices", "ComPlanner"]
 
 G = 9.81
+HEIGHT_TIME = 0.2  # s: the COM height's time constant following the ground under the feet
 
 
 def lipm_matrices(T: float, n: int, h: float):
@@ -303,8 +304,11 @@ class ComPlanner(PythonController):
         self.x = LipmMpc.advance(self.x, jx[0], period)
         self.y = LipmMpc.advance(self.y, jy[0], period)
         feet = Steps.feet(steps)
+        # the height follows the ground under the feet, smoothly (a step's 2 cm over 0.2 s)
         ground = (feet[0, 2] + feet[1, 2]) / 2
-        out["com"][:] = [self.x[0], self.y[0], ground + self.height, self.x[1], self.y[1], 0.0,
+        rate = (ground - self.ground) / HEIGHT_TIME
+        self.ground += rate * period
+        out["com"][:] = [self.x[0], self.y[0], self.ground + self.height, self.x[1], self.y[1], rate,
                          self.x[2], self.y[2], 0.0]
         if len(rows):
             row = rows[0]

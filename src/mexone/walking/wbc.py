@@ -325,12 +325,17 @@ class WholeBodyController(PythonController):
         return Task(jac, np.zeros(len(self.dofs)), acc, self.w_posture)
 
     def _swing_task(self, state, swing, f, centre, rot, jac, drift, dq, t) -> Task:
-        if f not in self.swing_from:
-            self.swing_from[f] = np.array([*centre, _body.yaw_of(rot)])
+        if f not in self.swing_from:  # where it lifted from: x y z yaw, and its pitch and roll
+            self.swing_from[f] = np.array([*centre, _body.yaw_of(rot), math.asin(-rot[2, 0]),
+                                           math.atan2(rot[2, 1], rot[2, 2])])
+        start = self.swing_from[f]
         landing = self._input(state, "landing")
         target = swing[1:5] if landing is None or int(landing[0]) != f else landing[1:5]
-        pos, vel, acc = swing_point(self.swing_from[f], target, swing[7], swing[8], t, self.step_height)
-        want = _body.rot_z(pos[3])
+        pos, vel, acc = swing_point(start, target, swing[7], swing[8], t, self.step_height)
+        # the sole turns from its pitch and roll at lift-off to the ground's where it lands
+        s = min(max((t - swing[7]) / max(swing[8] - swing[7], 1e-6), 0.0), 1.0)
+        pitch, roll = start[4:6] + (swing[5:7] - start[4:6]) * s
+        want = _body.rot_z(pos[3]) @ _body.rot_y(pitch) @ _body.rot_x(roll)
         err_r = _rotation_error(want, rot)
         v = jac @ dq
         a = np.empty(6)
