@@ -199,7 +199,8 @@ def test_walking_plan_keeps_the_zmp_in_the_support_and_the_capture_point_bounded
         assert (np.abs(u) <= sup.half[:, 0] + 1e-6).all() and (np.abs(w) <= sup.half[:, 1] + 1e-6).all()
         if at_4s is None and t >= 4.0:
             at_4s = x[0]
-    feet = Steps.feet(steps)
+        plan = steps
+    feet = Steps.feet(plan)
     # it walked at the command's speed once up to speed, the capture point between the feet
     assert (x[0] - at_4s) / 2.0 == pytest.approx(0.3, abs=0.02)
     assert abs(y[0] + y[1] / omega) < 0.1

@@ -199,11 +199,15 @@ class PythonController:
     framework's arrays, NaN until written), `inputs` those it reads (name -> length), which its
     YAML entry binds to other controllers' exports (`inputs: {tilt: estimator/tilt}`) and
     `state.inputs[name]` shows. The manager updates an exporter before its readers.
+    `optional_inputs` names inputs the class can run without: left unbound in the YAML, they are
+    absent from `state.inputs` (a walking part computing from the simulator's truth until an
+    estimator is chained in).
     """
 
     command_interface: ClassVar[str] = "effort"  # "effort" | "position" | "velocity"
     exports: Any = {}  # the class declares name -> length; an instance holds name -> array
     inputs: ClassVar[Mapping[str, int]] = {}
+    optional_inputs: ClassVar[tuple[str, ...]] = ()
     _declared: ClassVar[dict[str, Param]] = {}
 
     name: str
