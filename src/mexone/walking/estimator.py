@@ -57,8 +57,8 @@ class BaseKalman:
 
     def correct(self, z: np.ndarray, H: np.ndarray, r: float | np.ndarray) -> None:
         R = np.diag(np.broadcast_to(np.asarray(r, dtype=float), z.shape))
-        S = H @ self.P @ H.T + R
-        K = np.linalg.solve(S, H @ self.P).T
+        PHt = self.P @ H.T
+        K = np.linalg.solve(H @ PHt + R, PHt.T).T
         self.x = self.x + K @ (z - H @ self.x)
         I_KH = np.eye(6) - K @ H
         self.P = I_KH @ self.P @ I_KH.T + K @ R @ K.T
@@ -127,6 +127,7 @@ class StateEstimator(PythonController):
         d.qvel[3:6] = omega
         self.dyn.refresh()
         contact = np.zeros(2)
+        zs, hs, rs = [], [], []  # every foot's measurements, corrected at once
         for f, name in enumerate(_body.FEET):
             sensor = state.sensors[f"{name}_contact"]
             if float(np.dot(sensor.force, [0, 0, 1])) < self.contact_force:
@@ -138,8 +139,11 @@ class StateEstimator(PythonController):
             if self.latched[f] is None:
                 self.latched[f] = p_foot.copy()
             jac = self.dyn.jacobian(name)
-            kf.correct(-(jac[:3] @ d.qvel), H_VELOCITY, self.velocity_noise**2)
-            kf.correct(self.latched[f] - offset, H_POSITION, self.position_noise**2)
+            zs += [-(jac[:3] @ d.qvel), self.latched[f] - offset]
+            hs += [H_VELOCITY, H_POSITION]
+            rs += [self.velocity_noise**2] * 3 + [self.position_noise**2] * 3
+        if zs:
+            kf.correct(np.concatenate(zs), np.vstack(hs), np.array(rs))
         out = self.exports
         out["base"][:3] = kf.x[:3]
         out["base"][3:7] = d.qpos[3:7]
