@@ -280,6 +280,7 @@ class ComPlanner(PythonController):
         k = self.feedback
         self.x[:2] = k * np.array([c[0], v[0]]) + (1 - k) * self.x[:2]
         self.y[:2] = k * np.array([c[1], v[1]]) + (1 - k) * self.y[:2]
+        steps = self._measured(dyn, steps, t)
         rows = Steps.rows(steps)
         adjustable = len(rows) > 0 and t < rows[0][8] - 0.05
         if len(rows) and rows[0][8] != self.shift_for:  # a new step: nothing moved yet
@@ -317,6 +318,20 @@ class ComPlanner(PythonController):
         else:
             out["landing"][:] = np.nan
         return None
+
+    def _measured(self, dyn, steps: np.ndarray, t: float) -> np.ndarray:
+        """The plan with the feet on the ground where they really are (the encoders and the base):
+        the support is where the soles stand, whatever the planner believes (a landing moved by a
+        push, a foot that slipped)."""
+        steps = steps.copy()
+        swing = Steps.swing_now(steps, t)
+        for f, name in enumerate(_body.FEET):
+            if swing is not None and int(swing[0]) == f:
+                continue
+            p, r = dyn.pose(name)
+            sole = p + r @ _body.SOLE_OFFSET
+            steps[4 * f:4 * f + 4] = (sole[0], sole[1], sole[2], _body.yaw_of(r))
+        return steps
 
     def report(self) -> dict:
         times = np.asarray(self.solve_times[-20000:]) * 1e3
