@@ -186,8 +186,12 @@ class WholeBodyController(PythonController):
     adjusted landing of the foot in the air), `base` (13: the estimator's position, quaternion
     w x y z, linear velocity (world) and angular velocity (base frame): the base's state it
     computes the dynamics at; unbound, the simulator's). Without `com` it stands over its feet.
-    Exports `tau` (its joints' torques) and `status` (2: 1 while it controls / 0 after a safe
-    stop; the QP's time, ms)."""
+    Exports `status` (2: 1 while it controls, 0 after a safe stop; the QP's solve time, ms).
+
+    The safe stop: a step out of reach or not finite is refused in one line and the robot
+    stands (both feet down, the COM over them, the plan ignored until a restart); a QP with no
+    solution (a NaN from upstream) is one line and the joints hold where they are, gravity
+    compensated."""
 
     command_interface = "effort"
     inputs = {"steps": Steps.LENGTH, "com": 9, "landing": 5, "base": 13}
@@ -210,6 +214,8 @@ class WholeBodyController(PythonController):
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles when standing (0: as it starts)",
                        unit="m")
     step_height = Param(0.04, low=0.0, high=0.2, doc="swing foot's lift", unit="m")
+    max_reach = Param(0.4, low=0.05, high=2.0, doc="a landing further from the standing foot is "
+                      "refused (the robot stands)", unit="m")
     solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
@@ -221,12 +227,14 @@ class WholeBodyController(PythonController):
         self.scratch = mujoco.MjData(model)
         self.dyn = _body.state_dynamics(model, self.scratch)
         self.posture = self.body.posture()
-        self.stopped: str | None = None
+        self.stopped: str | None = None  # the QP failed: the joints hold (the safe stop's end)
+        self.standing: str | None = None  # bad input: it stands, the plan ignored
+        self.finish: np.ndarray | None = None  # the step that lands before it stands
         self.solve_times: list[float] = []
         self.swing_from: dict[int, np.ndarray] = {}
 
     def activate(self, state) -> None:
-        self.stopped = None
+        self.stopped = self.standing = self.finish = None
         dyn = self._dynamics(state)
         soles = [self._sole(dyn, f) for f in range(2)]
         self.home = [np.array([*p, _body.yaw_of(r)]) for p, r in soles]  # x y z yaw per foot
@@ -264,8 +272,23 @@ class WholeBodyController(PythonController):
         if self.stopped is not None:
             return self._hold(state)
         dyn = self._dynamics(state)
-        steps = self._input(state, "steps")
+        steps = self._input(state, "steps") if self.standing is None else None
         swing = Steps.swing_now(steps, t) if steps is not None else None
+        if swing is not None:
+            swing = swing.copy()
+            swing[1:5] = self._target(state, swing)
+            if (problem := self._unreachable(dyn, swing)) is not None:
+                self._stand(t, problem)
+                swing = None
+        ref = self._input(state, "com") if self.standing is None else None
+        if ref is not None and not np.all(np.isfinite(ref)):
+            self._stand(t, "the COM reference is not finite", finish=swing)
+            ref = None
+        if self.standing is not None and self.finish is not None:  # the step under way lands
+            if t < self.finish[8]:
+                swing = self.finish
+            else:
+                self.finish, self.start_com, self.start_t = None, dyn.com(), t
         feet, tasks = [], []
         dq = self.scratch.qvel
         for f in range(2):
@@ -276,10 +299,10 @@ class WholeBodyController(PythonController):
             feet.append(Foot(jac, drift, rot, self.corners, not in_air,
                              target=-20.0 * (jac @ dq)))
             if in_air:
-                tasks.append(self._swing_task(state, swing, f, centre, rot, jac, drift, dq, t))
+                tasks.append(self._swing_task(swing, f, centre, rot, jac, drift, dq, t))
             elif f in self.swing_from:
                 del self.swing_from[f]
-        tasks.append(self._com_task(state, dyn, dq, t))
+        tasks.append(self._com_task(ref, swing, dyn, dq, t))
         tasks.append(self._torso_task(dyn, dq, feet))
         tasks.append(self._posture_task(state))
         start = time.perf_counter()
@@ -291,13 +314,44 @@ class WholeBodyController(PythonController):
         self.exports["status"][:] = (1.0, self.solve_times[-1] * 1e3)
         return sol.tau + self.damping * state.dq
 
-    def _com_task(self, state, dyn, dq, t) -> Task:
-        ref = self._input(state, "com")
+    def _target(self, state, swing: np.ndarray) -> np.ndarray:
+        """Where the step in the air lands (x, y, z, yaw): the COM planner's `landing` when it
+        moved it, else the plan's."""
+        landing = self._input(state, "landing")
+        moved = landing is not None and int(landing[0]) == int(swing[0])
+        return landing[1:5] if moved else swing[1:5]
+
+    def _unreachable(self, dyn, swing: np.ndarray) -> str | None:
+        """Why the step in the air cannot be taken (not finite, or further from the standing
+        foot than the legs reach), or None."""
+        target = swing[1:5]
+        if not np.all(np.isfinite(target)) or not np.all(np.isfinite(swing[7:9])):
+            return "a step to a position that is not finite"
+        stance = self._sole(dyn, 1 - int(swing[0]))[0]
+        reach = float(np.linalg.norm(target[:2] - stance[:2]))
+        if reach > self.max_reach or abs(target[2] - stance[2]) > self.max_reach / 2:
+            return (f"a step to ({target[0]:.3f}, {target[1]:.3f}, {target[2]:.3f}) m, "
+                    f"{reach:.2f} m from the standing foot (the legs reach {self.max_reach:g} m)")
+        return None
+
+    def _stand(self, t: float, why: str, finish: np.ndarray | None = None) -> None:
+        """The safe stop's first stage: the step under way (`finish`) lands where it was going,
+        then both feet down, the COM over them, the plan ignored."""
+        if self.standing is None:
+            self.standing, self.finish = why, finish
+            self.log.error("%s at t = %.3f s: refused, the robot stands (the plan is ignored until "
+                           "the controller is restarted)", why, t)
+            self.start_com = self.dyn.com()
+            self.start_t = t
+
+    def _com_task(self, ref, swing, dyn, dq, t) -> Task:
         c, jc = dyn.com(), dyn.com_jacobian()
         v = jc @ dq
-        if ref is None:  # stand: over the feet's middle, at the standing height
+        if ref is None:  # stand: over the feet's middle (the standing foot while one is up)
             soles = [self._sole(dyn, f)[0] for f in range(2)]
             middle = (soles[0] + soles[1]) / 2
+            if swing is not None:
+                middle = soles[1 - int(swing[0])]
             ramp = min(1.0, (t - self.start_t) / 1.0)
             goal = np.array([*middle[:2], middle[2] + self.height])
             goal = self.start_com + (goal - self.start_com) * (3 * ramp**2 - 2 * ramp**3)
@@ -324,13 +378,12 @@ class WholeBodyController(PythonController):
         acc = self.kp_posture * (self.posture - state.q) - self.kd_posture * state.dq
         return Task(jac, np.zeros(len(self.dofs)), acc, self.w_posture)
 
-    def _swing_task(self, state, swing, f, centre, rot, jac, drift, dq, t) -> Task:
+    def _swing_task(self, swing, f, centre, rot, jac, drift, dq, t) -> Task:
         if f not in self.swing_from:  # where it lifted from: x y z yaw, and its pitch and roll
             self.swing_from[f] = np.array([*centre, _body.yaw_of(rot), math.asin(-rot[2, 0]),
                                            math.atan2(rot[2, 1], rot[2, 2])])
         start = self.swing_from[f]
-        landing = self._input(state, "landing")
-        target = swing[1:5] if landing is None or int(landing[0]) != f else landing[1:5]
+        target = swing[1:5]
         pos, vel, acc = swing_point(start, target, swing[7], swing[8], t, self.step_height)
         # the sole turns from its pitch and roll at lift-off to the ground's where it lands
         s = min(max((t - swing[7]) / max(swing[8] - swing[7], 1e-6), 0.0), 1.0)
@@ -358,7 +411,7 @@ class WholeBodyController(PythonController):
 
     def report(self) -> dict:
         times = np.asarray(self.solve_times[-5000:]) * 1e3
-        out = {"stopped": self.stopped}
+        out = {"stopped": self.stopped, "standing": self.standing}
         if len(times):
             out.update(qp_ms_median=round(float(np.median(times)), 3),
                        qp_ms_p99=round(float(np.percentile(times, 99)), 3))
