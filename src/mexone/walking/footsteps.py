@@ -271,6 +271,8 @@ class FootstepPlannerController(PythonController):
     max_sideways = Param(0.05, low=0.0, high=0.2, doc="longest step sideways", unit="m")
     max_turn = Param(0.3, low=0.0, high=1.0, doc="largest turn per step", unit="rad")
     width = Param(0.12, low=0.08, high=0.4, doc="between the feet's centres", unit="m")
+    settle = Param(1.0, low=0.0, high=60.0, doc="s after it starts before it walks (the robot "
+                   "crouches into its stance)", unit="s")
 
     def configure(self) -> None:
         self.model = self.dynamics.model
@@ -308,6 +310,7 @@ class FootstepPlannerController(PythonController):
                     max_sideways=self.max_sideways, max_turn=self.max_turn)
         self.planner = FootstepPlanner(gait, feet, self.terrain)
         self.refused = None
+        self.t_start = state.time
         self._heard_at: float | None = None
         bus, namespace = _bus(self)
         if bus is not None and self._sub is None:
@@ -351,6 +354,8 @@ class FootstepPlannerController(PythonController):
             command = self._command
         else:
             command = np.array([self.vx, self.vy, self.wz])
+        if t - self.t_start < self.settle:  # the robot settles into its stance first
+            command = np.zeros(3)
         self.planner.set_command(*command)
         if self.planner.walking:
             self.planner.measured(self._feet(state), t)
