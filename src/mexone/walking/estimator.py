@@ -9,8 +9,8 @@ position and velocity in the world frame:
   added back (a = R f + g): p+ = p + v dt + a dt²/2, v+ = v + a dt; process noise from
   `accel_noise`;
 - correct with each foot on the ground (contact sensor's normal force above `contact_force`):
-  a foot on the ground does not move, so the base's velocity is v = -(J_foot q̇)|_(v_base = 0)
-  (the foot's Jacobian's angular-base and joint columns with the gyro and the encoders), and
+  a foot on the ground does not move, so the base's velocity is v = -J_foot q̇ with the base's
+  linear velocity left out of q̇ (its angular velocity the gyro's, the joints' the encoders'), and
   the base's position is the foot's latched position less the leg's kinematics,
   p = p_foot - (p_foot(q) - p_base(q)); a foot's position is latched when it touches down.
 

@@ -4,7 +4,7 @@ next footstep's landing as a decision variable (Herdt et al. 2010) so a push mov
 Each axis of the COM is a triple integrator, state x = (c, ċ, c̈), input the jerk j held over a
 sample T: x+ = A x + B j. The zero-moment point of the cart-table is z = c - (h/g) c̈. Over N
 samples ahead, stacked: Z = P_zs x0 + P_zu J. The QP (per solve, both axes and the landing
-shift d = (dx, dy)):
+shift d = (dx, dy))::
 
     min  w_z ||Z - Z_ref - E d||² + w_j ||J||² + w_d ||d||² + w_ξ ||ξ_N - Z_ref,N - E_N d||²
     s.t. |R(θ_k)^T (Z_k - centre_k - E_k d)| <= half_size_k    (the ZMP inside the support)

@@ -5,11 +5,11 @@ four corners of each foot's sole (world frame). Subject to
 
 - the floating base's Newton-Euler equations (the rows no motor drives):
   M_u q̈ + h_u = Σ_c J_c,u^T f_c;
-- friction pyramids: f_n >= f_min and |f_t| <= μ f_n along the sole's axes; a foot in the air
+- friction pyramids: f_n >= f_min and abs(f_t) <= μ f_n along the sole's axes; a foot in the air
   carries no force;
-- torque limits: |τ| <= τ_max with τ = M_a q̈ + h_a - Σ_c J_c,a^T f_c;
+- torque limits: abs(τ) <= τ_max with τ = M_a q̈ + h_a - Σ_c J_c,a^T f_c;
 
-it minimises the weighted task errors Σ_i w_i ||J_i q̈ + J̇_i q̇ - a_i*||² (the COM, the swing
+it minimises the weighted task errors ``Σ_i w_i ||J_i q̈ + J̇_i q̇ - a_i*||²`` (the COM, the swing
 foot, the torso, the posture: `Task`; each foot on the ground held there, J_foot q̈ + J̇_foot q̇ =
 a_foot, with a large weight: no slip, no roll, yet never infeasible) plus a small
 regularisation of q̈ and f. τ follows from q̈ and f (the actuated rows of the equations of
@@ -38,7 +38,7 @@ __all__ = ["Task", "Foot", "WholeBodyQP", "Solution", "corner_jacobians", "sole_
 
 @dataclass
 class Task:
-    """A weighted acceleration task: ||J q̈ + drift - target||² * weight."""
+    """A weighted acceleration task: ``||J q̈ + drift - target||² * weight``."""
 
     jacobian: np.ndarray  # (k, nv)
     drift: np.ndarray     # (k,): J̇ q̇
