@@ -26,16 +26,19 @@ STANCE_POSTURE = {"l_hip_pitch": -0.35, "l_knee": 0.7, "l_ankle_pitch": -0.35,
 
 
 def rot_z(yaw: float) -> np.ndarray:
+    """The rotation (3, 3) by `yaw` rad about z."""
     c, s = np.cos(yaw), np.sin(yaw)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def rot_y(pitch: float) -> np.ndarray:
+    """The rotation (3, 3) by `pitch` rad about y."""
     c, s = np.cos(pitch), np.sin(pitch)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def rot_x(roll: float) -> np.ndarray:
+    """The rotation (3, 3) by `roll` rad about x."""
     c, s = np.cos(roll), np.sin(roll)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
@@ -46,12 +49,14 @@ def yaw_of(rotation: np.ndarray) -> float:
 
 
 def quat_to_matrix(quat_wxyz: np.ndarray) -> np.ndarray:
+    """The rotation (3, 3) of a unit quaternion w x y z (MuJoCo's order)."""
     out = np.empty(9)
     mujoco.mju_quat2Mat(out, np.asarray(quat_wxyz, dtype=float))
     return out.reshape(3, 3)
 
 
 def matrix_to_quat(rotation: np.ndarray) -> np.ndarray:
+    """The unit quaternion w x y z of a rotation (3, 3)."""
     out = np.empty(4)
     mujoco.mju_mat2Quat(out, np.asarray(rotation, dtype=float).ravel())
     return out

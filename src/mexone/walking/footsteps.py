@@ -28,6 +28,7 @@ UP = np.array([0.0, 0.0, 1.0])
 
 
 def flat_ground(x: float, y: float) -> tuple[float, np.ndarray]:
+    """The terrain without a world: the plane z = 0 everywhere, its normal up."""
     return 0.0, UP
 
 

@@ -62,6 +62,8 @@ class Foot:
 
 @dataclass
 class Solution:
+    """The QP's answer: accelerations, each sole corner's force, the motors' torques."""
+
     qdd: np.ndarray     # (nv,)
     forces: np.ndarray  # (n_feet, 4, 3) world frame, on the robot
     tau: np.ndarray     # (n_actuated,) in `actuated`'s order
