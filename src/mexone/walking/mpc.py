@@ -110,19 +110,21 @@ def supports(steps: np.ndarray, t: float, T: float, n: int, sole: tuple[float, f
     # the ZMP moves from the last stance foot to the next one across a double support
     lifts = rows[np.argsort(rows[:, 7])] if len(rows) else rows
     ref = centre.copy()
-    if len(lifts):
-        nxt = np.searchsorted(lifts[:, 7], taus - 1e-9)  # the first step lifting at or after tau
-        for k in np.flatnonzero(~(air[0] | air[1])):
-            i = nxt[k]
-            prev = i - 1 if i > 0 and lifts[i - 1, 8] <= taus[k] + 1e-9 else None
-            start = centre[k] if prev is None else pose[1 - int(lifts[prev, 0]), k, :2]
-            t0 = t if prev is None else lifts[prev, 8]
-            if i < len(lifts):
-                goal, t1 = pose[1 - int(lifts[i, 0]), k, :2], lifts[i, 7]
-            else:
-                goal, t1 = centre[k], t0 + 0.2
-            sfrac = min(max((taus[k] - t0) / max(t1 - t0, 1e-6), 0.0), 1.0)
-            ref[k] = start + (goal - start) * (3 * sfrac**2 - 2 * sfrac**3)
+    both = np.flatnonzero(~(air[0] | air[1]))
+    if len(lifts) and len(both):
+        tk = taus[both]
+        nxt = np.searchsorted(lifts[:, 7], tk - 1e-9)  # the first step lifting at or after tau
+        before = np.maximum(nxt - 1, 0)
+        prev = (nxt > 0) & (lifts[before, 8] <= tk + 1e-9)  # a step landed before tau
+        standing_prev = 1 - lifts[before, 0].astype(int)
+        start = np.where(prev[:, None], pose[standing_prev, both, :2], centre[both])
+        t0 = np.where(prev, lifts[before, 8], t)
+        ahead = nxt < len(lifts)
+        after = np.minimum(nxt, len(lifts) - 1)
+        goal = np.where(ahead[:, None], pose[1 - lifts[after, 0].astype(int), both, :2], centre[both])
+        t1 = np.where(ahead, lifts[after, 7], t0 + 0.2)
+        sfrac = np.clip((tk - t0) / np.maximum(t1 - t0, 1e-6), 0.0, 1.0)
+        ref[both] = start + (goal - start) * (3 * sfrac**2 - 2 * sfrac**3)[:, None]
     # single support: the standing foot's sole
     for f in range(2):
         single = air[1 - f]
@@ -151,6 +153,14 @@ class LipmMpc:
         self.xi_s = self.ps[-1] + self.vs[-1] / omega
         self.xi_u = self.pu[-1] + self.vu[-1] / omega
         self.qz = self.zu.T @ self.zu + w_dcm / w_zmp * np.outer(self.xi_u, self.xi_u)
+        nx = 2 * n + 2
+        # the Hessian's blocks that never change (the landing's coupling depends on the support)
+        self._P = np.zeros((nx, nx))
+        self._P[:n, :n] = self._P[n:2 * n, n:2 * n] = w_zmp * self.qz + w_jerk * np.eye(n)
+        self._zuT = np.ascontiguousarray(self.zu.T)
+        self._rows = np.zeros((2 * n, nx))
+        self._free = np.full(nx, np.inf)
+        self.warm = qp.WarmStart()
 
     def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True,
               fixed_shift: np.ndarray | None = None,
@@ -158,46 +168,54 @@ class LipmMpc:
         """(jerk x (n,), jerk y (n,), landing shift (2,)) from the COM's states x0, y0 (c, ċ, c̈).
         Not `adjustable`: the shift is `fixed_shift` (default 0: the landing as planned).
         `apart` = (n, b): the shift keeps n . d >= b (the foot stays clear of the other one)."""
-        n, wz = self.n, self.w_zmp
+        n, wz, wd = self.n, self.w_zmp, self.w_dcm
         nx = 2 * n + 2
         E = support.shifted
+        eN = E[-1]
+        zu, zuT = self.zu, self._zuT
         zsx, zsy = self.zs @ x0, self.zs @ y0
-        P = np.zeros((nx, nx))
-        q = np.zeros(nx)
-        hj = wz * self.qz + self.w_jerk * np.eye(n)
-        wd, eN = self.w_dcm, E[-1]
-        ze = wz * (self.zu.T @ E) + wd * eN * self.xi_u
-        P[:n, :n] = P[n:2 * n, n:2 * n] = hj
-        P[:n, 2 * n] = P[2 * n, :n] = -ze
-        P[n:2 * n, 2 * n + 1] = P[2 * n + 1, n:2 * n] = -ze
+        P = self._P.copy()
+        ze = wz * (zuT @ E) + (wd * eN) * self.xi_u
+        P[:n, 2 * n] = P[2 * n, :n] = P[n:2 * n, 2 * n + 1] = P[2 * n + 1, n:2 * n] = -ze
         P[2 * n, 2 * n] = P[2 * n + 1, 2 * n + 1] = wz * (E @ E) + wd * eN * eN + self.w_shift
-        ex, ey = zsx - support.ref[:, 0], zsy - support.ref[:, 1]
-        xix = self.xi_s @ x0 - support.ref[-1, 0]
-        xiy = self.xi_s @ y0 - support.ref[-1, 1]
-        q[:n] = wz * (self.zu.T @ ex) + wd * xix * self.xi_u
-        q[n:2 * n] = wz * (self.zu.T @ ey) + wd * xiy * self.xi_u
+        ref = support.ref
+        ex, ey = zsx - ref[:, 0], zsy - ref[:, 1]
+        xix = self.xi_s @ x0 - ref[-1, 0]
+        xiy = self.xi_s @ y0 - ref[-1, 1]
+        q = np.empty(nx)
+        q[:n] = wz * (zuT @ ex) + (wd * xix) * self.xi_u
+        q[n:2 * n] = wz * (zuT @ ey) + (wd * xiy) * self.xi_u
         q[2 * n] = -wz * (E @ ex) - wd * eN * xix
         q[2 * n + 1] = -wz * (E @ ey) - wd * eN * xiy
+        # the ZMP inside each sample's rectangle: -half <= R(θ)^T (z - centre) <= half, rows
+        # along (u) and across (w) the rectangle, each two-sided
         c, s = np.cos(support.yaw), np.sin(support.yaw)
-        du = c * (zsx - support.centre[:, 0]) + s * (zsy - support.centre[:, 1])
-        dw = -s * (zsx - support.centre[:, 0]) + c * (zsy - support.centre[:, 1])
-        U = np.hstack([c[:, None] * self.zu, s[:, None] * self.zu, -(c * E)[:, None], -(s * E)[:, None]])
-        W = np.hstack([-s[:, None] * self.zu, c[:, None] * self.zu, (s * E)[:, None], -(c * E)[:, None]])
-        Gm = np.vstack([U, -U, W, -W])
-        hv = np.concatenate([support.half[:, 0] - du, support.half[:, 0] + du,
-                             support.half[:, 1] - dw, support.half[:, 1] + dw])
+        gx, gy = zsx - support.centre[:, 0], zsy - support.centre[:, 1]
+        du, dw = c * gx + s * gy, -s * gx + c * gy
+        rows = self._rows
+        rows[:n, :n] = c[:, None] * zu
+        rows[:n, n:2 * n] = s[:, None] * zu
+        rows[:n, 2 * n], rows[:n, 2 * n + 1] = -c * E, -s * E
+        rows[n:, :n] = -s[:, None] * zu
+        rows[n:, n:2 * n] = c[:, None] * zu
+        rows[n:, 2 * n], rows[n:, 2 * n + 1] = s * E, -c * E
+        half = support.half
+        high = np.concatenate([half[:, 0] - du, half[:, 1] - dw])
+        low = np.concatenate([-half[:, 0] - du, -half[:, 1] - dw])
+        G = rows
         if adjustable:
-            low, high = np.full(2, -self.max_shift), np.full(2, self.max_shift)
-            if apart is not None:
+            low_d, high_d = np.full(2, -self.max_shift), np.full(2, self.max_shift)
+            if apart is not None:  # n . d >= b
                 row = np.zeros(nx)
-                row[2 * n:] = -np.asarray(apart[0])
-                Gm = np.vstack([Gm, row])
-                hv = np.append(hv, -apart[1])
+                row[2 * n:] = apart[0]
+                G = np.vstack([rows, row])
+                high, low = np.append(high, np.inf), np.append(low, apart[1])
         else:
-            low = high = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
-        lb = np.concatenate([np.full(2 * n, -np.inf), low])
-        ub = np.concatenate([np.full(2 * n, np.inf), high])
-        v = qp.solve(P, q, Gm, hv, lb=lb, ub=ub, solver=self.solver, what="COM MPC")
+            low_d = high_d = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
+        lb, ub = -self._free, self._free.copy()
+        lb[2 * n:], ub[2 * n:] = low_d, high_d
+        v = qp.solve(P, q, G, high, lb=lb, ub=ub, G_low=low, solver=self.solver, what="COM MPC",
+                     warm=self.warm)
         return v[:n], v[n:2 * n], v[2 * n:]
 
     @staticmethod
