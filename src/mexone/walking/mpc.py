@@ -160,7 +160,6 @@ class LipmMpc:
         self._zuT = np.ascontiguousarray(self.zu.T)
         self._rows = np.zeros((2 * n, nx))
         self._free = np.full(nx, np.inf)
-        self.warm = qp.WarmStart()
 
     def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True,
               fixed_shift: np.ndarray | None = None,
@@ -214,8 +213,7 @@ class LipmMpc:
             low_d = high_d = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
         lb, ub = -self._free, self._free.copy()
         lb[2 * n:], ub[2 * n:] = low_d, high_d
-        v = qp.solve(P, q, G, high, lb=lb, ub=ub, G_low=low, solver=self.solver, what="COM MPC",
-                     warm=self.warm)
+        v = qp.solve(P, q, G, high, lb=lb, ub=ub, G_low=low, solver=self.solver, what="COM MPC")
         return v[:n], v[n:2 * n], v[2 * n:]
 
     @staticmethod
@@ -250,7 +248,7 @@ class ComPlanner(PythonController):
     margin = Param(0.015, low=0.0, high=0.04, doc="the ZMP keeps this far inside the soles", unit="m")
     feedback = Param(1.0, low=0.0, high=1.0, doc="share of the measured COM state the plan starts from")
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles (0: as it stands at start)", unit="m")
-    solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
+    solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
         model = self.dynamics.model

@@ -1,10 +1,11 @@
 """One home for solving the stack's QPs: daqp (a dense active-set solver, the fastest on the
-small dense QPs walking solves) called directly, with two-sided rows and a warm start from the
-last solve's active set; any other solver `qpsolvers` has by name; one error when there is no
-solution.
+small dense QPs walking solves) called directly, with two-sided rows; any other solver
+`qpsolvers` has by name; one error when there is no solution.
 
 Directly rather than through `qpsolvers.solve_qp`: at 500 Hz the wrapper's checks and copies
-cost as much as daqp's solve itself (benchmarks/RESULTS.md, the walking stack)."""
+cost as much as daqp's solve itself. No warm start: daqp's work on these QPs is its set-up (the
+factorisation); its active-set iterations are one to three, so starting from the last active
+set saved nothing (benchmarks/RESULTS.md, the walking stack)."""
 
 from __future__ import annotations
 
@@ -16,26 +17,15 @@ import qpsolvers
 
 from mexone.errors import InputError
 
-__all__ = ["solve", "Infeasible", "WarmStart", "SOLVERS"]
+__all__ = ["solve", "Infeasible", "SOLVERS"]
 
-SOLVERS = ("daqp", "proxsuite", "osqp", "quadprog", "piqp", "clarabel")
+SOLVERS = ("daqp", "proxqp", "osqp", "quadprog", "piqp", "clarabel")
 _INF = 1e30  # daqp's infinity
-_ACTIVE, _LOWER, _EQUALITY = 1, 2, 5  # daqp's constraint senses
+_EQUALITY = 5  # daqp's constraint sense for an equality
 
 
 class Infeasible(RuntimeError):
     """The QP has no solution (or the solver gave up): the caller stops safely and says why."""
-
-
-class WarmStart:
-    """The active set of a problem's last solve (daqp): the next solve of a problem of the same
-    shape starts from it (a walking QP's active set changes little from one update to the next).
-    One per problem that is solved again and again."""
-
-    __slots__ = ("sense",)
-
-    def __init__(self) -> None:
-        self.sense: np.ndarray | None = None
 
 
 def check_solver(name: str) -> str:
@@ -50,10 +40,10 @@ def check_solver(name: str) -> str:
 def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarray | None = None,
           A: np.ndarray | None = None, b: np.ndarray | None = None, lb: np.ndarray | None = None,
           ub: np.ndarray | None = None, solver: str = "daqp", what: str = "QP",
-          G_low: np.ndarray | None = None, warm: WarmStart | None = None) -> np.ndarray:
+          G_low: np.ndarray | None = None) -> np.ndarray:
     """argmin 1/2 x'Px + q'x  s.t.  G_low <= Gx <= h, Ax = b, lb <= x <= ub (G_low: -inf when
     None); Infeasible when none (or when the problem itself is not finite: a NaN from upstream
-    never reaches the solver). `warm`: daqp starts from (and keeps) the last active set."""
+    never reaches the solver)."""
     for name, value, bound in (("cost", P, False), ("cost", q, False), ("constraints", G, False),
                                ("constraints", h, True), ("constraints", A, False),
                                ("constraints", b, False), ("constraints", G_low, True)):
@@ -64,7 +54,7 @@ def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarr
             if math.isnan(total) or (not bound and math.isinf(total)):
                 raise Infeasible(f"the {what}'s {name} are not finite (NaN or inf in its inputs)")
     if solver == "daqp":
-        x = _daqp(P, q, G, h, A, b, lb, ub, G_low, warm)
+        x = _daqp(P, q, G, h, A, b, lb, ub, G_low)
     else:
         if G is not None:  # one-sided rows, the infinite sides left out
             up, down = np.isfinite(h), np.zeros(len(h), dtype=bool)
@@ -78,7 +68,7 @@ def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarr
     return x
 
 
-def _daqp(P, q, G, h, A, b, lb, ub, G_low, warm: WarmStart | None) -> np.ndarray | None:
+def _daqp(P, q, G, h, A, b, lb, ub, G_low) -> np.ndarray | None:
     n = q.shape[0]
     mg = 0 if G is None else G.shape[0]
     me = 0 if A is None else A.shape[0]
@@ -98,23 +88,9 @@ def _daqp(P, q, G, h, A, b, lb, ub, G_low, warm: WarmStart | None) -> np.ndarray
     if np.any(lower > upper):  # contradictory bounds: daqp would not say so
         return None
     rows = np.ascontiguousarray(rows)
-    cold = np.zeros(ms + mg + me, dtype=np.intc)
+    sense = np.zeros(ms + mg + me, dtype=np.intc)
     if boxed:  # a fixed variable (lb == ub) is an equality: daqp keeps it active
-        cold[:n][upper[:n] == lower[:n]] = _EQUALITY
-    cold[ms + mg:] = _EQUALITY
-    sense = cold
-    if warm is not None and warm.sense is not None and warm.sense.shape == cold.shape:
-        sense = np.where(cold == _EQUALITY, cold, warm.sense).astype(np.intc)
-    x, _, flag, info = daqp.solve(P, q, rows, upper, lower, sense)
-    if flag <= 0 and sense is not cold:  # the last active set misled it: from scratch
-        x, _, flag, info = daqp.solve(P, q, rows, upper, lower, cold)
-    if flag <= 0:
-        if warm is not None:
-            warm.sense = None
-        return None
-    if warm is not None:
-        lam = info["lam"]
-        start = np.where(lam > 0, _ACTIVE, np.where(lam < 0, _ACTIVE | _LOWER, 0)).astype(np.intc)
-        start[sense == _EQUALITY] = 0
-        warm.sense = start
-    return x
+        sense[:n][upper[:n] == lower[:n]] = _EQUALITY
+    sense[ms + mg:] = _EQUALITY
+    x, _, flag, _ = daqp.solve(P, q, rows, upper, lower, sense)
+    return x if flag > 0 else None

@@ -123,7 +123,6 @@ class WholeBodyQP:
             for r, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
                 self._pyramid[4 * c + r, 3 * c + axis] = sign
                 self._pyramid[4 * c + r, 3 * c + 2] = -mu
-        self._warm = qp.WarmStart()
         self._regularisation = np.concatenate([np.full(nv, accel_weight), np.full(self.nf, force_weight)])
 
     def solve(self, M: np.ndarray, h: np.ndarray, tasks: Sequence[Task], feet: Sequence[Foot]
@@ -174,7 +173,7 @@ class WholeBodyQP:
         lb = np.full(nx, -np.inf)
         lb[nv + 2::3] = self.min_force
         x = qp.solve(P, q, G[nu:], high, G[:nu], -h[self.unactuated], lb=lb, G_low=low,
-                     solver=self.solver, what="whole-body QP", warm=self._warm)
+                     solver=self.solver, what="whole-body QP")
         qdd = x[:nv]
         forces = np.zeros((self.n_feet, 4, 3))
         k = 0
@@ -242,7 +241,7 @@ class WholeBodyController(PythonController):
     step_height = Param(0.04, low=0.0, high=0.2, doc="swing foot's lift", unit="m")
     max_reach = Param(0.4, low=0.05, high=2.0, doc="a landing further from the standing foot is "
                       "refused (the robot stands)", unit="m")
-    solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
+    solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
         model = self.dynamics.model
