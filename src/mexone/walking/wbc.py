@@ -239,7 +239,7 @@ class WholeBodyController(PythonController):
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles when standing (0: as it starts)",
                        unit="m")
     step_height = Param(0.04, low=0.0, high=0.2, doc="swing foot's lift", unit="m")
-    max_reach = Param(0.4, low=0.05, high=2.0, doc="a landing further from the standing foot is "
+    max_reach = Param(0.6, low=0.05, high=2.0, doc="a landing further from the standing foot is "
                       "refused (the robot stands)", unit="m")
     solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
