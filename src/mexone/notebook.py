@@ -191,7 +191,8 @@ class LivePage:
 
     def _repr_html_(self) -> str:
         state = "running" if self.running else "stopped"
-        return f'<p>mexone live page ({state}): <a href="{self.url}" target="_blank">{self.url}</a></p>'
+        url = html.escape(self.url, quote=True)
+        return f'<p>mexone live page ({state}): <a href="{url}" target="_blank">{url}</a></p>'
 
 
 def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
@@ -211,9 +212,9 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the page's repr says it
         app = GuiApp(lambda _options: lab, CompileOptions(), host=host, port=port,
                      target_rtf=rtf, paused=paused)
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
     thread = threading.Thread(target=app.serve_forever, name="mexone-live-page", daemon=True)
-    page = LivePage(app, thread, f"http://{shown}:{app.server.get_port()}")
+    # inside a JupyterHub: the hub's proxied path with this page's key (gui/security.py)
+    page = LivePage(app, thread, app.access.page_url(host, app.server.get_port()))
     lab._live_page = page
     thread.start()
     return page
