@@ -199,9 +199,10 @@ def keyed():
     server.stop()
 
 
-def _ws(port, headers=None, path="/", origin=None):
+def _ws(port, headers=None, path="/", origin=None, host=None):
     sock = socket.create_connection(("127.0.0.1", port))
-    return connect(f"ws://127.0.0.1:{port}{path}", sock=sock, origin=origin, additional_headers=headers,
+    where = host or f"127.0.0.1:{port}"  # the Host header the client sends
+    return connect(f"ws://{where}{path}", sock=sock, origin=origin, additional_headers=headers,
                    subprotocols=[f"viser-v{viser.__version__}"], open_timeout=10)
 
 
@@ -234,16 +235,16 @@ def test_the_proxy_header_the_url_and_its_cookie_each_open_the_lab(keyed):
     assert cookie == "mexone-token=s3cret-Token_1; HttpOnly; SameSite=Strict"  # no Path: the lab's folder
     assert _get(port, "/", hub | {"Cookie": "_xsrf=1; mexone-token=s3cret-Token_1"})[0] == 200
     _ws(port, headers={"X-Mexone-Token": access.token}).close()
-    _ws(port, headers={"Cookie": "mexone-token=s3cret-Token_1", "Host": "hub.example.org"},
-        origin="https://hub.example.org").close()
+    _ws(port, headers={"Cookie": "mexone-token=s3cret-Token_1"}, host="hub.example.org",
+        origin="http://hub.example.org").close()
 
 
 def test_with_the_secret_a_foreign_page_is_still_refused(keyed):
     port, access = keyed
-    secret = {"X-Mexone-Token": access.token, "Host": "hub.example.org"}
-    assert _refused_ws(port, headers=secret, origin="https://evil.example")
-    assert _refused_ws(port, headers=secret, origin="http://hub.example.org")  # another scheme
-    assert _get(port, "/", secret | {"Origin": "https://evil.example"})[0] == 403
+    secret = {"X-Mexone-Token": access.token}
+    assert _refused_ws(port, headers=secret, host="hub.example.org", origin="https://evil.example")
+    assert _refused_ws(port, headers=secret, host="hub.example.org", origin="http://hub.example.org:81")
+    assert _get(port, "/", secret | {"Host": "hub.example.org", "Origin": "https://evil.example"})[0] == 403
 
 
 def test_where_a_keyed_lab_is_opened():
