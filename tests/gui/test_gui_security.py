@@ -253,8 +253,8 @@ def test_where_a_keyed_lab_is_opened():
     assert lab_access({}).token is None and lab_access({}).page_url("0.0.0.0", 8080) == "http://127.0.0.1:8080"
     hub = lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/user/alice/"})
     assert len(hub.token) >= 40 and hub.token != lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/u/"}).token
-    assert hub.page_url("127.0.0.1", 8123) == f"/user/alice/proxy/8123/?mexone-token={hub.token}"
+    assert hub.page_url("127.0.0.1", 8123) == f"/user/alice/proxy/8123/index.html?mexone-token={hub.token}"
     given = lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/user/bob", "MEXONE_LAB_TOKEN": "k",
                         "JUPYTERHUB_PUBLIC_URL": "https://hub.school.example/"})
-    assert given.page_url("127.0.0.1", 9) == "https://hub.school.example/user/bob/proxy/9/?mexone-token=k"
+    assert given.page_url("127.0.0.1", 9) == "https://hub.school.example/user/bob/proxy/9/index.html?mexone-token=k"
     assert LabAccess("k").page_url("127.0.0.1", 9) == "http://127.0.0.1:9/?mexone-token=k"

@@ -53,6 +53,10 @@ TOKEN_ENV = "MEXONE_LAB_TOKEN"  # the secret a hub's launcher hands the lab it s
 TOKEN_HEADER = "X-Mexone-Token"  # what the hub's proxy adds to every request it forwards
 TOKEN_PARAM = "mexone-token"  # the URL's query parameter (and the cookie's name)
 HUB_ENV = "JUPYTERHUB_SERVICE_PREFIX"  # set in every process of a JupyterHub user's server
+# Behind a proxy the page is opened by its file name: viser's page connects its websocket to its
+# own URL less a trailing slash, and jupyter-server-proxy answers .../8123 (no slash) with a
+# redirect, which a websocket cannot follow; .../8123/index.html reaches the lab either way.
+PAGE = "index.html"
 
 
 def is_loopback(host: str) -> bool:
@@ -152,7 +156,7 @@ class LabAccess:
             query = f"/?{TOKEN_PARAM}={self.token}" if self.token else ""
             return f"http://{shown}:{port}{query}"
         query = f"?{TOKEN_PARAM}={self.token}" if self.token else ""
-        return f"{self.public_url.rstrip('/')}{self.prefix}proxy/{port}/{query}"
+        return f"{self.public_url.rstrip('/')}{self.prefix}proxy/{port}/{PAGE}{query}"
 
 
 def lab_access(environ: dict[str, str] | None = None) -> LabAccess:

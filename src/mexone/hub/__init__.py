@@ -20,7 +20,7 @@ import secrets
 import sys
 from pathlib import Path
 
-from mexone.gui.security import TOKEN_ENV, TOKEN_HEADER
+from mexone.gui.security import PAGE, TOKEN_ENV, TOKEN_HEADER
 
 __all__ = ["setup_lab", "ICON", "TITLE"]
 
@@ -39,6 +39,7 @@ def setup_lab() -> dict:
         "request_headers_override": {TOKEN_HEADER: token},
         "timeout": START_SECONDS,
         "new_browser_tab": True,
+        # the page by its file name: see gui/security.PAGE
         "launcher_entry": {"enabled": True, "title": TITLE, "icon_path": str(ICON),
-                           "category": "Notebook"},
+                           "category": "Notebook", "path_info": f"mexone/{PAGE}"},
     }
