@@ -80,7 +80,8 @@ def _picture(lab) -> np.ndarray:
 
     from PIL import Image
 
-    shot = lab.locator("canvas").first.screenshot()
+    box = lab.locator("canvas").first.bounding_box()  # the 3D view only, not the panel's text
+    shot = lab.screenshot(clip=box)  # a page's screenshot: the canvas redraws, never "stable"
     return np.asarray(Image.open(BytesIO(shot)).convert("L"), dtype=float)
 
 
