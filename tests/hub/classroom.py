@@ -7,6 +7,7 @@ Shared by tests/hub (two students in a browser) and benchmarks/hub_class.py (twe
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pwd
@@ -127,11 +128,9 @@ c.JupyterHub.load_roles = [{{'name': 'teacher', 'services': ['teacher'],
             uid = pwd.getpwnam(name).pw_uid
         except KeyError:
             return
-        for pid in pids_of(uid):
-            try:
+        for pid in pids_of(uid):  # every process of a user this class created
+            with contextlib.suppress(ProcessLookupError):
                 os.kill(pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
         subprocess.run(["userdel", "--force", name], capture_output=True)
 
     def api(self, method: str, path: str, body: dict | None = None, token: str | None = None):
@@ -178,11 +177,9 @@ c.JupyterHub.load_roles = [{{'name': 'teacher', 'services': ['teacher'],
 
     def stop(self) -> None:
         if self.hub is not None and self.hub.poll() is None:
-            for name in self.students:
-                try:
+            for name in self.students:  # the users' processes are killed below anyway
+                with contextlib.suppress(Exception):
                     self.stop_server(name, timeout=20)
-                except Exception:  # noqa: BLE001 - the users' processes are killed below anyway
-                    pass
             os.killpg(self.hub.pid, signal.SIGTERM)
             try:
                 self.hub.wait(timeout=20)

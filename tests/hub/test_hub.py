@@ -17,8 +17,9 @@ import time
 import numpy as np
 import pytest
 
-from .classroom import PASSWORD, Classroom, as_user, labs_of, missing
 from helpers import chromium, wait_until
+
+from .classroom import PASSWORD, Classroom, as_user, labs_of, missing
 
 pytestmark = pytest.mark.slow
 
