@@ -15,6 +15,7 @@ import argparse
 import json
 import os
 import re
+import struct
 import subprocess
 import sys
 import threading
@@ -46,6 +47,15 @@ def rss_mb(pid: int) -> float:
         if line.startswith("VmRSS"):
             return int(line.split()[1]) / 1024
     return float("nan")
+
+
+def unpack(data: bytes) -> bytes:
+    """The msgpack of one viser websocket message (its wire format: two little-endian sizes,
+    then the zstd-compressed msgpack, then raw binary buffers)."""
+    import zstandard
+
+    size, compressed = struct.unpack_from("<QQ", data, 0)
+    return zstandard.ZstdDecompressor().decompress(data[16:16 + compressed], max_output_size=size)
 
 
 CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [1.3, -1.35, 0.95],
@@ -80,7 +90,7 @@ class Page(threading.Thread):
                         continue
                     self.messages += 1
                     self.bytes += len(data)
-                    found = SIM_TIME.findall(data if isinstance(data, bytes) else data.encode())
+                    found = SIM_TIME.findall(unpack(data))
                     if found:
                         self.samples.append((time.monotonic(), float(found[-1])))
         except Exception as exc:  # noqa: BLE001 - reported with the result

@@ -229,8 +229,9 @@ def labs_of(name: str) -> list[Lab]:
 def as_user(name: str, code: str, timeout: float = 60.0) -> dict:
     """Run Python `code` as Unix user `name` (another student's process on this machine); it
     prints one JSON object."""
-    out = subprocess.run(["runuser", "-u", name, "--", str(VENV / "bin" / "python"), "-c", code],
-                         capture_output=True, text=True, timeout=timeout, cwd="/tmp",
-                         env={"PATH": "/usr/bin:/bin", "HOME": "/tmp"})
+    account = pwd.getpwnam(name)
+    out = subprocess.run([str(VENV / "bin" / "python"), "-c", code], user=account.pw_uid,
+                         group=account.pw_gid, extra_groups=[], capture_output=True, text=True,
+                         timeout=timeout, cwd="/tmp", env={"PATH": "/usr/bin:/bin", "HOME": "/tmp"})
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout.strip().splitlines()[-1])

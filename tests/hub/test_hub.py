@@ -63,8 +63,15 @@ def _open_lab(browser, room, name):
     jlab.wait_for_url(re.compile(rf"/user/{name}/lab"), timeout=240_000)
     card = jlab.locator(CARD)
     card.wait_for(timeout=180_000)
-    with context.expect_page(timeout=60_000) as opened:
-        card.click()
+    for dialog in jlab.locator(".jp-Dialog").all():  # e.g. "the server was restarted": dismiss
+        if dialog.is_visible():
+            jlab.keyboard.press("Escape")
+    try:
+        with context.expect_page(timeout=60_000) as opened:
+            card.click(timeout=60_000)
+    except Exception:
+        jlab.screenshot(path=str(room.folder.parent / f"mexone-hub-{name}-launcher.png"))
+        raise
     lab = opened.value
     assert lab.url.startswith(f"{room.url}/user/{name}/mexone/")
     return context, jlab, lab
