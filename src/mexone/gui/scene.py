@@ -159,13 +159,15 @@ class RobotScene:
         now = np.hstack([data.xpos[ids], data.xquat[ids]])
         # NaN (never sent) compares False: every link goes out the first time
         moved = np.flatnonzero(~(np.abs(now - self._sent).max(axis=1) <= SENT_MOVE))
+        contacts = self.overlays["Contacts"][0]
+        if moved.size == 0 and not contacts.visible:
+            return  # nothing to send: not even an empty batch (each wakes viser's event loop)
         with self.server.atomic():
             for i in moved:
                 node = self.links[names[i]]
                 node.position = now[i, :3]
                 node.wxyz = now[i, 3:]
             self._sent[moved] = now[moved]
-            contacts = self.overlays["Contacts"][0]
             if contacts.visible:
                 contacts.points = self._contact_segments()
 
