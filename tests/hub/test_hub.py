@@ -89,7 +89,9 @@ def _picture(lab) -> np.ndarray:
     from PIL import Image
 
     box = lab.locator("canvas").first.bounding_box()  # the 3D view only, not the panel's text
-    shot = lab.screenshot(clip=box)  # a page's screenshot: the canvas redraws, never "stable"
+    # a page's screenshot (the canvas redraws, never "stable"); software WebGL on a busy
+    # machine may take long over one
+    shot = lab.screenshot(clip=box, timeout=120_000)
     return np.asarray(Image.open(BytesIO(shot)).convert("L"), dtype=float)
 
 
