@@ -37,6 +37,9 @@ def missing() -> str | None:
         return ".venv-hub is missing: bash scripts/test.sh builds it"
     if not CHP.exists():
         return "configurable-http-proxy is missing: npm install --prefix tests/hub"
+    for folder in [ROOT, *ROOT.parents]:  # the students run .venv-hub and import this checkout
+        if not folder.stat().st_mode & 0o001:
+            return f"{folder} is closed to other users: the students cannot run .venv-hub there"
     return None
 
 
