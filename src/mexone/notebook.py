@@ -79,7 +79,7 @@ class Replay:
             server.initial_camera.position = tuple(base + (1.3, -1.35, 0.45))
             server.initial_camera.look_at = tuple(base + (0.0, 0.0, 0.02))
             recorder = server.get_scene_serializer()
-            scene.update()  # frame 0 again, as messages at t = 0: where each loop starts over
+            scene.update(everything=True)  # frame 0 again, as messages at t = 0: where each loop starts over
             for i in range(1, len(self.times)):
                 recorder.insert_sleep(self.times[i] - self.times[i - 1])
                 self._pose(data, i)

@@ -147,13 +147,14 @@ class RobotScene:
             opacity=0.35, position=com, wxyz=_wxyz(axes), visible=False))
 
     # ----- per frame ------------------------------------------------------------------------
-    def update(self) -> None:
+    def update(self, everything: bool = False) -> None:
         """Send the links that moved since they were last sent (SENT_MOVE): a standing robot
         costs the page almost no messages, where each link's pose every frame was most of a
-        lab's CPU with its page open (benchmarks/RESULTS.md, "what one lab costs")."""
+        lab's CPU with its page open (benchmarks/RESULTS.md, "what one lab costs").
+        `everything`: every link's pose (a recording's first frame, where its loop restarts)."""
         data = self.sim.data
         names = list(self.sim.compiled.bodies)
-        if len(self._sent) != len(names):
+        if everything or len(self._sent) != len(names):
             self._sent = np.full((len(names), 7), np.nan)  # nothing sent yet
         ids = list(self.sim.compiled.bodies.values())
         now = np.hstack([data.xpos[ids], data.xquat[ids]])
