@@ -116,6 +116,8 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
         print(f"mexone: {sim.robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
               "Ctrl-C stops",
               file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
     marks = PhaseMarks(np.array([0.0, *start_pose]))  # the base at the routine's phase bounds
     fell_at: list[float] = []  # when it first fell, if it did: a fall is one even if it gets up
