@@ -193,3 +193,24 @@ def test_a_ros2_block_runs_as_after_pip_install_ros2(tmp_path):
     assert outcome.problem is None, docblocks.report(outcome, tmp_path)
     assert "No module named 'tf2_msgs'" in outcome.output and "no tf2_msgs" in outcome.output
     assert f"domain {101 + os.getpid() % 100}" in outcome.output  # not the ROS 2 tests' domain
+
+
+def _first_column(table_head: str) -> set[str]:
+    """The `names` in the first column of the README's table that follows `table_head`."""
+    text = (ROOT / "README.md").read_text()
+    rows = text[text.index(table_head):].split("\n\n")[0].splitlines()
+    return {name for row in rows if row.startswith("| `")
+            for name in re.findall(r"`([^`]+)`", row.split("|")[1])}
+
+
+def test_the_readme_names_every_extra_and_verb():
+    """The README's tables of extras and verbs hold every extra pyproject.toml declares and
+    every verb `mexone --help` lists (example-robot, exercise and four extras were missing)."""
+    import tomllib
+
+    from mexone.cli import build_parser
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert _first_column("| extra |") == set(extras)
+    verbs = next(a for a in build_parser()._actions if a.dest == "verb").choices
+    assert _first_column("| verb |") == set(verbs)

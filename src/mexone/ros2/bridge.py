@@ -108,6 +108,8 @@ class Ros2Bridge:
         self.lab = None
         self.ready = threading.Event()
         self.params = None
+        self._skipped: dict[str, list[str]] = {}  # package -> what it left out, in order
+        self._started = False  # attach() has finished: what is left out now was at start-up
 
     def _spin_loop(self) -> None:
         """rclpy's callbacks, woken only by work (a message, a request) or by shutdown: a
@@ -133,8 +135,6 @@ class Ros2Bridge:
             pub = node.create_publisher(String, name, _qos(ros_map.LATCHED))
             pub.publish(description)
             self._descriptions.append(pub)
-        self._skipped: dict[str, list[str]] = {}  # package -> what it left out, in order
-        self._started = False
         self._mirrors: dict[str, _Mirror] = {}
         self._inbound: dict[str, object] = {}
         self._known_topics = -1
