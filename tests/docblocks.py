@@ -18,7 +18,8 @@ The convention (docs/contributing.md says the same for writers):
     timeout: S      the block's budget in seconds
     expect: TEXT    its output must contain TEXT (a figure the page states, checked)
     serves: PORT    a server: it passes once http://127.0.0.1:PORT answers, then gets Ctrl-C
-    file: NAME      not run: the block is written to NAME (a routine the next block runs)
+    file: NAME      not run: the block (of any kind: python, yaml, ...) is written to NAME,
+                    for the next blocks (a routine, a controllers YAML)
 - `<!-- output -->` before a block that is shown, not run (```text): it shows what the last
   run block above it prints, and each of its lines must be a line of that run's output
   (`...` stands for any text: a port, a time); a promised message that never appears fails;
@@ -119,7 +120,8 @@ def _options(comment: str, where: str) -> dict:
 
 
 def blocks(page: Path) -> list[Block]:
-    """The ```bash and ```python blocks of a Markdown page, with their markers and the output
+    """The ```bash and ```python blocks of a Markdown page and those it saves to a file (`file:`),
+    with their markers and the output
     the page shows for them (`<!-- output -->`). A page that tells a reader to install mexone
     from a package index, a misspelt marker or an output block with no run before it is a
     ValueError naming the page and line."""
@@ -148,11 +150,11 @@ def blocks(page: Path) -> list[Block]:
             shown = tuple((line + 1 + k, text.strip()) for k, text in
                           enumerate(token.content.splitlines()) if text.strip())
             found[-1]["output"] = found[-1].get("output", ()) + shown
-        elif lang in RUN:
+        elif lang in RUN or options.get("file"):  # a file of any kind: a YAML, a routine
             found.append(dict(page=page, line=line, lang=lang, code=token.content, **options))
         elif options:
             raise ValueError(f"{page}:{line}: a ```{lang or 'plain'} block is not run: its "
-                             "marker does nothing (bash and python blocks run)")
+                             "marker does nothing (bash and python blocks run; file: saves any)")
     return [Block(**kwargs) for kwargs in found]
 
 

@@ -214,3 +214,16 @@ def test_the_readme_names_every_extra_and_verb():
     assert _first_column("| extra |") == set(extras)
     verbs = next(a for a in build_parser()._actions if a.dest == "verb").choices
     assert _first_column("| verb |") == set(verbs)
+
+
+def test_a_file_block_of_any_kind_is_saved(tmp_path):
+    """`<!-- file: NAME -->` saves a YAML as it saves a routine (the YAML's marker was ignored,
+    and the block after it found no file)."""
+    page = tmp_path / "page.md"
+    page.write_text("<!-- file: c.yaml -->\n```yaml\nmex_rb: {}\n```\n\n```bash\ncat c.yaml\n```\n")
+    saved, shown = docblocks.blocks(page)
+    assert (saved.lang, saved.file) == ("yaml", "c.yaml")
+    for block in (saved, shown):
+        outcome = docblocks.run_block(block, dict(os.environ), tmp_path)
+        assert outcome.problem is None, docblocks.report(outcome, tmp_path)
+    assert "mex_rb: {}" in outcome.output
