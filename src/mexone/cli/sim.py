@@ -112,6 +112,8 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
           file=sys.stderr)
     if bridge is not None:
         print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
     if exercise is not None:
         ex = exercise.exercise
         print(f"mexone: Exercises panel: {ex.title} ({ex.name}); Check grades "
@@ -202,6 +204,8 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
         bridge.attach(lab, urdf_text(args, robot))
         print(f"mexone: {robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
               "Ctrl-C stops", file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
     monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
 
     def tick(s: Simulation) -> None:
