@@ -61,9 +61,27 @@ def record_problems(seconds: float = 7.0) -> dict:
     return problems
 
 
+def bare_step_ms(steps: int = 3000) -> float:
+    """CPU ms per bare MuJoCo step of Mex-One walking (the state of a walk, no controller): the
+    yardstick the parts' costs are given against, measured in the same run (the machine's speed
+    drifts with its load by tens of percent; the ratios do not)."""
+    import mujoco
+
+    lab = stack()
+    lab.sim.step(2000)
+    model, data = lab.sim.model, mujoco.MjData(lab.sim.model)
+    data.qpos[:], data.qvel[:], data.ctrl[:] = lab.sim.data.qpos, lab.sim.data.qvel, lab.sim.data.ctrl
+    data.qfrc_applied[:] = lab.sim.data.qfrc_applied
+    start = time.thread_time()
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+    return (time.thread_time() - start) / steps * 1e3
+
+
 def solve_times(problems: dict, solver: str) -> dict:
-    """ms per solve (median, p99) of the recorded problems, each solved again by `solver`."""
-    from mexone.walking import mpc, wbc
+    """ms per solve (median, p99) of the recorded problems, each solved again by `solver`, and
+    how many it found no solution to."""
+    from mexone.walking import mpc, qp, wbc
 
     m, w = problems["mpc_of"], problems["wbc_of"]
     solvers = {"mpc": mpc.LipmMpc(m.h, m.T, m.n, w_jerk=m.w_jerk, w_shift=m.w_shift,
@@ -71,15 +89,18 @@ def solve_times(problems: dict, solver: str) -> dict:
                "wbc": wbc.WholeBodyQP(w.nv, w.actuated, w.limit, mu=w.mu, solver=solver)}
     out = {}
     for name, obj in solvers.items():
-        times = []
+        times, failed = [], 0
         for _ in range(2):  # the first pass warms the caches
-            times = []
+            times, failed = [], 0
             for args, kwargs in problems[name]:
                 start = time.perf_counter()
-                obj.solve(*args, **kwargs)
+                try:
+                    obj.solve(*args, **kwargs)
+                except qp.Infeasible:
+                    failed += 1
                 times.append(time.perf_counter() - start)
         t = np.array(times) * 1e3
-        out[name] = (len(t), float(np.median(t)), float(np.percentile(t, 99)))
+        out[name] = (len(t), float(np.median(t)), float(np.percentile(t, 99)), failed)
     return out
 
 
@@ -149,17 +170,76 @@ def walk_stack(seconds: float) -> dict:
             "reports": {n: c.impl.report() for n, c in parts.items()}}
 
 
-def survives_stack(impulse: float, direction: float) -> bool:
+def survives_stack(impulse: float, direction: float, at: float = PUSH_AT) -> bool:
+    """A 0.1 s push of `impulse` N s at the torso, `direction` rad (0 forward, pi/2 left),
+    `at` s (walking at 0.3 m/s from 1 s): still standing 4 s later?"""
     lab = stack()
     sim = lab.sim
     force = impulse / 0.1
     sim.apply_wrench("torso", [force * math.cos(direction), force * math.sin(direction), 0.0],
-                     duration=0.1, start=PUSH_AT)
-    for _ in range(50):  # 5 s after the start of walking: the push and 4 s to fall or not
+                     duration=0.1, start=at)
+    while sim.time < at + 4.0:
         sim.step(100)
         if sim.data.qpos[2] < FALLEN:
             return False
     return True
+
+
+def course(world: str | None = None, seconds: float = 20.0) -> dict:
+    """The issue's course on the shipped stack (the estimator in the loop): on flat ground 0.3
+    m/s forward (speed over 3 s once up to speed), a stop, a quarter turn left, a stop, 1 m to
+    the right; on `world` ("slope", "step") straight on at 0.3 m/s for `seconds`."""
+    from mexone.physics.world import read_world
+
+    lab = stack(world=read_world(mex_one.world_path(world)) if world else None)
+    sim = lab.sim
+    out: dict = {"lowest": 1.0}
+
+    def run(seconds: float) -> None:
+        for _ in range(round(seconds / 0.05)):
+            sim.step(50)
+            out["lowest"] = min(out["lowest"], float(sim.data.qpos[2]))
+
+    def command(vx=0.0, vy=0.0, wz=0.0) -> None:
+        for key, value in (("vx", vx), ("vy", vy), ("wz", wz)):
+            lab.controllers.set_param("footsteps", key, value)
+
+    def yaw() -> float:
+        q = sim.data.qpos
+        return math.degrees(2 * math.atan2(q[6], q[3]))
+
+    if world:
+        run(seconds)
+        out["x"] = float(sim.data.qpos[0])
+    else:
+        run(4.0)
+        x0, t0 = float(sim.data.qpos[0]), sim.time
+        run(3.0)
+        out["speed"] = (float(sim.data.qpos[0]) - x0) / (sim.time - t0)
+        command()
+        run(1.5)
+        yaw0, t0 = yaw(), sim.time
+        command(wz=0.75)
+        while yaw() - yaw0 < 90.0 and sim.time < t0 + 15.0:
+            run(0.1)
+        out["turn_s"] = sim.time - t0 if yaw() - yaw0 >= 90.0 else math.inf
+        command()
+        run(1.5)
+        heading, start, t0 = math.radians(yaw()), sim.data.qpos[:2].copy(), sim.time
+
+        def right() -> float:
+            moved = sim.data.qpos[:2] - start
+            return -(-moved[0] * math.sin(heading) + moved[1] * math.cos(heading))
+
+        command(vy=-0.3)
+        while right() < 1.0 and sim.time < t0 + 30.0:
+            run(0.1)
+        out["sideways_s"] = sim.time - t0 if right() >= 1.0 else math.inf
+        command()
+        run(1.5)
+    out["reports"] = {n: c.impl.report() for n, c in lab.controllers.controllers.items()
+                      if hasattr(c, "impl")}
+    return out
 
 
 def routine_walk(impulse: float = 0.0, direction: float = 0.0) -> tuple[bool, float, float, float]:
@@ -197,21 +277,25 @@ def main() -> None:
     print(f"load average before: {os.getloadavg()}; scheduler: "
           f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
           f"cores {sorted(os.sched_getaffinity(0))}")
+    bare = bare_step_ms()
+    print(f"bare MuJoCo step of Mex-One walking: {bare * 1e3:.1f} us (CPU): the yardstick, 'x' below")
     problems = record_problems()
     import qpsolvers
 
     for solver in ["daqp"] + [s for s in ("proxqp", "osqp") if s in qpsolvers.available_solvers]:
         times = solve_times(problems, solver)
         for name, label in (("mpc", "COM MPC"), ("wbc", "whole-body QP")):
-            n, median, p99 = times[name]
-            print(f"{label} per solve, {solver} ({n} problems from a walk): median {median:.3f} ms, "
-                  f"p99 {p99:.3f} ms")
+            n, median, p99, failed = times[name]
+            none = f", no solution to {failed}" if failed else ""
+            print(f"{label} per solve, {solver} ({n} problems from a walk): median {median:.3f} ms "
+                  f"({median / bare:.1f}x), p99 {p99:.3f} ms{none}")
     for every in (False, True):
         result = per_update(8.0, every)
         print(f"stack walking 8 s, {'every part at 500 Hz' if every else 'shipped rates'}: RTF "
               f"{result['rtf_wall']:.2f} (wall), {result['rtf_cpu']:.2f} (per CPU second)")
         for name, (n, median, p99) in result["parts"].items():
-            print(f"  {name:12s} CPU per update: median {median:.3f} ms, p99 {p99:.3f} ms ({n} updates)")
+            print(f"  {name:12s} CPU per update: median {median:.3f} ms ({median / bare:.1f}x), "
+                  f"p99 {p99:.3f} ms ({n} updates)")
     result = walk_stack(args.seconds)
     print(f"stack, {args.seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
           f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
@@ -224,12 +308,29 @@ def main() -> None:
     print(f"today's walk (mexone run walk, 2 m): stood {ok}, {speed:.3f} m/s, RTF {rtf_wall:.2f} "
           f"(wall), {rtf_cpu:.2f} (per CPU second)")
     if not args.quick:
+        flat = course()
+        print(f"course, flat: {flat['speed']:.3f} m/s once up to speed, quarter turn in "
+              f"{flat['turn_s']:.1f} s, 1 m to the right in {flat['sideways_s']:.1f} s, lowest base "
+              f"{flat['lowest']:.3f} m; estimator {flat['reports']['estimator']}")
+        for world in ("slope", "step"):
+            walk = course(world)
+            print(f"course, {world}.world 20 s at 0.3 m/s: x = {walk['x']:.2f} m (the terrain ends at "
+                  f"5.5 m / 2.5 m), lowest base {walk['lowest']:.3f} m; "
+                  f"{walk['reports']['whole_body']}")
         impulses = [2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
-        for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2)):
+        for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2),
+                                 ("sideways (right)", -math.pi / 2)):
             mine = largest(lambda i, d=direction: survives_stack(i, d), impulses)
             theirs = largest(lambda i, d=direction: routine_walk(i, d)[0], impulses)
-            print(f"largest push survived while walking, {label}: stack {mine:g} N s "
-                  f"(at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s)")
+            print(f"largest push survived while walking, {label}, at t = {PUSH_AT:g} s: stack "
+                  f"{mine:g} N s (at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s)")
+        phases = [PUSH_AT + 0.1 * k for k in range(8)]  # a stride: two steps of 0.4 s
+        for impulse in (5.0, 6.0):
+            for label, direction in (("forward", 0.0), ("left", math.pi / 2), ("right", -math.pi / 2)):
+                stood = [survives_stack(impulse, direction, at) for at in phases]
+                print(f"{impulse:g} N s {label} over a stride (pushed at {phases[0]:g}..{phases[-1]:g} s "
+                      f"by 0.1 s): survived {sum(stood)} of {len(stood)} "
+                      f"({''.join('S' if ok else 'F' for ok in stood)})")
     print(f"load average after: {os.getloadavg()}")
 
 

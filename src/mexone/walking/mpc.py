@@ -21,6 +21,7 @@ from the measured COM (position, velocity) at the controller's rate.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -64,8 +65,8 @@ class Support:
     """Where the ZMP may be at each sample: rectangles (centre (n, 2), yaw (n,), half sizes (n, 2)),
     the ZMP reference (n, 2), and E (n, m): how much each of the m planned landings' shifts moves
     the support at each sample (1 where the foot it put down stands alone, 1/2 in double
-    support). `landings` (m, 4): each step's foot, x, y, yaw as planned; `feet` (2, 3): each
-    foot's x, y, yaw on the ground now."""
+    support; the landings up to the last one the horizon sees). `landings` (m, 4): each step's
+    foot, x, y, yaw as planned; `feet` (2, 3): each foot's x, y, yaw on the ground now."""
 
     centre: np.ndarray
     yaw: np.ndarray
@@ -156,7 +157,10 @@ def supports(steps: np.ndarray, t: float, T: float, n: int, sole: tuple[float, f
         yaw[single] = pose[f, single, 2]
         half[single] = (a, b)
         shifted[single] = onehot[f][single]
-    return Support(centre, yaw, half, ref, shifted, rows[:, [0, 1, 2, 4]].copy(),
+    # landings beyond the horizon move nothing in it: left out of the QP (the first kept)
+    used = np.flatnonzero(shifted.any(axis=0))
+    m = max(int(used[-1]) + 1 if len(used) else 0, min(1, m))
+    return Support(centre, yaw, half, ref, shifted[:, :m], rows[:m, [0, 1, 2, 4]].copy(),
                    Steps.feet(steps)[:, [0, 1, 3]].copy())
 
 
@@ -218,14 +222,10 @@ class LipmMpc:
         gx, gy = zsx - support.centre[:, 0], zsy - support.centre[:, 1]
         du, dw = c * gx + s * gy, -s * gx + c * gy
         rows = np.empty((2 * n, nx))
-        rows[:n, :n] = c[:, None] * zu
-        rows[:n, n:2 * n] = s[:, None] * zu
-        rows[:n, 2 * n:2 * n + m] = -c[:, None] * E
-        rows[:n, 2 * n + m:] = -s[:, None] * E
-        rows[n:, :n] = -s[:, None] * zu
-        rows[n:, n:2 * n] = c[:, None] * zu
-        rows[n:, 2 * n:2 * n + m] = s[:, None] * E
-        rows[n:, 2 * n + m:] = -c[:, None] * E
+        cz, sz = c[:, None] * zu, s[:, None] * zu
+        cE, sE = c[:, None] * E, s[:, None] * E
+        rows[:n, :n], rows[:n, n:2 * n], rows[:n, 2 * n:2 * n + m], rows[:n, 2 * n + m:] = cz, sz, -cE, -sE
+        rows[n:, :n], rows[n:, n:2 * n], rows[n:, 2 * n:2 * n + m], rows[n:, 2 * n + m:] = -sz, cz, sE, -cE
         half = support.half
         high = np.concatenate([half[:, 0] - du, half[:, 1] - dw])
         low = np.concatenate([-half[:, 0] - du, -half[:, 1] - dw])
@@ -257,29 +257,28 @@ def _reach_rows(support: Support, reach: Reach, n: int, m: int, first: bool = Tr
     the plan as given infeasible: a moved landing only comes closer); `first` False: the first
     landing (fixed, about to land) has no rows."""
     nx = 2 * n + 2 * m
-    landings, feet = support.landings, support.feet
+    landings, feet = support.landings.tolist(), support.feet.tolist()
     rows = np.zeros((2 * m, nx))
     low, high = np.empty(2 * m), np.empty(2 * m)
     last = {0: -1, 1: -1}  # each foot's latest landing so far (-1: where it stands now)
     for i in range(m):
-        f = int(landings[i, 0])
+        f = int(landings[i][0])
         j = last[1 - f]
-        stance = feet[1 - f] if j < 0 else landings[j, 1:4]
-        yaw = landings[i, 3]
+        sx, sy = (feet[1 - f][0], feet[1 - f][1]) if j < 0 else (landings[j][1], landings[j][2])
+        c, s = math.cos(landings[i][3]), math.sin(landings[i][3])
         side = 1.0 if f == 0 else -1.0
-        across = side * np.array([-np.sin(yaw), np.cos(yaw)])
-        along = np.array([np.cos(yaw), np.sin(yaw)])
-        gap = landings[i, 1:3] - stance[:2]
-        for r, (axis, lo, hi) in enumerate(((across, reach.min_apart, reach.max_apart),
-                                            (along, -reach.back, reach.forward))):
+        gx, gy = landings[i][1] - sx, landings[i][2] - sy
+        for r, (ax, ay, lo, hi) in enumerate(((-side * s, side * c, reach.min_apart, reach.max_apart),
+                                              (c, s, -reach.back, reach.forward))):
             k = 2 * i + r
-            rows[k, 2 * n + i], rows[k, 2 * n + m + i] = axis
-            if j >= 0:
-                rows[k, 2 * n + j], rows[k, 2 * n + m + j] = -axis
-            now = float(axis @ gap)
-            low[k], high[k] = min(lo - now, 0.0), max(hi - now, 0.0)
             if i == 0 and not first:
-                rows[k], low[k], high[k] = 0.0, -np.inf, np.inf
+                low[k], high[k] = -np.inf, np.inf
+                continue
+            rows[k, 2 * n + i], rows[k, 2 * n + m + i] = ax, ay
+            if j >= 0:
+                rows[k, 2 * n + j], rows[k, 2 * n + m + j] = -ax, -ay
+            now = ax * gx + ay * gy
+            low[k], high[k] = min(lo - now, 0.0), max(hi - now, 0.0)
         last[f] = i
     return rows, low, high
 
