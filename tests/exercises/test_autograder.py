@@ -20,7 +20,7 @@ import jsonschema
 import pytest
 
 from helpers import run_cli
-from mexone.exercises import Check, Result, find_exercise
+from mexone.exercises import Check, GradeContext, Result, find_exercise
 from mexone.exercises.autograder import ROOT_ENV, build_wheel, results_json
 
 SCHEMA = json.loads((Path(__file__).parent.parent / "data" / "exercises" /
@@ -46,7 +46,8 @@ def estimate(bag):
     seen, hits = [], []
     places = [("env", "\\n".join(f"{{k}}={{v}}" for k, v in os.environ.items()))]
     for path in sorted(root.rglob("*")):
-        if "mexone-venv" not in path.parts and path.is_file():
+        if "mexone-venv" not in path.parts and "submission" not in path.parts \
+                and path.is_file():  # (its own text holds the test's oracle)
             try:
                 places.append((str(path.relative_to(root)), path.read_bytes().decode("latin-1")))
             except OSError:
@@ -142,8 +143,9 @@ def test_zip_is_gradescopes_layout(bundle):
 
 def test_autograder_scores_as_grade_does_and_keeps_the_secret(autograder, venv, tmp_path):
     """The acceptance: the same score and checks as `mexone exercise grade` with the teacher's
-    secret (the truth drawn from it: another secret gives another truth), results.json valid
-    against Gradescope's schema; a submission that hunts for the secret finds nothing."""
+    secret (the truth is drawn from it: a zip that lost it would state another truth),
+    results.json valid against Gradescope's schema; a submission that hunts for the secret
+    finds nothing."""
     submission = tmp_path / "identify_damping.py"
     submission.write_text(HONEST)
     env = dict(venv.env, MEXONE_EXERCISE_SECRET=SECRET)
@@ -172,6 +174,18 @@ def test_autograder_scores_as_grade_does_and_keeps_the_secret(autograder, venv, 
     assert "found the secret in []" in test["output"], test["output"]
     assert "source/mexone-autograder.json" in test["output"]  # it could read the folder
     assert SECRET not in json.dumps(cheated)
+
+
+def test_the_truth_depends_on_the_secret(monkeypatch):
+    """What makes the comparison above tell: without the secret, the same seed draws another
+    true damping (and so another output and score)."""
+    ex = find_exercise(EXERCISE)
+    grader = ex.grader()
+    truths = []
+    for secret in (SECRET, ""):
+        monkeypatch.setenv("MEXONE_EXERCISE_SECRET", secret)
+        truths.append(grader.variant(GradeContext(ex, SOLUTION, ex.seeds[0]).rng))
+    assert truths[0] != pytest.approx(truths[1], rel=1e-3)
 
 
 def test_results_json_shows_hidden_checks_after_the_due_date():
