@@ -11,6 +11,7 @@ dependencies) runs without downloading the dependencies a second time."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import zipfile
@@ -243,3 +244,34 @@ def test_wheel_from_the_checkout(tmp_path):
         names = set(zf.namelist())
     assert "mexone/exercises/autograder.py" in names
     assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
+
+
+def test_a_missing_submission_or_a_broken_zip_still_writes_results(tmp_path, monkeypatch):
+    """No file handed in: 0 points saying what the upload holds; a zip whose config is broken:
+    results.json saying so (for the teacher), exit 2; the secret file is gone either way."""
+    from mexone.exercises import autograder
+
+    monkeypatch.delenv("MEXONE_EXERCISE_SECRET", raising=False)  # run() sets it: undone after
+    for name in ("source", "submission", "results"):
+        (tmp_path / name).mkdir()
+    (tmp_path / "source" / "mexone-autograder.json").write_text(json.dumps(
+        {"exercise": EXERCISE, "file": "identify_damping.py"}))
+    (tmp_path / "source" / "secret").write_text(SECRET)
+    (tmp_path / "submission" / "notes.txt").write_text("oops")
+    assert autograder.run(tmp_path) == 0
+    results = json.loads((tmp_path / "results" / "results.json").read_text())
+    jsonschema.validate(results, SCHEMA)
+    assert results["score"] == 0 and "notes.txt" in results["tests"][0]["output"]
+    assert not (tmp_path / "source" / "secret").exists()
+    assert os.environ["MEXONE_EXERCISE_SECRET"] == SECRET
+
+    nested = tmp_path / "submission" / "my upload" / "identify_damping.py"
+    nested.parent.mkdir()
+    nested.write_text("")
+    assert autograder._submission(tmp_path / "submission", nested.name) == nested
+
+    (tmp_path / "source" / "mexone-autograder.json").write_text("{not json")
+    assert autograder.run(tmp_path) == 2
+    results = json.loads((tmp_path / "results" / "results.json").read_text())
+    jsonschema.validate(results, SCHEMA)
+    assert "could not grade" in results["output"] and "mexone-autograder.json" in results["output"]
