@@ -76,7 +76,7 @@ def with_integral_terms(lab: Lab) -> None:
     """Give every position controller an I term that acts (i and a clamp), keeping p and d."""
     manager = lab.controllers
     for ctrl in manager.controllers.values():
-        if ctrl.kind == "position" and ctrl.gains is not None:
+        if ctrl.holds_position and ctrl.tunable:
             manager.set_gains(ctrl.name, [replace(g, i=0.5 * g.p, i_clamp_min=-2.0, i_clamp_max=2.0)
                                           for g in ctrl.gains])
     lab.sim.step(1)  # the update writes the new gains into the actuators

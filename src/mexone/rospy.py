@@ -174,7 +174,7 @@ class Publisher:
             ctx.warned_topics.add(self.name)
             manager = ctx.lab.controllers
             topics = [manager.topic(c.name) for c in manager.controllers.values()
-                      if c.running and c.kind != "state"] if manager else []
+                      if c.running and c.drives_joints] if manager else []
             notice = (f"{self.name} has no subscriber; this robot's command topics are: "
                       + (", ".join(topics) or "none"))
             ctx.notices.append(notice)

@@ -115,7 +115,7 @@ def _apply_gains(lab: Lab, spec: SweepSpec, gains: dict[str, float]) -> np.ndarr
     by_joint = manager.by_joint()
     for joint in spec.joints:
         ctrl = by_joint.get(joint)
-        if ctrl is None or ctrl.kind != "position" or ctrl.gains is None:
+        if ctrl is None or not (ctrl.holds_position and ctrl.tunable):
             raise InputError(f"joint '{joint}' has no running position controller to tune")
         base = ctrl.gains[ctrl.joints.index(joint)]
         clamp = gains.get("i_clamp", max(abs(base.i_clamp_min), abs(base.i_clamp_max)))

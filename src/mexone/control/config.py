@@ -116,9 +116,9 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
         return _plugin(reader, name, key, ctype, type_node, fields)
-    kind, single = CONTROLLER_TYPES[ctype].kind, CONTROLLER_TYPES[ctype].single_joint
+    cls, single = CONTROLLER_TYPES[ctype].cls, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
-    if kind != "state":
+    if cls.drives_joints:
         if single:
             if "joint" not in fields:
                 raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joint'")
@@ -144,7 +144,7 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     ideal = False
     if "ideal_servo" in fields:
         ideal = reader.boolean(fields["ideal_servo"][1], f"'{name}' ideal_servo")
-        if kind not in ("position", "trajectory"):
+        if not cls.tracks_position:
             raise reader.error(fields["ideal_servo"][1], f"'{name}': ideal_servo is for position "
                                                          "controllers")
     return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1, gains, ideal,

@@ -201,7 +201,7 @@ class ControllerManager:
         self._schedule()
 
     def _suspect(self) -> str | None:
-        if any(c.kind != "state" for c in self._running):
+        if any(c.drives_joints for c in self._running):
             return "controller gains too high for the time step: lower p and d, or the step"
         return None
 
@@ -343,7 +343,7 @@ class ControllerManager:
             ctrl = self.controllers[name]
             ctrl.starting(t)
             ctrl.running = True
-            if ctrl.kind != "state" and ctrl.msg_type is not None:
+            if ctrl.drives_joints and ctrl.msg_type is not None:
                 self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
                                                       self._buffer(ctrl), node=name)
             if ctrl.has_state:
@@ -540,6 +540,6 @@ class ControllerManager:
         controller takes commands; 0 without a controller)."""
         out = np.zeros(len(self.hw.joints))
         for ctrl in self._running:
-            if ctrl.kind != "state":
+            if ctrl.drives_joints:
                 out[ctrl.rows] = ctrl.setpoint
         return out

@@ -53,7 +53,7 @@ class TrackingRecorder:
 
     def sample(self, sim: Simulation) -> None:
         tracked = [c for c in self.manager.controllers.values()
-                   if c.running and c.kind in ("position", "trajectory")]
+                   if c.running and c.tracks_position]
         if not tracked:
             return
         key = tuple(map(id, tracked))

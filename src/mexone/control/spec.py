@@ -85,12 +85,17 @@ class ControllerSpec:
     @property
     def kind(self) -> str:
         """position, velocity, effort, trajectory, state (from the controller registry) or
-        python (a student's controller)."""
-        if self.plugin is not None:
-            return "python"
-        from mexone.control.controllers import controller_type
+        python (a student's controller): control/'s own label; front ends ask the class's
+        capabilities (`controller_class`)."""
+        return self.controller_class.kind
 
-        return controller_type(self.type).kind
+    @property
+    def controller_class(self) -> type:
+        """The Controller class that runs this entry (the registry's, or the Python
+        controllers' runner): its capabilities say what it can do before it is loaded."""
+        from mexone.control.controllers import PythonRunner, controller_type
+
+        return PythonRunner if self.plugin is not None else controller_type(self.type).cls
 
     @property
     def interface(self) -> str:

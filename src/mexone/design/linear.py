@@ -530,10 +530,10 @@ def _kept_states(model: mujoco.MjModel, a: np.ndarray, c: np.ndarray) -> list[in
     return keep
 
 
-def _input_map(plant: _Plant, joints: list[str], kind: str):
+def _input_map(plant: _Plant, joints: list[str], interface: str):
     """(nu x m) ctrl per input, the inputs' names, and their values at the point."""
     model, d = plant.model, plant.data
-    if kind == "ctrl":
+    if interface == "ctrl":
         names = []
         for i in range(model.nactuator):
             n = int(model.actuator_ctrlnum[i])
@@ -549,10 +549,10 @@ def _input_map(plant: _Plant, joints: list[str], kind: str):
         motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
         gear = model.actuator_gear[motor, 0]
         adr = model.actuator_ctrladr[motor]
-        if kind == "effort":
+        if interface == "effort":
             u_map[adr + 2, col] = 1.0 / gear
             u0[col] = d.ctrl[adr + 2] * gear
-        elif kind == "velocity":
+        elif interface == "velocity":
             u_map[adr + 1, col] = gear
             u0[col] = d.ctrl[adr + 1] / gear
         else:
@@ -560,7 +560,7 @@ def _input_map(plant: _Plant, joints: list[str], kind: str):
             if integral >= 0:
                 u_map[model.actuator_ctrladr[integral], col] = 1.0
             u0[col] = d.ctrl[adr] / gear
-    return u_map, [f"{_signal(j)}:{kind}" for j in joints], u0
+    return u_map, [f"{_signal(j)}:{interface}" for j in joints], u0
 
 
 # ----- reduced models ----------------------------------------------------------------------------

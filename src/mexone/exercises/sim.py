@@ -86,7 +86,7 @@ def simulate(duration: float, routine: str | Path | None = None,
     ctrls: list = []
     if lab.controllers is not None:  # the joints TrackingRecorder follows
         ctrls = [c for c in lab.controllers.controllers.values()
-                 if c.running and c.kind in ("position", "trajectory")]
+                 if c.running and c.tracks_position]
         names = [j for c in ctrls for j in c.joints]
     fell: list[float] = []
 

@@ -493,14 +493,14 @@ class GuiApp:
             gui.add_button("Home", hint="every position controller to 0").on_click(
                 lambda _: self.do(self.home))
             for ctrl in manager.controllers.values():
-                if ctrl.kind == "trajectory":
+                if ctrl.takes_trajectories:
                     gui.add_markdown(f"`{ctrl.name}`: send JointTrajectory messages from a routine")
                 if ctrl.sliders:
                     for index, joint in enumerate(ctrl.joints):
                         self._add_slider(ctrl, index, joint)
         with gui.add_folder("Gains", expand_by_default=False):
             for ctrl in manager.controllers.values():
-                if ctrl.gains is not None and ctrl.kind == "position":
+                if ctrl.tunable and ctrl.holds_position:
                     self._add_gains(ctrl)
 
     def _scale(self, ctrl: Controller) -> float:
@@ -560,7 +560,7 @@ class GuiApp:
         """Every position controller's joints to 0."""
         manager = self.lab.controllers
         for ctrl in manager.controllers.values():
-            if ctrl.running and ctrl.kind == "position":
+            if ctrl.running and ctrl.holds_position:
                 manager.command(ctrl.name, [0.0] * len(ctrl.joints))
 
     def _add_gains(self, ctrl: Controller) -> None:

@@ -90,7 +90,7 @@ class ControllersPanel(Panel):
     # ----- parameters ---------------------------------------------------------------------------
     def _add_params(self, name: str) -> None:
         ctrl = self.lab.controllers.controllers[name]
-        declared = ctrl.plugin.cls.declared_params()
+        declared = ctrl.declared_params()
         if not declared:
             return
         gui = self.server.gui

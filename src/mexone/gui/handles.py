@@ -137,7 +137,7 @@ class IkHandles:
         """Command every position controller's joints (simulation thread)."""
         manager = self.lab.controllers
         for ctrl in manager.controllers.values():
-            if ctrl.kind == "position":
+            if ctrl.holds_position:
                 command = {j: joints[j] for j in ctrl.joints if j in joints}
                 if command:
                     manager.command(ctrl.name, command)

@@ -115,7 +115,7 @@ class SignalLog:
             hw = manager.hw
             joints = list(hw.joints)
             positional = [i for i, j in enumerate(joints)
-                          if (c := manager.by_joint().get(j)) is not None and c.kind == "position"]
+                          if (c := manager.by_joint().get(j)) is not None and c.holds_position]
             signals += [Signal(f"{j}/{f}", u) for f, u in (("position", "rad"), ("velocity", "rad/s"),
                                                            ("effort", "N m"), ("command", ""))
                         for j in joints]

@@ -30,7 +30,7 @@ class StepResponse:
         self.started = 0.0
         self.on_start = on_start
         manager = lab.controllers
-        joints = tuple(j for j, c in manager.by_joint().items() if c.kind == "position") \
+        joints = tuple(j for j, c in manager.by_joint().items() if c.holds_position) \
             if manager else ()
         gui = server.gui
         with gui.add_folder("Step response", expand_by_default=False):
@@ -48,7 +48,7 @@ class StepResponse:
         """Simulation thread: command the step now and measure for STEP_WINDOW s."""
         manager = self.lab.controllers
         ctrl = manager.by_joint().get(joint) if manager else None
-        if ctrl is None or ctrl.kind != "position":
+        if ctrl is None or not ctrl.holds_position:
             raise InputError(f"Step response: '{joint}' has no running position controller")
         if self.running:
             self.lab.sim.remove_periodic(self.running[1].timer)

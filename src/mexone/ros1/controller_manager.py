@@ -180,10 +180,10 @@ class ControllerManagerNode:
         extras = []
         if ctrl.gains is not None and len(ctrl.joints) == 1:
             extras.append(self._reconfigure(name, ctrl.gains[0]))
-        params = getattr(ctrl, "plugin", None) and ctrl.plugin.cls.declared_params()
+        params = ctrl.declared_params()
         if params:
             extras.append(self._reconfigure_params(name, params, ctrl.params))
-        if ctrl.kind == "trajectory":
+        if ctrl.takes_trajectories:
             self.trajectories[name] = TrajectoryInterfaces(self, name)
             extras += self.trajectories[name].handles
         self.extras[name] = extras

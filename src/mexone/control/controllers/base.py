@@ -3,8 +3,10 @@
 A controller claims joints, buffers the latest command from its topic (`on_command`, any thread:
 subscribers only buffer), and in `update` (the simulation thread, inside the manager's
 read -> update -> write loop) turns it into joint commands on the hardware. Front ends read
-what they need from the attributes here (`kind`, `joints`, `setpoint`, `gains`, `unit`,
-`command_range`) and never test classes.
+what they need from the attributes here (`joints`, `setpoint`, `gains`, `unit`,
+`command_range`) and ask its capabilities (`holds_position`, `takes_trajectories`,
+`tracks_position`, `drives_joints`, `tunable`, `reloadable`) what it can do: never its `kind`
+string, its class or its type name.
 """
 
 from __future__ import annotations
@@ -79,9 +81,15 @@ class ControllerContext:
 
 
 class Controller:
-    kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state
+    kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state: control/'s own label
     unit: ClassVar[str] = ""  # of its commands: rad, rad/s, N m
     sliders: ClassVar[bool] = True  # a GUI slider per joint makes sense
+    # ----- capabilities: what front ends ask of a controller ----------------------------------
+    holds_position: ClassVar[bool] = False  # takes joint-position setpoints (`command`) and holds them
+    takes_trajectories: ClassVar[bool] = False  # follows control_msgs trajectories (FollowJointTrajectory)
+    tracks_position: ClassVar[bool] = False  # its reference is a joint position (either of the above)
+    drives_joints: ClassVar[bool] = True  # commands its joints (a state broadcaster does not)
+    reloadable: ClassVar[bool] = False  # its code can be imported again in place (`reload`)
 
     def __init__(self, spec: ControllerSpec, ctx: ControllerContext):
         self.spec = spec
@@ -120,6 +128,26 @@ class Controller:
     @property
     def gains(self) -> list[PidGains] | None:
         """PID gains per joint, if this controller has any to tune."""
+        return None
+
+    @property
+    def tunable(self) -> bool:
+        """Whether it has PID gains to retune live (`set_gains`)."""
+        return self.gains is not None
+
+    def declared_params(self) -> dict:
+        """Its live parameters by name (`mexone.control.Param`), set with `set_param`; none for
+        the shipped types, whose PID gains are `gains`."""
+        return {}
+
+    @property
+    def params(self) -> dict:
+        """Its declared parameters' values now."""
+        return {}
+
+    @property
+    def code_file(self) -> str | None:
+        """The file its code was imported from, if it is a user's (a Python controller)."""
         return None
 
     def set_gains(self, gains: Sequence[PidGains]) -> None:

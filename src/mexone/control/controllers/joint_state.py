@@ -18,6 +18,7 @@ DEFAULT_RATE = 50.0
 class JointStateController(Controller):
     kind = "state"
     sliders = False
+    drives_joints = False
 
     def __init__(self, spec, ctx):
         super().__init__(spec, ctx)

@@ -29,6 +29,8 @@ __all__ = ["PositionController"]
 class PositionController(Controller):
     kind = "position"
     unit = "rad"
+    holds_position = True
+    tracks_position = True
 
     def __init__(self, spec, ctx):
         super().__init__(spec, ctx)
@@ -54,7 +56,7 @@ class PositionController(Controller):
 
     @property
     def has_state(self) -> bool:
-        return self.type.single_joint and self.kind == "position"
+        return self.type.single_joint and self.holds_position
 
     def state_message(self, dt: float):
         row = self.rows[0]

@@ -62,6 +62,8 @@ class _Segment:
 class TrajectoryController(PositionController):
     kind = "trajectory"
     sliders = False
+    holds_position = False  # its commands are trajectories, not setpoints
+    takes_trajectories = True
 
     def __init__(self, spec, ctx):
         super().__init__(spec, ctx)
