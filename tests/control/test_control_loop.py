@@ -45,8 +45,8 @@ def test_only_the_simulation_thread_writes_the_actuators(monkeypatch):
     loop = threading.Thread(target=app.serve_forever, daemon=True)
     loop.start()
     try:
-        app.routine_choice.value = "arms"
-        app.do(app.start_routine)
+        app.panels["routines"].choice.value = "arms"
+        app.do(app.panels["routines"].start)
         manager = app.lab.controllers
         topic = manager.topic("neck_yaw_position_controller")
         end = time.time() + 1.5
@@ -217,11 +217,11 @@ def test_the_gui_stays_responsive_and_stop_works_with_a_stuck_routine(tmp_path):
     loop = threading.Thread(target=app.serve_forever, daemon=True)
     loop.start()
     try:
-        app.routine_choice.value = "spin.py"
-        app.do(app.start_routine)
+        app.panels["routines"].choice.value = "spin.py"
+        app.do(app.panels["routines"].start)
         time.sleep(0.5)
         t0 = app.lab.sim.time
-        app.do(app.stop_routine)  # Stop works at once, although the routine never yields
+        app.do(app.panels["routines"].stop_routine)  # Stop works at once, although the routine never yields
         deadline = time.time() + 3
         while (app.routine is not None or app.lab.sim.time < t0 + 0.5) and time.time() < deadline:
             time.sleep(0.05)

@@ -192,7 +192,7 @@ def hanging(tmp_path, monkeypatch):
 def test_a_hanging_submission_shows_its_reason_and_the_lab_runs_on(hanging):
     app = hanging
     panel = app.panels["exercises"]
-    assert app.routine_files["exercise: routine.py"].name == "routine.py"  # to Start by hand
+    assert app.panels["routines"].files["exercise: routine.py"].name == "routine.py"  # to Start by hand
     sent = panel.statement._impl.props._markdown  # what the page gets: the figure inlined
     assert "![the arms](data:image/png;base64," in sent
     assert wait_until(lambda: any("broken_for_test panel stopped: RuntimeError: a panel's bug"

@@ -9,11 +9,6 @@ action runs in the simulation thread (`do`); a refusal is one line on the page.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-import viser
-
-from mexone.control.controllers.python import PythonRunner
 from mexone.errors import InputError
 from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
@@ -49,19 +44,8 @@ class ControllersPanel(Panel):
     parameters (a plug-in panel: gui/panels.py)."""
 
     name = "controllers"
-    order = 10
+    order = 11
     period = 30
-
-    @property
-    def lab(self) -> Lab:
-        return self.app.lab  # the robot loaded now (Load replaces it)
-
-    @property
-    def server(self) -> viser.ViserServer:
-        return self.app.server
-
-    def do(self, action: Callable[[], None]) -> None:
-        self.app.do(action)
 
     def build(self) -> None:
         self.fields: dict[tuple[str, str], object] = {}
@@ -74,7 +58,7 @@ class ControllersPanel(Panel):
             if manager is None:
                 return
             names = list(manager.controllers) or ["(none)"]
-            python = [n for n, c in manager.controllers.items() if isinstance(c, PythonRunner)]
+            python = [n for n, c in manager.controllers.items() if c.reloadable]
             self.pick = gui.add_dropdown("Controller", names, initial_value=(python or names)[0])
             self.start_button = gui.add_button("Start", hint="switch_controller: start it")
             self.stop_button = gui.add_button("Stop", hint="switch_controller: stop it")
@@ -115,9 +99,9 @@ class ControllersPanel(Panel):
     def set_param(self, name: str, key: str, text) -> None:
         """Simulation thread: a field's new text, parsed and checked as the YAML's value."""
         ctrl = self.lab.controllers.controllers.get(name)
-        if not isinstance(ctrl, PythonRunner):
+        if ctrl is None or not ctrl.reloadable:
             raise InputError(f"controller '{name}' is gone", hint="it was unloaded")
-        param = ctrl.plugin.cls.declared_params().get(key)
+        param = ctrl.declared_params().get(key)
         value = text
         try:
             if param is not None and param.numeric and isinstance(text, str):
@@ -134,7 +118,7 @@ class ControllersPanel(Panel):
     def show_param(self, name: str, key: str) -> None:
         handle = self.fields.get((name, key))
         ctrl = self.lab.controllers.controllers.get(name)
-        if handle is None or not isinstance(ctrl, PythonRunner):
+        if handle is None or ctrl is None or not ctrl.reloadable:
             return
         value = ctrl.params.get(key)
         handle.value = value if isinstance(value, bool) else (

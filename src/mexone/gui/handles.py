@@ -13,10 +13,11 @@ import mujoco
 import numpy as np
 import viser
 
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.motion.ik import WholeBodyIK
 
-__all__ = ["IkHandles", "FRAMES", "POSED", "GAZE"]
+__all__ = ["IkHandles", "IkHandlesPanel", "FRAMES", "POSED", "GAZE"]
 
 FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot")
 POSED = ("l_foot", "r_foot")  # handles that turn too; a hand's orientation is left to the IK
@@ -142,3 +143,23 @@ class IkHandles:
                 if command:
                     manager.command(ctrl.name, command)
         self.status.content = "" if error is None else f"IK: {error} from the handle"
+
+
+@register_panel
+class IkHandlesPanel(Panel):
+    """The IK handles folder: an IkHandles (and its worker thread) per robot loaded."""
+
+    name = "ik_handles"
+    order = 92
+    handles: IkHandles | None = None
+
+    def build(self) -> None:
+        self.handles = IkHandles(self.server, self.lab, self.do)
+
+    def unload(self) -> None:
+        if self.handles is not None:
+            self.handles.close(join=0)  # the simulation thread, which its worker may await
+
+    def stop(self) -> None:
+        if self.handles is not None:
+            self.handles.close()
