@@ -20,11 +20,13 @@ from mexone.description.xmlio import XmlReader
 
 __all__ = ["Noise", "CameraSpec", "SensorSpec", "SENSOR_TYPES", "MODEL_PLUGINS", "read_sensor",
            "read_model_plugin", "write_sensor", "write_model_plugin", "needs_sensor_element",
-           "merge_model_plugin", "add_sensor_type"]
+           "merge_model_plugin"]
 
-# the sensor types the reader accepts: the built-in ones, and every plug-in mexone.sensors
-# registers (mexone.sensors.register_sensor calls add_sensor_type)
-SENSOR_TYPES = ["imu", "force_torque", "contact", "camera", "depth"]
+# the types whose SDF elements the reader knows (<imu>, <camera>, <force_torque>, <contact>);
+# any other <sensor type="..."> is read with its common elements and kept: whether mexone
+# simulates it is the sensor plug-ins' registry's answer (mexone.sensors), asked when the model
+# is built, so what a file parses to never depends on what was imported
+SENSOR_TYPES = ("imu", "force_torque", "contact", "camera", "depth")
 MODEL_PLUGINS = ("libgazebo_ros_imu.so", "libgazebo_ros_ft_sensor.so")  # plugins of the model,
 # not of a <sensor>: they name their body or joint themselves
 IMU_CHANNELS = tuple(f"{group}/{axis}" for group in ("angular_velocity", "linear_acceleration")
@@ -74,7 +76,7 @@ class CameraSpec:
 @dataclass
 class SensorSpec:
     name: str
-    type: str  # one of SENSOR_TYPES
+    type: str  # SDF's <sensor type>: one of SENSOR_TYPES or a sensor plug-in's
     link: str | None = None  # the link it is fixed to (force_torque: the joint's child)
     joint: str | None = None  # force_torque: the joint it measures
     pose: Pose = Pose()  # in the link's frame (SDF <sensor><pose>)
@@ -92,12 +94,6 @@ class SensorSpec:
     collisions: tuple[str, ...] = ()  # contact: the collision elements it watches
     range: tuple[float, float] | None = None  # depth: the valid range (point cloud cutoffs)
     line: int | None = None
-
-
-def add_sensor_type(kind: str) -> None:
-    """Let the reader accept `<sensor type="kind">` (a sensor plug-in registered it)."""
-    if kind not in SENSOR_TYPES:
-        SENSOR_TYPES.append(kind)
 
 
 # ----- reading -------------------------------------------------------------------------------
@@ -226,11 +222,11 @@ def _apply_plugin(xml: XmlReader, spec: SensorSpec, plugin: etree._Element) -> S
 def read_sensor(xml: XmlReader, el: etree._Element, link: str | None = None,
                 joint: str | None = None) -> SensorSpec:
     """A ``<sensor>`` element (and its gazebo_ros ``<plugin>``), fixed to `link` or on `joint`."""
-    kind = el.get("type", "")
+    kind = el.get("type", "").strip()
     name = el.get("name") or f"{link or joint}_{kind}"
-    if kind not in SENSOR_TYPES:
-        raise xml.fail(el, f"sensor '{name}' has type '{kind}', which mexone does not simulate",
-                       "types: " + ", ".join(SENSOR_TYPES))
+    if not kind:
+        raise xml.fail(el, f"sensor '{name}' has no type", "types: " + ", ".join(SENSOR_TYPES)
+                       + " (and the sensor plug-ins')")
     if kind == "force_torque" and joint is None:
         raise xml.fail(el, f"force_torque sensor '{name}' is not on a joint",
                        'put it in <gazebo reference="JOINT">')

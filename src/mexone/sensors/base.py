@@ -17,8 +17,11 @@ MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however m
 
 from __future__ import annotations
 
+import importlib
+import logging
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from typing import Any, ClassVar
 
 import mujoco
@@ -26,13 +29,20 @@ import numpy as np
 
 from mexone.bus.msgs import Header, Time
 from mexone.bus.topics import Bus, resolve_name
-from mexone.description import sensors as declared
 from mexone.description.model import RobotModel
 from mexone.description.sensors import SensorSpec
+from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
 
 __all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "register_sensor",
-           "SENSOR_CLASSES", "sensor_type", "AXES"]
+           "SENSOR_CLASSES", "sensor_type", "sensor_types", "AXES", "ENTRY_POINT_GROUP",
+           "BUILTIN_SENSORS"]
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "mexone.sensors"
+BUILTIN_SENSORS = ("mexone.sensors.imu", "mexone.sensors.force_torque", "mexone.sensors.contact",
+                   "mexone.sensors.camera")
 
 _SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 # looked up once: the sensor pass runs between steps, where every attribute lookup counts
@@ -353,24 +363,45 @@ SENSOR_CLASSES: dict[str, type[Sensor]] = {}  # SDF sensor type -> its plug-in
 
 def register_sensor(type_name: str) -> Callable[[type[Sensor]], type[Sensor]]:
     """Class decorator: make `cls` the plug-in of SDF sensor type `type_name` (declared in a
-    URDF's `<gazebo reference=...><sensor type="type_name">`), everywhere at once: the URDF/SDF
-    reader accepts the type, the model builder calls its `build`, the suite runs it."""
+    URDF's `<gazebo reference=...><sensor type="type_name">`): the model builder calls its
+    `build`, the suite runs it. A package's sensor types are found through the
+    `mexone.sensors` entry-point group (`name = "package.module"`: importing it registers)."""
 
     def add(cls: type[Sensor]) -> type[Sensor]:
         cls.type_name = cls.type_name or type_name
         SENSOR_CLASSES[type_name] = cls
-        declared.add_sensor_type(type_name)
         return cls
 
     return add
 
 
+_loaded_entry_points = False
+
+
+def sensor_types() -> dict[str, type[Sensor]]:
+    """Every sensor plug-in by type: the shipped ones and the entry points' (imported once). A
+    package's type that fails to import is logged and left out."""
+    global _loaded_entry_points
+    for module in BUILTIN_SENSORS:
+        importlib.import_module(module)
+    if not _loaded_entry_points:
+        _loaded_entry_points = True
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            try:
+                importlib.import_module(ep.value)
+            except Exception as exc:  # noqa: BLE001 - someone else's package: the lab goes on
+                log.warning("sensor type %s (%s) did not load: %s", ep.name, ep.value, exc)
+    return SENSOR_CLASSES
+
+
 def sensor_type(type_name: str) -> type[Sensor]:
-    try:
-        return SENSOR_CLASSES[type_name]
-    except KeyError:
-        raise KeyError(f"no sensor plug-in for type '{type_name}' (registered: "
-                       f"{', '.join(SENSOR_CLASSES)})") from None
+    """The plug-in of sensor type `type_name`; an InputError listing the types if none."""
+    cls = SENSOR_CLASSES.get(type_name) or sensor_types().get(type_name)
+    if cls is None:
+        raise InputError(f"mexone does not simulate sensor type '{type_name}'",
+                         hint="types: " + ", ".join(sorted(sensor_types())) + f" (a package adds one "
+                              f"through the '{ENTRY_POINT_GROUP}' entry points)")
+    return cls
 
 
 class SensorStates(Mapping[str, Any]):

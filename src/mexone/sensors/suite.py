@@ -20,7 +20,7 @@ from mexone.physics.compile import lowest_point
 from mexone.physics.simulation import Periodic, Simulation
 from mexone.sensors.balance import RATE as BALANCE_RATE
 from mexone.sensors.balance import Balance
-from mexone.sensors.base import SENSOR_CLASSES, Measure, Sensor, SensorStates, sensor_namespace
+from mexone.sensors.base import SENSOR_CLASSES, Measure, Sensor, SensorStates, sensor_namespace, sensor_type
 from mexone.sensors.build import sensor_link
 from mexone.sensors.force_torque import ForceTorqueSensor
 
@@ -43,7 +43,7 @@ class SensorSuite:
             if not spec.always_on:
                 continue
             link = sensor_link(sim.robot, spec)
-            self.sensors[spec.name] = SENSOR_CLASSES[spec.type](
+            self.sensors[spec.name] = sensor_type(spec.type)(
                 spec, sim, bus, sensor_namespace(spec, namespace, override), self.measure, link)
         self.states = SensorStates(self.sensors)
         """name -> the sensor's state object at this instant (controllers' `state.sensors`)"""
