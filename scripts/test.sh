@@ -49,4 +49,5 @@ export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
 # Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
 npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
 python3 -m ruff check .
+python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
 python3 -m pytest "$@"

@@ -12,7 +12,9 @@ deliberately wide (a 100 t link is allowed) so no real robot is refused.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 from mexone.errors import InputError
 
@@ -69,7 +71,7 @@ class Range:
             return False
         return not (self.integer and number != int(number))
 
-    def check(self, value: float, what: str | None = None, **where) -> float:
+    def check(self, value: float, what: str | None = None, **where: Any) -> float:
         """`value` as a float, or an InputError naming `what` (default: the quantity) and the range.
         `where` (file=, line=, hint=) locates it, as every MexoneError."""
         if isinstance(value, bool) or not self.contains(value):
@@ -77,7 +79,7 @@ class Range:
             raise InputError(f"{label} {number_text(value)} must be {self.describe()}", **where)
         return int(value) if self.integer else float(value)
 
-    def check_all(self, values, what: str | None = None, **where) -> list[float]:
+    def check_all(self, values: Iterable[float], what: str | None = None, **where: Any) -> list[float]:
         return [self.check(v, what, **where) for v in values]
 
 

@@ -272,13 +272,13 @@ class SimHardware:
         return np.array([self.index[n] for n in names], dtype=int)
 
     # ----- state (reading is safe in the simulation thread at any time) --------------------------
-    def position(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def position(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         return self.sim.data.qpos[self.qpos_adr[rows]]
 
-    def velocity(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def velocity(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         return self.sim.data.qvel[self.dof_adr[rows]]
 
-    def effort(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def effort(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         """Joint torque the motors applied in the last step (after the effort limit)."""
         return self.sim.data.qfrc_actuator[self.dof_adr[rows]]
 

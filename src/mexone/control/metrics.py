@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -30,7 +31,7 @@ class JointTracking:
     settling_time: float | None  # worst over setpoint changes, s; None if one never settled
     steps: int  # setpoint changes of at least MIN_STEP
 
-    def as_json(self) -> dict:
+    def as_json(self) -> dict[str, Any]:
         return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in asdict(self).items()}
 
 
@@ -43,7 +44,7 @@ class TrackingRecorder:
     latest samples are kept for plots (history(joint))."""
 
     def __init__(self, sim: Simulation, manager: ControllerManager, rate: float = SAMPLE_RATE,
-                 history: float = 0.0):
+                 history: float = 0.0) -> None:
         self.manager = manager
         self.keep = int(round(history * rate)) + 1 if history > 0 else 0
         self.streams: dict[str, _JointStream] = {}
@@ -83,7 +84,7 @@ class TrackingRecorder:
         """Hand the pending samples to each joint's statistics, in time order."""
         if not self._pending:
             return
-        groups: dict[int, tuple[_Layout, list]] = {}
+        groups: dict[int, tuple[_Layout, list[Any]]] = {}
         for row in self._pending:
             groups.setdefault(id(row[1]), (row[1], []))[1].append(row)
         self._pending = []
@@ -112,7 +113,7 @@ class _Layout:
     commanded: bool  # every controller's setpoint is its joints' position command
 
     @staticmethod
-    def of(controllers: list) -> _Layout:
+    def of(controllers: list[Any]) -> _Layout:
         return _Layout(tuple(j for c in controllers for j in c.joints),
                        np.concatenate([np.asarray(c.rows, dtype=int).reshape(-1)
                                        for c in controllers]),
@@ -156,12 +157,13 @@ class _Segment:
 class _JointStream:
     """One joint's running tracking statistics (see TrackingRecorder)."""
 
-    def __init__(self, keep: int):
+    def __init__(self, keep: int) -> None:
         self.recent: deque[tuple[float, float, float]] = deque(maxlen=keep)
         self.n, self.sum_sq, self.max_abs = 0, 0.0, 0.0
         self.last_sp: float | None = None
         self.segment: _Segment | None = None  # the latest setpoint change's
-        self.worst, self.settling = 0.0, 0.0  # over the closed segments
+        self.worst = 0.0  # over the closed segments
+        self.settling: float | None = 0.0  # None once one segment never settled
         self.steps = 0
 
     def fold(self, t: np.ndarray, sp: np.ndarray, q: np.ndarray) -> None:
@@ -209,7 +211,8 @@ def full_metrics(joint: str, data: np.ndarray) -> JointTracking:
     t, sp, q = data.T
     error = sp - q
     changes = np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1
-    worst, settling = 0.0, 0.0
+    worst = 0.0
+    settling: float | None = 0.0
     bounds = list(changes) + [len(t)]
     for k, start in enumerate(changes):
         end = bounds[k + 1]

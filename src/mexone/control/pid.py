@@ -21,7 +21,7 @@ __all__ = ["PidArray"]
 
 
 class PidArray:
-    def __init__(self, gains: Sequence[PidGains]):
+    def __init__(self, gains: Sequence[PidGains]) -> None:
         self.p = np.array([g.p for g in gains], dtype=float)
         self.i = np.array([g.i for g in gains], dtype=float)
         self.d = np.array([g.d for g in gains], dtype=float)

@@ -6,12 +6,16 @@ use these types without importing each other.
 
 from __future__ import annotations
 
+import builtins
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
+
+if TYPE_CHECKING:
+    from mexone.control.controllers import Controller
 
 __all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
            "POSITION_SUFFIX"]
@@ -90,7 +94,7 @@ class ControllerSpec:
         return self.controller_class.kind
 
     @property
-    def controller_class(self) -> type:
+    def controller_class(self) -> builtins.type[Controller]:
         """The Controller class that runs this entry (the registry's, or the Python
         controllers' runner): its capabilities say what it can do before it is loaded."""
         from mexone.control.controllers import PythonRunner, controller_type
@@ -113,4 +117,4 @@ class ControlConfig:
     pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
     source: Path | None = None
     # the file as `rosparam load` puts it on the parameter server (routines' get_param reads it)
-    parameters: dict = field(default_factory=dict, compare=False, repr=False)
+    parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)

@@ -11,6 +11,7 @@ would use. Existing robot packages need no mexone-specific markup.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from lxml import etree
@@ -316,7 +317,7 @@ def _write_noise(parent: etree._Element, noise: Noise) -> None:
             _text(el, tag, format(value, ".12g"))
 
 
-def write_sensor(parent: etree._Element, spec: SensorSpec, fmt) -> etree._Element:
+def write_sensor(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> etree._Element:
     """The <sensor> element (with its plugin) a reader reads back to `spec`."""
     el = etree.SubElement(parent, "sensor", name=spec.name, type=spec.type)
     _text(el, "always_on", "true" if spec.always_on else "false")
@@ -354,7 +355,7 @@ def write_sensor(parent: etree._Element, spec: SensorSpec, fmt) -> etree._Elemen
     return el
 
 
-def write_model_plugin(parent: etree._Element, spec: SensorSpec, fmt) -> None:
+def write_model_plugin(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> None:
     """A model-level gazebo_ros plugin (IMU on a body, force-torque on a joint), under `parent`."""
     _write_plugin(parent, spec, fmt)
 
@@ -364,18 +365,19 @@ def needs_sensor_element(spec: SensorSpec) -> bool:
     return spec.plugin != "libgazebo_ros_imu.so"
 
 
-def _write_plugin(parent: etree._Element, spec: SensorSpec, fmt) -> None:
+def _write_plugin(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> None:
     plugin = etree.SubElement(parent, "plugin", name=f"{spec.name}_plugin", filename=spec.plugin)
     if spec.namespace:
         _text(plugin, "robotNamespace", spec.namespace)
     if spec.topic:
-        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin, {}).items() if k == "main"),
-                     "topicName")
+        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin or "", {}).items()
+                      if k == "main"), "topicName")
         _text(plugin, param, spec.topic)
     for key, topic in spec.topics.items():
-        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin, {}).items() if k == key), None)
-        if param:
-            _text(plugin, param, topic)
+        keyed = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin or "", {}).items() if k == key),
+                      None)
+        if keyed:
+            _text(plugin, keyed, topic)
     if spec.frame:
         _text(plugin, "frameName", spec.frame)
     if spec.joint and spec.plugin == "libgazebo_ros_ft_sensor.so":

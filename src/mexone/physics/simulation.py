@@ -110,15 +110,16 @@ class WorkQueue:
     thread that steps the simulation drains it between steps, so nobody else touches MuJoCo."""
 
     def __init__(self) -> None:
-        self._items: queue.SimpleQueue[tuple[Callable[[], Any], threading.Event | None, list]] = \
-            queue.SimpleQueue()
+        self._items: queue.SimpleQueue[tuple[Callable[[], Any], threading.Event | None,
+                                             list[Any]]] = queue.SimpleQueue()
 
     def put(self, fn: Callable[[], Any]) -> None:
         self._items.put((fn, None, []))
 
     def call(self, fn: Callable[[], Any], timeout: float = 10.0) -> Any:
         """Run `fn` in the simulation thread and wait for its result (its exception re-raised)."""
-        done, box = threading.Event(), []
+        done = threading.Event()
+        box: list[Any] = []
         self._items.put((fn, done, box))
         if not done.wait(timeout):
             raise TimeoutError("the simulation thread did not answer")
@@ -149,7 +150,7 @@ class WorkQueue:
 class RtfMeter:
     """Real-time factor over the last `window` seconds of wall time, as Gazebo shows it."""
 
-    def __init__(self, window: float = 1.0):
+    def __init__(self, window: float = 1.0) -> None:
         self.window = window
         self.samples: deque[tuple[float, float]] = deque()
 
@@ -172,7 +173,7 @@ class RtfMeter:
 class Simulation:
     def __init__(self, robot: RobotModel | Path | str, world: World | None = None,
                  spawn: Spawn = Spawn(), options: CompileOptions = CompileOptions(),
-                 target_rtf: float | None = None, edits: Sequence[SpecEdit] = ()):
+                 target_rtf: float | None = None, edits: Sequence[SpecEdit] = ()) -> None:
         if not isinstance(robot, RobotModel):
             robot = load_model(robot)
         self.robot = robot
@@ -268,8 +269,12 @@ class Simulation:
         """Forget a control and the hooks it registered (a deleted robot's controllers)."""
         if control in self.controls:
             self.controls.remove(control)
-        for hooks in (self._reset_hooks, self._timestep_hooks, self._model_hooks):
-            hooks[:] = [h for h in hooks if getattr(h, "__self__", None) is not control]
+        def kept(hook: object) -> bool:
+            return getattr(hook, "__self__", None) is not control
+
+        self._reset_hooks[:] = [h for h in self._reset_hooks if kept(h)]
+        self._timestep_hooks[:] = [h for h in self._timestep_hooks if kept(h)]
+        self._model_hooks[:] = [h for h in self._model_hooks if kept(h)]
 
     def _fire_due(self) -> None:
         # runs between every two chunks of steps (every step while a control needs each one):
@@ -658,18 +663,18 @@ class Simulation:
             rot = np.eye(3) if frame_body < 0 else self.data.xmat[frame_body].reshape(3, 3)
             origin = np.zeros(3) if frame_body < 0 else self.data.xpos[frame_body]
             point = rot.T @ (self.data.xipos[body] - origin)
-        point = np.asarray(point, dtype=float)
-        if point.shape != (3,) or not np.isfinite(point).all():
+        at = np.asarray(point, dtype=float)
+        if at.shape != (3,) or not np.isfinite(at).all():
             raise InputError("application point must be 3 finite numbers")
         if frame_body < 0:  # a world-frame push stays where it was put on the body
             frame_body, rot = body, self.data.xmat[body].reshape(3, 3)
-            point = rot.T @ (point - self.data.xpos[body])
+            at = rot.T @ (at - self.data.xpos[body])
             values = np.r_[rot.T @ values[:3], rot.T @ values[3:]]
             world_fixed = True
         else:
             world_fixed = False
         begin, end = self._duration_ns(duration, start)
-        wrench = Wrench(body, values[:3], values[3:], point, frame_body, begin, end)
+        wrench = Wrench(body, values[:3], values[3:], at, frame_body, begin, end)
         if world_fixed:  # force and torque keep their world direction as the body turns
             wrench = _WorldWrench.of(wrench, self.data)
         self.forces.wrenches.append(wrench)

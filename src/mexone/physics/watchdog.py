@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -60,7 +61,7 @@ class Watchdog:
     suspects: list[Callable[[], str | None]] = field(default_factory=list)
     # the energy a passive run must stay below, and what it was measured under
     _ceiling: float | None = field(default=None, init=False, repr=False)
-    _ceiling_key: tuple = field(default=(), init=False, repr=False)
+    _ceiling_key: tuple[Any, ...] = field(default=(), init=False, repr=False)
     _last_time: float = field(default=-np.inf, init=False, repr=False)
     _checks: int = field(default=0, init=False, repr=False)
 

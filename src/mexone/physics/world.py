@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from mexone.description.sdf import sdf_version
 from mexone.description.xmlio import XmlReader
@@ -50,7 +51,7 @@ def read_world(path: Path | str) -> World:
     if world is None:
         raise xml.fail(root, "holds no <world>", "a world file is <sdf><world>...</world></sdf>")
     sdf_version(xml, root)
-    values: dict = {"name": world.get("name", "default"), "source": path, "ground": None}
+    values: dict[str, Any] = {"name": world.get("name", "default"), "source": path, "ground": None}
     if (g := world.find("gravity")) is not None:
         values["gravity"] = xml.numbers(g, g.text or "", 3, "value")
         if not all(GRAVITY.contains(v) for v in values["gravity"]):

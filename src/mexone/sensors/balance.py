@@ -14,6 +14,8 @@ of pressure, weighted by their normal forces, give the ZMP.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from mexone.bus.msgs import Header, Point, Point32, PointStamped, Polygon, PolygonStamped, Time
@@ -39,7 +41,7 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     if len(pts) < 3:
         return np.array(pts).reshape(-1, 2)
 
-    def half(seq):
+    def half(seq: Iterable[tuple[float, float]]) -> list[tuple[float, float]]:
         out: list[tuple[float, float]] = []
         for p in seq:
             while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
@@ -76,7 +78,7 @@ def centre_of_pressure(force: np.ndarray, torque: np.ndarray, at: np.ndarray,
 class BalanceState:
     """One instant's COM, support polygon and ZMP (numbers; the GUI draws them)."""
 
-    def __init__(self, com: np.ndarray, polygon: np.ndarray, zmp: np.ndarray | None):
+    def __init__(self, com: np.ndarray, polygon: np.ndarray, zmp: np.ndarray | None) -> None:
         self.com, self.polygon, self.zmp = com, polygon, zmp
 
     @property
@@ -85,7 +87,7 @@ class BalanceState:
 
 
 class Balance:
-    def __init__(self, sim: Simulation, bus: Bus, namespace: str, feet: list[ForceTorqueSensor]):
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str, feet: list[ForceTorqueSensor]) -> None:
         self.sim, self.bus, self.feet = sim, bus, feet
         self.topics = {"com": f"{namespace}/com", "zmp": f"{namespace}/zmp",
                        "support_polygon": f"{namespace}/support_polygon"}

@@ -22,13 +22,14 @@ import logging
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.bus.msgs import Header, Time
-from mexone.bus.topics import Bus, resolve_name
+from mexone.bus.topics import Bus, Topic, resolve_name
 from mexone.description.model import RobotModel
 from mexone.description.sensors import SensorSpec
 from mexone.errors import InputError
@@ -88,11 +89,11 @@ class Measure:
     however many sensors are read.
     """
 
-    def __init__(self, sim: Simulation):
+    def __init__(self, sim: Simulation) -> None:
         self.sim = sim
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
         self._stamp = Time()
-        self._contacts: tuple = ([], [], [], [], [])
+        self._contacts: tuple[list[Any], ...] = ([], [], [], [], [])
         self._cone_model: mujoco.MjModel | None = None
         self._elliptic = False
         self._force6 = np.zeros(6)
@@ -128,7 +129,7 @@ class Measure:
             self._stamp_at = sim.steps
         return self._stamp
 
-    def contacts(self) -> tuple:
+    def contacts(self) -> tuple[list[Any], ...]:
         """This instant's contacts as plain lists, read once for every contact sensor: (geom
         pairs, frames (9 each: normal, two tangents, world), positions, distances, each
         contact's (normal, tangent, tangent) force on geom2 in its frame). Elliptic cones
@@ -181,26 +182,27 @@ class Measure:
             opt.disableflags = flags
         self._at = sim.steps
 
-    def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
+    def linear(self, rows: ArrayLike, matrix: ArrayLike, bind: Callable[[np.ndarray], None]) -> None:
         """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
         receives out's view into the shared buffer once the buffer exists (before the first
         refresh), to make it the state's arrays."""
-        rows = np.asarray(rows, dtype=int)
-        matrix = np.asarray(matrix, dtype=float).reshape(-1, len(rows))
-        self._terms.append((self._size, rows, matrix))
-        self._views.append((bind, self._size, self._size + len(matrix)))
-        self._size += len(matrix)
+        index = np.asarray(rows, dtype=int)
+        weights = np.asarray(matrix, dtype=float).reshape(-1, len(index))
+        self._terms.append((self._size, index, weights))
+        self._views.append((bind, self._size, self._size + len(weights)))
+        self._size += len(weights)
         self._matrix = None
 
-    def _build(self) -> None:
+    def _build(self) -> np.ndarray:
         nsensordata = self.sim.model.nsensordata
-        self._matrix = np.zeros((self._size, nsensordata))
+        self._matrix = whole = np.zeros((self._size, nsensordata))
         for offset, rows, matrix in self._terms:
             for j, row in enumerate(rows):
-                self._matrix[offset:offset + len(matrix), row] += matrix[:, j]
+                whole[offset:offset + len(matrix), row] += matrix[:, j]
         self.buffer = np.zeros(self._size)
         for bind, start, stop in self._views:
             bind(self.buffer[start:stop])
+        return whole
 
     def refresh(self) -> None:
         """Every registered linear state at this instant (once per instant)."""
@@ -208,11 +210,12 @@ class Measure:
         now = sim.steps
         if self._refreshed_at == now:
             return
-        if self._matrix is None:
-            self._build()
+        matrix = self._matrix
+        if matrix is None:
+            matrix = self._build()
         if self._at != now:
             self._sensor_pass(sim)
-        self._matrix.dot(self._sensordata, out=self.buffer)  # the method: no dispatch layer
+        matrix.dot(self._sensordata, out=self.buffer)  # the method: no dispatch layer
         self._refreshed_at = now
 
 
@@ -255,8 +258,9 @@ class Sensor:
             self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
                                    self.message_type)]
         self._frame_id = self.frame  # fixed once set up: the messages' frame_id
-        self._topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
-            if self.outputs else None
+        # the main topic (a sensor without outputs never publishes: its broadcaster never runs)
+        self._topic: Topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
+            if self.outputs else cast(Topic, None)
         if not hasattr(self, "_needs_read"):  # setup may say a reading needs no read() call
             self._needs_read = type(self).read is not Sensor.read
 
@@ -408,7 +412,7 @@ class SensorStates(Mapping[str, Any]):
     """name -> the sensor's state object at this instant (see `Sensor.state`): what controllers
     read as `state.sensors[name]`. Only the sensors looked up are read."""
 
-    def __init__(self, sensors: Mapping[str, Sensor]):
+    def __init__(self, sensors: Mapping[str, Sensor]) -> None:
         self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
 
     def __getitem__(self, name: str) -> Any:

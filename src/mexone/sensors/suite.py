@@ -35,7 +35,7 @@ def _broadcast(sim: Simulation, sensors: list[Sensor]) -> None:
 
 
 class SensorSuite:
-    def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None):
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None) -> None:
         self.sim, self.bus = sim, bus
         self.measure = Measure(sim)
         self.sensors: dict[str, Sensor] = {}
@@ -57,7 +57,7 @@ class SensorSuite:
         for name, sensor in self.sensors.items():
             for output in sensor.outputs:
                 bus.advertise(output.topic, output.type)
-                bus.on_subscribers(output.topic, lambda _n, key=name: self._listeners_changed(key))
+                bus.on_subscribers(output.topic, partial(self._listener_count, name))
         for topic in self.balance.topics.values():
             bus.on_subscribers(topic, lambda _n: self._listeners_changed("balance"))
 
@@ -101,6 +101,9 @@ class SensorSuite:
         sensor = self.sensors[key]
         return any(sensor.wanted(o) for o in sensor.outputs)
 
+    def _listener_count(self, name: str, _count: int) -> None:
+        self._listeners_changed(name)
+
     def _listeners_changed(self, key: str) -> None:
         wanted = self._wanted(key)
         if key == "balance":
@@ -120,7 +123,7 @@ class SensorSuite:
                 self._groups[period] = (timer, group)
         elif not wanted and sensor in group:
             group.remove(sensor)
-            if not group:
+            if not group and timer is not None:
                 self.sim.remove_periodic(timer)
                 del self._groups[period]
 

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -49,7 +49,8 @@ class ControllerType:
 CONTROLLER_TYPES: dict[str, ControllerType] = {}  # the registry: filled by register()
 
 
-def register(name: str, interface: str, single_joint: bool = True):
+def register(name: str, interface: str,
+             single_joint: bool = True) -> Callable[[type[Controller]], type[Controller]]:
     """Class decorator: `cls` implements ros_control type `name`."""
 
     def add(cls: type[Controller]) -> type[Controller]:
@@ -76,7 +77,7 @@ class ControllerContext:
     bus: Bus
     namespace: str
     pid_gains: dict[str, PidGains]  # gazebo_ros_control/pid_gains/<joint>
-    sensors: Callable[[], Mapping] | None = None  # state.sensors of Python controllers
+    sensors: Callable[[], Mapping[str, Any]] | None = None  # state.sensors of Python controllers
     faults: list[str] = field(default_factory=list)  # controllers that faulted this cycle
 
 
@@ -91,7 +92,7 @@ class Controller:
     drives_joints: ClassVar[bool] = True  # commands its joints (a state broadcaster does not)
     reloadable: ClassVar[bool] = False  # its code can be imported again in place (`reload`)
 
-    def __init__(self, spec: ControllerSpec, ctx: ControllerContext):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         self.spec = spec
         self.name = spec.name
         self.type = self.type_of(spec)
@@ -101,7 +102,7 @@ class Controller:
         self.rows = self.hw.rows(self.joints) if self.joints else np.zeros(0, dtype=int)
         self.running = False
         self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
-        self._pending = None  # the latest command, waiting for the next update
+        self._pending: Any = None  # the latest command (values() made it), for the next update
         self.every_period = False  # the manager's: update runs every period (periodic or timed)
         self._warned: set[str] = set()
 
@@ -135,13 +136,13 @@ class Controller:
         """Whether it has PID gains to retune live (`set_gains`)."""
         return self.gains is not None
 
-    def declared_params(self) -> dict:
+    def declared_params(self) -> dict[str, Any]:
         """Its live parameters by name (`mexone.control.Param`), set with `set_param`; none for
         the shipped types, whose PID gains are `gains`."""
         return {}
 
     @property
-    def params(self) -> dict:
+    def params(self) -> dict[str, Any]:
         """Its declared parameters' values now."""
         return {}
 
@@ -172,7 +173,8 @@ class Controller:
         """The controller's `state` message now (simulation thread; stamp set by the caller)."""
         raise InputError(f"{self.name} publishes no state")
 
-    def _state(self, set_point: float, value: float, value_dot: float, dt: float) -> JointControllerState:
+    def _state(self, set_point: float | np.ndarray, value: float | np.ndarray,
+               value_dot: float | np.ndarray, dt: float) -> JointControllerState:
         row = int(self.rows[0])
         gains = (self.gains or [PidGains(0.0)])[0]
         return JointControllerState(Header(), float(set_point), float(value), float(value_dot),
@@ -191,11 +193,11 @@ class Controller:
         if pending is not None:
             self.apply(pending, t)
 
-    def apply(self, values, t: float) -> None:
+    def apply(self, values: Any, t: float) -> None:
         """Turn a buffered command into joint commands."""
 
     # ----- commands (any thread) --------------------------------------------------------------
-    def on_command(self, msg) -> bool:
+    def on_command(self, msg: object) -> bool:
         """Check and buffer `msg`; True if there is something for the next update."""
         values = self.values(msg)
         if values is None:
@@ -203,7 +205,7 @@ class Controller:
         self._pending = values
         return True
 
-    def values(self, msg) -> np.ndarray | None:
+    def values(self, msg: object) -> Any:
         """The numbers of a command message, or None (warned once) if it cannot be used."""
         if isinstance(msg, Float64):
             values = np.array([msg.data], dtype=float)

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from mexone.bus.msgs import Header, JointState, Time
-from mexone.control.controllers.base import Controller, register
+from mexone.control.controllers.base import Controller, ControllerContext, register
+from mexone.control.spec import ControllerSpec
 from mexone.physics.simulation import Periodic, Simulation
 
 __all__ = ["JointStateController", "DEFAULT_RATE"]
@@ -20,7 +21,7 @@ class JointStateController(Controller):
     sliders = False
     drives_joints = False
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         super().__init__(spec, ctx)
         hw = ctx.hw
         self.names = sorted(hw.joints)
