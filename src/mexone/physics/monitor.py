@@ -75,4 +75,5 @@ class RunMonitor:
             base_height=round(height, 6) if np.isfinite(height) else None,
             max_link_speed=round(self.max_speed, 6), at_rest=at_rest,
             diverged=self.error is not None,
-            rest_time=round(self.rest_since, 4) if at_rest and self.rest_since is not None else None, error=self.error)
+            rest_time=round(self.rest_since, 4) if at_rest and self.rest_since is not None else None,
+            error=self.error)
