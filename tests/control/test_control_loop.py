@@ -123,7 +123,7 @@ def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable
     sim.step(2000)  # pinned at the limit by now
     lab.bus.publish("/turntable/yaw_controller/command", Float64(2.5))
     sim.step(1)
-    t0, z0 = sim.time, sim.data.act[hw._act_integral[0]]
+    t0, z0 = sim.time, sim.data.act[hw.layout.i_act[0]]
     sim.step(500)
     sim.set_timestep(0.0005)
     sim.step(1000)
@@ -131,10 +131,10 @@ def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable
     assert elapsed == pytest.approx(1.0)
     error = sim.joint_positions()[0] - 3.0
     assert abs(error) < 0.01  # pinned (MuJoCo's limits are soft by a hair)
-    z = sim.data.act[hw._act_integral[0]] - z0
+    z = sim.data.act[hw.layout.i_act[0]] - z0
     assert z == pytest.approx(e * elapsed, rel=0.02)
-    i_term = sim.data.actuator_force[hw.integral[0]]
-    assert i_term == pytest.approx(i * sim.data.act[hw._act_integral[0]], rel=1e-9)
+    i_term = sim.data.actuator_force[hw.layout.integral[0]]
+    assert i_term == pytest.approx(i * sim.data.act[hw.layout.i_act[0]], rel=1e-9)
     assert abs(z - e * (0.5 + 2 * 0.5)) > 0.2  # what a stale dt would have given
 
 

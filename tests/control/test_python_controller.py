@@ -562,16 +562,16 @@ def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
         for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # a strided view
                        ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
             rows = hw.rows(joints)
-            hw.effort_floats_writer(rows)(values.tolist())
+            hw.writers(rows, "effort").floats(values.tolist())
             fast = data.ctrl.copy(), hw.command.effort.copy()
             data.ctrl[:], hw.command.effort[:] = saved
             hw.command.effort[rows] = values
-            hw.rows_writer(rows, "effort")(values)
+            hw.writers(rows, "effort").values(values)
             np.testing.assert_array_equal(fast[0], data.ctrl)
             np.testing.assert_array_equal(fast[1], hw.command.effort)
-            assert list(fast[0][hw._ctrl_motor[rows] + 2]) == list(values / hw.gear[rows])
+            assert list(fast[0][hw.layout.ff[rows]]) == list(values / hw.gear[rows])
             data.ctrl[:], hw.command.effort[:] = saved
-        assert hw.effort_floats_writer(np.arange(len(hw.joints))) is None  # many joints: numpy
+        assert hw.writers(np.arange(len(hw.joints)), "effort").floats is None  # many joints: numpy
     finally:
         data.ctrl[:], hw.command.effort[:] = saved
 

@@ -12,12 +12,13 @@ PIDs themselves run in MuJoCo, so with nothing waiting the loop costs nothing.
 
 from __future__ import annotations
 
+import builtins
 import contextlib
 import logging
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -39,6 +40,9 @@ from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.control.student import declared_lengths, sensor_states
 from mexone.errors import InputError
 from mexone.physics.simulation import NS, Periodic, Simulation
+
+if TYPE_CHECKING:
+    from mexone.sensors import SensorSuite
 
 __all__ = ["ControllerManager", "ControllerInfo", "STRICT", "BEST_EFFORT"]
 
@@ -76,7 +80,7 @@ class ControllerManager:
         self._periodic: list[Controller] = []  # running controllers that need every period
         self._running: list[Controller] = []
         self._timed: list[PythonRunner] = []  # running Python controllers (own update rates)
-        self._every: list[Controller] = []  # running controllers that update every period
+        self._every: Sequence[Controller] = []  # running controllers that update every period
         self._waiting = False  # a command was buffered since the last update
         self._half_step_ns = 0
         self._direct = False  # only Python controllers reading MuJoCo directly run every period
@@ -103,37 +107,31 @@ class ControllerManager:
         return max(self._explicit_period or 0.0, self.sim.timestep)
 
     def update(self, sim: Simulation) -> None:
-        """read -> every running controller's update -> write."""
+        """read -> every running controller's update -> write. When only Python controllers that
+        read MuJoCo themselves run and no command waits (the common case with a student's
+        controller), there is no read, and each one's command goes out through its own hardware
+        writer, so no full write either: what that costs per update is the framework's cost of
+        a Python controller (benchmarks/RESULTS.md), so keep it to plain attribute work."""
         now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
-        if self._fast and not self._waiting:
-            self._update_python(now)
-            return
-        if self._periodic:
-            period = round(self.control_period * NS)
-            if now >= self._next_period_ns - sim.timestep * NS / 2:
-                self._next_period_ns = now + period
-            self.wake_ns = self._next_period_ns
-        if self._timed:
-            half = self._half_step_ns
-            for ctrl in self._timed:
-                if now >= ctrl.next_ns - half:
-                    ctrl.due = True
-                    ctrl.next_ns += ctrl.period_ns
-                    if ctrl.next_ns < now + half:  # fell behind (a step longer than the period)
-                        ctrl.next_ns = now + ctrl.period_ns
-                if ctrl.next_ns < self.wake_ns:
-                    self.wake_ns = ctrl.next_ns
+        self._due(now)  # every controller first: a hang below must not lose a wake
         self.updates += 1
-        waiting, self._waiting = self._waiting, False
-        if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
-            self.hw.read()
         t = now / NS
-        dt = self._dt
-        try:  # an idle controller (no command waiting, no period) has nothing to do
-            for ctrl in self._running if waiting else self._every:
-                if ctrl.every_period or ctrl._pending is not None:
-                    ctrl.update(t, dt)
+        waiting = self._waiting
+        fast = self._fast and not waiting
+        if not fast:
+            self._waiting = False
+            if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
+                self.hw.read()
+        try:
+            if fast:
+                for runner in self._timed:
+                    runner.update(t, 0.0)  # a Python controller takes its own dt
+            else:  # an idle controller (no command waiting, no period) has nothing to do
+                dt = self._dt
+                for ctrl in self._running if waiting else self._every:
+                    if ctrl.every_period or ctrl._pending is not None:
+                        ctrl.update(t, dt)
         except ControllerHang:  # the watchdog's interrupt landed just after a student's update
             log.error("a controller's update was interrupted after it returned; no harm done")
         if self._ctx.faults:
@@ -142,15 +140,17 @@ class ControllerManager:
             return  # wrote its own joints' commands (its hardware writer)
         self.hw.write()
 
-    def _update_python(self, now: int) -> None:
-        """update() when only Python controllers that read MuJoCo directly run and no command
-        waits (the common case with a student's controller): no hardware read, and each
-        controller's command goes out through its own writer, so no full write either. What
-        this costs per update is the framework's cost of a Python controller (benchmarks/
-        RESULTS.md): keep it to plain attribute work."""
-        half, timed = self._half_step_ns, self._timed
+    def _due(self, now: int) -> None:
+        """The one schedule of the loop: the control period's next instant, which Python
+        controllers are due at `now` (each at its own rate), and when to wake next (the earliest
+        of those; a command buffered meanwhile by another thread has set -inf, which stays)."""
         wake = math.inf
-        for ctrl in timed:  # scheduled first, all of them: a hang below must not lose a wake
+        if self._periodic:
+            if now >= self._next_period_ns - self.sim.timestep * NS / 2:
+                self._next_period_ns = now + round(self.control_period * NS)
+            wake = self._next_period_ns
+        half = self._half_step_ns
+        for ctrl in self._timed:
             if now >= ctrl.next_ns - half:
                 ctrl.due = True
                 ctrl.next_ns += ctrl.period_ns
@@ -158,18 +158,8 @@ class ControllerManager:
                     ctrl.next_ns = now + ctrl.period_ns
             if ctrl.next_ns < wake:
                 wake = ctrl.next_ns
-        if wake < self.wake_ns:  # a command buffered meanwhile (another thread) set -inf
+        if wake < self.wake_ns:
             self.wake_ns = wake
-        self.updates += 1
-        t = now / NS
-        try:
-            for ctrl in timed:
-                ctrl.update(t, 0.0)  # a Python controller takes its own dt
-        except ControllerHang:  # the watchdog's interrupt landed just after a student's update
-            log.error("a controller's update was interrupted after it returned; no harm done")
-        if self._ctx.faults:
-            self._stop_faulted()
-            self.hw.write()
 
     def _rebind(self) -> None:
         """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
@@ -186,7 +176,7 @@ class ControllerManager:
         if running:
             self.switch(stop=running)
 
-    def use_sensors(self, suite) -> None:
+    def use_sensors(self, suite: SensorSuite) -> None:
         """Python controllers read `state.sensors` from `suite` (a mexone.sensors.SensorSuite)."""
         self._ctx.sensors = lambda: sensor_states(suite)
         for ctrl in self.controllers.values():
@@ -354,15 +344,15 @@ class ControllerManager:
         if self._ctx.faults:  # a Python controller whose activate failed
             names, self._ctx.faults[:] = list(self._ctx.faults), []
             for name in dict.fromkeys(names):
-                ctrl = self.controllers.get(name)
-                if ctrl is not None and ctrl.running:
-                    ctrl.running = False
-                    ctrl.stopping()
+                faulted = self.controllers.get(name)
+                if faulted is not None and faulted.running:
+                    faulted.running = False
+                    faulted.stopping()
             self._schedule()
         self.hw.write()
 
-    def _buffer(self, ctrl: Controller):
-        def on_message(msg) -> None:  # the publisher's thread: buffer only
+    def _buffer(self, ctrl: Controller) -> Callable[[object], None]:
+        def on_message(msg: object) -> None:  # the publisher's thread: buffer only
             if ctrl.on_command(msg):
                 self._waiting = True
                 self._wake()
@@ -373,7 +363,7 @@ class ControllerManager:
         self._running = [self.controllers[n] for n in order if self.controllers[n].running]
         self._bind_inputs()
         self._periodic = [c for c in self._running if c.periodic]
-        self._timed = [c for c in self._running if c.timed]
+        self._timed = [c for c in self._running if isinstance(c, PythonRunner) and c.timed]
         for ctrl in self._running:
             ctrl.every_period = ctrl.periodic or ctrl.timed
         self._every = [c for c in self._running if c.every_period]
@@ -386,9 +376,8 @@ class ControllerManager:
         self._half_step_ns = round(self.sim.timestep * NS / 2)
         self._dt = self.control_period
         for ctrl in self._timed:
-            ctrl.writer = self.hw.rows_writer(ctrl.rows, ctrl.interface_name)
-            ctrl.float_writer = self.hw.effort_floats_writer(ctrl.rows) \
-                if ctrl.interface_name == "effort" else None
+            writers = self.hw.writers(ctrl.rows, ctrl.interface_name)
+            ctrl.writer, ctrl.float_writer = writers.values, writers.floats
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
             ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now
@@ -502,7 +491,7 @@ class ControllerManager:
                 with contextlib.suppress(InputError):
                     params[key] = declared[key].check(value)
         new_spec = replace(spec, plugin=replace(plugin, cls=cls, origin=origin, params=params))
-        new = PythonRunner(new_spec, self._ctx)  # creates and configures: may raise
+        new = PythonRunner(new_spec, self._ctx)  # type: ignore[no-untyped-call]  # configures: may raise
         restart = old.running or old.fault is not None
         if old.running:
             self.switch(stop=[name])
@@ -512,7 +501,7 @@ class ControllerManager:
             self.switch(start=[name])
         log.info("%s: reloaded from %s", name, origin)
 
-    def set_param(self, name: str, key: str, value) -> Any:
+    def set_param(self, name: str, key: str, value: Any) -> Any:
         """Set a Python controller's declared parameter live (validated as the YAML's)."""
         ctrl = self._get(name)
         if not isinstance(ctrl, PythonRunner):
@@ -521,7 +510,7 @@ class ControllerManager:
         return ctrl.set_param(key, value)
 
     @staticmethod
-    def list_types() -> list[str]:
+    def list_types() -> builtins.list[str]:
         return list(CONTROLLER_TYPES)
 
     def by_joint(self) -> dict[str, Controller]:

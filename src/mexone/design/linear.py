@@ -45,6 +45,7 @@ from numpy.typing import ArrayLike
 
 from mexone.control.hardware import (
     INTEGRAL_SUFFIX,
+    ControlLayout,
     clear_integrals,
     copy_actuator_state,
     set_hold_controls,
@@ -549,21 +550,21 @@ def _input_map(plant: _Plant, joints: list[str], interface: str) -> tuple[np.nda
         return np.eye(model.nu), names, d.ctrl.copy()
     u_map = np.zeros((model.nu, len(joints)))
     u0 = np.zeros(len(joints))
-    for col, joint in enumerate(joints):
-        motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
-        gear = model.actuator_gear[motor, 0]
-        adr = model.actuator_ctrladr[motor]
+    layout = ControlLayout.of_actuators(
+        model, [_actuator(model, j) for j in joints],
+        [_actuator(model, j + INTEGRAL_SUFFIX) for j in joints])
+    for col, gear in enumerate(layout.gear):  # each interface's ctrl input, as the hardware writes it
         if interface == "effort":
-            u_map[adr + 2, col] = 1.0 / gear
-            u0[col] = d.ctrl[adr + 2] * gear
+            u_map[layout.ff[col], col] = 1.0 / gear
+            u0[col] = d.ctrl[layout.ff[col]] * gear
         elif interface == "velocity":
-            u_map[adr + 1, col] = gear
-            u0[col] = d.ctrl[adr + 1] / gear
+            u_map[layout.v_ref[col], col] = gear
+            u0[col] = d.ctrl[layout.v_ref[col]] / gear
         else:
-            u_map[adr, col] = gear
-            if integral >= 0:
-                u_map[model.actuator_ctrladr[integral], col] = 1.0
-            u0[col] = d.ctrl[adr] / gear
+            u_map[layout.q_ref[col], col] = gear
+            if layout.i_ref[col] >= 0:
+                u_map[layout.i_ref[col], col] = 1.0
+            u0[col] = d.ctrl[layout.q_ref[col]] / gear
     return u_map, [f"{_signal(j)}:{interface}" for j in joints], u0
 
 
