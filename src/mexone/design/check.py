@@ -165,9 +165,9 @@ def _start(lab: Lab, controller: _Deployed, dx0: np.ndarray | None, duration: fl
             v[point.qvel_index] = dx0[:nv]
             mujoco.mj_integratePos(model, qpos, v, 1.0)
             _check_limits(model, qpos, point.qvel_index[dx0[:nv] != 0])
-            data.qpos[:] = qpos
-            data.qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
-            mujoco.mj_forward(model, data)
+            qvel = data.qvel.copy()
+            qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
+            sim.set_state(qpos, qvel)
         controller.reset()
         controller.trace_full.clear()
         controller.trace_length = max(2, round(duration * controller.rate))

@@ -160,20 +160,21 @@ def _base(recording: Recording, robot: RobotModel, base: str) -> tuple[bool, Spa
 
 def _set_initial_pose(lab: Lab, recording: Recording, fixed: bool) -> None:
     sim = lab.sim
-    model, data = sim.model, sim.data
+    model = sim.model
     sim.set_joint_positions(recording.q0)
+    qpos, qvel = sim.data.qpos.copy(), sim.data.qvel.copy()
     for name, velocity in recording.v0.items():
-        data.qvel[model.joint(name).dofadr[0]] = velocity
+        qvel[model.joint(name).dofadr[0]] = velocity
+    sim.set_state(qpos, qvel)
     if not fixed and sim.compiled.free:
         free = model.joint(f"{sim.robot.base_link}_free")
         adr = free.qposadr[0]
         if recording.base is not None:
-            data.qpos[adr:adr + 3] = recording.base.xyz
-            data.qpos[adr + 3:adr + 7] = recording.base.quat
+            qpos[adr:adr + 3] = recording.base.xyz
+            qpos[adr + 3:adr + 7] = recording.base.quat
         else:
-            mujoco.mj_forward(model, data)
-            data.qpos[adr + 2] -= _height_above_ground(model, data)
-    mujoco.mj_forward(model, data)
+            qpos[adr + 2] -= _height_above_ground(model, sim.data)
+        sim.set_state(qpos)
 
 
 def _height_above_ground(model: mujoco.MjModel, data: mujoco.MjData) -> float:

@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
@@ -570,6 +571,20 @@ class Simulation:
         self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
+
+    def set_state(self, qpos: ArrayLike | None = None, qvel: ArrayLike | None = None) -> None:
+        """The generalized positions (nq) and velocities (nv) at once, as computed by a front end
+        that places the robot itself (a design check's deviation, a recording's first instant);
+        None keeps that part. Forward kinematics follow. Simulation thread only."""
+        for name, values, size in (("qpos", qpos, self.model.nq), ("qvel", qvel, self.model.nv)):
+            if values is None:
+                continue
+            array = np.asarray(values, dtype=float).reshape(-1)
+            if array.shape != (size,) or not np.isfinite(array).all():
+                raise InputError(f"{name} must be {size} finite numbers")
+            getattr(self.data, name)[:] = array
+        mujoco.mj_forward(self.model, self.data)
+        self.watchdog.forget()
 
     def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
