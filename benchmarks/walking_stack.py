@@ -48,7 +48,7 @@ def mpc_solve_times(n: int = 2000) -> np.ndarray:
 def stack(vx: float = 0.3, world=None) -> Lab:
     lab = Lab.create(controllers=mex_one.walking_path(), world=world)
     lab.sim.step(1000)
-    lab.controllers.set_param("footsteps", "vx", vx)
+    lab.manager.set_param("footsteps", "vx", vx)
     return lab
 
 
@@ -62,7 +62,7 @@ def walk_stack(seconds: float) -> dict:
         sim.step(100)
         lowest = min(lowest, float(sim.data.qpos[2]))
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    mgr = lab.controllers
+    mgr = lab.manager
     parts = {n: c for n, c in mgr.controllers.items() if hasattr(c, "budget")}
     return {"seconds": seconds, "distance": float(sim.data.qpos[0]) - x0, "lowest": lowest,
             "rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu,

@@ -2,8 +2,8 @@
 docs/ranges.md; none of them is committed):
 
 - `_generated/cli.md`: every `mexone` verb's `--help`, from the parser `mexone` itself runs;
-- `_generated/api/*.md`: an `automodule` per module with a public `__all__`, each object
-  documented once, where users import it from (the shallowest module that exports it);
+- `_generated/api/*.md`: an `automodule` per public module (`mexone.API`), each object of its
+  `__all__` documented once, where users import it from (the shallowest module that exports it);
 - `ranges.md`: `python -m mexone.ranges`'s table (`mexone.ranges.docs_page`);
 - `_generated/gallery.md`: each numbered example run into a scratch folder, with what it
   prints and the picture it draws (cached by a hash of the example and of mexone's source);
@@ -19,7 +19,6 @@ import hashlib
 import importlib
 import json
 import os
-import pkgutil
 import shutil
 import subprocess
 import sys
@@ -34,22 +33,15 @@ __all__ = ["public_modules", "setup"]
 
 # pages the hand-written sections list by name: not repeated under "More guides"
 LISTED = {"index", "DECISIONS", "ranges"}
-# not importable modules: the shipped routines run only under a simulation, genpy's output
-SKIP_PARTS = ("routines.shipped", "robots.mex_one.scripts")
 
 
 def public_modules() -> list:
-    """Every importable mexone module with a public `__all__`, shallowest first."""
+    """The public API's modules (`mexone.API`: what a student, a teacher and a plug-in author
+    import), shallowest first; every other module is internal and has no reference page."""
     import mexone
 
-    found = [mexone] if getattr(mexone, "__all__", None) is not None else []
-    for info in pkgutil.walk_packages(mexone.__path__, "mexone."):
-        name = info.name
-        if any(part.startswith("_") for part in name.split(".")) or any(s in name for s in SKIP_PARTS):
-            continue
-        module = importlib.import_module(name)
-        if getattr(module, "__all__", None) is not None:
-            found.append(module)
+    names = {name for modules in mexone.API.values() for name in modules}
+    found = [importlib.import_module(name) for name in names]
     return sorted(found, key=lambda m: (m.__name__.count("."), m.__name__))
 
 
@@ -132,7 +124,7 @@ def _api_pages(out: Path) -> None:
         groups.setdefault(group, []).extend(block)
     (out / "api").mkdir(parents=True, exist_ok=True)
     index = ["# Python API, module by module", "",
-             "Every name in a public module's `__all__`, from its docstring. A class or function",
+             "Every name of the public API (`mexone.API`), from its docstring. A class or function",
              "exported by several modules is documented once, where you import it from.", "",
              "```{toctree}", ":maxdepth: 1", ""]
     for group, lines in groups.items():

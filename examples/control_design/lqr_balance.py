@@ -156,7 +156,7 @@ class LqrLoop:
                  noise: np.ndarray | None = None, noise_from: float = 0.0, log: bool = False):
         self.lab, self.d, self.feedback = lab, d, feedback
         self.noise, self.noise_from, self.log = noise, noise_from, log
-        manager = lab.controllers
+        manager = lab.manager
         manager.switch(stop=[n for n, c in manager.controllers.items() if c.running])
         self.hardware: SimHardware = manager.hw
         self.rows = self.hardware.rows([n.split(":")[0] for n in d.sys.input_labels])

@@ -66,7 +66,7 @@ def test_each_shipped_type_declares_what_it_does(name):
 
 def test_a_running_lab_answers_through_its_controllers():
     lab = Lab.create()
-    manager = lab.controllers
+    manager = lab.manager
     held = [c for c in manager.controllers.values() if c.holds_position]
     assert held and all(c.tunable for c in held)  # Mex-One's PID position controllers
     assert [c.name for c in manager.controllers.values() if not c.drives_joints] == \
@@ -82,9 +82,9 @@ def test_a_python_controller_is_reloadable_and_names_its_file(tmp_path):
     for name, text in skeleton_files("my_pd").items():
         (tmp_path / name).write_text(text)
     lab = Lab.create(controllers=tmp_path / "controllers.yaml")
-    runner = lab.controllers.controllers["my_pd_controller"]
+    runner = lab.manager.controllers["my_pd_controller"]
     assert runner.reloadable and not runner.holds_position and runner.drives_joints
     assert Path(runner.code_file).resolve() == (tmp_path / "my_pd.py").resolve()
     assert set(runner.declared_params()) == set(runner.params)
-    spec: ControllerSpec = lab.controllers.config.controllers["my_pd_controller"]
+    spec: ControllerSpec = lab.manager.config.controllers["my_pd_controller"]
     assert spec.controller_class.reloadable

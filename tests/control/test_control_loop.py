@@ -47,7 +47,7 @@ def test_only_the_simulation_thread_writes_the_actuators(monkeypatch):
     try:
         app.panels["routines"].choice.value = "arms"
         app.do(app.panels["routines"].start)
-        manager = app.lab.controllers
+        manager = app.lab.manager
         topic = manager.topic("neck_yaw_position_controller")
         end = time.time() + 1.5
         k = 0
@@ -93,7 +93,7 @@ def test_write_changes_exactly_the_actuator_fields_recompiling_carries_over():
     from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 
     lab = Lab.create()
-    hw, model = lab.controllers.hw, lab.sim.model
+    hw, model = lab.manager.hw, lab.sim.model
     fields = [name for name in dir(model) if name.startswith("actuator_")
               and isinstance(getattr(model, name), np.ndarray)]
     before = {name: getattr(model, name).copy() for name in fields}
@@ -118,7 +118,7 @@ def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable
     joint: yaw
     pid: {{p: 10.0, i: {i}, d: 0.1, i_clamp_min: -1000, i_clamp_max: 1000}}
 """))
-    sim, hw = lab.sim, lab.controllers.hw
+    sim, hw = lab.sim, lab.manager.hw
     sim.data.qfrc_applied[0] = 5.0
     sim.step(2000)  # pinned at the limit by now
     lab.bus.publish("/turntable/yaw_controller/command", Float64(2.5))

@@ -36,7 +36,7 @@ def test_home_position_is_held_for_10_seconds():
 @pytest.mark.slow
 def test_arms_routine_tracks_and_the_robot_stays_standing():
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     runner = RoutineRunner(lab, "arms")
     runner.run(9.0)
     assert runner.error is None
@@ -57,7 +57,7 @@ def test_joint_states_at_50hz_alphabetical_with_applied_effort():
     np.testing.assert_allclose(stamps, 0.02 * np.arange(1, 51), atol=1e-9)
     assert got[-1].name == sorted(got[-1].name) and len(got[-1].name) == 21
     last = got[-1]
-    hw = lab.controllers.hw
+    hw = lab.manager.hw
     rows = np.array([hw.index[n] for n in last.name])
     np.testing.assert_allclose(last.effort, lab.sim.data.qfrc_actuator[hw.dof_adr[rows]], atol=1e-9)
     np.testing.assert_allclose(last.position, lab.sim.data.qpos[hw.qpos_adr[rows]])

@@ -170,11 +170,11 @@ def test_the_robots_run_equals_its_whole_series(monkeypatch):
 
     monkeypatch.setattr(metrics, "CHUNK", 64)  # folds in the run, not only at its end
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     rows: dict[str, list] = {}
 
     def keep(sim) -> None:
-        for ctrl in lab.controllers.controllers.values():
+        for ctrl in lab.manager.controllers.values():
             if ctrl.running and ctrl.tracks_position:
                 q = ctrl.hw.position(ctrl.rows)
                 for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):

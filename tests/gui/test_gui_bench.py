@@ -264,9 +264,9 @@ def test_step_response_matches_the_metrics_of_mexone_run(app):
     page = app.panels["step_response"].result
     # the same step without the page: TrackingRecorder, as `mexone run` measures a routine
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     lab.sim.run(page_start(app))
-    lab.controllers.command("l_elbow_position_controller", {"l_elbow": -0.8})
+    lab.manager.command("l_elbow_position_controller", {"l_elbow": -0.8})
     lab.sim.run(2.0)
     ref = recorder.metrics()["l_elbow"]
     assert page["overshoot"] == pytest.approx(ref.overshoot, rel=0.05, abs=0.005)

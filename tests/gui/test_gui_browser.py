@@ -88,10 +88,10 @@ def test_collisions_toggle_adds_collision_geometry(app, page):
 
 
 def test_bad_numbers_are_refused_not_crashing(app):
-    gains = app.lab.controllers.controllers["l_knee_position_controller"].gains[0]
+    gains = app.lab.manager.controllers["l_knee_position_controller"].gains[0]
     with pytest.raises(MexoneError, match="negative p"):
-        app.panels["joints"].set_gain(app.lab.controllers.controllers["l_knee_position_controller"], "p", -5.0)
-    assert app.lab.controllers.controllers["l_knee_position_controller"].gains[0] == gains
+        app.panels["joints"].set_gain(app.lab.manager.controllers["l_knee_position_controller"], "p", -5.0)
+    assert app.lab.manager.controllers["l_knee_position_controller"].gains[0] == gains
     with pytest.raises(MexoneError, match="time step 1 must be a finite number >= 1e-05 and <= 0.01 s"):
         app.lab.sim.set_timestep(1.0)
     assert app.lab.sim.model.opt.timestep == 0.001
@@ -160,7 +160,7 @@ def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app,
     if app.lab.sim.paused:
         app.do(app.toggle_pause)
     app.do(lambda: app.panels["plots"].show_joint("l_elbow"))
-    app.do(lambda: app.lab.controllers.command("l_elbow_position_controller", {"l_elbow": -1.0}))
+    app.do(lambda: app.lab.manager.command("l_elbow_position_controller", {"l_elbow": -1.0}))
     elbow, start = app.lab.sim.joint_names.index("l_elbow"), app.lab.sim.time
     assert wait_until(lambda: app.lab.sim.joint_positions()[elbow] < -0.95  # on the plot too
                       and app.lab.sim.time > start + 2.0, timeout=30)  # and 2 s of samples

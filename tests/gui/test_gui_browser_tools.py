@@ -310,7 +310,7 @@ def test_a_robot_uploaded_through_the_page_replaces_the_running_one(app, page, t
     assert wait_until(lambda: app.lab.sim.robot.name == "pendulum", timeout=60)
     # the page is rebuilt for it: its panels, its one joint's slider
     page.get_by_text("now: pendulum.urdf").wait_for(state="attached", timeout=30_000)
-    assert app.lab.controllers is not None and "swing" in app.lab.sim.joint_names
+    assert app.lab.manager is not None and "swing" in app.lab.sim.joint_names
     page.get_by_role("slider").first.wait_for(timeout=15_000)
     assert page.get_by_role("slider").count() == 1
     assert page.get_by_text("mex_rb").count() == 0

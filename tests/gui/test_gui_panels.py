@@ -103,4 +103,4 @@ def test_panels_for_another_robot_show_that_robots_joints(arm):
     assert tuple(step.joint.options) == ("shoulder", "elbow") and step.joint.value == "shoulder"
     joints.home()  # the page's Home: every held joint's setpoint to 0, through its topic
     lab.sim.step(1)
-    assert list(lab.controllers.setpoints()) == [0.0, 0.0]
+    assert list(lab.manager.setpoints()) == [0.0, 0.0]

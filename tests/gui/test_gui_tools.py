@@ -308,7 +308,7 @@ def test_load_opens_another_robot_and_a_bad_file_changes_nothing(app):
     assert lab is not before and lab.sim.robot.name == "pendulum"
     assert set(app.scene.links) == set(lab.sim.compiled.bodies)  # the scene is rebuilt
     assert "swing/position" in app.log.index and "l_elbow/position" not in app.log.index
-    assert "swing_position_controller" in lab.controllers.controllers  # gains from its physics
+    assert "swing_position_controller" in lab.manager.controllers  # gains from its physics
     assert [j for (_, j) in app.panels["joints"].sliders] == ["swing"]
     # it runs, and the panels work on it: the step helper on its one joint
     t0 = lab.sim.time

@@ -331,6 +331,7 @@ class Path:
 
 
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
+#: each message class -> its ROS type name ("sensor_msgs/JointState")
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
     Float64MultiArray: "std_msgs/Float64MultiArray",

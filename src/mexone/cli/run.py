@@ -100,13 +100,13 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     rtf = args.rtf if args.rtf is not None else (1.0 if bridge is not None else 0.0)
     lab = lab_from_args(args, target_rtf=rtf or None)
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("the robot has no controllers to command",
                          hint="give --controllers YAML (the built-in Mex-One has its own)")
     sim = lab.sim
     start_height = sim.base_height
     start_pose = _base_xy_yaw(sim)
-    recorder = TrackingRecorder(sim, lab.controllers)
+    recorder = TrackingRecorder(sim, lab.manager)
     log_stream = sys.stderr if args.json else sys.stdout  # stdout: the JSON alone, for scripts
 
     def log(level: str, text: str) -> None:

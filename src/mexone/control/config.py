@@ -41,6 +41,8 @@ __all__ = [
 
 
 def load_control_config(path: Path | str) -> ControlConfig:
+    """A ros_control controller YAML (what `rosparam load` and the controller_manager read), every
+    mistake one line at the file's line."""
     path = Path(path)
     return parse_control_config(read_input_text(path), path)
 
@@ -84,6 +86,7 @@ class _Reader:
 
 
 def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
+    """A controller YAML's text (`path` names it in messages): see load_control_config."""
     reader = _Reader(path)
     root = yamlio.compose(text, path)
     if root is None:

@@ -27,8 +27,8 @@ from mexone.bus.topics import Bus, Subscription
 from mexone.control.config import chain_order, check_chains
 from mexone.control.controllers import (
     CONTROLLER_TYPES,
-    Controller,
     ControllerContext,
+    ControllerInterface,
     PythonRunner,
     controller_type,
 )
@@ -38,7 +38,7 @@ from mexone.control.notes import gazebo_differences
 from mexone.control.resolve import resolve_class, validate_params
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.control.student import declared_lengths, sensor_states
-from mexone.errors import InputError
+from mexone.errors import InputError, warn_renamed
 from mexone.physics.simulation import NS, Periodic, Simulation
 
 if TYPE_CHECKING:
@@ -68,6 +68,10 @@ class ControllerInfo:
 
 
 class ControllerManager:
+    """ros_control's controller_manager for one robot: loads controllers from the configuration,
+    starts, stops and switches them (one running controller per joint), and runs the control
+    loop (see the module's doc). `Lab.manager` is the lab's."""
+
     def __init__(self, sim: Simulation, bus: Bus, config: ControlConfig, hw: SimHardware,
                  namespace: str, control_period: float | None = None):
         self.sim, self.bus, self.config, self.hw = sim, bus, config, hw
@@ -76,13 +80,13 @@ class ControllerManager:
         if control_period is not None and control_period < sim.timestep * (1 - 1e-9):
             raise InputError(f"control period {control_period} s is shorter than the physics "
                              f"step {sim.timestep} s")
-        self.controllers: dict[str, Controller] = {}
+        self.controllers: dict[str, ControllerInterface] = {}
         self._subs: dict[str, Subscription] = {}
         self._ctx = ControllerContext(sim, hw, bus, namespace, config.pid_gains)
-        self._periodic: list[Controller] = []  # running controllers that need every period
-        self._running: list[Controller] = []
+        self._periodic: list[ControllerInterface] = []  # running controllers that need every period
+        self._running: list[ControllerInterface] = []
         self._timed: list[PythonRunner] = []  # running Python controllers (own update rates)
-        self._every: Sequence[Controller] = []  # running controllers that update every period
+        self._every: Sequence[ControllerInterface] = []  # running controllers that update every period
         self._waiting = False  # a command was buffered since the last update
         self._half_step_ns = 0
         self._direct = False  # only Python controllers reading MuJoCo directly run every period
@@ -202,7 +206,7 @@ class ControllerManager:
     def topic(self, name: str) -> str:
         return f"{self.namespace}/{name}/command"
 
-    def load(self, name: str) -> Controller:
+    def load(self, name: str) -> ControllerInterface:
         """Create controller `name` from the configuration (stopped)."""
         if name in self.controllers:
             raise InputError(f"controller '{name}' is already loaded")
@@ -243,7 +247,7 @@ class ControllerManager:
                 self.load(name)
         return list(self.config.controllers)
 
-    def _get(self, name: str) -> Controller:
+    def _get(self, name: str) -> ControllerInterface:
         ctrl = self.controllers.get(name)
         if ctrl is None:
             raise InputError(f"no controller named '{name}' is loaded",
@@ -353,7 +357,7 @@ class ControllerManager:
             self._schedule()
         self.hw.write()
 
-    def _buffer(self, ctrl: Controller) -> Callable[[object], None]:
+    def _buffer(self, ctrl: ControllerInterface) -> Callable[[object], None]:
         def on_message(msg: object) -> None:  # the publisher's thread: buffer only
             if ctrl.on_command(msg):
                 self._waiting = True
@@ -463,7 +467,10 @@ class ControllerManager:
         self.switch(stop=running)
         self.switch(start=running)
 
-    def list(self) -> list[ControllerInfo]:
+    def list_controllers(self) -> list[ControllerInfo]:
+        """Every loaded controller: name, type, state, joints, interface and, for a Python
+        controller, its rate, time per update, fault and parameters (controller_manager's
+        list_controllers)."""
         out = []
         for c in self.controllers.values():
             info = ControllerInfo(c.name, c.type.name, "running" if c.running else "stopped",
@@ -475,6 +482,11 @@ class ControllerManager:
                                update_time_max=c.meter.worst)
             out.append(info)
         return out
+
+    def list(self) -> builtins.list[ControllerInfo]:
+        """The former name of `list_controllers` (it shadowed the built-in), for one release."""
+        warn_renamed("ControllerManager.list", "ControllerManager.list_controllers")
+        return self.list_controllers()
 
     # ----- Python controllers: reload and live parameters (simulation thread) -------------------
     def reload(self, name: str) -> None:
@@ -516,7 +528,7 @@ class ControllerManager:
     def list_types() -> builtins.list[str]:
         return list(CONTROLLER_TYPES)
 
-    def by_joint(self) -> dict[str, Controller]:
+    def by_joint(self) -> dict[str, ControllerInterface]:
         return {j: c for c in self._running for j in c.joints}
 
     # ----- what front ends change and read (simulation thread) -------------------------------------

@@ -21,6 +21,9 @@ __all__ = ["PidArray"]
 
 
 class PidArray:
+    """control_toolbox's PID for several joints at once, as arrays (the velocity controllers'
+    terms that do not run in MuJoCo's actuators)."""
+
     def __init__(self, gains: Sequence[PidGains]) -> None:
         self.p = np.array([g.p for g in gains], dtype=float)
         self.i = np.array([g.i for g in gains], dtype=float)

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
 
 if TYPE_CHECKING:
-    from mexone.control.controllers import Controller
+    from mexone.control.controllers import ControllerInterface
 
 __all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
            "POSITION_SUFFIX"]
@@ -94,8 +94,8 @@ class ControllerSpec:
         return self.controller_class.kind
 
     @property
-    def controller_class(self) -> builtins.type[Controller]:
-        """The Controller class that runs this entry (the registry's, or the Python
+    def controller_class(self) -> builtins.type[ControllerInterface]:
+        """The ControllerInterface class that runs this entry (the registry's, or the Python
         controllers' runner): its capabilities say what it can do before it is loaded."""
         from mexone.control.controllers import PythonRunner, controller_type
 

@@ -53,6 +53,7 @@ StateSpace: TypeAlias = Any  # control.StateSpace: python-control has no type in
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
            "lqr", "METHODS", "GainDesign", "SystemDesign"]
 
+#: how a continuous controller is discretised (python-control's sample_system methods)
 METHODS = ("zoh", "foh", "tustin", "bilinear", "matched", "impulse", "euler", "backward_diff")
 _INTERFACES = ("effort", "position", "velocity")
 
@@ -577,7 +578,7 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
     design's 1/dt, else every physics step). The controllers driving the design's joints are
     stopped; a controller called `name` already loaded is replaced."""
     sim = getattr(lab, "sim", None)
-    manager = getattr(lab, "controllers", None)
+    manager = getattr(lab, "manager", None)
     if sim is None or manager is None:
         raise ArgumentTypeError("deploy takes a mexone Lab with controllers "
                                 "(Lab.create(controllers=...))")

@@ -59,7 +59,9 @@ from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
 
+#: what linearize's inputs may be: the joints' effort, position or velocity commands, or MuJoCo's ctrl
 INPUT_KINDS = ("effort", "position", "velocity", "ctrl")
+#: what operating_point may stand the robot on: both feet, one, or nothing (the base held)
 SUPPORTS = ("both", "left", "right", "fixed")
 _FEET = {"both": ("l_foot", "r_foot"), "left": ("l_foot",), "right": ("r_foot",), "fixed": ()}
 _BASE = "base"

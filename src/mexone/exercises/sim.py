@@ -84,8 +84,8 @@ def simulate(duration: float, routine: str | Path | None = None,
     rows: list[tuple] = []
     names: list[str] = []
     ctrls: list = []
-    if lab.controllers is not None:  # the joints TrackingRecorder follows
-        ctrls = [c for c in lab.controllers.controllers.values()
+    if lab.manager is not None:  # the joints TrackingRecorder follows
+        ctrls = [c for c in lab.manager.controllers.values()
                  if c.running and c.tracks_position]
         names = [j for c in ctrls for j in c.joints]
     fell: list[float] = []

@@ -20,10 +20,10 @@ __all__ = ["ControllersPanel", "controllers_table"]
 def controllers_table(lab: Lab) -> str:
     """The panel's list (Markdown, one line per controller, the students' first): name, state,
     type, update rate, time per update; and why a stopped Python controller stopped."""
-    manager = lab.controllers
+    manager = lab.manager
     if manager is None:
         return lab.no_controllers or "no controllers"
-    infos = sorted(manager.list(), key=lambda i: i.update_rate is None)  # stable: YAML order
+    infos = sorted(manager.list_controllers(), key=lambda i: i.update_rate is None)  # stable: YAML order
     rows = []
     for info in infos:
         state = "**fault**" if info.fault else info.state
@@ -54,7 +54,7 @@ class ControllersPanel(Panel):
         gui = self.server.gui
         lab = self.lab
         self.folder = gui.add_folder("Controllers", expand_by_default=False)
-        manager = lab.controllers
+        manager = lab.manager
         with self.folder:
             self.table = gui.add_markdown(controllers_table(lab))
             if manager is None:
@@ -75,7 +75,7 @@ class ControllersPanel(Panel):
 
     # ----- parameters ---------------------------------------------------------------------------
     def _add_params(self, name: str) -> None:
-        ctrl = self.lab.controllers.controllers[name]
+        ctrl = self.lab.manager.controllers[name]
         declared = ctrl.declared_params()
         if not declared:
             return
@@ -100,7 +100,7 @@ class ControllersPanel(Panel):
 
     def set_param(self, name: str, key: str, text) -> None:
         """Simulation thread: a field's new text, parsed and checked as the YAML's value."""
-        ctrl = self.lab.controllers.controllers.get(name)
+        ctrl = self.lab.manager.controllers.get(name)
         if ctrl is None or not ctrl.reloadable:
             raise InputError(f"controller '{name}' is gone", hint="it was unloaded")
         param = ctrl.declared_params().get(key)
@@ -112,14 +112,14 @@ class ControllersPanel(Panel):
                 except ValueError:
                     raise InputError(f"controller '{name}': {key} '{text[:30]}' is not a number",
                                      hint=param.describe()) from None
-            self.lab.controllers.set_param(name, key, value)
+            self.lab.manager.set_param(name, key, value)
         except InputError:
             self.show_param(name, key)
             raise
 
     def show_param(self, name: str, key: str) -> None:
         handle = self.fields.get((name, key))
-        ctrl = self.lab.controllers.controllers.get(name)
+        ctrl = self.lab.manager.controllers.get(name)
         if handle is None or ctrl is None or not ctrl.reloadable:
             return
         value = ctrl.params.get(key)
@@ -129,13 +129,13 @@ class ControllersPanel(Panel):
     # ----- switch and reload --------------------------------------------------------------------
     def picked(self) -> str:
         name = str(self.pick.value)
-        if name not in self.lab.controllers.controllers:
+        if name not in self.lab.manager.controllers:
             raise InputError(f"no controller '{name}' is loaded")
         return name
 
     def switch(self, start: bool) -> None:
         name = self.picked()
-        manager = self.lab.controllers
+        manager = self.lab.manager
         if start:
             manager.switch(start=[name])
         else:
@@ -144,8 +144,8 @@ class ControllersPanel(Panel):
 
     def reload(self) -> None:
         name = self.picked()
-        self.lab.controllers.reload(name)
-        for key in self.lab.controllers.controllers[name].params:
+        self.lab.manager.reload(name)
+        for key in self.lab.manager.controllers[name].params:
             self.show_param(name, key)
         self.update()
         self.server_notify(f"{name} reloaded")

@@ -521,7 +521,7 @@ class ExercisesPanel(Panel):
     def _live_gains(self, submission: Path) -> str:
         from mexone.control.config import CONTROLLER_TYPES, parse_control_config
 
-        manager = self.host.lab.controllers
+        manager = self.host.lab.manager
         if manager is None:
             return "not applied: this lab runs no controllers"
         text = submission.read_text(encoding="utf-8", errors="replace")
@@ -549,7 +549,7 @@ class ExercisesPanel(Panel):
         """The Joints panel's Gains fields show what the controllers now hold."""
         from mexone.control.spec import joint_label
 
-        manager = self.host.lab.controllers
+        manager = self.host.lab.manager
         fields = {getattr(f.handle, "label", None): f.handle for f in self.host.fields.fields}
         for name in names:
             gains = manager.controllers[name].gains[0]
@@ -559,7 +559,7 @@ class ExercisesPanel(Panel):
                     self.host.fields.set_held(handle, [float(getattr(gains, key))])
 
     def _live_controller(self, submission: Path) -> str:
-        manager = self.host.lab.controllers
+        manager = self.host.lab.manager
         mine = [n for n, c in (manager.controllers.items() if manager else ())
                 if c.code_file and Path(c.code_file).resolve() == submission.resolve()]
         for name in mine:  # the lab runs it from the student's own file: the panel's Reload
@@ -584,7 +584,7 @@ class ExercisesPanel(Panel):
 
         if self._scratch is None:
             self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-page-"))
-        manager = self.host.lab.controllers
+        manager = self.host.lab.manager
         given = manager.config.parameters if manager is not None else None
         if not isinstance(given, dict) or not given:
             given = yaml.safe_load(Path(mex_one.controllers_path()).read_text())

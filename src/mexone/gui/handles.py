@@ -60,7 +60,7 @@ class IkHandles:
         for handle in self.handles.values():
             handle.remove()
         self.handles.clear()
-        if not on or self.lab.controllers is None:
+        if not on or self.lab.manager is None:
             return
         with self.lock:
             if self.ik is None:
@@ -136,7 +136,7 @@ class IkHandles:
 
     def send(self, joints: dict[str, float], error=None) -> None:
         """Command every position controller's joints (simulation thread)."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         for ctrl in manager.controllers.values():
             if ctrl.holds_position:
                 command = {j: joints[j] for j in ctrl.joints if j in joints}

@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import viser
 
-from mexone.control.controllers import Controller
+from mexone.control.controllers import ControllerInterface
 from mexone.control.spec import joint_label
 from mexone.errors import InputError
 from mexone.gui.panels import Panel, register_panel
@@ -36,7 +36,7 @@ class JointsPanel(Panel):
         gui = self.server.gui
         self.sliders: dict[tuple[str, str], viser.GuiSliderHandle] = {}
         self._touched: dict[tuple[str, str], float] = {}  # when a person last moved a slider
-        manager = self.lab.controllers
+        manager = self.lab.manager
         with gui.add_folder("Joints"):
             if manager is None:
                 gui.add_markdown(self.lab.no_controllers or "No controllers loaded.")
@@ -56,11 +56,11 @@ class JointsPanel(Panel):
                 if ctrl.tunable and ctrl.holds_position:
                     self._add_gains(ctrl)
 
-    def _scale(self, ctrl: Controller) -> float:
+    def _scale(self, ctrl: ControllerInterface) -> float:
         """Slider units per command unit (degrees for angles when asked)."""
         return 180.0 / math.pi if ctrl.unit == "rad" and self.units.value == "deg" else 1.0
 
-    def _add_slider(self, ctrl: Controller, index: int, joint: str) -> None:
+    def _add_slider(self, ctrl: ControllerInterface, index: int, joint: str) -> None:
         lo, hi = ctrl.command_range(index)
         slider = self.server.gui.add_slider(f"{joint}", min=round(lo, 4), max=round(hi, 4),
                                             step=0.001, initial_value=0.0,
@@ -79,14 +79,14 @@ class JointsPanel(Panel):
                 if not (math.isfinite(number) and lo - 1e-9 <= number <= hi + 1e-9):
                     raise InputError(f"{joint}: {number_text(value)} is outside {number_text(lo)} to "
                                      f"{number_text(hi)} {ctrl.unit}")
-                self.lab.controllers.command(ctrl.name, {joint: number})
+                self.lab.manager.command(ctrl.name, {joint: number})
 
             self.do(send)
 
         slider.on_update(moved)
 
     def _rescale_sliders(self) -> None:
-        manager = self.lab.controllers
+        manager = self.lab.manager
         for (name, joint), slider in self.sliders.items():
             ctrl = manager.controllers[name]
             index = ctrl.joints.index(joint)
@@ -99,7 +99,7 @@ class JointsPanel(Panel):
         """Show what the controllers are commanded, whoever commanded it."""
         if not self.sliders:
             return
-        manager = self.lab.controllers
+        manager = self.lab.manager
         now = time.monotonic()
         for (name, joint), slider in self.sliders.items():
             if now - self._touched.get((name, joint), -1e9) < TOUCH_SECONDS:
@@ -115,12 +115,12 @@ class JointsPanel(Panel):
 
     def home(self) -> None:
         """Every position controller's joints to 0."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         for ctrl in manager.controllers.values():
             if ctrl.running and ctrl.holds_position:
                 manager.command(ctrl.name, [0.0] * len(ctrl.joints))
 
-    def _add_gains(self, ctrl: Controller) -> None:
+    def _add_gains(self, ctrl: ControllerInterface) -> None:
         gui = self.server.gui
         gains = ctrl.gains[0]
         label = joint_label(ctrl.name)
@@ -129,7 +129,7 @@ class JointsPanel(Panel):
                 self.host.fields.add(f"{key} ({label})", float(getattr(gains, key)), GAINS[key],
                                      lambda v, c=ctrl, k=key: self.set_gain(c, k, v))
 
-    def set_gain(self, ctrl: Controller, key: str, value: float) -> None:
+    def set_gain(self, ctrl: ControllerInterface, key: str, value: float) -> None:
         """Simulation thread: one PID term of every joint of `ctrl`, live."""
         gains = [replace(g, **{key: value}) for g in ctrl.gains]
-        self.lab.controllers.set_gains(ctrl.name, gains)
+        self.lab.manager.set_gains(ctrl.name, gains)

@@ -52,15 +52,18 @@ __all__ = ["Panel", "PanelHost", "PageSettings", "register_panel", "panel_types"
 
 log = logging.getLogger(__name__)
 
-FPS = 30.0  # frames the page draws per second of wall time (a panel's `period` counts them)
+FPS = 30.0  #: frames the page draws per second of wall time (a panel's `period` counts them)
 
+#: the entry-point group a package's GUI panels are found in (`name = "package.module"`)
 ENTRY_POINT_GROUP = "mexone.gui_panels"
+#: the modules of the shipped panels (importing one registers its panels)
 BUILTIN_PANELS = ("mexone.gui.simulation", "mexone.gui.view", "mexone.gui.joints",
                   "mexone.gui.plots", "mexone.gui.stepresponse", "mexone.gui.inspector",
                   "mexone.gui.sensors", "mexone.gui.routines", "mexone.gui.physics",
                   "mexone.gui.topics", "mexone.gui.controllers", "mexone.gui.load",
                   "mexone.gui.exercises", "mexone.gui.walkpad", "mexone.gui.handles",
                   "mexone.gui.walkplan")
+#: the registry: panel name -> Panel class (filled by register_panel)
 PANELS: dict[str, type[Panel]] = {}
 
 

@@ -110,7 +110,7 @@ class SignalLog:
     def __init__(self, lab: Lab):
         self.lab = lab
         signals, readers = [], []
-        manager = lab.controllers
+        manager = lab.manager
         sim = lab.sim
         if manager is not None:
             hw = manager.hw
@@ -459,7 +459,7 @@ class PlotPanel(Panel):
 def first_joint(lab: Lab) -> str | None:
     """The joint a page shows first (plots, step response): the first a running position
     controller holds, in the configuration's order; else the robot's first moving joint."""
-    manager = lab.controllers
+    manager = lab.manager
     held = [j for c in (manager.controllers.values() if manager else ())
             if c.running and c.holds_position for j in c.joints]
     joints = held or lab.sim.joint_names

@@ -59,7 +59,7 @@ class RoutinesPanel(Panel):
 
     def start(self) -> None:
         """Simulation thread: the routine picked, if it is one the server offers."""
-        if self.lab.controllers is None:
+        if self.lab.manager is None:
             raise MexoneError("no controllers loaded: a routine has nothing to command")
         choice = self.choice.value
         path = self.files.get(choice)  # never a path the page made up

@@ -35,7 +35,7 @@ class StepResponse(Panel):
         self.running: tuple | None = None  # (joint, recorder, t0, start, target)
         self.result: dict | None = None
         self.started = 0.0
-        manager = self.lab.controllers
+        manager = self.lab.manager
         joints = tuple(j for j, c in manager.by_joint().items() if c.holds_position) \
             if manager else ()
         gui = self.server.gui
@@ -54,7 +54,7 @@ class StepResponse(Panel):
 
     def start(self, joint: str, size: float) -> None:
         """Simulation thread: command the step now and measure for STEP_WINDOW s."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         ctrl = manager.by_joint().get(joint) if manager else None
         if ctrl is None or not ctrl.holds_position:
             raise InputError(f"Step response: '{joint}' has no running position controller")

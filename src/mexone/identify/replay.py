@@ -91,7 +91,7 @@ def replay(recording: Recording, robot: RobotModel, config: ControlConfig,
     fixed, spawn, notes = _base(recording, robot, base)
     options = CompileOptions(visuals=False, fixed_base=fixed)
     lab = Lab.create(robot, config, spawn=spawn, options=options)
-    sim, manager = lab.sim, lab.controllers
+    sim, manager = lab.sim, lab.manager
     _set_initial_pose(lab, recording, fixed)
     manager.restart()  # controllers hold the first recorded pose, as they held the robot's
     state = np.empty(mujoco.mj_stateSize(sim.model, _FULL))
@@ -208,7 +208,7 @@ def _refuse_what_ctrl_cannot_carry(lab: Lab, recording: Recording) -> None:
     """Commands that act on the state in Python (ideal servos teleport, velocity PIDs with I or D
     terms) cannot be replayed open-loop: their output depends on the state being fitted."""
     for name in recording.commanded:
-        ctrl = lab.controllers.controllers[name]
+        ctrl = lab.manager.controllers[name]
         ideal = getattr(ctrl, "ideal", False)
         native = getattr(ctrl, "native", True)
         if ideal or not native:

@@ -115,10 +115,10 @@ def _mover() -> _Mover:
     if isinstance(mover, _Mover):
         return mover
     lab = context.lab
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("this robot has no controllers to move it",
                          hint="run with the robot's controller YAML (--controllers)")
-    manager = lab.controllers
+    manager = lab.manager
     publishers = {}
     for ctrl in list(manager.controllers.values()):  # one position setpoint topic per joint
         if ctrl.holds_position and ctrl.msg_type is Float64:

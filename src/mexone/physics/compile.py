@@ -59,6 +59,7 @@ _CONTACTS_PER_GEOM = 4  # a box on a plane touches at its 4 corners
 SPAWN_KEY = "spawn"
 _MJ_STL_MAX_FACES = 200_000  # MuJoCo's own STL reader refuses more (and ASCII STL)
 
+#: how Gazebo's physics settings map to MuJoCo's: (Gazebo, MuJoCo, how) per setting
 GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<gazebo> mu1, mu2", "pair/geom friction[0:2]",
      "min-combined as ODE does: explicit <pair>s with the ground; between links, geom "

@@ -172,6 +172,11 @@ class RtfMeter:
 
 
 class Simulation:
+    """A robot in a world, compiled into MuJoCo and stepped as Gazebo would: MuJoCo's `model` and
+    `data` behind a Gazebo-like API (`step`, `run`, `reset`, `pause`; joint positions,
+    velocities and efforts; pushes and efforts; callbacks in sim time). Only the thread that
+    steps it touches MuJoCo: other threads hand work over through `work`."""
+
     def __init__(self, robot: RobotModel | Path | str, world: World | None = None,
                  spawn: Spawn = Spawn(), options: CompileOptions = CompileOptions(),
                  target_rtf: float | None = None, edits: Sequence[SpecEdit] = ()) -> None:

@@ -62,6 +62,8 @@ def default_world() -> World:
 
 
 def read_world(path: Path | str) -> World:
+    """A Gazebo `.world` file (SDF): physics step, gravity, ground friction, the sun, static
+    boxes; every mistake one line at its line."""
     path = Path(path)
     xml = XmlReader(path)
     root = xml.root

@@ -48,7 +48,7 @@ class ControllerManagerNode:
 
         self.bridge, self.rospy = bridge, bridge.rospy
         self.lab = bridge.lab
-        self.manager = manager or self.lab.controllers
+        self.manager = manager or self.lab.manager
         self.ns = ns or self.lab.namespace
         rospy, base = self.rospy, f"{self.ns}/controller_manager/"
         self.services = [
@@ -77,7 +77,7 @@ class ControllerManagerNode:
         from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
         from controller_manager_msgs.srv import ListControllersResponse
 
-        infos = self.bridge.call(self.manager.list)
+        infos = self.bridge.call(self.manager.list_controllers)
         return ListControllersResponse([ControllerState(
             i.name, i.state, i.type,
             [HardwareInterfaceResources(_INTERFACE_PREFIX + (i.interface or "JointStateInterface"),

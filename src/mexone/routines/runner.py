@@ -125,8 +125,8 @@ class RoutineRunner:
         if poll is not None:
             self.scheduler.poll = poll
         self.params: dict[str, object] = {}  # the parameter server the routines share
-        if lab.controllers:  # the controller YAML, as it was read
-            _flatten("", lab.controllers.config.parameters, self.params)
+        if lab.manager:  # the controller YAML, as it was read
+            _flatten("", lab.manager.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
         # the latest LOG_KEEP to 2 x LOG_KEEP lines (a long run's routine may log without end)
         self.log_lines: list[tuple[float, str, str]] = []

@@ -87,6 +87,10 @@ class BalanceState:
 
 
 class Balance:
+    """A humanoid's balance quantities from its two foot force-torque sensors: the COM's ground
+    projection, the support polygon and the measured ZMP (`state()`), and their topics
+    (/<ns>/com, /<ns>/zmp, /<ns>/support_polygon), published while someone listens."""
+
     def __init__(self, sim: Simulation, bus: Bus, namespace: str, feet: list[ForceTorqueSensor]) -> None:
         self.sim, self.bus, self.feet = sim, bus, feet
         self.topics = {"com": f"{namespace}/com", "zmp": f"{namespace}/zmp",

@@ -362,7 +362,7 @@ class Sensor:
         return None
 
 
-SENSOR_CLASSES: dict[str, type[Sensor]] = {}  # SDF sensor type -> its plug-in
+SENSOR_CLASSES: dict[str, type[Sensor]] = {}  #: SDF sensor type -> its plug-in
 
 
 def register_sensor(type_name: str) -> Callable[[type[Sensor]], type[Sensor]]:

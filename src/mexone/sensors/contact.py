@@ -74,6 +74,9 @@ class ContactSensorState:
 
 @register_sensor("contact")
 class ContactSensor(Sensor):
+    """Gazebo's contact sensor (libgazebo_ros_bumper.so) on a link's collisions: state
+    `in_contact`, `force`, `count`; broadcasts gazebo_msgs/ContactsState."""
+
     state_type = ContactSensorState
     message_type = ContactsState
     broadcaster = "gazebo_ros_bumper"

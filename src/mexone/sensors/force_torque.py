@@ -43,6 +43,9 @@ class ForceTorqueState:
 
 @register_sensor("force_torque")
 class ForceTorqueSensor(Sensor):
+    """Gazebo's force-torque sensor on a joint (in the child, parent or sensor frame, either
+    measure direction): state `force`, `torque`; broadcasts geometry_msgs/WrenchStamped."""
+
     state_type = ForceTorqueState
     message_type = WrenchStamped
     broadcaster = "force_torque_sensor_broadcaster"

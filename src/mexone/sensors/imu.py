@@ -38,6 +38,9 @@ class ImuState:
 
 @register_sensor("imu")
 class ImuSensor(Sensor):
+    """Gazebo's IMU (with its noise model): state `orientation`, `angular_velocity`,
+    `linear_acceleration`; broadcasts sensor_msgs/Imu."""
+
     state_type = ImuState
     message_type = Imu
     broadcaster = "imu_sensor_broadcaster"

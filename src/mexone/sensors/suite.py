@@ -35,6 +35,10 @@ def _broadcast(sim: Simulation, sensors: list[Sensor]) -> None:
 
 
 class SensorSuite:
+    """Every declared sensor of a robot and the balance quantities: `states` (what controllers
+    read as state.sensors), the broadcasters (each publishing only while someone listens) and
+    the plot signals."""
+
     def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None) -> None:
         self.sim, self.bus = sim, bus
         self.measure = Measure(sim)

@@ -1,4 +1,4 @@
-"""Controller: what every ros_control controller type shares, and the registry of types.
+"""ControllerInterface: what every ros_control controller type shares, and the registry of types.
 
 A controller claims joints, buffers the latest command from its topic (`on_command`, any thread:
 subscribers only buffer), and in `update` (the simulation thread, inside the manager's
@@ -26,7 +26,7 @@ from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
 from mexone.ranges import number_text
 
-__all__ = ["Controller", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
+__all__ = ["ControllerInterface", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
            "controller_type"]
 
 log = logging.getLogger("mexone.control")
@@ -37,7 +37,7 @@ class ControllerType:
     """One ros_control type name: the class that implements it and the interface it claims."""
 
     name: str  # e.g. "effort_controllers/JointPositionController"
-    cls: type[Controller]
+    cls: type[ControllerInterface]
     interface: str  # hardware_interface it claims, "" for state controllers
     single_joint: bool  # `joint:` (True) or `joints:` (the JointGroup* and trajectory types)
 
@@ -50,10 +50,10 @@ CONTROLLER_TYPES: dict[str, ControllerType] = {}  # the registry: filled by regi
 
 
 def register(name: str, interface: str,
-             single_joint: bool = True) -> Callable[[type[Controller]], type[Controller]]:
+             single_joint: bool = True) -> Callable[[type[ControllerInterface]], type[ControllerInterface]]:
     """Class decorator: `cls` implements ros_control type `name`."""
 
-    def add(cls: type[Controller]) -> type[Controller]:
+    def add(cls: type[ControllerInterface]) -> type[ControllerInterface]:
         CONTROLLER_TYPES[name] = ControllerType(name, cls, interface, single_joint)
         return cls
 
@@ -81,7 +81,12 @@ class ControllerContext:
     faults: list[str] = field(default_factory=list)  # controllers that faulted this cycle
 
 
-class Controller:
+class ControllerInterface:
+    """ros_control's controller interface: the base of every controller type (a shipped
+    ros_controllers type or the runner of a Python controller), which the manager loads, starts,
+    updates and stops (see the module's doc). Not the student's class: that is
+    `mexone.control.PythonController` (`mexone.Controller`)."""
+
     kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state: control/'s own label
     unit: ClassVar[str] = ""  # of its commands: rad, rad/s, N m
     sliders: ClassVar[bool] = True  # a GUI slider per joint makes sense
@@ -242,3 +247,6 @@ class Controller:
         """Gains of one joint: the controller's pid:, its gains:, else gazebo_ros_control's."""
         spec = self.spec
         return (spec.gains or {}).get(joint) or spec.pid or self.ctx.pid_gains.get(joint)
+
+
+Controller = ControllerInterface  # its name before issue 40, kept for code written against it

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from mexone.bus.msgs import Header, JointState, Time
-from mexone.control.controllers.base import Controller, ControllerContext, register
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
 from mexone.control.spec import ControllerSpec
 from mexone.physics.simulation import Periodic, Simulation
 
@@ -16,7 +16,7 @@ DEFAULT_RATE = 50.0
 
 
 @register("joint_state_controller/JointStateController", "")
-class JointStateController(Controller):
+class JointStateController(ControllerInterface):
     kind = "state"
     sliders = False
     drives_joints = False

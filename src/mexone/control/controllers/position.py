@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from mexone.bus.msgs import JointControllerState
-from mexone.control.controllers.base import Controller, ControllerContext, register
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
 from mexone.control.hardware import TELEPORT_NONE, TELEPORT_POSITION
 from mexone.control.spec import ControllerSpec, PidGains
 from mexone.errors import InputError
@@ -28,7 +28,7 @@ __all__ = ["PositionController"]
 @register("position_controllers/JointPositionController", "PositionJointInterface")
 @register("effort_controllers/JointGroupPositionController", "EffortJointInterface", False)
 @register("position_controllers/JointGroupPositionController", "PositionJointInterface", False)
-class PositionController(Controller):
+class PositionController(ControllerInterface):
     kind = "position"
     unit = "rad"
     holds_position = True

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from mexone.bus.msgs import JointControllerState
-from mexone.control.controllers.base import Controller, ControllerContext, register
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
 from mexone.control.hardware import TELEPORT_VELOCITY
 from mexone.control.pid import PidArray
 from mexone.control.spec import ControllerSpec, PidGains
@@ -27,7 +27,7 @@ __all__ = ["VelocityController"]
 @register("effort_controllers/JointVelocityController", "EffortJointInterface")
 @register("velocity_controllers/JointVelocityController", "VelocityJointInterface")
 @register("velocity_controllers/JointGroupVelocityController", "VelocityJointInterface", False)
-class VelocityController(Controller):
+class VelocityController(ControllerInterface):
     kind = "velocity"
     unit = "rad/s"
 
