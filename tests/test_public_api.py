@@ -73,3 +73,37 @@ def test_the_reference_documents_the_public_modules_only():
     finally:
         sys.path.remove(str(ROOT / "docs" / "_ext"))
     assert sorted(m.__name__ for m in public_modules()) == PUBLIC
+
+
+def test_renamed_names_work_for_one_release_and_say_the_new_name():
+    import warnings
+
+    from mexone.control import ControllerInterface
+    from mexone.lab import Lab
+    from mexone.routines.runner import resolve_routine, shipped_routines
+
+    lab = Lab.create(model=None, controllers=False)
+    with pytest.warns(DeprecationWarning, match="Lab.controllers is renamed Lab.manager"):
+        assert lab.controllers is lab.manager
+    with pytest.warns(DeprecationWarning, match="mexone.control.Controller is renamed"):
+        from mexone.control import Controller
+    assert Controller is ControllerInterface
+    with pytest.warns(DeprecationWarning, match="the routine 'sweep' is renamed 'joint_steps'"):
+        assert resolve_routine("sweep") == shipped_routines()["joint_steps"]
+    sys.modules.pop("mexone.physics.watchdog", None)
+    with pytest.warns(DeprecationWarning, match="mexone.physics.watchdog is renamed"):
+        from mexone.physics.watchdog import DivergenceError
+    from mexone.physics.divergence import DivergenceError as new
+
+    assert DivergenceError is new
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the new names say nothing
+        assert lab.manager is None and resolve_routine("joint_steps").name == "joint_steps.py"
+
+
+def test_list_controllers_and_its_former_name():
+    from mexone.lab import Lab
+
+    manager = Lab.create().manager
+    with pytest.warns(DeprecationWarning, match="ControllerManager.list is renamed"):
+        assert manager.list() == manager.list_controllers()

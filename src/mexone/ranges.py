@@ -120,7 +120,7 @@ MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm 
 TIMEOUT = Range("timeout", "s", 0.0, 1e6, why="a ROS service's timeout (0: none)")
 FORCE = Range("force", "N or N m", -1e6, 1e6, why="a pushed force or torque, an applied joint "
               "effort (signed)")
-# the divergence watchdog's limits (physics/watchdog.py): a body set moving faster is a divergence
+# the divergence watchdog's limits (physics/divergence.py): a body set moving faster is a divergence
 SPEED = Range("speed", "m/s", -50.0, 50.0, why="a set linear velocity (component and length)")
 SPIN = Range("spin", "rad/s", -500.0, 500.0, why="a set angular velocity (component and length)")
 CONTROL_PERIOD = Range("control period", "s", 1e-5, 10.0, why="the controllers' period (at least "

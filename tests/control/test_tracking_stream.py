@@ -181,7 +181,7 @@ def test_the_robots_run_equals_its_whole_series(monkeypatch):
                     rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
 
     lab.sim.add_periodic(1.0 / SAMPLE_RATE, keep)
-    RoutineRunner(lab, "sweep").run(2.0)
+    RoutineRunner(lab, "joint_steps").run(2.0)
     got = recorder.metrics()
     assert set(got) == set(rows) and len(rows) > 10
     assert any(m.steps for m in got.values())  # the sweep moved something

@@ -158,7 +158,7 @@ def test_divergence_names_the_setting_changed_last(app):
     fresh(app)
     typed(app, app.panels["physics"].gravity, "0, 0, -1000")
     assert wait_until(lambda: app.fields.last_change == "Gravity (m/s²) = 0, 0, -1000")
-    from mexone.physics.watchdog import DivergenceError
+    from mexone.physics.divergence import DivergenceError
     call(app, lambda: app._diverged(DivergenceError("simulation diverged", hint="gains?")))
     assert "last setting changed on this page: Gravity (m/s²) = 0, 0, -1000" in app._status.content
     typed(app, app.panels["physics"].gravity, "0 0 -9.81")

@@ -123,7 +123,7 @@ def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
 def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
     if app.lab.sim.paused:
         app.do(app.lab.sim.resume)
-    app.panels["routines"].choice.value = "sweep"
+    app.panels["routines"].choice.value = "joint_steps"
     app.do(app.panels["routines"].start)
     shoulder = app.lab.sim.joint_names.index("l_shoulder_pitch")
     assert wait_until(lambda: app.lab.sim.joint_positions()[shoulder] < -0.3, timeout=20)
@@ -132,7 +132,7 @@ def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
     assert wait_until(lambda: slider.value < -0.3)  # the slider shows the routine's command
     app.do(app.panels["routines"].stop_routine)
     assert wait_until(lambda: app.routine is None)
-    assert "sweep.py ended" in app.panels["routines"].console_view.content
+    assert "joint_steps.py ended" in app.panels["routines"].console_view.content
 
 
 def test_reset_model_returns_home(app):

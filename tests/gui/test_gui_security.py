@@ -104,7 +104,7 @@ def test_the_origin_rule():
 
 def test_a_same_origin_client_cannot_start_a_file_it_names(app):
     port = app.server.get_port()
-    assert set(app.panels["routines"].files) >= {"wave.py", "arms", "sweep", "home"}
+    assert set(app.panels["routines"].files) >= {"wave.py", "arms", "joint_steps", "home"}
     with client(app, f"http://127.0.0.1:{port}") as ws:
         join(ws)
         send(ws, app.panels["routines"].choice, str(app.evil))

@@ -11,8 +11,8 @@ import numpy as np
 
 from mexone.errors import MexoneError, RoutineError
 from mexone.lab import Lab
+from mexone.physics.divergence import DivergenceError
 from mexone.physics.monitor import has_fallen
-from mexone.physics.watchdog import DivergenceError
 
 __all__ = ["Variation", "simulate", "Run"]
 

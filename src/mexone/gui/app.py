@@ -31,8 +31,8 @@ from mexone.gui.scene import RobotScene
 from mexone.gui.security import guard, warn_if_exposed
 from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions, Spawn
+from mexone.physics.divergence import DivergenceError
 from mexone.physics.simulation import Simulation, WorkQueue
-from mexone.physics.watchdog import DivergenceError
 from mexone.ranges import STEPS
 from mexone.routines.runner import RoutineRunner
 

@@ -24,7 +24,7 @@ from mexone.identify.recording import STILL, Recording
 from mexone.lab import Lab
 from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 from mexone.physics.compile import CompileOptions, Spawn
-from mexone.physics.watchdog import DivergenceError
+from mexone.physics.divergence import DivergenceError
 from mexone.record.reader import FLOAT64, MULTI, TRAJECTORY
 
 __all__ = ["Experiment", "replay", "BASES", "HANG_HEIGHT", "SENSOR_SUFFIX"]

@@ -39,8 +39,8 @@ from mexone.physics.compile import (
     collision_bits,
     compile_model,
 )
+from mexone.physics.divergence import DivergenceError, Watchdog, link_speeds
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
-from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
 from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
