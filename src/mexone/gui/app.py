@@ -1,12 +1,11 @@
-"""GuiApp: `mexone sim`'s web page (viser), what Gazebo's window was to the seed, and more.
-
-The page is the frame loop, the message plumbing and Load; everything on it is a panel
-(gui/panels.py: one registry, the shipped panels and a package's alike), and GuiApp is the
-`PanelHost` they talk to. The simulation runs in the thread that calls `serve_forever`, paced to
-the real-time factor; viser serves the page from its own threads. Everything a page does to the
-simulation is queued (`self.work`) and runs between frames in the simulation thread, so a slow,
-closed or tenth browser tab never touches the physics. Every value a page sends is checked on
-the server: a page is not trusted to respect its own widgets' limits (see also gui/security.py).
+"""GuiApp: `mexone sim`'s web page (viser), what Gazebo's window was to the seed, and more: the
+frame loop, the message plumbing and Load; everything on the page is a panel (gui/panels.py: one
+registry, the shipped panels and a package's alike), and GuiApp the `PanelHost` they talk to.
+The simulation runs in the thread that calls `serve_forever`, paced to the real-time factor;
+viser serves the page from its own threads. Everything a page does to the simulation is queued
+(`self.work`) and runs between frames in the simulation thread, so a slow, closed or tenth tab
+never touches the physics. Every value a page sends is checked on the server: a page is not
+trusted to respect its own widgets' limits (see also gui/security.py).
 """
 
 from __future__ import annotations
@@ -28,7 +27,7 @@ from mexone.gui.health import Health
 from mexone.gui.panels import FPS, PageSettings, Panel, panel_types
 from mexone.gui.plots import PLOT_PERIOD, SignalLog
 from mexone.gui.scene import RobotScene
-from mexone.gui.security import guard, warn_if_exposed
+from mexone.gui.security import LabAccess, guard, lab_access, warn_if_exposed
 from mexone.lab import AUTO, Lab
 from mexone.physics.compile import CompileOptions, Spawn
 from mexone.physics.divergence import DivergenceError
@@ -64,10 +63,11 @@ class GuiApp:
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
                  record_folder: Path | None = None, model_folder: Path | None = None,
-                 server: viser.ViserServer | None = None, exercise=None):
-        """`server`: draw into that page (guarded by its owner, who stops it) instead of
-        serving one (the model editor's Simulate). `exercise`: an ExerciseTarget
-        (gui/exercises.py) for the Exercises panel."""
+                 server: viser.ViserServer | None = None, exercise=None,
+                 access: LabAccess | None = None):
+        """`server`: draw into that page (guarded by its owner, who stops it) instead of serving
+        one (the editor's Simulate). `exercise`: an ExerciseTarget (gui/exercises.py). `access`:
+        who may open the page (default: as the environment says; gui/security.py)."""
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf, self.lab.sim.target_rtf = target_rtf, target_rtf or None
@@ -76,16 +76,16 @@ class GuiApp:
         self.pause_after_reset, self.model_label = paused, self.lab.sim.robot.name
         self.owns_server = server is None
         self.server = server or viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
+        self.access = access or lab_access()
         if self.owns_server:
-            guard(self.server)
+            guard(self.server, self.access)
             warn_if_exposed(host, self.server.get_port())
         self.work, self.stopping = WorkQueue(), threading.Event()
-        self.routine: RoutineRunner | None = None
+        self.routine: RoutineRunner | None = None  # the Routines panel's, run in lockstep
         self.console: deque[str] = deque(maxlen=14)
         self.error: str | None = None
         self.refusals: deque[str] = deque(maxlen=20)  # what the page asked for and was refused
-        self.steps_left = 0  # Step N in progress, a budget per frame
-        self._frames = 0
+        self.steps_left, self._frames = 0, 0  # Step N in progress (a budget per frame); frames
         self.tick_hooks: list[Callable] = []  # run every TICK of sim time (the ROS bridge)
         self.extra_routines: dict[str, Path] = {}  # routines a panel offers (an exercise's)
         self.panels: dict[str, Panel] = {}  # one instance each for the page's life, built in order
@@ -131,7 +131,7 @@ class GuiApp:
                     f"{type(exc).__name__}: {exc}"
                 log.error("the %s panel stopped: %s", name, text)
 
-    def _each_panel(self, hook: str, *args) -> None:
+    def _each_panel(self, hook: str, *args) -> None:  # a hook that ends what a panel started
         for name, panel in self.panels.items():
             self._panel_call(name, lambda p=panel: getattr(p, hook)(*args), always=True)
 
