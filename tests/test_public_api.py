@@ -58,6 +58,27 @@ def test_every_public_name_resolves_and_is_documented(module_name):
     assert undocumented == [], f"{module_name}: public names without a docstring: {undocumented}"
 
 
+def test_every_public_method_of_a_public_class_is_documented():
+    """A class's methods and properties without a leading underscore are public too (its own
+    docstring, or the one it overrides)."""
+    seen, undocumented = set(), []
+    for module_name in PUBLIC:
+        module = importlib.import_module(module_name)
+        for name in module.__all__:
+            cls = getattr(module, name)
+            if not inspect.isclass(cls) or id(cls) in seen or not cls.__module__.startswith("mexone"):
+                continue
+            seen.add(id(cls))
+            for attr, member in vars(cls).items():
+                function = member.fget if isinstance(member, property) else \
+                    getattr(member, "__func__", member)
+                if attr.startswith("_") or not inspect.isfunction(function):
+                    continue
+                if not (inspect.getdoc(getattr(cls, attr)) or "").strip():
+                    undocumented.append(f"{cls.__module__}.{cls.__qualname__}.{attr}")
+    assert undocumented == []
+
+
 def test_the_api_page_says_who_imports_what():
     page = (ROOT / "docs" / "reference" / "api.md").read_text()
     for audience, modules in mexone.API.items():

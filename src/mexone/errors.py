@@ -46,6 +46,7 @@ class MexoneError(Exception):
         super().__init__(self.one_line())
 
     def one_line(self) -> str:
+        """The error as one line: file:line: what (hint)."""
         where = ""
         if self.file is not None:
             where = f"{self.file}:{self.line}: " if self.line else f"{self.file}: "

@@ -161,6 +161,7 @@ class Lab:
                                 tuple(sim.data.xquat[body]))
 
     def transforms(self) -> list[TransformStamped]:
+        """Every link's transform now, as robot_state_publisher and the base's odometry send them on /tf."""
         sim = self.sim
         stamp = Time.from_nsec(sim.time_ns)
         data, bodies = sim.data, sim.compiled.bodies

@@ -151,6 +151,7 @@ class Rate:
         self.last = current().time
 
     def sleep(self) -> None:
+        """Sleep the rest of this period, in sim time (the simulation runs meanwhile)."""
         now = current().time
         wake = self.last + self.period
         if now - wake > self.period:
@@ -159,6 +160,7 @@ class Rate:
         _wait(max(wake, now))
 
     def remaining(self) -> _msgs.Duration:
+        """What is left of this period, as a Duration."""
         return _msgs.Duration.from_sec(max(0.0, self.last + self.period - current().time))
 
 
@@ -182,6 +184,7 @@ class Publisher:
         self._bus.advertise(self.name, data_class)
 
     def publish(self, *args: Any, **kwargs: Any) -> None:
+        """Publish a message (or build one from its fields), as rospy."""
         ctx = self._context
         if ctx.abandoned:
             raise Shutdown
@@ -200,10 +203,12 @@ class Publisher:
         self._bus.publish(self.name, msg)
 
     def get_num_connections(self) -> int:
+        """How many subscribe to the topic."""
         topic = self._bus.topics.get(self.name)
         return len(topic.subscriptions) if topic else 0
 
     def unregister(self) -> None:
+        """Stop publishing (nothing to undo on the lab's bus)."""
         pass
 
 
@@ -230,6 +235,7 @@ class Subscriber:
         self._sub = ctx.lab.bus.subscribe(self.name, data_class, deliver, node=ctx.node_name)
 
     def unregister(self) -> None:
+        """Stop receiving the topic's messages."""
         self._sub.unregister()
 
 

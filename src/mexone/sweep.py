@@ -50,6 +50,7 @@ class SweepSpec:
     controllers: str | None = None
 
     def key(self) -> str:
+        """What identifies the sweep (its definition, for --resume)."""
         return json.dumps(asdict(self), sort_keys=True)
 
 

@@ -329,6 +329,7 @@ class SimHardware:
         self._ctrl_values = np.zeros(len(self._ctrl_all))
 
     def rows(self, names: Iterable[str]) -> np.ndarray:
+        """The hardware rows of these joints (an InputError naming one without a transmission)."""
         missing = [n for n in names if n not in self.index]
         if missing:
             raise InputError(f"joint {', '.join(missing)} has no transmission, so no controller "
@@ -337,9 +338,11 @@ class SimHardware:
 
     # ----- state (reading is safe in the simulation thread at any time) --------------------------
     def position(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Joint positions now (rad or m), of `rows` or all, read from MuJoCo."""
         return self.sim.data.qpos[self.qpos_adr[rows]]
 
     def velocity(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Joint velocities now (rad/s or m/s), of `rows` or all, read from MuJoCo."""
         return self.sim.data.qvel[self.dof_adr[rows]]
 
     def effort(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
@@ -347,6 +350,7 @@ class SimHardware:
         return self.sim.data.qfrc_actuator[self.dof_adr[rows]]
 
     def read(self) -> None:
+        """Copy every joint's position, velocity and effort into `state` (the loop's read)."""
         data, state = self.sim.data, self.state
         state.position[:] = data.qpos[self.qpos_adr]
         state.velocity[:] = data.qvel[self.dof_adr]

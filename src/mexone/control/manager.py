@@ -204,6 +204,7 @@ class ControllerManager:
 
     # ----- loading ---------------------------------------------------------------------------------
     def topic(self, name: str) -> str:
+        """The command topic of controller `name` (/<ns>/<name>/command)."""
         return f"{self.namespace}/{name}/command"
 
     def load(self, name: str) -> ControllerInterface:
@@ -236,12 +237,14 @@ class ControllerManager:
         self.config.controllers[spec.name] = spec
 
     def unload(self, name: str) -> None:
+        """Forget a stopped controller (controller_manager's unload_controller)."""
         ctrl = self._get(name)
         if ctrl.running:
             raise InputError(f"cannot unload '{name}': it is running", hint="stop it first")
         del self.controllers[name]
 
     def load_all(self) -> list[str]:
+        """Load every controller of the configuration not loaded yet; the names, in its order."""
         for name in self.config.controllers:
             if name not in self.controllers:
                 self.load(name)
@@ -256,12 +259,15 @@ class ControllerManager:
 
     # ----- running ---------------------------------------------------------------------------------
     def start(self, *names: str) -> None:
+        """Start these controllers (a strict switch)."""
         self.switch(start=names)
 
     def stop(self, *names: str) -> None:
+        """Stop these controllers (a strict switch): their joints are released."""
         self.switch(stop=names)
 
     def start_all(self) -> None:
+        """Load and start every controller of the configuration."""
         self.load_all()
         self.switch(start=[n for n, c in self.controllers.items() if not c.running])
 
@@ -424,6 +430,7 @@ class ControllerManager:
 
     # ----- `state` topics (published only while someone listens) ---------------------------------
     def state_topic(self, name: str) -> str:
+        """The JointControllerState topic of controller `name` (/<ns>/<name>/state)."""
         return f"{self.namespace}/{name}/state"
 
     def _watch_state(self, topic: str) -> None:
@@ -526,9 +533,11 @@ class ControllerManager:
 
     @staticmethod
     def list_types() -> builtins.list[str]:
+        """Every ros_control type name a YAML may use (controller_manager's list_controller_types)."""
         return list(CONTROLLER_TYPES)
 
     def by_joint(self) -> dict[str, ControllerInterface]:
+        """joint -> the running controller that drives it."""
         return {j: c for c in self._running for j in c.joints}
 
     # ----- what front ends change and read (simulation thread) -------------------------------------

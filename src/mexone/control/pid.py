@@ -40,6 +40,7 @@ class PidArray:
         return bool(np.any((self.i != 0) & ((self.i_min != 0) | (self.i_max != 0))))
 
     def reset(self) -> None:
+        """Forget the integral and the last error (a controller starting)."""
         self.i_error[:] = 0.0
         self.last_error[:] = 0.0
 

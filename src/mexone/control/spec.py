@@ -103,6 +103,7 @@ class ControllerSpec:
 
     @property
     def interface(self) -> str:
+        """The hardware interface its type claims."""
         if self.plugin is not None:
             return self.plugin.interface
         from mexone.control.controllers import controller_type

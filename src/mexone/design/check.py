@@ -321,18 +321,22 @@ class FrequencyResponse:
 
     @property
     def measured_db(self) -> np.ndarray:
+        """The measured gain at each frequency, in dB."""
         return 20 * np.log10(np.abs(self.measured))
 
     @property
     def measured_phase(self) -> np.ndarray:
+        """The measured phase at each frequency, in degrees."""
         return np.degrees(np.angle(self.measured))
 
     @property
     def model_db(self) -> np.ndarray:
+        """The linear closed loop's gain at each frequency, in dB."""
         return 20 * np.log10(np.abs(self.model))
 
     @property
     def model_phase(self) -> np.ndarray:
+        """The linear closed loop's phase at each frequency, in degrees."""
         return np.degrees(np.angle(self.model))
 
 

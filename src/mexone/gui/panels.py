@@ -96,16 +96,33 @@ class PanelHost(Protocol):
     extra_routines: dict[str, Path]  # routines a panel offers (an exercise's) by name
     routine: RoutineRunner | None  # the routine running in lockstep now, if any
 
-    def do(self, action: Callable[[], None]) -> None: ...
-    def refuse(self, text: str) -> None: ...
-    def notify(self, title: str, body: str, color: str = "red") -> None: ...
-    def panel(self, name: str) -> Panel | None: ...
+    def do(self, action: Callable[[], None]) -> None:
+        """Run `action` in the simulation thread, between frames."""
+
+    def refuse(self, text: str) -> None:
+        """A one-line refusal on the page (what it asked for, why not)."""
+
+    def notify(self, title: str, body: str, color: str = "red") -> None:
+        """A notification on every open page."""
+
+    def panel(self, name: str) -> Panel | None:
+        """The panel called `name` on this page, if it is there and working."""
+
     def load(self, path: Path | None, controllers: Path | str = ...,
-             spawn: Spawn | None = None) -> None: ...
-    def reset_model(self) -> None: ...
-    def reset_world(self) -> None: ...
-    def toggle_pause(self) -> None: ...
-    def step_n(self, n: float) -> None: ...
+             spawn: Spawn | None = None) -> None:
+        """Open another robot (simulation thread): every panel unloaded and built again."""
+
+    def reset_model(self) -> None:
+        """The robot back to its spawn pose at home, sim time 0."""
+
+    def reset_world(self) -> None:
+        """Reset model, with the settings that wait for it applied (self-collision)."""
+
+    def toggle_pause(self) -> None:
+        """Pause a running simulation, or resume a paused one."""
+
+    def step_n(self, n: float) -> None:
+        """Advance n physics steps, paused, spread over frames."""
 
 
 class Panel:
@@ -130,6 +147,7 @@ class Panel:
 
     @property
     def server(self) -> viser.ViserServer:
+        """The page's viser server (its gui and scene)."""
         return self.host.server
 
     def do(self, action: Callable[[], None]) -> None:
@@ -137,6 +155,7 @@ class Panel:
         self.host.do(action)
 
     def refuse(self, text: str) -> None:
+        """Say on the page, in one line, why something the page asked for was refused."""
         self.host.refuse(text)
 
     @classmethod

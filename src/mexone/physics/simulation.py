@@ -156,15 +156,18 @@ class RtfMeter:
         self.samples: deque[tuple[float, float]] = deque()
 
     def add(self, wall: float, sim: float) -> None:
+        """One stretch of wall time and the sim time it advanced."""
         self.samples.append((wall, sim))
         while len(self.samples) > 2 and wall - self.samples[0][0] > self.window:
             self.samples.popleft()
 
     def clear(self) -> None:
+        """Forget the stretches measured (after a pause or a reset)."""
         self.samples.clear()
 
     @property
     def value(self) -> float:
+        """The real-time factor over the recent stretches (sim time / wall time)."""
         if len(self.samples) < 2:
             return 0.0
         (w0, s0), (w1, s1) = self.samples[0], self.samples[-1]
@@ -227,6 +230,7 @@ class Simulation:
     # ----- clock ---------------------------------------------------------------------------------
     @property
     def time(self) -> float:
+        """Sim time, in seconds."""
         return self._time_ns / NS
 
     @property
@@ -236,6 +240,7 @@ class Simulation:
 
     @property
     def timestep(self) -> float:
+        """The physics step, in seconds."""
         return float(self.model.opt.timestep)
 
     def set_timestep(self, seconds: float) -> None:
@@ -247,6 +252,7 @@ class Simulation:
             hook(seconds)
 
     def on_timestep_change(self, hook: Callable[[float], None]) -> None:
+        """Call `hook(seconds)` whenever the physics step changes."""
         self._timestep_hooks.append(hook)
 
     def on_reset(self, hook: Callable[[], None]) -> None:
@@ -265,10 +271,12 @@ class Simulation:
         return timer
 
     def remove_periodic(self, timer: Periodic) -> None:
+        """Stop a callback add_periodic started."""
         if timer in self.periodic:
             self.periodic.remove(timer)
 
     def add_control(self, control: Control) -> None:
+        """Run `control.update(sim)` whenever it is due (its wake_ns): a controller manager."""
         self.controls.append(control)
 
     def remove_control(self, control: Control) -> None:
@@ -451,9 +459,11 @@ class Simulation:
             self._pace_origin = (wall, self.time)
 
     def pause(self) -> None:
+        """Pause: run() and the page's loop stop advancing sim time."""
         self.paused = True
 
     def resume(self) -> None:
+        """Resume after pause; the pacing starts again from now."""
         self.paused = False
         self._pace_origin = None
 
@@ -503,6 +513,7 @@ class Simulation:
         return name
 
     def remove_model(self, name: str) -> None:
+        """Delete a model add_model spawned (its controllers leave with it)."""
         if name == self.robot.name:
             raise InputError(f"'{name}' is the simulated robot; it cannot be deleted",
                              hint="delete models you spawned")
@@ -560,9 +571,11 @@ class Simulation:
         return out, given
 
     def joint_positions(self) -> np.ndarray:
+        """Every moving joint's position now (joint_names order)."""
         return self.data.qpos[self.compiled.qpos_adr].copy()
 
     def joint_velocities(self) -> np.ndarray:
+        """Every moving joint's velocity now (joint_names order)."""
         return self.data.qvel[self.compiled.dof_adr].copy()
 
     def joint_efforts(self) -> np.ndarray:
@@ -716,6 +729,7 @@ class Simulation:
         self.forces.changed = True
 
     def clear_joint_efforts(self, joint: str | None = None) -> int:
+        """End the efforts applied to `joint` (every joint: None); how many ended."""
         return self.forces.clear_joint(None if joint is None else self._dof(joint))
 
     def _dof(self, joint: str) -> int:
@@ -726,9 +740,11 @@ class Simulation:
 
     @property
     def gravity(self) -> np.ndarray:
+        """Gravity now, (x, y, z) in m/s^2."""
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
+        """Change gravity at once (x, y, z in m/s^2; ranges.GRAVITY)."""
         try:
             values = np.asarray(gravity, dtype=float)
         except (TypeError, ValueError):
@@ -744,6 +760,7 @@ class Simulation:
 
     @property
     def base_height(self) -> float:
+        """The root link's height (z in the world frame), in m."""
         return float(self.data.xpos[self.compiled.root_body][2])
 
     @property

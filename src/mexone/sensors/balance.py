@@ -83,6 +83,7 @@ class BalanceState:
 
     @property
     def statically_stable(self) -> bool:
+        """Whether the COM's ground projection is inside the support polygon."""
         return inside(self.com, self.polygon)
 
 
@@ -110,6 +111,7 @@ class Balance:
         self.seq = 0
 
     def state(self) -> BalanceState:
+        """The balance quantities now (COM, support polygon, ZMP)."""
         sim = self.sim
         data = sim.data
         com = data.subtree_com[sim.compiled.root_body].copy()
@@ -140,6 +142,7 @@ class Balance:
         return weighted / total if total > 0 else None
 
     def publish(self, sim: Simulation) -> None:
+        """The broadcaster's tick: /com, /zmp and /support_polygon for their listeners."""
         wanted = {k for k, t in self.topics.items() if self.bus.wanted(t)}
         if not wanted:
             return

@@ -118,6 +118,7 @@ class Measure:
         self.invalidate()
 
     def invalidate(self) -> None:
+        """Forget this instant's readings (the state changed under them: a reset, a teleport)."""
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
 
     def stamp(self) -> Time:
@@ -165,6 +166,7 @@ class Measure:
         return tuple(self._force6[:3].tolist())
 
     def data(self) -> np.ndarray:
+        """MuJoCo's sensordata after this instant's sensor pass."""
         sim = self.sim
         if self._at != sim.steps:
             self._sensor_pass(sim)
@@ -311,10 +313,12 @@ class Sensor:
         return self._state
 
     def invalidate(self) -> None:
+        """Forget this instant's reading (the state changed under it)."""
         self._at = -1
 
     @property
     def frame(self) -> str:
+        """The frame_id of its messages."""
         return self.spec.frame or self.link
 
     @property
@@ -323,10 +327,12 @@ class Sensor:
         return self.spec.update_rate or 1.0 / self.sim.timestep
 
     def header(self, frame: str | None = None) -> Header:
+        """A message header now: the next seq, this instant's stamp, the frame."""
         self.seq = seq = self.seq + 1
         return Header(seq, self.measure.stamp(), frame or self._frame_id)
 
     def wanted(self, output: Output) -> bool:
+        """Whether an output has listeners (a camera renders for subscribers only)."""
         topic = self.bus.topics.get(output.topic)
         if output.heavy:  # recorders alone do not make a camera render
             return topic is not None and bool(topic.subscriptions)

@@ -151,6 +151,7 @@ class CameraSensor(Sensor):
             self.bus.publish(self.topics["depth_camera_info"], camera_info(stamp, cam))
 
     def close(self) -> None:
+        """Release the renderer (its GL context): before the model changes, or at the end."""
         if self.renderer is not None:
             self.renderer.close()
             self.renderer = None

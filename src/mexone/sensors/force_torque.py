@@ -90,6 +90,7 @@ class ForceTorqueSensor(Sensor):
 
     @property
     def frame(self) -> str:
+        """The frame_id of its messages: the frame it measures in."""
         if self.spec.frame:
             return self.spec.frame
         if self.spec.ft_frame == "parent":

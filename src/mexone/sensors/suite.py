@@ -132,6 +132,7 @@ class SensorSuite:
                 del self._groups[period]
 
     def close(self) -> None:
+        """Release what the sensors hold (the cameras' renderers)."""
         for sensor in self.sensors.values():
             close = getattr(sensor, "close", None)
             if close is not None:

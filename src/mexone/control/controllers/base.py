@@ -43,6 +43,8 @@ class ControllerType:
 
     @property
     def kind(self) -> str:
+        """The class's label (position, velocity, effort, trajectory, state): control/'s own; front ends ask
+        its capabilities."""
         return self.cls.kind
 
 
@@ -124,6 +126,7 @@ class ControllerInterface:
 
     @property
     def interface(self) -> str:
+        """The hardware interface it claims (EffortJointInterface, ...; "" for a state broadcaster)."""
         return self.type.interface
 
     @property
@@ -157,6 +160,7 @@ class ControllerInterface:
         return None
 
     def set_gains(self, gains: Sequence[PidGains]) -> None:
+        """Retune live: one PidGains per joint (a controller without gains refuses)."""
         raise InputError(f"{self.name} has no PID gains to set")
 
     def command_range(self, index: int) -> tuple[float, float]:
@@ -188,12 +192,15 @@ class ControllerInterface:
 
     # ----- lifecycle (simulation thread) ------------------------------------------------------
     def starting(self, t: float) -> None:
+        """ros_control's starting(): the controller is about to run (its joints hold where they are)."""
         self._pending = None
 
     def stopping(self) -> None:
+        """ros_control's stopping(): its joints are released (the motors apply nothing)."""
         self.hw.release(self.rows)
 
     def update(self, t: float, dt: float) -> None:
+        """One cycle of the loop (simulation thread): apply the command buffered since the last one."""
         pending, self._pending = self._pending, None
         if pending is not None:
             self.apply(pending, t)
@@ -230,6 +237,7 @@ class ControllerInterface:
         return values
 
     def warn_once(self, key: str, text: str) -> None:
+        """Log `text` as this controller's warning, once per `key` (a command stream repeats its mistake)."""
         if key not in self._warned:
             self._warned.add(key)
             log.warning("%s: %s", self.name, text)
