@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from mexone.control.controllers import CONTROLLER_TYPES, Controller
+from mexone.control.controllers import CONTROLLER_TYPES, ControllerInterface
 from mexone.control.spec import ControllerSpec
 from mexone.lab import Lab
 
@@ -73,7 +73,7 @@ def test_a_running_lab_answers_through_its_controllers():
         ["joint_state_controller"]
     spec = manager.config.controllers["l_elbow_position_controller"]
     assert spec.controller_class.holds_position and spec.kind == "position"
-    assert Controller.tunable.fget is not None  # a property: gains can come and go (ideal servo)
+    assert ControllerInterface.tunable.fget is not None  # a property: gains can come and go (ideal servo)
 
 
 def test_a_python_controller_is_reloadable_and_names_its_file(tmp_path):
