@@ -19,19 +19,20 @@ import pytest
 
 from helpers import chromium, wait_until
 
-from .classroom import PASSWORD, Classroom, as_user, labs_of, missing
+from .classroom import PASSWORD, Classroom, as_user, class_names, labs_of, missing, students_venv
 
 pytestmark = pytest.mark.slow
 
-STUDENTS = ("mexone-a", "mexone-b")
+STUDENTS = tuple(class_names("a", "b"))
 CARD = '.jp-LauncherCard[title^="Mex-One lab"]'  # "Mex-One lab [↗]": a new tab
 
 
 @pytest.fixture(scope="module")
-def room():
+def room(wheel):
     why = missing()
     if why:
         pytest.skip(why)
+    students_venv(wheel)  # the session's wheel of this checkout
     classroom = Classroom(list(STUDENTS)).start()
     yield classroom
     classroom.stop()
