@@ -43,5 +43,7 @@ def test_the_tljh_script_is_valid_bash_installing_mexone_in_the_users_environmen
     script = DEPLOY / "tljh" / "install.sh"
     subprocess.run(["bash", "-n", str(script)], check=True)
     text = script.read_text()
-    assert "/opt/tljh/user/bin/pip install \"mexone[hub]\"" in text
+    # mexone is on no package index: the teacher's clone (the script's own), with the hub extra
+    assert '/opt/tljh/user/bin/pip install "$checkout[hub]"' in text
+    assert 'checkout="$(cd "$(dirname "$0")/../.." && pwd)"' in text
     assert "services.cull.timeout" in text
