@@ -8,13 +8,16 @@ thread reads the state (a snapshot) and publishes the commands.
 from __future__ import annotations
 
 import threading
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
 import viser
 
 from mexone.lab import Lab
-from mexone.motion.ik import WholeBodyIK
+
+if TYPE_CHECKING:  # mink (and scipy with it, ~35 MB) only when a student turns the handles on
+    from mexone.motion.ik import WholeBodyIK
 
 __all__ = ["IkHandles", "FRAMES", "POSED", "GAZE"]
 
@@ -63,6 +66,8 @@ class IkHandles:
             return
         with self.lock:
             if self.ik is None:
+                from mexone.motion.ik import WholeBodyIK
+
                 self.ik = WholeBodyIK.for_sim(self.lab.sim)
             self.ik.reset(self.lab.sim.data.qpos.copy())
             poses = {frame: self.ik.pose(frame) for frame in FRAMES}
