@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from helpers import chromium, wait_until
+from mexone.gui.security import PAGE
 
 from .classroom import PASSWORD, Classroom, as_user, class_names, labs_of, missing, students_venv
 
@@ -53,15 +54,21 @@ def _shoulder_slider() -> int:
     return joints.index("l_shoulder_pitch")
 
 
-def _open_lab(browser, room, name):
-    """Log in as `name`, open the launcher card: (context, JupyterLab tab, the lab's tab)."""
-    context = browser.new_context(viewport={"width": 1100, "height": 800})
+def _log_in(browser, room, name, wait_until: str = "load"):
+    """A browser context logged in as `name` and its tab on their JupyterLab."""
+    context = browser.new_context(viewport={"width": 960, "height": 680})
     jlab = context.new_page()
     jlab.goto(f"{room.url}/hub/login")
     jlab.fill("#username_input", name)
     jlab.fill("#password_input", PASSWORD)
     jlab.click("#login_submit")
-    jlab.wait_for_url(re.compile(rf"/user/{name}/lab"), timeout=240_000)
+    jlab.wait_for_url(re.compile(rf"/user/{name}/lab"), timeout=240_000, wait_until=wait_until)
+    return context, jlab
+
+
+def _open_lab(browser, room, name):
+    """Log in as `name`, open the launcher card: (context, JupyterLab tab, the lab's tab)."""
+    context, jlab = _log_in(browser, room, name)
     card = jlab.locator(CARD)
     card.wait_for(timeout=180_000)
     for dialog in jlab.locator(".jp-Dialog").all():  # e.g. "the server was restarted": dismiss
@@ -98,6 +105,10 @@ def _picture(lab) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def sessions(room, browser):
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(len(STUDENTS)) as starting:  # both servers at once: logging in
+        list(starting.map(room.spawn, STUDENTS))  # then finds each running (no wait on spawn)
     opened = {name: _open_lab(browser, room, name) for name in STUDENTS}
     yield opened
     for context, *_ in opened.values():
@@ -210,7 +221,11 @@ def test_a_stopped_server_stops_its_lab_and_the_launcher_starts_it_again(room, b
     sessions[name][0].close()
     room.stop_server(name)  # what jupyterhub-idle-culler does to an idle student
     assert wait_until(lambda: not labs_of(name), timeout=30), "the lab outlived its server"
-    context, _, lab = _open_lab(browser, room, name)
+    # the next visit: log in (the hub starts the server again) and open the lab's address, the
+    # one the launcher card opens (the card itself is tested above), without JupyterLab's page
+    context, jlab = _log_in(browser, room, name, wait_until="commit")
+    lab = jlab
+    lab.goto(f"{room.url}/user/{name}/mexone/{PAGE}", timeout=180_000)
     try:
         assert wait_until(lambda: _rtf(lab) >= 0.9, timeout=60)
         (after,) = labs_of(name)
