@@ -56,7 +56,7 @@ def _shoulder_slider() -> int:
 
 def _log_in(browser, room, name, wait_until: str = "load"):
     """A browser context logged in as `name` and its tab on their JupyterLab."""
-    context = browser.new_context(viewport={"width": 960, "height": 680})
+    context = browser.new_context(viewport={"width": 1100, "height": 800})
     jlab = context.new_page()
     jlab.goto(f"{room.url}/hub/login")
     jlab.fill("#username_input", name)
