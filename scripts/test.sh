@@ -55,4 +55,5 @@ npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
 npm install --prefix tests/hub --no-audit --no-fund --silent
 [ "$(id -u)" != 0 ] || python3 tests/hub/classroom.py
 python3 -m ruff check .
+python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
 python3 -m pytest "$@"
