@@ -17,7 +17,7 @@ import viser
 from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 
-if TYPE_CHECKING:  # mink (and scipy with it, ~35 MB) only when a student turns the handles on
+if TYPE_CHECKING:  # mink and its QP solvers only when a student turns the handles on
     from mexone.motion.ik import WholeBodyIK
 
 __all__ = ["IkHandles", "IkHandlesPanel", "FRAMES", "POSED", "GAZE"]
