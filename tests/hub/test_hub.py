@@ -91,12 +91,12 @@ def _rtf(lab) -> float:
     return float(re.search(r"real-time factor\s+([0-9.]+)", status.inner_text()).group(1))
 
 
-def _picture(lab) -> np.ndarray:
+def _picture(lab, box: dict) -> np.ndarray:
+    """The 3D view (`box`: the canvas's place on the page, not the panel's text), in grey."""
     from io import BytesIO
 
     from PIL import Image
 
-    box = lab.locator("canvas").first.bounding_box()  # the 3D view only, not the panel's text
     # a page's screenshot (the canvas redraws, never "stable"); software WebGL on a busy
     # machine may take long over one
     shot = lab.screenshot(clip=box, timeout=120_000)
@@ -119,16 +119,17 @@ def test_each_student_sees_mex_one_standing_at_real_time_and_moves_a_joint(sessi
     index = _shoulder_slider()
     for name, (_, _, lab) in sessions.items():
         assert wait_until(lambda lab=lab: _rtf(lab) >= 0.9, timeout=60), f"{name}: not at real time"
-        lab.locator("canvas").first.wait_for()
+        # where the 3D view is, once (a page starved of CPU answers slowly)
+        box = lab.locator("canvas").first.bounding_box(timeout=120_000)
         time.sleep(1.0)  # the first frames: the scene arrives
-        still = _picture(lab)
-        assert wait_until(lambda lab=lab, still=still: np.abs(_picture(lab) - still).mean() < 1.0,
+        still = _picture(lab, box)
+        assert wait_until(lambda: np.abs(_picture(lab, box) - still).mean() < 1.0,  # noqa: B023
                           timeout=30, poll=0.5), f"{name}: Mex-One is not standing still"
         assert still.std() > 5.0, f"{name}: an empty page"  # the robot, not a blank canvas
         slider = lab.get_by_role("slider").nth(index)
-        slider.focus()
-        slider.press("End")  # l_shoulder_pitch to its upper limit, 3 rad: the arm swings
-        assert wait_until(lambda lab=lab, still=still: np.abs(_picture(lab) - still).mean() > 1.5,
+        slider.focus(timeout=120_000)
+        slider.press("End", timeout=120_000)  # l_shoulder_pitch to its upper limit, 3 rad
+        assert wait_until(lambda: np.abs(_picture(lab, box) - still).mean() > 1.5,  # noqa: B023
                           timeout=30, poll=0.5), f"{name}: the arm did not move on the page"
 
 
