@@ -137,19 +137,27 @@ class State:
     the call: copy what you keep), `all_q`/`all_dq` (MuJoCo's qpos, nq long, and qvel, nv long:
     index qvel-sized vectors with `self.dofs`), `time` (s of sim time), `base` (BaseState or
     None) and `sensors` (name -> the sensor's state: mexone.sensors ImuState, ForceTorqueState,
-    ContactSensorState). `base` and `sensors` are computed only when read."""
+    ContactSensorState). `base` and `sensors` are computed only when read. Every array is
+    read-only: a controller reads the simulation, it never writes it."""
 
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
-                 "_sensors", "_base")
+                 "_sensors", "_base", "_all_q", "_all_dq")
 
-    def __init__(self, n: int, data, base_joint: int | None, sensor_source=None):
+    def __init__(self, n: int, data, base_joint: tuple[int, int] | None, sensor_source=None):
         self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
         self.time = 0.0
-        self._data = data
         self._base_joint = base_joint  # qpos/qvel address of the free joint, or None
         self._sensor_source = sensor_source  # () -> mapping, or None
         self._sensors: Mapping | None = None
         self._base: BaseState | None = None
+        self._bind(data)
+
+    def _bind(self, data) -> None:
+        """Read from `data` (MuJoCo's MjData, or anything with qpos and qvel arrays): all_q and
+        all_dq become read-only views of them."""
+        self._data = data
+        self._all_q = _read_only(data.qpos if data is not None else np.zeros(0))
+        self._all_dq = _read_only(data.qvel if data is not None else np.zeros(0))
 
     def _refresh(self, time: float) -> None:
         self.time = time
@@ -158,19 +166,19 @@ class State:
 
     @property
     def all_q(self) -> np.ndarray:
-        return self._data.qpos
+        return self._all_q
 
     @property
     def all_dq(self) -> np.ndarray:
-        return self._data.qvel
+        return self._all_dq
 
     @property
     def base(self) -> BaseState | None:
         if self._base is None and self._base_joint is not None:
             qa, va = self._base_joint
-            data = self._data
-            self._base = BaseState(data.qpos[qa:qa + 3].copy(), data.qpos[qa + 3:qa + 7].copy(),
-                                   data.qvel[va:va + 3].copy(), data.qvel[va + 3:va + 6].copy())
+            q, dq = self._all_q, self._all_dq
+            self._base = BaseState(q[qa:qa + 3].copy(), q[qa + 3:qa + 7].copy(),
+                                   dq[va:va + 3].copy(), dq[va + 3:va + 6].copy())
         return self._base
 
     @property
@@ -178,6 +186,25 @@ class State:
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
         return self._sensors
+
+
+def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """A view of array[index] when the indices are evenly spaced and increasing (a limb's joints
+    usually are), else None."""
+    if len(index) == 0:
+        return None
+    if len(index) == 1:
+        return array[int(index[0]):int(index[0]) + 1]
+    step = int(index[1] - index[0])
+    if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
+        return None
+    return array[int(index[0]):int(index[-1]) + 1:step]
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 class PythonController:
