@@ -174,6 +174,7 @@ def controller_reports(lab) -> dict:
     controller a fault stopped is there with `"fault"`, its one line: a script reading the
     summary must not take a run whose controller died at t = 0.5 s for a clean one."""
     from mexone.control.controllers import PythonRunner
+    from mexone.control.worker import StudentFault
 
     out: dict = {}
     for name, ctrl in (lab.controllers.controllers.items() if lab.controllers else ()):
@@ -185,6 +186,8 @@ def controller_reports(lab) -> dict:
                 report = ctrl.report()
                 if report is not None:
                     out[name] = _strict(json.loads(json.dumps(report, default=_plain)))
+            except StudentFault as exc:  # in its own process: its one line (file:line)
+                out[name] = {"error": str(exc)}
             except Exception as exc:  # noqa: BLE001 - the student's code: said, the summary goes on
                 out[name] = {"error": f"report() raised {type(exc).__name__}: {_said(exc)}"}
         if fault:  # first, and not hidden by a report's own "fault"

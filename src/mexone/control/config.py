@@ -125,7 +125,7 @@ def _prestart(reader: _Reader, body: yaml.Node, classes: dict[str, type] | None)
                     ctype not in (classes or {}) and not ctype.startswith(("mexone/", "mexone.")):
                 count += 1
     if count > 1:
-        prestart(count)
+        prestart(count, (reader.path.resolve().parent,) if reader.path is not None else ())
 
 
 def _is_controller(node: yaml.Node) -> bool:

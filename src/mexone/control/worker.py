@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import dataclasses
 import hashlib
 import math
 import os
@@ -54,12 +55,12 @@ from mexone.errors import InputError
 from mexone.ranges import number_text
 from mexone.sandbox import Jail, Limits, StudentProcess, spawn
 from mexone.sandbox.ended import WHERE_SIGNAL, read_dump, student_line, why_ended
-from mexone.sandbox.wire import Channel, WireError, pair
+from mexone.sandbox.wire import Channel, WireError, frame, pair
 
 __all__ = ["ClassInfo", "Layout", "Worker", "WorkerFailed", "StudentFault", "describe", "claim",
            "resolve", "prestart", "stand_in", "set_jail", "STARTUP_TIMEOUT", "POOL_IDLE", "MAIN"]
 
-MAIN = "mexone.control.worker_main"  # the worker's entry point: python -m MAIN SOCKET_FD DUMP_FD
+MAIN = "mexone.control.worker_main"  # python -m MAIN FRAMES_FD DESCRIPTORS_FD DUMP_FD
 STARTUP_TIMEOUT = 60.0  # s for a worker's interpreter to start and import mexone (mexone's time)
 POOL_IDLE = 30.0  # s a described, unclaimed worker waits for its controller before it ends
 WHERE_TIMEOUT = 0.5  # s a stuck worker gets to say where it is before it is ended
@@ -74,6 +75,8 @@ UPDATE, CALL, FILLED = b"U", b"J", b"F"
 DONE, KEPT, UPDATE_FAULT, REPLY = b"D", b"N", b"Q", b"R"
 LOG, THREAD_FAULT, SENSOR, PARAMS = b"L", b"X", b"S", b"P"
 _ENDS_UPDATE = (DONE, KEPT, UPDATE_FAULT)
+UPDATE_FRAME, DONE_FRAME, KEPT_FRAME, FILLED_FRAME = (frame(k) for k in (UPDATE, DONE, KEPT,
+                                                                        FILLED))
 
 _jail = Jail(limits=Limits(time=math.inf, cpu=1e9, memory_mb=4096))
 
@@ -244,8 +247,8 @@ class Layout:
     """Where each number is in a worker's shared memory (float64 slots). The input block (the
     worker maps it read-only): t, dt, measure, qpos, qvel, qfrc_actuator, mocap positions and
     quaternions, each sensor's fields, each chained input. The output block (page-aligned
-    after it; the worker may write it): its update's wall time and run-queue delay, the
-    command, each export."""
+    after it; the worker may write it): its update's wall time, its run-queue delay, the line
+    of the `return` that produced the command, the command, each export."""
 
     n: int
     nq: int
@@ -256,7 +259,7 @@ class Layout:
     exports: tuple[tuple[str, int], ...] = ()
 
     HEAD = 3  # t, dt, measure
-    OUT_HEAD = 2  # elapsed, run delay
+    OUT_HEAD = 3  # elapsed, run delay, return line
 
     @property
     def inputs_size(self) -> int:
@@ -360,28 +363,33 @@ class Worker:
     Serves the worker's requests while it waits (`handler`: the runner, with on_log,
     on_thread_fault, on_sensor, on_params)."""
 
-    def __init__(self, jail: Jail | None = None):
-        self.jail = jail or _jail
+    def __init__(self, jail: Jail | None = None, readable: tuple[Path, ...] = ()):
+        jail = jail or _jail
+        self.jail = dataclasses.replace(jail, readable=tuple(dict.fromkeys(
+            (*jail.readable, *readable))))
         self.file = ""  # the student's file, once known (for its line in a dump)
         self.handler: Any = None
         self.thread: int | None = None
+        self.pid: int | None = None
         self.pending = False  # a request whose answer has not been read (an interrupted wait)
         self.inputs: np.ndarray | None = None
         self.outputs: np.ndarray | None = None
         self._mapped = None
         chan, theirs = pair()
         dump_r, dump_w = os.pipe()
+        fds = (theirs[0].fileno(), theirs[1].fileno(), dump_w)
         try:
             os.set_blocking(dump_r, False)
             self.process: StudentProcess = spawn(
-                [sys.executable, "-m", MAIN, str(theirs.fileno()), str(dump_w)], self.jail,
-                pass_fds=(theirs.fileno(), dump_w), env=_environment(), stdout=2)
+                [sys.executable, "-m", MAIN, *map(str, fds)], self.jail, pass_fds=fds,
+                env=_environment(), stdout=2)
         except BaseException:
             chan.close()
             os.close(dump_r)
             raise
         finally:
-            theirs.close()
+            for sock in theirs:
+                sock.close()
             os.close(dump_w)
         self.chan, self.dump = chan, dump_r
         self.started = time.monotonic()
@@ -395,12 +403,16 @@ class Worker:
         if not isinstance(reply, dict) or not isinstance(reply.get("thread"), int):
             self._failed("sent a malformed greeting")
         self.thread = reply["thread"]
+        # the process itself (a jail's relay may stand between): whom WHERE_SIGNAL goes to
+        self.pid = self.chan.peer(1.0) or self.process.pid
 
     def call(self, request: dict, timeout: float, fds: Sequence[int] = ()) -> Any:
         """Ask; the answer's value, StudentFault for the student's error, WorkerFailed else."""
         self._settle()
         try:
-            self.chan.send_json(CALL, request, tuple(fds))
+            if fds:
+                self.chan.hand_over(tuple(fds))
+            self.chan.send_json(CALL, dict(request, fds=len(fds)))
         except WireError:
             self._ended()
         return self._answer(timeout, str(request.get("call")))
@@ -458,7 +470,7 @@ class Worker:
             if handler is None or not isinstance(index, int) or not handler.on_sensor(index):
                 self._failed("asked for a sensor it has not got")
             try:
-                self.chan.send(FILLED)
+                self.chan.send_frame(FILLED_FRAME)
             except WireError:
                 self._ended()
         elif kind == PARAMS:
@@ -506,7 +518,7 @@ class Worker:
             return student_line(text, self.file, self.thread) is not None
 
         with contextlib.suppress(ProcessLookupError, PermissionError):
-            os.kill(self.process.pid, WHERE_SIGNAL)
+            os.kill(self.pid or self.process.pid, WHERE_SIGNAL)
             return student_line(read_dump(self.dump, WHERE_TIMEOUT, found), self.file,
                                 self.thread)
         return None
@@ -598,7 +610,7 @@ def describe(ctype: str, yaml_dir: Path | None, shipped: list[str], fresh: bool 
         known = _described.get(key)
     if known is not None and not fresh and known.current():
         return known
-    worker = _start()
+    worker = _start(_readable(found, yaml_dir))
     try:
         info = _describe_in(worker, ctype, yaml_dir, shipped, found)
     except BaseException:
@@ -616,18 +628,39 @@ _spares: list[Worker] = []  # started ahead (prestart), not yet greeted
 _SPARES_MAX = 8
 
 
-def prestart(count: int) -> None:
+def prestart(count: int, readable: tuple[Path, ...] = ()) -> None:
     """Start `count` workers now, without waiting for them (a YAML of several Python controllers:
-    their interpreters start side by side, while this process reads on)."""
+    their interpreters start side by side, while this process reads on); `readable`: the
+    folders their code is in (the YAML's)."""
     with _lock:
         while len(_spares) < min(count, _SPARES_MAX):
-            _spares.append(Worker())
+            _spares.append(Worker(readable=readable))
 
 
-def _start() -> Worker:
+def _readable(found: Found, yaml_dir: Path | None) -> tuple[Path, ...]:
+    """The folders a worker for `found` must read (besides Python's and mexone's): the YAML's,
+    the student's file's, the module's."""
+    folders = [yaml_dir] if yaml_dir is not None else []
+    if found.kind == "file":
+        folders.append(Path(found.name).parent)
+    elif found.kind == "module":
+        with contextlib.suppress(ImportError, ValueError, AttributeError):
+            import importlib.util
+
+            spec = importlib.util.find_spec(found.name.split(".")[0])
+            origin = Path(spec.origin) if spec and spec.origin else None
+            if origin is not None:
+                folders.append(origin.parent.parent if origin.name == "__init__.py"
+                               else origin.parent)
+    return tuple(dict.fromkeys(f for f in folders if f is not None))
+
+
+def _start(readable: tuple[Path, ...] = ()) -> Worker:
     with _lock:
-        worker = _spares.pop(0) if _spares else None
-    worker = worker if worker is not None and worker.alive else Worker()
+        index = next((i for i, w in enumerate(_spares)
+                      if set(readable) <= set(w.jail.readable)), None)
+        worker = _spares.pop(index) if index is not None else None
+    worker = worker if worker is not None and worker.alive else Worker(readable=readable)
     try:
         worker.ready()
     except WorkerFailed as exc:
@@ -679,9 +712,10 @@ def claim(info: ClassInfo, ctype: str, yaml_dir: Path | None) -> Worker:
                     return entry.worker
                 entry.worker.kill()
                 break
-    worker = _start()
+    found = locate(ctype, yaml_dir, [])
+    worker = _start(_readable(found, yaml_dir))
     try:
-        now = _describe_in(worker, ctype, yaml_dir, [])
+        now = _describe_in(worker, ctype, yaml_dir, [], found)
     except BaseException:
         worker.kill()
         raise

@@ -30,9 +30,27 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from mexone.control.mistakes import not_numbers, wrong_count
+from mexone.control.watchdog import run_delay
+from mexone.control.worker import (
+    CALL,
+    DONE_FRAME,
+    FILLED,
+    KEPT_FRAME,
+    LOG,
+    PARAMS,
+    POOL_IDLE,
+    REPLY,
+    SENSOR,
+    THREAD_FAULT,
+    UPDATE,
+    UPDATE_FAULT,
+    Layout,
+)
+
 
 def main(argv: list[str]) -> None:
-    sock_fd, dump_fd = int(argv[0]), int(argv[1])
+    sock_fd, descriptors_fd, dump_fd = (int(a) for a in argv[:3])
     from mexone.sandbox import ended, guard
 
     ended.dump_to(dump_fd)
@@ -40,7 +58,7 @@ def main(argv: list[str]) -> None:
                      name="mexone lifeline").start()
     guard.install("a controller")
     try:
-        host = _Host(sock_fd)
+        host = _Host(sock_fd, descriptors_fd)
         host.serve()
     except BaseException:  # noqa: BLE001 - mexone's side says what happened; never a traceback here
         guard.real_exit(70)
@@ -66,16 +84,19 @@ class _Quit(Exception):
 class _Host:
     """The worker: its channel, the student's class and object, and the state it reads."""
 
-    def __init__(self, sock_fd: int):
+    DONE, KEPT = DONE_FRAME, KEPT_FRAME
+
+    def __init__(self, sock_fd: int, descriptors_fd: int):
         import numpy as np
 
         from mexone.control import watchdog
-        from mexone.control.worker import CALL, REPLY, UPDATE
         from mexone.sandbox.wire import Channel
 
         watchdog.STUDENT_SETUP_TIMEOUT = 1e9  # mexone's side times the student (and ends us)
         self.np = np
-        self.chan = Channel(socket.socket(fileno=sock_fd), with_fds=True)
+        self.chan = Channel(socket.socket(fileno=sock_fd), socket.socket(fileno=descriptors_fd),
+                            student=True)
+        self.chan.introduce()
         self.lock = threading.Lock()  # a thread of the student's logs or faults too
         self.cls = None
         self.impl = None
@@ -103,8 +124,6 @@ class _Host:
 
     # ----- the loop -------------------------------------------------------------------------------
     def serve(self) -> None:
-        from mexone.control.worker import POOL_IDLE
-
         while True:
             idle = POOL_IDLE if self.impl is None else None  # described, never claimed: end
             frame = self.chan.receive(idle)
@@ -128,7 +147,6 @@ class _Host:
         self.send(kind, obj)
 
     def request(self, payload: bytes) -> None:
-        from mexone.control.worker import REPLY
         from mexone.errors import MexoneError
 
         request = json.loads(payload)
@@ -165,7 +183,9 @@ class _Host:
         except BaseException as exc:  # noqa: BLE001 - a KeyboardInterrupt the module raised
             raise _import_failure(exc, None, ctype) from None
         self.cls = cls
-        return self.describe(cls, origin)
+        info = self.describe(cls, origin)
+        self.watch_threads()
+        return info
 
     def describe(self, cls, origin: str) -> dict:
         import inspect
@@ -234,6 +254,7 @@ class _Host:
         self.impl = impl
         self.update_fn = impl.update
         self.traced = len(self.returns) > 1
+        self.shape = (self.layout.n,)
         self.student("configure", impl.configure)
         self.sent_params = dict(impl.params) if isinstance(impl.params, dict) else {}
         return self.sent_params
@@ -241,8 +262,6 @@ class _Host:
     def attach(self, request: dict) -> None:
         """Map the shared block (the fd sent with the request), load the model if one came."""
         import mmap
-
-        from mexone.control.worker import Layout
 
         layout = Layout.from_json(request["layout"])
         fds = self.take_fds(1 + ("model" in request))
@@ -255,15 +274,13 @@ class _Host:
         self.inp = np.frombuffer(inputs, np.float64, layout.inputs_size)
         self.out = np.frombuffer(outputs, np.float64, max(1, layout.outputs_size))
         self.views = layout.views(self.inp, self.out)
+        self.command = self.views["command"]
         self.layout = layout
         if "model" in request:
             self.load_model(fds[1], request["model"])
 
     def take_fds(self, count: int) -> list[int]:
-        fds, self.chan.fds[:] = self.chan.fds[:count], self.chan.fds[count:]
-        if len(fds) != count:
-            raise _Quit
-        return fds
+        return self.chan.take(count)
 
     def load_model(self, fd: int, about: dict) -> None:
         """Keep the compiled model's file; it is loaded when `self.dynamics` is first read (a
@@ -343,24 +360,32 @@ class _Host:
                          f"{_safe_str(exc)})") from None
 
     def do_quit(self, request: dict) -> list[str]:
-        """Threads of the student's still running, one line each (they end with this process)."""
+        """Threads the student started still running, one line each (they end with this
+        process), naming where each was started."""
         lines = []
-        frames = sys._current_frames()
         for thread in threading.enumerate():
-            if thread is threading.current_thread() or thread.name == "mexone lifeline" \
-                    or thread.ident not in frames:
+            started = getattr(thread, "_mexone_started", None)
+            if started is None or not thread.is_alive():
                 continue
-            line = self.line_in(frames[thread.ident])
-            where = f" at {self.file}:{line}" if line else ""
-            lines.append(f"its thread '{thread.name}' was still running{where}: it ended with "
-                         "the controller's process")
+            lines.append(f"its thread '{thread.name}', started at {started}, was still running: "
+                         "it ended with the controller's process")
         return lines
 
-    def update(self, payload: bytes) -> None:
-        """One update: the state is in shared memory; the command goes back there."""
-        from mexone.control.watchdog import run_delay
-        from mexone.control.worker import DONE, KEPT
+    def watch_threads(self) -> None:
+        """Each thread the student's code starts remembers where (for do_quit's line)."""
+        host, start = self, threading.Thread.start
 
+        def started(thread, *args, **kwargs):
+            line = host.line_in(sys._getframe(1))
+            thread._mexone_started = f"{host.file}:{line}" if line else host.file
+            return start(thread, *args, **kwargs)
+
+        threading.Thread.start = started
+
+    def update(self, payload: bytes = b"") -> None:
+        """One update: the state is in shared memory; the command goes back there, with the
+        line of the `return` that produced it (mexone checks the numbers, and names that line
+        for a NaN)."""
         state = self.fresh_state()
         inp, out = self.inp, self.out
         t, dt = state.time, float(inp[1])
@@ -396,51 +421,36 @@ class _Host:
         if result is None:
             self._frame = None
             with self.lock:
-                self.chan.send(KEPT)
+                self.chan.send_frame(self.KEPT)
             return
-        values = self.checked(result, t)
-        if values is None:
-            return
-        self.views["command"][:] = values
-        with self.lock:
-            self.chan.send(DONE)
-
-    def checked(self, result: Any, t: float):
-        """The student's return value as n finite numbers, else its fault (at the `return`
-        that produced it)."""
-        from mexone.control.mistakes import non_finite, not_numbers, wrong_count
-
-        np = self.np
-        n = self.layout.n
         line = self._return_line()
-        where = f"{self.file}:{line}"
+        out[2] = line
         try:
-            values = np.asarray(result, dtype=float)
-            size = values.size
+            values = self.np.asarray(result, dtype=float)
+            if values.shape != self.shape:
+                if values.size != self.shape[0]:
+                    self.fault(wrong_count(values.size, self.shape[0], f"{self.file}:{line}"))
+                    return
+                values = values.reshape(self.shape)
         except BaseException:  # noqa: BLE001 - whatever their object raises
-            self.fault(not_numbers(result, where))
-            return None
-        if values.shape != (n,):
-            if size != n:
-                self.fault(wrong_count(size, n, where))
-                return None
-            values = values.reshape(n)
-        if not np.isfinite(values).all():
-            self.fault(non_finite(self.impl.joints, values, t, where))
-            return None
-        return values
+            self.fault(not_numbers(result, f"{self.file}:{line}"))
+            return
+        self.command[:] = values
+        with self.lock:
+            self.chan.send_frame(self.DONE)
 
     def _trace(self, frame, event, arg):
         self._frame = frame  # the update's frame: its last line, once it returns, is the return's
         sys.settrace(None)
 
-    def _return_line(self) -> int | str:
+    def _return_line(self) -> int:
+        """The line of the `return` that ended this update (0: unknown)."""
         frame, self._frame = self._frame, None
         if frame is not None:
             return frame.f_lineno
         if len(self.returns) == 1:
             return self.returns[0]
-        return self.update_line or "?"
+        return self.update_line or 0
 
     @property
     def update_line(self) -> int | None:
@@ -452,8 +462,6 @@ class _Host:
             return None
 
     def fault(self, text: str) -> None:
-        from mexone.control.worker import UPDATE_FAULT
-
         self.send(UPDATE_FAULT, {"fault": text})
 
     # ----- the student's code ----------------------------------------------------------------------
@@ -485,8 +493,6 @@ class _Host:
 
     def _thread_raised(self, args) -> None:
         """A thread the student started raised: the controller's fault, in one line."""
-        from mexone.control.worker import THREAD_FAULT
-
         if args.exc_type is SystemExit:
             return
         exc = args.exc_value if args.exc_value is not None else args.exc_type()
@@ -495,8 +501,6 @@ class _Host:
             self.send(THREAD_FAULT, {"fault": f"its thread '{name}' raised {self.where(exc)}"})
 
     def _params_changed(self) -> None:
-        from mexone.control.worker import PARAMS
-
         params = getattr(self.impl, "params", None)
         if not isinstance(params, dict) or params == self.sent_params:
             return
@@ -565,8 +569,6 @@ class _Sensors(Mapping):
             raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
                            f"{', '.join(self.index) or 'none'})")
         if not self.wanted[index]:
-            from mexone.control.worker import FILLED, SENSOR
-
             self.host.send(SENSOR, {"sensor": index})
             frame = self.host.chan.receive(None)
             if frame is None or frame[0] != FILLED:
@@ -589,8 +591,6 @@ class _ToMexone(logging.Handler):
         self.host = host
 
     def emit(self, record: logging.LogRecord) -> None:
-        from mexone.control.worker import LOG
-
         with contextlib.suppress(BaseException):
             self.host.send(LOG, {"level": int(record.levelno), "text": record.getMessage()})
 

@@ -35,7 +35,7 @@ def install(whose: str) -> None:
     import posix
 
     exits = f"would end {whose}'s process (return from the method instead)"
-    starts = f"{whose} may not start processes: its process computes, and only that"
+    starts = f"{whose} may not start processes (its process computes, and only that)"
     table = {
         "_exit": exits, "fork": starts, "forkpty": starts, "execv": starts, "execve": starts,
         "posix_spawn": starts, "posix_spawnp": starts, "system": starts,
@@ -60,8 +60,9 @@ def install(whose: str) -> None:
 
 def _refuse(name: str, why: str) -> Callable:
     def refused(*args, **kwargs):
-        shown = repr(args[0])[:40] if args and name in ("_exit", "system") else ""
-        raise Refused(f"{name}({shown}) {why}")
+        if name == "_exit":
+            raise Refused(f"_exit({repr(args[0])[:40] if args else ''}) {why}")
+        raise Refused(f"{name}(): {why}")
 
     refused.__name__ = refused.__qualname__ = name.rpartition(".")[2]
     return refused

@@ -1,11 +1,12 @@
 """The wire between mexone and a student's process: frames of one kind byte, a length and a
-payload (bytes, or JSON text for structured messages), with file descriptors beside them where a
-frame hands one over (a shared-memory block). Never a pickle: what a student's process sends is
-data, read with a size limit and `json.loads`, so no object of its making reaches mexone.
+payload (bytes, or JSON text for structured messages), and descriptors (a shared-memory block)
+handed over on a socket of their own. Never a pickle: what a student's process sends is data,
+read with a size limit and `json.loads`, so no object of its making reaches mexone.
 
-`Channel` is one end of a socketpair. mexone's end never blocks past a deadline: `receive`
-takes a timeout, and `send` gives up when the other side stops reading; a process that hangs
-or floods is the caller's to end (its `StudentProcess.kill`).
+`Channel` is one end. mexone's end never blocks past a deadline: `receive` takes a timeout, and
+`send` gives up when the other side stops reading; a process that hangs or floods is the
+caller's to end (its `StudentProcess.kill`). A frame with no payload is five bytes: what a
+lockstep loop sends each way per cycle (`frame`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import socket
 import struct
 import time
 
-__all__ = ["Channel", "WireError", "MAX_FRAME", "pair"]
+__all__ = ["Channel", "WireError", "MAX_FRAME", "pair", "frame"]
 
 MAX_FRAME = 1 << 20  # bytes one frame may carry (a report, a class's description, a fault)
 _HEADER = struct.Struct("<cI")  # kind (one byte), payload length
@@ -29,41 +30,46 @@ class WireError(Exception):
     """The other side hung up, sent what the protocol does not allow, or stopped reading."""
 
 
-def pair() -> tuple[Channel, socket.socket]:
-    """A Channel for mexone's end, and the other end's socket to hand to the student's process
-    (`pass_fds`; close it here once the process started)."""
+def frame(kind: bytes, payload: bytes = b"") -> bytes:
+    """A frame's bytes (build a payload-less one once, send it every cycle)."""
+    return _HEADER.pack(kind, len(payload)) + payload
+
+
+def pair() -> tuple[Channel, tuple[socket.socket, socket.socket]]:
+    """A Channel for mexone's end, and the other end's two sockets (frames, descriptors) to hand
+    to the student's process (`pass_fds`; close them here once it started)."""
     ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
-    return Channel(ours), theirs
+    our_fds, their_fds = socket.socketpair(socket.AF_UNIX, socket.SOCK_STREAM)
+    with contextlib.suppress(AttributeError, OSError):  # the kernel tells us who writes (Linux)
+        our_fds.setsockopt(socket.SOL_SOCKET, socket.SO_PASSCRED, 1)
+    return Channel(ours, our_fds), (theirs, their_fds)
 
 
 class Channel:
-    """One end of a frame socket. `max_frame`: the largest payload accepted from the other side;
-    `with_fds`: receive descriptors the other side hands over (the student's end, which gets its
-    shared memory this way)."""
+    """One end of a frame socket (and of its descriptor socket, `fds`). `student`: the student's
+    end, which blocks as a pipe does; mexone's end never does. `max_frame`: the largest payload
+    accepted from the other side."""
 
-    def __init__(self, sock: socket.socket, max_frame: int = MAX_FRAME, with_fds: bool = False):
-        self.sock = sock
+    def __init__(self, sock: socket.socket, fds: socket.socket | None = None,
+                 max_frame: int = MAX_FRAME, student: bool = False):
+        self.sock, self.fds = sock, fds
         self.fd = sock.fileno()
         self.max_frame = max_frame
-        self.with_fds = with_fds
-        self.fds: list[int] = []  # descriptors received, oldest first (the receiver takes them)
+        self.student = student
         self._buf = bytearray()
         self._poll = select.poll()
         self._poll.register(self.fd, select.POLLIN)
-        if not with_fds:  # mexone's end: writes never block (see send)
+        if not student:
             os.set_blocking(self.fd, False)
 
     # ----- sending ------------------------------------------------------------------------------
-    def send(self, kind: bytes, payload: bytes = b"", fds: tuple[int, ...] = (),
-             timeout: float = 10.0) -> None:
-        """One frame (and `fds` with it). mexone's end gives up after `timeout` s of the other
-        side not reading (WireError); the student's end blocks as a pipe does."""
-        data = _HEADER.pack(kind, len(payload)) + payload
-        if fds:
-            sent = socket.send_fds(self.sock, [data[:1]], list(fds))
-            data = data[sent:]
-        if not data:
-            return
+    def send(self, kind: bytes, payload: bytes = b"", timeout: float = 10.0) -> None:
+        """One frame. mexone's end gives up after `timeout` s of the other side not reading
+        (WireError); the student's end blocks."""
+        self.send_frame(_HEADER.pack(kind, len(payload)) + payload, timeout)
+
+    def send_frame(self, data: bytes, timeout: float = 10.0) -> None:
+        """A frame's bytes (`frame`)."""
         try:
             written = os.write(self.fd, data)  # the usual case: all of it at once
         except BlockingIOError:
@@ -88,44 +94,76 @@ class Channel:
             except OSError as exc:
                 raise WireError(f"the other side hung up ({exc.strerror})") from None
 
-    def send_json(self, kind: bytes, obj: object, fds: tuple[int, ...] = (),
-                  timeout: float = 10.0) -> None:
-        self.send(kind, json.dumps(obj, separators=(",", ":")).encode(), fds, timeout)
+    def send_json(self, kind: bytes, obj: object, timeout: float = 10.0) -> None:
+        self.send(kind, json.dumps(obj, separators=(",", ":")).encode(), timeout)
+
+    def hand_over(self, descriptors: tuple[int, ...]) -> None:
+        """Descriptors for the other side (which `take`s them), on the descriptor socket."""
+        try:
+            socket.send_fds(self.fds, [b"d"], list(descriptors))
+        except OSError as exc:
+            raise WireError(f"the other side hung up ({exc.strerror})") from None
+
+    def take(self, count: int) -> list[int]:
+        """The student's end: the `count` descriptors mexone handed over with its last call."""
+        _, fds, _, _ = socket.recv_fds(self.fds, 1, count)
+        if len(fds) != count:
+            for fd in fds:
+                os.close(fd)
+            raise WireError(f"{len(fds)} descriptors, not {count}")
+        return fds
+
+    def introduce(self) -> None:
+        """The student's end, once: one byte on the descriptor socket, whose credentials the
+        kernel attaches (`peer`)."""
+        self.fds.sendall(b"c")
+
+    def peer(self, timeout: float) -> int | None:
+        """mexone's end: the pid (as this process sees it: a PID namespace translated) of the
+        process that `introduce`d itself, as the kernel says, not as it might claim; None where
+        the kernel does not say (not Linux) or nothing came within `timeout` s."""
+        cred = getattr(socket, "SCM_CREDENTIALS", None)
+        if cred is None or not select.select([self.fds], [], [], timeout)[0]:
+            return None
+        try:
+            _, ancillary, _, _ = self.fds.recvmsg(1, socket.CMSG_SPACE(struct.calcsize("3i")))
+        except OSError:
+            return None
+        for level, kind, data in ancillary:
+            if level == socket.SOL_SOCKET and kind == cred and len(data) >= 12:
+                return struct.unpack("3i", data[:12])[0]
+        return None
 
     # ----- receiving ----------------------------------------------------------------------------
     def receive(self, timeout: float | None = None) -> tuple[bytes, bytes] | None:
         """The next frame (kind, payload), or None if none came within `timeout` s (None: wait
         as long as it takes). WireError on a hang-up or an oversized frame."""
-        frame = self._frame()
-        if frame is not None:
-            return frame
+        if self._buf:
+            found = self._frame()
+            if found is not None:
+                return found
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
             if deadline is not None:
                 left = deadline - time.monotonic()
                 if left <= 0 or not self._poll.poll(max(0.0, left) * 1e3):
                     return None
-            elif not self.with_fds:
+            elif not self.student:
                 self._poll.poll()
-            self._fill()
-            frame = self._frame()
-            if frame is not None:
-                return frame
-
-    def _fill(self) -> None:
-        try:
-            if self.with_fds:
-                data, fds, _, _ = socket.recv_fds(self.sock, _CHUNK, 8)
-                self.fds.extend(fds)
-            else:
+            try:
                 data = os.read(self.fd, _CHUNK)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError as exc:
-            raise WireError(f"the other side hung up ({exc.strerror})") from None
-        if not data:
-            raise WireError("the other side hung up")
-        self._buf += data
+            except (BlockingIOError, InterruptedError):
+                continue
+            except OSError as exc:
+                raise WireError(f"the other side hung up ({exc.strerror})") from None
+            if not data:
+                raise WireError("the other side hung up")
+            if not self._buf and len(data) == _HEADER.size and data[1:] == b"\0\0\0\0":
+                return data[:1], b""  # the lockstep's usual: one frame, no payload
+            self._buf += data
+            found = self._frame()
+            if found is not None:
+                return found
 
     def _frame(self) -> tuple[bytes, bytes] | None:
         buf = self._buf
@@ -150,9 +188,7 @@ class Channel:
             raise WireError(f"a message that is not JSON ({type(exc).__name__})") from None
 
     def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self.sock.close()
-        for fd in self.fds:
-            with contextlib.suppress(OSError):
-                os.close(fd)
-        self.fds.clear()
+        for sock in (self.sock, self.fds):
+            if sock is not None:
+                with contextlib.suppress(OSError):
+                    sock.close()

@@ -33,8 +33,8 @@ from mexone.control.worker import (
     _ENDS_UPDATE,
     DONE,
     STARTUP_TIMEOUT,
-    UPDATE,
     UPDATE_FAULT,
+    UPDATE_FRAME,
     ClassInfo,
     Layout,
     StudentFault,
@@ -182,6 +182,14 @@ class IsolatedRunner(PythonRunner):
     def update_line(self) -> str:
         return f"{self.info.file}:{self.info.update_line or '?'}"
 
+    def return_line(self) -> str:
+        """file:line of the `return` that produced this update's command, as the worker saw it
+        (a number it may have made up: only ever shown)."""
+        line = float(self._out[2])
+        if 0 < line < 1e7 and line.is_integer():
+            return f"{self.info.file}:{int(line)}"
+        return self.update_line()
+
     @property
     def reports(self) -> bool:
         return self.info.report
@@ -192,11 +200,9 @@ class IsolatedRunner(PythonRunner):
             return None
         try:
             return self.worker.call({"call": "report"}, self.plugin.hang_timeout)
-        except StudentFault as exc:
-            raise RuntimeError(str(exc).removeprefix("report raised ")) from None
         except WorkerFailed as exc:
             self.worker = None
-            raise RuntimeError(self._said("report", exc)) from None
+            raise StudentFault(self._said("report", exc)) from None
 
     def close(self) -> None:
         """Unloaded (or the lab ends): the worker ends, with a line for each thread the student
@@ -352,7 +358,7 @@ class IsolatedRunner(PythonRunner):
             hang = self.plugin.hang_timeout
             start = _clock()
             worker.pending = True
-            worker.chan.send(UPDATE)
+            worker.chan.send_frame(UPDATE_FRAME)
             kind, payload = worker.wait(time.monotonic() + hang, _ENDS_UPDATE, hang)
         except StudentFault as exc:
             self._fault(str(exc))
