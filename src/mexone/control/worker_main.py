@@ -115,6 +115,9 @@ class _Host:
         self.bodies: list[int] = []
         self.layout = None
         self.state = None
+        from mexone.control.student import Exports
+
+        self.exports = Exports()
         self.traced = False
         self.return_line: int | None = None
         self._frame = None
@@ -250,6 +253,7 @@ class _Host:
         logger.propagate = False
         logger.handlers[:] = [_ToMexone(self)]
         impl.log = StudentLog(logger, {"name": self.name})
+        impl.exports = self.exports
         impl.__dict__["_mexone_binding"] = self
         self.impl = impl
         self.update_fn = impl.update
@@ -322,6 +326,13 @@ class _Host:
         if self.gather is None:
             state.q, state.dq, state.effort = views
         self.sensor_map = _Sensors(self, self.layout)
+        inputs = {}
+        for name, view in v["inputs"].items():
+            view = view.view()
+            view.flags.writeable = False
+            inputs[name] = view
+        state.inputs = inputs
+        dict.update(self.exports, v["exports"])  # the same object: the student may hold it
         state._sensor_source = lambda: self.sensor_map
         self._dyn = None
 

@@ -28,6 +28,7 @@ from mexone.control.controllers.python import (
     _preemptions,
     log,
 )
+from mexone.control.student import declared_lengths
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     _ENDS_UPDATE,
@@ -140,7 +141,11 @@ class IsolatedRunner(PythonRunner):
                 continue
             sensors.append((name, f"{type(obj).__module__}:{type(obj).__qualname__}", fields))
             self._sensor_names.append(name)
-        return Layout(len(self.rows), model.nq, model.nv, model.nmocap, tuple(sensors))
+        cls = self.plugin.cls
+        inputs = declared_lengths(cls, "inputs")
+        return Layout(len(self.rows), model.nq, model.nv, model.nmocap, tuple(sensors),
+                      tuple((k, inputs[k]) for k in self.plugin.inputs),
+                      tuple(declared_lengths(cls, "exports").items()))
 
     def _views_of(self, worker: Worker) -> None:
         views = self._layout.views(worker.inputs, worker.outputs)
@@ -153,6 +158,8 @@ class IsolatedRunner(PythonRunner):
             if self._layout.nmocap else None
         self._sensor_views = views["sensors"]
         self._wanted = []
+        self._input_views = list(views["inputs"].items())  # chained: what it reads, and writes
+        self._export_views = [(self.exports[k], v) for k, v in views["exports"].items()]
 
     def _end_worker(self) -> None:
         if self.worker is not None:
@@ -257,6 +264,16 @@ class IsolatedRunner(PythonRunner):
             qd_[:] = qs_.ravel()
         for index in self._wanted:
             self._fill_sensor(index)
+        if self._input_views:
+            inputs = self.state.inputs
+            for name, view in self._input_views:
+                view[:] = inputs.get(name, np.nan)
+
+    def _exported(self) -> None:
+        """What it exported this update, into the arrays its readers see (copies: the worker
+        writes its own memory whenever it likes)."""
+        for ours, theirs in self._export_views:
+            ours[:] = theirs
 
     def _activate(self, t: float) -> None:
         if self.worker is None:  # ended by an earlier fault: a fresh one
@@ -266,10 +283,13 @@ class IsolatedRunner(PythonRunner):
                 self._fault(exc.what.removeprefix(f"controller '{self.name}': "))
                 return
         self._thread_fault = None
+        for _, theirs in self._export_views:  # NaN until this run writes them
+            theirs.fill(np.nan)
         try:
             self._check_model()
             self._fill(t, 0.0)
             self.worker.call({"call": "activate"}, watchdog.STUDENT_SETUP_TIMEOUT)
+            self._exported()
         except StudentFault as exc:
             self._fault(str(exc))
         except WorkerFailed as exc:
@@ -379,6 +399,8 @@ class IsolatedRunner(PythonRunner):
         if kind == UPDATE_FAULT:
             self._fault(self._update_fault(payload))
             return
+        if self._export_views:
+            self._exported()
         if (elapsed > self._max_time or suspect) and self._overran(  # the machine's delays are
                 elapsed, switches,  # not the update's: the time both sides waited for a CPU
                 elapsed - float(self._out[1]) - (run_delay() - waited) if suspect else None):
