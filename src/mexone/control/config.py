@@ -98,19 +98,22 @@ def parse_control_config(text: str, path: Path | None = None,
             raise reader.error(root, f"expected one robot namespace holding the controllers, "
                                      f"found {len(spaces)}", "e.g. 'mex_rb:' with controllers below")
         namespace, _, body = spaces[0]
-    _prestart(reader, body, classes)
-    parameters = yamlio.construct(root)
-    config = ControlConfig(namespace=namespace, source=path,
-                           parameters=parameters if isinstance(parameters, dict) else {})
-    for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
-        if name == "gazebo_ros_control":
-            _pid_gains(reader, node, config)
-        elif _is_controller(node):
-            config.controllers[name] = _controller(reader, name, key, node, classes)
-        else:
-            raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
-                               "every controller needs type: <package>/<Controller>")
-    check_chains(config)
+    from mexone.control.worker import reading
+
+    with reading():  # the controllers' processes a refused file started end with the refusal
+        _prestart(reader, body, classes)
+        parameters = yamlio.construct(root)
+        config = ControlConfig(namespace=namespace, source=path,
+                               parameters=parameters if isinstance(parameters, dict) else {})
+        for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
+            if name == "gazebo_ros_control":
+                _pid_gains(reader, node, config)
+            elif _is_controller(node):
+                config.controllers[name] = _controller(reader, name, key, node, classes)
+            else:
+                raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
+                                   "every controller needs type: <package>/<Controller>")
+        check_chains(config)
     return config
 
 

@@ -41,7 +41,7 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -62,7 +62,7 @@ __all__ = ["ClassInfo", "Layout", "Worker", "WorkerFailed", "StudentFault", "des
 
 MAIN = "mexone.control.worker_main"  # python -m MAIN FRAMES_FD DESCRIPTORS_FD DUMP_FD
 STARTUP_TIMEOUT = 60.0  # s for a worker's interpreter to start and import mexone (mexone's time)
-POOL_IDLE = 30.0  # s a described, unclaimed worker waits for its controller before it ends
+POOL_IDLE = 15.0  # s a described, unclaimed worker waits for its controller before it ends
 WHERE_TIMEOUT = 0.5  # s a stuck worker gets to say where it is before it is ended
 _TEXT_MAX = 400  # characters of a student's text (an exception's message) shown
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,99}$")
@@ -394,7 +394,7 @@ class Worker:
         self.chan, self.dump = chan, dump_r
         self.started = time.monotonic()
         _live.add(self)
-        self._finalizer = weakref.finalize(self, _end, self.process, chan, dump_r)
+        self._finalizer = weakref.finalize(self, _end, self.process, chan, dump_r, os.getpid())
 
     # ----- calls ----------------------------------------------------------------------------------
     def ready(self) -> None:
@@ -433,16 +433,35 @@ class Worker:
             raise InputError(shown(error.get("what", "")), hint=shown(hint) if hint else None)
         return message.get("ok")
 
+    def update(self, timeout: float) -> tuple[bytes, bytes]:
+        """One update's round trip (its state already in shared memory): DONE, KEPT or
+        UPDATE_FAULT with its payload, the worker's requests served meanwhile. What a Python
+        controller in its own process costs per update is mostly this: kept to two syscalls
+        and a comparison when nothing else comes."""
+        self.pending = True
+        chan = self.chan
+        try:
+            chan.send_frame(UPDATE_FRAME)
+            frame = chan.receive(timeout)
+        except WireError as exc:
+            self._broke(exc)
+        if frame is None:
+            self._hung(timeout)
+        if frame[0] in _ENDS_UPDATE:
+            self.pending = False
+            return frame
+        start = time.monotonic()
+        self.serve(*frame)
+        return self.wait(start + timeout, _ENDS_UPDATE, timeout)
+
     def wait(self, deadline: float, ends: tuple[bytes, ...], timeout: float) -> tuple[bytes, bytes]:
         """Frames until one of kind `ends`, serving the worker's requests meanwhile."""
         chan = self.chan
         while True:
             try:
-                frame = chan.receive(deadline - time.monotonic())
+                frame = chan.receive(max(0.0, deadline - time.monotonic()))
             except WireError as exc:
-                if "hung up" in str(exc):
-                    self._ended()
-                self._failed(f"sent what mexone cannot read ({exc})")
+                self._broke(exc)
             if frame is None:
                 self._hung(timeout)
             kind, payload = frame
@@ -450,6 +469,12 @@ class Worker:
                 self.pending = False
                 return kind, payload
             self.serve(kind, payload)
+
+    def _broke(self, exc: WireError) -> None:
+        """The channel failed: the process ended (why), or it sent what the protocol forbids."""
+        if "hung up" in str(exc):
+            self._ended()
+        self._failed(f"sent what mexone cannot read ({exc})")
 
     def serve(self, kind: bytes, payload: bytes) -> None:
         """One of the worker's frames that is not an answer: a log line, a thread's fault, a
@@ -558,7 +583,9 @@ class Worker:
         _live.discard(self)
 
 
-def _end(process: StudentProcess, chan: Channel, dump: int) -> None:
+def _end(process: StudentProcess, chan: Channel, dump: int, owner: int) -> None:
+    if os.getpid() != owner:  # a fork of the lab's process: the workers are the lab's to end
+        return
     process.kill()
     chan.close()
     with contextlib.suppress(OSError):
@@ -626,6 +653,25 @@ def describe(ctype: str, yaml_dir: Path | None, shipped: list[str], fresh: bool 
 
 _spares: list[Worker] = []  # started ahead (prestart), not yet greeted
 _SPARES_MAX = 8
+
+
+@contextlib.contextmanager
+def reading() -> Iterator[None]:
+    """Around reading a controller YAML: if it is refused, the workers started for it (spares,
+    described classes kept for their controllers) end at once rather than idle."""
+    with _lock:
+        before = {id(w) for w in _spares} | {id(e.worker) for e in _pool}
+    try:
+        yield
+    except BaseException:
+        with _lock:
+            new = [w for w in _spares if id(w) not in before] + \
+                  [e.worker for e in _pool if id(e.worker) not in before]
+            _spares[:] = [w for w in _spares if id(w) in before]
+            _pool[:] = [e for e in _pool if id(e.worker) in before]
+        for worker in new:
+            worker.kill()
+        raise
 
 
 def prestart(count: int, readable: tuple[Path, ...] = ()) -> None:

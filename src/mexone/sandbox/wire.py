@@ -57,10 +57,7 @@ class Channel:
         self.max_frame = max_frame
         self.student = student
         self._buf = bytearray()
-        self._poll = select.poll()
-        self._poll.register(self.fd, select.POLLIN)
-        if not student:
-            os.set_blocking(self.fd, False)
+        self._timeout: float | None = None  # the kernel's receive timeout now (None: none)
 
     # ----- sending ------------------------------------------------------------------------------
     def send(self, kind: bytes, payload: bytes = b"", timeout: float = 10.0) -> None:
@@ -70,8 +67,14 @@ class Channel:
 
     def send_frame(self, data: bytes, timeout: float = 10.0) -> None:
         """A frame's bytes (`frame`)."""
+        if self.student:
+            try:
+                self.sock.sendall(data)
+            except OSError as exc:
+                raise WireError(f"the other side hung up ({exc.strerror})") from None
+            return
         try:
-            written = os.write(self.fd, data)  # the usual case: all of it at once
+            written = self.sock.send(data, socket.MSG_DONTWAIT)  # usually all of it at once
         except BlockingIOError:
             written = 0
         except OSError as exc:
@@ -88,7 +91,7 @@ class Channel:
             if left <= 0 or not out.poll(left * 1e3):
                 raise WireError("the other side stopped reading")
             try:
-                data = data[os.write(self.fd, data):]
+                data = data[self.sock.send(data, socket.MSG_DONTWAIT):]
             except BlockingIOError:
                 continue
             except OSError as exc:
@@ -137,22 +140,24 @@ class Channel:
     # ----- receiving ----------------------------------------------------------------------------
     def receive(self, timeout: float | None = None) -> tuple[bytes, bytes] | None:
         """The next frame (kind, payload), or None if none came within `timeout` s (None: wait
-        as long as it takes). WireError on a hang-up or an oversized frame."""
+        as long as it takes). WireError on a hang-up or an oversized frame. One read when a
+        frame is there or comes (the kernel keeps the timeout: no poll before it)."""
         if self._buf:
             found = self._frame()
             if found is not None:
                 return found
         deadline = None if timeout is None else time.monotonic() + timeout
         while True:
-            if deadline is not None:
+            if deadline is None:
+                self._expire(None)
+            else:
                 left = deadline - time.monotonic()
-                if left <= 0 or not self._poll.poll(max(0.0, left) * 1e3):
+                if left <= 0:
                     return None
-            elif not self.student:
-                self._poll.poll()
+                self._expire(left)
             try:
                 data = os.read(self.fd, _CHUNK)
-            except (BlockingIOError, InterruptedError):
+            except (BlockingIOError, InterruptedError):  # the timeout passed (or a signal)
                 continue
             except OSError as exc:
                 raise WireError(f"the other side hung up ({exc.strerror})") from None
@@ -164,6 +169,21 @@ class Channel:
             found = self._frame()
             if found is not None:
                 return found
+
+    def _expire(self, seconds: float | None) -> None:
+        """The kernel's receive timeout (SO_RCVTIMEO: up to 2 ms above `seconds`), set only when
+        that is not already so: the same timeout every cycle costs no syscall."""
+        current = self._timeout
+        if seconds is None:
+            if current is None:
+                return
+            whole, micro = 0, 0
+        else:
+            if current is not None and 0.0 <= current - seconds < 2e-3:
+                return
+            whole, micro = divmod(max(1000, int(seconds * 1e6) + 1000), 1_000_000)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, struct.pack("ll", whole, micro))
+        self._timeout = None if seconds is None else (whole + micro / 1e6)
 
     def _frame(self) -> tuple[bytes, bytes] | None:
         buf = self._buf

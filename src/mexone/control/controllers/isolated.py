@@ -15,7 +15,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-import time
 from typing import Any
 
 import numpy as np
@@ -31,11 +30,9 @@ from mexone.control.controllers.python import (
 from mexone.control.student import declared_lengths
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
-    _ENDS_UPDATE,
     DONE,
     STARTUP_TIMEOUT,
     UPDATE_FAULT,
-    UPDATE_FRAME,
     ClassInfo,
     Layout,
     StudentFault,
@@ -64,6 +61,9 @@ class IsolatedRunner(PythonRunner):
         self._thread_fault: str | None = None
         self._wanted: list[int] = []
         self._version = -1
+        self._measuring = False
+        self._sim = self.ctx.sim
+        self._hang = plugin.hang_timeout
         self._start_worker()
         impl = plugin.cls()
         impl.name, impl.joints = self.name, list(self.joints)
@@ -158,6 +158,7 @@ class IsolatedRunner(PythonRunner):
             if self._layout.nmocap else None
         self._sensor_views = views["sensors"]
         self._wanted = []
+        self._measuring = False  # a fresh block asks for no measurement
         self._input_views = list(views["inputs"].items())  # chained: what it reads, and writes
         self._export_views = [(self.exports[k], v) for k, v in views["exports"].items()]
 
@@ -368,18 +369,17 @@ class IsolatedRunner(PythonRunner):
         dt = t - last if last is not None else self.period_ns / NS
         self.updates += 1
         try:
-            if self._version != self.ctx.sim.model_version:
+            if self._version != self._sim.model_version:
                 self._check_model()
             self._fill(t, dt)
             suspect = self._suspect
-            switches = _preemptions() if suspect else 0
-            waited = run_delay() if suspect else 0.0
-            self._inp[2] = 1.0 if suspect else 0.0
-            hang = self.plugin.hang_timeout
+            if suspect:  # an update overran: measure what the machine took from the next ones
+                switches, waited = _preemptions(), run_delay()
+            if suspect != self._measuring:
+                self._measuring = suspect
+                self._inp[2] = 1.0 if suspect else 0.0
             start = _clock()
-            worker.pending = True
-            worker.chan.send_frame(UPDATE_FRAME)
-            kind, payload = worker.wait(time.monotonic() + hang, _ENDS_UPDATE, hang)
+            kind, payload = worker.update(self._hang)
         except StudentFault as exc:
             self._fault(str(exc))
             return
@@ -402,8 +402,8 @@ class IsolatedRunner(PythonRunner):
         if self._export_views:
             self._exported()
         if (elapsed > self._max_time or suspect) and self._overran(  # the machine's delays are
-                elapsed, switches,  # not the update's: the time both sides waited for a CPU
-                elapsed - float(self._out[1]) - (run_delay() - waited) if suspect else None):
+                elapsed, switches if suspect else 0,  # not the update's: both sides' waits for
+                elapsed - float(self._out[1]) - (run_delay() - waited) if suspect else None):  # a CPU
             return
         if kind == DONE:
             self._write(self._cmd.copy(), t)
