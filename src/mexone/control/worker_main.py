@@ -1,13 +1,13 @@
 """A student's PythonController in a process of its own: the student's side (mexone's side, and
 the protocol, are control/worker.py).
 
-`python -m mexone.control.worker_main SOCKET_FD DUMP_FD`, started by `sandbox.spawn`. Before any
-student code it arms faulthandler on the dump pipe (a crash, or mexone's WHERE_SIGNAL, writes
-the Python stack there), guards the process (`sandbox.guard`: os._exit, fork, exec, subprocess,
-kill raise at the student's line), and watches the dump pipe: when mexone's process ends, so
-does this one. Then it serves mexone's calls: describe (import the class), create (the object,
-configure), activate, update (each `U` frame), deactivate, set_param, report, model, rebind,
-check_entry, quit.
+`python -m mexone.control.worker_main FRAMES_FD DESCRIPTORS_FD DUMP_FD`, started by
+`sandbox.spawn`. Before any student code it arms faulthandler on the dump pipe (a crash, or
+mexone's WHERE_SIGNAL, writes the Python stack there), guards the process (`sandbox.guard`:
+os._exit, fork, exec, subprocess, kill raise at the student's line), and watches the dump pipe:
+when mexone's process ends, so does this one. Then it serves mexone's calls: describe (import
+the class), bind (the shared block, the model), create (the object, configure), activate,
+update (each `U` frame), deactivate, set_param, report, model, check_entry, quit.
 
 What it sends back is data (frames of numbers in shared memory, JSON text), never a pickle; it
 may lie, and mexone checks everything it reads. Its `State` is the lab's class over read-only
@@ -17,20 +17,29 @@ shared memory; `self.dynamics` is a `Dynamics` of its private copy of the compil
 from __future__ import annotations
 
 import contextlib
+import importlib
+import inspect
 import json
 import logging
-import math
+import mmap
 import os
 import select
 import socket
 import sys
 import threading
 import time
+import traceback
 from collections.abc import Iterator, Mapping
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
-from mexone.control.mistakes import not_numbers, wrong_count
+import numpy as np
+
+from mexone.control import watchdog
+from mexone.control.mistakes import StudentLog, not_numbers, return_lines, wrong_count
+from mexone.control.resolve import Found, Plugin, _import_failure, load_class, student_line
+from mexone.control.student import Exports, PythonController, State, strided_view
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     CALL,
@@ -47,12 +56,13 @@ from mexone.control.worker import (
     UPDATE_FAULT,
     Layout,
 )
+from mexone.errors import MexoneError
+from mexone.sandbox import ended, guard
+from mexone.sandbox.wire import Channel
 
 
 def main(argv: list[str]) -> None:
     sock_fd, descriptors_fd, dump_fd = (int(a) for a in argv[:3])
-    from mexone.sandbox import ended, guard
-
     ended.dump_to(dump_fd)
     threading.Thread(target=_die_with_mexone, args=(dump_fd,), daemon=True,
                      name="mexone lifeline").start()
@@ -67,8 +77,6 @@ def main(argv: list[str]) -> None:
 
 def _die_with_mexone(fd: int) -> None:
     """End this process when mexone's ends (the dump pipe's reader closes: POLLERR)."""
-    from mexone.sandbox import guard
-
     poll = select.poll()
     poll.register(fd, select.POLLERR)
     while True:
@@ -87,13 +95,7 @@ class _Host:
     DONE, KEPT = DONE_FRAME, KEPT_FRAME
 
     def __init__(self, sock_fd: int, descriptors_fd: int):
-        import numpy as np
-
-        from mexone.control import watchdog
-        from mexone.sandbox.wire import Channel
-
         watchdog.STUDENT_SETUP_TIMEOUT = 1e9  # mexone's side times the student (and ends us)
-        self.np = np
         self.chan = Channel(socket.socket(fileno=sock_fd), socket.socket(fileno=descriptors_fd),
                             student=True)
         self.chan.introduce()
@@ -115,11 +117,8 @@ class _Host:
         self.bodies: list[int] = []
         self.layout = None
         self.state = None
-        from mexone.control.student import Exports
-
         self.exports = Exports()
         self.traced = False
-        self.return_line: int | None = None
         self._frame = None
         self._delay_mark: float | None = None
         self._reply(REPLY, {"ok": {"thread": threading.get_ident(), "pid": self.pid}})
@@ -150,8 +149,6 @@ class _Host:
         self.send(kind, obj)
 
     def request(self, payload: bytes) -> None:
-        from mexone.errors import MexoneError
-
         request = json.loads(payload)
         call = request.get("call")
         method = getattr(self, f"do_{call}", None)
@@ -171,9 +168,6 @@ class _Host:
 
     # ----- describe: import the class ---------------------------------------------------------------
     def do_describe(self, request: dict) -> dict:
-        from mexone.control.resolve import Found, _import_failure, load_class
-        from mexone.errors import MexoneError
-
         path = [str(p) for p in request["path"]]
         sys.path[:] = path + [p for p in sys.path if p not in path]
         yaml_dir = Path(request["yaml_dir"]) if request["yaml_dir"] else None
@@ -191,12 +185,6 @@ class _Host:
         return info
 
     def describe(self, cls, origin: str) -> dict:
-        import inspect
-
-        from mexone.control.mistakes import return_lines
-        from mexone.control.resolve import Plugin
-        from mexone.control.student import PythonController
-
         self.file = Plugin("", cls, origin, None).file
         params = {}
         for name, p in cls.declared_params().items():
@@ -217,8 +205,6 @@ class _Host:
                 "inputs": dict(getattr(cls, "inputs", {}) or {})}
 
     def do_check_entry(self, request: dict) -> None:
-        from mexone.control.resolve import Plugin
-
         p = request["plugin"]
         plugin = Plugin(p["type"], self.cls, self.file, None,
                         {k: (v, p["lines"].get(k)) for k, v in p["raw"].items()}, p["params"],
@@ -231,22 +217,18 @@ class _Host:
     def do_bind(self, request: dict) -> None:
         """mexone's own setup, before any student code: the shared block, the model, the state
         (a rebind after the model changed: the same, the object's dofs updated)."""
-        from mexone.control.student import State
-
         self.attach(request)
         if self.state is None:
             self.state = State(self.layout.n, None, None, None)
         if self.impl is not None:
-            self.impl.dofs = self.np.asarray(request["dofs"], dtype=int)
+            self.impl.dofs = np.asarray(request["dofs"], dtype=int)
         self.bind_state(request)
 
     def do_create(self, request: dict) -> dict:
-        from mexone.control.mistakes import StudentLog
-
         self.name = str(request["name"])
         impl = self.student("creating", self.cls)
         impl.name, impl.joints = self.name, list(request["joints"])
-        impl.dofs = self.np.asarray(request["dofs"], dtype=int)
+        impl.dofs = np.asarray(request["dofs"], dtype=int)
         impl.params = dict(request["params"])
         logger = logging.getLogger("mexone.control.student")
         logger.setLevel(logging.DEBUG)
@@ -265,8 +247,6 @@ class _Host:
 
     def attach(self, request: dict) -> None:
         """Map the shared block (the fd sent with the request), load the model if one came."""
-        import mmap
-
         layout = Layout.from_json(request["layout"])
         fds = self.take_fds(1 + ("model" in request))
         shm = fds[0]
@@ -274,7 +254,6 @@ class _Host:
         inputs = mmap.mmap(shm, split, prot=mmap.PROT_READ)
         outputs = mmap.mmap(shm, layout.nbytes - split, offset=split)
         os.close(shm)
-        np = self.np
         self.inp = np.frombuffer(inputs, np.float64, layout.inputs_size)
         self.out = np.frombuffer(outputs, np.float64, max(1, layout.outputs_size))
         self.views = layout.views(self.inp, self.out)
@@ -309,11 +288,7 @@ class _Host:
 
     def bind_state(self, request: dict) -> None:
         """state.q, dq, effort and all_q, all_dq as read-only views of the shared block."""
-        from types import SimpleNamespace
-
-        from mexone.control.student import strided_view
-
-        np, v = self.np, self.views
+        v = self.views
         state = self.state
         qadr = np.asarray(request["qpos_adr"], dtype=int)
         dadr = np.asarray(request["dof_adr"], dtype=int)
@@ -359,7 +334,8 @@ class _Host:
         self.student("deactivate", self.impl.deactivate)
 
     def do_set_param(self, request: dict) -> None:
-        self.impl.params[str(request["key"])] = request["value"]
+        self.student("set_param", self.impl.params.__setitem__, str(request["key"]),
+                     request["value"])
         self.sent_params = dict(self.impl.params)
 
     def do_report(self, request: dict) -> Any:
@@ -424,8 +400,6 @@ class _Host:
         else:
             self._delay_mark = None
         if os.getpid() != self.pid:  # a copy of this process (a fork past the guards): not ours
-            from mexone.sandbox import guard
-
             guard.real_exit(0)
         if self.sent_params != self.impl.params:
             self._params_changed()
@@ -437,7 +411,7 @@ class _Host:
         line = self._return_line()
         out[2] = line
         try:
-            values = self.np.asarray(result, dtype=float)
+            values = np.asarray(result, dtype=float)
             if values.shape != self.shape:
                 if values.size != self.shape[0]:
                     self.fault(wrong_count(values.size, self.shape[0], f"{self.file}:{line}"))
@@ -465,8 +439,6 @@ class _Host:
 
     @property
     def update_line(self) -> int | None:
-        import inspect
-
         try:
             return inspect.getsourcelines(type(self.impl).update)[1]
         except (OSError, TypeError):
@@ -483,22 +455,16 @@ class _Host:
             raise _Fault(f"{what} failed: {self.where(exc)}" if what in ("creating", "configure")
                          else f"{what} raised {self.where(exc)}") from None
         finally:
-            if os.getpid() != self.pid:
-                from mexone.sandbox import guard
-
+            if os.getpid() != self.pid:  # a copy of this process: not ours
                 guard.real_exit(0)
 
     def where(self, exc: BaseException) -> str:
-        from mexone.control.resolve import student_line
-
         line = student_line(self.file, exc.__traceback__)
         text = _safe_str(exc).splitlines()
         first = text[0] if text else ""
         return f"{self.file}:{line or '?'}: {type(exc).__name__}" + (f": {first}" if first else "")
 
     def line_in(self, frame) -> int | None:
-        import traceback
-
         ours = [f for f in traceback.extract_stack(frame) if f.filename == self.file]
         return ours[-1].lineno if ours else None
 
@@ -558,8 +524,6 @@ class _Sensors(Mapping):
     mexone from the first update that looks it up (the first look asks for it at once)."""
 
     def __init__(self, host: _Host, layout):
-        import importlib
-
         self.host = host
         self.index = {name: i for i, (name, _, _) in enumerate(layout.sensors)}
         self.wanted = [False] * len(layout.sensors)
@@ -614,12 +578,9 @@ def _safe_str(exc: BaseException) -> str:
 
 
 def _plain(value):
+    """numpy numbers and arrays as JSON's; anything else as its text."""
     tolist = getattr(value, "tolist", None)
-    if callable(tolist):
-        return tolist()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    return str(value)
+    return tolist() if callable(tolist) else str(value)
 
 
 if __name__ == "__main__":

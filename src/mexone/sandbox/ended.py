@@ -28,25 +28,26 @@ _FRAME = re.compile(r'^\s*File "(.*)", line (\d+) in ', re.MULTILINE)
 _DUMP_MAX = 1 << 16  # bytes of a dump read (faulthandler writes at most 100 frames a thread)
 
 
-def why_ended(status: int | None, cpu: float | None = None) -> str:
+def why_ended(status: int | None, cpu: float | None = None, whose: str = "its") -> str:
     """The words for a process's exit status (Popen's: negative for a signal): "its process
-    ended (exit status 3)", "its process crashed (SIGSEGV)", ... `cpu`: its CPU limit, s."""
+    ended (exit status 3)", "its process crashed (SIGSEGV) ...", ... `cpu`: its CPU limit, s;
+    `whose`: "its", "the routine's"."""
     if status is None:
-        return "its process stopped answering"
+        return f"{whose} process stopped answering"
     if status >= 0:
-        return f"its process ended (exit status {status})"
+        return f"{whose} process ended (exit status {status})"
     sig = -status
     if sig == signal.SIGXCPU:
-        limit = f" ({cpu:g} s)" if cpu else ""
-        return f"its process used up its CPU time{limit}"
+        return f"{whose} process used more than {cpu:g} s of CPU time" if cpu else \
+            f"{whose} process used up its CPU time"
     if sig == signal.SIGKILL:
-        return "its process was killed (SIGKILL: out of memory?)"
+        return f"{whose} process was killed (out of memory?)"
     try:
         name = signal.Signals(sig).name
     except ValueError:
         name = f"signal {sig}"
     cause = " (a stack overflow? unbounded recursion?)" if sig == signal.SIGSEGV else ""
-    return f"its process crashed ({name}){cause}"
+    return f"{whose} process crashed ({name}){cause}"
 
 
 def dump_to(fd: int) -> None:
