@@ -328,7 +328,15 @@ def worker_controller_cost(sim_seconds: float) -> dict:
     machine shows); the worker's start (the interpreter, mexone's imports, the student's file,
     to the configured object) and its memory (proportional set size)."""
     from mexone.control.controllers.isolated import IsolatedRunner
+    from mexone.control.worker import Worker
 
+    starts = []
+    for _ in range(3):  # the interpreter and mexone's imports, to its greeting: no student code
+        start = time.perf_counter()
+        worker = Worker()
+        worker.ready()
+        starts.append(time.perf_counter() - start)
+        worker.kill()
     with tempfile.TemporaryDirectory() as folder:
         yaml_path = _bench_controller(Path(folder))
         start = time.perf_counter()
@@ -367,7 +375,8 @@ def worker_controller_cost(sim_seconds: float) -> dict:
             "worker_round_trip_p99_us": float(np.percentile(walls, 99)) * 1e6,
             "worker_lab_cpu_us_per_update": float(np.median(cpus)) * 1e6,
             "worker_student_us": worker_us, "worker_rtf_at_1": rtf,
-            "worker_lab_create_s": create_s, "worker_reload_s": reload_s, "worker_pss_mb": pss}
+            "worker_lab_create_s": create_s, "worker_reload_s": reload_s, "worker_pss_mb": pss,
+            "worker_start_s": float(np.median(starts))}
 
 
 def _pss_mb(pid: int) -> float | None:
@@ -632,6 +641,7 @@ def format_report(report: BenchReport) -> str:
                   f"{'  lab CPU us per update (target <= 30)':<44} "
                   f"{p['worker_lab_cpu_us_per_update']:12.2f}",
                   f"{'  real-time factor kept at --rtf 1':<44} {p['worker_rtf_at_1']:12.3f}",
+                  f"{'  a worker process up (no student code), s':<44} {p['worker_start_s']:12.2f}",
                   f"{'  Lab.create with it, s; a reload, s':<44} "
                   f"{p['worker_lab_create_s']:6.2f} {p['worker_reload_s']:5.2f}",
                   f"{'  worker memory (PSS), MB':<44} {p['worker_pss_mb'] or 0:12.1f}"]

@@ -658,3 +658,26 @@ def test_an_update_blocked_outside_python_is_ended_and_a_signal_still_stops_the_
     reader.join(5)
     assert any("interrupted by SIGTERM" in line for line in lines), lines
     assert any("hang_timeout" in line and "sleepy.py:11" in line for line in lines), lines
+
+
+def test_check_asks_a_classs_own_check_entry_in_its_process(tmp_path, capsys):
+    """`mexone check --controllers` runs the class's check_entry where the class runs (its own
+    process); the finding is at the YAML key's line, as the class says."""
+    write(tmp_path, "law.py", """\
+        from mexone.control import Param, PythonController
+        from mexone.errors import InputError
+
+        class Law(PythonController):
+            kp = Param(1.0)
+
+            @classmethod
+            def check_entry(cls, name, joints, plugin, timestep):
+                if plugin.params["kp"] > 5:
+                    raise InputError(f"controller '{name}': kp {plugin.params['kp']:g} is too "
+                                     f"stiff for a {timestep:g} s step", line=plugin.lines["kp"])
+        """)
+    path = write(tmp_path, "c.yaml", "mex_rb:\n  law:\n    type: law/Law\n    joints: [l_elbow]\n"
+                                     "    kp: 9\n")
+    assert main(["check", "--controllers", str(path)]) != 0
+    out = capsys.readouterr().out
+    assert f'{path}:5: error: controller "law": kp 9 is too stiff for a 0.001 s step' in out

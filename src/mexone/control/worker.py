@@ -58,7 +58,7 @@ from mexone.sandbox.ended import WHERE_SIGNAL, read_dump, student_line, why_ende
 from mexone.sandbox.wire import Channel, WireError, frame, pair
 
 __all__ = ["ClassInfo", "Layout", "Worker", "WorkerFailed", "StudentFault", "describe", "claim",
-           "resolve", "prestart", "stand_in", "set_jail", "STARTUP_TIMEOUT", "POOL_IDLE", "MAIN"]
+           "resolve", "prestart", "stand_in", "set_jail", "end_all", "STARTUP_TIMEOUT", "POOL_IDLE", "MAIN"]
 
 MAIN = "mexone.control.worker_main"  # python -m MAIN FRAMES_FD DESCRIPTORS_FD DUMP_FD
 STARTUP_TIMEOUT = 60.0  # s for a worker's interpreter to start and import mexone (mexone's time)
@@ -233,7 +233,7 @@ def _check_entry_in_worker(cls, name: str, joints: tuple[str, ...], plugin, time
                          "update_rate": plugin.update_rate, "source": str(plugin.source or ""),
                          "line": plugin.line}}, watchdog.STUDENT_SETUP_TIMEOUT)
     except StudentFault as exc:
-        raise InputError(f"controller '{name}': check_entry failed: {exc}") from None
+        raise InputError(f"controller '{name}': {exc}") from None
     except WorkerFailed as exc:
         raise InputError(f"controller '{name}': check_entry: {exc.why}"
                          + (f" ({info.file}:{exc.line})" if exc.line else "")) from None
@@ -429,8 +429,9 @@ class Worker:
             error = message["input_error"]
             if not isinstance(error, dict):
                 self._failed("sent a malformed answer")
-            hint = error.get("hint")
-            raise InputError(shown(error.get("what", "")), hint=shown(hint) if hint else None)
+            hint, line = error.get("hint"), error.get("line")
+            raise InputError(shown(error.get("what", "")), hint=shown(hint) if hint else None,
+                             line=line if isinstance(line, int) and line > 0 else None)
         return message.get("ok")
 
     def update(self, timeout: float) -> tuple[bytes, bytes]:
@@ -593,7 +594,9 @@ def _end(process: StudentProcess, chan: Channel, dump: int, owner: int) -> None:
 
 
 @atexit.register
-def _end_all() -> None:
+def end_all() -> None:
+    """End every controller worker of this process (at its exit; a caller that leaves by
+    os._exit, which skips atexit, calls it first)."""
     for worker in list(_live):
         worker.kill()
     _pool.clear()

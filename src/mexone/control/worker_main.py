@@ -160,7 +160,8 @@ class _Host:
             answer = {"fault": str(exc)}
         except MexoneError as exc:
             answer = {"input_error": {"what": exc.what if exc.file is None else exc.one_line(),
-                                      "hint": None if exc.file is not None else exc.hint}}
+                                      "hint": None if exc.file is not None else exc.hint,
+                                      "line": exc.line if exc.file is None else None}}
         self._reply(REPLY, answer)
         if call == "quit":
             raise _Quit
@@ -210,8 +211,13 @@ class _Host:
                         {k: (v, p["lines"].get(k)) for k, v in p["raw"].items()}, p["params"],
                         update_rate=p["update_rate"], source=Path(p["source"]) if p["source"] else None,
                         line=p["line"], lines=p["lines"])
-        self.student("check_entry", self.cls.check_entry, request["name"],
-                     tuple(request["joints"]), plugin, float(request["timestep"]))
+        try:  # an InputError is the class's finding (at the YAML's line): said as it is
+            self.cls.check_entry(request["name"], tuple(request["joints"]), plugin,
+                                 float(request["timestep"]))
+        except MexoneError:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - the student's, said in one line
+            raise _Fault(f"check_entry raised {self.where(exc)}") from None
 
     # ----- create: the object, its state, its model ---------------------------------------------------
     def do_bind(self, request: dict) -> None:
