@@ -365,8 +365,9 @@ class Worker:
 
     def __init__(self, jail: Jail | None = None, readable: tuple[Path, ...] = ()):
         jail = jail or _jail
-        self.jail = dataclasses.replace(jail, readable=tuple(dict.fromkeys(
-            (*jail.readable, *readable))))
+        self.jail = dataclasses.replace(jail, limits=_within_ours(jail.limits),
+                                        readable=tuple(dict.fromkeys((*jail.readable,
+                                                                      *readable))))
         self.file = ""  # the student's file, once known (for its line in a dump)
         self.handler: Any = None
         self.thread: int | None = None
@@ -582,6 +583,21 @@ class Worker:
         """End the process and everything it started (idempotent)."""
         self._finalizer()
         _live.discard(self)
+
+
+def _within_ours(limits: Limits) -> Limits:
+    """`limits` no higher than this process's own hard limits (a lab in a grader's limited
+    process: a child may not raise them)."""
+    import resource
+
+    cpu, memory = limits.cpu, limits.memory_mb
+    hard = resource.getrlimit(resource.RLIMIT_CPU)[1]
+    if hard != resource.RLIM_INFINITY:
+        cpu = max(1, min(cpu, hard - 1))
+    hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+    if hard != resource.RLIM_INFINITY:
+        memory = max(1, min(memory, hard >> 20))
+    return dataclasses.replace(limits, cpu=cpu, memory_mb=memory)
 
 
 def _end(process: StudentProcess, chan: Channel, dump: int, owner: int) -> None:
