@@ -1,13 +1,14 @@
 """A student's own controller: `PythonController`, its declared `Param`s and the `State` it reads.
 
 ros_control's controller plug-in, in Python: a class with the lifecycle configure -> activate ->
-update (every period, in the simulation thread, inside the manager's read -> update -> write) ->
+update (every period, in lockstep with the manager's read -> update -> write) ->
 deactivate, claiming one command interface ("effort", "position" or "velocity") on its joints and
 reading the joints' state, the whole robot's state, the sensors and the robot's dynamics. The
 framework (control/controllers/python.py) does everything around `update`: it builds the
 `State`, checks what `update` returns, clamps it and writes it to the hardware, and turns the
 student's mistakes (an exception, a NaN, an overrun, an update that never returns) into one line
-naming their file and line while the lab runs on.
+naming their file and line while the lab runs on. A class the YAML names runs in a process of
+its own (control/worker.py); one handed over in Python runs in the lab's.
 """
 
 from __future__ import annotations
@@ -281,7 +282,7 @@ class PythonController:
         """ros_control's starting(): the controller takes over its joints at `state`."""
 
     def update(self, state: State, t: float, dt: float):
-        """Every period (simulation thread): return one command per joint in the claimed
+        """Every period (in lockstep with the simulation): return one command per joint in the claimed
         interface's unit (N m, rad, rad/s), or None to keep the last command."""
         return None
 
