@@ -681,3 +681,39 @@ def test_check_asks_a_classs_own_check_entry_in_its_process(tmp_path, capsys):
     assert main(["check", "--controllers", str(path)]) != 0
     out = capsys.readouterr().out
     assert f'{path}:5: error: controller "law": kp 9 is too stiff for a 0.001 s step' in out
+
+
+def test_a_ctrl_c_while_the_lab_waits_for_a_worker_leaves_it_in_step(tmp_path, turntable):
+    """A notebook's Ctrl-C (KeyboardInterrupt in the lab's thread) while an update runs in the
+    controller's process: the next step reads that update's late answer first, then goes on in
+    step with it (the controller keeps running, no fault)."""
+    import _thread
+    import signal
+    import threading
+
+    lab = turntable_lab(tmp_path, turntable, """
+        import time
+        class Ctl(PythonController):
+            def configure(self):
+                self.n = 0
+            def update(self, state, t, dt):
+                self.n += 1
+                if self.n == 3:
+                    time.sleep(0.5)
+                return [0.25]
+            def report(self):
+                return {"n": self.n}
+        """, "max_overruns: 1000\n")
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # a notebook's (the CLI's
+    try:  # handler, which an earlier test may have installed, only records a signal)
+        timer = threading.Timer(0.2, _thread.interrupt_main)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            lab.sim.step(100000)
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    ctrl = lab.controllers.controllers["ctl"]
+    lab.sim.step(5)
+    assert ctrl.running and ctrl.fault is None
+    assert ctrl.report()["n"] == ctrl.updates and lab.sim.data.qfrc_actuator[0] == 0.25

@@ -75,8 +75,8 @@ UPDATE, CALL, FILLED = b"U", b"J", b"F"
 DONE, KEPT, UPDATE_FAULT, REPLY = b"D", b"N", b"Q", b"R"
 LOG, THREAD_FAULT, SENSOR, PARAMS = b"L", b"X", b"S", b"P"
 _ENDS_UPDATE = (DONE, KEPT, UPDATE_FAULT)
-UPDATE_FRAME, DONE_FRAME, KEPT_FRAME, FILLED_FRAME = (frame(k) for k in (UPDATE, DONE, KEPT,
-                                                                        FILLED))
+FILLED_FRAME = frame(FILLED)
+_UPDATE_HEAD = frame(UPDATE, bytes(8))[:5]  # an update's frame: this, then its number (8 bytes)
 
 _jail = Jail(limits=Limits(time=math.inf, cpu=1e9, memory_mb=4096))
 
@@ -372,7 +372,7 @@ class Worker:
         self.handler: Any = None
         self.thread: int | None = None
         self.pid: int | None = None
-        self.pending = False  # a request whose answer has not been read (an interrupted wait)
+        self.seq = 0  # the last request's number: every answer names the one it answers
         self.inputs: np.ndarray | None = None
         self.outputs: np.ndarray | None = None
         self._mapped = None
@@ -400,7 +400,7 @@ class Worker:
     # ----- calls ----------------------------------------------------------------------------------
     def ready(self) -> None:
         """Wait for the interpreter to start (mexone's time, not the student's)."""
-        reply = self._answer(STARTUP_TIMEOUT, "start")
+        reply = self._answer(STARTUP_TIMEOUT)
         if not isinstance(reply, dict) or not isinstance(reply.get("thread"), int):
             self._failed("sent a malformed greeting")
         self.thread = reply["thread"]
@@ -409,21 +409,26 @@ class Worker:
 
     def call(self, request: dict, timeout: float, fds: Sequence[int] = ()) -> Any:
         """Ask; the answer's value, StudentFault for the student's error, WorkerFailed else."""
-        self._settle()
+        self.seq += 1
         try:
             if fds:
                 self.chan.hand_over(tuple(fds))
-            self.chan.send_json(CALL, dict(request, fds=len(fds)))
+            self.chan.send_json(CALL, dict(request, fds=len(fds), seq=self.seq))
         except WireError:
             self._ended()
-        return self._answer(timeout, str(request.get("call")))
+        return self._answer(timeout)
 
-    def _answer(self, timeout: float, what: str) -> Any:
-        self.pending = True
-        kind, payload = self.wait(time.monotonic() + timeout, (REPLY,), timeout)
-        message = self._json(payload)
-        if not isinstance(message, dict):
-            self._failed("sent a malformed answer")
+    def _answer(self, timeout: float) -> Any:
+        """The answer to the last call: an answer to an earlier one (a wait a Ctrl-C cut short in
+        a notebook) is passed over."""
+        deadline = time.monotonic() + timeout
+        while True:
+            _, payload = self.wait(deadline, (REPLY,), timeout)
+            message = self._json(payload)
+            if not isinstance(message, dict):
+                self._failed("sent a malformed answer")
+            if message.get("seq") == self.seq:
+                break
         if "fault" in message:
             raise StudentFault(shown(message["fault"]))
         if "input_error" in message:
@@ -437,27 +442,34 @@ class Worker:
 
     def update(self, timeout: float) -> tuple[bytes, bytes]:
         """One update's round trip (its state already in shared memory): DONE, KEPT or
-        UPDATE_FAULT with its payload, the worker's requests served meanwhile. What a Python
-        controller in its own process costs per update is mostly this: kept to two syscalls
-        and a comparison when nothing else comes."""
-        self.pending = True
+        UPDATE_FAULT with what follows the update's number in its payload, the worker's
+        requests served meanwhile. An answer to an earlier update (a wait a Ctrl-C cut short
+        in a notebook) is passed over. What a Python controller in its own process costs per
+        update is mostly this: kept to two syscalls and a comparison when nothing else comes."""
+        self.seq += 1
+        number = self.seq.to_bytes(8, "little")
         chan = self.chan
         try:
-            chan.send_frame(UPDATE_FRAME)
+            chan.send_frame(_UPDATE_HEAD + number)
             frame = chan.receive(timeout)
         except WireError as exc:
             self._broke(exc)
         if frame is None:
             self._hung(timeout)
-        if frame[0] in _ENDS_UPDATE:
-            self.pending = False
-            return frame
-        start = time.monotonic()
-        self.serve(*frame)
-        return self.wait(start + timeout, _ENDS_UPDATE, timeout)
+        if frame[0] in _ENDS_UPDATE and frame[1][:8] == number:
+            return frame[0], frame[1][8:]
+        deadline = time.monotonic() + timeout
+        while True:
+            if frame[0] not in _ENDS_UPDATE:
+                self.serve(*frame)
+            elif frame[1][:8] == number:
+                return frame[0], frame[1][8:]
+            frame = self.wait(deadline, (*_ENDS_UPDATE, LOG, THREAD_FAULT, SENSOR, PARAMS),
+                              timeout)
 
     def wait(self, deadline: float, ends: tuple[bytes, ...], timeout: float) -> tuple[bytes, bytes]:
-        """Frames until one of kind `ends`, serving the worker's requests meanwhile."""
+        """Frames until one of kind `ends`, serving the worker's other requests meanwhile (an
+        update's answer that is not awaited is passed over)."""
         chan = self.chan
         while True:
             try:
@@ -468,9 +480,9 @@ class Worker:
                 self._hung(timeout)
             kind, payload = frame
             if kind in ends:
-                self.pending = False
                 return kind, payload
-            self.serve(kind, payload)
+            if kind not in _ENDS_UPDATE:
+                self.serve(kind, payload)
 
     def _broke(self, exc: WireError) -> None:
         """The channel failed: the process ended (why), or it sent what the protocol forbids."""
@@ -505,11 +517,6 @@ class Worker:
                 handler.on_params(message["params"])
         else:
             self._failed(f"sent a frame of unknown kind {kind!r}")
-
-    def _settle(self) -> None:
-        """An earlier wait was interrupted (Ctrl-C in a notebook): read its answer first."""
-        if self.pending:
-            self.wait(time.monotonic() + 2.0, (REPLY, *_ENDS_UPDATE), 2.0)
 
     def _json(self, payload: bytes) -> Any:
         try:
@@ -571,7 +578,7 @@ class Worker:
         """End the worker politely: the lines it says about what its student left running
         (threads), then the process ends (killed if it does not within `timeout` s)."""
         lines: list[str] = []
-        if self.alive and not self.pending:
+        if self.alive:
             with contextlib.suppress(WorkerFailed, StudentFault, InputError):
                 said = self.call({"call": "quit"}, timeout)
                 if isinstance(said, list):

@@ -43,9 +43,9 @@ from mexone.control.student import Exports, PythonController, State, strided_vie
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     CALL,
-    DONE_FRAME,
+    DONE,
     FILLED,
-    KEPT_FRAME,
+    KEPT,
     LOG,
     PARAMS,
     POOL_IDLE,
@@ -58,7 +58,7 @@ from mexone.control.worker import (
 )
 from mexone.errors import MexoneError
 from mexone.sandbox import ended, guard
-from mexone.sandbox.wire import Channel
+from mexone.sandbox.wire import Channel, frame
 
 
 def main(argv: list[str]) -> None:
@@ -92,7 +92,7 @@ class _Quit(Exception):
 class _Host:
     """The worker: its channel, the student's class and object, and the state it reads."""
 
-    DONE, KEPT = DONE_FRAME, KEPT_FRAME
+    DONE_HEAD, KEPT_HEAD = frame(DONE, bytes(8))[:5], frame(KEPT, bytes(8))[:5]
 
     def __init__(self, sock_fd: int, descriptors_fd: int):
         watchdog.STUDENT_SETUP_TIMEOUT = 1e9  # mexone's side times the student (and ends us)
@@ -121,7 +121,7 @@ class _Host:
         self.traced = False
         self._frame = None
         self._delay_mark: float | None = None
-        self._reply(REPLY, {"ok": {"thread": threading.get_ident(), "pid": self.pid}})
+        self._reply(REPLY, {"seq": 0, "ok": {"thread": threading.get_ident(), "pid": self.pid}})
         threading.excepthook = self._thread_raised
 
     # ----- the loop -------------------------------------------------------------------------------
@@ -162,7 +162,7 @@ class _Host:
             answer = {"input_error": {"what": exc.what if exc.file is None else exc.one_line(),
                                       "hint": None if exc.file is not None else exc.hint,
                                       "line": exc.line if exc.file is None else None}}
-        self._reply(REPLY, answer)
+        self._reply(REPLY, dict(answer, seq=request.get("seq")))
         if call == "quit":
             raise _Quit
         self._params_changed()
@@ -375,7 +375,7 @@ class _Host:
 
         threading.Thread.start = started
 
-    def update(self, payload: bytes = b"") -> None:
+    def update(self, number: bytes) -> None:
         """One update: the state is in shared memory; the command goes back there, with the
         line of the `return` that produced it (mexone checks the numbers, and names that line
         for a NaN)."""
@@ -397,7 +397,7 @@ class _Host:
                 result = self.update_fn(state, t, dt)
         except BaseException as exc:  # noqa: BLE001 - the student's fault, said in one line
             self._frame = None
-            self.fault(f"update raised {self.where(exc)} at t = {t:.3f} s")
+            self.fault(number, f"update raised {self.where(exc)} at t = {t:.3f} s")
             return
         out[0] = time.perf_counter() - start
         if measure:
@@ -412,7 +412,7 @@ class _Host:
         if result is None:
             self._frame = None
             with self.lock:
-                self.chan.send_frame(self.KEPT)
+                self.chan.send_frame(self.KEPT_HEAD + number)
             return
         line = self._return_line()
         out[2] = line
@@ -420,15 +420,16 @@ class _Host:
             values = np.asarray(result, dtype=float)
             if values.shape != self.shape:
                 if values.size != self.shape[0]:
-                    self.fault(wrong_count(values.size, self.shape[0], f"{self.file}:{line}"))
+                    self.fault(number, wrong_count(values.size, self.shape[0],
+                                                   f"{self.file}:{line}"))
                     return
                 values = values.reshape(self.shape)
         except BaseException:  # noqa: BLE001 - whatever their object raises
-            self.fault(not_numbers(result, f"{self.file}:{line}"))
+            self.fault(number, not_numbers(result, f"{self.file}:{line}"))
             return
         self.command[:] = values
         with self.lock:
-            self.chan.send_frame(self.DONE)
+            self.chan.send_frame(self.DONE_HEAD + number)
 
     def _trace(self, frame, event, arg):
         self._frame = frame  # the update's frame: its last line, once it returns, is the return's
@@ -450,8 +451,11 @@ class _Host:
         except (OSError, TypeError):
             return None
 
-    def fault(self, text: str) -> None:
-        self.send(UPDATE_FAULT, {"fault": text})
+    def fault(self, number: bytes, text: str) -> None:
+        """The update numbered `number` failed: its one line."""
+        data = json.dumps({"fault": text}).encode()
+        with self.lock:
+            self.chan.send(UPDATE_FAULT, number + data)
 
     # ----- the student's code ----------------------------------------------------------------------
     def student(self, what: str, fn, *args):

@@ -163,8 +163,10 @@ class Channel:
                 raise WireError(f"the other side hung up ({exc.strerror})") from None
             if not data:
                 raise WireError("the other side hung up")
-            if not self._buf and len(data) == _HEADER.size and data[1:] == b"\0\0\0\0":
-                return data[:1], b""  # the lockstep's usual: one frame, no payload
+            if not self._buf and len(data) >= _HEADER.size:  # the lockstep's usual: one frame
+                kind, size = _HEADER.unpack_from(data)
+                if len(data) == _HEADER.size + size:
+                    return kind, data[_HEADER.size:]
             self._buf += data
             found = self._frame()
             if found is not None:
