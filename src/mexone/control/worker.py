@@ -705,6 +705,7 @@ def prestart(count: int, readable: tuple[Path, ...] = ()) -> None:
     their interpreters start side by side, while this process reads on); `readable`: the
     folders their code is in (the YAML's)."""
     with _lock:
+        _prune()
         while len(_spares) < min(count, _SPARES_MAX):
             _spares.append(Worker(readable=readable))
 
@@ -727,8 +728,20 @@ def _readable(found: Found, yaml_dir: Path | None) -> tuple[Path, ...]:
     return tuple(dict.fromkeys(f for f in folders if f is not None))
 
 
+def _prune() -> None:
+    """Forget the kept workers that ended by themselves (idle for POOL_IDLE), reading their exit
+    status: no zombie is left behind. Called with _lock held."""
+    for entry in [e for e in _pool if not e.worker.alive]:
+        _pool.remove(entry)
+        entry.worker.kill()
+    for worker in [w for w in _spares if not w.alive]:
+        _spares.remove(worker)
+        worker.kill()
+
+
 def _start(readable: tuple[Path, ...] = ()) -> Worker:
     with _lock:
+        _prune()
         index = next((i for i, w in enumerate(_spares)
                       if set(readable) <= set(w.jail.readable)), None)
         worker = _spares.pop(index) if index is not None else None
