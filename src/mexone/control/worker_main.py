@@ -235,6 +235,7 @@ class _Host:
         impl = self.student("creating", self.cls)
         impl.name, impl.joints = self.name, list(request["joints"])
         impl.dofs = np.asarray(request["dofs"], dtype=int)
+        impl.effort_limits = np.asarray(request["effort_limits"], dtype=float)
         impl.params = dict(request["params"])
         logger = logging.getLogger("mexone.control.student")
         logger.setLevel(logging.DEBUG)

@@ -78,11 +78,23 @@ class RobotScene:
     triangles: int = 0  # drawn in the robot's visuals, after simplification
     overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
 
+    def _terrain(self) -> None:
+        """The world's static boxes (slopes, steps: physics.world.Block), as MuJoCo places them."""
+        model = self.sim.model
+        for i in range(model.ngeom):
+            name = model.geom(i).name
+            if not name.startswith("world/") or model.geom_type[i] != mujoco.mjtGeom.mjGEOM_BOX:
+                continue
+            self.server.scene.add_box(f"/terrain/{i}", dimensions=tuple(2 * model.geom_size[i]),
+                                      color=(150, 144, 134), position=tuple(model.geom_pos[i]),
+                                      wxyz=tuple(model.geom_quat[i]))
+
     def build(self) -> None:
         scene, robot = self.server.scene, self.sim.robot
         scene.set_up_direction("+z")
         scene.add_grid("/ground", width=20, height=20, cell_size=0.25, section_size=1.0,
                        plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
+        self._terrain()
         # the world's sun casts the one shadow (viser's default lights would add a second pass)
         scene.configure_default_lights(cast_shadow=False)
         # dimmer than viser's defaults, which wash a white robot's dark servos out to mid grey

@@ -68,6 +68,7 @@ class IsolatedRunner(PythonRunner):
         impl = plugin.cls()
         impl.name, impl.joints = self.name, list(self.joints)
         impl.dofs = self.dofs.copy()
+        impl.effort_limits = self._effort_limit.copy()
         impl.params = self._mirror
         return impl
 
@@ -82,7 +83,8 @@ class IsolatedRunner(PythonRunner):
             worker.call(self._binding(), STARTUP_TIMEOUT, fds=blocks)  # mexone's own setup
             self._close_blocks()
             worker.call({"call": "create", "name": self.name, "joints": list(self.joints),
-                         "dofs": self.dofs.tolist(), "params": dict(self._mirror)},
+                         "dofs": self.dofs.tolist(), "params": dict(self._mirror),
+                         "effort_limits": [min(float(v), 1e300) for v in self._effort_limit]},
                         watchdog.STUDENT_SETUP_TIMEOUT)
         except StudentFault as exc:
             self._end_worker()
@@ -396,6 +398,13 @@ class IsolatedRunner(PythonRunner):
             return
         self._spent += elapsed
         self._timed_updates += 1
+        meter = self.meter
+        meter.updates += 1
+        meter.total += elapsed
+        if elapsed > meter.worst:
+            meter.worst = elapsed
+        if elapsed > self._max_time:
+            meter.misses += 1  # counted whoever's doing it was (the fault below is theirs only)
         if kind == UPDATE_FAULT:
             self._fault(self._update_fault(payload))
             return
