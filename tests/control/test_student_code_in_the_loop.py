@@ -258,7 +258,8 @@ def test_what_the_faults_say(loop_run):
     assert "its thread 'boomer' raised" in faults["threadraises"]
     assert "crashed (SIGSEGV)" in faults["writesintothestate"]
     assert "did not return within hang_timeout 0.3 s" in faults["blockedinc"]
-    assert "nondaemonthread" not in summary.get("controllers", {})
+    assert "fault" not in summary["controllers"]["nondaemonthread"]  # a thread is allowed
+    assert summary["controllers"]["nondaemonthread"]["budget"]["updates"] == 2001
 
 
 def test_deactivate_that_hangs_or_exits_is_said_and_the_stop_goes_on(loop_run):
