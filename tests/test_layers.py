@@ -25,7 +25,7 @@ FRONT_END_ORDER = (
     {"exercises"},  # below the GUI: its Exercises panel shows them
     {"sweep", "identify", "gui"},
     {"editor"},
-    {"cli"},
+    {"cli", "hub"},  # hub: the launcher entry a JupyterHub shows (jupyter-server-proxy)
     {"notebook"},  # the lab in Jupyter: the GUI beside a notebook, checked as the CLI checks
     {"__main__"},
 )

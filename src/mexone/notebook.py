@@ -78,7 +78,7 @@ class Replay:
             server.initial_camera.position = tuple(base + (1.3, -1.35, 0.45))
             server.initial_camera.look_at = tuple(base + (0.0, 0.0, 0.02))
             recorder = server.get_scene_serializer()
-            scene.update()  # frame 0 again, as messages at t = 0: where each loop starts over
+            scene.update(everything=True)  # frame 0 again, as messages at t = 0: where each loop starts over
             for i in range(1, len(self.times)):
                 recorder.insert_sleep(self.times[i] - self.times[i - 1])
                 self._pose(data, i)
@@ -207,7 +207,8 @@ class LivePage:
 
     def _repr_html_(self) -> str:
         state = "running" if self.running else "stopped"
-        return f'<p>mexone live page ({state}): <a href="{self.url}" target="_blank">{self.url}</a></p>'
+        url = html.escape(self.url, quote=True)
+        return f'<p>mexone live page ({state}): <a href="{url}" target="_blank">{url}</a></p>'
 
 
 def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
@@ -227,9 +228,9 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     with _quiet_viser():  # the page's repr says where it is
         app = GuiApp(lambda _options: lab, CompileOptions(), host=host, port=port,
                      target_rtf=rtf, paused=paused)
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
     thread = threading.Thread(target=app.serve_forever, name="mexone-live-page", daemon=True)
-    page = LivePage(app, thread, f"http://{shown}:{app.server.get_port()}")
+    # inside a JupyterHub: the hub's proxied path with this page's key (gui/security.py)
+    page = LivePage(app, thread, app.access.page_url(host, app.server.get_port()))
     lab._live_page = page
     thread.start()
     return page

@@ -105,11 +105,10 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
     except OSError as exc:
         raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
                          hint="pick another --port") from None
-    host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
     port = app.server.get_port()  # viser moves on to the next free port if this one is taken
     note = "" if port == args.port or args.port == 0 else f" (port {args.port} was taken)"
-    print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
-          file=sys.stderr)
+    url = app.access.page_url(args.host, port)  # in a JupyterHub: through its proxy, with the key
+    print(f"mexone: {app.lab.sim.robot.name} at {url}{note}  (Ctrl-C stops)", file=sys.stderr)
     if bridge is not None:
         print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
         for note in bridge.notes():
