@@ -58,7 +58,8 @@ from mexone.sandbox.ended import WHERE_SIGNAL, read_dump, student_line, why_ende
 from mexone.sandbox.wire import Channel, WireError, frame, pair
 
 __all__ = ["ClassInfo", "Layout", "Worker", "WorkerFailed", "StudentFault", "describe", "claim",
-           "resolve", "prestart", "stand_in", "set_jail", "end_all", "STARTUP_TIMEOUT", "POOL_IDLE", "MAIN"]
+           "resolve", "prestart", "stand_in", "set_jail", "end_all", "message_data", "message_from",
+           "STARTUP_TIMEOUT", "POOL_IDLE", "MAIN"]
 
 MAIN = "mexone.control.worker_main"  # python -m MAIN FRAMES_FD DESCRIPTORS_FD DUMP_FD
 STARTUP_TIMEOUT = 60.0  # s for a worker's interpreter to start and import mexone (mexone's time)
@@ -70,7 +71,7 @@ _KINDS = {"bool": bool, "int": int, "float": float, "str": str}
 _LEVELS = range(0, 51)
 
 # frames (sandbox.wire kinds): mexone -> worker
-UPDATE, CALL, FILLED = b"U", b"J", b"F"
+UPDATE, CALL, FILLED, MESSAGES = b"U", b"J", b"F", b"M"
 # worker -> mexone
 DONE, KEPT, UPDATE_FAULT, REPLY = b"D", b"N", b"Q", b"R"
 LOG, THREAD_FAULT, SENSOR, PARAMS = b"L", b"X", b"S", b"P"
@@ -119,6 +120,7 @@ class ClassInfo:
     check_entry: bool
     exports: dict[str, int] = field(default_factory=dict)
     inputs: dict[str, int] = field(default_factory=dict)
+    topics: dict[str, str] = field(default_factory=dict)  # name -> a mexone.bus.msgs class's name
     stamp: str | None = None  # the file's digest when it was imported (set here, not by it)
 
     @classmethod
@@ -142,7 +144,7 @@ class ClassInfo:
                        line if isinstance(line, int) and line > 0 else None,
                        obj.get("report") is True, obj.get("check_entry") is True,
                        _sizes(obj.get("exports", {})), _sizes(obj.get("inputs", {})),
-                       _digest(file))
+                       _topics(obj.get("topics", {})), _digest(file))
         except (KeyError, TypeError, ValueError) as exc:
             raise WireError(f"a malformed class description ({type(exc).__name__})") from None
 
@@ -185,6 +187,56 @@ def _sizes(value: object) -> dict[str, int]:
     return {str(k): int(v) for k, v in value.items()}
 
 
+def _topics(value: object) -> dict[str, str]:
+    from mexone.bus import msgs
+
+    if not isinstance(value, dict) or not all(
+            isinstance(k, str) and len(k) <= 200 and all(p.isidentifier() for p in k.split("/"))
+            and v in msgs.__all__ and dataclasses.is_dataclass(getattr(msgs, v))
+            for k, v in value.items()):
+        raise WireError("malformed topics")
+    return dict(value)
+
+
+# ----- bus messages to a worker (PythonController.topics) -------------------------------------
+def message_data(value: Any) -> Any:
+    """A mexone.bus.msgs message as JSON-able data `message_from` rebuilds: a message is
+    {"@": its class's name, field: value...}, a tuple {"@t": [...]}, bytes {"@b": hex}."""
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {f.name: message_data(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        out["@"] = type(value).__name__
+        return out
+    if isinstance(value, tuple):
+        return {"@t": [message_data(v) for v in value]}
+    if isinstance(value, list):
+        return [message_data(v) for v in value]
+    if isinstance(value, (bytes, bytearray, memoryview)):
+        return {"@b": bytes(value).hex()}
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def message_from(data: Any) -> Any:
+    """The message `message_data` wrote (classes only from mexone.bus.msgs)."""
+    from mexone.bus import msgs
+
+    if isinstance(data, list):
+        return [message_from(v) for v in data]
+    if not isinstance(data, dict):
+        return data
+    if "@t" in data:
+        return tuple(message_from(v) for v in data["@t"])
+    if "@b" in data:
+        return bytes.fromhex(data["@b"])
+    name = data.get("@")
+    if name not in msgs.__all__:
+        raise ValueError(f"not a mexone.bus.msgs message: {name!r:.40}")
+    return getattr(msgs, name)(**{k: message_from(v) for k, v in data.items() if k != "@"})
+
+
 def shown(text: object) -> str:
     """A student's text as one line of at most _TEXT_MAX characters: control characters (a
     newline, an escape sequence) shown as '?'."""
@@ -211,7 +263,7 @@ def stand_in(info: ClassInfo) -> type[PythonController]:
     attrs: dict[str, Any] = {"command_interface": info.command_interface, "__module__": __name__,
                              "__doc__": f"{info.name} from {info.file}, run in its own process",
                              "_mexone_worker": info, "exports": dict(info.exports),
-                             "inputs": dict(info.inputs)}
+                             "inputs": dict(info.inputs), "topics": _message_classes(info)}
     try:
         attrs.update(info.declared())
     except (TypeError, ValueError, KeyError):
@@ -219,6 +271,12 @@ def stand_in(info: ClassInfo) -> type[PythonController]:
     if info.check_entry:
         attrs["check_entry"] = classmethod(_check_entry_in_worker)
     return type(info.name, (_StandIn, PythonController), attrs)
+
+
+def _message_classes(info: ClassInfo) -> dict[str, type]:
+    from mexone.bus import msgs
+
+    return {name: getattr(msgs, kind) for name, kind in info.topics.items()}
 
 
 def _check_entry_in_worker(cls, name: str, joints: tuple[str, ...], plugin, timestep: float) -> None:

@@ -39,7 +39,7 @@ import numpy as np
 from mexone.control import watchdog
 from mexone.control.mistakes import StudentLog, not_numbers, return_lines, wrong_count
 from mexone.control.resolve import Found, Plugin, _import_failure, load_class, student_line
-from mexone.control.student import Exports, PythonController, State, strided_view
+from mexone.control.student import Exports, PythonController, State, declared_topics, strided_view
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     CALL,
@@ -47,6 +47,7 @@ from mexone.control.worker import (
     FILLED,
     KEPT,
     LOG,
+    MESSAGES,
     PARAMS,
     POOL_IDLE,
     REPLY,
@@ -55,6 +56,7 @@ from mexone.control.worker import (
     UPDATE,
     UPDATE_FAULT,
     Layout,
+    message_from,
 )
 from mexone.errors import MexoneError
 from mexone.sandbox import ended, guard
@@ -97,7 +99,7 @@ class _Host:
     def __init__(self, sock_fd: int, descriptors_fd: int):
         watchdog.STUDENT_SETUP_TIMEOUT = 1e9  # mexone's side times the student (and ends us)
         self.chan = Channel(socket.socket(fileno=sock_fd), socket.socket(fileno=descriptors_fd),
-                            student=True)
+                            max_frame=1 << 28, student=True)  # mexone's frames (a camera image)
         self.chan.introduce()
         self.lock = threading.Lock()  # a thread of the student's logs or faults too
         self.cls = None
@@ -105,7 +107,9 @@ class _Host:
         self.file = ""
         self.updates = 0
         self.pid = os.getpid()
-        self.kinds = {UPDATE: self.update, CALL: self.request}
+        self.kinds = {UPDATE: self.update, CALL: self.request, MESSAGES: self.take_messages}
+        self.topics: tuple[str, ...] = ()  # the class's declared topics
+        self.inbox: dict[str, Any] = {}  # the messages for the next update
         self.sent_params: dict = {}
         self._dyn = None
         self._dyn_at = -1
@@ -203,7 +207,26 @@ class _Host:
                 "command_interface": cls.command_interface, "params": params,
                 "update_line": line, "report": callable(getattr(cls, "report", None)),
                 "check_entry": checks, "exports": dict(getattr(cls, "exports", {}) or {}),
-                "inputs": dict(getattr(cls, "inputs", {}) or {})}
+                "inputs": dict(getattr(cls, "inputs", {}) or {}), "topics": self.declare_topics(cls)}
+
+    def declare_topics(self, cls) -> dict[str, str]:
+        """The class's topics as names of mexone.bus.msgs classes (all a worker is sent)."""
+        from mexone.bus import msgs
+
+        out = {}
+        for name, kind in declared_topics(cls).items():
+            if getattr(msgs, kind.__name__, None) is not kind or kind.__name__ not in msgs.__all__:
+                raise MexoneError(f"{cls.__name__}.topics['{name}']: {kind.__name__} is not a "
+                                  "message class of mexone.bus.msgs",
+                                  hint="a controller in its own process takes mexone.bus.msgs "
+                                       "messages (docs/controllers.md, Topics)")
+            out[name] = kind.__name__
+        self.topics = tuple(out)
+        return out
+
+    def take_messages(self, payload: bytes) -> None:
+        """The messages that arrived since the last update (mexone's, rebuilt here)."""
+        self.inbox = {str(k): message_from(v) for k, v in json.loads(payload).items()}
 
     def do_check_entry(self, request: dict) -> None:
         p = request["plugin"]
@@ -381,6 +404,9 @@ class _Host:
         line of the `return` that produced it (mexone checks the numbers, and names that line
         for a NaN)."""
         state = self.fresh_state()
+        if self.topics:
+            inbox, self.inbox = self.inbox, {}
+            state.messages = {name: inbox.get(name) for name in self.topics}
         inp, out = self.inp, self.out
         t, dt = state.time, float(inp[1])
         measure = inp[2] != 0.0

@@ -31,6 +31,7 @@ from mexone.control.student import declared_lengths
 from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     DONE,
+    MESSAGES,
     STARTUP_TIMEOUT,
     UPDATE_FAULT,
     ClassInfo,
@@ -39,6 +40,7 @@ from mexone.control.worker import (
     Worker,
     WorkerFailed,
     claim,
+    message_data,
     model_block,
     shown,
 )
@@ -272,6 +274,15 @@ class IsolatedRunner(PythonRunner):
             for name, view in self._input_views:
                 view[:] = inputs.get(name, np.nan)
 
+    def _send_messages(self, worker: Worker) -> None:
+        """The messages that arrived since the last update (none: no frame), for the worker's
+        state.messages."""
+        with self._inbox_lock:
+            inbox, self._inbox = self._inbox, {}
+        if inbox:
+            worker.chan.send_json(MESSAGES, {k: message_data(v) for k, v in inbox.items()},
+                                  self._hang)
+
     def _exported(self) -> None:
         """What it exported this update, into the arrays its readers see (copies: the worker
         writes its own memory whenever it likes)."""
@@ -374,6 +385,8 @@ class IsolatedRunner(PythonRunner):
             if self._version != self._sim.model_version:
                 self._check_model()
             self._fill(t, dt)
+            if self._topics:
+                self._send_messages(worker)
             suspect = self._suspect
             if suspect:  # an update overran: measure what the machine took from the next ones
                 switches, waited = _preemptions(), run_delay()
