@@ -13,7 +13,9 @@ controller manager:
   read-only; its command (and exports) come back in shared memory it may write; a 5-byte frame
   each way wakes the other side (`sandbox.wire`);
 - everything else is a JSON frame: calls (create, activate, deactivate, set_param, report,
-  model, rebind, check_entry, quit) and their replies, log lines, faults, requests for a sensor;
+  model, rebind, check_entry, quit) and their replies, log lines, faults, requests for a sensor,
+  and before an update the bus messages that arrived for the class's `topics` (mexone.bus.msgs
+  data, `message_data`: the worker rebuilds them, never an object of its choosing);
 - `self.dynamics` computes on the worker's private copy of the compiled model (sent again when
   the model changes), so nothing the controller does changes the simulated physics.
 

@@ -409,15 +409,7 @@ class IsolatedRunner(PythonRunner):
         if self._thread_fault:
             self._fault(self._thread_fault)
             return
-        self._spent += elapsed
-        self._timed_updates += 1
-        meter = self.meter
-        meter.updates += 1
-        meter.total += elapsed
-        if elapsed > meter.worst:
-            meter.worst = elapsed
-        if elapsed > self._max_time:
-            meter.misses += 1  # counted whoever's doing it was (the fault below is theirs only)
+        self._metered(elapsed)
         if kind == UPDATE_FAULT:
             self._fault(self._update_fault(payload))
             return

@@ -475,6 +475,15 @@ class PythonRunner(Controller):
         if guard.leave(tid):
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
+        self._metered(elapsed)
+        if (elapsed > self._max_time or self._suspect) and self._overran(elapsed, switches):
+            return
+        if out is not None:
+            self._write(out, t)
+
+    def _metered(self, elapsed: float) -> None:
+        """An update's time, into the budget meter (a miss counted whoever's doing it was: the
+        fault `_overran` finds is the controller's only)."""
         self._spent += elapsed
         self._timed_updates += 1
         meter = self.meter
@@ -483,11 +492,7 @@ class PythonRunner(Controller):
         if elapsed > meter.worst:
             meter.worst = elapsed
         if elapsed > self._max_time:
-            meter.misses += 1  # counted whoever's doing it was (the fault below is theirs only)
-        if (elapsed > self._max_time or self._suspect) and self._overran(elapsed, switches):
-            return
-        if out is not None:
-            self._write(out, t)
+            meter.misses += 1
 
     def _overran(self, elapsed: float, switches: int, theirs: float | None = None) -> bool:
         """An update took `elapsed` s: count it if it overran and the OS did not preempt it
