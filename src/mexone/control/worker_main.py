@@ -219,7 +219,7 @@ class _Host:
                 raise MexoneError(f"{cls.__name__}.topics['{name}']: {kind.__name__} is not a "
                                   "message class of mexone.bus.msgs",
                                   hint="a controller in its own process takes mexone.bus.msgs "
-                                       "messages (docs/controllers.md, Topics)")
+                                       "messages: docs/controllers.md, Topics")
             out[name] = kind.__name__
         self.topics = tuple(out)
         return out
