@@ -43,7 +43,7 @@ def measure(folder: Path, kind: str, seconds: float, in_process: bool) -> str:
             yaml_path, classes={f"{stem}/{cls_name}": namespace[cls_name]}))
     else:
         lab = Lab.create(controllers=yaml_path)
-    runner = lab.controllers.controllers[KINDS[kind][2]]
+    runner = lab.manager.controllers[KINDS[kind][2]]
     walls, cpus, own = [], [], []
     real = runner.update
 
@@ -64,7 +64,7 @@ def measure(folder: Path, kind: str, seconds: float, in_process: bool) -> str:
     before = _schedstat(pid) if pid else None
     lab.sim.step(round(seconds / lab.sim.timestep))
     after = _schedstat(pid) if pid else None
-    lab.controllers.close()
+    lab.manager.close()
     wall, cpu = np.array(walls) * 1e6, np.array(cpus) * 1e6
     line = (f"{'in-process' if in_process else 'worker':10s} {len(wall)} updates: wall us median "
             f"{np.median(wall):.0f} mean {wall.mean():.0f}, the lab's CPU us median {np.median(cpu):.0f}")

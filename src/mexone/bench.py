@@ -78,9 +78,9 @@ def _best(fn, repeats: int) -> float:
 
 def with_integral_terms(lab: Lab) -> None:
     """Give every position controller an I term that acts (i and a clamp), keeping p and d."""
-    manager = lab.controllers
+    manager = lab.manager
     for ctrl in manager.controllers.values():
-        if ctrl.kind == "position" and ctrl.gains is not None:
+        if ctrl.holds_position and ctrl.tunable:
             manager.set_gains(ctrl.name, [replace(g, i=0.5 * g.p, i_clamp_min=-2.0, i_clamp_max=2.0)
                                           for g in ctrl.gains])
     lab.sim.step(1)  # the update writes the new gains into the actuators
@@ -233,7 +233,7 @@ def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
         exec(compile(_BENCH_CONTROLLER, str(Path(folder) / "my_pd.py"), "exec"), namespace)
         lab = Lab.create(controllers=load_control_config(
             yaml_path, classes={"my_pd/MyPd": namespace["MyPd"]}))
-    sim, manager = lab.sim, lab.controllers
+    sim, manager = lab.sim, lab.manager
     runner = manager.controllers["my_pd_controller"]
     steps = round(sim_seconds / sim.timestep)
     clock = time.thread_time  # CPU time of this thread: a loaded machine's other tenants excluded
@@ -342,7 +342,7 @@ def worker_controller_cost(sim_seconds: float) -> dict:
         start = time.perf_counter()
         lab = Lab.create(controllers=yaml_path)
         create_s = time.perf_counter() - start
-        sim, runner = lab.sim, lab.controllers.controllers["my_pd_controller"]
+        sim, runner = lab.sim, lab.manager.controllers["my_pd_controller"]
         assert isinstance(runner, IsolatedRunner)
         walls, cpus = [], []
         real_update = runner.update
@@ -368,9 +368,9 @@ def worker_controller_cost(sim_seconds: float) -> dict:
         pid = runner.worker.process.pid
         pss = _pss_mb(pid)
         start = time.perf_counter()
-        lab.controllers.reload("my_pd_controller")  # a fresh worker: describe, create, configure
+        lab.manager.reload("my_pd_controller")  # a fresh worker: describe, create, configure
         reload_s = time.perf_counter() - start
-        lab.controllers.close()
+        lab.manager.close()
     return {"worker_round_trip_us": float(np.median(walls)) * 1e6,
             "worker_round_trip_p99_us": float(np.percentile(walls, 99)) * 1e6,
             "worker_lab_cpu_us_per_update": float(np.median(cpus)) * 1e6,

@@ -76,7 +76,7 @@ def lab(request, tmp_path, turntable):
 
 
 def _seen(lab) -> list[dict]:
-    return lab.controllers.controllers["listener"].report()["seen"]
+    return lab.manager.controllers["listener"].report()["seen"]
 
 
 def test_each_update_sees_the_newest_message_since_the_last_or_none(lab):
@@ -96,10 +96,10 @@ def test_each_update_sees_the_newest_message_since_the_last_or_none(lab):
 
 def test_a_stopped_controller_holds_no_subscription_and_sees_nothing_sent_meanwhile(lab):
     ns = lab.namespace
-    lab.controllers.switch(stop=["listener"])
+    lab.manager.switch(stop=["listener"])
     assert lab.bus.topic(f"{ns}/setpoint", Float64).subscriptions == []
     lab.bus.publish(f"{ns}/setpoint", Float64(5.0))
-    lab.controllers.switch(start=["listener"])
+    lab.manager.switch(start=["listener"])
     lab.sim.step(10)
     assert _seen(lab)[-1]["setpoint"] is None
     lab.bus.publish(f"{ns}/setpoint", Float64(6.0))
@@ -115,7 +115,7 @@ def test_a_nested_message_reaches_a_worker_whole(tmp_path, turntable):
         Header(3, Time.from_sec(1.5), "world"),
         [Pose(Point(0.25, 0, 0), Quaternion(w=0.5)), Pose(Point(-1.0, 0, 0))]))
     lab.sim.step(10)
-    assert lab.controllers.controllers["listener"].report()["got"] == \
+    assert lab.manager.controllers["listener"].report()["got"] == \
         ["PoseArray", "world", 1.5, [[0.25, 0.5], [-1.0, 1.0]]]
 
 

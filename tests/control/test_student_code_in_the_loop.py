@@ -384,11 +384,11 @@ def test_the_live_model_stays_the_simulators(tmp_path):
     lab = Lab.create(controllers=tmp_path / "controllers.yaml")
     masses = lab.sim.model.body_mass.copy()
     lab.sim.step(5)
-    report = lab.controllers.controllers["ctl"].report()
+    report = lab.manager.controllers["ctl"].report()
     assert report["gravity"] == [0.0, 0.0, 0.0] and report["g"] == [0.0, 0.0]
     assert list(lab.sim.model.opt.gravity) == [0.0, 0.0, -9.81]
     np.testing.assert_array_equal(lab.sim.model.body_mass, masses)
     assert masses.sum() > 10  # Mex-One's 15 kg
     lab.sim.set_gravity([0.0, 0.0, -1.62])  # the Moon: the controller's copy follows the change
     lab.sim.step(2)
-    assert lab.controllers.controllers["ctl"].report()["gravity"] == [0.0, 0.0, -1.62]
+    assert lab.manager.controllers["ctl"].report()["gravity"] == [0.0, 0.0, -1.62]

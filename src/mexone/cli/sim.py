@@ -180,7 +180,7 @@ def controller_reports(lab) -> dict:
     from mexone.control.worker import StudentFault
 
     out: dict = {}
-    for name, ctrl in (lab.controllers.controllers.items() if lab.controllers else ()):
+    for name, ctrl in (lab.manager.controllers.items() if lab.manager else ()):
         if not isinstance(ctrl, PythonRunner):
             continue
         fault = ctrl.fault
@@ -213,7 +213,7 @@ def _said(exc: BaseException) -> str:
 
 def faulted(lab) -> list[str]:
     """The Python controllers a fault stopped during the run."""
-    manager = lab.controllers
+    manager = lab.manager
     return [name for name, ctrl in (manager.controllers.items() if manager else ())
             if getattr(ctrl, "fault", None)]
 
@@ -256,8 +256,8 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
             rest = f"yes, since t = {summary.rest_time:.2f} s" if summary.at_rest else "no"
             print(f"base height {summary.base_height:.3f} m, fastest link {summary.max_link_speed:.2f}"
                   f" m/s, at rest: {rest}")
-    if lab.controllers is not None:  # ros_control stops its controllers at the end; each
-        lab.controllers.close()  # worker says what its student left running, then ends
+    if lab.manager is not None:  # ros_control stops its controllers at the end; each
+        lab.manager.close()  # worker says what its student left running, then ends
     if faults and signals.requested():  # stopped by a signal: its status says so (130/143)
         faults = []
     if faults and not summary.error:

@@ -7,8 +7,7 @@ student API and not the manager, the hardware or MuJoCo."""
 import importlib
 
 __all__ = [
-    "CONTROLLER_TYPES",
-    "Controller",
+    "ControllerInterface",
     "ControllerType",
     "ControlConfig",
     "ControllerSpec",
@@ -17,8 +16,6 @@ __all__ = [
     "parse_control_config",
     "ControllerInfo",
     "ControllerManager",
-    "STRICT",
-    "BEST_EFFORT",
     "SimHardware",
     "build_actuators",
     "PidArray",
@@ -29,7 +26,8 @@ __all__ = [
 
 _HOMES = {
     "load_control_config": "config", "parse_control_config": "config",
-    "CONTROLLER_TYPES": "controllers", "Controller": "controllers", "ControllerType": "controllers",
+    "ControllerInterface": "controllers", "ControllerType": "controllers",
+    "CONTROLLER_TYPES": "controllers",
     "SimHardware": "hardware", "build_actuators": "hardware",
     "BEST_EFFORT": "manager", "STRICT": "manager", "ControllerInfo": "manager",
     "ControllerManager": "manager", "PidArray": "pid",
@@ -38,12 +36,22 @@ _HOMES = {
 }
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> object:
+    """Each name from its module when first used. The former names (issue 40), for one release:
+    `Controller` (the ros_control base, not the student's class `mexone.Controller`) with a
+    warning; CONTROLLER_TYPES, STRICT and BEST_EFFORT live in their modules
+    (mexone.control.controllers, mexone.control.manager)."""
+    if name == "Controller":
+        from mexone.errors import warn_renamed
+
+        warn_renamed("mexone.control.Controller", "mexone.control.ControllerInterface")
+        return __getattr__("ControllerInterface")
     home = _HOMES.get(name)
     if home is None:
-        raise AttributeError(f"module 'mexone.control' has no attribute {name!r}")
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(importlib.import_module(f"mexone.control.{home}"), name)
-    globals()[name] = value
+    if name in __all__:
+        globals()[name] = value
     return value
 
 

@@ -8,7 +8,9 @@ level, plus ``gazebo_ros_control/pid_gains/<joint>`` as gazebo_ros_control reads
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -38,15 +40,16 @@ __all__ = [
 
 
 def load_control_config(path: Path | str, classes: dict[str, type] | None = None) -> ControlConfig:
-    """The controllers of the YAML at `path`. A student's class its `type:` names runs in a
-    process of its own (control/worker.py); `classes` maps `type:` names to classes handed over
-    in Python (a notebook's own), which run in this process."""
+    """A ros_control controller YAML (what `rosparam load` and the controller_manager read), every
+    mistake one line at the file's line. A student's class its `type:` names runs in a process
+    of its own (control/worker.py); `classes` maps `type:` names to classes handed over in
+    Python (a notebook's own), which run in this process."""
     path = Path(path)
     return parse_control_config(read_input_text(path), path, classes)
 
 
 class _Reader:
-    def __init__(self, path: Path | None):
+    def __init__(self, path: Path | None) -> None:
         self.path = path
 
     def error(self, node: yaml.Node, what: str, hint: str | None = None) -> InputError:
@@ -57,7 +60,7 @@ class _Reader:
             raise self.error(node, f"{what} must be a mapping of names to settings")
         return [(str(k.value), k, v) for k, v in node.value]
 
-    def value(self, node: yaml.Node):
+    def value(self, node: yaml.Node) -> Any:
         try:
             return yamlio.construct(node)
         except InputError as exc:
@@ -68,7 +71,8 @@ class _Reader:
         bool('no') is True."""
         value = self.value(node)
         if not isinstance(value, bool):
-            quoted = " (quoted, so a string)" if isinstance(value, str) and node.style in ("'", '"') else ""
+            style = getattr(node, "style", None)  # a scalar's quoting
+            quoted = " (quoted, so a string)" if isinstance(value, str) and style in ("'", '"') else ""
             raise self.error(node, f"{what}: '{node.value}'{quoted} is not a boolean",
                              "write true or false, without quotes")
         return value
@@ -84,6 +88,7 @@ class _Reader:
 
 def parse_control_config(text: str, path: Path | None = None,
                          classes: dict[str, type] | None = None) -> ControlConfig:
+    """A controller YAML's text (`path` names it in messages): see load_control_config."""
     reader = _Reader(path)
     root = yamlio.compose(text, path)
     if root is None:
@@ -146,9 +151,9 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node,
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
         return _plugin(reader, name, key, ctype, type_node, fields, classes)
-    kind, single = CONTROLLER_TYPES[ctype].kind, CONTROLLER_TYPES[ctype].single_joint
+    cls, single = CONTROLLER_TYPES[ctype].cls, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
-    if kind != "state":
+    if cls.drives_joints:
         if single:
             if "joint" not in fields:
                 raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joint'")
@@ -174,7 +179,7 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node,
     ideal = False
     if "ideal_servo" in fields:
         ideal = reader.boolean(fields["ideal_servo"][1], f"'{name}' ideal_servo")
-        if kind not in ("position", "trajectory"):
+        if not cls.tracks_position:
             raise reader.error(fields["ideal_servo"][1], f"'{name}': ideal_servo is for position "
                                                          "controllers")
     return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1, gains, ideal,
@@ -233,7 +238,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
         raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joints' list",
                            "add joints: [joint, ...]")
     if len(set(joints)) != len(joints):
-        raise reader.error(fields.get("joints", fields.get("joint"))[1],
+        raise reader.error((fields.get("joints") or fields["joint"])[1],
                            f"controller '{name}' names a joint twice")
     lines = {k: (reader.value(v), v.start_mark.line + 1) for k, (_, v) in fields.items()}
     settings = check_settings(lines, name, where)
@@ -250,12 +255,12 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
     inputs = _inputs(reader, name, cls, key, fields.get("inputs"))
     plugin = Plugin(ctype, cls, origin, yaml_dir, raw, params, source=reader.path,
                     line=key.start_mark.line + 1, lines={k: n for k, (_, n) in lines.items()},
-                    inputs=inputs, handed=bool(classes) and ctype in classes, **settings)
+                    inputs=inputs, handed=classes is not None and ctype in classes, **settings)
     return ControllerSpec(name, ctype, joints, pid, None, key.start_mark.line + 1, gains, False,
                           reader.path, plugin)
 
 
-def _inputs(reader: _Reader, name: str, cls, key: yaml.Node,
+def _inputs(reader: _Reader, name: str, cls: type, key: yaml.Node,
             field: tuple[yaml.Node, yaml.Node] | None) -> dict[str, str]:
     """A chained controller's `inputs:` (declared input -> "controller/export"): every input the
     class declares bound, nothing else. Whether the exporter exists is `check_chains`'s."""
@@ -322,7 +327,7 @@ def check_chains(config: ControlConfig) -> None:
                          hint="an exporter cannot read its own readers' exports")
 
 
-def _readers_of(specs) -> dict[str, set[str]]:
+def _readers_of(specs: Mapping[str, Any]) -> dict[str, set[str]]:
     """controller -> the controllers whose exports it reads."""
     out: dict[str, set[str]] = {}
     for name, spec in specs.items():
@@ -332,7 +337,7 @@ def _readers_of(specs) -> dict[str, set[str]]:
     return out
 
 
-def chain_order(specs) -> list[str] | None:
+def chain_order(specs: Mapping[str, Any]) -> list[str] | None:
     """The controllers' names (any mapping name -> object with `.plugin`) with every exporter
     before its readers, otherwise in their own order; None if they read each other in a
     circle."""
@@ -340,7 +345,7 @@ def chain_order(specs) -> list[str] | None:
     return None if left else order
 
 
-def _kahn(specs) -> tuple[list[str], list[str]]:
+def _kahn(specs: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """Kahn's algorithm, stable: (the ordered names, those left in or behind a circle)."""
     needs = _readers_of(specs)
     done: list[str] = []
@@ -354,7 +359,7 @@ def _kahn(specs) -> tuple[list[str], list[str]]:
     return done, left
 
 
-def _cycle(specs) -> list[str]:
+def _cycle(specs: Mapping[str, Any]) -> list[str]:
     """One circle of chained controllers (for the message): among those Kahn could not place,
     each reads another of them, so following the reads comes back around."""
     needs = _readers_of(specs)

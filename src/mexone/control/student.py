@@ -66,6 +66,7 @@ class Param:
 
     @property
     def numeric(self) -> bool:
+        """Whether the parameter is a number (int or float): a page shows it as a number field."""
         return self.kind in (int, float)
 
     def __set_name__(self, owner: type, name: str) -> None:
@@ -172,14 +173,18 @@ class State:
 
     @property
     def all_q(self) -> np.ndarray:
+        """The whole robot's joint positions (MuJoCo's qpos: the free joint's 7 numbers first on a
+        floating robot), not only the controller's; read-only."""
         return self._all_q
 
     @property
     def all_dq(self) -> np.ndarray:
+        """The whole robot's joint velocities (MuJoCo's qvel); read-only."""
         return self._all_dq
 
     @property
     def base(self) -> BaseState | None:
+        """The floating base's pose and twist (a BaseState), or None for a robot fixed to the world."""
         if self._base is None and self._base_joint is not None:
             qa, va = self._base_joint
             q, dq = self._all_q, self._all_dq
@@ -189,6 +194,7 @@ class State:
 
     @property
     def sensors(self) -> Mapping:
+        """The sensors' state interfaces by name (state.sensors["imu"].orientation, ...)."""
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
         return self._sensors
