@@ -205,7 +205,8 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
     lab.manager.switch(start=["gravity_compensation"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
-    assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
+    assert broken["gravity_compensation"]["error"] == "report() raised ZeroDivisionError: division by zero"
+    assert set(broken["gravity_compensation"]) == {"error", "budget"}  # the budget meter goes on
 
 
 def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
@@ -232,5 +233,6 @@ def test_a_report_with_nan_is_strict_json():
     impl = lab.manager.controllers["gravity_compensation"].impl
     impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
     text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
-    assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {
-        "gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}
+    read = json.loads(text, parse_constant=lambda c: pytest.fail(c))
+    assert read["gravity_compensation"].pop("budget")["updates"] == 0  # the meter's, beside it
+    assert read == {"gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}
