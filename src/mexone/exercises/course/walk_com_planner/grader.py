@@ -56,8 +56,10 @@ def grade(ctx) -> list:
                else "but its `com` was not finite: the whole-body controller stood the robot"))
     speed, _ = speed_check("speed", 4.0, t, x, WINDOW, NONE, FULL, f"{VX:g} m/s commanded")
     fault = out["fault"] or (out["faults"][0] if out["faults"] else None)
+    stood = check(UP, 3.0, 1.0 if up else 0.0, f"stood all {SECONDS:g} s ({what})" if up
+                  else f"fell at {out['fell']:.2f} s ({what})")
+    if method < 1.0:  # the walk is not the student's planner's: nothing of it counts
+        stood, speed = (check(c.name, c.weight, 0.0, f"not counted: {METHOD} failed ({c.output})")
+                        for c in (stood, speed))
     return [check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault"),
-            check(METHOD, 2.0, method, why),
-            check(UP, 3.0, 1.0 if up else 0.0, f"stood all {SECONDS:g} s ({what})" if up
-                  else f"fell at {out['fell']:.2f} s ({what})"),
-            speed]
+            check(METHOD, 2.0, method, why), stood, speed]

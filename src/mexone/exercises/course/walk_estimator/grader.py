@@ -58,9 +58,12 @@ def grade(ctx) -> list:
     else:
         tracks, why = 0.0, "your `base` was not finite at every sample"
     speed, _ = speed_check("speed", 3.0, t, x, WINDOW, NONE, FULL, f"{VX:g} m/s commanded")
+    if up and tracks < 0.5:  # a walk on a wrong estimate is no walk on the estimate
+        speed = check("speed", 3.0, 0.0, f"not counted: {TRACKS} earned {tracks:.0%} (at least "
+                      f"50 % counts the speed; {speed.output})")
     fault = out["fault"] or (out["faults"][0] if out["faults"] else None)
     return [check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault"),
-            check(UP, 3.0, 1.0 if up else 0.0, f"stood all {SECONDS:g} s ({what})" if up
+            check(UP, 2.0, 1.0 if up else 0.0, f"stood all {SECONDS:g} s ({what})" if up
                   else f"fell at {out['fell']:.2f} s ({what})"),
-            speed,
-            check(TRACKS, 3.0, tracks, why, requires=UP)]
+            check(TRACKS, 4.0, tracks, why, requires=UP),
+            speed]

@@ -1,0 +1,91 @@
+"""Course exercises 11-13 (issue 39): the walking stack's COM planner, whole-body weights and
+estimator, each graded through the framework on a short walk under the hidden variant (masses,
+friction, a push). The reference scores full marks, the starter fails, and a cheat fails its
+method check: the shipped planner under the student's name, a key that is not a QP weight,
+an estimator that copies the simulator's base (which the grader hides from it)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mexone.exercises import find_exercise, grade
+
+COURSE = Path(__file__).resolve().parents[2] / "src" / "mexone" / "exercises" / "course"
+WRONG = Path(__file__).resolve().parent / "wrong"
+NAMES = ("walk_com_planner", "walk_faster", "walk_estimator")
+
+
+@pytest.fixture(scope="module")
+def graded():
+    """grade(name, which) once per (exercise, reference | starter | cheat), shared by the
+    tests below (each grading is a walk of a few seconds in the isolated child)."""
+    cache: dict = {}
+
+    def get(name: str, which: str):
+        if (name, which) not in cache:
+            exercise = find_exercise(name)
+            path = {"reference": exercise.solution, "starter": exercise.starter,
+                    "cheat": WRONG / name / exercise.file}[which]
+            cache[name, which] = grade(exercise, path)
+        return cache[name, which]
+    return get
+
+
+def checks(result) -> dict:
+    return {c.name: (score, c.output) for c, score, _ in result.checks}
+
+
+def why(result) -> list[str]:
+    return [f"{c.name}: {c.output}" for c, _, _ in result.checks] + [result.failure or ""]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_hidden_variant_is_not_the_given_robot(name):
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", COURSE / name / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    hidden = module.variant(np.random.default_rng(1))
+    assert hidden != module.variant(None) and hidden.push is not None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_the_reference_walks_for_full_marks_on_the_hidden_variant(graded, name):
+    result = graded(name, "reference")
+    assert result.score == pytest.approx(find_exercise(name).points), why(result)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_the_starter_fails(graded, name):
+    result = graded(name, "starter")
+    assert result.score < find_exercise(name).pass_mark, why(result)
+    if name == "walk_estimator":  # it walks, on a robot it believes stands still
+        assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
+    else:
+        assert checks(result)["stays up"][0] == 0, why(result)
+
+
+def test_the_shipped_planner_under_the_students_name_scores_zero(graded):
+    result = graded("walk_com_planner", "cheat")
+    assert result.score == 0, why(result)
+    assert "imports mexone.walking.mpc" in checks(result)["your planner in the chain"][1]
+
+
+def test_a_key_that_is_not_a_weight_of_the_qp_scores_zero_in_one_line(graded):
+    result = graded("walk_faster", "cheat")
+    assert result.score == 0 and "'max_forward' is not a task weight or gain" in why(result)[0], \
+        why(result)
+
+
+@pytest.mark.slow
+def test_an_estimator_that_copies_the_simulators_base_fails(graded):
+    """The grader hides the floating base from the student's class: a copy of state.all_q's
+    base is the robot where it was put, so the stack walks on a robot standing still."""
+    result = graded("walk_estimator", "cheat")
+    assert result.score < find_exercise("walk_estimator").pass_mark, why(result)
+    assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
