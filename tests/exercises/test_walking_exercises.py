@@ -128,5 +128,5 @@ def test_the_estimators_view_of_the_floating_base_is_where_the_robot_was_put(tmp
     lab.sim.step(10)
     seen = np.array(sys.modules["spy"].SEEN)
     assert len(seen) >= 2 and np.allclose(seen[:, :3], start) and np.all(seen[:, 3] == 0.0)
-    whole_body = lab.controllers.controllers["whole_body"]
+    whole_body = lab.manager.controllers["whole_body"]
     assert whole_body.state.all_q[0] > start + 0.29  # the others read the truth

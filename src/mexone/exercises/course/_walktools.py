@@ -97,7 +97,7 @@ def _blind(lab, name: str) -> None:
 
     from mexone.dynamics import Dynamics
 
-    ctrl = lab.controllers.controllers[name]
+    ctrl = lab.manager.controllers[name]
     sim = lab.sim
     blind = mujoco.MjData(sim.model)
     start = sim.data.qpos[:7].copy()
@@ -150,7 +150,7 @@ def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = N
             apply_wrench(s, "torso", force, duration=PUSH_SECONDS)
         timer = sim.add_periodic(push.at, shove)
     start = sim.base_height
-    ctrl = lab.controllers.controllers.get(part) if part else None
+    ctrl = lab.manager.controllers.get(part) if part else None
     exports = getattr(ctrl, "exports", {}) if ctrl is not None else {}
     rows: list[list[float]] = []
     fell: float | None = None
@@ -169,7 +169,7 @@ def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = N
         if fell is not None and sim.time >= fell + AFTER_FALL:
             break
     out = {"rows": rows, "fell": fell, "fault": controller_fault(lab, part) if part else None,
-           "faults": [f"{n}: {c.fault}" for n, c in lab.controllers.controllers.items()
+           "faults": [f"{n}: {c.fault}" for n, c in lab.manager.controllers.items()
                       if getattr(c, "fault", None)]}
     if ctrl is not None:  # what class ran in the part's place (the method checks')
         out["mro"] = [f"{c.__module__}.{c.__qualname__}" for c in type(ctrl.impl).__mro__] \
