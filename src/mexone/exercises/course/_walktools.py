@@ -109,20 +109,28 @@ def _blind(lab, name: str) -> None:
         blind.time = sim.data.time
         dynamics.refresh()
 
-    read, update = ctrl._read, ctrl.update
+    update = ctrl.update
+    if hasattr(ctrl, "_src"):  # a worker process (control/controllers/isolated.py): what it is sent
+        def blind_update(t: float, dt: float) -> None:
+            refresh()
+            ctrl._src = (blind.qpos, blind.qvel, sim.data.qfrc_actuator)
+            update(t, dt)
+        ctrl.update = blind_update
+        return
+    read = ctrl._read  # in the lab's process: the State's data and the dynamics
 
     def blind_read(t: float) -> None:
         read(t)
         ctrl.state._data = blind
 
-    def blind_update(t: float, dt: float) -> None:
+    def in_process_update(t: float, dt: float) -> None:
         refresh()
         ctrl.state._data = blind
         update(t, dt)
 
     refresh()
     ctrl.state._data = blind
-    ctrl._read, ctrl.update, ctrl.dynamics = blind_read, blind_update, lambda: dynamics
+    ctrl._read, ctrl.update, ctrl.dynamics = blind_read, in_process_update, lambda: dynamics
 
 
 def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = None,
