@@ -76,6 +76,13 @@ def test_the_shipped_planner_under_the_students_name_scores_zero(graded):
     assert "imports mexone.walking.mpc" in checks(result)["your planner in the chain"][1]
 
 
+def test_the_shipped_planner_imported_by_name_at_run_time_scores_zero():
+    exercise = find_exercise("walk_com_planner")
+    result = grade(exercise, WRONG / "walk_com_planner" / "dynamic.py")
+    assert result.score == 0 and "imports by name at run time (importlib)" in why(result)[1], \
+        why(result)
+
+
 def test_a_key_that_is_not_a_weight_of_the_qp_scores_zero_in_one_line(graded):
     result = graded("walk_faster", "cheat")
     assert result.score == 0 and "'max_forward' is not a task weight or gain" in why(result)[0], \

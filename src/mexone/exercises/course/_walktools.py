@@ -200,21 +200,24 @@ def speed_check(name: str, weight: float, t: np.ndarray, x: np.ndarray, window: 
 
 def imports(source: Path) -> set[str]:
     """The modules a Python file imports by statement (read, not run: in the grading process),
-    each with its parents ("a.b.c" gives a, a.b, a.b.c); empty when it does not parse (the run
-    then says why)."""
+    each with its parents ("a.b.c" gives a, a.b, a.b.c), and the names __import__, exec, eval
+    where it uses them; empty when it does not parse (the run then says why)."""
     try:
         tree = ast.parse(source.read_text(errors="replace"))
     except (SyntaxError, ValueError, OSError):
         return set()
     names: set[str] = set()
     for node in ast.walk(tree):
+        if isinstance(node, ast.Name) and node.id in ("__import__", "exec", "eval"):
+            names.add(node.id)
+            continue
         if isinstance(node, ast.Import):
             found = [a.name for a in node.names]
         elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
             found = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
         else:
             continue
-        for name in found:
+        for name in found:  # (and the calls that import by name: __import__, exec, eval)
             parts = name.split(".")
             names.update(".".join(parts[:i]) for i in range(1, len(parts) + 1))
     return names
