@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+PRINTABLE_LIMIT = 300  # characters of outside text a one-line message shows
+
 __all__ = [
     "MexoneError",
     "InputError",
@@ -15,6 +17,7 @@ __all__ = [
     "OutputExistsError",
     "ArgumentTypeError",
     "RoutineError",
+    "printable",
 ]
 
 
@@ -83,3 +86,18 @@ class RoutineError(MexoneError):
                  hint: str | None = None, details: str = "") -> None:
         self.details = details or what
         super().__init__(what, file=file, line=line, hint=hint)
+
+
+def printable(text: object, limit: int = PRINTABLE_LIMIT) -> str:
+    """Text from outside (a file or folder name, a student's error, a ROS request's field) as one
+    line that shows what it is: every character Python does not print (a newline, a carriage
+    return, NUL, ESC, a bidi override, a line separator) escaped as Python writes it (`\\n`,
+    `\\x00`, `\\u202e`), and at most `limit` characters, the rest counted. The one rule for
+    echoing a value we did not write: it can neither fake a line of ours nor flood one."""
+    text = str(text)
+    head = text[:limit]
+    shown = head if head.isprintable() else "".join(
+        c if c.isprintable() else repr(c)[1:-1] for c in head)
+    if len(text) > limit:
+        shown += f"... ({len(text)} characters)"
+    return shown

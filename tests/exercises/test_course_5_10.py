@@ -40,10 +40,10 @@ def test_reference_full_starter_low_wrong_fails_its_check(name, failing, thoroug
     spec.loader.exec_module(module)
     assert module.variant(np.random.default_rng(1)) != module.variant(None)  # hidden != given
     for local in (True, False) if thorough else (False,):
-        result = grade(exercise, COURSE / name / "solution" / file, local=local)
+        result = grade(exercise, exercise.solution, local=local)
         assert result.score == pytest.approx(exercise.points), [c.output for c, _, _ in result.checks]
     if thorough:  # graded twice: the same numbers
-        again = grade(exercise, COURSE / name / "solution" / file)
+        again = grade(exercise, exercise.solution)
         assert [c.output for c, _, _ in again.checks] == [c.output for c, _, _ in result.checks]
     starter = grade(exercise, COURSE / name / "starter" / file)
     assert starter.score <= 0.4 * exercise.points, [c.output for c, _, _ in starter.checks]
@@ -88,7 +88,7 @@ def test_an_estimate_that_is_not_a_number_is_the_students_reason(tmp_path, answe
 def test_a_position_interface_ideal_servo_scores_zero(tmp_path, name):
     # was 10/10 on exercise 5: command_interface "position" without gains is an ideal servo
     exercise = find_exercise(name)
-    text = (COURSE / name / "solution" / exercise.file).read_text()
+    text = exercise.solution.read_text()
     submission = tmp_path / exercise.file
     submission.write_text(text.replace('command_interface = "effort"',
                                        'command_interface = "position"'))

@@ -9,7 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mexone.errors import InputError, OutputExistsError
+from mexone.errors import InputError, OutputExistsError, printable
 from mexone.files import check_output, replacing, write_text
 
 HELP = """\
@@ -182,10 +182,10 @@ def _grade(args) -> int:
         for student, path in found.items():
             plots = args.plots / student if args.plots else None
             result = grade(ex, path, local=args.local, plots=plots, force=args.force) \
-                if path.is_file() \
+                if path.is_file() or path.is_symlink() \
                 else not_handed_in(ex, path)
             results[student] = result
-            print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
+            print(f"{printable(student, 80):<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
                   + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
                   file=sys.stderr if to_stdout else sys.stdout)
