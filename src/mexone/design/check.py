@@ -26,7 +26,7 @@ import numpy as np
 
 from mexone.design.deploy import StateFeedback, _Deployed
 from mexone.errors import ArgumentTypeError, InputError
-from mexone.ranges import number_text
+from mexone.ranges import COMPARE_DURATION, number_text
 
 __all__ = ["compare", "Comparison", "plot_comparison", "measure_frequency_response",
            "FrequencyResponse", "plot_frequency_response", "closed_loop", "loop_gain", "margins"]
@@ -232,8 +232,7 @@ def compare(lab, controller, plant, deviation=None, reference=None,
     dx0 = _vector(deviation, labels, "deviation")
     ref_labels = labels if isinstance(controller, StateFeedback) else list(controller.design.inputs)
     r = _vector(reference, ref_labels, "reference")
-    if not np.isfinite(duration) or duration <= 0:
-        raise InputError(f"duration {duration} is not a positive number of seconds")
+    COMPARE_DURATION.check(duration, "duration")
     _start(lab, controller, dx0, duration)
     controller.reference = r.copy()
     trace = _run(lab, controller, duration)

@@ -22,7 +22,8 @@ from mexone.physics.compile import CompileOptions, Spawn
 from mexone.robots import mex_one
 
 __all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
-           "controller_fault", "gain_share", "fit_gains", "HAND", "HAND_POINT", "ARM", "GAIN_FULL", "GAIN_NONE"]
+           "controller_fault", "gain_share", "fit_gains", "HAND", "HAND_POINT", "ARM",
+           "GAIN_FULL", "GAIN_NONE"]
 
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
 HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
