@@ -26,6 +26,10 @@ def add_ros_options(p: argparse.ArgumentParser) -> None:
                    help="serve every topic, the robot (URDF, meshes, TF) and sim time on the "
                         "Foxglove WebSocket protocol at ws://HOST:PORT (default 8765, on --host: "
                         "this machine only); needs pip install 'mexone[foxglove]' (docs/foxglove.md)")
+    p.add_argument("--foxglove-origin", action="append", default=[], metavar="ORIGIN",
+                   help="a web page's origin allowed to connect to --foxglove besides this "
+                        "machine's pages (repeatable), e.g. Foxglove's web app: "
+                        "--foxglove-origin https://app.foxglove.dev")
     p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
                    help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
                         "/gazebo, another simulator's under /NAME): one per simulator on a master")
@@ -101,7 +105,8 @@ def connect_bridges(args: argparse.Namespace) -> Bridges | None:
         if getattr(args, "foxglove", None) is not None:
             from mexone.foxglove import FoxgloveBridge
 
-            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1")))
+            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1"),
+                                          getattr(args, "foxglove_origin", ())))
     except BaseException:
         Bridges(bridges).shutdown()
         raise

@@ -4,7 +4,8 @@ Any web page the user has open can open a websocket to ws://127.0.0.1:8080. A br
 sends the page's Origin with that handshake, so the server refuses a websocket whose Origin is
 not the page it served itself (same scheme, host and port as the request's Host header), and a
 Host header that names some other site (DNS rebinding: evil.example resolving to 127.0.0.1).
-Clients that send no Origin are not web pages (scripts, tests) and pass the Origin check.
+Clients that send no Origin are not web pages (scripts, tests) and pass the Origin check. The
+rule itself is mexone.origins', which the Foxglove bridge applies too.
 
 viser has no hook for this, so the check runs as the first connect callback of its websocket
 server, before the client's first message is read; tests/gui/test_gui_security.py keeps that true
@@ -13,56 +14,16 @@ across viser releases.
 
 from __future__ import annotations
 
-import ipaddress
 import logging
-import socket
 import sys
-from urllib.parse import urlsplit
 
 import viser
+
+from mexone.origins import allowed, is_loopback  # the rule, shared with the Foxglove bridge
 
 __all__ = ["guard", "allowed", "is_loopback", "warn_if_exposed"]
 
 log = logging.getLogger("mexone.gui")
-_LOCAL_NAMES = {"localhost", "localhost.localdomain"}
-
-
-def is_loopback(host: str) -> bool:
-    if host in _LOCAL_NAMES:
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
-def _host_ok(hostname: str) -> bool:
-    """A Host header we serve: an IP literal (no DNS name, so no rebinding), a loopback name,
-    or this machine's own name."""
-    if not hostname:
-        return False
-    try:
-        ipaddress.ip_address(hostname.strip("[]"))
-        return True
-    except ValueError:
-        pass
-    own = {socket.gethostname().lower(), socket.getfqdn().lower()}
-    return hostname.lower() in _LOCAL_NAMES | own
-
-
-def allowed(origin: str | None, host_header: str | None) -> tuple[bool, str]:
-    """(accepted, reason) for a websocket handshake's Origin and Host headers."""
-    if not host_header:
-        return False, "no Host header"
-    hostname = urlsplit(f"//{host_header}").hostname or ""
-    if not _host_ok(hostname):
-        return False, f"Host '{host_header}' is not this machine"
-    if origin is None:
-        return True, "no Origin: not a web page"
-    parts = urlsplit(origin)
-    if parts.scheme not in ("http", "https") or parts.netloc.lower() != host_header.lower():
-        return False, f"Origin '{origin}' is not the page this server served ({host_header})"
-    return True, "same origin"
 
 
 def guard(server: viser.ViserServer) -> None:
