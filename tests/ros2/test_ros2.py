@@ -279,3 +279,63 @@ def test_hand_built_cdr_is_what_rclpy_serializes(python):
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["mismatch"] is None, report["mismatch"]
     assert report["joint_states"] >= 300 and report["clocks"] >= 100
+
+
+# ----- hostile requests (issue 36): hostile_client.py, a plain rclpy node ----------------------------
+@pytest.fixture(scope="module")
+def hostile(python):
+    """The simulator and hostile_client.py once; the tests below read its answers."""
+    env = ros2_env()
+    env["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)  # apart from the acceptance run's
+    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless"], env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        client = subprocess.run([python, str(HERE / "hostile_client.py"), "mexone"], env=env,
+                                capture_output=True, text=True, timeout=240)
+    finally:
+        sim.terminate()
+        _, sim_err = sim.communicate(timeout=30)
+    assert client.returncode == 0, client.stderr[-3000:] + sim_err[-2000:]
+    return json.loads(client.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err}
+
+
+def test_a_parameter_without_a_name_is_refused(hostile):
+    ok, reason, warnings = hostile["param_empty"]
+    assert not ok and "parameter name '' is not a parameter's name" in reason  # was a success
+    assert any("parameter refused" in w for w in warnings)
+    for case in ("param_slash", "param_nul", "param_long"):
+        ok, reason, _ = hostile[case]
+        assert not ok and len(reason) < 1000, (case, reason[:200])
+
+
+def test_switch_controller_is_bounded_and_says_what_it_skipped(hostile):
+    ok, message, warnings, seconds = hostile["switch_many"]
+    assert not ok and "100000" in message and "at most 1000" in message, message[:300]
+    assert len(message) < 1000 and seconds < 10  # was ok, a 1.5 MB message, 3.4 s
+    ok, message, warnings, _ = hostile["switch_some"]
+    assert not ok and "nothing to switch" in message and len(message) < 1000, message[:300]
+    assert "nul\\x00name" in message or "nul" in message  # escaped, or cut at the NUL by rcl
+    assert "xxxxxxxxxx..." in message and "(100000 characters)" in message  # not 100 000 x
+
+
+def test_echoed_names_are_printable_and_bounded(hostile):
+    for case in ("load_nul", "load_long"):
+        ok, warnings = hostile[case]
+        assert not ok and warnings and all(len(w) < 1500 for w in warnings), (case, warnings)
+        assert all(w.isprintable() for w in warnings)
+    assert len(hostile["sim_stderr"]) < 20_000 and "Traceback" not in hostile["sim_stderr"]
+
+
+def test_a_huge_or_nul_controller_type_is_not_echoed_raw(tmp_path):
+    import yaml
+
+    from mexone.robots import mex_one
+
+    config = yaml.safe_load(mex_one.controllers_path().read_text())
+    for name, kind in (("long", "x" * 100_000), ("nul", "my\0type/Cls")):
+        config["mex_rb"]["weird"] = {"type": kind, "joints": ["neck_yaw"]}
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(config))
+        code, _, err = run_cli(["sim", "--headless", "--duration", "0.01", "--controllers", path])
+        assert code == 2 and err.count("\n") == 1 and len(err) < 2000, err[:300]
+        assert err.isprintable() or err[:-1].isprintable()

@@ -26,6 +26,7 @@ import contextlib
 import dataclasses
 import logging
 import os
+import stat
 import time
 import typing
 from collections.abc import Sequence
@@ -33,7 +34,7 @@ from pathlib import Path
 
 from mexone.bus import msgs, ros_map
 from mexone.bus.topics import Relay
-from mexone.errors import InputError, MexoneError
+from mexone.errors import InputError, MexoneError, printable
 from mexone.origins import origin_of
 
 __all__ = ["FoxgloveBridge", "DEFAULT_PORT", "FOXGLOVE_INSTALL", "json_schema", "to_json"]
@@ -237,17 +238,35 @@ class FoxgloveBridge:
                                  log_time=self.lab.sim.time_ns)
 
     def _asset(self, uri: str) -> bytes | None:
-        """package://<pkg>/<path> from the robot's package folders, nothing else (SDK thread)."""
+        """package://<pkg>/<path> from the robot's package folders, nothing else (SDK thread):
+        None (not found) for anything outside them or not a regular file (a FIFO would hold the
+        SDK's thread); an error that cannot be read names the URI, never the folder it is in."""
         if not uri.startswith("package://"):
             return None
         package, _, rest = uri[len("package://"):].partition("/")
         root = self._roots.get(package)
         if root is None:
             return None
-        path = (root / rest).resolve()
-        if not path.is_relative_to(root) or not path.is_file():
+        try:
+            path = (root / rest).resolve()
+        except (OSError, RuntimeError):  # a symbolic link loop: its message names the folder
+            raise OSError(f"{printable(uri, 200)}: a symbolic link loop") from None
+        if not path.is_relative_to(root):
             return None
-        return path.read_bytes()
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            raise OSError(f"{printable(uri, 200)}: {exc.strerror or 'cannot be read'}") from None
+        with os.fdopen(fd, "rb") as handle:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return None
+            try:
+                return handle.read()
+            except OSError as exc:
+                raise OSError(f"{printable(uri, 200)}: {exc.strerror or 'cannot be read'}") \
+                    from None
 
     def shutdown(self) -> None:
         if self.lab is not None:
