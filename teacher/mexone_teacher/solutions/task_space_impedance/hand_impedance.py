@@ -1,6 +1,5 @@
 """Task-space impedance of Mex-One's left hand: the hand behaves as a spring K and damper D to
-where it started, tau = J(q)^T (K (x0 - x) - D v) + g(q). Exercise 7's reference
-(examples/controllers/03_hand_impedance)."""
+where it started, tau = J(q)^T (K (x0 - x) - D v) + g(q). Exercise 7's reference."""
 
 from __future__ import annotations
 
