@@ -2,11 +2,13 @@
 Foxglove bridge both apply to a handshake's Origin and Host headers.
 
 Any web page the user has open can open a websocket to ws://127.0.0.1:PORT; a browser always
-sends the page's Origin with that handshake, and the page cannot change it. So a server accepts:
+sends the page's Origin with that handshake, and the page cannot change it. So a server accepts
+
 - a handshake without Origin (not a web page: a script, a test, a desktop client);
 - an Origin that is the page the server served itself (same scheme, host and port as Host);
 - where the server says so, an Origin on this machine (loopback: a page served from here) or in
   an explicit allowlist (Foxglove's web app, https://app.foxglove.dev, with --foxglove-origin);
+
 and refuses every other Origin, and a Host header naming another site (DNS rebinding:
 evil.example resolving to 127.0.0.1).
 """
@@ -27,6 +29,8 @@ _LOCAL_NAMES = {"localhost", "localhost.localdomain"}
 
 
 def is_loopback(host: str) -> bool:
+    """Whether `host` (a name or an IP literal, IPv6 in brackets or not) is this machine's
+    loopback: localhost, 127.0.0.0/8, ::1."""
     if host in _LOCAL_NAMES:
         return True
     try:
