@@ -172,8 +172,12 @@ def test_the_hidden_variation_needs_the_teachers_secret(tmp_path, monkeypatch):
     code, out, err = run_cli(["exercise", "grade", "home_hold", submission])
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert err.startswith(f"mexone: ${SECRET_ENV} is not set: the hidden variation is keyed"), err
-    # the self-check draws nothing: it needs no secret
+    # the self-check hides nothing: it needs no secret (its draws are the same everywhere)
     assert grade(ex, submission, local=True).failure is None
+    from mexone.exercises import GradeContext
+
+    local = [GradeContext(ex, submission, 1, local=True).rng.random() for _ in range(2)]
+    assert local[0] == local[1]
 
 
 def test_the_shipped_seed_alone_tells_nothing(monkeypatch):

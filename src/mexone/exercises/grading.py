@@ -112,7 +112,11 @@ class GradeContext:
         """The hidden variation's generator for this seed, keyed by the teacher's
         $MEXONE_EXERCISE_SECRET (hidden_rng): draw from it here, in the grader; hand only the
         drawn values to ctx.simulate. Without the secret it is refused (InputError): the
-        exercise's secret_seed is in the wheel, and a variation anyone can draw is no secret."""
+        exercise's secret_seed is in the wheel, and a variation anyone can draw is no secret.
+        The self-check (local) hides nothing: its generator is the public one of the exercise's
+        secret_seed and the episode, the same on every machine."""
+        if self.local:
+            return np.random.default_rng([self.exercise.secret_seed, self.seed])
         return hidden_rng(self.exercise, self.seed, os.environ.get(SECRET_ENV, ""))
 
     def variation(self, mass: float = 0.0, damping: float = 0.0,
