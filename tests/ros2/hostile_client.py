@@ -13,6 +13,7 @@ import rclpy
 from rcl_interfaces.msg import Log, Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.qos import QoSProfile
+from waiting import Waiter
 
 SIM = sys.argv[1] if len(sys.argv) > 1 else "mexone"
 rclpy.init()
@@ -23,21 +24,12 @@ node.create_subscription(Log, "/rosout", lambda m: rosout.append((time.monotonic
 out: dict[str, object] = {}
 
 
-def spin_until(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        rclpy.spin_once(node, timeout_sec=0.02)
-    return bool(predicate())
+waiter = Waiter(node)  # tests/ros2/waiting.py
+spin_until = waiter.spin_until
 
 
-def call(client, request, timeout: float = 60.0):
-    if not client.wait_for_service(timeout_sec=timeout):
-        raise SystemExit(f"no service {client.srv_name}")
-    future = client.call_async(request)
-    spin_until(future.done, timeout)
-    return future.result()
+def call(client, request):
+    return waiter.call(client, request, timeout=60.0)
 
 
 def warnings_since(start: float) -> list[str]:
