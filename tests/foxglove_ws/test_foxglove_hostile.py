@@ -80,6 +80,9 @@ def test_a_bad_foxglove_origin_is_one_line():
                             "--headless", "--duration", "0.01"])
     assert code == 2 and err.count("\n") == 1, err
     assert "origin 'app.foxglove.dev' is not a web origin" in err, err
+    code, _, err = run_cli(["sim", "--foxglove-origin", "https://app.foxglove.dev", "--headless",
+                            "--duration", "0.01"])
+    assert code == 2 and "--foxglove-origin allows a web page to connect to --foxglove" in err
 
 
 def test_assets_never_name_the_install_folder_nor_block(tmp_path, monkeypatch):

@@ -7,6 +7,7 @@ import argparse
 from mexone.cli.common import PORT
 from mexone.description.loader import load_model
 from mexone.description.urdf import write_urdf
+from mexone.errors import InputError
 from mexone.lab import robot_namespace
 from mexone.robots import mex_one
 from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
@@ -102,6 +103,9 @@ def connect_bridges(args: argparse.Namespace) -> Bridges | None:
             from mexone.ros2 import Ros2Bridge
 
             bridges.append(Ros2Bridge(args.name))
+        if getattr(args, "foxglove_origin", None) and getattr(args, "foxglove", None) is None:
+            raise InputError("--foxglove-origin allows a web page to connect to --foxglove, "
+                             "which is not on", hint="add --foxglove [PORT]")
         if getattr(args, "foxglove", None) is not None:
             from mexone.foxglove import FoxgloveBridge
 

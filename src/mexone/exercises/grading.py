@@ -33,6 +33,7 @@ __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write
 SECRET_MIN = 16  # characters of $MEXONE_EXERCISE_SECRET: fewer could be guessed from a variant
 REASON_LIMIT = 500  # characters of a reason or a check's output a report shows
 
+
 @dataclass
 class Check:
     """One check of a submission: the share of its weight it earned (0..1) and why.
