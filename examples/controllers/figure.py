@@ -99,14 +99,16 @@ def main() -> None:
     sim = lab.sim
     body = sim.body_id("r_forearm")
     point = np.array([0.0, 0.0, -0.17])
-    circle = lab.controllers.controllers["hand_circle"].impl
 
     def hand(s):
         return s.data.xpos[body] + s.data.xmat[body].reshape(3, 3) @ point
 
     start = hand(sim)
     _, path = record(lab, 4.0, lambda s: 1e3 * (hand(s) - start))
-    ring = np.array([1e3 * (circle.circle(t)[0] - start) for t in np.linspace(0, 4, 400)])
+    sys.path.insert(0, str(HERE / "03_hand_circle"))
+    from hand_circle import circle
+
+    ring = np.array([1e3 * (circle(t, start, 0.04, 0.5)[0] - start) for t in np.linspace(0, 4, 400)])
     ax.plot(ring[:, 1], ring[:, 2], "k--", label="the circle")
     ax.plot(path[:, 1], path[:, 2], label="the hand, two turns")
     ax.set(title="3. the right hand draws a 4 cm circle", xlabel="y (mm)", ylabel="z (mm)",

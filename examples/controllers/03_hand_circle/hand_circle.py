@@ -14,11 +14,23 @@ import numpy as np
 
 from mexone.control import Param, PythonController
 
-__all__ = ["HandCircle", "HAND", "HAND_POINT"]
+__all__ = ["HandCircle", "circle", "HAND", "HAND_POINT"]
 
 HAND = "r_forearm"  # the link that carries the right hand (Mex-One's arm ends at the forearm)
 HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
 RAMP = 0.2  # s: the time constant of the circle's speed-up from rest
+
+
+def circle(t: float, start: np.ndarray, radius: float, frequency: float):
+    """The point the hand should be at, and its velocity, t s after the start: a vertical circle
+    in the world's y-z plane through `start`; the angle around it speeds up from rest over the
+    first `RAMP` s (a step to full speed would jerk the arm), then turns at `frequency`."""
+    w = 2.0 * math.pi * frequency
+    fade = math.exp(-t / RAMP)
+    angle, rate = w * (t - RAMP * (1.0 - fade)), w * (1.0 - fade)
+    offset = np.array([0.0, radius * math.sin(angle), radius * (1.0 - math.cos(angle))])
+    velocity = radius * rate * np.array([0.0, math.cos(angle), math.sin(angle)])
+    return start + offset, velocity
 
 
 class HandCircle(PythonController):
@@ -43,18 +55,6 @@ class HandCircle(PythonController):
         point = position + rotation @ HAND_POINT
         return point, self.dynamics.jacobian(HAND, point)[:3, self.dofs]
 
-    def circle(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """The point the hand should be at, and its velocity, t s after the start: the angle
-        around the circle speeds up from rest over the first `RAMP` s (a step to full speed
-        would jerk the arm), then turns at the frequency."""
-        w = 2.0 * math.pi * self.frequency
-        fade = math.exp(-t / RAMP)
-        angle, rate = w * (t - RAMP * (1.0 - fade)), w * (1.0 - fade)
-        r = self.radius
-        offset = np.array([0.0, r * math.sin(angle), r * (1.0 - math.cos(angle))])
-        velocity = r * rate * np.array([0.0, math.cos(angle), math.sin(angle)])
-        return self.start + offset, velocity
-
     def activate(self, state) -> None:
         self.start, _ = self.hand()
         self.began = state.time
@@ -62,7 +62,7 @@ class HandCircle(PythonController):
 
     def update(self, state, t: float, dt: float):
         x, jacobian = self.hand()
-        x_r, v_r = self.circle(t - self.began)
+        x_r, v_r = circle(t - self.began, self.start, self.radius, self.frequency)
         miss = x_r - x
         self.squares += float(miss @ miss)
         self.samples += 1
