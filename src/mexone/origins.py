@@ -69,14 +69,15 @@ def origin_of(text: str) -> str:
 
 
 def allowed(origin: str | None, host_header: str | None, trusted: Iterable[str] = (),
-            loopback_pages: bool = False) -> tuple[bool, str]:
+            loopback_pages: bool = False, secret_shown: bool = False) -> tuple[bool, str]:
     """(accepted, reason) for a websocket handshake's Origin and Host headers; `trusted`: more
     origins to accept (origin_of's form), `loopback_pages`: accept any page served from this
-    machine too."""
+    machine too; `secret_shown`: the request presented the lab's secret (gui.security's
+    LabAccess), so its Host may be a hub's public name (the Origin must still match it)."""
     if not host_header:
         return False, "no Host header"
     hostname = urlsplit(f"//{host_header}").hostname or ""
-    if not _host_ok(hostname):
+    if not secret_shown and not _host_ok(hostname):
         return False, f"Host {printable(host_header, 80)!r} is not this machine"
     if origin is None:
         return True, "no Origin: not a web page"

@@ -26,7 +26,9 @@ COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
 SOLUTIONS_GROUP = "mexone.solutions"  # a teacher's pack: <folder>/<exercise>/<file>
 TEACHER_PACK = "pip install ./teacher (from a clone of mexone's repository; teachers only)"
-SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json")
+# what a student hands in: a rospy routine, a PythonController, a controllers YAML, a routine's
+# parameters, a model, JSON, or a Python file of functions the grader calls (ctx.run)
+SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json", "function")
 _FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
            "secret_seed", "submission", "file", "summary", "number", "live", "live_controller"}
 
