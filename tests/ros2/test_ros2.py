@@ -83,20 +83,24 @@ def controllers_with_a_trajectory_controller(folder: Path) -> Path:
 @pytest.fixture(scope="module")
 def acceptance(python, tmp_path_factory):
     """Run the simulator and the client once; every test below reads what the client saw."""
-    env = ros2_env()
     controllers = controllers_with_a_trajectory_controller(tmp_path_factory.mktemp("ros2"))
-    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless",
-                            "--controllers", str(controllers)], env=env,
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return sim_and_client(python, ros2_env(), "client.py", 180, "--controllers", str(controllers))
+
+
+def sim_and_client(python, env: dict, client: str, timeout: float, *sim_args: str) -> dict:
+    """`mexone sim --ros2 --headless SIM_ARGS` while the rclpy script `client` runs against it:
+    the client's last line (JSON) with the simulator's stderr and exit status."""
+    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless", *sim_args],
+                           env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        client = subprocess.run([python, str(HERE / "client.py"), "mexone"], env=env,
-                                capture_output=True, text=True, timeout=180)
+        done = subprocess.run([python, str(HERE / client), "mexone"], env=env,
+                              capture_output=True, text=True, timeout=timeout)
     finally:
         sim.terminate()
         _, sim_err = sim.communicate(timeout=30)
-    assert client.returncode == 0, client.stderr[-3000:] + sim_err[-2000:]
-    return json.loads(client.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err,
-                                                                   "sim_status": sim.returncode}
+    assert done.returncode == 0, done.stderr[-3000:] + sim_err[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err,
+                                                                 "sim_status": sim.returncode}
 
 
 def test_clock_joint_states_and_description_flow(acceptance):
@@ -323,16 +327,7 @@ def hostile(python):
     """The simulator and hostile_client.py once; the tests below read its answers."""
     env = ros2_env()
     env["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)  # apart from the acceptance run's
-    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless"], env=env,
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        client = subprocess.run([python, str(HERE / "hostile_client.py"), "mexone"], env=env,
-                                capture_output=True, text=True, timeout=240)
-    finally:
-        sim.terminate()
-        _, sim_err = sim.communicate(timeout=30)
-    assert client.returncode == 0, client.stderr[-3000:] + sim_err[-2000:]
-    return json.loads(client.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err}
+    return sim_and_client(python, env, "hostile_client.py", 240)
 
 
 def test_a_parameter_without_a_name_is_refused(hostile):
