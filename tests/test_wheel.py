@@ -168,6 +168,23 @@ def test_the_wheel_holds_no_reference_solution(wheel, venv):
     assert out.returncode == 1 and "in the teacher's pack, not in mexone" in out.stderr, out.stderr
 
 
+def test_the_teacher_pack_builds_with_every_answer(tmp_path_factory):
+    """What CI and a teacher install from a clone (`pip install ./teacher`, scripts/test.sh) is a
+    wheel of its own holding every solution git has, byte for byte, and the entry point mexone
+    finds them by: a solution in a folder its package data misses would be lost there only."""
+    pack = wheelenv.build_wheel(tmp_path_factory, "teacher", "mexone_teacher")
+    tracked = wheelenv.git("ls-files", "teacher/mexone_teacher").splitlines()
+    assert len(tracked) > 10
+    with zipfile.ZipFile(pack) as z:
+        names = set(z.namelist())
+        missing = [n for n in tracked if n.removeprefix("teacher/") not in names
+                   or z.read(n.removeprefix("teacher/")) != (ROOT / n).read_bytes()]
+        (points,) = [n for n in z.namelist() if n.endswith(".dist-info/entry_points.txt")]
+        assert "[mexone.solutions]\ncourse = mexone_teacher:solutions" in z.read(points).decode()
+        assert not any(n.startswith("mexone/") for n in z.namelist())  # not a second mexone
+    assert missing == []
+
+
 # ----- every shipped routine, every example -----------------------------------------------------
 @pytest.mark.parametrize("routine", SHIPPED)
 def test_shipped_routine_runs(jobs, request, routine):
