@@ -60,7 +60,7 @@ def main() -> None:
     ax = axes[0, 0]
     for label, gravity in (("gravity compensation", 1.0), ("damping alone", 0.0)):
         lab = lab_of("01_gravity_float")
-        lab.controllers.controllers["gravity_float"].set_param("gravity", gravity)
+        lab.manager.controllers["gravity_float"].set_param("gravity", gravity)
         lab.sim.apply_joint_effort("r_shoulder_pitch", 0.5, duration=0.2, start=0.5)
         q = joint(lab, "r_shoulder_pitch")
         q0 = q(lab.sim)
@@ -85,8 +85,8 @@ def main() -> None:
         if shipped:
             def command(sim, lab=lab):
                 q = reference(sim.time)
-                lab.controllers.command("r_shoulder_pitch_position_controller", [q[0]])
-                lab.controllers.command("r_elbow_position_controller", [q[1]])
+                lab.manager.command("r_shoulder_pitch_position_controller", [q[0]])
+                lab.manager.command("r_elbow_position_controller", [q[1]])
             lab.sim.add_periodic(lab.sim.timestep, command)
         elbow = joint(lab, "r_elbow")
         t, v = record(lab, 1.5, lambda sim, e=elbow: 1e3 * (e(sim) - reference(sim.time)[1]))

@@ -135,7 +135,7 @@ def test_a_malformed_design_file_is_one_line_naming_it(tmp_path, case):
 def test_a_good_design_file_runs_and_saves_without_a_nan_period(tmp_path):
     design = npz(tmp_path / "d.npz")
     lab = Lab.create(controllers=controllers_yaml(tmp_path, design))
-    assert lab.controllers.controllers["elbow_lqr"].running
+    assert lab.manager.controllers["elbow_lqr"].running
     assert read_design(design).dt == 0.002
     assert read_design(npz(tmp_path / "any_rate.npz", dt=None)).dt is None  # no dt: any rate
 
@@ -188,4 +188,4 @@ def test_the_design_api_refuses_bad_arguments_in_one_line(elbow):
             call()
         assert says in str(info.value) and "\n" not in str(info.value), (name, str(info.value))
     assert time.monotonic() - started < 20  # refused, not run (linearize(period=1e6): > 9 min)
-    assert "x y" not in " ".join(lab.controllers.controllers)
+    assert "x y" not in " ".join(lab.manager.controllers)

@@ -80,7 +80,7 @@ def test_gravity_compensation_floats_the_arm_where_it_is_left():
     floating = make_lab(GRAVITY)
     drift = farthest(floating, ARM, 1.0)
     falling = make_lab(GRAVITY)
-    falling.controllers.controllers["gravity_float"].set_param("gravity", 0.0)  # damping alone
+    falling.manager.controllers["gravity_float"].set_param("gravity", 0.0)  # damping alone
     fell = farthest(falling, ARM, 1.0)
     assert drift < 2e-3, f"the floating arm drifted {drift * 1e3:.2f} mrad"
     assert fell > 0.5, f"without g(q) the arm fell only {fell * 1e3:.0f} mrad"
@@ -121,7 +121,7 @@ def test_computed_torque_moves_twenty_times_closer_than_the_shipped_pid():
 
     def command(q):
         for name, value in zip(pids, q, strict=True):
-            lab.controllers.command(name, [float(value)])
+            lab.manager.command(name, [float(value)])
 
     shipped = move_rms(lab, command)
     print(f"computed torque {computed * 1e3:.3f} mrad RMS, shipped PIDs {shipped * 1e3:.2f}")
@@ -181,13 +181,13 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
 
     lab = make_lab(GRAVITY)
     lab.sim.run(0.01)
-    impl = lab.controllers.controllers["gravity_float"].impl
+    impl = lab.manager.controllers["gravity_float"].impl
     impl.report = lambda: {"start": impl.start, "worst": np.float64(impl.moved)}
     reports = controller_reports(lab)
     assert reports["gravity_float"]["start"] == pytest.approx(list(impl.start))
-    lab.controllers.switch(stop=["gravity_float"])
+    lab.manager.switch(stop=["gravity_float"])
     assert "gravity_float" not in controller_reports(lab)  # stopped: no report
-    lab.controllers.switch(start=["gravity_float"])
+    lab.manager.switch(start=["gravity_float"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
     assert broken["gravity_float"].pop("budget")["updates"] >= 0  # the real-time budget meter
@@ -198,14 +198,14 @@ def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY)
-    impl = lab.controllers.controllers["gravity_float"].impl
+    impl = lab.manager.controllers["gravity_float"].impl
 
     def update(state, t, dt):
         raise RuntimeError("student's bug")
 
     impl.update = update
     lab.sim.run(0.01)
-    assert not lab.controllers.controllers["gravity_float"].running
+    assert not lab.manager.controllers["gravity_float"].running
     entry = controller_reports(lab)["gravity_float"]  # not a clean-looking run
     assert entry["fault"].startswith("update raised") and "student's bug" in entry["fault"]
     assert "moved_mrad" in entry  # its report up to the fault
@@ -215,7 +215,7 @@ def test_a_report_with_nan_is_strict_json():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY)
-    impl = lab.controllers.controllers["gravity_float"].impl
+    impl = lab.manager.controllers["gravity_float"].impl
     impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
     text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
     report = json.loads(text, parse_constant=lambda c: pytest.fail(c))["gravity_float"]

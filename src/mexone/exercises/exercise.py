@@ -67,10 +67,12 @@ class Exercise:
 
     @property
     def statement(self) -> Path:
+        """The exercise's statement (Markdown) in its folder."""
         return self.folder / "statement.md"
 
     @property
     def starter(self) -> Path:
+        """The starter file a student edits, in the exercise's folder."""
         return self.folder / "starter" / self.file
 
     @property
