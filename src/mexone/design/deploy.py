@@ -325,7 +325,7 @@ def save_design(path: str | Path, K: ArrayLike, plant: StateSpace) -> Path:
 
 
 def _save_npz(path: Path, design: GainDesign, p: _Point) -> None:
-    period = {} if design.dt is None else {"dt": design.dt}  # no dt: a continuous design's gain
+    period: dict[str, Any] = {} if design.dt is None else {"dt": design.dt}  # no dt: continuous
     np.savez(path, K=design.K, u0=design.u0, joints=np.array(design.joints),
              interface=design.interface, qpos=p.qpos, qvel=p.qvel, qpos_index=p.qpos_index,
              qvel_index=p.qvel_index, states=np.array(p.states), act=p.act,
