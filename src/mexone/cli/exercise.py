@@ -11,7 +11,7 @@ import tempfile
 from pathlib import Path
 
 from mexone.cli.sweep import WORKERS
-from mexone.errors import InputError, OutputExistsError
+from mexone.errors import InputError, OutputExistsError, printable
 from mexone.files import check_output, replacing, write_text
 
 HELP = """\
@@ -197,7 +197,7 @@ def _grade(args) -> int:
         for student, result in grade_all(ex, found, args.workers, local=args.local,
                                          plots=args.plots, force=args.force):
             results[student] = result
-            print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
+            print(f"{printable(student, 80):<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
                   + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
                   file=sys.stderr if to_stdout else sys.stdout)

@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 
 from mexone.design.deploy import GainDesign, _Deployed
 from mexone.errors import ArgumentTypeError, InputError
-from mexone.ranges import number_text
+from mexone.ranges import COMPARE_DURATION, number_text
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -247,8 +247,7 @@ def compare(lab: Lab, controller: _Deployed, plant: StateSpace,
     design = controller.design
     ref_labels = labels if isinstance(design, GainDesign) else list(design.inputs)
     r = _vector(reference, ref_labels, "reference")
-    if not np.isfinite(duration) or duration <= 0:
-        raise InputError(f"duration {duration} is not a positive number of seconds")
+    COMPARE_DURATION.check(duration, "duration")
     _start(lab, controller, dx0, duration)
     controller.reference = r.copy()
     trace = _run(lab, controller, duration)

@@ -53,8 +53,9 @@ from mexone.control.hardware import (
     set_motor_gain,
 )
 from mexone.dynamics import Dynamics
-from mexone.errors import ArgumentTypeError, InputError
+from mexone.errors import ArgumentTypeError, InputError, printable
 from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
+from mexone.ranges import SAMPLE_PERIOD
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
@@ -335,7 +336,10 @@ def linearize(source: Any, data: mujoco.MjData | None = None, *, point: Operatin
     plant = _take(source, data)
     if point is not None:
         _apply(plant, point)
-    chosen = list(plant.joints if joints is None else [joints] if isinstance(joints, str) else joints)
+    if isinstance(joints, str):  # a string is a sequence of letters: 'l_elbow' is no joint list
+        raise InputError(f"joints is the string {printable(joints, 60)!r}: give a list of joint names",
+                         hint=f"joints=[{printable(joints, 60)!r}]")
+    chosen = list(plant.joints if joints is None else joints)
     unknown = [j for j in chosen if j not in plant.joints]
     if unknown and inputs != "ctrl":
         raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
@@ -433,8 +437,7 @@ def _steps(model: mujoco.MjModel, period: float | None) -> int:
     step = model.opt.timestep
     if period is None:
         return 1
-    if not np.isfinite(period) or period <= 0:
-        raise InputError(f"period {period} is not a positive number of seconds")
+    SAMPLE_PERIOD.check(period, "period")
     steps = round(period / step)
     if steps < 1 or abs(steps * step - period) > 1e-9 * max(period, 1.0):
         raise InputError(f"period {period:g} s is not a multiple of the time step {step:g} s",

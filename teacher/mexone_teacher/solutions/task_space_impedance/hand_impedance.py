@@ -1,5 +1,5 @@
-"""Exercise 7, deliberately wrong: the hand's force mapped to joint torques through J instead of
-its transpose (the arm's J is 3 x 3, so it runs): pushed up, the hand moves 5-8x F/K."""
+"""Task-space impedance of Mex-One's left hand: the hand behaves as a spring K and damper D to
+where it started, tau = J(q)^T (K (x0 - x) - D v) + g(q). Exercise 7's reference."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ class HandImpedance(PythonController):
         self.x, jacobian = self.hand()
         velocity = jacobian @ state.dq
         force = self.stiffness * (self.x0 - self.x) - self.damping * velocity  # N on the hand
-        return jacobian @ force + self.dynamics.gravity()[self.dofs]  # wrong: J, not J^T
+        return jacobian.T @ force + self.dynamics.gravity()[self.dofs]
 
     def report(self) -> dict:
         """What `mexone sim --json` prints: how far the hand is from where it started (mm)."""

@@ -1,8 +1,7 @@
 """Computed-torque tracking of q_ref(t) = q0 + A sin(w t) on Mex-One's left shoulder and elbow.
 
 tau = M(q) (ddq_ref + kp e + kd de) + h(q, dq) - tau_damping(dq), e = q_ref - q: the error
-obeys dde + kd de + kp e = 0 whatever the arm's inertia and speed (exercise 6's reference:
-examples/controllers/02_computed_torque).
+obeys dde + kd de + kp e = 0 whatever the arm's inertia and speed (exercise 6's reference).
 """
 
 from __future__ import annotations
