@@ -178,12 +178,12 @@ def test_autograder_scores_as_grade_does_and_keeps_the_secret(autograder, venv, 
 
 
 def test_the_truth_depends_on_the_secret(monkeypatch):
-    """What makes the comparison above tell: without the secret, the same seed draws another
+    """What makes the comparison above tell: with another secret, the same seed draws another
     true damping (and so another output and score)."""
     ex = find_exercise(EXERCISE)
     grader = ex.grader()
     truths = []
-    for secret in (SECRET, ""):
+    for secret in (SECRET, SECRET + "-another"):
         monkeypatch.setenv("MEXONE_EXERCISE_SECRET", secret)
         truths.append(grader.variant(GradeContext(ex, SOLUTION, ex.seeds[0]).rng))
     assert truths[0] != pytest.approx(truths[1], rel=1e-3)
@@ -204,17 +204,17 @@ def test_refusals_are_one_line(tmp_path):
     out = tmp_path / "autograder.zip"
     code, _, err = run_cli(["exercise", "autograder", EXERCISE, "-o", out],
                            env={"MEXONE_EXERCISE_SECRET": ""})
-    assert code == 2 and "MEXONE_EXERCISE_SECRET is not set" in err and "--no-secret" in err
+    assert code == 2 and "MEXONE_EXERCISE_SECRET is not set" in err
     assert len(err.strip().splitlines()) == 1 and not out.exists()
     out.write_text("the teacher's")
     wheel = tmp_path / "mexone-0.1.0-py3-none-any.whl"
     wheel.write_bytes(b"PK")
-    code, _, err = run_cli(["exercise", "autograder", EXERCISE, "-o", out, "--no-secret",
-                            "--wheel", wheel])
+    code, _, err = run_cli(["exercise", "autograder", EXERCISE, "-o", out, "--wheel", wheel],
+                           env={"MEXONE_EXERCISE_SECRET": SECRET})
     assert code != 0 and "exists" in err and "--force" in err
     assert len(err.strip().splitlines()) == 1 and out.read_text() == "the teacher's"
     code, _, err = run_cli(["exercise", "autograder", EXERCISE, "-o", tmp_path / "b.zip",
-                            "--no-secret", "--wheel", tmp_path / "other.whl"])
+                            "--wheel", tmp_path / "other.whl"], env={"MEXONE_EXERCISE_SECRET": SECRET})
     assert code == 2 and "mexone's wheel" in err and not (tmp_path / "b.zip").exists()
 
 

@@ -77,8 +77,6 @@ def add_parser(sub) -> None:
                    help="the zip to write (default: autograder.zip)")
     s.add_argument("--wheel", type=Path, help="mexone's wheel to carry (default: built from "
                    "the mexone that runs this)")
-    s.add_argument("--no-secret", action="store_true", help="grade on the exercise's public "
-                   "secret_seed alone (without it, $MEXONE_EXERCISE_SECRET must be set)")
     s.add_argument("--force", action="store_true", help="overwrite the zip")
     p.set_defaults(run=run)
 
@@ -266,16 +264,16 @@ def _autograder(args) -> int:
     import os
 
     from mexone.exercises.autograder import write_bundle
-    from mexone.exercises.isolate import SECRET_ENV
+    from mexone.exercises.grading import SECRET_ENV, SECRET_MIN
 
-    secret = os.environ.get(SECRET_ENV) or None
-    if secret is None and not args.no_secret:
-        raise InputError(f"${SECRET_ENV} is not set: the hidden variation would come from the "
-                         "exercise's secret_seed alone, which students can read in mexone",
-                         hint=f"export {SECRET_ENV}=<the secret you grade with>, or pass "
-                              "--no-secret")
+    secret = os.environ.get(SECRET_ENV, "")
+    if len(secret) < SECRET_MIN:  # the zip could grade nothing (grading.hidden_rng refuses it)
+        said = "is not set" if not secret else f"has {len(secret)} characters"
+        raise InputError(f"${SECRET_ENV} {said}: the zip carries the secret your grades are "
+                         f"keyed by (at least {SECRET_MIN} characters)",
+                         hint=f"export {SECRET_ENV}=<the secret you grade with>")
     bundle = write_bundle(args.name, args.output, args.force, args.wheel, secret)
     print(f"mexone: wrote {bundle.path} (Gradescope's autograder: setup.sh, run_autograder, "
-          f"{bundle.wheel}{', your secret' if bundle.secret else ', no secret'}): upload it as "
+          f"{bundle.wheel}, your secret): upload it as "
           "the assignment's autograder, Ubuntu base image")
     return 0

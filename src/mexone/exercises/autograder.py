@@ -218,7 +218,7 @@ def write_bundle(name: str, out: Path, force: bool = False, wheel: Path | None =
                  secret: str | None = None) -> Bundle:
     """Write the autograder zip for exercise `name` (a shipped one or a folder) to `out`,
     carrying `wheel` (default: built from the mexone that runs this) and `secret` (the
-    teacher's $MEXONE_EXERCISE_SECRET; None: the exercise's public secret_seed alone)."""
+    teacher's $MEXONE_EXERCISE_SECRET, which grading needs)."""
     ex = find_exercise(name)
     shipped = ex.folder.parent == COURSE
     if wheel is not None and not (wheel.is_file() and wheel.name.startswith("mexone-")
