@@ -119,7 +119,7 @@ def _point_of(plant, who: str) -> tuple[_Point, Any]:
                     "(its operating point is unknown)",
                     hint="pass the StateSpace linearize returned (python-control's "
                          "transformations drop .linearization)")
-    model = point.model
+    model = point.source
     act_index = []
     for row in point.act_rows:  # an act entry of the model -> the same actuator's in the live model
         starts, counts = model.actuator_actadr, np.maximum(model.actuator_actnum, 1)
