@@ -27,7 +27,7 @@ import mujoco
 import numpy as np
 
 from mexone.design.linear import linearize
-from mexone.design.twin import ControllerState, python_runners, snapshot, twin
+from mexone.design.twin import python_runners, snapshot, twin
 from mexone.errors import InputError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
@@ -193,10 +193,7 @@ class _Probe:
         for sensor in getattr(suite, "sensors", {}).values() if suite is not None else ():
             noise = getattr(sensor, "noise", None)
             if noise is not None and getattr(noise, "active", False):
-                try:
-                    noise.active = False
-                except AttributeError:
-                    pass
+                noise.active = False
                 self.notes.append(f"sensor {sensor.spec.name}'s noise is left out of the model")
 
     def evaluate(self, dx: np.ndarray, xc: np.ndarray, m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

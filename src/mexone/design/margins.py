@@ -14,8 +14,9 @@ phase margin, delay margin
     the loop sees as e^{-s tau}; within a period of a sampled one.
 disk margin
     python-control's `disk_margins` (balanced, skew 0): the largest simultaneous gain and phase
-    change the loop tolerates as a disk; MIMO through the structured singular value's bound
-    (SLICOT's AB13MD via slycot), else the unstructured bound, said in `notes`.
+    change the loop tolerates as a disk; all at once, an upper bound of the structured singular
+    value of S - I/2 for one complex perturbation per loop (python-control's with slycot, else
+    Perron scaling; `Margins.method` says which).
 sensitivity
     S = (I + L)^-1 and T = I - S at the input: their peaks (largest singular value) and where.
 
@@ -39,7 +40,7 @@ __all__ = ["Margins", "LoopMargins", "margins", "plot_margins", "frequency_respo
 
 STABLE_TOL = 1e-7  # a pole this far outside the unit circle is unstable (FD noise is ~1e-10)
 _GAIN_CEILING = 1e3  # gains above this are "any gain"
-_BISECTIONS = 30
+_GAIN_RESOLUTION = 1.0005  # the bisection's last bracket (ratio)
 _POINTS = 1500  # frequencies from 0.01 Hz to Nyquist
 
 
@@ -187,14 +188,14 @@ def _gain_limits(loop: LoopModel, ag, bg, cg, channels: np.ndarray, level: float
     high = math.inf
     if unstable(_GAIN_CEILING):
         lo, hi = 1.0, _GAIN_CEILING
-        for _ in range(_BISECTIONS):
+        while hi / lo > _GAIN_RESOLUTION:
             mid = math.sqrt(lo * hi)
             lo, hi = (lo, mid) if unstable(mid) else (mid, hi)
         high = hi
     low = 0.0
     if unstable(1e-6):
         lo, hi = 1e-6, 1.0
-        for _ in range(_BISECTIONS):
+        while hi / lo > _GAIN_RESOLUTION:
             mid = math.sqrt(lo * hi)
             lo, hi = (mid, hi) if unstable(mid) else (lo, mid)
         low = lo
@@ -241,34 +242,55 @@ def _crossings(f: np.ndarray, response: np.ndarray) -> tuple[float, float, float
     return best_pm, best_f, best_delay, notes
 
 
-def _disk(system: control.StateSpace, f: np.ndarray) -> tuple[float, tuple[float, float], float, str]:
-    """python-control's balanced disk margin: (alpha, (low, high) gain factors, phase deg)."""
-    omega = 2 * np.pi * f
-    try:
-        alpha, gain_db, phase = control.disk_margins(system, omega, skew=0.0)
-        method = "disk_margins (structured singular value bound, slycot)"
-    except (ImportError, control.ControlSlycot, ValueError, np.linalg.LinAlgError):
-        alpha, gain_db, phase = _disk_unstructured(system, omega)
-        method = "unstructured bound (install slycot for the multi-loop disk margin)"
-    alpha = float(alpha)
+def _disk(response: np.ndarray, system: control.StateSpace | None, f: np.ndarray) \
+        -> tuple[float, tuple[float, float], float, str]:
+    """The balanced disk margin (skew 0, python-control's `disk_margins` definition): alpha =
+    1 / max |S - I/2|, its (low, high) gain factors and phase (deg), and the method. One loop:
+    exact from the loop's response. Several (`system` given): python-control's with slycot
+    (SLICOT's AB13MD bound of the structured singular value), else the same bound by Perron
+    scaling."""
+    method = "exact (one loop)"
+    if response.ndim == 1:
+        worst = float(np.abs(0.5 * (1 - response) / (1 + response)).max())
+        alpha = 1.0 / worst if worst > 0 else math.inf
+    else:
+        try:
+            import slycot  # noqa: F401 - python-control's MIMO disk margin needs it
+            alpha = float(control.disk_margins(system, 2 * np.pi * f, skew=0.0)[0])
+            method = "python-control disk_margins: structured singular value bound (slycot)"
+        except ImportError:
+            alpha = _disk_scaled(response)
+            method = "structured singular value bound by Perron scaling"
     if alpha >= 2:
         low, high = 0.0, math.inf
     else:
         low, high = (2 - alpha) / (2 + alpha), (2 + alpha) / (2 - alpha)
-    return alpha, (low, high), float(phase), method
-
-
-def _disk_unstructured(system, omega):
-    """1 / max sigma(S - I/2): the disk margin against one full complex block (conservative)."""
-    dt = float(system.dt)
-    z = np.exp(1j * omega * dt)
-    resp = frequency_response(np.asarray(system.A), np.asarray(system.B), np.asarray(system.C), z)
-    eye = np.eye(resp.shape[1])
-    s = np.linalg.inv(eye[None] + resp) - 0.5 * eye[None]
-    alpha = 1.0 / float(np.linalg.norm(s, ord=2, axis=(1, 2)).max())
-    high = (2 + alpha) / (2 - alpha) if alpha < 2 else math.inf
     phase = math.degrees(2 * math.atan(alpha / 2))
-    return alpha, 20 * math.log10(high) if math.isfinite(high) else math.inf, phase
+    return alpha, (low, high), phase, method
+
+
+def _disk_scaled(response: np.ndarray) -> float:
+    """1 / max over frequency of an upper bound of mu(S - I/2) for a diagonal complex
+    perturbation (one per loop): min(sigma(M), sigma(D M D^-1)) with D from the Perron vectors
+    of |M| (Safonov's scaling)."""
+    eye = np.eye(response.shape[1])
+    m = np.linalg.inv(eye[None] + response) - 0.5 * eye[None]
+    plain = np.linalg.norm(m, ord=2, axis=(1, 2))
+    mag = np.abs(m) + 1e-300
+    right = _perron(mag)
+    left = _perron(np.transpose(mag, (0, 2, 1)))
+    d = np.sqrt(left / right)
+    scaled = np.linalg.norm(d[:, :, None] * m / d[:, None, :], ord=2, axis=(1, 2))
+    worst = float(np.minimum(plain, np.where(np.isfinite(scaled), scaled, plain)).max())
+    return 1.0 / worst if worst > 0 else math.inf
+
+
+def _perron(mag: np.ndarray) -> np.ndarray:
+    """The Perron vector (positive, of the largest eigenvalue) of each nonnegative matrix."""
+    values, vectors = np.linalg.eig(mag)
+    top = np.argmax(np.abs(values), axis=1)
+    vector = np.abs(np.take_along_axis(vectors, top[:, None, None], axis=2)[:, :, 0])
+    return np.maximum(vector, 1e-12)
 
 
 def _all_at_once(loop, ag, bg, cg, f, z, full, sigma_s, sigma_t, level):
@@ -276,8 +298,7 @@ def _all_at_once(loop, ag, bg, cg, f, z, full, sigma_s, sigma_t, level):
     high, low, gain_f = _gain_limits(loop, ag, bg, cg, everything, level)
     eig = np.linalg.eigvals(full)
     pm, crossover, delay, notes = _crossings(f, eig)
-    system = loop.loop()
-    alpha, disk_gain, disk_phase, method = _disk(system, f)
+    alpha, disk_gain, disk_phase, method = _disk(full, loop.loop(), f)
     notes += _gain_notes(high, low)
     i_s, i_t = int(np.argmax(sigma_s)), int(np.argmax(sigma_t))
     return method, LoopMargins("all", high, low, gain_f, pm, crossover, delay, alpha, disk_gain,
@@ -291,7 +312,7 @@ def _single(loop, i, ag, bg, cg, f, z, level):
     response = frequency_response(np.asarray(system.A), np.asarray(system.B),
                                   np.asarray(system.C), z)[:, 0, 0]
     pm, crossover, delay, notes = _crossings(f, response[:, None])
-    alpha, disk_gain, disk_phase, _ = _disk(system, f)
+    alpha, disk_gain, disk_phase, _ = _disk(response, None, f)
     notes += _gain_notes(high, low)
     s = np.abs(1 / (1 + response))
     t = np.abs(response / (1 + response))

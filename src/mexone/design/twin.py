@@ -128,7 +128,7 @@ def _floats(value) -> np.ndarray | None:
         return None
     if isinstance(value, float | np.floating):
         return np.array([float(value)])
-    if isinstance(value, np.ndarray) and value.dtype.kind == "f" and 0 < value.size:
+    if isinstance(value, np.ndarray) and value.dtype.kind == "f" and value.size > 0:
         return np.asarray(value, dtype=float).reshape(-1).copy()
     return None
 
