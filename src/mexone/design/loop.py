@@ -34,7 +34,7 @@ from mexone.ranges import number_text
 
 __all__ = ["LoopModel", "linearize_loop", "REST_SPEED"]
 
-REST_SPEED = 1e-3  # rad/s, m/s: a point faster than this is not at rest (said in notes)
+REST_SPEED = 0.02  # rad/s, m/s: a point faster than this is not at rest (said in notes)
 _EPS = 1e-6  # the finite differences' step: rad, m, rad/s, m/s, N m; relative for the rest
 _ZERO = 1e-9  # an entry of a derivative below this (relative) is no dependence
 
@@ -238,7 +238,7 @@ class _Probe:
         nx, nc, nu = self.nx, self.xc0.size, self.nu
         x0, m0 = np.zeros(nx), np.zeros(nu)
         base_u, base_next = self.evaluate(x0, self.xc0, m0)
-        if np.abs(base_u).max(initial=0.0) > 1e-6 * max(1.0, float(np.abs(self.command0).max(initial=0))):
+        if np.abs(base_u).max(initial=0.0) > 1e-3 * max(1.0, float(np.abs(self.command0).max(initial=0))):
             self.notes.append("the controllers' command at the point differs from the one they "
                               f"hold (by {number_text(float(np.abs(base_u).max()))}): the point is "
                               "not their equilibrium")
