@@ -42,7 +42,7 @@ from mexone.files import replacing
 from mexone.ranges import number_text
 
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
-           "lqr", "METHODS", "GainDesign", "SystemDesign"]
+           "lqr", "METHODS", "GainDesign", "SystemDesign", "install"]
 
 METHODS = ("zoh", "foh", "tustin", "bilinear", "matched", "impulse", "euler", "backward_diff")
 _INTERFACES = ("effort", "position", "velocity")
@@ -553,7 +553,8 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
     design: a gain matrix K with `plant` (the StateSpace from linearize: u = u0 - K dx); a
     python-control StateSpace or TransferFunction whose inputs are measured signals and outputs
     `<joint>:effort` (u = u0 + C(r - y); continuous ones discretised at `rate` Hz by `method`);
-    or what control.create_statefbk_iosystem returns, with the plant. rate: Hz (default: the
+    or what control.create_statefbk_iosystem returns, with the plant; or an estimator or LQG
+    design from mexone.design.observers (an `Observer` or `Lqg`). rate: Hz (default: the
     design's 1/dt, else every physics step). The controllers driving the design's joints are
     stopped; a controller called `name` already loaded is replaced."""
     sim = getattr(lab, "sim", None)
@@ -561,6 +562,9 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
     if sim is None or manager is None:
         raise ArgumentTypeError("deploy takes a mexone Lab with controllers "
                                 "(Lab.create(controllers=...))")
+    own = getattr(design, "deployed", None)  # an observer or LQG design (design/observers.py)
+    if own is not None:
+        return install(lab, *own(rate), name=name)
     if isinstance(design, control.InputOutputSystem | tuple):
         built = system_design(design, plant, rate, method, u0)
         cls: type[_Deployed] = LinearController
@@ -588,9 +592,23 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         r[labels.index(label)] = float(value)
     if not np.all(np.isfinite(r)):
         raise _fail("deploy: the reference has a NaN or inf")
+    impl = install(lab, cls, built, rate, name=name)
+    impl.reference[:] = r
+    return impl
+
+
+def install(lab, cls: type, built, rate: float | None, exports: Mapping | None = None, *,
+            name: str):
+    """Run `cls` (a _Deployed type) with the checked design `built` (its joints, interface) in
+    the lab's loop as controller `name` at `rate` Hz: the controllers driving its joints are
+    stopped, one of that name replaced. `exports`: the chained state interfaces it declares."""
+    manager = lab.controllers
+    sim = lab.sim
     attrs = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
     if built.interface != "effort":
         attrs["command_interface"] = built.interface
+    if exports:
+        attrs["exports"] = dict(exports)
     runner_cls = type(cls.__name__, (cls,), attrs)
     from mexone.control.resolve import Plugin
     from mexone.control.spec import ControllerSpec
@@ -599,7 +617,7 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
                     {"design_file": ""}, update_rate=rate)
     spec = ControllerSpec(name, plugin.type, tuple(built.joints), plugin=plugin)
 
-    def install():
+    def load():
         old = manager.controllers.get(name)
         if old is not None:
             if old.running:
@@ -625,6 +643,4 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         manager.switch(start=[name], stop=busy)
         return manager.controllers[name].impl
 
-    impl = sim.work.call(install) if sim.loop_elsewhere() else install()
-    impl.reference[:] = r
-    return impl
+    return sim.work.call(load) if sim.loop_elsewhere() else load()

@@ -366,6 +366,7 @@ class Linearization:
     qvel_index: np.ndarray
     names: tuple[str, ...] = field(default=())
     settings: tuple = ()  # (field, value) the source had while linearised; () = it is `model`
+    ctrl: np.ndarray | None = None  # MuJoCo's controls at the point (the sensors' values there)
 
     @functools.cached_property
     def model(self) -> mujoco.MjModel:
@@ -528,7 +529,7 @@ def _linearized(plant: _Plant, point, inputs, joints, held, fixed_base, outputs,
     act_rows = np.array([i - 2 * model.nv for i in keep if i >= 2 * model.nv], dtype=int)
     settings = _settings(model) if plant.shared else ()
     sys.linearization = Linearization(source=model, settings=settings, qpos=x0[0], qvel=x0[1],
-                                      act=x0[2], act_rows=act_rows,
+                                      act=x0[2], act_rows=act_rows, ctrl=d.ctrl.copy(),
                                       u0=u0, period=steps * model.opt.timestep,
                                       qpos_index=plant.qpos_index, qvel_index=plant.qvel_index,
                                       names=tuple(state_names))
