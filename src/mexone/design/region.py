@@ -79,7 +79,8 @@ def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float,
     """The region of attraction of a deployed StateFeedback (from deploy, on `plant`) on a grid
     over two state labels (`axes`: label -> (low, high), deviations from the design's point),
     each start simulated for `duration` s. lyapunov: P (the S lqr returns), else the closed
-    loop's discrete Lyapunov solution with Q = I. threads: MuJoCo's (default: the CPUs);
+    loop's discrete Lyapunov solution with Q = I (its modes on the unit circle, the base
+    sliding on friction, pulled just inside). threads: MuJoCo's (default: the CPUs);
     backend "ray" splits the grid over a Ray cluster (address, or a local one)."""
     if not isinstance(controller, StateFeedback):
         raise InputError("region_of_attraction runs a StateFeedback's law on the whole batch; "
@@ -108,8 +109,10 @@ def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float,
     a, b = np.asarray(plant.A), np.asarray(plant.B)
     closed = a - b @ K
     if lyapunov is None:
+        radius = float(np.abs(np.linalg.eigvals(closed)).max())
+        shrink = 1.0 if radius < 1 - 1e-6 else (1 - 1e-4) / radius  # the base's neutral modes
         try:
-            P = np.asarray(control.dlyap(closed.T, np.eye(a.shape[0])))
+            P = np.asarray(control.dlyap((shrink * closed).T, np.eye(a.shape[0])))
         except (ValueError, np.linalg.LinAlgError) as exc:
             raise InputError(f"no Lyapunov matrix for this loop ({str(exc).splitlines()[0]})",
                              hint="pass lyapunov=S, the S lqr(plant, Q, R) returns") from None

@@ -20,7 +20,7 @@ import numpy as np
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.physics.compile import CompileOptions, SpecEdit
 
-__all__ = ["twin", "ControllerState", "python_runners", "on_sim"]
+__all__ = ["twin", "ControllerState", "python_runners", "on_sim", "place"]
 
 # the controller object's own bookkeeping, never its state
 _FRAMEWORK = frozenset({"name", "joints", "dofs", "params", "log", "_mexone_binding", "design",
@@ -253,3 +253,20 @@ def restore(copy_lab, taken: _Snapshot) -> None:
         runner = manager.controllers[name]
         runner.fault = None
         state.write(runner.impl, state.values)
+
+
+def place(lab, qpos: np.ndarray) -> None:
+    """The robot at `qpos`, at rest, every running controller restarted to hold it there."""
+    def put() -> None:
+        sim = lab.sim
+        data = sim.data
+        if np.shape(qpos) != data.qpos.shape:
+            raise InputError(f"a pose of {np.size(qpos)} positions for a model of {data.qpos.size}")
+        data.qpos[:] = qpos
+        data.qvel[:] = 0.0
+        data.act[:] = 0.0
+        mujoco.mj_forward(sim.model, data)
+        manager = lab.controllers
+        if manager is not None:
+            manager.hold([j for c in manager.controllers.values() if c.running for j in c.joints])
+    on_sim(lab, put)
