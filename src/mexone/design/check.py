@@ -443,6 +443,10 @@ def margins(loop: control.StateSpace) -> tuple[float | None, float | None, float
         k = cross[0]
         wcg = float(f[k])
         gm = float(-20 * np.log10(gain[k]))
+    else:  # the phase may reach -180 deg at the Nyquist frequency itself, where L is real
+        at_nyquist = complex(np.asarray(loop(-1.0)).reshape(-1)[0])
+        if at_nyquist.real < 0 and abs(at_nyquist.imag) <= 1e-9 * max(1.0, abs(at_nyquist)):
+            wcg, gm = 0.5 / dt, float(-20 * np.log10(abs(at_nyquist)))
     return gm, pm, wcg, wcp
 
 

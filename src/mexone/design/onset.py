@@ -65,9 +65,11 @@ class Onset:
         return self.onset / self.predicted - 1.0
 
     def as_dict(self) -> dict:
-        return {"kind": self.kind, "predicted": self.predicted, "onset": self.onset,
-                "tolerance": self.tolerance, "agrees": self.agrees, "note": self.note,
-                "trials": [list(t) for t in self.trials]}
+        def num(x):
+            return float(x) if math.isfinite(x) else ("inf" if x > 0 else "nan")
+        return {"kind": self.kind, "predicted": num(self.predicted), "onset": num(self.onset),
+                "tolerance": float(self.tolerance), "agrees": bool(self.agrees), "note": self.note,
+                "trials": [[float(v), bool(u)] for v, u in self.trials]}
 
 
 class _Trials:
