@@ -20,7 +20,7 @@ import yaml
 from mexone.design import deploy, linearize, lqr, measure_frequency_response, operating_point
 from mexone.design.friction import friction_model
 from mexone.design.loop import LoopModel, linearize_loop
-from mexone.design.margins import margins
+from mexone.design.margins import loop_margins
 from mexone.design.mismatch import mismatch, plot_mismatch
 from mexone.design.observers import compare_estimate, kalman, luenberger, save_estimator
 from mexone.design.onset import simulate_onset
@@ -81,7 +81,7 @@ def arm_lab():
 def arm_loop(arm_lab):
     lab = arm_lab[0]
     loop = linearize_loop(lab)
-    return loop, margins(loop)
+    return loop, loop_margins(loop)
 
 
 @pytest.fixture(scope="module")
@@ -140,7 +140,7 @@ def test_margins_of_a_sampled_integrator_under_p_control_are_the_closed_forms():
     ctrl = control.ss(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), [[-k]], T,
                       inputs=["x:q"], outputs=["x:effort"])
     loop = LoopModel(plant, ctrl, plant, ("p",), ("x",), "effort", T, np.zeros(1), np.full(1, np.inf))
-    result = margins(loop)
+    result = loop_margins(loop)
     wc = 2 / T * math.asin(k * T / 2)
     for item in (result.all, result.loops[0]):
         assert item.gain_increase == pytest.approx(2 / (k * T), rel=1e-3)
@@ -161,7 +161,7 @@ def test_two_independent_loops_have_the_smaller_disk_margin_all_at_once():
                       T, inputs=["a:q", "b:q"], outputs=["a:effort", "b:effort"])
     loop = LoopModel(plant, ctrl, plant, ("p",), ("a", "b"), "effort", T, np.zeros(2),
                      np.full(2, np.inf))
-    result = margins(loop)
+    result = loop_margins(loop)
     assert result.all.disk_margin == pytest.approx(min(m.disk_margin for m in result.loops), rel=1e-3)
     assert result.all.gain_increase == pytest.approx(2 / (60 * T), rel=1e-3)
 
@@ -182,7 +182,7 @@ def test_arm_lqr_delay_and_gain_margins_hold_on_the_robot(arm_lab, arm_loop):
 @pytest.mark.slow
 def test_a_students_controller_delay_and_gain_margins_hold_on_the_robot(student):
     loop = linearize_loop(student)
-    result = margins(loop)
+    result = loop_margins(loop)
     onsets = {o.kind: o for o in simulate_onset(student, loop, result.all)}
     assert onsets["delay"].agrees and onsets["gain"].agrees, onsets
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from mexone.design.loop import LoopModel, linearize_loop
-from mexone.design.margins import LoopMargins, Margins, margins, plot_margins
+from mexone.design.margins import LoopMargins, Margins, loop_margins, plot_margins
 from mexone.design.onset import Onset, simulate_onset
 from mexone.design.region import Region, plot_region, region_of_attraction
 from mexone.design.saturation import Saturation, saturation
@@ -194,7 +194,7 @@ def certify(lab, controllers: Sequence[str] | None = None, verify: bool = True,
     loop = linearize_loop(lab, controllers)
     seconds["linearize"] = time.perf_counter() - start
     mark = time.perf_counter()
-    result = margins(loop)
+    result = loop_margins(loop)
     seconds["margins"] = time.perf_counter() - mark
     onsets: list[Onset] = []
     if verify:

@@ -415,7 +415,7 @@ def _worst_margins(controller, plant):
         pm, wcp = best[2], best[4]
         if inputs > 1:
             notes.append(f"phase margin: the smallest of the breaks ({name[best[0]]}); all at "
-                         "once: mexone.design.margins(linearize_loop(lab))")
+                         "once: mexone.design.loop_margins(linearize_loop(lab))")
     else:
         notes.append("no phase margin: the loop's gain never crosses 1 (no delay destabilises "
                      "it)")

@@ -36,7 +36,7 @@ from mexone.design.loop import LoopModel
 from mexone.errors import InputError
 from mexone.ranges import number_text
 
-__all__ = ["Margins", "LoopMargins", "margins", "plot_margins", "frequency_response", "STABLE_TOL"]
+__all__ = ["Margins", "LoopMargins", "loop_margins", "plot_margins", "frequency_response", "STABLE_TOL"]
 
 STABLE_TOL = 1e-7  # a pole this far outside the unit circle is unstable (FD noise is ~1e-10)
 _GAIN_CEILING = 1e3  # gains above this are "any gain"
@@ -122,7 +122,7 @@ def _json(value):
     return value
 
 
-def margins(loop: LoopModel, frequencies: np.ndarray | None = None) -> Margins:
+def loop_margins(loop: LoopModel, frequencies: np.ndarray | None = None) -> Margins:
     """The margins of `loop` (see the module's docstring). frequencies: Hz (default a dense
     log grid up to the Nyquist frequency)."""
     dt = loop.period

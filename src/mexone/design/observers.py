@@ -624,12 +624,11 @@ class EstimateRun:
 
 
 def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: float = 0.2,
-                     pushes: Sequence[tuple[float, str, Sequence[float]]] = ()) -> EstimateRun:
+                     pushes: Sequence[tuple[float, str, Sequence[float]]] = (),
+                     push_seconds: float = 0.1) -> EstimateRun:
     """Run `duration` s with the observer in the loop (from where the lab is), the pushes
-    (time s from now, link, impulse N s over 0.1 s, world frame) applied, and compare its
-    estimate with the true state the simulator has."""
-    from mexone.motion.push import PUSH_SECONDS, apply_wrench
-
+    (time s from now, link, impulse N s over `push_seconds`, world frame) applied, and compare
+    its estimate with the true state the simulator has."""
     if not isinstance(observer, Observer):
         raise InputError("compare_estimate: give the observer deploy() returned")
     if not np.isfinite(duration) or duration <= 0:
@@ -641,12 +640,12 @@ def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: flo
         observer.trace_length = max(2, round(duration * observer.rate))
         observer.trace = []
         for at, link, impulse in pushes:
-            force = np.asarray(impulse, dtype=float) / PUSH_SECONDS
+            force = np.asarray(impulse, dtype=float) / push_seconds
             handle: list = []
 
             def kick(s, force=force, link=link, handle=handle):
                 s.remove_periodic(handle[0])
-                apply_wrench(s, link, force, duration=PUSH_SECONDS)
+                s.apply_wrench(link, force, (0.0, 0.0, 0.0), duration=push_seconds)
             handle.append(sim.add_periodic(float(at), kick))
     sim.work.call(start) if sim.loop_elsewhere() else start()
     trace = _run(lab, observer, duration)

@@ -160,7 +160,7 @@ class _Trials:
 def simulate_onset(lab, loop: LoopModel, every: LoopMargins, duration: float = 2.0,
                    kick: float = KICK, gains: bool = True, delay: bool = True,
                    friction: bool = False) -> list[Onset]:
-    """Check the all-channels margins of `every` (margins(loop).all) on copies of `lab` (at the
+    """Check the all-channels margins of `every` (loop_margins(loop).all) on copies of `lab` (at the
     state the loop was linearised at: call right after linearize_loop). friction: keep the
     joints' dry friction in the copy; by default it is off, as in the model: inside its stiction
     band a small oscillation dies whatever the margin, which moves the onset by an amount that

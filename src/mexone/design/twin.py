@@ -192,8 +192,6 @@ def _model_fields(model: mujoco.MjModel) -> list[str]:
 def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
     """A private Lab like `lab` (see the module's docstring), with `edits` on its spec; its
     Python controllers are fresh objects of the same classes holding the live ones' state."""
-    from mexone.lab import Lab
-
     sim = getattr(lab, "sim", None)
     if sim is None or not hasattr(sim, "compiled"):
         raise ArgumentTypeError(f"give a mexone Lab, not {type(lab).__name__}")
@@ -206,7 +204,7 @@ def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
     config = None if manager is None else replace(manager.config,
                                                   controllers=dict(manager.config.controllers))
     fixed = not compiled.free and not sim.robot.fixed_to_world
-    copy_lab = Lab.create(sim.robot, config if config is not None else False, compiled.world,
+    copy_lab = type(lab).create(sim.robot, config if config is not None else False, compiled.world,
                           compiled.spawn, CompileOptions(fixed_base=fixed), start=list(taken.running),
                           edits=tuple(edits))
     model, live = copy_lab.sim.model, sim.model
