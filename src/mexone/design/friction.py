@@ -14,7 +14,7 @@ model, or what `mexone identify` fitted: `with_identified`), and gives three vie
   what the robot does, to a few per cent, where the linear model alone misses by tens;
 - `describing_function(V)`: the equivalent viscous damping at a velocity amplitude V (c inside
   the band, falling as 4 Fc / (pi V) far above it);
-- `bound`: the friction as a bounded disturbance |f| <= Fc: the largest difference it can make
+- `bound`: the friction as a bounded disturbance, no larger than Fc: the largest difference it can make
   to each state (the l1 norm of the closed loop's response to it) and the dead band, the
   offset it can hold a joint at against the controller's stiffness.
 """
@@ -121,9 +121,9 @@ class FrictionModel:
         return out
 
     def bound(self, controller, plant) -> tuple[np.ndarray, np.ndarray]:
-        """(largest difference per plant state the friction can make, |f| <= Fc on every joint
-        at once: sum over time of |impulse response| Fc; the dead band per joint: Fc over the
-        loop's static stiffness)."""
+        """(largest difference per plant state the friction can make, up to Fc on every joint
+        at once: the sum over time of the impulse response's magnitude times Fc; the dead band
+        per joint: Fc over the loop's static stiffness)."""
         from mexone.design.check import closed_loop
 
         sys = closed_loop(controller, plant)

@@ -86,7 +86,8 @@ class LoopMargins:
 @dataclass(frozen=True)
 class Margins:
     """Every break of a LoopModel: `loops` one per channel, `all` every channel at once,
-    `frequencies` (Hz) of the grid, the loop's `spectral_radius` (its largest closed-loop |z|),
+    `frequencies` (Hz) of the grid, the loop's `spectral_radius` (the largest closed-loop pole's
+    magnitude),
     `notes` about the loop as a whole, and `method` of the MIMO disk margin."""
 
     loops: tuple[LoopMargins, ...]

@@ -50,7 +50,7 @@ def critical_amplitude(k_low: float) -> float:
 @dataclass(frozen=True)
 class Saturation:
     """`directions` (the deviations tried: `<joint>:q` and `<joint>:dq`), `inputs`,
-    `headroom` per input (N m), `peak` (directions x inputs: largest |u - u0| per unit
+    `headroom` per input (N m), `peak` (directions x inputs: the largest command deviation per unit
     deviation), `onset` per direction (the deviation at which the first input saturates) with
     `first` (that input), `k_low` (the loop's lower gain margin, all channels), `amplitude`
     (A*/a: the command amplitude, in headrooms, where saturation takes the loop's gain down to
