@@ -22,7 +22,14 @@ from mexone.design.friction import friction_model
 from mexone.design.loop import LoopModel, linearize_loop
 from mexone.design.margins import loop_margins
 from mexone.design.mismatch import mismatch, plot_mismatch
-from mexone.design.observers import compare_estimate, kalman, luenberger, save_estimator
+from mexone.design.observers import (
+    compare_estimate,
+    kalman,
+    lqg,
+    luenberger,
+    plot_estimate,
+    save_estimator,
+)
 from mexone.design.onset import simulate_onset
 from mexone.design.saturation import critical_amplitude, saturation, saturation_gain
 from mexone.errors import InputError
@@ -244,6 +251,17 @@ def test_the_elbow_mismatch_is_the_dry_friction_and_the_friction_aware_model_pre
     assert len(fig.axes) == 2
 
 
+def test_the_friction_model_takes_what_identify_fitted(elbow_pp, tmp_path):
+    lab, _, plant = elbow_pp
+    fm = friction_model(lab, plant)
+    (tmp_path / "identify.json").write_text(json.dumps({"params": {"frictionloss": {"l_elbow": 0.05}}}))
+    fitted = fm.with_identified(tmp_path)
+    assert fitted.coulomb[0] == 0.05 and fitted.band[0] == pytest.approx(0.05 / fm.damping[0])
+    (tmp_path / "other.json").write_text(json.dumps({"params": {"damping": {"l_elbow": 0.3}}}))
+    with pytest.raises(InputError, match="no frictionloss was identified"):
+        fm.with_identified(tmp_path / "other.json")
+
+
 def test_the_friction_model_is_mujocos_creep(elbow_pp):
     """Below the Coulomb level a joint creeps at v = tau / c with c = b / R, the friction
     model's damping: the elbow pushed with half its friction, gravity and controllers off."""
@@ -290,6 +308,14 @@ def test_observers_in_the_loop_track_the_elbow(elbow_pp):
         exports = lab.controllers.exports()
         np.testing.assert_allclose(exports[f"{name}/x"], obs.x)
         lab.controllers.switch(stop=[name])
+    fig = plot_estimate(run, "x")
+    assert len(fig.axes[0].lines) == 2 * 2 + 1  # true and estimate per state, the push
+    compensator = deploy(lab, lqg(plant, np.diag([100.0, 1.0]), [[1.0]], [10.0], [1e-8],
+                                  ["l_elbow:q"]), name="elbow_lqg")
+    assert not lab.controllers.controllers["elbow_pp"].running  # it took the elbow over
+    lab.sim.run(0.5)
+    assert np.abs(compensator.x).max() < 0.01 and lab.controllers.controllers["elbow_lqg"].running
+    lab.controllers.switch(stop=["elbow_lqg"], start=["elbow_pp"])
 
 
 def test_an_observer_from_a_yaml_exports_what_its_class_declares(elbow_pp, tmp_path):

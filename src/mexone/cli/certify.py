@@ -18,7 +18,8 @@ mjd_transitionFD, the controllers by finite differences of their own update, on 
 gain, phase, delay and disk margins with the loop broken at each actuator and at all at once,
 the sensitivity peaks, each all-channel prediction checked on the simulated robot (MuJoCo's
 actuator delay, the commands scaled), when a deviation saturates an actuator, and, for a
-StateFeedback designed on the whole robot, the region of attraction over two axes.
+StateFeedback designed on the whole robot, the region of attraction over two axes; with
+--mismatch, why a StateFeedback and its model differ (compare's experiment decomposed).
 
 --at: 'hold' (where the YAML's controllers hold the robot after --settle s), 'design' (the
 operating point in the design file of a StateFeedback or observer it runs), or joint=angle
@@ -51,6 +52,10 @@ def add_parser(sub) -> None:
                    help="the region of attraction over two of the plant's states, e.g. "
                         "base:vx=-0.3:0.3 base:vy=-0.2:0.2 (a StateFeedback on the whole robot)")
     p.add_argument("--grid", default="16x16", metavar="NxM", help="region grid (default 16x16)")
+    p.add_argument("--mismatch", metavar="STATE=VALUE,...",
+                   help="compare a StateFeedback with its model from this deviation and say why "
+                        "they differ (dry friction, effort and joint limits, contacts, amplitude), "
+                        "e.g. l_elbow:q=0.01")
     p.add_argument("--backend", choices=("threads", "ray"), default="threads",
                    help="region rollouts: MuJoCo's threads (default) or a Ray cluster")
     p.add_argument("--model", type=Path, help="robot model (default: the built-in Mex-One)")
@@ -76,6 +81,23 @@ def _region(texts: list[str] | None) -> dict[str, tuple[float, float]] | None:
             raise InputError(f"--region {text!r}: give STATE=LOW:HIGH with LOW < HIGH",
                              hint="e.g. base:vx=-0.3:0.3")
         out[label] = values
+    return out
+
+
+def _deviation(text: str | None) -> dict[str, float] | None:
+    if text is None:
+        return None
+    out = {}
+    for item in text.split(","):
+        label, sep, value = item.rpartition("=")
+        try:
+            number = float(value)
+        except ValueError:
+            number = math.nan
+        if not sep or not label or not math.isfinite(number):
+            raise InputError(f"--mismatch {text!r}: give STATE=VALUE[,STATE=VALUE]",
+                             hint="e.g. l_elbow:q=0.01")
+        out[label] = number
     return out
 
 
@@ -110,6 +132,7 @@ def run(args: argparse.Namespace) -> int:
     from mexone.physics.compile import CompileOptions
 
     region = _region(args.region)
+    deviation = _deviation(args.mismatch)
     shape = _grid(args.grid)
     pose = None if args.at in ("hold", "design") else _pose(args.at)
     if args.output is not None:
@@ -122,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
     _place(lab, args, pose)
     lab.sim.run(args.settle)
     result = certify(lab, args.controller, verify=not args.no_verify, region=region,
-                     shape=shape, backend=args.backend)
+                     shape=shape, backend=args.backend, deviation=deviation)
     if args.output is not None:
         result.write_html(args.output, args.force)
     if args.json:

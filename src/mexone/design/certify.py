@@ -24,6 +24,7 @@ import numpy as np
 
 from mexone.design.loop import LoopModel, linearize_loop
 from mexone.design.margins import LoopMargins, Margins, loop_margins, plot_margins
+from mexone.design.mismatch import Mismatch, describe, design_plant, mismatch, plot_mismatch
 from mexone.design.onset import Onset, simulate_onset
 from mexone.design.region import Region, plot_region, region_of_attraction
 from mexone.design.saturation import Saturation, saturation
@@ -53,6 +54,7 @@ class Certificate:
     region: Region | None
     seconds: dict[str, float]
     notes: tuple[str, ...] = field(default=())
+    mismatch: Mismatch | None = None
 
     @property
     def passed(self) -> bool:
@@ -70,6 +72,7 @@ class Certificate:
                 "command_noise": dict(zip(loop.inputs, self.command_noise.tolist(), strict=True)),
                 "encoder_noise": list(ENCODER_NOISE),
                 "region": None if self.region is None else self.region.as_dict(),
+                "mismatch": None if self.mismatch is None else self.mismatch.as_dict(),
                 "seconds": self.seconds, "notes": list(self.notes)}
 
     def json(self) -> str:
@@ -104,6 +107,8 @@ class Certificate:
             r = self.region
             out.append(f"  region of attraction over {r.axes[0]}, {r.axes[1]}: "
                        f"{100 * r.fraction:.0f} % of {r.back.size} starts came back")
+        if self.mismatch is not None:
+            out += ["  " + line for line in describe(self.mismatch)]
         out += [f"  note: {n}" for n in (*m.notes, *self.notes)]
         return out
 
@@ -115,6 +120,8 @@ class Certificate:
         figures = [_png(plot_margins(self.margins))]
         if self.region is not None:
             figures.append(_png(plot_region(self.region)))
+        if self.mismatch is not None:
+            figures.append(_png(plot_mismatch(self.mismatch)))
         rows = "".join(f"<tr><td>{html.escape(i.name)}</td>{_cells(i)}</tr>"
                        for i in (*self.margins.loops, self.margins.all))
         onsets = "".join(f"<tr><td>{o.kind}</td><td>{_g(o.predicted)}</td>"
@@ -185,10 +192,12 @@ def command_noise(loop: LoopModel, noise: Sequence[float] = ENCODER_NOISE) -> np
 
 def certify(lab, controllers: Sequence[str] | None = None, verify: bool = True,
             region: Mapping[str, tuple[float, float]] | None = None,
-            shape: tuple[int, int] = (16, 16), lyapunov=None, backend: str = "threads") -> Certificate:
+            shape: tuple[int, int] = (16, 16), lyapunov=None, backend: str = "threads",
+            deviation: Mapping[str, float] | None = None) -> Certificate:
     """The report of the lab's running Python controllers (or those named) at the lab's
     current state. verify: check the predictions on the simulated robot; region: two state
-    labels with ranges for the region of attraction (a StateFeedback only)."""
+    labels with ranges for the region of attraction; deviation: state labels and values for
+    `mismatch`, compare's experiment decomposed (both for a StateFeedback alone)."""
     seconds: dict[str, float] = {}
     start = time.perf_counter()
     loop = linearize_loop(lab, controllers)
@@ -208,26 +217,33 @@ def certify(lab, controllers: Sequence[str] | None = None, verify: bool = True,
         notes += list(sat.notes)
     else:
         notes.append(f"the loop drives {loop.interface} setpoints: no effort limit in the model")
-    found = None
-    if region is not None:
-        runners = python_runners(lab, controllers)
-        if len(runners) != 1:
-            raise InputError("the region of attraction runs one StateFeedback; name it",
-                             hint="--controller NAME")
-        impl = runners[0].impl
-        from mexone.design.deploy import StateFeedback
-
-        if not isinstance(impl, StateFeedback):
-            raise InputError(f"controller '{runners[0].name}' is not a StateFeedback: the region "
-                             "of attraction runs a state feedback's law", hint="leave --region out")
-        plant = _plant_of(impl, loop)
-        mark = time.perf_counter()
-        found = region_of_attraction(lab, impl, plant, region, shape, lyapunov=lyapunov,
-                                     backend=backend)
-        seconds["region"] = time.perf_counter() - mark
+    found = decomposed = None
+    if region is not None or deviation is not None:
+        impl = _state_feedback(lab, controllers, "the region of attraction and the mismatch")
+        if deviation is not None:
+            mark = time.perf_counter()
+            decomposed = mismatch(lab, impl, design_plant(lab, impl), deviation)
+            seconds["mismatch"] = time.perf_counter() - mark
+        if region is not None:
+            mark = time.perf_counter()
+            found = region_of_attraction(lab, impl, _plant_of(impl, loop), region, shape,
+                                         lyapunov=lyapunov, backend=backend)
+            seconds["region"] = time.perf_counter() - mark
     seconds["total"] = time.perf_counter() - start
     return Certificate(loop, result, tuple(onsets), sat, command_noise(loop), found, seconds,
-                       tuple(notes))
+                       tuple(notes), decomposed)
+
+
+def _state_feedback(lab, controllers, what: str):
+    """The one StateFeedback certified (one line otherwise)."""
+    from mexone.design.deploy import StateFeedback
+
+    runners = python_runners(lab, controllers)
+    if len(runners) != 1 or not isinstance(runners[0].impl, StateFeedback):
+        names = ", ".join(r.name for r in runners)
+        raise InputError(f"{what} run one StateFeedback; certified here: {names}",
+                         hint="name it with --controller NAME, or leave --region/--mismatch out")
+    return runners[0].impl
 
 
 def _plant_of(controller, loop: LoopModel):

@@ -39,7 +39,7 @@ from mexone.design.friction import FrictionModel, friction_model
 from mexone.errors import InputError
 from mexone.ranges import number_text
 
-__all__ = ["Mismatch", "mismatch", "plot_mismatch", "describe", "EFFECTS"]
+__all__ = ["Mismatch", "mismatch", "plot_mismatch", "describe", "design_plant", "EFFECTS"]
 
 EFFECTS = ("dry friction", "effort limits", "joint limits", "contacts changing", "amplitude")
 _SMALL = 0.1  # the amplitude run's fraction of the deviation
@@ -142,6 +142,32 @@ def mismatch(lab, controller, plant, deviation=None, reference=None, duration: f
         describing = friction.describing_function(speed)
     return Mismatch(base.relative, without, explained, residual, friction, aware, prediction,
                     bound, dead, describing, runs, tuple(notes))
+
+
+def design_plant(lab, controller):
+    """The plant a deployed StateFeedback's design was made on, linearised again at the lab's
+    current state (put the robot at the design's point first): its joints as inputs, the others
+    welded when its states leave them out, the base fixed when they leave it out, at its period
+    (a design read from a file has no plant with it). One line when no such model has its
+    states."""
+    from mexone.design.linear import linearize
+
+    if not isinstance(controller, StateFeedback):
+        raise InputError(f"controller '{controller.name}' is not a StateFeedback: compare needs the "
+                         "plant a design was made on")
+    design = controller.design
+    states = tuple(design.point.states)
+    joints = list(design.joints)
+    named = {s.rpartition(":")[0] for s in states}
+    welded = bool({j.name for j in lab.sim.robot.actuated_joints} - named)
+    fixed = lab.sim.compiled.free and "base" not in named
+    plant = linearize(lab, inputs=design.interface, joints=joints,
+                      held="rigid" if welded else "controllers", fixed_base=fixed,
+                      period=design.dt or 1.0 / controller.rate)
+    if tuple(plant.state_labels) != states:
+        raise InputError(f"controller '{controller.name}': no model of the robot has the design's "
+                         f"{len(states)} states", hint="compare from Python with the design's plant")
+    return plant
 
 
 def _relative(base: Comparison, prediction: np.ndarray, plant) -> float:
