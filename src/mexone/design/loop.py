@@ -26,6 +26,7 @@ import control
 import mujoco
 import numpy as np
 
+from mexone.control.hardware import set_actuator_state
 from mexone.design.linear import linearize
 from mexone.design.twin import python_runners, snapshot, twin
 from mexone.errors import InputError
@@ -206,9 +207,10 @@ class _Probe:
         data.qpos[:] = qpos
         data.qvel[:] = self.qvel0
         data.qvel[self.qvel_index] += dx[self.nv:2 * self.nv]
-        data.act[:] = self.act0
+        set_actuator_state(data, act=self.act0)
         if self.act_rows.size:
-            data.act[self.act_rows] += dx[2 * self.nv:]
+            set_actuator_state(data, act=self.act0[self.act_rows] + dx[2 * self.nv:],
+                               rows=self.act_rows)
         getattr(self.hw.command, self.interface)[self.rows] = self.command0 + m
         self.hw.write()
         mujoco.mj_forward(model, data)

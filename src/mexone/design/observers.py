@@ -34,6 +34,7 @@ import control
 import mujoco
 import numpy as np
 
+from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _run
 from mexone.design.deploy import _Deployed, _point_of, lqr
 from mexone.errors import InputError
@@ -238,9 +239,10 @@ def _sensor_values(lin):
     """sensor name, axis -> its value at the point (the model as linearised, at rest)."""
     model = lin.model
     data = mujoco.MjData(model)
-    data.qpos[:], data.qvel[:], data.act[:] = lin.qpos, lin.qvel, lin.act
+    data.qpos[:], data.qvel[:] = lin.qpos, lin.qvel
+    set_actuator_state(data, act=lin.act)
     if lin.ctrl is not None and lin.ctrl.shape == data.ctrl.shape:
-        data.ctrl[:] = lin.ctrl
+        set_actuator_state(data, ctrl=lin.ctrl)
     flags = model.opt.disableflags
     model.opt.disableflags = flags & ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
     try:

@@ -24,6 +24,7 @@ import control
 import mujoco
 import numpy as np
 
+from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _on_sim
 from mexone.design.deploy import StateFeedback
 from mexone.errors import InputError
@@ -188,7 +189,7 @@ def _job(lab, controller, plant, names, grid, duration, P) -> dict:
                 probe.qpos[:] = qpos
                 probe.qvel[:] = 0.0
                 probe.qvel[point.qvel_index] = point.qvel + dx[nv:2 * nv]
-                probe.ctrl[:] = base
+                set_actuator_state(probe, ctrl=base)
                 mujoco.mj_getState(m, probe, starts[k], spec)
                 k += 1
         return {"model": m, "base": base, "ff": ff, "gear": gear, "limits": limits,

@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from mexone.control.hardware import set_actuator_state
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.physics.compile import CompileOptions, SpecEdit
 
@@ -233,8 +234,8 @@ def restore(copy_lab, taken: _Snapshot) -> None:
     internal state (between trials)."""
     sim = copy_lab.sim
     data = sim.data
-    data.qpos[:], data.qvel[:], data.act[:] = taken.qpos, taken.qvel, taken.act
-    data.ctrl[:], data.qacc_warmstart[:] = taken.ctrl, taken.warmstart
+    data.qpos[:], data.qvel[:], data.qacc_warmstart[:] = taken.qpos, taken.qvel, taken.warmstart
+    set_actuator_state(data, ctrl=taken.ctrl, act=taken.act)
     data.qfrc_applied[:] = 0.0
     data.xfrc_applied[:] = 0.0
     if taken.history.size and data.history.shape == taken.history.shape:
@@ -254,7 +255,8 @@ def restore(copy_lab, taken: _Snapshot) -> None:
 
 
 def place(lab, qpos: np.ndarray) -> None:
-    """The robot at `qpos`, at rest, every running controller restarted to hold it there."""
+    """The robot at `qpos`, at rest, every running controller restarted to hold it there (their
+    integrals restart with them)."""
     def put() -> None:
         sim = lab.sim
         data = sim.data
@@ -262,7 +264,6 @@ def place(lab, qpos: np.ndarray) -> None:
             raise InputError(f"a pose of {np.size(qpos)} positions for a model of {data.qpos.size}")
         data.qpos[:] = qpos
         data.qvel[:] = 0.0
-        data.act[:] = 0.0
         mujoco.mj_forward(sim.model, data)
         manager = lab.controllers
         if manager is not None:
