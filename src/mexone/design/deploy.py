@@ -282,7 +282,9 @@ def lqr(plant, Q, R):
         raise _fail("lqr: Q is not positive semidefinite")
     solve = control.lqr if plant.dt == 0 else control.dlqr
     try:
-        return solve(plant, mats["Q"], mats["R"])
+        # SciPy's Riccati solver: with slycot installed python-control would take SLICOT's,
+        # which refuses the robot's models (modes on the unit circle: docs/DECISIONS.md)
+        return solve(plant, mats["Q"], mats["R"], method="scipy")
     except (ValueError, np.linalg.LinAlgError, control.ControlArgument) as exc:
         raise _fail(f"lqr: no stabilising solution: {str(exc).splitlines()[0]}",
                     hint="is the plant stabilisable? weight the unstable states in Q") from None

@@ -315,7 +315,7 @@ def kalman(plant, measured: Sequence[str], W, V, *, time_varying: bool = False, 
     process = process + 1e-12 * np.eye(n)
     noise = _covariance(V, p, "V")
     try:
-        _, prior, _ = control.dlqe(a, np.eye(n), c, process, noise)
+        _, prior, _ = control.dlqe(a, np.eye(n), c, process, noise, method="scipy")  # not SLICOT's
     except (ValueError, np.linalg.LinAlgError, control.ControlArgument) as exc:
         raise InputError(f"kalman: no steady-state filter: {str(exc).splitlines()[0]}",
                          hint="the measured signals must see every mode that does not decay (the "

@@ -1,7 +1,9 @@
 """Exercise 12, a design with margins: the student's arm controller (500 Hz) must hold against a
 push and stay stable with a delay on its commands (MuJoCo's actuator delay on the arm's motors)
-and with its commands scaled up by k and down by 1/k (a disk margin's gain range, by a subclass
-of the student's own class). Hidden variant: the delay, k and a payload in the hand."""
+and with its commands scaled up by k and down by 1/k (a disk margin's gain range: the arm
+motors' gear times k in the grader's model, so the student's code sees the same class, the same
+commands and no sign of the trial it is in). Hidden variant: the delay, k and a payload in the
+hand."""
 
 from __future__ import annotations
 
@@ -30,23 +32,6 @@ HISTORY = 40  # command samples kept for the delay (40 ms at the 1 ms step)
 PEAK = (40e-3, 80e-3)  # rad: full marks, none
 LEFT = (1e-3, 3e-3)  # rad, 1 s after the push
 STILL, SWING = 3e-3, 0.5  # rad, N m peak to peak over the last 0.5 s: stable (settled)
-WRAPPER = '''"""The grader's: the student's class with its commands scaled by SCALE."""
-import importlib.util
-from pathlib import Path
-
-import numpy as np
-
-_spec = importlib.util.spec_from_file_location("student_robust_arm",
-                                               Path(__file__).with_name("{file}"))
-_module = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_module)
-
-
-class Scaled(_module.{cls}):
-    def update(self, state, t, dt):
-        out = super().update(state, t, dt)
-        return None if out is None else {scale!r} * np.asarray(out, dtype=float)
-'''
 
 
 def variant(r: np.random.Generator | None) -> dict:
@@ -67,21 +52,21 @@ def trial(submission: Path, var: dict, delay: float, scale: float) -> dict:
     largest deviation and force swing, the fault."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
-        path = student_yaml(folder, submission, FILE, CLASS, NAME, ARM, {})
-        (folder / "scaled.py").write_text(WRAPPER.format(file=FILE, cls=CLASS, scale=scale))
-        text = path.read_text().replace(f"type: {Path(FILE).stem}/{CLASS}",
-                                        f"type: scaled/Scaled\n    update_rate: {RATE}")
-        path.write_text(text)
+        path = student_yaml(folder, submission, FILE, CLASS, NAME, ARM, {"update_rate": RATE})
         lab = controller_lab(path, POSE, [scale_mass(HAND, var["payload"]), _history])
         model = lab.sim.model
         motors = [model.actuator(j).id for j in ARM]
         adr = [int(model.joint(j).qposadr[0]) for j in ARM]
+        # the amplifier k times stronger (or weaker): the hardware divides each effort by the
+        # gear it read at the start, MuJoCo multiplies the motor's force by this one
+        model.actuator_gear[motors, 0] *= scale
         lab.sim.run(0.5)
         model.actuator_delay[motors] = delay
         q0 = lab.sim.data.qpos[adr].copy()
         log: list[np.ndarray] = []
-        lab.sim.add_periodic(lab.sim.timestep, lambda s: log.append(
-            np.r_[s.data.qpos[adr] - q0, s.data.actuator_force[motors]]))
+        gear = model.actuator_gear[motors, 0].copy()
+        lab.sim.add_periodic(lab.sim.timestep, lambda s: log.append(  # the joints' torques
+            np.r_[s.data.qpos[adr] - q0, gear * s.data.actuator_force[motors]]))
         lab.sim.run(0.2)
         lab.sim.apply_wrench(HAND, (0.0, PUSH / 0.1, 0.0), (0.0, 0.0, 0.0), duration=0.1)
         lab.sim.run(1.8)

@@ -1,8 +1,9 @@
 """Exercise 11, an observer of the tilt: the student's controller exports `tilt` (the pelvis's
 roll and pitch from the vertical) from the IMU. Hidden variant: a slope (gravity tilted 2-4
 degrees: an estimate read from the simulator's world-frame truth is off by the slope), the
-IMU's noise and gyro bias. The estimate must depend on the sensors: a second run with the
-noise 10 % larger must change it (else it read the truth)."""
+IMU's noise and gyro bias. The estimate must depend on the gyro: a second run with the gyro's
+noise 10 % larger must change it (else it read the truth, perhaps offset by the tilt the
+accelerometer read at rest), and the tracking counts only then."""
 
 from __future__ import annotations
 
@@ -39,7 +40,8 @@ def variant(r: np.random.Generator | None) -> dict:
 
 def noisy_urdf(folder: Path, var: dict, louder: bool) -> Path:
     """Mex-One's URDF with the variant's IMU noise (Gazebo's <noise>: stddev, bias_mean);
-    louder: the noise 10 % larger (the same draws, scaled)."""
+    louder: the gyro's noise 10 % larger (the same draws, scaled), the accelerometer's as it
+    was."""
     text = mex_one.urdf_path().read_text()
     bias = np.array([*var["bias"], 0.0])
     scale = 1.1 if louder else 1.0
@@ -55,7 +57,7 @@ def noisy_urdf(folder: Path, var: dict, louder: bool) -> Path:
         text = text[:match.start()] + body + text[match.end():]
 
     noise("angular_velocity", scale * var["gyro"], bias)
-    noise("linear_acceleration", scale * var["acc"], (0.0, 0.0, 0.0))
+    noise("linear_acceleration", var["acc"], (0.0, 0.0, 0.0))
     path = folder / "robot.urdf"
     path.write_text(text)
     return path
@@ -107,14 +109,16 @@ def grade(ctx) -> list:
     frac = 0.0 if fault or not math.isfinite(rms) else (NONE - rms) / (NONE - FULL)
     tracks = check("tracks the tilt", 6.0, frac,
                    f"RMS error {rms * 1e3:.2f} mrad on a tilt of {size * 1e3:.1f} mrad RMS (full "
-                   f"marks <= {FULL * 1e3:g}, none >= {NONE * 1e3:g}; {what})", requires="runs")
+                   f"marks <= {FULL * 1e3:g}, none >= {NONE * 1e3:g}; {what})",
+                   requires="uses the IMU")
     _, _, again, fault2 = ctx.run(measure, ctx.submission, var, True)
     n = min(len(estimate), len(again))
     moved = float(np.abs(estimate[:n] - again[:n]).max()) if n else 0.0
     reads = moved > 1e-6 and not fault2
-    why = "" if reads else (": it does not read the IMU (the simulator's truth, state.base or the "
-                            "IMU's orientation, is not a measurement)")
+    why = "" if reads else (": it does not fuse the gyro (the accelerometer alone, or the "
+                            "simulator's truth: state.base, state.all_q and the IMU's orientation "
+                            "are not measurements)")
     uses = check("uses the IMU", 3.0, 1.0 if reads else 0.0,
-                 f"with the IMU's noise 10 % larger the estimate changed by up to "
+                 f"with the gyro's noise 10 % larger the estimate changed by up to "
                  f"{moved * 1e3:.3f} mrad{why}", requires="runs")
     return [runs, tracks, uses]
