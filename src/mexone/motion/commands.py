@@ -401,10 +401,11 @@ def _walk(source, gait: Gait) -> None:
     mover = _mover()
     qpos = mover.snapshot()
     ik = mover.ik
-    ik.reset(qpos)
-    standing = ik.joint_positions()
-    ik.reset(bent_knees(ik, qpos, gait.knee_bend))
-    bent = ik.joint_positions()
+    with busy("the walk's set-up"):  # IK solves: seconds on a loaded machine, not a stall
+        ik.reset(qpos)
+        standing = ik.joint_positions()
+        ik.reset(bent_knees(ik, qpos, gait.knee_bend))
+        bent = ik.joint_positions()
     rate = rospy.Rate(1.0 / gait.dt)
     ticks = round(BEND_SECONDS / gait.dt)
     for k in range(1, ticks + 1):  # down into the walking stance
@@ -423,11 +424,18 @@ def _walk(source, gait: Gait) -> None:
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
     plans = _PlanPublisher()
+    ticks = walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
+                       measured=lambda: Measured(mover.measured, mover.velocities,
+                                                 *attitude[0][:2], gyro[0]),
+                       on_replan=plans)
     try:
-        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
-                                  measured=lambda: Measured(mover.measured, mover.velocities,
-                                                            *attitude[0][:2], gyro[0]),
-                                  on_replan=plans):
+        while True:
+            # mexone's own planning and IK between two ticks (the first sets up the preview
+            # control): the stall watchdog is for a routine's own code, not for this
+            with busy("the walk's plan and IK"):
+                joints = next(ticks, None)
+            if joints is None:
+                break
             mover.send(joints)
             plans.catch_up()
             rate.sleep()

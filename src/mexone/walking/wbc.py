@@ -19,6 +19,7 @@ at the loop's rate.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Sequence
@@ -95,7 +96,12 @@ class WholeBodyQP:
     """The QP above for a robot with `nv` dofs of which `actuated` (indices) have motors with
     `effort_limit` (N m); `mu`: the friction coefficient the pyramids use (keep it under the
     real one); `min_force`: N each corner of a foot on the ground pushes at least (keeps the
-    sole flat: every corner loaded)."""
+    sole flat: every corner loaded).
+
+    The corner forces are solved in their sole's frame (f = R f'), where the pyramids are
+    constant rows (abs(f'_x), abs(f'_y) <= mu f'_z) and f'_z >= f_min a bound; a foot's four
+    corner forces act on the robot as the wrench W0 f' at the sole's centre (W0 constant in the
+    sole frame), so J_c^T f = (R^T J_foot)^T W0 f'. A foot in the air has no force variables."""
 
     def __init__(self, nv: int, actuated: Sequence[int], effort_limit: Sequence[float],
                  n_feet: int = 2, mu: float = 0.6, min_force: float = 0.5,
@@ -111,66 +117,83 @@ class WholeBodyQP:
         self.solver = qp.check_solver(solver)
         self.nf = 12 * n_feet
         self.nx = nv + self.nf
-        # friction pyramid rows per corner, in the sole frame: -n.f <= -f_min, ±t.f - mu n.f <= 0
-        self._pyramid = np.array([[0, 0, -1], [1, 0, -mu], [-1, 0, -mu], [0, 1, -mu], [0, -1, -mu]],
-                                 dtype=float)
+        # the pyramid's rows for one foot's 12 sole-frame corner forces: ±f'_t - mu f'_z <= 0
+        self._pyramid = np.zeros((16, 12))
+        for c in range(4):
+            for r, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
+                self._pyramid[4 * c + r, 3 * c + axis] = sign
+                self._pyramid[4 * c + r, 3 * c + 2] = -mu
+        self._regularisation = np.concatenate([np.full(nv, accel_weight), np.full(self.nf, force_weight)])
 
     def solve(self, M: np.ndarray, h: np.ndarray, tasks: Sequence[Task], feet: Sequence[Foot]
               ) -> Solution:
         """The torques, forces and accelerations now; qp.Infeasible when there are none."""
-        nv, nx = self.nv, self.nx
-        P = np.zeros((nx, nx))
-        q = np.zeros(nx)
+        nv = self.nv
+        down = [foot for foot in feet if foot.contact]
+        nf = 12 * len(down)
+        nx = nv + nf
+        # the cost: every task's rows stacked, weighted by the square root of their weights
+        rows, rhs = [], []
         for task in tasks:
-            w = np.broadcast_to(np.asarray(task.weight, dtype=float), task.target.shape)
-            wj = task.jacobian * w[:, None]
-            P[:nv, :nv] += task.jacobian.T @ wj
-            q[:nv] -= wj.T @ (task.target - task.drift)
-        P[np.diag_indices(nv)] += self.accel_weight
-        P[np.arange(nv, nx), np.arange(nv, nx)] += self.force_weight
-        # J_c^T for every corner force: (nv, nf)
-        jct = np.zeros((nv, self.nf))
-        eq_rows, eq_rhs = [], []
-        g_rows, g_rhs = [], []
-        lb = np.full(nx, -np.inf)
-        ub = np.full(nx, np.inf)
-        for k, foot in enumerate(feet):
-            cols = slice(nv + 12 * k, nv + 12 * (k + 1))
-            if not foot.contact:
-                lb[cols] = ub[cols] = 0.0
-                continue
-            jp = corner_jacobians(foot)  # (4, 3, nv)
-            jct[:, 12 * k:12 * (k + 1)] = jp.reshape(12, nv).T
+            w = np.sqrt(np.asarray(task.weight, dtype=float))
+            rows.append(task.jacobian * (w[:, None] if w.ndim else w))
+            rhs.append((task.target - task.drift) * w)
+        held = math.sqrt(self.contact_weight)
+        jct = np.empty((nv, nf))  # J_c^T for each corner's sole-frame force
+        for k, foot in enumerate(down):
             # held on the ground: a stiff task rather than an equality, so torque limits never
             # make the QP infeasible (the foot would rather slip a little than the QP fail)
             target = np.zeros(6) if foot.target is None else foot.target
-            wj = foot.jacobian * self.contact_weight
-            P[:nv, :nv] += foot.jacobian.T @ wj
-            q[:nv] -= wj.T @ (target - foot.drift)
-            pyramid = self._pyramid @ foot.rotation.T  # (5, 3): rows act on the world force
-            block = np.zeros((20, nx))
-            for c in range(4):
-                block[5 * c:5 * c + 5, nv + 12 * k + 3 * c:nv + 12 * k + 3 * c + 3] = pyramid
-            g_rows.append(block)
-            g_rhs.append(np.tile([-self.min_force, 0, 0, 0, 0], 4))
-        # the unactuated rows of M q̈ + h = S^T τ + J_c^T f
-        base = np.zeros((len(self.unactuated), nx))
-        base[:, :nv] = M[self.unactuated]
-        base[:, nv:] = -jct[self.unactuated]
-        eq_rows.insert(0, base)
-        eq_rhs.insert(0, -h[self.unactuated])
-        # torque limits on τ = M_a q̈ + h_a - J_c,a^T f
-        act = np.zeros((len(self.actuated), nx))
+            rows.append(foot.jacobian * held)
+            rhs.append((target - foot.drift) * held)
+            rt = foot.rotation.T
+            local = np.vstack([rt @ foot.jacobian[:3], rt @ foot.jacobian[3:]])  # (6, nv)
+            corners = np.ascontiguousarray(foot.corners, dtype=float).tobytes()
+            jct[:, 12 * k:12 * (k + 1)] = local.T @ _wrench_map(corners)
+        J = np.vstack(rows)
+        P = np.zeros((nx, nx))
+        P[:nv, :nv] = J.T @ J
+        q = np.zeros(nx)
+        q[:nv] = -(J.T @ np.concatenate(rhs))
+        P[np.diag_indices(nx)] += self._regularisation[:nx]
+        # the unactuated rows of M q̈ + h = S^T τ + J_c^T f (equalities), then the torque limits
+        # on τ = M_a q̈ + h_a - J_c,a^T f and the pyramids (two-sided where they can be)
+        na, nu = len(self.actuated), len(self.unactuated)
+        G = np.zeros((nu + na + 16 * len(down), nx))
+        G[:nu, :nv] = M[self.unactuated]
+        G[:nu, nv:] = -jct[self.unactuated]
+        act = G[nu:nu + na]
         act[:, :nv] = M[self.actuated]
         act[:, nv:] = -jct[self.actuated]
+        for k in range(len(down)):
+            G[nu + na + 16 * k:nu + na + 16 * (k + 1), nv + 12 * k:nv + 12 * (k + 1)] = self._pyramid
         h_a = h[self.actuated]
-        g_rows += [act, -act]
-        g_rhs += [self.limit - h_a, self.limit + h_a]
-        x = qp.solve(P, q, np.vstack(g_rows), np.concatenate(g_rhs), np.vstack(eq_rows),
-                     np.concatenate(eq_rhs), lb, ub, solver=self.solver, what="whole-body QP")
-        qdd, f = x[:nv], x[nv:]
-        tau = act[:, :nv] @ qdd + act[:, nv:] @ f + h_a
-        return Solution(qdd, f.reshape(self.n_feet, 4, 3), tau)
+        high = np.concatenate([self.limit - h_a, np.zeros(16 * len(down))])
+        low = np.concatenate([-self.limit - h_a, np.full(16 * len(down), -np.inf)])
+        lb = np.full(nx, -np.inf)
+        lb[nv + 2::3] = self.min_force
+        x = qp.solve(P, q, G[nu:], high, G[:nu], -h[self.unactuated], lb=lb, G_low=low,
+                     solver=self.solver, what="whole-body QP")
+        qdd = x[:nv]
+        forces = np.zeros((self.n_feet, 4, 3))
+        k = 0
+        for i, foot in enumerate(feet):
+            if foot.contact:
+                forces[i] = x[nv + 12 * k:nv + 12 * (k + 1)].reshape(4, 3) @ foot.rotation.T
+                k += 1
+        tau = act[:, :nv] @ qdd + act[:, nv:] @ x[nv:] + h_a
+        return Solution(qdd, forces, tau)
+
+
+@functools.lru_cache(maxsize=16)
+def _wrench_map(corners: bytes) -> np.ndarray:
+    """(6, 12): the wrench at the sole's centre (force, moment) of its corners' forces (4, 3
+    float64, as bytes: cached per sole), all in the sole's frame: [I ... I; [r_1]x ... [r_4]x]."""
+    out = np.zeros((6, 12))
+    for c, (x, y, z) in enumerate(np.frombuffer(corners).reshape(4, 3)):
+        out[:3, 3 * c:3 * c + 3] = np.eye(3)
+        out[3:, 3 * c:3 * c + 3] = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
+    return out
 
 
 # ----- the plug-in: the whole-body controller in the manager's loop ----------------------------
@@ -216,9 +239,9 @@ class WholeBodyController(PythonController):
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles when standing (0: as it starts)",
                        unit="m")
     step_height = Param(0.04, low=0.0, high=0.2, doc="swing foot's lift", unit="m")
-    max_reach = Param(0.4, low=0.05, high=2.0, doc="a landing further from the standing foot is "
+    max_reach = Param(0.6, low=0.05, high=2.0, doc="a landing further from the standing foot is "
                       "refused (the robot stands)", unit="m")
-    solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
+    solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
         model = self.dynamics.model
