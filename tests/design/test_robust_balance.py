@@ -19,20 +19,11 @@ from mexone.design.margins import loop_margins  # noqa: E402
 from mexone.design.observers import compare_estimate, kalman, rows_of  # noqa: E402
 from mexone.design.onset import simulate_onset  # noqa: E402
 from mexone.design.region import plot_region, region_of_attraction  # noqa: E402
-from mexone.lab import Lab  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
 NOISE = {"imu/gyro": 0.01, "imu/acc": 0.1, "encoders": 1e-4}  # the worked example's
 PUSHES = [(0.6, "pelvis", (0.0, 0.5, 0.0)), (1.8, "pelvis", (0.8, 0.0, 0.0))]  # N s
-
-
-@pytest.fixture(scope="module")
-def designed():
-    lab = Lab.create()
-    lq.setup(lab)
-    point = lq.one_foot_pose(lab)
-    return lab, point, lq.design(lab, point)
 
 
 @pytest.fixture

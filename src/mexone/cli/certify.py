@@ -84,20 +84,19 @@ def _region(texts: list[str] | None) -> dict[str, tuple[float, float]] | None:
     return out
 
 
-def _deviation(text: str | None) -> dict[str, float] | None:
-    if text is None:
-        return None
+def _pairs(text: str, usage: str, hint: str | None = None) -> dict[str, float]:
+    """NAME=NUMBER[,NAME=NUMBER] as a dict (the last '=' splits: names may hold ':'), or the
+    one line `usage` says."""
     out = {}
     for item in text.split(","):
-        label, sep, value = item.rpartition("=")
+        name, sep, value = item.rpartition("=")
         try:
             number = float(value)
         except ValueError:
             number = math.nan
-        if not sep or not label or not math.isfinite(number):
-            raise InputError(f"--mismatch {text!r}: give STATE=VALUE[,STATE=VALUE]",
-                             hint="e.g. l_elbow:q=0.01")
-        out[label] = number
+        if not sep or not name.strip() or not math.isfinite(number):
+            raise InputError(usage, hint=hint)
+        out[name.strip()] = number
     return out
 
 
@@ -111,20 +110,6 @@ def _grid(text: str) -> tuple[int, int]:
         raise InputError(f"--grid {text!r}: {exc}") from None
 
 
-def _pose(text: str) -> dict[str, float]:
-    pose = {}
-    for item in text.split(","):
-        joint, sep, value = item.partition("=")
-        try:
-            angle = float(value)
-        except ValueError:
-            angle = math.nan
-        if not sep or not joint.strip() or not math.isfinite(angle):
-            raise InputError(f"--at {text!r}: give hold, design or joint=angle,joint=angle")
-        pose[joint.strip()] = angle
-    return pose
-
-
 def run(args: argparse.Namespace) -> int:
     from mexone.design.certify import certify
     from mexone.files import check_output
@@ -132,9 +117,12 @@ def run(args: argparse.Namespace) -> int:
     from mexone.physics.compile import CompileOptions
 
     region = _region(args.region)
-    deviation = _deviation(args.mismatch)
+    deviation = None if args.mismatch is None else _pairs(
+        args.mismatch, f"--mismatch {args.mismatch!r}: give STATE=VALUE[,STATE=VALUE]",
+        hint="e.g. l_elbow:q=0.01")
     shape = _grid(args.grid)
-    pose = None if args.at in ("hold", "design") else _pose(args.at)
+    pose = None if args.at in ("hold", "design") else _pairs(
+        args.at, f"--at {args.at!r}: give hold, design or joint=angle,joint=angle")
     if args.output is not None:
         check_output(args.output, args.force)
     if not args.controllers.is_file():

@@ -291,15 +291,31 @@ def lqr(plant, Q, R):
 
 
 # ----- files beside a YAML -----------------------------------------------------------------------
+def _design_path(name: str, design_file: str, yaml_dir: Path | None, writer: str) -> Path:
+    """A controller's `design_file:` (relative to its YAML's folder), or the one line saying to
+    set it (written by mexone.design's `writer`)."""
+    if not design_file:
+        raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
+                         "beside the YAML", hint=f"write one with mexone.design.{writer}")
+    path = Path(design_file)
+    return yaml_dir / path if not path.is_absolute() and yaml_dir is not None else path
+
+
+def _new_npz(path: str | Path, what: str) -> Path:
+    """`path` if it names a .npz file that does not exist yet, else the one line why not."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise _fail(f"{what}: {path} is not a .npz file")
+    if path.exists():
+        raise _fail(f"{what}: {path} exists", hint="remove it first, or choose another name")
+    return path
+
+
 def save_design(path: str | Path, K, plant) -> Path:
     """Write K and the plant's operating point (what StateFeedback needs) to a .npz, for a YAML's
     `design:` entry. Nothing is overwritten without the caller removing it first."""
     design = gain_design(K, plant, "save_design")
-    path = Path(path)
-    if path.suffix != ".npz":
-        raise _fail(f"save_design: {path} is not a .npz file")
-    if path.exists():
-        raise _fail(f"save_design: {path} exists", hint="remove it first, or choose another name")
+    path = _new_npz(path, "save_design")
     p = design.point
     with replacing(path, force=False) as temporary:  # its folder checked; never half-written
         _save_npz(temporary, design, p)
@@ -439,12 +455,7 @@ class _Deployed(PythonController):
 
     @classmethod
     def _load(cls, name: str, design_file: str, yaml_dir: Path | None):
-        if not design_file:
-            raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
-                             "beside the YAML", hint="write one with mexone.design.save_design")
-        path = Path(design_file)
-        if not path.is_absolute() and yaml_dir is not None:
-            path = yaml_dir / path
+        path = _design_path(name, design_file, yaml_dir, "save_design")
         try:
             design = load_design(path)
         except InputError as exc:  # its message names the design file: locate it at the YAML's line

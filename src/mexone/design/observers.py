@@ -36,7 +36,7 @@ import numpy as np
 
 from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _run
-from mexone.design.deploy import _Deployed, _point_of, lqr
+from mexone.design.deploy import _Deployed, _design_path, _new_npz, _point_of, lqr
 from mexone.errors import InputError
 from mexone.files import replacing
 from mexone.ranges import number_text
@@ -370,11 +370,7 @@ def lqg(plant, Q, R, W, V, measured: Sequence[str], *, time_varying: bool = Fals
 def save_estimator(path: str | Path, est: Estimator) -> Path:
     """An estimator as a .npz beside a controllers YAML (`design_file:` of an Observer);
     never overwritten."""
-    path = Path(path)
-    if path.suffix != ".npz":
-        raise InputError(f"save_estimator: {path} is not a .npz file")
-    if path.exists():
-        raise InputError(f"save_estimator: {path} exists", hint="remove it first, or choose another name")
+    path = _new_npz(path, "save_estimator")
     p = est.point
     names = list(est.outputs)
     with replacing(path, force=False) as temporary:
@@ -446,12 +442,7 @@ class Observer(_Deployed):
 
     @classmethod
     def _load(cls, name: str, design_file: str, yaml_dir):
-        if not design_file:
-            raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
-                             "beside the YAML", hint="write one with mexone.design.save_estimator")
-        path = Path(design_file)
-        if not path.is_absolute() and yaml_dir is not None:
-            path = yaml_dir / path
+        path = _design_path(name, design_file, yaml_dir, "save_estimator")
         est = load_estimator(path)
         declared = dict(getattr(cls, "exports", {}) or {})
         sizes = {k: v.shape[0] for k, v in est.outputs.items()}

@@ -282,6 +282,19 @@ def _deviations(job: dict, model, state: np.ndarray, offsets) -> np.ndarray:
     return out
 
 
+def _start_ray(ray, kwargs: dict) -> None:
+    """ray.init, once more when a local node missed Ray's fixed 30 s start-up wait (a loaded
+    machine: "The current node timed out during startup")."""
+    for attempt in (1, 2):
+        try:
+            ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
+            return
+        except Exception as exc:  # Ray raises a bare Exception for this one
+            if attempt == 2 or "timed out during startup" not in str(exc):
+                raise
+            ray.shutdown()
+
+
 def _on_ray(job: dict, starts: np.ndarray, address: str | None, threads: int | None) -> np.ndarray:
     try:
         import ray
@@ -290,7 +303,7 @@ def _on_ray(job: dict, starts: np.ndarray, address: str | None, threads: int | N
     started = not ray.is_initialized()
     if started:
         kwargs = {"address": address} if address else {"num_cpus": threads or os.cpu_count() or 1}
-        ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
+        _start_ray(ray, kwargs)
     try:
         workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         remote = ray.remote(_rollouts)
