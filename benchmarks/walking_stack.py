@@ -55,7 +55,7 @@ def record_problems(seconds: float = 7.0) -> dict:
         lab.sim.step(round((seconds - 1.0) / lab.sim.model.opt.timestep))
     finally:
         mpc.LipmMpc.solve, wbc.WholeBodyQP.solve = solve_mpc, solve_wbc
-    parts = lab.controllers.controllers
+    parts = lab.manager.controllers
     problems["mpc_of"] = parts["com_planner"].impl.mpc
     problems["wbc_of"] = parts["whole_body"].impl.qp
     return problems
@@ -109,7 +109,7 @@ def per_update(seconds: float, every_500: bool) -> dict:
     per CPU second), walking at 0.3 m/s; `every_500`: every part at 500 Hz."""
     lab = stack(rates=500 if every_500 else None)
     times: dict[str, list[float]] = {}
-    for name, runner in lab.controllers.controllers.items():
+    for name, runner in lab.manager.controllers.items():
         impl = getattr(runner, "impl", None)
         if impl is None:
             continue
@@ -146,7 +146,7 @@ def stack(vx: float = 0.3, world=None, rates: int | None = None) -> Lab:
             out.write(text)
     lab = Lab.create(controllers=controllers, world=world)
     lab.sim.step(1000)
-    lab.controllers.set_param("footsteps", "vx", vx)
+    lab.manager.set_param("footsteps", "vx", vx)
     return lab
 
 
@@ -162,7 +162,7 @@ def walk_stack(seconds: float) -> dict:
     sim.run(seconds, on_tick=lambda s: lowest.__setitem__(0, min(lowest[0], float(s.data.qpos[2]))))
     lowest = lowest[0]
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    mgr = lab.controllers
+    mgr = lab.manager
     parts = {n: c for n, c in mgr.controllers.items() if hasattr(c, "budget")}
     return {"seconds": seconds, "distance": float(sim.data.qpos[0]) - x0, "lowest": lowest,
             "rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu,
@@ -202,7 +202,7 @@ def course(world: str | None = None, seconds: float = 20.0) -> dict:
 
     def command(vx=0.0, vy=0.0, wz=0.0) -> None:
         for key, value in (("vx", vx), ("vy", vy), ("wz", wz)):
-            lab.controllers.set_param("footsteps", key, value)
+            lab.manager.set_param("footsteps", key, value)
 
     def yaw() -> float:
         q = sim.data.qpos
@@ -237,7 +237,7 @@ def course(world: str | None = None, seconds: float = 20.0) -> dict:
         out["sideways_s"] = sim.time - t0 if right() >= 1.0 else math.inf
         command()
         run(1.5)
-    out["reports"] = {n: c.impl.report() for n, c in lab.controllers.controllers.items()
+    out["reports"] = {n: c.impl.report() for n, c in lab.manager.controllers.items()
                       if hasattr(c, "impl")}
     return out
 

@@ -45,7 +45,7 @@ def lab(tmp_path, turntable):
 
 
 def _listener(lab):
-    runner = lab.controllers.controllers["listener"]
+    runner = lab.manager.controllers["listener"]
     return runner, runner.impl
 
 
@@ -68,10 +68,10 @@ def test_each_update_sees_the_newest_message_since_the_last_or_none(lab):
 def test_a_stopped_controller_holds_no_subscription_and_sees_nothing_sent_meanwhile(lab):
     runner, impl = _listener(lab)
     ns = lab.namespace
-    lab.controllers.switch(stop=["listener"])
+    lab.manager.switch(stop=["listener"])
     assert lab.bus.topic(f"{ns}/setpoint", Float64).subscriptions == []
     lab.bus.publish(f"{ns}/setpoint", Float64(5.0))
-    lab.controllers.switch(start=["listener"])
+    lab.manager.switch(start=["listener"])
     lab.sim.step(10)
     assert impl.seen[-1]["setpoint"] is None
     lab.bus.publish(f"{ns}/setpoint", Float64(6.0))

@@ -119,7 +119,7 @@ def test_a_students_filtered_pd_keeps_its_filter_as_the_controllers_state(studen
     """The low-pass filter's memory is the controller's state: x+ = (1 - a) x + a dq and
     u = g(q) + kp (q0 - q) - kd x+, read from the object's attributes on a copy: A = 1 - a,
     B = a on dq, C = -kd (1 - a), D = -kd a on dq; the live object is untouched."""
-    runner = student.controllers.controllers["arm_pd"]
+    runner = student.manager.controllers["arm_pd"]
     before = runner.impl.velocity.copy()
     time_before = student.sim.time
     loop = linearize_loop(student)
@@ -298,24 +298,24 @@ def test_observers_in_the_loop_track_the_elbow(elbow_pp):
                                np.sort(np.abs(poles)), rtol=1e-6)
     for name, est in (("kf", steady), ("tvkf", varying), ("luenberger", observer)):
         obs = deploy(lab, est, name=name)
-        assert lab.controllers.controllers[name].running and obs.joints == []
+        assert lab.manager.controllers[name].running and obs.joints == []
         lab.sim.run(0.5)  # the push before has died out
         run = compare_estimate(lab, obs, duration=0.6, settle=0.05,
                                pushes=[(0.1, "l_forearm", (0.15, 0.0, 0.0))])
         true_rate = np.sqrt(np.mean(run.true[:, 1] ** 2))
         assert true_rate > 0.05  # the push moved it
         assert run.rms["x"][1] < 0.05 * true_rate, (name, run.rms["x"], true_rate)
-        exports = lab.controllers.exports()
+        exports = lab.manager.exports()
         np.testing.assert_allclose(exports[f"{name}/x"], obs.x)
-        lab.controllers.switch(stop=[name])
+        lab.manager.switch(stop=[name])
     fig = plot_estimate(run, "x")
     assert len(fig.axes[0].lines) == 2 * 2 + 1  # true and estimate per state, the push
     compensator = deploy(lab, lqg(plant, np.diag([100.0, 1.0]), [[1.0]], [10.0], [1e-8],
                                   ["l_elbow:q"]), name="elbow_lqg")
-    assert not lab.controllers.controllers["elbow_pp"].running  # it took the elbow over
+    assert not lab.manager.controllers["elbow_pp"].running  # it took the elbow over
     lab.sim.run(0.5)
-    assert np.abs(compensator.x).max() < 0.01 and lab.controllers.controllers["elbow_lqg"].running
-    lab.controllers.switch(stop=["elbow_lqg"], start=["elbow_pp"])
+    assert np.abs(compensator.x).max() < 0.01 and lab.manager.controllers["elbow_lqg"].running
+    lab.manager.switch(stop=["elbow_lqg"], start=["elbow_pp"])
 
 
 def test_an_observer_from_a_yaml_exports_what_its_class_declares(elbow_pp, tmp_path):
@@ -338,7 +338,7 @@ def test_an_observer_from_a_yaml_exports_what_its_class_declares(elbow_pp, tmp_p
     good = _yaml_with(tmp_path, "rate_kf", {"type": "rate_kf/RateKF", **base})
     run = Lab.create(controllers=good, options=CompileOptions(fixed_base=True))
     run.sim.run(0.05)
-    assert np.isfinite(run.controllers.exports()["rate_kf/rate"]).all()
+    assert np.isfinite(run.manager.exports()["rate_kf/rate"]).all()
     bad = _yaml_with(tmp_path, "rate_kf", {"type": "rate_kf/Wrong", **base})
     with pytest.raises(InputError, match=r"exports \{'rate': 2\}, the design file kf.npz gives \{'rate': 1\}"):
         Lab.create(controllers=bad, options=CompileOptions(fixed_base=True))

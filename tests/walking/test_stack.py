@@ -30,7 +30,7 @@ def _run(lab, seconds: float, lowest: list | None = None) -> None:
 
 def _command(lab, vx=0.0, vy=0.0, wz=0.0) -> None:
     for key, value in (("vx", vx), ("vy", vy), ("wz", wz)):
-        lab.controllers.set_param("footsteps", key, value)
+        lab.manager.set_param("footsteps", key, value)
 
 
 @pytest.fixture(scope="module")
@@ -70,14 +70,14 @@ def course():
             break
     moved = lab.sim.data.qpos[:2] - start
     out["sideways"] = -moved[0] * math.sin(heading) + moved[1] * math.cos(heading)
-    out["reports"] = {n: c.impl.report() for n, c in lab.controllers.controllers.items()
+    out["reports"] = {n: c.impl.report() for n, c in lab.manager.controllers.items()
                       if hasattr(c, "impl")}
     return out
 
 
 @pytest.mark.slow
 def test_the_stack_walks_torque_level_at_0_3_m_s_with_the_estimator_in_the_loop(course):
-    whole_body = course["lab"].controllers.controllers["whole_body"]
+    whole_body = course["lab"].manager.controllers["whole_body"]
     assert whole_body.interface_name == "effort" and len(whole_body.joints) == 21
     assert course["speed"] >= 0.28
     assert course["reports"]["estimator"]["velocity_error_rms_mps"] < 0.05
@@ -101,7 +101,7 @@ def test_each_part_swapped_for_a_students_still_walks(kind, tmp_path):
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     lab = Lab.create(controllers=tmp_path / "controllers.yaml")
-    assert type(lab.controllers.controllers[KINDS[kind][2]].impl).__name__ == \
+    assert type(lab.manager.controllers[KINDS[kind][2]].impl).__name__ == \
         "My" + "".join(p.title() for p in kind.split("_"))
     lowest = [1.0]
     _run(lab, 1.0, lowest)
@@ -110,7 +110,7 @@ def test_each_part_swapped_for_a_students_still_walks(kind, tmp_path):
     _run(lab, 3.0, lowest)
     assert lowest[0] > 0.5
     assert lab.sim.data.qpos[0] > 0.25  # it walked forward
-    assert not [c.fault for c in lab.controllers.controllers.values() if getattr(c, "fault", None)]
+    assert not [c.fault for c in lab.manager.controllers.values() if getattr(c, "fault", None)]
 
 
 @pytest.fixture
@@ -124,13 +124,13 @@ def walking_lab():
 
 def test_a_nan_cmd_vel_is_one_line_and_the_robot_stops_walking(walking_lab, caplog):
     lab = walking_lab
-    lab.controllers.set_param("footsteps", "timeout", 60.0)
+    lab.manager.set_param("footsteps", "timeout", 60.0)
     with caplog.at_level(logging.ERROR, logger="mexone.control.student"):
         lab.bus.publish(f"{lab.namespace}/cmd_vel", Twist(Vector3(float("nan"), 0.0, 0.0), Vector3()))
         _run(lab, 2.0)
     lines = [r.getMessage() for r in caplog.records if "not finite" in r.getMessage()]
     assert len(lines) == 1 and "cmd_vel (nan, 0, 0) is not finite" in lines[0]
-    planner = lab.controllers.controllers["footsteps"].impl
+    planner = lab.manager.controllers["footsteps"].impl
     assert not planner.planner.walking and planner.report()["refused"] == "cmd_vel not finite"
     assert lab.sim.data.qpos[2] > 0.5
 
@@ -139,7 +139,7 @@ def test_an_unreachable_step_is_one_line_and_the_robot_stands(walking_lab, caplo
     """A planner (here: the shipped one, its next step moved 1 m aside) asks for a step the legs
     cannot take: the whole-body controller refuses it and stands."""
     lab = walking_lab
-    planner = lab.controllers.controllers["footsteps"].impl
+    planner = lab.manager.controllers["footsteps"].impl
     original = planner.planner.update
 
     def far(t):
@@ -153,7 +153,7 @@ def test_an_unreachable_step_is_one_line_and_the_robot_stands(walking_lab, caplo
     lines = [r.getMessage() for r in caplog.records if "out of reach" in r.getMessage()
              or "the legs reach" in r.getMessage()]
     assert len(lines) == 1 and "refused, the robot stands" in lines[0]
-    assert lab.controllers.controllers["whole_body"].impl.report()["standing"]
+    assert lab.manager.controllers["whole_body"].impl.report()["standing"]
     assert lab.sim.data.qpos[2] > 0.5
 
 
@@ -161,7 +161,7 @@ def test_a_nan_com_reference_is_one_line_and_the_robot_stands(walking_lab, caplo
     """A COM planner exporting a NaN acceleration (which would make the QP's cost NaN): one line,
     the step under way lands, the robot stands."""
     lab = walking_lab
-    com = lab.controllers.controllers["com_planner"].impl
+    com = lab.manager.controllers["com_planner"].impl
     update = com.update
 
     def broken(state, t, dt):
@@ -174,5 +174,5 @@ def test_a_nan_com_reference_is_one_line_and_the_robot_stands(walking_lab, caplo
     lines = [r.getMessage() for r in caplog.records if "not finite" in r.getMessage()]
     assert len(lines) == 1 and "the COM reference is not finite" in lines[0]
     assert "robot stands" in lines[0]
-    assert lab.controllers.controllers["whole_body"].impl.report()["standing"]
+    assert lab.manager.controllers["whole_body"].impl.report()["standing"]
     assert lab.sim.data.qpos[2] > 0.5

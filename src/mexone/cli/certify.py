@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.controllers.is_file():
         raise InputError("controllers file does not exist", file=args.controllers)
     lab = Lab.create(args.model, args.controllers, options=CompileOptions(fixed_base=args.fixed_base))
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("the lab has no controllers", file=args.controllers)
     _place(lab, args, pose)
     lab.sim.run(args.settle)

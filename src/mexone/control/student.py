@@ -65,6 +65,7 @@ class Param:
 
     @property
     def numeric(self) -> bool:
+        """Whether the parameter is a number (int or float): a page shows it as a number field."""
         return self.kind in (int, float)
 
     def __set_name__(self, owner: type, name: str) -> None:
@@ -163,14 +164,18 @@ class State:
 
     @property
     def all_q(self) -> np.ndarray:
+        """The whole robot's joint positions (every actuated joint, hardware order), not only the
+        controller's."""
         return self._data.qpos
 
     @property
     def all_dq(self) -> np.ndarray:
+        """The whole robot's joint velocities (every actuated joint, hardware order)."""
         return self._data.qvel
 
     @property
     def base(self) -> BaseState | None:
+        """The floating base's pose and twist (a BaseState), or None for a robot fixed to the world."""
         if self._base is None and self._base_joint is not None:
             qa, va = self._base_joint
             data = self._data
@@ -180,6 +185,7 @@ class State:
 
     @property
     def sensors(self) -> Mapping:
+        """The sensors' state interfaces by name (state.sensors["imu"].orientation, ...)."""
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
         return self._sensors

@@ -145,10 +145,10 @@ def linearize_loop(lab, controllers: Sequence[str] | None = None) -> LoopModel:
                          f"physics steps ({number_text(step)} s)", hint="set update_rate to divide "
                          f"{number_text(1 / step)} Hz")
     robot = linearize(copy_lab, inputs=interface, joints=list(joints), period=period)
-    probe = _Probe(copy_lab, [copy_lab.controllers.controllers[n] for n in names], taken, robot,
+    probe = _Probe(copy_lab, [copy_lab.manager.controllers[n] for n in names], taken, robot,
                    joints, interface, period)
     plant, controller = probe.differentiate()
-    hw = copy_lab.controllers.hw
+    hw = copy_lab.manager.hw
     limits = hw.effort_limit[hw.rows(list(joints))] if interface == "effort" \
         else np.full(len(joints), np.inf)
     notes = list(probe.notes)
@@ -177,7 +177,7 @@ class _Probe:
         self.act_rows = np.asarray(lin.act_rows, int)
         self.nv = self.qvel_index.size
         self.nx = robot.nstates
-        hw = copy_lab.controllers.hw
+        hw = copy_lab.manager.hw
         self.hw, self.rows = hw, hw.rows(list(joints))
         self.command0 = getattr(hw.command, interface)[self.rows].copy()
         self.states = [taken.controllers[r.name] for r in runners]

@@ -250,7 +250,7 @@ def _removers(lab, controller, plant, base: Comparison, notes: list[str]) -> dic
 
 def _no_effort_limits(lab, controller) -> Edit:
     model = lab.sim.model
-    manager = lab.controllers
+    manager = lab.manager
     runner = manager.controllers[controller.name]
 
     def edit():

@@ -95,7 +95,7 @@ class _Trials:
         model = sim.model
         self.motors = np.array([model.actuator(j).id for j in loop.joints], dtype=int)
         self.step = model.opt.timestep
-        hw = self.lab.controllers.hw
+        hw = self.lab.manager.hw
         rows = hw.rows(list(loop.joints))
         self.qadr, self.dadr = hw.qpos_adr[rows], hw.dof_adr[rows]
         self.q0 = self.taken.qpos[self.qadr].copy()
@@ -146,7 +146,7 @@ class _Trials:
             return True
         finally:
             self.gain = 1.0
-        manager = self.lab.controllers
+        manager = self.lab.manager
         if fell[0] or any(manager.controllers[r.name].fault for r in self.runners):
             return True
         trace = np.array(samples)

@@ -161,7 +161,7 @@ def _job(lab, controller, plant, names, grid, duration, P) -> dict:
         m = copy.copy(sim.model)
         data = mujoco.MjData(m)
         mujoco.mj_copyData(data, m, sim.data)
-        manager = lab.controllers
+        manager = lab.manager
         runner = manager.controllers[controller.name]
         hw = manager.hw
         motors = hw.motor[runner.rows]

@@ -160,7 +160,7 @@ _OPTIONS = ("timestep", "gravity", "disableflags", "enableflags", "integrator", 
 def snapshot(lab) -> _Snapshot:
     """The live lab's parameters, state, commands and controllers' state (simulation thread)."""
     def take() -> _Snapshot:
-        sim, manager = lab.sim, lab.controllers
+        sim, manager = lab.sim, lab.manager
         model, data = sim.model, sim.data
         fields = {name: np.array(getattr(model, name)) for name in _model_fields(model)}
         options = {name: copy.copy(getattr(model.opt, name)) for name in _OPTIONS
@@ -201,7 +201,7 @@ def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
                          "analysis copies the robot alone", hint="analyse a lab with the robot only")
     taken = taken or snapshot(lab)
     compiled = sim.compiled
-    manager = lab.controllers
+    manager = lab.manager
     config = None if manager is None else replace(manager.config,
                                                   controllers=dict(manager.config.controllers))
     fixed = not compiled.free and not sim.robot.fixed_to_world
@@ -214,11 +214,11 @@ def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
             raise InputError(f"the lab's model differs from the robot's as compiled ({name} "
                              f"{getattr(live, name)} vs {getattr(model, name)}): it was edited, so "
                              "the analysis cannot copy it", hint="analyse a lab made by Lab.create")
-    if copy_lab.controllers is not None and taken.commands:
-        c = copy_lab.controllers.hw.command
+    if copy_lab.manager is not None and taken.commands:
+        c = copy_lab.manager.hw.command
         for name, value in taken.commands.items():
             getattr(c, name)[:] = value
-        copy_lab.controllers.hw.write()
+        copy_lab.manager.hw.write()
     for name, value in taken.fields.items():
         target = getattr(model, name)
         if target.shape == value.shape:
@@ -242,7 +242,7 @@ def restore(copy_lab, taken: _Snapshot) -> None:
         data.history[:] = taken.history
         data.time = taken.time
     mujoco.mj_forward(sim.model, data)
-    manager = copy_lab.controllers
+    manager = copy_lab.manager
     if manager is None:
         return
     stopped = [n for n in taken.running if not manager.controllers[n].running]
@@ -265,7 +265,7 @@ def place(lab, qpos: np.ndarray) -> None:
         data.qpos[:] = qpos
         data.qvel[:] = 0.0
         mujoco.mj_forward(sim.model, data)
-        manager = lab.controllers
+        manager = lab.manager
         if manager is not None:
             manager.hold([j for c in manager.controllers.values() if c.running for j in c.joints])
     on_sim(lab, put)

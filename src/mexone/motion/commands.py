@@ -108,24 +108,22 @@ class _Mover:
                 break
 
 
-_movers: dict[int, _Mover] = {}
-
-
 def _mover() -> _Mover:
+    """The routine's own mover (kept in its context: it ends with the routine)."""
     context = current()
-    mover = _movers.get(id(context))
-    if mover is not None and mover.context is context:
+    mover = context.kept.get(__name__)
+    if isinstance(mover, _Mover):
         return mover
     lab = context.lab
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("this robot has no controllers to move it",
                          hint="run with the robot's controller YAML (--controllers)")
-    ns = lab.namespace
+    manager = lab.manager
     publishers = {}
-    for name, params in rospy.get_param(ns, {}).items():
-        if isinstance(params, dict) and str(params.get("type", "")).endswith("JointPositionController"):
-            publishers[params.get("joint")] = rospy.Publisher(f"{ns}/{name}/command", Float64,
-                                                              queue_size=1)
+    for ctrl in list(manager.controllers.values()):  # one position setpoint topic per joint
+        if ctrl.holds_position and ctrl.msg_type is Float64:
+            publishers[ctrl.joints[0]] = rospy.Publisher(manager.topic(ctrl.name), Float64,
+                                                         queue_size=1)
     with busy("the IK's set-up"):
         ik = WholeBodyIK.for_sim(lab.sim)
     mover = _Mover(context, ik, publishers, trimmed=set(publishers) - ik.support_joints())
@@ -134,8 +132,8 @@ def _mover() -> _Mover:
         mover.measured.update(zip(msg.name, msg.position, strict=False))
         mover.velocities.update(zip(msg.name, msg.velocity, strict=False))
 
-    rospy.Subscriber(f"{ns}/joint_states", JointState, on_state)
-    _movers[id(context)] = mover
+    rospy.Subscriber(f"{lab.namespace}/joint_states", JointState, on_state)
+    context.kept[__name__] = mover
     return mover
 
 

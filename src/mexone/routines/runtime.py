@@ -68,6 +68,8 @@ class RoutineContext:
     # `_x:=v` arguments (~x: v), kept under the node's name, init_node's as in rospy
     private: dict[str, object] = field(default_factory=dict)
     name_remap: str | None = None  # `__name:=n`: init_node's name is n (as rosrun)
+    # what a library the routine calls keeps for this routine's life (motion's IK), by library
+    kept: dict[str, object] = field(default_factory=dict)
 
     @property
     def time(self) -> float:

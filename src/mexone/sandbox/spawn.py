@@ -52,8 +52,8 @@ class StudentProcess:
     """A running student process. `kill()` ends it and everything it started; it is a context
     manager that does so on exit."""
 
-    def __init__(self, popen: subprocess.Popen, jail: Jail, scratch: Path,
-                 own_scratch: tempfile.TemporaryDirectory | None):
+    def __init__(self, popen: subprocess.Popen[bytes], jail: Jail, scratch: Path,
+                 own_scratch: tempfile.TemporaryDirectory[str] | None):
         self.popen = popen
         self.jail = jail
         self.scratch = scratch
@@ -99,7 +99,7 @@ class StudentProcess:
 
 def spawn(argv: Sequence[str], jail: Jail, *, pass_fds: Sequence[int] = (),
           env: Mapping[str, str] | None = None, stdin: Any = subprocess.DEVNULL,
-          stdout: IO | int | None = None, stderr: IO | int | None = None) -> StudentProcess:
+          stdout: IO[Any] | int | None = None, stderr: IO[Any] | int | None = None) -> StudentProcess:
     """Start `argv` (a program and its arguments, e.g. [sys.executable, "-m", module, ...]) in
     `jail`, its working folder the scratch folder. `env` is its environment (default: this
     process's), never with the teacher's secret; `pass_fds` the descriptors it inherits."""

@@ -14,12 +14,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from mexone.bus.msgs import Twist
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
 from mexone.walking import body as _body
 
 __all__ = ["Gait", "Steps", "FootstepPlanner", "swing_point", "flat_ground", "FootstepPlannerController"]
@@ -321,7 +322,7 @@ class FootstepPlannerController(PythonController):
         self._latest: tuple[float, np.ndarray] | None = None  # (wall-clock-free sim time, twist)
         self.refused: str | None = None
 
-    def _feet(self, state) -> np.ndarray:
+    def _feet(self, state: State) -> np.ndarray:
         """Each sole's (x, y, z, yaw) now, from the encoders and the base (the estimator's when
         `base` is bound, else the simulator's)."""
         d = self.scratch
@@ -339,7 +340,7 @@ class FootstepPlannerController(PythonController):
             feet.append([sole[0], sole[1], sole[2], _body.yaw_of(r)])
         return np.array(feet)
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.ray.qpos[:] = state.all_q
         mujoco.mj_kinematics(self.model, self.ray)  # the world's geoms' poses (they never move)
         feet = self._feet(state)
@@ -362,10 +363,10 @@ class FootstepPlannerController(PythonController):
             return 0.0, UP
         return 2.0 - dist, normal if normal[2] > 0 else -normal
 
-    def update(self, state, t, dt):
-        msg = state.messages.get("cmd_vel")
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
+        msg: Any = state.messages.get("cmd_vel")  # a Twist (the class `topics` names)
         if msg is not None:
-            received = np.array([msg.linear.x, msg.linear.y, msg.angular.z], dtype=float)
+            received = np.array([msg.linear.x, msg.linear.y, msg.angular.z], dtype=np.float64)
             if not np.all(np.isfinite(received)):
                 if self.refused is None:
                     self.log.error("cmd_vel (%s) is not finite: refused, the robot stops walking",
@@ -410,7 +411,7 @@ class FootstepPlannerController(PythonController):
                 return f
         return None
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         return {"walking": bool(self.planner.walking), "refused": self.refused, "hurried": self.hurried}
 
 

@@ -24,11 +24,13 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
+from mexone.dynamics import Dynamics
 from mexone.walking import body as _body
 from mexone.walking import qp
 from mexone.walking.footsteps import Steps
@@ -39,7 +41,7 @@ G = 9.81
 HEIGHT_TIME = 0.2  # s: the COM height's time constant following the ground under the feet
 
 
-def lipm_matrices(T: float, n: int, h: float):
+def lipm_matrices(T: float, n: int, h: float) -> tuple[np.ndarray, ...]:
     """(A, B, P_ps, P_pu, P_vs, P_vu, P_as, P_au, P_zs, P_zu): the sample-to-sample model and
     the stacked predictions of position, velocity, acceleration and ZMP over n samples."""
     A = np.array([[1.0, T, T * T / 2], [0.0, 1.0, T], [0.0, 0.0, 1.0]])
@@ -89,7 +91,8 @@ class Reach:
     back: float = 0.15
 
 
-def _feet_at(steps: np.ndarray, rows: np.ndarray, taus: np.ndarray):
+def _feet_at(steps: np.ndarray, rows: np.ndarray,
+             taus: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each foot's (x, y, yaw) at the times `taus` (2, n, 3), whether it is in the air (2, n)
     and which planned step (its row's index) put it where it stands (2, n; -1: none yet)."""
     n = len(taus)
@@ -250,7 +253,8 @@ class LipmMpc:
                          x[1] + x[2] * dt + jerk * dt * dt / 2, x[2] + jerk * dt])
 
 
-def _reach_rows(support: Support, reach: Reach, n: int, m: int, first: bool = True):
+def _reach_rows(support: Support, reach: Reach, n: int, m: int, first: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Two-sided rows (across, along) keeping each landing within reach of the foot standing
     when it lands: the other foot's landing before it (its shift a variable too) or where that
     foot stands now. A landing planned out of reach may stay where planned (the rows never make
@@ -324,7 +328,7 @@ class ComPlanner(PythonController):
         self.mpc: LipmMpc | None = None
         self.stopped: str | None = None
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         dyn = self._dynamics(state)
         soles = [dyn.pose(f)[0] + dyn.pose(f)[1] @ _body.SOLE_OFFSET for f in _body.FEET]
         ground = (soles[0][2] + soles[1][2]) / 2
@@ -339,10 +343,10 @@ class ComPlanner(PythonController):
         self.y = np.array([c[1], 0.0, 0.0])
         self.stopped = None
 
-    def joints_posture(self) -> dict:
+    def joints_posture(self) -> dict[str, float]:
         return _body.STANCE_POSTURE
 
-    def _dynamics(self, state):
+    def _dynamics(self, state: State) -> Dynamics:
         d = self.scratch
         d.qpos[:], d.qvel[:] = state.all_q, state.all_dq
         inputs = getattr(state, "inputs", None) or {}
@@ -353,7 +357,7 @@ class ComPlanner(PythonController):
         self.dyn.refresh()
         return self.dyn
 
-    def update(self, state, t, dt):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         out = self.exports
         steps = state.inputs["steps"]
         if self.stopped is not None or not np.isfinite(steps[0]):
@@ -370,6 +374,7 @@ class ComPlanner(PythonController):
             self.shift_for, self.shift = rows[0][7], np.zeros(2)
         support = supports(steps, t, self.sample, self.horizon, _body.SOLE_SIZE, self.margin)
         start = time.perf_counter()
+        assert self.mpc is not None  # activate() made it
         try:
             jx, jy, shifts = self.mpc.solve(self.x, self.y, support, adjustable, self.shift, self.reach)
         except qp.Infeasible as exc:
@@ -396,7 +401,7 @@ class ComPlanner(PythonController):
             out["landing"][:] = np.nan
         return None
 
-    def _measured(self, dyn, steps: np.ndarray, t: float) -> np.ndarray:
+    def _measured(self, dyn: Dynamics, steps: np.ndarray, t: float) -> np.ndarray:
         """The plan with the feet on the ground where they really are (the encoders and the base):
         the support is where the soles stand, whatever the planner believes (a landing moved by a
         push, a foot that slipped)."""
@@ -410,16 +415,16 @@ class ComPlanner(PythonController):
             steps[4 * f:4 * f + 4] = (sole[0], sole[1], sole[2], _body.yaw_of(r))
         return steps
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         times = np.asarray(self.solve_times[-20000:]) * 1e3
-        out = {"stopped": self.stopped}
+        out: dict[str, Any] = {"stopped": self.stopped}
         if len(times):
             out.update(mpc_ms_median=round(float(np.median(times)), 3),
                        mpc_ms_p99=round(float(np.percentile(times, 99)), 3))
         return out
 
 
-def _standing_height(dyn, posture: dict) -> float:
+def _standing_height(dyn: Dynamics, posture: dict[str, float]) -> float:
     """The COM's height above the soles in the standing posture (the feet flat, the pelvis level)."""
     model = dyn.model
     data = mujoco.MjData(model)

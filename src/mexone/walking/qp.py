@@ -10,6 +10,7 @@ set saved nothing (benchmarks/RESULTS.md, the walking stack)."""
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import daqp
 import numpy as np
@@ -57,7 +58,8 @@ def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarr
         x = _daqp(P, q, G, h, A, b, lb, ub, G_low)
     else:
         if G is not None:  # one-sided rows, the infinite sides left out
-            up, down = np.isfinite(h), np.zeros(len(h), dtype=bool)
+            assert h is not None, "G without h"
+            up, down = np.isfinite(h), np.zeros(len(h), dtype=np.bool_)
             if G_low is not None:
                 down = np.isfinite(G_low)
             G = np.vstack([G[up], -G[down]])
@@ -68,7 +70,9 @@ def solve(P: np.ndarray, q: np.ndarray, G: np.ndarray | None = None, h: np.ndarr
     return x
 
 
-def _daqp(P, q, G, h, A, b, lb, ub, G_low) -> np.ndarray | None:
+def _daqp(P: np.ndarray, q: np.ndarray, G: Any, h: Any, A: Any, b: Any, lb: np.ndarray | None,
+          ub: np.ndarray | None, G_low: np.ndarray | None) -> np.ndarray | None:
+    # G, h and A, b: arrays when their counts (mg, me) are not 0
     n = q.shape[0]
     mg = 0 if G is None else G.shape[0]
     me = 0 if A is None else A.shape[0]

@@ -24,11 +24,13 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
+from mexone.dynamics import Dynamics
 from mexone.walking import body as _body
 from mexone.walking import qp
 from mexone.walking.footsteps import Steps, swing_point
@@ -103,7 +105,8 @@ class WholeBodyQP:
     corner forces act on the robot as the wrench W0 f' at the sole's centre (W0 constant in the
     sole frame), so J_c^T f = (R^T J_foot)^T W0 f'. A foot in the air has no force variables."""
 
-    def __init__(self, nv: int, actuated: Sequence[int], effort_limit: Sequence[float],
+    def __init__(self, nv: int, actuated: Sequence[int] | np.ndarray,
+                 effort_limit: Sequence[float] | np.ndarray,
                  n_feet: int = 2, mu: float = 0.6, min_force: float = 0.5,
                  accel_weight: float = 1e-6, force_weight: float = 1e-5, contact_weight: float = 1e3,
                  solver: str = "daqp"):
@@ -258,7 +261,7 @@ class WholeBodyController(PythonController):
         self.solve_times: list[float] = []
         self.swing_from: dict[int, np.ndarray] = {}
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.stopped = self.standing = self.finish = None
         dyn = self._dynamics(state)
         soles = [self._sole(dyn, f) for f in range(2)]
@@ -270,14 +273,14 @@ class WholeBodyController(PythonController):
         self.q0 = state.q.copy()
 
     # ----- reading the state ----------------------------------------------------------------
-    def _input(self, state, name):
+    def _input(self, state: State, name: str) -> np.ndarray | None:
         inputs = getattr(state, "inputs", None)
         if not inputs or name not in inputs:
             return None
         value = inputs[name]
         return None if not np.isfinite(value[0]) else value
 
-    def _dynamics(self, state):
+    def _dynamics(self, state: State) -> Dynamics:
         d = self.scratch
         d.qpos[:] = state.all_q
         d.qvel[:] = state.all_dq
@@ -288,12 +291,12 @@ class WholeBodyController(PythonController):
         self.dyn.refresh()
         return self.dyn
 
-    def _sole(self, dyn, foot: int):
+    def _sole(self, dyn: Dynamics, foot: int) -> tuple[np.ndarray, np.ndarray]:
         p, r = dyn.pose(_body.FEET[foot])
         return p + r @ _body.SOLE_OFFSET, r
 
     # ----- the update -------------------------------------------------------------------------
-    def update(self, state, t, dt):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         if self.stopped is not None:
             return self._hold(state)
         dyn = self._dynamics(state)
@@ -323,7 +326,7 @@ class WholeBodyController(PythonController):
             in_air = swing is not None and int(swing[0]) == f
             feet.append(Foot(jac, drift, rot, self.corners, not in_air,
                              target=-20.0 * (jac @ dq)))
-            if in_air:
+            if in_air and swing is not None:
                 tasks.append(self._swing_task(swing, f, centre, rot, jac, drift, dq, t))
             elif f in self.swing_from:
                 del self.swing_from[f]
@@ -339,14 +342,14 @@ class WholeBodyController(PythonController):
         self.exports["status"][:] = (1.0, self.solve_times[-1] * 1e3)
         return sol.tau + self.damping * state.dq
 
-    def _target(self, state, swing: np.ndarray) -> np.ndarray:
+    def _target(self, state: State, swing: np.ndarray) -> np.ndarray:
         """Where the step in the air lands (x, y, z, yaw): the COM planner's `landing` when it
         moved it, else the plan's."""
         landing = self._input(state, "landing")
         moved = landing is not None and int(landing[0]) == int(swing[0])
-        return landing[1:5] if moved else swing[1:5]
+        return landing[1:5] if moved and landing is not None else swing[1:5]
 
-    def _unreachable(self, dyn, swing: np.ndarray) -> str | None:
+    def _unreachable(self, dyn: Dynamics, swing: np.ndarray) -> str | None:
         """Why the step in the air cannot be taken (not finite, or further from the standing
         foot than the legs reach), or None."""
         target = swing[1:5]
@@ -369,7 +372,8 @@ class WholeBodyController(PythonController):
             self.start_com = self.dyn.com()
             self.start_t = t
 
-    def _com_task(self, ref, swing, dyn, dq, t) -> Task:
+    def _com_task(self, ref: np.ndarray | None, swing: np.ndarray | None, dyn: Dynamics, dq: np.ndarray,
+                  t: float) -> Task:
         c, jc = dyn.com(), dyn.com_jacobian()
         v = jc @ dq
         if ref is None:  # stand: over the feet's middle (the standing foot while one is up)
@@ -385,7 +389,7 @@ class WholeBodyController(PythonController):
         # the COM's J̇q̇ by finite difference is not in Dynamics: the centroidal drift is small
         return Task(jc, np.zeros(3), acc, self.w_com)
 
-    def _torso_task(self, dyn, dq, feet) -> Task:
+    def _torso_task(self, dyn: Dynamics, dq: np.ndarray, feet: list[Any]) -> Task:
         p, r = dyn.pose(_body.TORSO)
         jac = dyn.jacobian(_body.TORSO)[3:]
         yaw = math.atan2(feet[0].rotation[1, 0] + feet[1].rotation[1, 0],
@@ -396,14 +400,15 @@ class WholeBodyController(PythonController):
         acc = self.kp_torso * err - self.kd_torso * w
         return Task(jac, dyn.jacobian_dot_qdot(_body.TORSO)[3:], acc, self.w_torso)
 
-    def _posture_task(self, state) -> Task:
+    def _posture_task(self, state: State) -> Task:
         n = self.scratch.qvel.shape[0]
         jac = np.zeros((len(self.dofs), n))
         jac[np.arange(len(self.dofs)), self.dofs] = 1.0
         acc = self.kp_posture * (self.posture - state.q) - self.kd_posture * state.dq
         return Task(jac, np.zeros(len(self.dofs)), acc, self.w_posture)
 
-    def _swing_task(self, swing, f, centre, rot, jac, drift, dq, t) -> Task:
+    def _swing_task(self, swing: np.ndarray, f: int, centre: np.ndarray, rot: np.ndarray,
+                    jac: np.ndarray, drift: np.ndarray, dq: np.ndarray, t: float) -> Task:
         if f not in self.swing_from:  # where it lifted from: x y z yaw, and its pitch and roll
             self.swing_from[f] = np.array([*centre, _body.yaw_of(rot), math.asin(-rot[2, 0]),
                                            math.atan2(rot[2, 1], rot[2, 2])])
@@ -422,21 +427,21 @@ class WholeBodyController(PythonController):
         return Task(jac, drift, a, self.w_foot)
 
     # ----- the safe stop ------------------------------------------------------------------------
-    def _stop(self, state, why: str):
+    def _stop(self, state: State, why: str) -> np.ndarray:
         self.stopped = why
         self.log.error("%s: holding the robot where it stands (a safe stop)", why)
         self.q_hold = state.q.copy()
         self.exports["status"][:] = (0.0, NAN)
         return self._hold(state)
 
-    def _hold(self, state):
+    def _hold(self, state: State) -> np.ndarray:
         """Stand, then hold: the joints' PD about where the stop found them, gravity compensated."""
         g = self.dynamics.gravity()[self.dofs]
         return g + 200.0 * (self.q_hold - state.q) - 5.0 * state.dq
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         times = np.asarray(self.solve_times[-5000:]) * 1e3
-        out = {"stopped": self.stopped, "standing": self.standing}
+        out: dict[str, Any] = {"stopped": self.stopped, "standing": self.standing}
         if len(times):
             out.update(qp_ms_median=round(float(np.median(times)), 3),
                        qp_ms_p99=round(float(np.percentile(times, 99)), 3))

@@ -80,6 +80,7 @@ class _StudentLog(logging.LoggerAdapter):
 class PythonRunner(Controller):
     kind = "python"
     sliders = False
+    reloadable = True
 
     def __init__(self, spec, ctx):
         plugin: Plugin = spec.plugin
@@ -158,6 +159,13 @@ class PythonRunner(Controller):
     @property
     def params(self) -> dict[str, Any]:
         return dict(self.impl.params)
+
+    def declared_params(self) -> dict:
+        return self.plugin.cls.declared_params()
+
+    @property
+    def code_file(self) -> str | None:
+        return self.plugin.file
 
     def set_param(self, key: str, value) -> Any:
         """Change a declared parameter live (simulation thread), validated as the YAML's."""

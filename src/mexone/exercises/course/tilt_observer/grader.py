@@ -83,7 +83,7 @@ def measure(submission: Path, var: dict, louder: bool = False):
         def sample(sim) -> None:
             up = sim.data.xmat[pelvis].reshape(3, 3).T @ (-down)
             true.append((math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2]))))
-            estimate.append(np.array(lab.controllers.exports()[f"{NAME}/tilt"]))
+            estimate.append(np.array(lab.manager.exports()[f"{NAME}/tilt"]))
 
         lab.sim.add_periodic(lab.sim.timestep, sample)
         for at, impulse in PUSHES:
