@@ -1,4 +1,4 @@
-"""What the design tests share: the one-foot LQR of examples/control_design/lqr_balance.py,
+"""What the design tests share: the one-foot LQR of examples/control_design/one_foot_lqr.py,
 designed once a session (its lab is only read: linearize puts the model back)."""
 
 import sys
@@ -14,7 +14,7 @@ def designed():
     """(lab, operating point on the left foot, the design: K, the plant, its poles)."""
     if str(EXAMPLES) not in sys.path:
         sys.path.insert(0, str(EXAMPLES))
-    import lqr_balance as lq
+    import one_foot_lqr as lq
 
     from mexone.lab import Lab
 

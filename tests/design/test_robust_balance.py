@@ -1,4 +1,4 @@
-"""Issue 38 on the one-foot LQR (examples/control_design/lqr_balance.py): its margins checked on
+"""Issue 38 on the one-foot LQR (examples/control_design/one_foot_lqr.py): its margins checked on
 the robot (a loop around an unstable plant: a lower gain margin too), a Kalman filter on the IMU
 and the encoders in the loop estimating the torso's tilt under pushes, and the region of
 attraction by batched rollouts (threads and Ray give the same)."""
@@ -11,7 +11,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples" / "control_design"))
 
-import lqr_balance as lq  # noqa: E402
+import one_foot_lqr as lq  # noqa: E402
 
 from mexone.design import deploy, linearize  # noqa: E402
 from mexone.design.loop import linearize_loop  # noqa: E402
