@@ -25,7 +25,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples" / "control_design"))
 
-import lqr_balance as lq  # noqa: E402
+import one_foot_lqr as lq  # noqa: E402
 
 from mexone.design import (  # noqa: E402
     deploy,
