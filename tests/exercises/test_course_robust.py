@@ -73,10 +73,11 @@ def test_the_truth_offset_by_the_accelerometers_slope_is_caught():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="the student's controller runs in the simulation's "
+@pytest.mark.xfail(strict=False, raises=AssertionError, reason="the student's controller runs in the simulation's "
                    "process and reads the live model (self.dynamics.model: actuator_delay, "
                    "actuator_gear); caught once it runs in the controller worker on a model of "
-                   "its own (issue 36)")
+                   "its own (issue 36); not strict: on a machine loaded 30 ways a trial can "
+                   "miss the exercise's time limit and the cheat scores low for that")
 def test_a_design_that_changes_its_gains_when_it_sees_the_trial_is_caught():
     # stiff gains (which ring under the delay and the doubled commands) unless it sees the
     # grader's perturbation: a subclass around it (no more: the grader scales the gear) or the
