@@ -39,7 +39,7 @@ def on_sim(lab, fn: Callable):
 def python_runners(lab, names: Sequence[str] | None = None) -> list:
     """The running Python controllers (PythonRunner) in the manager's update order, or the ones
     named; one line for a name that is not a running Python controller."""
-    manager = getattr(lab, "controllers", None)
+    manager = getattr(lab, "manager", None)
     if manager is None:
         raise ArgumentTypeError("give a mexone Lab with controllers (Lab.create(controllers=...))")
     running = [c for c in manager.controllers.values() if c.running and c.kind == "python"]
