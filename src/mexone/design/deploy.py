@@ -52,7 +52,7 @@ if TYPE_CHECKING:
 StateSpace: TypeAlias = Any  # control.StateSpace: python-control has no type information
 
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
-           "lqr", "METHODS", "GainDesign", "SystemDesign"]
+           "lqr", "METHODS", "GainDesign", "SystemDesign", "install"]
 
 #: how a continuous controller is discretised (python-control's sample_system methods)
 METHODS = ("zoh", "foh", "tustin", "bilinear", "matched", "impulse", "euler", "backward_diff")
@@ -130,7 +130,7 @@ def _point_of(plant: StateSpace, who: str) -> tuple[_Point, Any]:
                     "(its operating point is unknown)",
                     hint="pass the StateSpace linearize returned (python-control's "
                          "transformations drop .linearization)")
-    model = point.model
+    model = point.source
     act_index = []
     for row in point.act_rows:  # an act entry of the model -> the same actuator's in the live model
         starts, counts = model.actuator_actadr, np.maximum(model.actuator_actnum, 1)
@@ -302,22 +302,40 @@ def lqr(plant: StateSpace, Q: ArrayLike, R: ArrayLike) -> Any:
         raise _fail("lqr: Q is not positive semidefinite")
     solve = control.lqr if plant.dt == 0 else control.dlqr
     try:
-        return solve(plant, mats["Q"], mats["R"])
+        # SciPy's Riccati solver: with slycot installed python-control would take SLICOT's,
+        # which refuses the robot's models (modes on the unit circle: docs/DECISIONS.md)
+        return solve(plant, mats["Q"], mats["R"], method="scipy")
     except (ValueError, np.linalg.LinAlgError, control.ControlArgument) as exc:
         raise _fail(f"lqr: no stabilising solution: {str(exc).splitlines()[0]}",
                     hint="is the plant stabilisable? weight the unstable states in Q") from None
 
 
 # ----- files beside a YAML -----------------------------------------------------------------------
+def _design_path(name: str, design_file: str, yaml_dir: Path | None, writer: str) -> Path:
+    """A controller's `design_file:` (relative to its YAML's folder), or the one line saying to
+    set it (written by mexone.design's `writer`)."""
+    if not design_file:
+        raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
+                         "beside the YAML", hint=f"write one with mexone.design.{writer}")
+    path = Path(design_file)
+    return yaml_dir / path if not path.is_absolute() and yaml_dir is not None else path
+
+
+def _new_npz(path: str | Path, what: str) -> Path:
+    """`path` if it names a .npz file that does not exist yet, else the one line why not."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise _fail(f"{what}: {path} is not a .npz file")
+    if path.exists():
+        raise _fail(f"{what}: {path} exists", hint="remove it first, or choose another name")
+    return path
+
+
 def save_design(path: str | Path, K: ArrayLike, plant: StateSpace) -> Path:
     """Write K and the plant's operating point (what StateFeedback needs) to a .npz, for a YAML's
     `design:` entry. Nothing is overwritten without the caller removing it first."""
     design = gain_design(K, plant, "save_design")
-    path = Path(path)
-    if path.suffix != ".npz":
-        raise _fail(f"save_design: {path} is not a .npz file")
-    if path.exists():
-        raise _fail(f"save_design: {path} exists", hint="remove it first, or choose another name")
+    path = _new_npz(path, "save_design")
     p = design.point
     with replacing(path, force=False) as temporary:  # its folder checked; never half-written
         _save_npz(temporary, design, p)
@@ -439,12 +457,7 @@ class _Deployed(PythonController):
     @classmethod
     def _load(cls, name: str, design_file: str, yaml_dir: Path | None, robot: Any = None
               ) -> GainDesign:
-        if not design_file:
-            raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
-                             "beside the YAML", hint="write one with mexone.design.save_design")
-        path = Path(design_file)
-        if not path.is_absolute() and yaml_dir is not None:
-            path = yaml_dir / path
+        path = _design_path(name, design_file, yaml_dir, "save_design")
         try:
             design = load_design(path)
             if robot is not None:
@@ -564,7 +577,8 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
     design: a gain matrix K with `plant` (the StateSpace from linearize: u = u0 - K dx); a
     python-control StateSpace or TransferFunction whose inputs are measured signals and outputs
     `<joint>:effort` (u = u0 + C(r - y); continuous ones discretised at `rate` Hz by `method`);
-    or what control.create_statefbk_iosystem returns, with the plant. rate: Hz (default: the
+    or what control.create_statefbk_iosystem returns, with the plant; or an estimator or LQG
+    design from mexone.design.observers (an `Observer` or `Lqg`). rate: Hz (default: the
     design's 1/dt, else every physics step). The controllers driving the design's joints are
     stopped; a controller called `name` already loaded is replaced."""
     sim = getattr(lab, "sim", None)
@@ -577,6 +591,9 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
                     hint="letters, digits and _, starting with a letter: name='arm_lqr'")
     if rate is not None:
         rate = UPDATE_RATE.check(rate, "deploy: rate")
+    own = getattr(design, "deployed", None)  # an observer or LQG design (design/observers.py)
+    if own is not None:
+        return cast(StateFeedback | LinearController, install(lab, *own(rate), name=name))
     built: GainDesign | SystemDesign
     if isinstance(design, control.InputOutputSystem | tuple):
         built = system_design(design, plant, rate, method, u0)
@@ -606,9 +623,23 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
         r[labels.index(label)] = float(value)
     if not np.all(np.isfinite(r)):
         raise _fail("deploy: the reference has a NaN or inf")
-    attrs = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
+    impl = install(lab, cls, built, rate, name=name)
+    impl.reference[:] = r
+    return cast(StateFeedback | LinearController, impl)
+
+
+def install(lab: Lab, cls: type[_Deployed], built: GainDesign | SystemDesign, rate: float | None,
+            exports: Mapping[str, int] | None = None, *, name: str) -> _Deployed:
+    """Run `cls` (a _Deployed type) with the checked design `built` (its joints, interface) in
+    the lab's loop as controller `name` at `rate` Hz: the controllers driving its joints are
+    stopped, one of that name replaced. `exports`: the chained state interfaces it declares."""
+    manager: Any = lab.manager  # deploy checked it is there
+    sim = lab.sim
+    attrs: dict[str, Any] = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
     if built.interface != "effort":
         attrs["command_interface"] = built.interface
+    if exports:
+        attrs["exports"] = dict(exports)
     runner_cls = type(cls.__name__, (cls,), attrs)
     from mexone.control.resolve import Plugin
     from mexone.control.spec import ControllerSpec
@@ -617,7 +648,7 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
                     {"design_file": ""}, update_rate=rate)
     spec = ControllerSpec(name, plugin.type, tuple(built.joints), plugin=plugin)
 
-    def install() -> _Deployed:
+    def load() -> _Deployed:
         old = manager.controllers.get(name)
         if old is not None:
             if old.running:
@@ -642,8 +673,6 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
         manager.config.controllers[name] = replace(spec, gains=gains)
         manager.load(name)
         manager.switch(start=[name], stop=busy)
-        return manager.controllers[name].impl
+        return cast(_Deployed, manager.controllers[name].impl)
 
-    impl = sim.work.call(install) if sim.loop_elsewhere() else install()
-    impl.reference[:] = r
-    return cast(StateFeedback | LinearController, impl)
+    return sim.work.call(load) if sim.loop_elsewhere() else load()

@@ -88,11 +88,13 @@ def scale_mass(body: str, factor: float) -> Callable:
 
 
 def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Callable] = (),
-                   fixed_base: bool = False) -> Lab:
-    """Mex-One with the controllers of `yaml_path`, its joints at `pose`, the variant's edits."""
+                   fixed_base: bool = False, model: Path | None = None, world=None) -> Lab:
+    """Mex-One (or `model`, a variant of its URDF) with the controllers of `yaml_path`, its
+    joints at `pose`, the variant's edits, in `world` (default: the empty world)."""
     try:
-        return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
-                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+        return Lab.create(model, controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
+                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base),
+                          world=world)
     except MexoneError as exc:  # the student's class did not load: its one line is the reason
         raise SubmissionFailed(_students_line(exc, yaml_path)) from None
 
