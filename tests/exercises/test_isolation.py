@@ -223,16 +223,18 @@ raise RuntimeError("found: " + (", ".join(found) or "nothing"))
 
 
 def _spy_run(path: Path, own_process: bool) -> str:
+    from mexone.exercises.isolate import run_trusted
     from mexone.exercises.sim import Variation, simulate
 
-    run = run_isolated(simulate, 0.05, routine=path, variation=Variation(mass=1.2345),
-                       raise_routine_errors=False, own_process=own_process)
+    run = run_trusted(simulate, 0.05, routine=path, variation=Variation(mass=1.2345),
+                      raise_routine_errors=False, own_process=own_process)
     return run.error
 
 
 def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
-    """The routine's process holds no model, no variation, no secret: the same spy run in the
-    simulator's process (own_process=False, what a fork would see) finds them."""
+    """The routine's process holds no model, no variation, no secret; the simulator, which
+    holds them, refuses to run the spy in its own process (own_process=False): it runs no
+    student code."""
     from mexone.exercises.grading import SECRET_ENV
 
     monkeypatch.setenv(SECRET_ENV, "teacher-secret-xyz")
@@ -240,7 +242,8 @@ def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
     path.write_text(SPY)
     assert _spy_run(path, own_process=True).endswith("RuntimeError: found: nothing")
     inside = _spy_run(path, own_process=False)
-    assert all(s in inside for s in ("Variation", "Lab", "mujoco imported")), inside
+    assert "UntrustedCode: the grader's simulator runs no student code, and spy.py is not the " \
+        "grader's" in inside, inside
 
 
 def _scan_for_grader_state() -> list[str]:
@@ -296,7 +299,7 @@ def test_which_routines_get_a_process_of_their_own():
     ex = find_exercise("pid_spec")
     ctx = GradeContext(ex, ex.folder / "step.py", seed=1)
     calls = []
-    ctx.run = lambda target, *args, **kwargs: calls.append(kwargs.get("own_process"))
+    ctx.measure = lambda target, *args, **kwargs: calls.append(kwargs.get("own_process"))
     ctx.simulate(1.0, routine=ctx.submission)
     ctx.simulate(1.0, routine=ex.folder / "step.py", controllers=ex.solution)
     ctx.submission = ex.solution

@@ -1,0 +1,221 @@
+"""sandbox.spawn as a student's code attacks it, in every isolation the machine offers (the
+namespaces, another uid, none) and, as root, also from a grader that is not root (a user
+namespace): the teacher's secret in an ancestor's environment (a shell's `timeout`), writes
+outside the scratch folder (another student's submission), programs left running in a session
+of their own, the network, the processes it can see."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import socket
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from helpers import wait_until
+from mexone.sandbox import Jail, spawn
+from mexone.sandbox.spawn import MODE_ENV, isolation
+
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="the jail's layers are Linux's")
+
+SECRET = "teacher-secret-5f3a"
+MARK = "317.25"  # the sleeps' duration: how the test finds them in the process table
+
+ATTACK = textwrap.dedent('''
+    import json, os, socket, subprocess, sys
+    other, port = sys.argv[1], int(sys.argv[2])
+    found = {"secret": [], "wrote": [], "net": [], "pids": 0}
+    for pid in os.listdir("/proc"):
+        if pid.isdigit():
+            found["pids"] += 1
+            try:
+                with open(f"/proc/{pid}/environ", "rb") as f:
+                    if b"teacher-secret" in f.read():
+                        found["secret"].append(pid)
+            except OSError:
+                pass
+    if any("teacher-secret" in v for v in os.environ.values()):
+        found["secret"].append("own environment")
+    for path in (other, "/tmp/jail-test-outside.txt", os.path.expanduser("~/../x.txt")):
+        try:
+            with open(path, "w") as f:
+                f.write("overwritten")
+            found["wrote"].append(path)
+        except OSError:
+            pass
+    with open("mine.txt", "w") as f:  # its scratch folder: allowed
+        f.write("ok")
+    for family, kind in ((socket.AF_INET, socket.SOCK_STREAM), (socket.AF_INET, socket.SOCK_DGRAM),
+                         (socket.AF_INET6, socket.SOCK_STREAM)):
+        try:
+            s = socket.socket(family, kind)
+            s.settimeout(2)
+            s.connect(("127.0.0.1" if family == socket.AF_INET else "::1", port))
+            s.send(b"x")
+            found["net"].append(f"{family.name} {kind.name}")
+        except OSError:
+            pass
+    for _ in range(40):
+        subprocess.Popen(["sleep", "MARK"], start_new_session=True)
+    print(json.dumps(found), flush=True)
+''').replace("MARK", MARK)
+
+SPAWNER = textwrap.dedent('''
+    import json, subprocess, sys
+    from mexone.sandbox import Jail, spawn
+    python, other, port = sys.argv[1:4]
+    with spawn([python, "-c", sys.argv[4], other, port], Jail(), stdout=subprocess.PIPE) as p:
+        out, _ = p.popen.communicate(timeout=60)
+        code = p.returncode
+    print(json.dumps({"code": code, "out": out.decode()}))
+''')
+
+
+def _sleeps() -> list[int]:
+    found = []
+    for pid in os.listdir("/proc"):
+        if pid.isdigit():
+            try:
+                words = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except OSError:
+                continue
+            if words[:2] == [b"sleep", MARK.encode()] and state not in "ZX":
+                found.append(int(pid))
+    return found
+
+
+def _outside(wrote: list[str], private_tmp: bool) -> list[str]:
+    """The writes that reached the grader's file system (a jail in a mount namespace writes
+    to a /tmp of its own, gone with it)."""
+    return [w for w in wrote if not (private_tmp and w.startswith("/tmp/"))]
+
+
+def _modes() -> list[str]:
+    offered = isolation().mode
+    order = ["none", "uid", "namespaces"]
+    modes = order[:order.index(offered) + 1]
+    return [m for m in modes if m != "uid" or isolation().root]
+
+
+def _python(mode: str) -> str:
+    """A Python the jail can run: another uid needs one others can read (/usr/bin's)."""
+    if mode != "uid":
+        return sys.executable
+    for path in ("/usr/bin/python3", "/usr/local/bin/python3"):
+        if os.access(path, os.X_OK):
+            return path
+    pytest.skip("no Python outside /root for a jail of another uid")
+
+
+@pytest.fixture
+def listener():
+    server = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    server.bind(("127.0.0.1", 0))
+    server.listen(50)
+    server.settimeout(0.1)
+    yield server
+    server.close()
+
+
+def _shared_folder() -> Path:
+    """A folder every user may enter (a grader that is not root works there)."""
+    folder = Path("/tmp") / f"mexone-jail-test-{os.getpid()}"
+    folder.mkdir(exist_ok=True)
+    os.chmod(folder, 0o777)
+    return folder
+
+
+@pytest.mark.parametrize("mode", _modes())
+def test_a_jail_reads_no_secret_writes_nothing_outside_leaves_nothing_and_has_no_network(
+        mode, listener, monkeypatch):
+    """The grader runs under `timeout` with the secret in its environment (as a course's
+    run_autograder would): no process the jail can see holds it; another student's file is
+    unchanged; the 40 sleeps in sessions of their own end with the jail; no socket reaches a
+    server listening on the grader's loopback."""
+    folder = _shared_folder()
+    other = folder / "zzz.py"
+    other.write_text("zzz's submission\n")
+    os.chmod(other, 0o666)  # even a file every user may write
+    env = {**os.environ, MODE_ENV: mode, "MEXONE_EXERCISE_SECRET": SECRET,
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    try:
+        out = subprocess.run(["timeout", "120", sys.executable, "-c", SPAWNER, _python(mode),
+                              str(other), str(listener.getsockname()[1]), ATTACK], env=env,
+                             capture_output=True, text=True, timeout=150, cwd=folder)
+        assert out.returncode == 0, out.stderr
+        report = json.loads(out.stdout)
+        assert report["code"] == 0, report
+        found = json.loads(report["out"])
+        assert found["secret"] == [], found
+        assert _outside(found["wrote"], mode == "namespaces") == [], found
+        assert other.read_text() == "zzz's submission\n"
+        assert found["net"] == [], found
+        with pytest.raises(TimeoutError):
+            listener.accept()
+        if mode == "namespaces":
+            assert found["pids"] <= 3, found  # its init, itself, the ls it ran: nothing else
+        assert wait_until(lambda: not _sleeps(), timeout=10), _sleeps()
+        assert not Path("/tmp/jail-test-outside.txt").exists()
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0 or not shutil.which("su"),
+                    reason="a grader that is not root is tried from root (su nobody)")
+def test_a_grader_that_is_not_root_gets_a_user_namespace(listener):
+    """The same attacks from a grader running as nobody: a user namespace of its own (where
+    the machine allows unprivileged user namespaces), else Landlock alone."""
+    folder = _shared_folder()
+    other = folder / "zzz.py"
+    other.write_text("zzz's submission\n")
+    os.chmod(other, 0o666)
+    try:
+        python = _python("uid")
+        for name, text in (("spawner.py", SPAWNER), ("attack.py", ATTACK)):
+            (folder / name).write_text(text)
+        src = Path(__file__).resolve().parents[2] / "src"
+        command = (f"cd {folder} && MEXONE_EXERCISE_SECRET={SECRET} PYTHONPATH={src} timeout 120 "
+                   f"{python} spawner.py {python} {other} {listener.getsockname()[1]} "
+                   f"\"$(cat attack.py)\"")
+        out = subprocess.run(["su", "nobody", "-s", "/bin/sh", "-c", command],
+                             capture_output=True, text=True, timeout=150)
+        assert out.returncode == 0, out.stderr
+        report = json.loads(out.stdout)
+        found = json.loads(report["out"])
+        assert report["code"] == 0 and found["secret"] == [], found
+        assert _outside(found["wrote"], private_tmp=True) == [], found
+        assert found["net"] == [] and other.read_text() == "zzz's submission\n"
+        assert wait_until(lambda: not _sleeps(), timeout=10), _sleeps()
+        assert not Path("/tmp/jail-test-outside.txt").exists()
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_kill_ends_what_the_jail_started_in_any_session(tmp_path):
+    code = (f"import subprocess, time\nfor _ in range(5):\n"
+            f"    subprocess.Popen(['sleep', '{MARK}'], start_new_session=True)\n"
+            "print('up', flush=True)\ntime.sleep(300)\n")
+    proc = spawn([sys.executable, "-c", code], Jail(), stdout=subprocess.PIPE)
+    assert proc.popen.stdout.readline() == b"up\n"
+    assert len(_sleeps()) == 5
+    proc.kill()
+    assert proc.returncode is not None
+    assert wait_until(lambda: not _sleeps(), timeout=10), _sleeps()
+    assert not proc.scratch.exists()  # its own scratch folder went with it
+
+
+def test_the_program_exit_status_and_signal_come_through():
+    """The handle's status is the jail's program's: an exit code, or the signal that ended it
+    (SIGXCPU past the CPU limit, as a grader reports it)."""
+    from mexone.sandbox import Limits
+
+    with spawn([sys.executable, "-c", "import sys; sys.exit(7)"], Jail()) as proc:
+        assert proc.wait(60) == 7
+    with spawn([sys.executable, "-c", "while True: pass"], Jail(limits=Limits(cpu=1))) as proc:
+        assert proc.wait(60) == -24  # SIGXCPU
