@@ -12,7 +12,6 @@ keep it fast: a routine that must bend the elbow, and an estimate(data) of a hid
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import socket
