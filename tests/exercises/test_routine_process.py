@@ -47,8 +47,11 @@ def feedback(tmp_path_factory) -> Path:
 
 
 def _run(path: Path, own_process: bool):
-    return run_trusted(simulate, 0.7, routine=path, variation=Variation(mass=1.05),
-                        params={"_gain": 0.2, "__name": "renamed"}, own_process=own_process)
+    """In the simulator (the routine in its jail), or all in this process (the simulator
+    itself refuses to run a student's routine in its own process)."""
+    call = run_trusted if own_process else (lambda f, *args, **kwargs: f(*args, **kwargs))
+    return call(simulate, 0.7, routine=path, variation=Variation(mass=1.05),
+                params={"_gain": 0.2, "__name": "renamed"}, own_process=own_process)
 
 
 def test_own_process_moves_the_robot_exactly_as_in_process(feedback):

@@ -1,6 +1,6 @@
 """Graded runs, out of the grading process: the simulator, where no student code runs, and the
 jail, where a student's part runs. The grading process never runs student code and reads
-nothing from a run but JSON checked against a schema (mexone.sandbox.wire).
+nothing from a run but JSON checked against a schema (mexone.sandbox.schema).
 
 Both kinds of run are forks of a fork server: a fresh interpreter started once per grading,
 with MuJoCo and mexone imported and nothing of a grader's (no secret in its environment, no
@@ -48,7 +48,7 @@ from pathlib import Path
 from mexone import signals
 from mexone.errors import MexoneError
 from mexone.routines import processes
-from mexone.sandbox import Jail, Limits, confine, isolation, wire
+from mexone.sandbox import Jail, Limits, confine, isolation, schema
 from mexone.sandbox.spawn import SECRET_ENV, jail_plan, prepare
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated", "run_jailed", "run_trusted",
@@ -136,7 +136,7 @@ def _run(target: Callable, args: tuple, kwargs: dict, limits: Limits,
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):
             stream.flush()
-    schema = _schema(target)
+    returns = _returns(target)
     call = _call_bytes(target, args, kwargs)
     out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in the finally below
     call_read, call_write = os.pipe()
@@ -161,7 +161,7 @@ def _run(target: Callable, args: tuple, kwargs: dict, limits: Limits,
         if pid is None:
             raise MexoneError("the grader's fork server did not start the submission's process",
                               hint="see its output above; is the machine out of memory?")
-        return _collect(pid, read_fd, status_read, out, limits, schema, plan)
+        return _collect(pid, read_fd, status_read, out, limits, returns, plan)
     finally:
         for fd in (read_fd, status_read, call_write):
             if fd is not None:
@@ -170,12 +170,12 @@ def _run(target: Callable, args: tuple, kwargs: dict, limits: Limits,
         out.close()
 
 
-def _schema(target: Callable) -> object:
+def _returns(target: Callable) -> object:
     """`target`'s return annotation: the schema its result is read against."""
     try:
-        return typing.get_type_hints(target).get("return", wire.PLAIN)
+        return typing.get_type_hints(target).get("return", schema.PLAIN)
     except Exception:  # noqa: BLE001 - an annotation that does not resolve: plain JSON
-        return wire.PLAIN
+        return schema.PLAIN
 
 
 class _ForkServer:
@@ -359,9 +359,9 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
             last = traceback.format_exception_only(type(exc), exc)[-1].strip()
             payload = {"failed": f"the grader could not run the submission: {last}"}
         try:
-            data = wire.dumps(payload)
-        except wire.WireError as exc:
-            data = wire.dumps({"failed": f"the run's result cannot be sent: {exc}"})
+            data = schema.dumps(payload)
+        except schema.SchemaError as exc:
+            data = schema.dumps({"failed": f"the run's result cannot be sent: {exc}"})
         view = memoryview(data)
         while view:
             view = view[os.write(result_fd, view):]
@@ -453,7 +453,7 @@ def active_limits() -> Limits:
     return _ACTIVE or Limits()
 
 
-def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, schema: object,
+def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, returns: object,
              plan: confine.Plan | None):
     deadline = time.monotonic() + limits.time
     chunks: list[bytes] = []
@@ -474,7 +474,7 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, schema: obj
             data = os.read(fd, 1 << 16)
             if data:
                 size += len(data)
-                if size <= wire.MAX_BYTES:
+                if size <= schema.MAX_BYTES:
                     chunks.append(data)
                 continue
         if status_fd in ready:
@@ -483,7 +483,7 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, schema: obj
                 status = signal.SIGKILL
     while data := _read_rest(fd):
         size += len(data)
-        if size <= wire.MAX_BYTES:
+        if size <= schema.MAX_BYTES:
             chunks.append(data)
     _kill(pid, plan)  # whatever it left
     output = _tail(out)
@@ -503,16 +503,16 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, schema: obj
         code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -1
         raise SubmissionFailed(f"the submission ended the grading process (exit status {code}) "
                                "before its result", output)
-    if size > wire.MAX_BYTES:
-        raise SubmissionFailed(f"the run sent more than {wire.MAX_BYTES >> 20} MB", output)
+    if size > schema.MAX_BYTES:
+        raise SubmissionFailed(f"the run sent more than {schema.MAX_BYTES >> 20} MB", output)
     try:
-        message = wire.loads(b"".join(chunks), dict[str, object])
+        message = schema.loads(b"".join(chunks), dict[str, object])
         if set(message) == {"failed"}:
-            raise SubmissionFailed(str(wire.read(message["failed"], str, "reason")), output)
+            raise SubmissionFailed(str(schema.read(message["failed"], str, "reason")), output)
         if set(message) != {"ok"}:
-            raise wire.WireError("result: neither ok nor failed")
-        value = wire.read(message["ok"], schema)
-    except wire.WireError as exc:  # a truncated or forged message is the submission's doing
+            raise schema.SchemaError("result: neither ok nor failed")
+        value = schema.read(message["ok"], returns)
+    except schema.SchemaError as exc:  # a truncated or forged message is the submission's doing
         raise SubmissionFailed(f"the run's result is not what the grader reads ({exc})",
                                output) from None
     if TRACEBACK in output:  # it caught its own error and printed it: a crash all the same

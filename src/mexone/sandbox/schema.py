@@ -1,4 +1,5 @@
-"""What crosses a jail's boundary: JSON, read against a schema (a type annotation), never a pickle.
+"""What crosses a jail's boundary as data: JSON read against a schema (a type annotation),
+never a pickle.
 
 `dumps(value)` writes plain data, dataclasses (their fields and their class's name under "$"),
 numpy arrays (dtype, shape and the raw bytes in base64, under "$a") and bytes (base64 under "$b").
@@ -7,7 +8,7 @@ numpy arrays (dtype, shape and the raw bytes in base64, under "$a") and bytes (b
 `dict[str, X]`, `X | Y`, a dataclass (its fields' annotations, recursively) or `object` (plain
 JSON only). A class is never looked up by a name the sender chose: a dataclass is read only where
 the schema names it, the "$" tag only picks among the schema's own alternatives. Whatever does
-not fit is a WireError naming where (`result[2].position: expected float, got str`).
+not fit is a SchemaError naming where (`result[2].position: expected float, got str`).
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ import typing
 from collections.abc import Sequence
 from pathlib import Path
 
-__all__ = ["dumps", "loads", "plain", "read", "WireError", "MAX_BYTES", "PLAIN"]
+__all__ = ["dumps", "loads", "plain", "read", "SchemaError", "MAX_BYTES", "PLAIN"]
 
 MAX_BYTES = 256 << 20  # the largest message read (a run's samples are a few MB)
 MAX_DEPTH = 64
@@ -29,13 +30,13 @@ PLAIN = object  # the schema of plain JSON: dicts, lists, strings, numbers, bool
 _DTYPES = ("float64", "float32", "int64", "int32", "int8", "uint8", "bool")
 
 
-class WireError(ValueError):
+class SchemaError(ValueError):
     """What was received does not fit its schema (or is not JSON)."""
 
 
 def _plain(value: object, depth: int = 0) -> object:
     if depth > MAX_DEPTH:
-        raise WireError("nested too deeply")
+        raise SchemaError("nested too deeply")
     if value is None or isinstance(value, bool | int | str):
         return value
     if isinstance(value, float):
@@ -61,11 +62,11 @@ def _plain(value: object, depth: int = 0) -> object:
             return {"$a": [dtype, list(array.shape), base64.b64encode(array.tobytes()).decode()]}
         if isinstance(value, numpy.generic):
             return _plain(value.item(), depth)
-    raise WireError(f"cannot send a {type(value).__name__}")
+    raise SchemaError(f"cannot send a {type(value).__name__}")
 
 
 def plain(value: object) -> object:
-    """`value` as the plain data `dumps` writes (WireError for what cannot be sent)."""
+    """`value` as the plain data `dumps` writes (SchemaError for what cannot be sent)."""
     return _plain(value)
 
 
@@ -74,24 +75,24 @@ def dumps(value: object) -> bytes:
     try:
         return json.dumps(_plain(value), separators=(",", ":")).encode()
     except (TypeError, ValueError, RecursionError) as exc:
-        raise WireError(f"cannot send it: {exc}") from None
+        raise SchemaError(f"cannot send it: {exc}") from None
 
 
 def loads(data: bytes | str, schema: object = PLAIN, where: str = "result") -> object:
-    """`data` read as `schema` says (WireError if it does not fit)."""
+    """`data` read as `schema` says (SchemaError if it does not fit)."""
     if len(data) > MAX_BYTES:
-        raise WireError(f"{where}: {len(data)} bytes, more than {MAX_BYTES >> 20} MB")
+        raise SchemaError(f"{where}: {len(data)} bytes, more than {MAX_BYTES >> 20} MB")
     try:
         raw = json.loads(data)
     except (ValueError, RecursionError) as exc:
-        raise WireError(f"{where}: not JSON ({type(exc).__name__})") from None
+        raise SchemaError(f"{where}: not JSON ({type(exc).__name__})") from None
     return read(raw, schema, where)
 
 
 def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> object:
     """Decoded JSON `raw` checked and built as `schema` says."""
     if depth > MAX_DEPTH:
-        raise WireError(f"{where}: nested too deeply")
+        raise SchemaError(f"{where}: nested too deeply")
     origin = typing.get_origin(schema)
     args = typing.get_args(schema)
     if schema is typing.Any or schema is object:
@@ -108,11 +109,11 @@ def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> 
                 continue
             try:
                 return read(raw, option, where, depth)
-            except WireError as exc:
+            except SchemaError as exc:
                 errors.append(exc)
         if errors and len(errors) == 1:
             raise errors[0]
-        raise WireError(f"{where}: {_shown(raw)} is none of {_names(args)}")
+        raise SchemaError(f"{where}: {_shown(raw)} is none of {_names(args)}")
     if schema is float:
         if isinstance(raw, bool) or not isinstance(raw, int | float):
             raise _expected("float", raw, where)
@@ -149,7 +150,7 @@ def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> 
             item = args[0] if args else object
             return tuple(read(x, item, f"{where}[{i}]", depth + 1) for i, x in enumerate(raw))
         if len(raw) != len(args):
-            raise WireError(f"{where}: {len(raw)} items, expected {len(args)}")
+            raise SchemaError(f"{where}: {len(raw)} items, expected {len(args)}")
         return tuple(read(x, t, f"{where}[{i}]", depth + 1)
                      for i, (x, t) in enumerate(zip(raw, args, strict=True)))
     if origin is dict or schema is dict:
@@ -157,36 +158,36 @@ def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> 
             raise _expected("dict", raw, where)
         key, value = args if args else (str, object)
         if key not in (str, typing.Any, object):
-            raise WireError(f"{where}: a schema's dict keys are str")
+            raise SchemaError(f"{where}: a schema's dict keys are str")
         return {k: read(v, value, f"{where}[{k!r}]", depth + 1) for k, v in raw.items()}
     numpy = _numpy()
     if numpy is not None and schema is numpy.ndarray:
         return _array(raw, where, numpy)
     if dataclasses.is_dataclass(schema) and isinstance(schema, type):
         return _dataclass(raw, schema, where, depth)
-    raise WireError(f"{where}: the schema {schema!r} is not one wire reads")
+    raise SchemaError(f"{where}: the schema {schema!r} is not one this module reads")
 
 
 def _dataclass(raw: object, cls: type, where: str, depth: int) -> object:
     if not isinstance(raw, dict):
         raise _expected(cls.__name__, raw, where)
     if raw.get("$", cls.__name__) != cls.__name__:
-        raise WireError(f"{where}: a {_shown(raw.get('$'))}, expected {cls.__name__}")
+        raise SchemaError(f"{where}: a {_shown(raw.get('$'))}, expected {cls.__name__}")
     hints = _hints(cls)
     fields = {f.name: f for f in dataclasses.fields(cls)}
     unknown = sorted(set(raw) - set(fields) - {"$"})
     if unknown:
-        raise WireError(f"{where}: {cls.__name__} has no field {unknown[0]!r}")
+        raise SchemaError(f"{where}: {cls.__name__} has no field {unknown[0]!r}")
     values = {}
     for name, f in fields.items():
         if name in raw:
             values[name] = read(raw[name], hints.get(name, object), f"{where}.{name}", depth + 1)
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            raise WireError(f"{where}: {cls.__name__}'s field {name!r} is missing")
+            raise SchemaError(f"{where}: {cls.__name__}'s field {name!r} is missing")
     try:
         return cls(**values)
     except Exception as exc:  # noqa: BLE001 - a class's own checks refusing the values
-        raise WireError(f"{where}: {cls.__name__}: {exc}") from None
+        raise SchemaError(f"{where}: {cls.__name__}: {exc}") from None
 
 
 _HINTS: dict[type, dict] = {}
@@ -205,7 +206,7 @@ def _bytes(raw: object, where: str) -> bytes:
     try:
         return base64.b64decode(raw["$b"], validate=True)
     except ValueError:
-        raise WireError(f"{where}: bytes that are not base64") from None
+        raise SchemaError(f"{where}: bytes that are not base64") from None
 
 
 def _array(raw: object, where: str, numpy):
@@ -221,17 +222,17 @@ def _array(raw: object, where: str, numpy):
     dtype, shape, data = raw["$a"]
     if dtype not in _DTYPES or not isinstance(shape, list) or len(shape) > 8 \
             or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in shape):
-        raise WireError(f"{where}: an array of dtype {_shown(dtype)}, shape {_shown(shape)}")
+        raise SchemaError(f"{where}: an array of dtype {_shown(dtype)}, shape {_shown(shape)}")
     buffer = _bytes({"$b": data}, where)
     size = math.prod(shape) * numpy.dtype(dtype).itemsize
     if size != len(buffer):
-        raise WireError(f"{where}: an array of shape {shape} with {len(buffer)} bytes")
+        raise SchemaError(f"{where}: an array of shape {shape} with {len(buffer)} bytes")
     return numpy.frombuffer(buffer, dtype=dtype).reshape(shape).copy()
 
 
 def _check_plain(raw: object, where: str, depth: int) -> object:
     if depth > MAX_DEPTH:
-        raise WireError(f"{where}: nested too deeply")
+        raise SchemaError(f"{where}: nested too deeply")
     if isinstance(raw, list):
         for i, x in enumerate(raw):
             _check_plain(x, f"{where}[{i}]", depth + 1)
@@ -247,8 +248,8 @@ def _numpy():
     return sys.modules.get("numpy")
 
 
-def _expected(what: str, raw: object, where: str) -> WireError:
-    return WireError(f"{where}: expected {what}, got {_shown(raw)}")
+def _expected(what: str, raw: object, where: str) -> SchemaError:
+    return SchemaError(f"{where}: expected {what}, got {_shown(raw)}")
 
 
 def _shown(raw: object) -> str:
