@@ -22,6 +22,7 @@ from mexone.control.resolve import (
     validate_params,
 )
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
+from mexone.control.student import declared_lengths
 from mexone.errors import InputError
 from mexone.inputs import read_input_text
 
@@ -32,6 +33,8 @@ __all__ = [
     "CONTROLLER_TYPES",
     "load_control_config",
     "parse_control_config",
+    "check_chains",
+    "chain_order",
 ]
 
 
@@ -103,6 +106,7 @@ def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
         else:
             raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
                                "every controller needs type: <package>/<Controller>")
+    check_chains(config)
     return config
 
 
@@ -188,9 +192,10 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
         raise exc.located(where, type_node.start_mark.line + 1) from None
     if "joints" in fields:
         value = reader.value(fields["joints"][1])
-        if not isinstance(value, list) or not value or not all(isinstance(j, str) for j in value):
+        if not isinstance(value, list) or not all(isinstance(j, str) for j in value):
             raise reader.error(fields["joints"][1], f"controller '{name}': 'joints' must be a "
-                                                    "non-empty list of joint names")
+                                                    "list of joint names ([] for none: a chained "
+                                                    "controller that only exports)")
         joints = tuple(value)
     elif "joint" in fields:
         joints = (str(reader.value(fields["joint"][1])),)
@@ -212,8 +217,120 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
     if "gains" in fields:
         gains = {joint: _pid(reader, f"{name}/gains/{joint}", node)
                  for joint, _, node in reader.mapping(fields["gains"][1], f"'{name}' gains")}
+    inputs = _inputs(reader, name, cls, key, fields.get("inputs"))
     plugin = Plugin(ctype, cls, origin, yaml_dir, raw, params, source=reader.path,
                     line=key.start_mark.line + 1, lines={k: n for k, (_, n) in lines.items()},
-                    **settings)
+                    inputs=inputs, **settings)
     return ControllerSpec(name, ctype, joints, pid, None, key.start_mark.line + 1, gains, False,
                           reader.path, plugin)
+
+
+def _inputs(reader: _Reader, name: str, cls, key: yaml.Node,
+            field: tuple[yaml.Node, yaml.Node] | None) -> dict[str, str]:
+    """A chained controller's `inputs:` (declared input -> "controller/export"): every input the
+    class declares bound, nothing else. Whether the exporter exists is `check_chains`'s."""
+    declared = declared_lengths(cls, "inputs")
+    bound: dict[str, str] = {}
+    if field is not None:
+        for local, knode, vnode in reader.mapping(field[1], f"controller '{name}': inputs"):
+            if local not in declared:
+                raise reader.error(knode, f"controller '{name}': inputs names '{local}', which "
+                                          f"{cls.__name__} does not declare",
+                                   "its inputs: " + (", ".join(declared) or "none"))
+            source = reader.value(vnode)
+            if not isinstance(source, str) or source.count("/") != 1 or "" in source.split("/"):
+                raise reader.error(vnode, f"controller '{name}': input '{local}' must name "
+                                          "'<controller>/<export>'", "e.g. estimator/tilt")
+            bound[local] = source
+    missing = [k for k in declared if k not in bound]
+    if missing:
+        raise reader.error(field[0] if field is not None else key,
+                           f"controller '{name}': input '{missing[0]}' is not bound",
+                           f"add inputs: {{{missing[0]}: <controller>/<export>}}")
+    return bound
+
+
+def check_chains(config: ControlConfig) -> None:
+    """Chained controllers: every bound input names a Python controller of the configuration
+    that exports it, with the declared length, and no controller reads itself through a chain
+    (the manager updates exporters before readers). One InputError at the reader's line."""
+    specs = config.controllers
+    for name, spec in specs.items():
+        plugin = spec.plugin
+        if plugin is None or not plugin.inputs:
+            continue
+        wanted = declared_lengths(plugin.cls, "inputs")
+        line = plugin.lines.get("inputs", spec.line)
+        where = spec.source or "<controllers>"
+        for local, source in plugin.inputs.items():
+            owner, export = source.split("/")
+            other = specs.get(owner)
+            if other is None or other.plugin is None:
+                python = [n for n, s in specs.items() if s.plugin is not None and n != name]
+                raise InputError(f"controller '{name}': input '{local}' reads '{source}', but "
+                                 f"'{owner}' is not a Python controller of this file",
+                                 file=where, line=line,
+                                 hint="Python controllers: " + (", ".join(python) or "none"))
+            exports = declared_lengths(other.plugin.cls, "exports")
+            if export not in exports:
+                raise InputError(f"controller '{name}': input '{local}' reads '{source}', but "
+                                 f"'{owner}' ({other.plugin.cls.__name__}) does not export "
+                                 f"'{export}'", file=where, line=line,
+                                 hint="its exports: " + (", ".join(exports) or "none"))
+            if exports[export] != wanted[local]:
+                raise InputError(f"controller '{name}': input '{local}' is {wanted[local]} long "
+                                 f"but '{source}' is {exports[export]} long", file=where,
+                                 line=line)
+    order = chain_order(specs)
+    if order is None:
+        cycle = _cycle(specs)
+        spec = specs[cycle[0]]
+        raise InputError("chained controllers read each other in a circle: "
+                         + " -> ".join([*cycle, cycle[0]]), file=spec.source or "<controllers>",
+                         line=spec.plugin.lines.get("inputs", spec.line),
+                         hint="an exporter cannot read its own readers' exports")
+
+
+def _readers_of(specs) -> dict[str, set[str]]:
+    """controller -> the controllers whose exports it reads."""
+    out: dict[str, set[str]] = {}
+    for name, spec in specs.items():
+        plugin = getattr(spec, "plugin", None)
+        if plugin is not None:
+            out[name] = {source.split("/")[0] for source in plugin.inputs.values()} & set(specs)
+    return out
+
+
+def chain_order(specs) -> list[str] | None:
+    """The controllers' names (any mapping name -> object with `.plugin`) with every exporter
+    before its readers, otherwise in their own order; None if they read each other in a
+    circle."""
+    order, left = _kahn(specs)
+    return None if left else order
+
+
+def _kahn(specs) -> tuple[list[str], list[str]]:
+    """Kahn's algorithm, stable: (the ordered names, those left in or behind a circle)."""
+    needs = _readers_of(specs)
+    done: list[str] = []
+    left = list(specs)
+    while left:
+        ready = [n for n in left if needs.get(n, set()) <= set(done)]
+        if not ready:
+            break
+        done += ready
+        left = [n for n in left if n not in ready]
+    return done, left
+
+
+def _cycle(specs) -> list[str]:
+    """One circle of chained controllers (for the message): among those Kahn could not place,
+    each reads another of them, so following the reads comes back around."""
+    needs = _readers_of(specs)
+    _, left = _kahn(specs)
+    path = [left[0]]
+    while True:
+        nxt = min(needs[path[-1]] & set(left))
+        if nxt in path:
+            return path[path.index(nxt):]
+        path.append(nxt)

@@ -23,6 +23,7 @@ import numpy as np
 
 from mexone.bus.msgs import Float64, Float64MultiArray, Header, JointControllerState, Time
 from mexone.bus.topics import Bus, Subscription
+from mexone.control.config import chain_order, check_chains
 from mexone.control.controllers import (
     CONTROLLER_TYPES,
     Controller,
@@ -35,7 +36,7 @@ from mexone.control.hardware import SimHardware
 from mexone.control.notes import gazebo_differences
 from mexone.control.resolve import resolve_class, validate_params
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
-from mexone.control.student import sensor_states
+from mexone.control.student import declared_lengths, sensor_states
 from mexone.errors import InputError
 from mexone.physics.simulation import NS, Periodic, Simulation
 
@@ -235,6 +236,7 @@ class ControllerManager:
         it from the parameter server when asked to load)."""
         if spec.name in self.controllers:
             raise InputError(f"controller '{spec.name}' is already loaded", hint="unload it first")
+        check_chains(replace(self.config, controllers={**self.config.controllers, spec.name: spec}))
         self.config.controllers[spec.name] = spec
 
     def unload(self, name: str) -> None:
@@ -367,7 +369,9 @@ class ControllerManager:
         return on_message
 
     def _schedule(self) -> None:
-        self._running = [c for c in self.controllers.values() if c.running]
+        order = chain_order(self.controllers) or list(self.controllers)  # exporters first
+        self._running = [self.controllers[n] for n in order if self.controllers[n].running]
+        self._bind_inputs()
         self._periodic = [c for c in self._running if c.periodic]
         self._timed = [c for c in self._running if c.timed]
         for ctrl in self._running:
@@ -391,6 +395,37 @@ class ControllerManager:
                 ctrl.next_ns = now
         self._next_period_ns = now
         self._wake()
+
+    def _bind_inputs(self) -> None:
+        """Each Python controller's `state.inputs`: read-only views of the running exporters'
+        arrays, NaN where the exporter is stopped, missing or faulted."""
+        for ctrl in self.controllers.values():
+            if not isinstance(ctrl, PythonRunner):
+                continue
+            wanted = declared_lengths(ctrl.plugin.cls, "inputs")
+            bound = {}
+            for local, source in ctrl.plugin.inputs.items():
+                owner, export = source.split("/")
+                exporter = self.controllers.get(owner)
+                array = getattr(exporter, "exports", {}).get(export) \
+                    if exporter is not None and exporter.running else None
+                if array is None or len(array) != wanted[local]:
+                    array = np.full(wanted[local], np.nan)
+                view = array.view()
+                view.flags.writeable = False
+                bound[local] = view
+            ctrl.state.inputs = bound
+
+    def exports(self) -> dict[str, np.ndarray]:
+        """Every Python controller's exported state interfaces, "<controller>/<name>" -> a
+        read-only view (chained controllers; NaN until written)."""
+        out = {}
+        for ctrl in self.controllers.values():
+            for key, array in getattr(ctrl, "exports", {}).items():
+                view = array.view()
+                view.flags.writeable = False
+                out[f"{ctrl.name}/{key}"] = view
+        return out
 
     # ----- `state` topics (published only while someone listens) ---------------------------------
     def state_topic(self, name: str) -> str:

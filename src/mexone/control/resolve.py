@@ -42,7 +42,7 @@ ENTRY_POINT_GROUP = "mexone.controllers"
 FAULT_MODES = ("hold", "damp")
 # the keys of a Python controller's YAML entry that are not its declared parameters
 RESERVED_KEYS = ("type", "joints", "joint", "update_rate", "pid", "gains", "on_fault",
-                 "max_update_time", "max_overruns", "hang_timeout")
+                 "max_update_time", "max_overruns", "hang_timeout", "inputs")
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,6 +63,7 @@ class Plugin:
     source: Path | None = None  # the YAML
     line: int | None = None  # of the controller in the YAML
     lines: dict[str, int] = field(default_factory=dict)  # each key of the entry -> its line
+    inputs: dict[str, str] = field(default_factory=dict)  # declared input -> "controller/export"
 
     @property
     def interface(self) -> str:

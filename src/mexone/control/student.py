@@ -23,7 +23,8 @@ import numpy as np
 from mexone.errors import InputError
 from mexone.ranges import Range, number_text
 
-__all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES"]
+__all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES",
+           "declared_lengths"]
 
 # command_interface -> ros_control's hardware interface (what a <transmission> offers)
 COMMAND_INTERFACES = {"effort": "EffortJointInterface", "position": "PositionJointInterface",
@@ -137,10 +138,12 @@ class State:
     the call: copy what you keep), `all_q`/`all_dq` (MuJoCo's qpos, nq long, and qvel, nv long:
     index qvel-sized vectors with `self.dofs`), `time` (s of sim time), `base` (BaseState or
     None) and `sensors` (name -> the sensor's state: mexone.sensors ImuState, ForceTorqueState,
-    ContactSensorState). `base` and `sensors` are computed only when read."""
+    ContactSensorState). `base` and `sensors` are computed only when read. `inputs` (name ->
+    read-only array) are the chained controllers' exports this controller's YAML binds to its
+    declared `inputs` (NaN while the exporter is stopped)."""
 
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
-                 "_sensors", "_base")
+                 "_sensors", "_base", "inputs")
 
     def __init__(self, n: int, data, base_joint: int | None, sensor_source=None):
         self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -150,6 +153,7 @@ class State:
         self._sensor_source = sensor_source  # () -> mapping, or None
         self._sensors: Mapping | None = None
         self._base: BaseState | None = None
+        self.inputs: Mapping[str, np.ndarray] = {}
 
     def _refresh(self, time: float) -> None:
         self.time = time
@@ -188,9 +192,17 @@ class PythonController:
     nv-long vectors: columns of M and Jacobians, entries of g), `params` and `log`; `dynamics`
     is the robot's dynamics at the live state (mexone.dynamics.Dynamics), computed when first
     read in an update. See docs/controllers.md.
+
+    Chained controllers (ros2_control's chaining): `exports` declares the state interfaces this
+    controller writes (name -> length; in `update`, `self.exports[name][:] = ...` on the
+    framework's arrays, NaN until written), `inputs` those it reads (name -> length), which its
+    YAML entry binds to other controllers' exports (`inputs: {tilt: estimator/tilt}`) and
+    `state.inputs[name]` shows. The manager updates an exporter before its readers.
     """
 
     command_interface: ClassVar[str] = "effort"  # "effort" | "position" | "velocity"
+    exports: Any = {}  # the class declares name -> length; an instance holds name -> array
+    inputs: ClassVar[Mapping[str, int]] = {}
     _declared: ClassVar[dict[str, Param]] = {}
 
     name: str
@@ -210,6 +222,8 @@ class PythonController:
         if cls.command_interface not in COMMAND_INTERFACES:
             raise TypeError(f"{cls.__name__}.command_interface must be one of "
                             f"{', '.join(COMMAND_INTERFACES)}, not {cls.command_interface!r}")
+        for attribute in ("exports", "inputs"):
+            declared_lengths(cls, attribute)  # a malformed declaration fails at the class
 
     @classmethod
     def declared_params(cls) -> dict[str, Param]:
@@ -246,6 +260,25 @@ class PythonController:
 
     def deactivate(self) -> None:
         """ros_control's stopping()."""
+
+
+def declared_lengths(cls: type[PythonController], attribute: str) -> dict[str, int]:
+    """A class's `exports` or `inputs` declaration checked: name -> length (a name without '/',
+    a whole number >= 1), or a TypeError naming the class."""
+    value = getattr(cls, attribute, {})
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{cls.__name__}.{attribute} must be a dict of name -> length, not "
+                        f"{type(value).__name__}")
+    out = {}
+    for name, length in value.items():
+        if not isinstance(name, str) or not name.isidentifier():
+            raise TypeError(f"{cls.__name__}.{attribute}: {name!r:.40} is not a name (letters, "
+                            "digits, _)")
+        if isinstance(length, bool) or not isinstance(length, int) or length < 1:
+            raise TypeError(f"{cls.__name__}.{attribute}['{name}'] must be a whole number >= 1 "
+                            f"(its length), not {length!r:.40}")
+        out[name] = length
+    return out
 
 
 def unit_of(interface: str) -> str:

@@ -33,7 +33,7 @@ from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
 from mexone.control.resolve import Plugin, student_line
-from mexone.control.student import PythonController, State, unit_of
+from mexone.control.student import PythonController, State, declared_lengths, unit_of
 from mexone.control.watchdog import GUARD as _GUARD
 from mexone.control.watchdog import ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
@@ -49,6 +49,8 @@ STUDENT_LOG = logging.getLogger("mexone.control.student")
 STUDENT_LOG.setLevel(logging.INFO)
 HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDTH)
 _SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
+_EMPTY = np.zeros(0)
+_EMPTY.flags.writeable = False
 
 
 class _StudentLog(logging.LoggerAdapter):
@@ -98,6 +100,9 @@ class PythonRunner(Controller):
         self._views()
         self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
         self._efforts = hw.command.effort  # the hardware's effort commands (a fixed array)
+        # chained controllers: what it exports (its own arrays), what it reads (the manager binds)
+        self.exports = _Exports({k: np.full(n, np.nan)
+                                 for k, n in declared_lengths(plugin.cls, "exports").items()})
         self.impl = self._instantiate(plugin)
 
     @classmethod
@@ -154,6 +159,7 @@ class PythonRunner(Controller):
         impl.dofs = self.dofs.copy()
         impl.params = dict(plugin.params)
         impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
+        impl.exports = self.exports
         impl.__dict__["_mexone_binding"] = self
         self._call(impl.configure, "configure")
         return impl
@@ -214,6 +220,8 @@ class PythonRunner(Controller):
         self.fault, self._overruns, self._last_t, self._suspect = None, 0, None, False
         self.next_ns, self.due = -1, False  # the manager schedules the first update now
         self._limits_said.clear()
+        for array in self.exports.values():  # NaN until this run writes them
+            array.fill(np.nan)
         if self.interface_name == "position":
             c.position[rows] = hw.state.position[rows]
             if not self._write_pid():
@@ -303,6 +311,10 @@ class PythonRunner(Controller):
         data = self.ctx.sim.data
         state._data = data  # MuJoCo's data is replaced only with the model (then we are here)
         self.direct, self._span, self._gather = False, None, False
+        if len(rows) == 0:  # a chained controller that only exports: nothing to read
+            state.q, state.dq, state.effort = (_EMPTY for _ in range(3))
+            self.direct = True
+            return
         views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
                  strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
         if any(v is None for v in views):
@@ -458,6 +470,15 @@ class PythonRunner(Controller):
         self.fault = text
         log.error("controller '%s' stopped, its joints %s: %s", self.name, held, text)
         self.ctx.faults.append(self.name)
+
+
+class _Exports(dict):
+    """A controller's exports: its readers hold views of these very arrays, so they are written
+    into, never replaced."""
+
+    def __setitem__(self, key, value) -> None:
+        raise TypeError(f"exports[{key!r:.40}] is the framework's array, which its readers see: "
+                        f"write into it (self.exports[{key!r:.40}][:] = value)")
 
 
 def _span_of(rows: np.ndarray) -> slice | None:
