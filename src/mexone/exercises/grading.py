@@ -13,6 +13,7 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
+import logging
 import os
 import re
 import secrets
@@ -36,7 +37,7 @@ from mexone.exercises.isolate import (
 )
 from mexone.exercises.sim import Variation, simulate
 from mexone.files import replacing
-from mexone.sandbox import keep_private
+from mexone.sandbox import isolation, keep_private
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
            "submissions_in", "not_handed_in", "existing_plots", "SECRET_ENV"]
@@ -266,10 +267,26 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
                          hint=f"hand in the exercise's {exercise.file}")
     keep_private()  # the teacher's secret is in this process: no one of its user reads it
     prewarm()  # the runs' fork server starts while the grader imports and draws
+    _warn_if_exposed()
     with tempfile.TemporaryDirectory(prefix="mexone-grade-") as work:
         copy = _private_copy(submission, Path(work))
         result = _grade(exercise, submission, copy, local, plots, force)
     return _scrubbed(result, copy.parent)
+
+
+_warned: list[bool] = []
+
+
+def _warn_if_exposed() -> None:
+    """Once per process: a warning when this machine cannot keep the teacher's secret from a
+    submission (no namespace, no other uid, no Landlock: it runs as the grader's own user)."""
+    iso = isolation()
+    if iso.mode == "none" and not iso.landlock and os.environ.get(SECRET_ENV) and not _warned:
+        _warned.append(True)
+        logging.getLogger("mexone.sandbox").warning(
+            "mexone: warning: this machine isolates a submission with limits only (no user "
+            "namespace, no root, no Landlock): it runs as your user and can read %s from this "
+            "process's ancestors (docs/exercises.md, what a grading machine needs)", SECRET_ENV)
 
 
 def _private_copy(submission: Path, work: Path) -> Path:

@@ -4,7 +4,6 @@ and the jail's first process becomes PROGRAM. ``enter.py --probe`` prints what t
 offers (confine.probe, in this throwaway process). Run by path with no site and no package
 imported, so nothing of mexone's or the parent's runs here."""
 
-import json
 import os
 import sys
 
@@ -15,6 +14,8 @@ import confine  # noqa: E402 - this folder's module, by path: no package is impo
 
 def main(argv: list[str]) -> None:
     if argv[:1] == ["--probe"]:
+        import json
+
         print(json.dumps(confine.probe()), flush=True)
         return
     plan = confine.Plan.loads(argv[0])
