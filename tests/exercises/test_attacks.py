@@ -267,3 +267,18 @@ def test_the_attacks_report_what_they_found(tmp_path, listener):
             os.kill(pid, 9)
         Path("/tmp/mexone-attack-outside.txt").unlink(missing_ok=True)
         shutil.rmtree(tmp_path, ignore_errors=True)
+
+
+def test_a_symlinked_submission_scores_nothing(tmp_path):
+    """A submission that is a symbolic link (to the teacher's reference, say) is not followed:
+    0 points, the reason, and nothing of what it points at is run."""
+    from mexone.exercises import grade, load_exercise
+
+    exercise = load_exercise(_exercise(tmp_path / "exercise", ROUTINE_EXERCISE))
+    reference = tmp_path / "reference.py"
+    reference.write_text(HONEST_ROUTINE)
+    link = tmp_path / "routine.py"
+    link.symlink_to(reference)
+    result = grade(exercise, link)
+    assert result.score == 0 and result.failure == \
+        "routine.py is a symbolic link, not a file: hand in the file itself"

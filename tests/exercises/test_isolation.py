@@ -305,3 +305,15 @@ def test_which_routines_get_a_process_of_their_own():
     ctx.submission = ex.solution
     ctx.simulate(1.0, routine=ex.folder / "step.py")
     assert calls == [None, None, False]  # None: simulate's default, own process unless shipped
+
+
+def test_runs_at_once_share_nothing():
+    """Several graded runs at once (issue 37's --workers): each its own fork, jail and uid;
+    every result is its own call's."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from mexone.exercises.isolate import run_jailed, run_trusted
+
+    with ThreadPoolExecutor(6) as pool:
+        futures = [pool.submit(run_jailed if k % 2 else run_trusted, abs, -k) for k in range(12)]
+        assert [f.result() for f in futures] == list(range(12))

@@ -124,7 +124,7 @@ class Plan:
     cpu: float = 60.0
     memory_mb: int = 2048
     file_mb: int = 1024
-    processes: int = 256
+    processes: int = 128
     landlock: int = 0  # the ABI to use, 0: none
     seccomp: bool = False
     parent: int = 0  # the jail ends when this process ends (0: not watched)
@@ -543,7 +543,7 @@ def _build_root(plan: Plan) -> None:
                 os.symlink(os.readlink(path), target)
         elif kind == "tmpfs":
             os.makedirs(target, exist_ok=True)
-            _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV, "mode=1777,size=256m")
+            _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV, "mode=1777,size=128m")
         elif kind == "hide":
             if os.path.isdir(target):
                 _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV | MS_RDONLY,
@@ -579,7 +579,7 @@ def _dev(root: str) -> None:
                      ("stdout", "/proc/self/fd/1"), ("stderr", "/proc/self/fd/2")):
         os.symlink(to, f"{dev}/{name}")
     os.makedirs(dev + "/shm")
-    _mount("tmpfs", dev + "/shm", "tmpfs", MS_NOSUID | MS_NODEV, "mode=1777,size=256m")
+    _mount("tmpfs", dev + "/shm", "tmpfs", MS_NOSUID | MS_NODEV, "mode=1777,size=64m")
 
 
 # ----- the program's own limits ---------------------------------------------------------------

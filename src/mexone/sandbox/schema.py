@@ -24,7 +24,7 @@ from pathlib import Path
 
 __all__ = ["dumps", "loads", "plain", "read", "SchemaError", "MAX_BYTES", "PLAIN"]
 
-MAX_BYTES = 256 << 20  # the largest message read (a run's samples are a few MB)
+MAX_BYTES = 64 << 20  # the largest message read (a run's samples are under 1 MB)
 MAX_DEPTH = 64
 PLAIN = object  # the schema of plain JSON: dicts, lists, strings, numbers, booleans, None
 _DTYPES = ("float64", "float32", "int64", "int32", "int8", "uint8", "bool")
