@@ -219,3 +219,38 @@ def test_the_program_exit_status_and_signal_come_through():
         assert proc.wait(60) == 7
     with spawn([sys.executable, "-c", "while True: pass"], Jail(limits=Limits(cpu=1))) as proc:
         assert proc.wait(60) == -24  # SIGXCPU
+
+
+@pytest.mark.parametrize("mode", _modes())
+def test_what_a_jail_may_read(mode, monkeypatch):
+    """Its readable folders, not what is hidden inside them (a teacher's pack installed in
+    site-packages), nor anything else of the grader's."""
+    folder = _shared_folder()
+    try:
+        pack = folder / "pack"
+        (pack / "solutions").mkdir(parents=True)
+        (pack / "visible.txt").write_text("seen\n")
+        (pack / "solutions" / "answer.py").write_text("ANSWER = 42\n")
+        (folder / "elsewhere.txt").write_text("not for the jail\n")
+        for path in (pack, pack / "solutions"):
+            os.chmod(path, 0o755)
+        code = textwrap.dedent(f'''
+            import json
+            out = {{}}
+            for path in ("{pack}/visible.txt", "{pack}/solutions/answer.py",
+                         "{folder}/elsewhere.txt"):
+                try:
+                    out[path.rsplit("/", 1)[1]] = open(path).read().strip()
+                except OSError as exc:
+                    out[path.rsplit("/", 1)[1]] = exc.strerror
+            print(json.dumps(out))
+        ''')
+        monkeypatch.setenv(MODE_ENV, mode)
+        monkeypatch.setattr(sys.modules["mexone.sandbox.spawn"], "_isolation", None)
+        jail = Jail(readable=(pack,), hidden=(pack / "solutions",))
+        with spawn([_python(mode), "-c", code], jail, stdout=subprocess.PIPE) as proc:
+            out = json.loads(proc.popen.stdout.read())
+        assert out["visible.txt"] == "seen", out
+        assert out["answer.py"] != "ANSWER = 42" and out["elsewhere.txt"] != "not for the jail", out
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)

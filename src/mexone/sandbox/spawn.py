@@ -53,8 +53,8 @@ class Jail:
     temporary folder, removed with the process), `readable` the folders it may read besides
     the system's libraries, Python's installation and mexone (as root, they must be readable
     by others: the jail runs as another user), `hidden` folders inside those it must not see
-    (a teacher's pack installed beside mexone), its `limits`, and whether it may use the
-    network."""
+    (what a teacher installed beside mexone is hidden anyway: HIDDEN_GROUPS), its `limits`,
+    and whether it may use the network."""
 
     scratch: Path | None = None
     readable: tuple[Path, ...] = ()
@@ -140,6 +140,41 @@ def _reachable_by_others() -> bool:
     return True
 
 
+HIDDEN_GROUPS = ("mexone.solutions", "mexone.exercises")  # a teacher's answers and graders
+_hidden: list[str] | None = None
+
+
+def _hidden_defaults() -> list[str]:
+    """What no jail sees even where it lies inside Python's site-packages: the folders of the
+    entry points of HIDDEN_GROUPS (a teacher's pack of reference solutions, a teacher's
+    exercises with their graders), found once per process without importing them."""
+    global _hidden
+    if _hidden is None:
+        import importlib.util
+        from importlib.metadata import entry_points
+
+        found = set()
+        for group in HIDDEN_GROUPS:
+            try:
+                points = list(entry_points(group=group))
+            except Exception:  # noqa: BLE001 - a broken distribution hides nothing of its own
+                points = []
+            for ep in points:
+                module, _, sub = ep.value.partition(":")
+                try:
+                    spec = importlib.util.find_spec(module.split(".")[0])
+                except (ImportError, ValueError):
+                    continue
+                if spec is None:
+                    continue
+                if spec.submodule_search_locations:  # a package: its folders, all of them
+                    found |= {os.path.realpath(p) for p in spec.submodule_search_locations}
+                elif spec.origin and os.path.isfile(spec.origin):  # a module: its file
+                    found.add(os.path.realpath(spec.origin))
+        _hidden = sorted(found - {os.path.realpath(PACKAGE_PARENT + "/mexone")})
+    return _hidden
+
+
 def _python_paths() -> list[str]:
     """Python's installation, its site-packages and the folder holding mexone: what a jail
     reads besides the system's libraries (nothing else of the grader's sys.path: its working
@@ -183,7 +218,8 @@ def jail_plan(jail: Jail, scratch: Path, root: Path | None, slot: UidSlot | None
     uid = slot.uid if slot is not None else None
     return Plan(mode=iso.mode, scratch=str(scratch), root=str(root) if root else "",
                 readable=_python_paths() + [os.path.realpath(p) for p in jail.readable],
-                hidden=[os.path.realpath(p) for p in jail.hidden], uid=uid, gid=uid,
+                hidden=_hidden_defaults() + [os.path.realpath(p) for p in jail.hidden],
+                uid=uid, gid=uid,
                 user_namespace=iso.mode == "namespaces" and not iso.root,
                 network=jail.network, cpu=jail.limits.cpu, memory_mb=jail.limits.memory_mb,
                 landlock=iso.landlock, seccomp=iso.seccomp, parent=os.getpid())
