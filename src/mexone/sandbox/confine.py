@@ -124,7 +124,7 @@ class Plan:
     cpu: float = 60.0
     memory_mb: int = 2048
     file_mb: int = 1024
-    processes: int = 128
+    processes: int = 64
     landlock: int = 0  # the ABI to use, 0: none
     seccomp: bool = False
     parent: int = 0  # the jail ends when this process ends (0: not watched)
