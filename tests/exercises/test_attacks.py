@@ -12,6 +12,7 @@ keep it fast: a routine that must bend the elbow, and an estimate(data) of a hid
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import socket
@@ -282,3 +283,20 @@ def test_a_symlinked_submission_scores_nothing(tmp_path):
     result = grade(exercise, link)
     assert result.score == 0 and result.failure == \
         "routine.py is a symbolic link, not a file: hand in the file itself"
+
+
+def test_the_secret_is_never_in_a_report(tmp_path, monkeypatch):
+    """Even a submission that guessed the secret cannot have the grader print it: a reason and
+    an output that hold it show "[the secret]" instead."""
+    from mexone.exercises import grade, load_exercise
+    from mexone.exercises.grading import as_text, gradescope_json
+
+    monkeypatch.setenv("MEXONE_EXERCISE_SECRET", "hunter2-guessed")
+    exercise = load_exercise(_exercise(tmp_path / "exercise", ROUTINE_EXERCISE))
+    path = tmp_path / "routine.py"
+    path.write_text("print('the secret is hunter2-guessed')\n"
+                    "raise RuntimeError('hunter2-guessed')\n")
+    result = grade(exercise, path)
+    shown = as_text(result) + json.dumps(gradescope_json(result))
+    assert result.score == 0 and "hunter2-guessed" not in shown, shown
+    assert "RuntimeError: [the secret]" in result.failure, result.failure
