@@ -240,6 +240,8 @@ def prepare(jail: Jail) -> tuple[Path, Path, Path, bool, UidSlot | None]:
     slot = None
     if iso.root and iso.mode != "none":
         slot = UidSlot()
+        if iso.mode == "uid":  # what a jail of this uid left when its grader was killed
+            sweep(Plan(mode="uid", scratch="", uid=slot.uid))
         for folder, _, files in os.walk(scratch):
             for name in (folder, *(os.path.join(folder, f) for f in files)):
                 with contextlib.suppress(OSError):
