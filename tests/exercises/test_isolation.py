@@ -242,8 +242,33 @@ def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
     path.write_text(SPY)
     assert _spy_run(path, own_process=True).endswith("RuntimeError: found: nothing")
     inside = _spy_run(path, own_process=False)
-    assert "UntrustedCode: the grader's simulator runs no student code, and spy.py is not the " \
-        "grader's" in inside, inside
+    assert "UntrustedCode: the grader's simulator runs no student code, and spy.py (Python " \
+        "code) is not the grader's" in inside, inside
+
+
+def _load(path: str | Path) -> str:
+    from mexone.description.loader import load_model
+    from mexone.errors import MexoneError
+
+    try:
+        load_model(path)
+    except MexoneError as exc:
+        return exc.one_line()
+    return "loaded"
+
+
+def test_the_simulator_expands_no_students_xacro(tmp_path):
+    """xacro's expressions are Python: the simulator refuses a student's (a grader expands
+    one with ctx.run, in a jail); the robots mexone ships expand as ever."""
+    from mexone.exercises.isolate import run_jailed, run_trusted
+
+    path = tmp_path / "robot.urdf.xacro"
+    path.write_text('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                    '<link name="${\'base\'}"/></robot>\n')
+    with pytest.raises(SubmissionFailed, match=r"UntrustedCode: the grader's simulator runs no "
+                       r"student code, and robot.urdf.xacro \(a xacro file"):
+        run_trusted(_load, str(path))
+    assert run_jailed(_load, path) == "loaded"  # a copy of it, in the jail
 
 
 def _scan_for_grader_state() -> list[str]:

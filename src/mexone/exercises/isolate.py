@@ -48,8 +48,9 @@ from pathlib import Path
 from mexone import signals
 from mexone.errors import MexoneError
 from mexone.routines import processes
-from mexone.sandbox import Jail, Limits, confine, isolation, schema
+from mexone.sandbox import Jail, Limits, confine, isolation, schema, trust
 from mexone.sandbox.spawn import SECRET_ENV, jail_plan, prepare
+from mexone.sandbox.trust import UntrustedCode
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated", "run_jailed", "run_trusted",
            "active_limits", "prewarm", "UntrustedCode", "SECRET_ENV"]
@@ -66,10 +67,6 @@ class SubmissionFailed(Exception):  # noqa: N818 - it is what happened to the su
         super().__init__(reason)
         self.reason = reason
         self.output = output
-
-
-class UntrustedCode(RuntimeError):
-    """The simulator was about to run code from a file that is not the grader's: a student's."""
 
 
 _ACTIVE: Limits | None = None  # in a run: its limits
@@ -346,7 +343,7 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
                 confine.jail(plan, keep_fds=(result_fd,))  # from here on: the jail
             else:
                 _limit(limits)
-                sys.addaudithook(_TrustedOnly(folders))
+                trust.trust_only(_trusted_roots(folders))
             payload = {"ok": target(*args, **kwargs)}
             for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
                 with contextlib.suppress(Exception):
@@ -409,42 +406,18 @@ def _read_call(fd: int) -> tuple:
     return target, args, kwargs, [str(Path(file).resolve().parent) for _, file in modules]
 
 
-class _TrustedOnly:
-    """The simulator's audit hook: code may run from Python's installation, mexone and the
-    grader's folders only (a module imported, a file run: CPython's "exec" event), never from
-    a student's file (UntrustedCode)."""
+def _trusted_roots(folders: list[str]) -> list[str]:
+    """Where the simulator's code may come from: Python's installation (its standard library
+    and site-packages), mexone, and the folders of the grader's own modules."""
+    import mexone
 
-    def __init__(self, folders: list[str]):
-        import mexone
-
-        roots = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
-                 str(Path(mexone.__file__).resolve().parent), *folders}
-        roots |= {v for k, v in sysconfig.get_paths().items() if k in ("stdlib", "platstdlib",
-                                                                         "purelib", "platlib")}
-        roots |= {p for p in sys.path if p and os.path.basename(p) in ("site-packages",
-                                                                        "dist-packages")}
-        self.roots = tuple(sorted({os.path.realpath(r).rstrip("/") + "/" for r in roots if r}))
-        self.seen: dict[str, bool] = {}
-
-    def __call__(self, event: str, args: tuple) -> None:
-        if event == "exec":
-            name = getattr(args[0], "co_filename", "") if args else ""
-        elif event == "ctypes.dlopen":
-            name = str(args[0]) if args and args[0] else ""
-        else:
-            return
-        if not name or name.startswith("<") or self._trusted(name):
-            return
-        raise UntrustedCode(f"the grader's simulator runs no student code, and {Path(name).name} "
-                            "is not the grader's (a grader runs a student's file with ctx.run, "
-                            "in a jail)")
-
-    def _trusted(self, name: str) -> bool:
-        known = self.seen.get(name)
-        if known is None:
-            real = os.path.realpath(name)
-            known = self.seen[name] = real.startswith(self.roots)
-        return known
+    roots = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
+             str(Path(mexone.__file__).resolve().parent), *folders}
+    roots |= {v for k, v in sysconfig.get_paths().items() if k in ("stdlib", "platstdlib",
+                                                                     "purelib", "platlib")}
+    roots |= {p for p in sys.path if p and os.path.basename(p) in ("site-packages",
+                                                                    "dist-packages")}
+    return sorted(roots)
 
 
 def active_limits() -> Limits:
