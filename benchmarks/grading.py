@@ -2,7 +2,11 @@
 the shipped course, each on a folder of submissions (its reference and its starter), as a
 teacher grades a class; the wall time of each command (interpreter start included).
 
-    PYTHONPATH=src python benchmarks/grading.py [--repeat 1] [--only NAME ...]
+    PYTHONPATH=src python benchmarks/grading.py [--repeat 1] [--only NAME ...] [--ab OTHER_SRC]
+
+--ab OTHER_SRC pairs each run with one of another mexone (e.g. main's src, exported with
+`git archive`), alternating them exercise by exercise so both see the same load; the ratio is
+this one's wall time over the other's.
 
 The reference is the exercise's solution/ file if the course still carries it, else the
 teacher's pack's (MEXONE_TEACHER_PACK=DIR: DIR/NAME/solution/FILE). Record the table, the
@@ -47,33 +51,48 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=1, help="runs per exercise (the best kept)")
     parser.add_argument("--only", nargs="*", default=None, help="these exercises only")
+    parser.add_argument("--ab", type=Path, default=None, help="another mexone's src to pair with")
     args = parser.parse_args()
     print(f"load: {os.getloadavg()[0]:.1f} {os.getloadavg()[1]:.1f} {os.getloadavg()[2]:.1f} "
           f"(1, 5, 15 min) on {os.cpu_count()} cores")
-    total = 0.0
-    print(f"{'exercise':<24} {'subs':>4} {'wall s':>7}  scores")
+    sources = {"this": str(Path(__file__).resolve().parents[1] / "src")}
+    if args.ab is not None:
+        sources["other"] = str(args.ab.resolve())
+    totals = dict.fromkeys(sources, 0.0)
+    header = " ".join(f"{k + ' s':>8}" for k in sources)
+    print(f"{'exercise':<24} {'subs':>4} {header}{'  ratio' if args.ab else ''}  scores")
     for name in exercises():
         if args.only and name not in args.only:
             continue
         ex = find_exercise(name)
-        best = None
+        best: dict[str, float] = {}
+        scores = ""
         for _ in range(max(1, args.repeat)):
-            with tempfile.TemporaryDirectory() as tmp:
-                count = _class_folder(ex, Path(tmp) / "class")
-                began = time.perf_counter()
-                out = subprocess.run([sys.executable, "-m", "mexone", "exercise", "grade", name,
-                                      str(Path(tmp) / "class"), "--csv", "-"],
-                                     capture_output=True, text=True, check=False)
-                wall = time.perf_counter() - began
-            if out.returncode != 0:
-                print(f"{name}: exit {out.returncode}: {out.stderr.strip()[-300:]}")
-                break
-            scores = " ".join(row.split(",")[1] for row in out.stdout.splitlines()[1:])
-            best = wall if best is None else min(best, wall)
-        if best is not None:
-            total += best
-            print(f"{name:<24} {count:>4} {best:7.1f}  {scores}", flush=True)
-    print(f"{'the course':<24} {'':>4} {total:7.1f}")
+            for label, src in sources.items():
+                with tempfile.TemporaryDirectory() as tmp:
+                    count = _class_folder(ex, Path(tmp) / "class")
+                    began = time.perf_counter()
+                    out = subprocess.run([sys.executable, "-m", "mexone", "exercise", "grade",
+                                          name, str(Path(tmp) / "class"), "--csv", "-"],
+                                         capture_output=True, text=True, check=False,
+                                         env={**os.environ, "PYTHONPATH": src})
+                    wall = time.perf_counter() - began
+                if out.returncode != 0:
+                    print(f"{name} ({label}): exit {out.returncode}: {out.stderr.strip()[-300:]}")
+                    continue
+                if label == "this":
+                    scores = " ".join(row.split(",")[1] for row in out.stdout.splitlines()[1:])
+                best[label] = min(best.get(label, wall), wall)
+        if len(best) == len(sources):
+            for label in sources:
+                totals[label] += best[label]
+            shown = " ".join(f"{best[k]:8.1f}" for k in sources)
+            ratio = f"  {best['this'] / best['other']:5.2f}" if args.ab else ""
+            print(f"{name:<24} {count:>4} {shown}{ratio}  {scores}", flush=True)
+    shown = " ".join(f"{totals[k]:8.1f}" for k in sources)
+    ratio = f"  {totals['this'] / totals['other']:5.2f}" if args.ab and totals["other"] else ""
+    print(f"{'the course':<24} {'':>4} {shown}{ratio}")
+    print(f"load after: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":
