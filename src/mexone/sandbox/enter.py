@@ -7,12 +7,11 @@ imported, so nothing of mexone's or the parent's runs here."""
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-import confine  # noqa: E402 - this folder's module, by path: no package is imported
-
 
 def main(argv: list[str]) -> None:
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    import confine  # this folder's module, by path: no package is imported
+
     if argv[:1] == ["--probe"]:
         import json
 
