@@ -7,7 +7,10 @@
 - inside: 200 000 system calls (os.getppid) and 20 000 opens of a file, in a jail and outside
   (seccomp's filter runs on every call, Landlock's rules on every open).
 
-    PYTHONPATH=src python benchmarks/sandbox.py [--repeat 10]
+    PYTHONPATH=src python benchmarks/sandbox.py [--repeat 10] [--python /usr/bin/python3]
+
+--python: the interpreter of the start and system-call rows (a jail of another uid runs only
+a Python others may read: the system's, where this one lies in /root).
 
 Record the table and the load (uptime) in benchmarks/RESULTS.md.
 """
@@ -52,20 +55,21 @@ BARE = ("import os, time\nopen('/tmp/mexone-bench-f', 'w').close()\nt = time.per
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=10)
+    parser.add_argument("--python", default=sys.executable, help="the jails' interpreter")
     args = parser.parse_args()
     print(f"load: {' '.join(f'{x:.1f}' for x in os.getloadavg())} (1, 5, 15 min) on "
           f"{os.cpu_count()} cores")
     began = time.perf_counter()
     for _ in range(args.repeat):
-        subprocess.run([sys.executable, "-I", "-S", "-c", "pass"], check=True)
+        subprocess.run([args.python, "-I", "-S", "-c", "pass"], check=True)
     bare = (time.perf_counter() - began) / args.repeat
-    calls, opens = (float(x) for x in subprocess.run([sys.executable, "-I", "-S", "-c", BARE],
+    calls, opens = (float(x) for x in subprocess.run([args.python, "-I", "-S", "-c", BARE],
                                                      capture_output=True, text=True,
                                                      check=True).stdout.split())
     print(f"{'isolation':<11} {'start ms':>9} {'getppid ns':>11} {'open us':>8}")
     print(f"{'(no jail)':<11} {bare * 1e3:9.1f} {calls / 2e5 * 1e9:11.0f} {opens / 2e4 * 1e6:8.2f}")
     for mode in ("none", "uid", "namespaces"):
-        out = subprocess.run([sys.executable, "-c", CHILD, str(args.repeat)], capture_output=True,
+        out = subprocess.run([args.python, "-c", CHILD, str(args.repeat)], capture_output=True,
                              text=True, env={**os.environ, "MEXONE_SANDBOX": mode})
         lines = out.stdout.splitlines()
         if out.returncode != 0 or len(lines) < 2:

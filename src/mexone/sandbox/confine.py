@@ -27,16 +27,18 @@ machine offers it (`probe`):
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import os
 import resource
 import select
-import signal
 import struct
 import sys
 import time
-from dataclasses import asdict, dataclass, field
+
+try:  # the C module: `signal` imports enum, a third of this module's start in the jail's relay
+    import _signal as signal
+except ImportError:  # pragma: no cover - every CPython has it
+    import signal
 
 __all__ = ["Plan", "jail", "probe", "sweep", "JailError", "SYSTEM_ETC"]
 
@@ -107,33 +109,69 @@ class JailError(OSError):
     """The jail could not be set up as planned (the relay reports it, exit status 3)."""
 
 
-@dataclass
 class Plan:
     """What one jail is: how (`mode`: "namespaces", "uid" or "none"), where it writes
-    (`scratch`), what it reads, as whom, with which limits. Paths are absolute and resolved."""
+    (`scratch`), what it reads, as whom, with which limits. Paths are absolute and resolved.
+    (A plain class, not a dataclass: dataclasses imports inspect, which the relay's start
+    would pay for.)"""
+
+    FIELDS = {  # name: (kind, default)
+        "mode": (str, "none"),
+        "scratch": (str, ""),
+        "root": (str, ""),  # an empty folder the new root is mounted on (namespaces)
+        "readable": (list, ()),
+        "hidden": (list, ()),  # inside readable ones: not shown
+        "uid": (int | None, None),  # run as this uid (the grader is root)
+        "gid": (int | None, None),
+        "user_namespace": (bool, False),  # the grader is not root: a user namespace of its own
+        "network": (bool, False),
+        "cpu": (float, 60.0),
+        "memory_mb": (int, 2048),
+        "file_mb": (int, 1024),
+        "processes": (int, 64),
+        "landlock": (int, 0),  # the ABI to use, 0: none
+        "seccomp": (bool, False),
+        "parent": (int, 0),  # the jail ends when this process ends (0: not watched)
+    }
 
     mode: str
     scratch: str
-    root: str = ""  # an empty folder the new root is mounted on (namespaces)
-    readable: list[str] = field(default_factory=list)
-    hidden: list[str] = field(default_factory=list)  # inside readable ones: not shown
-    uid: int | None = None  # run as this uid (the grader is root)
-    gid: int | None = None
-    user_namespace: bool = False  # the grader is not root: a user namespace of its own
-    network: bool = False
-    cpu: float = 60.0
-    memory_mb: int = 2048
-    file_mb: int = 1024
-    processes: int = 64
-    landlock: int = 0  # the ABI to use, 0: none
-    seccomp: bool = False
-    parent: int = 0  # the jail ends when this process ends (0: not watched)
+    root: str
+    readable: list[str]
+    hidden: list[str]
+    uid: int | None
+    gid: int | None
+    user_namespace: bool
+    network: bool
+    cpu: float
+    memory_mb: int
+    file_mb: int
+    processes: int
+    landlock: int
+    seccomp: bool
+    parent: int
+
+    def __init__(self, **values: object):
+        unknown = set(values) - set(self.FIELDS)
+        if unknown:
+            raise TypeError(f"Plan has no field {sorted(unknown)[0]!r}")
+        for name, (kind, default) in self.FIELDS.items():
+            value = values.get(name, default)
+            setattr(self, name, list(value) if kind is list else value)
+
+    def __repr__(self) -> str:
+        return "Plan(" + ", ".join(f"{n}={getattr(self, n)!r}" for n in self.FIELDS) + ")"
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Plan) and all(getattr(self, n) == getattr(other, n)
+                                               for n in self.FIELDS)
 
     def dumps(self) -> str:
         """One line of text: `name=value` fields, a list's items apart by \\x1f (json's import
         would cost the jail's relay more than the rest of its start)."""
         out = []
-        for name, value in asdict(self).items():
+        for name in self.FIELDS:
+            value = getattr(self, name)
             shown = "\x1f".join(value) if isinstance(value, list) else \
                 "" if value is None else str(int(value)) if isinstance(value, bool) else str(value)
             out.append(f"{name}={shown}")
@@ -141,22 +179,34 @@ class Plan:
 
     @classmethod
     def loads(cls, text: str) -> Plan:
-        kinds = {"list": list, "int": int, "float": float, "bool": bool}
         values: dict = {}
         for item in text.split("\x1e"):
             name, _, shown = item.partition("=")
-            kind = next((k for k in kinds if k in str(cls.__dataclass_fields__[name].type)), "")
-            if kind == "list":
+            kind, default = cls.FIELDS[name]
+            if kind is list:
                 values[name] = shown.split("\x1f") if shown else []
-            elif shown == "" and "None" in str(cls.__dataclass_fields__[name].type):
+            elif shown == "" and default is None:
                 values[name] = None
-            elif kind == "bool":
+            elif kind is bool:
                 values[name] = shown == "1"
-            elif kind in ("int", "float"):
-                values[name] = kinds[kind](shown)
+            elif kind in (int, float):
+                values[name] = kind(shown)
+            elif kind == int | None:
+                values[name] = int(shown)
             else:
                 values[name] = shown
         return cls(**values)
+
+
+class _suppress:  # contextlib.suppress without contextlib's imports (the relay's start)
+    def __init__(self, *kinds: type[BaseException]):
+        self.kinds = kinds
+
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, kind, value, tb) -> bool:
+        return kind is not None and issubclass(kind, self.kinds)
 
 
 # ----- the C library ------------------------------------------------------------------------
@@ -298,7 +348,7 @@ def _guard(step) -> None:
     try:
         step()
     except Exception as exc:  # noqa: BLE001 - any failure of the set-up: one line, status 3
-        with contextlib.suppress(OSError):
+        with _suppress(OSError):
             os.write(2, f"mexone sandbox: cannot set up the jail: {exc}\n".encode())
         os._exit(3)
 
@@ -316,7 +366,7 @@ def _map_user() -> None:
     """In a fresh user namespace: the jail's uid and gid are JAIL_UID, standing for this
     process's own outside (the only mapping an unprivileged process may write)."""
     uid, gid = os.geteuid(), os.getegid()
-    with contextlib.suppress(FileNotFoundError):
+    with _suppress(FileNotFoundError):
         _write("/proc/self/setgroups", "deny")
     _write("/proc/self/uid_map", f"{JAIL_UID} {uid} 1")
     _write("/proc/self/gid_map", f"{JAIL_UID} {gid} 1")
@@ -339,9 +389,9 @@ def _relay(plan: Plan, pid: int, report: int) -> None:
         else:
             status = raw
     except _Stop:
-        with contextlib.suppress(ProcessLookupError):
+        with _suppress(ProcessLookupError):
             os.kill(pid, signal.SIGKILL)
-        with contextlib.suppress(ChildProcessError, _Stop):
+        with _suppress(ChildProcessError, _Stop):
             os.waitpid(pid, 0)
         status = signal.SIGKILL
     for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
@@ -376,13 +426,13 @@ def _wait(pid: int, parent: int) -> int:
 def _end_as(status: int) -> None:
     """End this process as the wait status `status` says the jail's program ended."""
     for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
+        with _suppress(Exception):
             stream.flush()
     if os.WIFSIGNALED(status):
         sig = os.WTERMSIG(status)
-        with contextlib.suppress(ValueError, OSError):
+        with _suppress(ValueError, OSError):
             resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
-        with contextlib.suppress(OSError, ValueError):
+        with _suppress(OSError, ValueError):
             signal.signal(sig, signal.SIG_DFL)
             signal.pthread_sigmask(signal.SIG_UNBLOCK, [sig])
             os.kill(os.getpid(), sig)
@@ -399,7 +449,7 @@ def _init(program: int, report: int) -> None:
         except ChildProcessError:
             os._exit(0)
         if pid == program:
-            with contextlib.suppress(OSError):
+            with _suppress(OSError):
                 os.write(report, struct.pack("i", status))
             os._exit(0)
 
@@ -417,13 +467,13 @@ def sweep(plan: Plan) -> None:
         if not left:
             return
         for pid in left:
-            with contextlib.suppress(ProcessLookupError, PermissionError):
+            with _suppress(ProcessLookupError, PermissionError):
                 os.kill(pid, signal.SIGKILL)
         _reap()
 
 
 def _reap() -> None:
-    with contextlib.suppress(ChildProcessError):
+    with _suppress(ChildProcessError):
         while os.waitpid(-1, os.WNOHANG)[0] > 0:
             pass
 
@@ -440,7 +490,7 @@ def _running(pid: str) -> bool:
 def _orphans() -> set[int]:
     """This process's children (a subreaper adopts the jail's orphans), running."""
     found = set()
-    with contextlib.suppress(OSError):
+    with _suppress(OSError):
         for task in os.listdir("/proc/self/task"):
             with open(f"/proc/self/task/{task}/children") as f:
                 found |= {int(p) for p in f.read().split() if _running(p)}
@@ -449,7 +499,7 @@ def _orphans() -> set[int]:
 
 def _of_uid(uid: int) -> set[int]:
     found = set()
-    with contextlib.suppress(OSError):
+    with _suppress(OSError):
         for entry in os.listdir("/proc"):
             if entry.isdigit():
                 try:
@@ -554,9 +604,9 @@ def _build_root(plan: Plan) -> None:
             _bind(path, target, writable=(kind == "rw"))
     _dev(root)
     os.makedirs(root + "/proc", exist_ok=True)
-    with contextlib.suppress(OSError):  # refused where /proc is masked (a container): no /proc
+    with _suppress(OSError):  # refused where /proc is masked (a container): no /proc
         _mount("proc", root + "/proc", "proc", MS_NOSUID | MS_NODEV | MS_NOEXEC)
-    with contextlib.suppress(OSError):
+    with _suppress(OSError):
         _ok(_syscall("sethostname", b"mexone-jail", 11), "sethostname")
     os.chdir(root)
     if _syscall("pivot_root", b".", b".") == 0:  # the old root is stacked on ".": detach it
@@ -599,10 +649,10 @@ def _confine(plan: Plan, keep_fds: tuple[int, ...]) -> None:
     resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
     for limit, value in ((resource.RLIMIT_AS, plan.memory_mb << 20), (resource.RLIMIT_CORE, 0),
                          (resource.RLIMIT_FSIZE, plan.file_mb << 20)):
-        with contextlib.suppress(ValueError, OSError):
+        with _suppress(ValueError, OSError):
             resource.setrlimit(limit, (value, value))
     if plan.mode != "none" or plan.uid is not None:  # counted per user: the jail's own
-        with contextlib.suppress(ValueError, OSError):
+        with _suppress(ValueError, OSError):
             resource.setrlimit(resource.RLIMIT_NPROC, (plan.processes, plan.processes))
     os.chdir(plan.scratch)
     _ok(_prctl(PR_SET_NO_NEW_PRIVS, 1), "no_new_privs")
@@ -611,10 +661,10 @@ def _confine(plan: Plan, keep_fds: tuple[int, ...]) -> None:
     if plan.seccomp:
         _seccomp(plan.network)
     keep = {0, 1, 2, *keep_fds}
-    with contextlib.suppress(OSError):
+    with _suppress(OSError):
         for fd in [int(x) for x in os.listdir("/proc/self/fd")]:
             if fd not in keep:
-                with contextlib.suppress(OSError):
+                with _suppress(OSError):
                     os.close(fd)
 
 
@@ -691,7 +741,7 @@ def _allow(ruleset: int, path: str, access: int, hidden) -> None:
     rule goes to each of its entries but the hidden one instead (Landlock only allows)."""
     inside = [h for h in hidden if h.startswith(path.rstrip("/") + "/")]
     if inside and os.path.isdir(path):
-        with contextlib.suppress(OSError):
+        with _suppress(OSError):
             for name in os.listdir(path):
                 child = os.path.join(path, name)
                 if child in hidden:
