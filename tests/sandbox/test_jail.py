@@ -69,7 +69,8 @@ SPAWNER = textwrap.dedent('''
     import json, subprocess, sys
     from mexone.sandbox import Jail, spawn
     python, other, port = sys.argv[1:4]
-    with spawn([python, "-c", sys.argv[4], other, port], Jail(), stdout=subprocess.PIPE) as p:
+    jail = Jail(another_user=sys.argv[5:6] == ["grader"])
+    with spawn([python, "-c", sys.argv[4], other, port], jail, stdout=subprocess.PIPE) as p:
         out, _ = p.popen.communicate(timeout=60)
         code = p.returncode
     print(json.dumps({"code": code, "out": out.decode()}))
@@ -131,13 +132,15 @@ def _shared_folder() -> Path:
     return folder
 
 
+@pytest.mark.parametrize("who", ["grader", "lab"])
 @pytest.mark.parametrize("mode", _modes())
 def test_a_jail_reads_no_secret_writes_nothing_outside_leaves_nothing_and_has_no_network(
-        mode, listener, monkeypatch):
+        mode, who, listener, monkeypatch):
     """The grader runs under `timeout` with the secret in its environment (as a course's
     run_autograder would): no process the jail can see holds it; another student's file is
     unchanged; the 40 sleeps in sessions of their own end with the jail; no socket reaches a
-    server listening on the grader's loopback."""
+    server listening on the grader's loopback. A grader's jail (a uid of the pool, as root) and
+    the lab's (the spawner's uid, no capabilities) alike."""
     folder = _shared_folder()
     other = folder / "zzz.py"
     other.write_text("zzz's submission\n")
@@ -145,8 +148,9 @@ def test_a_jail_reads_no_secret_writes_nothing_outside_leaves_nothing_and_has_no
     env = {**os.environ, MODE_ENV: mode, "MEXONE_EXERCISE_SECRET": SECRET,
            "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
     try:
-        out = subprocess.run(["timeout", "120", sys.executable, "-c", SPAWNER, _python(mode),
-                              str(other), str(listener.getsockname()[1]), ATTACK], env=env,
+        python = _python(mode if who == "grader" else "none")
+        out = subprocess.run(["timeout", "120", sys.executable, "-c", SPAWNER, python,
+                              str(other), str(listener.getsockname()[1]), ATTACK, who], env=env,
                              capture_output=True, text=True, timeout=150, cwd=folder)
         assert out.returncode == 0, out.stderr
         report = json.loads(out.stdout)
@@ -182,7 +186,7 @@ def test_a_grader_that_is_not_root_gets_a_user_namespace(listener):
         src = Path(__file__).resolve().parents[2] / "src"
         command = (f"cd {folder} && MEXONE_EXERCISE_SECRET={SECRET} PYTHONPATH={src} timeout 120 "
                    f"{python} spawner.py {python} {other} {listener.getsockname()[1]} "
-                   f"\"$(cat attack.py)\"")
+                   f"\"$(cat attack.py)\" grader")
         out = subprocess.run(["su", "nobody", "-s", "/bin/sh", "-c", command],
                              capture_output=True, text=True, timeout=150)
         assert out.returncode == 0, out.stderr
@@ -247,10 +251,31 @@ def test_what_a_jail_may_read(mode, monkeypatch):
         ''')
         monkeypatch.setenv(MODE_ENV, mode)
         monkeypatch.setattr(sys.modules["mexone.sandbox.spawn"], "_isolation", None)
-        jail = Jail(readable=(pack,), hidden=(pack / "solutions",))
+        jail = Jail(readable=(pack,), hidden=(pack / "solutions",), another_user=True)
         with spawn([_python(mode), "-c", code], jail, stdout=subprocess.PIPE) as proc:
             out = json.loads(proc.popen.stdout.read())
         assert out["visible.txt"] == "seen", out
         assert out["answer.py"] != "ANSWER = 42" and out["elsewhere.txt"] != "not for the jail", out
     finally:
         shutil.rmtree(folder, ignore_errors=True)
+
+
+def test_a_jail_of_the_spawners_own_uid_makes_no_set_uid_file():
+    """A root lab's jail runs as root without capabilities: it may not mark a file of its own
+    set-user-ID (it would be root's outside), by chmod or at creation."""
+    code = textwrap.dedent('''
+        import os
+        out = []
+        open("f", "w").close()
+        for call in (lambda: os.chmod("f", 0o4755), lambda: os.chmod("f", 0o2755),
+                     lambda: os.close(os.open("g", os.O_CREAT | os.O_WRONLY, 0o4755))):
+            try:
+                call()
+                out.append("allowed")
+            except PermissionError:
+                out.append("refused")
+        os.chmod("f", 0o755)
+        print(" ".join(out), oct(os.stat("f").st_mode & 0o7777))
+    ''')
+    with spawn([sys.executable, "-c", code], Jail(), stdout=subprocess.PIPE) as proc:
+        assert proc.popen.stdout.read().decode().split() == ["refused"] * 3 + ["0o755"]

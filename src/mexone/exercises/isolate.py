@@ -85,7 +85,7 @@ def run_jailed(target: Callable, *args, limits: Limits = DEFAULTS,
     """`target(*args, **kwargs)` in a jail (see the module's docstring); its return value, read
     against its return annotation. A `Path` among the arguments is copied into the jail's
     scratch folder and `target` gets the copy; `readable` folders it may read as they are."""
-    jail = Jail(limits=limits, readable=tuple(readable))
+    jail = Jail(limits=limits, readable=tuple(readable), another_user=True)
     work, scratch, root, _, slot = prepare(jail)
     try:
         inputs = scratch / "inputs"

@@ -88,7 +88,8 @@ class _Proxy:
         self.lab = context.lab
         ours, theirs = socket.socketpair()
         self.sock = ours
-        jail = Jail(readable=(path,), limits=Limits(cpu=runner.cpu, memory_mb=runner.memory_mb))
+        jail = Jail(readable=(path,), limits=Limits(cpu=runner.cpu, memory_mb=runner.memory_mb),
+                    another_user=True)  # a grader's: a uid of the pool as root
         try:
             self.process = spawn([sys.executable, "-m", "mexone.routines.remote",
                                   str(theirs.fileno())], jail, pass_fds=(theirs.fileno(),))

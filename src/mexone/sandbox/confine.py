@@ -77,7 +77,9 @@ _SYSCALLS = {
                "syslog": 103, "sethostname": 170, "setdomainname": 171, "settimeofday": 164,
                "clock_settime": 227, "kcmp": 312, "iopl": 172, "ioperm": 173, "vhangup": 153,
                "uselib": 134, "landlock_create_ruleset": 444, "landlock_add_rule": 445,
-               "landlock_restrict_self": 446},
+               "landlock_restrict_self": 446, "chmod": 90, "fchmod": 91, "fchmodat": 268,
+               "fchmodat2": 452, "open": 2, "openat": 257, "creat": 85, "mknod": 133,
+               "mknodat": 259, "openat2": 437},
     "aarch64": {"socket": 198, "clone": 220, "clone3": 435, "unshare": 97, "setns": 268,
                 "mount": 40, "umount2": 39, "pivot_root": 41, "chroot": 51, "ptrace": 117,
                 "process_vm_readv": 270, "process_vm_writev": 271, "bpf": 280,
@@ -91,7 +93,8 @@ _SYSCALLS = {
                 "syslog": 116, "sethostname": 161, "setdomainname": 162, "settimeofday": 170,
                 "clock_settime": 112, "kcmp": 272, "vhangup": 58,
                 "landlock_create_ruleset": 444, "landlock_add_rule": 445,
-                "landlock_restrict_self": 446},
+                "landlock_restrict_self": 446, "fchmod": 52, "fchmodat": 53, "fchmodat2": 452,
+                "openat": 56, "mknodat": 33, "openat2": 437},
 }
 _AUDIT_ARCH = {"x86_64": 0xC000003E, "aarch64": 0xC00000B7}
 # what seccomp refuses in a jail (EPERM): changing what the jail is, or reaching past it
@@ -770,6 +773,8 @@ def _add_rule(ruleset: int, path: str, access: int) -> None:
 
 # ----- seccomp --------------------------------------------------------------------------------
 _LD, _JEQ, _JGE, _JSET, _RET = 0x20, 0x15, 0x35, 0x45, 0x06
+_MODE_ARGS = (("chmod", 1), ("fchmod", 1), ("fchmodat", 2), ("fchmodat2", 2), ("open", 2),
+              ("openat", 3), ("creat", 1), ("mknod", 1), ("mknodat", 2))  # (call, its mode)
 _ALLOW, _ERRNO, _KILL = 0x7FFF0000, 0x00050000, 0x80000000
 
 
@@ -795,11 +800,18 @@ def _program(network: bool, allow_all: bool = False) -> list[tuple[int, object, 
         if name in table:
             prog.append((_JEQ, "eperm", 0, table[name]))
     prog.append((_JEQ, "enosys", 0, table["clone3"]))  # its flags are out of reach: use clone
+    prog.append((_JEQ, "enosys", 0, table["openat2"]))  # its mode too: glibc's open is openat
+    for name, arg in _MODE_ARGS:  # no set-user/group-ID bit on a file it makes (a root's jail)
+        if name in table:
+            prog.append((_JEQ, f"mode{arg}", 0, table[name]))
     prog.append((_JEQ, "clone", 0, table["clone"]))
     if not network:
         prog.append((_JEQ, "socket", 0, table["socket"]))
     prog.append((_RET, 0, 0, _ALLOW))
     namespaces = NAMESPACES
+    for arg in sorted({a for _, a in _MODE_ARGS}):
+        prog += [(f"mode{arg}", None), (_LD, 0, 0, 16 + 8 * arg), (_JSET, "eperm", 0, 0o6000),
+                 (_RET, 0, 0, _ALLOW)]
     prog += [("clone", None), (_LD, 0, 0, 16), (_JSET, "eperm", 0, namespaces), (_RET, 0, 0, _ALLOW),
              ("socket", None), (_LD, 0, 0, 16), (_JEQ, 0, "noaf", 1), (_RET, 0, 0, _ALLOW),
              ("noaf", None), (_RET, 0, 0, _ERRNO | 97),  # EAFNOSUPPORT
@@ -821,6 +833,8 @@ def _assemble(prog: list) -> list[tuple[int, int, int, int]]:
         def jump(to, i=i):
             return to if isinstance(to, int) else labels[to] - i - 1
         code.append((op, jump(jt), jump(jf), k))
+        if not (0 <= code[-1][1] <= 255 and 0 <= code[-1][2] <= 255):
+            raise JailError(22, "the seccomp filter's jumps are too long")
     return code
 
 

@@ -54,13 +54,16 @@ class Jail:
     the system's libraries, Python's installation and mexone (as root, they must be readable
     by others: the jail runs as another user), `hidden` folders inside those it must not see
     (what a teacher installed beside mexone is hidden anyway: HIDDEN_GROUPS), its `limits`,
-    and whether it may use the network."""
+    and whether it may use the network. `another_user`: a root spawner's jail runs as a uid of
+    the pool (a grader's: its readable folders must then be readable by others); else as the
+    spawner's uid, with no capabilities (the lab: a student's own files, wherever they are)."""
 
     scratch: Path | None = None
     readable: tuple[Path, ...] = ()
     limits: Limits = field(default_factory=Limits)
     network: bool = False
     hidden: tuple[Path, ...] = ()
+    another_user: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,9 +81,10 @@ class Isolation:
     def describe(self) -> str:
         layers = {"namespaces": "PID, mount, network, IPC and UTS namespaces"
                   + ("" if self.root else " in a user namespace"),
-                  "uid": "another uid", "none": "no namespace, the grader's own uid"}[self.mode]
+                  "uid": "no namespace, another uid for a grader's",
+                  "none": "no namespace, the grader's own uid"}[self.mode]
         if self.mode == "namespaces" and self.root:
-            layers += ", another uid"
+            layers += ", another uid for a grader's"
         layers += f", Landlock ABI {self.landlock}" if self.landlock else ", no Landlock"
         layers += ", seccomp" if self.seccomp else ", no seccomp"
         return f"{layers}, resource limits"
@@ -238,7 +242,7 @@ def prepare(jail: Jail) -> tuple[Path, Path, Path, bool, UidSlot | None]:
     root = work / "root"
     root.mkdir()
     slot = None
-    if iso.root and iso.mode != "none":
+    if iso.root and iso.mode != "none" and jail.another_user:
         slot = UidSlot()
         if iso.mode == "uid":  # what a jail of this uid left when its grader was killed
             sweep(Plan(mode="uid", scratch="", uid=slot.uid))
