@@ -221,10 +221,11 @@ def _lib():
     if _libc is None:
         _libc = ctypes.CDLL(None, use_errno=True)
         _libc.syscall.restype = ctypes.c_long
-        _libc.mount.argtypes = (ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
-                                ctypes.c_ulong, ctypes.c_char_p)
-        _libc.prctl.argtypes = (ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
-                                ctypes.c_ulong)
+        if sys.platform == "linux":
+            _libc.mount.argtypes = (ctypes.c_char_p, ctypes.c_char_p, ctypes.c_char_p,
+                                    ctypes.c_ulong, ctypes.c_char_p)
+            _libc.prctl.argtypes = (ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong,
+                                    ctypes.c_ulong, ctypes.c_ulong)
     return _libc
 
 
@@ -247,6 +248,9 @@ def _syscall(name: str, *args) -> int:
 
 
 def _prctl(option: int, arg: int = 0) -> int:
+    """Linux's prctl; elsewhere 0 (nothing to set: the jail there is its limits)."""
+    if sys.platform != "linux":
+        return 0
     return _lib().prctl(option, arg, 0, 0, 0)
 
 
