@@ -172,9 +172,11 @@ def test_a_jail_reads_no_secret_writes_nothing_outside_leaves_nothing_and_has_no
 
 @pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0 or not shutil.which("su"),
                     reason="a grader that is not root is tried from root (su nobody)")
-def test_a_grader_that_is_not_root_gets_a_user_namespace(listener):
+@pytest.mark.parametrize("mode", ["namespaces", "none"])
+def test_a_grader_that_is_not_root_gets_a_user_namespace(mode, listener):
     """The same attacks from a grader running as nobody: a user namespace of its own (where
-    the machine allows unprivileged user namespaces), else Landlock alone."""
+    the machine allows unprivileged user namespaces), else ("none") Landlock alone keeps the
+    secret of the `timeout` above it, which runs as the same user."""
     folder = _shared_folder()
     other = folder / "zzz.py"
     other.write_text("zzz's submission\n")
@@ -184,7 +186,8 @@ def test_a_grader_that_is_not_root_gets_a_user_namespace(listener):
         for name, text in (("spawner.py", SPAWNER), ("attack.py", ATTACK)):
             (folder / name).write_text(text)
         src = Path(__file__).resolve().parents[2] / "src"
-        command = (f"cd {folder} && MEXONE_EXERCISE_SECRET={SECRET} PYTHONPATH={src} timeout 120 "
+        command = (f"cd {folder} && MEXONE_SANDBOX={mode} MEXONE_EXERCISE_SECRET={SECRET} "
+                   f"PYTHONPATH={src} timeout 120 "
                    f"{python} spawner.py {python} {other} {listener.getsockname()[1]} "
                    f"\"$(cat attack.py)\" grader")
         out = subprocess.run(["su", "nobody", "-s", "/bin/sh", "-c", command],
