@@ -291,12 +291,12 @@ def test_the_secret_is_never_in_a_report(tmp_path, monkeypatch):
     from mexone.exercises import grade, load_exercise
     from mexone.exercises.grading import as_text, gradescope_json
 
-    monkeypatch.setenv("MEXONE_EXERCISE_SECRET", "hunter2-guessed")
+    monkeypatch.setenv("MEXONE_EXERCISE_SECRET", "hunter2-guessed-secret")
     exercise = load_exercise(_exercise(tmp_path / "exercise", ROUTINE_EXERCISE))
     path = tmp_path / "routine.py"
-    path.write_text("print('the secret is hunter2-guessed')\n"
-                    "raise RuntimeError('hunter2-guessed')\n")
+    path.write_text("print('the secret is hunter2-guessed-secret')\n"
+                    "raise RuntimeError('hunter2-guessed-secret')\n")
     result = grade(exercise, path)
     shown = as_text(result) + json.dumps(gradescope_json(result))
-    assert result.score == 0 and "hunter2-guessed" not in shown, shown
+    assert result.score == 0 and "hunter2-guessed-secret" not in shown, shown
     assert "RuntimeError: [the secret]" in result.failure, result.failure
