@@ -10,7 +10,8 @@ apt_packages=()
 command -v check_urdf >/dev/null 2>&1 || apt_packages+=(liburdfdom-tools)
 command -v cmake >/dev/null 2>&1 || apt_packages+=(cmake)  # building tf2_msgs for ROS 2
 command -v chromium >/dev/null 2>&1 || apt_packages+=(chromium)  # the GUI's browser tests
-command -v npm >/dev/null 2>&1 || apt_packages+=(nodejs npm)  # Foxglove's own client (tests/foxglove_ws)
+command -v npm >/dev/null 2>&1 || apt_packages+=(nodejs npm)  # Foxglove's client, JupyterHub's proxy
+dpkg -s python3-venv >/dev/null 2>&1 || apt_packages+=(python3-venv)  # the students' venv (tests/hub)
 # ROS 1 from Debian: the real roscore, rostopic, robot_state_publisher, rospy and tf2 to test against
 ros_packages=(ros-core python3-rospy python3-rostopic ros-robot-state-publisher python3-std-msgs
               python3-sensor-msgs python3-std-srvs python3-rosgraph-msgs python3-tf2-msgs
@@ -48,5 +49,11 @@ python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs:
 export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
 # Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
 npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
+# A class on this machine (tests/hub): JupyterHub's proxy from npm, and the students' Jupyter
+# with mexone's launcher entry in a venv of Debian's Python (students cannot enter /root, where
+# pyenv's lives). The pip line is deploy/zero-to-jupyterhub/Dockerfile's (tests/hub/test_deploy.py)
+npm install --prefix tests/hub --no-audit --no-fund --silent
+[ -x .venv-hub/bin/python ] || /usr/bin/python3 -m venv .venv-hub
+.venv-hub/bin/python -m pip install -q --disable-pip-version-check -e ".[hub]" jupyterhub
 python3 -m ruff check .
 python3 -m pytest "$@"

@@ -11,10 +11,20 @@ The convention (docs/contributing.md says the same for writers):
     needs: ros1     a roscore is started for the block (on a free port) and
                     `eval "$(mexone ros-env)"` runs first, as a reader's ~/.bashrc has it
     needs: display  the block runs under a virtual X server (`xvfb-run -a`)
+    needs: ros2     `mexone` and `python` are MEXONE_ROS2_PYTHON's (PyPI's ROS 2 wheels) with
+                    the wheel under test first on its path and the message packages
+                    `python -m mexone.ros2.interfaces` builds hidden: a reader's venv right
+                    after `pip install ".[ros2]"`; DDS on this machine, in a domain of its own
     timeout: S      the block's budget in seconds
     expect: TEXT    its output must contain TEXT (a figure the page states, checked)
     serves: PORT    a server: it passes once http://127.0.0.1:PORT answers, then gets Ctrl-C
-    file: NAME      not run: the block is written to NAME (a routine the next block runs)
+    file: NAME      not run: the block (of any kind: python, yaml, ...) is written to NAME,
+                    for the next blocks (a routine, a controllers YAML)
+- `<!-- output -->` before a block that is shown, not run (```text): it shows what the last
+  run block above it prints, and each of its lines must be a line of that run's output
+  (`...` stands for any text: a port, a time); a promised message that never appears fails;
+- a page must not tell a reader to `pip install mexone` or `'mexone[extra]'` (mexone is on no
+  package index: `pip install ".[extra]"` from a clone), nor name an extra pyproject.toml lacks.
 """
 
 from __future__ import annotations
@@ -36,7 +46,7 @@ from pathlib import Path
 __all__ = ["Block", "Outcome", "blocks", "run_block", "pages", "report"]
 
 RUN = ("bash", "python")
-NEEDS = ("ros1", "display")
+NEEDS = ("ros1", "display", "ros2")
 DEFAULT_TIMEOUT = 60.0
 _SERVING = threading.Lock()  # one server at a time: two pages may both serve on 8080
 
@@ -52,6 +62,7 @@ class Block:
     expect: tuple[str, ...] = ()
     serves: int | None = None
     file: str | None = None
+    output: tuple[tuple[int, str], ...] = ()  # (page line, text) of what the page says it prints
 
     def where(self, root: Path) -> str:
         page = self.page.relative_to(root) if self.page.is_relative_to(root) else self.page
@@ -78,9 +89,12 @@ def pages(root: Path) -> list[Path]:
 
 
 def _options(comment: str, where: str) -> dict:
-    """A marker comment's options; a comment that is prose (no leading `word:`) marks nothing."""
+    """A marker comment's options; a comment that is prose (no leading `word:`, and not
+    `output`) marks nothing."""
     body = comment.strip().removeprefix("<!--").removesuffix("-->").strip()
     options: dict = {}
+    if body == "output":
+        return {"output": True}
     if not re.match(r"[a-z_]+\s*:", body):
         return options
     for item in filter(None, (part.strip() for part in body.split(";"))):
@@ -88,7 +102,7 @@ def _options(comment: str, where: str) -> dict:
         key, value = key.strip(), value.strip()
         if not sep or key not in ("needs", "timeout", "expect", "serves", "file"):
             raise ValueError(f"{where}: unknown block marker '{item}' "
-                             "(needs, timeout, expect, serves, file)")
+                             "(needs, timeout, expect, serves, file; or output alone)")
         if key == "needs":
             unknown = set(value.split()) - set(NEEDS)
             if unknown:
@@ -106,23 +120,72 @@ def _options(comment: str, where: str) -> dict:
 
 
 def blocks(page: Path) -> list[Block]:
-    """The ```bash and ```python blocks of a Markdown page, with their markers."""
+    """The ```bash and ```python blocks of a Markdown page and those it saves to a file (`file:`),
+    with their markers and the output
+    the page shows for them (`<!-- output -->`). A page that tells a reader to install mexone
+    from a package index, a misspelt marker or an output block with no run before it is a
+    ValueError naming the page and line."""
     from markdown_it import MarkdownIt
 
-    tokens = MarkdownIt("commonmark").parse(page.read_text())
-    found = []
+    text = page.read_text()
+    check_installs(page, text)
+    tokens = MarkdownIt("commonmark").parse(text)
+    found: list[dict] = []
     for i, token in enumerate(tokens):
-        lang = token.info.split()[0] if token.type == "fence" and token.info else ""
-        if lang not in RUN:
+        if token.type != "fence":
             continue
+        lang = token.info.split()[0] if token.info else ""
         line = token.map[0] + 1
         before = tokens[i - 1] if i else None
         options = {}
         if (before is not None and before.type == "html_block"
                 and before.content.lstrip().startswith("<!--") and before.map[1] >= token.map[0] - 1):
             options = _options(before.content, f"{page}:{before.map[0] + 1}")
-        found.append(Block(page, line, lang, token.content, **options))
-    return found
+        if options.pop("output", False):
+            if lang in RUN:
+                raise ValueError(f"{page}:{line}: an output marker goes before the block that "
+                                 "shows a run's output (```text), not before a run block")
+            if not found or found[-1].get("file"):
+                raise ValueError(f"{page}:{line}: output shown with no run block before it")
+            shown = tuple((line + 1 + k, text.strip()) for k, text in
+                          enumerate(token.content.splitlines()) if text.strip())
+            found[-1]["output"] = found[-1].get("output", ()) + shown
+        elif lang in RUN or options.get("file"):  # a file of any kind: a YAML, a routine
+            found.append(dict(page=page, line=line, lang=lang, code=token.content, **options))
+        elif options:
+            raise ValueError(f"{page}:{line}: a ```{lang or 'plain'} block is not run: its "
+                             "marker does nothing (bash and python blocks run; file: saves any)")
+    return [Block(**kwargs) for kwargs in found]
+
+
+_INSTALL = re.compile(r"pip3? install ([^`\n#();&|]*)")  # its arguments: to a comment, `, ( ...
+
+
+def check_installs(page: Path, text: str) -> None:
+    """Every `pip install` on the page works from a clone: no `mexone` or `'mexone[extra]'`
+    (that asks a package index for mexone, which is on none), and every extra of `".[extra]"`
+    is one pyproject.toml declares."""
+    project = next((p / "pyproject.toml" for p in page.resolve().parents
+                    if (p / "pyproject.toml").is_file()), None)
+    extras = None
+    if project is not None:
+        import tomllib
+
+        extras = set(tomllib.loads(project.read_text())["project"].get("optional-dependencies", {}))
+    for match in _INSTALL.finditer(text):
+        line = text.count("\n", 0, match.start()) + 1
+        for arg in match.group(1).split():
+            arg = arg.strip("'\"")
+            if re.match(r"mexone(\W|$)", arg):
+                raise ValueError(f"{page}:{line}: `pip install {arg}` asks a package index for "
+                                 "mexone, which is on none: write pip install \".[extra]\" "
+                                 "(from a clone)")
+            wanted = re.fullmatch(r"\.\[([\w,-]+)\]", arg)
+            unknown = set(wanted.group(1).split(",")) - extras if wanted and extras else set()
+            if unknown:
+                raise ValueError(f"{page}:{line}: `pip install {arg}`: pyproject.toml has no "
+                                 f"extra {', '.join(sorted(unknown))} (it has: "
+                                 f"{', '.join(sorted(extras))})")
 
 
 def _free_port() -> int:
@@ -159,6 +222,58 @@ def _roscore(env: dict, scratch: Path) -> tuple[subprocess.Popen, dict]:
     return core, env
 
 
+def hide_modules(folder: Path, names) -> Path:
+    """A sitecustomize.py in `folder` that makes the top-level packages `names` unimportable
+    (ModuleNotFoundError, as if never installed): `folder` first on PYTHONPATH shows a Python
+    without them, and nothing installed is touched."""
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "sitecustomize.py").write_text(
+        '"""Written by the docs harness (tests/docblocks.py): these packages are hidden."""\n'
+        "import sys\n\n"
+        f"HIDDEN = {sorted(names)!r}\n\n\n"
+        "class _Hidden:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.partition('.')[0] in HIDDEN:\n"
+        "            raise ModuleNotFoundError(f'No module named {name!r}', name=name)\n"
+        "        return None\n\n\n"
+        "sys.meta_path.insert(0, _Hidden())\n")
+    return folder
+
+
+def ros2_python(env: dict) -> str | None:
+    """MEXONE_ROS2_PYTHON when it is a Python with rclpy (PyPI's ROS 2 wheels), else None."""
+    candidate = env.get("MEXONE_ROS2_PYTHON")
+    if not candidate or not Path(candidate).exists():
+        return None
+    clean = {k: v for k, v in env.items() if k != "PYTHONPATH"}
+    ok = subprocess.run([candidate, "-c", "import rclpy"], env=clean, capture_output=True,
+                        timeout=60).returncode == 0
+    return candidate if ok else None
+
+
+def _ros2_reader(env: dict, python: str, tmp: Path) -> dict:
+    """`needs: ros2`: the environment of a reader who ran `pip install ".[ros2]"` (the wheel
+    under test, PyPI's ROS 2 wheels, not yet the packages mexone.ros2.interfaces builds)."""
+    from mexone.ros2.interfaces import PACKAGES
+
+    ros2 = env["MEXONE_ROS2_PYTHON"]
+    wheel_site = subprocess.run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                                capture_output=True, text=True, timeout=60, env=env).stdout.strip()
+    bin_dir = tmp / "ros2-bin"
+    bin_dir.mkdir()
+    for name, run in (("mexone", f'"{ros2}" -m mexone'), ("python", f'"{ros2}"'),
+                      ("python3", f'"{ros2}"')):
+        (bin_dir / name).write_text(f'#!/bin/sh\nexec {run} "$@"\n')
+        (bin_dir / name).chmod(0o755)
+    hidden = hide_modules(tmp / "ros2-hidden", PACKAGES)
+    # ROS 1's variables stay out (its genpy packages shadow ROS 2's); DDS stays on this machine
+    env = {k: v for k, v in env.items() if not k.startswith("ROS_")}
+    return env | {"PATH": f"{bin_dir}{os.pathsep}{env.get('PATH', '')}",
+                  "PYTHONPATH": f"{hidden}{os.pathsep}{wheel_site}",
+                  "ROS_DOMAIN_ID": str(101 + os.getpid() % 100),
+                  "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": "1"}
+
+
 def run_block(block: Block, env: dict, cwd: Path, python: str = "python3",
               state: Path | None = None) -> Outcome:
     """Run one block in `cwd` with `env` (its PATH finds the `mexone` under test). `state`: a
@@ -166,8 +281,13 @@ def run_block(block: Block, env: dict, cwd: Path, python: str = "python3",
     for need, tool in (("ros1", "roscore"), ("display", "xvfb-run")):
         if need in block.needs and shutil.which(tool, path=env.get("PATH")) is None:
             return Outcome(block, None, "", 0.0, skipped=f"needs {need}: {tool} is not installed")
+    if "ros2" in block.needs and ros2_python(env) is None:
+        return Outcome(block, None, "", 0.0, skipped="needs ros2: MEXONE_ROS2_PYTHON names no "
+                       "Python with PyPI's ROS 2 wheels (scripts/test.sh makes .venv-ros2)")
     env = {k: v for k, v in env.items() if k != "DISPLAY"} | {"MPLBACKEND": "Agg"}
     with tempfile.TemporaryDirectory() as tmp:
+        if "ros2" in block.needs:
+            env = _ros2_reader(env, python, Path(tmp))
         script = block.code
         if block.file:
             script = f"cat > '{block.file}' <<'MEXONE_DOCS_EOF'\n{block.code}MEXONE_DOCS_EOF\n"
@@ -234,6 +354,12 @@ def _finish(block: Block, process: subprocess.Popen, start: float) -> Outcome:
     for text in block.expect:
         if outcome.problem is None and text not in output:
             outcome.problem = f"its output does not say '{text}'"
+    lines = [line.strip() for line in output.splitlines()]
+    for where, text in block.output:
+        shown = re.compile(".*?".join(re.escape(part) for part in text.split("...")))
+        if outcome.problem is None and not any(shown.fullmatch(line) for line in lines):
+            outcome.problem = (f"its output has no line '{text}' (line {where} shows it as the "
+                               "output)")
     return outcome
 
 

@@ -8,6 +8,7 @@ tests/docblocks.py and docs/contributing.md. A page gone stale (tests/data/docs/
 from __future__ import annotations
 
 import os
+import re
 import sys
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -100,7 +101,7 @@ def test_a_misspelt_marker_is_an_error(tmp_path):
     page.write_text("<!-- need: ros1 -->\n```bash\ntrue\n```\n")
     with pytest.raises(ValueError, match="page.md:1: unknown block marker 'need: ros1'"):
         docblocks.blocks(page)
-    page.write_text("<!-- needs: ros2 -->\n```bash\ntrue\n```\n")
+    page.write_text("<!-- needs: ros3 -->\n```bash\ntrue\n```\n")
     with pytest.raises(ValueError, match="unknown need"):
         docblocks.blocks(page)
     page.write_text("<!-- the robot, as drawn above -->\n```bash\ntrue\n```\n")  # prose: no marker
@@ -119,3 +120,110 @@ def test_a_display_block_gets_a_virtual_display(tmp_path):
         pytest.skip(outcome.skipped)
     assert outcome.problem is None and "display :" in outcome.output
     assert "display []" in docblocks.run_block(plain, env, tmp_path).output
+
+
+def test_an_install_from_a_package_index_is_refused(tmp_path):
+    """mexone is on no package index: `pip install 'mexone[ros2]'` (prose or block) fails the
+    page, and so does an extra pyproject.toml lacks; `pip install ".[ros2]"` passes."""
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "x"\n'
+                                             '[project.optional-dependencies]\nros2 = []\n')
+    page = tmp_path / "page.md"
+    for bad, said in (("Then `pip install 'mexone[ros2]'`.", "asks a package index"),
+                      ('```console\n$ pip install "mexone[ros2]"\n```', "asks a package index"),
+                      ("```text\npip install mexone\n```", "asks a package index"),
+                      ('Run `pip install ".[ros3]"`.', "no extra ros3")):
+        page.write_text(f"# A page\n\n{bad}\n")
+        with pytest.raises(ValueError, match=f"page.md:[34]: .*{said}"):
+            docblocks.blocks(page)
+    page.write_text('Run `pip install ".[ros2]"`, then `pip install -e ".[ros2]"`.\n')
+    assert docblocks.blocks(page) == []
+
+
+def test_no_message_asks_a_package_index_for_mexone():
+    """The hints a user reads (a missing extra) name the form that works from a clone, too."""
+    pattern = re.compile(r"pip3? install\W+mexone\b")
+    said = [f"{path.relative_to(ROOT)}: {line.strip()}"
+            for path in (ROOT / "src" / "mexone").rglob("*.py")
+            for line in path.read_text().splitlines() if pattern.search(line)]
+    assert not said, said
+
+
+def test_a_command_that_needs_an_extra_is_shown_with_it():
+    """Where a page shows `python -m mexone.ros2.interfaces`, the same paragraph or block names
+    the ros2-build extra it needs (ament_package, the rosidl tools)."""
+    for page in docblocks.pages(ROOT):
+        for paragraph in re.split(r"\n\s*\n", page.read_text()):
+            if "mexone.ros2.interfaces" in paragraph and "DECISIONS" not in page.name:
+                assert "ros2-build" in paragraph, f"{page.relative_to(ROOT)}: {paragraph[:300]}"
+
+
+def test_output_the_page_shows_must_appear(tmp_path):
+    """`<!-- output -->` before a shown block: each of its lines is a line the run above printed
+    (`...`: any text), else the block fails naming the line; a marker in the wrong place is
+    an error."""
+    page = tmp_path / "page.md"
+    page.write_text("```bash\necho 'mexone: ready on port 41234'; echo '  second  '\n```\n\n"
+                    "It prints:\n\n<!-- output -->\n```text\nmexone: ready on port ...\nsecond\n"
+                    "```\n\n```bash\necho 'mexone: ready'\n```\n\n<!-- output -->\n```text\n"
+                    "mexone: ready\nmexone: never printed\n```\n")
+    good, bad = docblocks.blocks(page)
+    assert good.output == ((9, "mexone: ready on port ..."), (10, "second"))
+    assert docblocks.run_block(good, dict(os.environ), tmp_path).problem is None
+    outcome = docblocks.run_block(bad, dict(os.environ), tmp_path)
+    assert outcome.problem == "its output has no line 'mexone: never printed' (line 20 shows it as the output)"
+    for wrong, said in (("<!-- output -->\n```bash\ntrue\n```\n", "not before a run block"),
+                        ("# Title\n\n<!-- output -->\n```text\nx\n```\n", "no run block before it"),
+                        ("<!-- timeout: 5 -->\n```text\nx\n```\n", "is not run")):
+        page.write_text(wrong)
+        with pytest.raises(ValueError, match=said):
+            docblocks.blocks(page)
+
+
+def test_a_ros2_block_runs_as_after_pip_install_ros2(tmp_path):
+    """`needs: ros2`: rclpy imports, and the message packages `python -m mexone.ros2.interfaces`
+    builds do not (hidden, as before that step), whatever MEXONE_ROS2_PYTHON's venv holds."""
+    page = tmp_path / "page.md"
+    page.write_text("<!-- needs: ros2 -->\n```bash\npython -c 'import rclpy, std_msgs.msg'\n"
+                    "python -c 'import tf2_msgs' || echo \"no tf2_msgs\"\n"
+                    "mexone --help >/dev/null && echo \"domain $ROS_DOMAIN_ID\"\n```\n")
+    (block,) = docblocks.blocks(page)
+    outcome = docblocks.run_block(block, dict(os.environ), tmp_path, sys.executable)
+    if outcome.skipped:
+        pytest.skip(outcome.skipped)
+    assert outcome.problem is None, docblocks.report(outcome, tmp_path)
+    assert "No module named 'tf2_msgs'" in outcome.output and "no tf2_msgs" in outcome.output
+    assert f"domain {101 + os.getpid() % 100}" in outcome.output  # not the ROS 2 tests' domain
+
+
+def _first_column(table_head: str) -> set[str]:
+    """The `names` in the first column of the README's table that follows `table_head`."""
+    text = (ROOT / "README.md").read_text()
+    rows = text[text.index(table_head):].split("\n\n")[0].splitlines()
+    return {name for row in rows if row.startswith("| `")
+            for name in re.findall(r"`([^`]+)`", row.split("|")[1])}
+
+
+def test_the_readme_names_every_extra_and_verb():
+    """The README's tables of extras and verbs hold every extra pyproject.toml declares and
+    every verb `mexone --help` lists (example-robot, exercise and four extras were missing)."""
+    import tomllib
+
+    from mexone.cli import build_parser
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert _first_column("| extra |") == set(extras)
+    verbs = next(a for a in build_parser()._actions if a.dest == "verb").choices
+    assert _first_column("| verb |") == set(verbs)
+
+
+def test_a_file_block_of_any_kind_is_saved(tmp_path):
+    """`<!-- file: NAME -->` saves a YAML as it saves a routine (the YAML's marker was ignored,
+    and the block after it found no file)."""
+    page = tmp_path / "page.md"
+    page.write_text("<!-- file: c.yaml -->\n```yaml\nmex_rb: {}\n```\n\n```bash\ncat c.yaml\n```\n")
+    saved, shown = docblocks.blocks(page)
+    assert (saved.lang, saved.file) == ("yaml", "c.yaml")
+    for block in (saved, shown):
+        outcome = docblocks.run_block(block, dict(os.environ), tmp_path)
+        assert outcome.problem is None, docblocks.report(outcome, tmp_path)
+    assert "mex_rb: {}" in outcome.output

@@ -11,7 +11,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "mexone"
 
 # core layers, lowest first; a module may import its own layer and those below it
 CORE = {"errors": 0, "inputs": 0, "sandbox": 0, "yamlio": 0, "files": 0, "ranges": 0, "description": 1, "robots": 1, "physics": 2, "dynamics": 2,
-        "bus": 2, "control": 3, "sensors": 3, "design": 4}
+        "bus": 2, "control": 3, "sensors": 3, "design": 4, "walking": 4}
 # front ends, lowest first; a module may import its own front end, the core and the front ends
 # of the layers below. routines/ is the machinery that runs routines in lockstep with the
 # simulation (runtime, runner); rospy and motion are the libraries routines call, above it. The
@@ -25,7 +25,7 @@ FRONT_END_ORDER = (
     {"exercises"},  # below the GUI: its Exercises panel shows them
     {"sweep", "identify", "gui"},
     {"editor"},
-    {"cli"},
+    {"cli", "hub"},  # hub: the launcher entry a JupyterHub shows (jupyter-server-proxy)
     {"notebook"},  # the lab in Jupyter: the GUI beside a notebook, checked as the CLI checks
     {"__main__"},
 )

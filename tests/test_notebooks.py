@@ -91,6 +91,23 @@ def test_the_live_page_runs_the_lab_in_its_own_thread(lab):
     simulate(lab, 0.01, progress=False)  # the lab is the notebook's again
 
 
+def test_viser_says_nothing_into_the_cell(lab, monkeypatch):
+    """viser's banners (a random port's address, "Server stopped") stay out of a cell's output,
+    which a saved notebook keeps. In Jupyter viser's rich console writes through IPython's
+    display, past a redirect of stdout: a console of rich's own, writing into a buffer, stands
+    in for that one here."""
+    import rich
+    from rich.console import Console
+
+    said = io.StringIO()
+    monkeypatch.setattr(rich, "_console", Console(file=said, force_terminal=False))
+    assert "__VISER_EMBED_DATA__" in simulate(lab, 0.05, progress=False).scene_html()
+    page = serve(lab, rtf=0)
+    page.stop()
+    assert said.getvalue() == ""
+    assert not rich.get_console().quiet  # the console is the user's again
+
+
 def test_the_notebooks_are_committed_without_outputs():
     """What running a notebook writes (outputs, counts, widget state) is not kept in git."""
     import nbformat
@@ -145,8 +162,15 @@ def test_every_notebook_runs_from_the_wheel(executed):
 
     for nb in NOTEBOOKS:
         ran = nbformat.read(executed / nb.name, as_version=4)
-        errors = [o for c in ran.cells for o in c.get("outputs", []) if o["output_type"] == "error"]
+        outputs = [o for c in ran.cells for o in c.get("outputs", [])]
+        errors = [o for o in outputs if o["output_type"] == "error"]
         assert not errors, f"{nb.name}: {errors[0]['ename']}: {errors[0]['evalue']}"
+        # viser's banners (a server's random port, "Server stopped") are no part of a saved
+        # notebook; the inline replay's own page embeds viser's client, so it is left out
+        said = [json.dumps(o.get("text") or o.get("data", {}).get("text/plain", ""))
+                for o in outputs]
+        banners = [text for text in said if "viser" in text or "Server stopped" in text]
+        assert not banners, f"{nb.name}: {banners[0][:200]}"
         assert (executed / nb.name).with_suffix(".html").stat().st_size > 0
 
 

@@ -530,7 +530,8 @@ def format_report(report: BenchReport) -> str:
                   f"{c['depth_cloud_ms_per_frame']:12.1f}"]
     pb = report.pybullet
     if pb is None:
-        lines.append(f"{'pybullet':<44} {'not installed (pip install mexone[peers])':>12}")
+        missing = 'not installed (pip install ".[peers]")'
+        lines.append(f"{'pybullet':<44} {missing:>12}")
     else:
         lines += [f"{'pybullet, wall s per sim s':<44} {pb['pybullet_s_per_sim_s']:12.4f}",
                   f"{'mexone speed-up over pybullet':<44} {pb['mexone_speedup']:12.2f}"]

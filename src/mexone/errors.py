@@ -15,7 +15,15 @@ __all__ = [
     "OutputExistsError",
     "ArgumentTypeError",
     "RoutineError",
+    "install_extra",
 ]
+
+
+def install_extra(extras: str) -> str:
+    """How to add an optional extra (`ros2`, `foxglove`, ...), for a hint: the form that works
+    from a clone of mexone, which is on no package index (naming the package `mexone` with the
+    extra asks one for it)."""
+    return f'pip install ".[{extras}]" in a clone of mexone'
 
 
 class MexoneError(Exception):

@@ -67,8 +67,7 @@ class Replay:
         sim = self.lab.sim
         data = mujoco.MjData(sim.model)  # the replay's own state: the live one stays untouched
         ghost = SimpleNamespace(robot=sim.robot, compiled=sim.compiled, model=sim.model, data=data)
-        quiet = contextlib.redirect_stdout(io.StringIO())  # viser's banners: no page is served
-        with quiet:
+        with _quiet_viser():  # its banner names a port no page is served on
             server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
         try:
             self._pose(data, 0)
@@ -79,14 +78,14 @@ class Replay:
             server.initial_camera.position = tuple(base + (1.3, -1.35, 0.45))
             server.initial_camera.look_at = tuple(base + (0.0, 0.0, 0.02))
             recorder = server.get_scene_serializer()
-            scene.update()  # frame 0 again, as messages at t = 0: where each loop starts over
+            scene.update(everything=True)  # frame 0 again, as messages at t = 0: where each loop starts over
             for i in range(1, len(self.times)):
                 recorder.insert_sleep(self.times[i] - self.times[i - 1])
                 self._pose(data, i)
                 scene.update()
             return recorder.as_html(dark_mode=dark_mode)
         finally:
-            with contextlib.redirect_stdout(io.StringIO()):
+            with _quiet_viser():
                 server.stop()
 
     def _pose(self, data: mujoco.MjData, i: int) -> None:
@@ -108,6 +107,23 @@ class Replay:
         from IPython.display import HTML, display
 
         display(HTML(self.html(height)))
+
+
+@contextlib.contextmanager
+def _quiet_viser():
+    """viser's banners (the server's address when it starts, "Server stopped") kept out of the
+    cell's output, which a saved notebook keeps: viser prints them with rich, whose console in
+    Jupyter writes through IPython's display, past any redirect of stdout. Muted for the block
+    (rich's shared console: another thread's rich output meanwhile is muted too)."""
+    import rich
+
+    console = rich.get_console()
+    was, console.quiet = console.quiet, True
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        console.quiet = was
 
 
 class record:  # noqa: N801 - used as a context manager, like open()
@@ -181,7 +197,7 @@ class LivePage:
         """Stop the page and its simulation thread; the lab is the notebook's again."""
         self.app.stopping.set()  # the loop ends its frame, then the page closes
         self.thread.join(timeout=10.0)
-        with contextlib.redirect_stdout(io.StringIO()):
+        with _quiet_viser():
             self.app.stop()
         self.app.lab._live_page = None
 
@@ -191,7 +207,8 @@ class LivePage:
 
     def _repr_html_(self) -> str:
         state = "running" if self.running else "stopped"
-        return f'<p>mexone live page ({state}): <a href="{self.url}" target="_blank">{self.url}</a></p>'
+        url = html.escape(self.url, quote=True)
+        return f'<p>mexone live page ({state}): <a href="{url}" target="_blank">{url}</a></p>'
 
 
 def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
@@ -208,12 +225,12 @@ def serve(lab: Lab, port: int = 0, host: str = "127.0.0.1", rtf: float = 1.0,
     check_can_serve(host)
     if getattr(lab, "_live_page", None) is not None:
         raise InputError("this lab already has a live page", hint="page.stop() first")
-    with contextlib.redirect_stdout(io.StringIO()):  # viser's banner: the page's repr says it
+    with _quiet_viser():  # the page's repr says where it is
         app = GuiApp(lambda _options: lab, CompileOptions(), host=host, port=port,
                      target_rtf=rtf, paused=paused)
-    shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
     thread = threading.Thread(target=app.serve_forever, name="mexone-live-page", daemon=True)
-    page = LivePage(app, thread, f"http://{shown}:{app.server.get_port()}")
+    # inside a JupyterHub: the hub's proxied path with this page's key (gui/security.py)
+    page = LivePage(app, thread, app.access.page_url(host, app.server.get_port()))
     lab._live_page = page
     thread.start()
     return page

@@ -23,7 +23,7 @@ import numpy as np
 from mexone import signals
 from mexone.control.metrics import overshoot, rise_time, settling_time
 from mexone.control.spec import PidGains, controller_name
-from mexone.errors import InputError
+from mexone.errors import InputError, install_extra
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import has_fallen
 from mexone.ranges import GAINS, number_text
@@ -278,7 +278,7 @@ def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
     try:
         import ray
     except ImportError:
-        raise InputError("the ray backend needs Ray", hint="pip install 'mexone[cluster]'") from None
+        raise InputError("the ray backend needs Ray", hint=install_extra("cluster")) from None
     started_here = not ray.is_initialized()
     if started_here:
         kwargs = {"address": address} if address else {"num_cpus": workers}

@@ -81,7 +81,7 @@ def _series(levels: list[float], hold: int, seed: int) -> np.ndarray:
 
 
 @settings(derandomize=True, max_examples=40, deadline=None)
-@given(levels=st.lists(st.sampled_from([0.0, 0.004, 0.3, -0.5, 1.2]), min_size=1, max_size=8),
+@given(levels=st.lists(st.sampled_from([0.0, 0.004, 0.3, 0.6, -0.5, 1.2]), min_size=1, max_size=8),
        hold=st.integers(1, 60), chunk=st.integers(1, 70), seed=st.integers(0, 9))
 def test_streamed_metrics_equal_the_whole_series(levels, hold, chunk, seed):
     series = _series(levels, hold, seed)
@@ -89,8 +89,9 @@ def test_streamed_metrics_equal_the_whole_series(levels, hold, chunk, seed):
         got = _feed(series, chunk, mp).metrics()["j"]
     want = full_metrics("j", series)
     assert got.rms_error == pytest.approx(want.rms_error, rel=1e-12)
-    assert (got.max_error, got.overshoot, got.settling_time, got.steps) == \
-        (want.max_error, want.overshoot, want.settling_time, want.steps)
+    assert (got.max_error, got.overshoot, got.settling_time, got.steps, got.moves,
+            got.unsettled_for) == (want.max_error, want.overshoot, want.settling_time,
+                                   want.steps, want.moves, want.unsettled_for)
     assert got.as_json() == want.as_json()  # what the report prints (6 decimals)
 
 

@@ -23,7 +23,7 @@ NODE_MODULES = HERE / "node_modules" / "@foxglove" / "ws-protocol"
 @pytest.fixture(scope="module")
 def seen():
     pytest.importorskip("foxglove", reason="foxglove-sdk is not installed (pip install "
-                                           "'mexone[foxglove]')")
+                                           "'.[foxglove]')")
     node = shutil.which("node")
     if node is None or not NODE_MODULES.is_dir():
         pytest.skip("node and `npm install --prefix tests/foxglove_ws` are needed (scripts/test.sh)")

@@ -74,16 +74,45 @@ def refused(ws, within: float = 3.0) -> bool:
     return False
 
 
+def refused_at_handshake(app, origin, host="127.0.0.1", headers=None) -> bool:
+    """The server answered HTTP 403 instead of upgrading: nothing was served."""
+    try:
+        client(app, origin, host, headers).close()
+    except InvalidStatus as exc:
+        return exc.response.status_code == 403
+    return False
+
+
 def test_a_page_from_another_origin_is_refused(app):
     port = app.server.get_port()
-    with client(app, "http://evil.example:8000") as ws:
-        assert refused(ws)
-    with client(app, f"http://localhost:{port + 1}") as ws:  # another port is another origin
-        assert refused(ws)
-    with client(app, f"http://evil.example:{port}", host="evil.example") as ws:
-        assert refused(ws)  # DNS rebinding: the right port, but a name that is not this machine
-    with pytest.raises(InvalidStatus):  # two Origin headers: refused at the handshake
-        client(app, f"http://127.0.0.1:{port}", headers={"Origin": "http://evil.example"})
+    assert refused_at_handshake(app, "http://evil.example:8000")
+    assert refused_at_handshake(app, f"http://localhost:{port + 1}")  # another port: another origin
+    # DNS rebinding: the right port, but a name that is not this machine
+    assert refused_at_handshake(app, f"http://evil.example:{port}", host="evil.example")
+    # two Origin headers
+    assert refused_at_handshake(app, f"http://127.0.0.1:{port}", headers={"Origin": "http://evil.example"})
+
+
+def test_the_page_itself_is_refused_to_a_rebinding_name(app):
+    """The HTTP page too, not only its websocket: a name that is not this machine gets 403."""
+    port = app.server.get_port()
+    assert _get(port, "/", {"Host": f"127.0.0.1:{port}"})[0] == 200
+    assert _get(port, "/", {"Host": f"evil.example:{port}"})[0] == 403
+
+
+def _get(port, path, headers):
+    import http.client
+
+    conn = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+    try:
+        conn.putrequest("GET", path, skip_host=True, skip_accept_encoding=True)
+        for key, value in headers.items():
+            conn.putheader(key, value)
+        conn.endheaders()
+        response = conn.getresponse()
+        return response.status, response.getheader("Set-Cookie"), response.read()
+    finally:
+        conn.close()
 
 
 def test_the_served_page_origin_is_accepted(app):
@@ -155,3 +184,77 @@ def test_a_non_loopback_address_is_announced():
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and "WARNING" in lines[0] and "0.0.0.0:8080" in lines[0]
     assert "anyone who can reach this machine" in lines[0]
+
+
+# ----- a lab in a shared machine (a JupyterHub): a per-session secret on every request ------
+@pytest.fixture(scope="module")
+def keyed():
+    """A bare guarded viser server with a secret, as a lab in a JupyterHub is."""
+    from mexone.gui.security import LabAccess, guard
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    access = LabAccess(token="s3cret-Token_1", prefix="/user/alice/")
+    guard(server, access)
+    yield server.get_port(), access
+    server.stop()
+
+
+def _ws(port, headers=None, path="/", origin=None, host=None):
+    sock = socket.create_connection(("127.0.0.1", port))
+    where = host or f"127.0.0.1:{port}"  # the Host header the client sends
+    return connect(f"ws://{where}{path}", sock=sock, origin=origin, additional_headers=headers,
+                   subprotocols=[f"viser-v{viser.__version__}"], open_timeout=10)
+
+
+def _refused_ws(port, **kwargs) -> bool:
+    try:
+        _ws(port, **kwargs).close()
+    except InvalidStatus as exc:
+        return exc.response.status_code == 403
+    return False
+
+
+def test_without_the_secret_nothing_is_served_not_even_the_page(keyed):
+    port, _ = keyed
+    here = {"Host": f"127.0.0.1:{port}"}
+    assert _get(port, "/", here)[0] == 403
+    assert _get(port, "/?mexone-token=guess", here)[0] == 403
+    assert _get(port, "/", here | {"Cookie": "mexone-token=guess"})[0] == 403
+    assert _refused_ws(port)  # another user's process on the same loopback
+    assert _refused_ws(port, headers={"X-Mexone-Token": "s3cret-Token_"})  # a prefix is not it
+    assert _refused_ws(port, path="/?mexone-token=s3cret-Token_12")
+
+
+def test_the_proxy_header_the_url_and_its_cookie_each_open_the_lab(keyed):
+    port, access = keyed
+    hub = {"Host": "hub.example.org"}  # through the hub: its public name, not this machine's
+    status, cookie, _ = _get(port, "/", hub | {"X-Mexone-Token": access.token})
+    assert status == 200 and cookie is None
+    status, cookie, body = _get(port, "/?mexone-token=s3cret-Token_1", hub)
+    assert status == 200 and b"<html" in body
+    assert cookie == "mexone-token=s3cret-Token_1; HttpOnly; SameSite=Strict"  # no Path: the lab's folder
+    assert _get(port, "/", hub | {"Cookie": "_xsrf=1; mexone-token=s3cret-Token_1"})[0] == 200
+    _ws(port, headers={"X-Mexone-Token": access.token}).close()
+    _ws(port, headers={"Cookie": "mexone-token=s3cret-Token_1"}, host="hub.example.org",
+        origin="http://hub.example.org").close()
+
+
+def test_with_the_secret_a_foreign_page_is_still_refused(keyed):
+    port, access = keyed
+    secret = {"X-Mexone-Token": access.token}
+    assert _refused_ws(port, headers=secret, host="hub.example.org", origin="https://evil.example")
+    assert _refused_ws(port, headers=secret, host="hub.example.org", origin="http://hub.example.org:81")
+    assert _get(port, "/", secret | {"Host": "hub.example.org", "Origin": "https://evil.example"})[0] == 403
+
+
+def test_where_a_keyed_lab_is_opened():
+    from mexone.gui.security import LabAccess, lab_access
+
+    assert lab_access({}).token is None and lab_access({}).page_url("0.0.0.0", 8080) == "http://127.0.0.1:8080"
+    hub = lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/user/alice/"})
+    assert len(hub.token) >= 40 and hub.token != lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/u/"}).token
+    assert hub.page_url("127.0.0.1", 8123) == f"/user/alice/proxy/8123/index.html?mexone-token={hub.token}"
+    given = lab_access({"JUPYTERHUB_SERVICE_PREFIX": "/user/bob", "MEXONE_LAB_TOKEN": "k",
+                        "JUPYTERHUB_PUBLIC_URL": "https://hub.school.example/"})
+    assert given.page_url("127.0.0.1", 9) == "https://hub.school.example/user/bob/proxy/9/index.html?mexone-token=k"
+    assert LabAccess("k").page_url("127.0.0.1", 9) == "http://127.0.0.1:9/?mexone-token=k"

@@ -53,7 +53,7 @@ def ros2_env() -> dict[str, str]:
 def python():
     found = ros2_python()
     if found is None:
-        pytest.skip("no Python with the ROS 2 wheels: pip install 'mexone[ros2]' into a venv and "
+        pytest.skip("no Python with the ROS 2 wheels: pip install '.[ros2]' into a venv and "
                     "set MEXONE_ROS2_PYTHON (scripts/test.sh does)")
     return found
 
@@ -226,6 +226,42 @@ def test_reset_restarts_clock_at_zero(acceptance):
 
 def test_sim_stops_cleanly(acceptance):
     assert acceptance["sim_status"] in (0, 143, -15)
+
+
+def _left_out(stderr: str) -> str:
+    """The start-up line naming what has no message package (docs/ros2.md), or ""."""
+    return next((line for line in stderr.splitlines() if "not on ROS 2" in line), "")
+
+
+def test_what_the_built_packages_carry_is_not_said_missing(acceptance):
+    """With tf2_msgs, control_msgs and controller_manager_msgs built (scripts/test.sh builds
+    them), the start-up line names only gazebo_msgs' contacts, which no build adds."""
+    line = _left_out(acceptance["sim_stderr"])
+    assert "(gazebo_msgs)" in line and "contact" in line
+    assert not any(p in line for p in ("tf2_msgs", "control_msgs", "interfaces"))
+
+
+def test_missing_message_packages_are_named_at_start_up(python, tmp_path):
+    """As right after `pip install ".[ros2]"` (the built packages hidden, nothing deleted): one
+    line at start-up names each package, what it would carry, and the build; was: nothing,
+    and /tf silently absent."""
+    import docblocks
+    from mexone.ros2 import interfaces
+
+    env = ros2_env()
+    env["PYTHONPATH"] = f"{docblocks.hide_modules(tmp_path, interfaces.PACKAGES)}:{env['PYTHONPATH']}"
+    done = subprocess.run([python, "-m", "mexone", "sim", "--ros2", "--headless", "--duration",
+                           "0.2"], env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    line = _left_out(done.stderr)
+    assert line.startswith("mexone: not on ROS 2 (their message packages have no wheel on PyPI)")
+    for carries, package in (("/tf", "tf2_msgs"), ("_position_controller/state", "control_msgs"),
+                             ("/controller_manager/", "controller_manager_msgs"),
+                             ("_contact", "gazebo_msgs")):
+        assert carries in line and f"({package})" in line, (package, line)
+    assert line.endswith("python -m mexone.ros2.interfaces (the ros2-build extra) builds "
+                         "tf2_msgs, control_msgs, controller_manager_msgs (docs/ros2.md)")
+    assert done.stderr.count("not on ROS 2") == 1  # one line, not one per package
 
 
 def test_ros1_and_ros2_together_are_refused_in_one_line():

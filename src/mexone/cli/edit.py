@@ -63,8 +63,8 @@ def run(args: argparse.Namespace) -> int:
     except OSError as exc:
         raise InputError(f"cannot serve the editor on {args.host}:{args.port}: {exc.strerror}",
                          hint="pick another --port") from None
-    shown = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
-    print(f"mexone: editing {session.model.name} at http://{shown}:{app.server.get_port()} "
+    url = app.access.page_url(args.host, app.server.get_port())  # a hub's proxied URL in a hub
+    print(f"mexone: editing {session.model.name} at {url} "
           f"(working folder {workdir}; Ctrl-C stops)", file=sys.stderr)
     if args.duration is not None:
         threading.Timer(args.duration, app.stopping.set).start()

@@ -21,11 +21,11 @@ def add_ros_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--ros2", action="store_true",
                    help="join the ROS 2 graph (ROS_DOMAIN_ID) as a node: /clock, "
                         "/robot_description, topics, ros2_control's command names, parameters, "
-                        "std_srvs services; needs pip install 'mexone[ros2]' (docs/ros2.md)")
+                        "std_srvs services; needs the ros2 extra (docs/ros2.md)")
     p.add_argument("--foxglove", nargs="?", type=PORT, const=8765, metavar="PORT",
                    help="serve every topic, the robot (URDF, meshes, TF) and sim time on the "
                         "Foxglove WebSocket protocol at ws://HOST:PORT (default 8765, on --host: "
-                        "this machine only); needs pip install 'mexone[foxglove]' (docs/foxglove.md)")
+                        "this machine only); needs the foxglove extra (docs/foxglove.md)")
     p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
                    help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
                         "/gazebo, another simulator's under /NAME): one per simulator on a master")
@@ -73,6 +73,11 @@ class Bridges:
     def shutdown(self) -> None:
         for bridge in reversed(self.bridges):
             bridge.shutdown()
+
+    def notes(self) -> list[str]:
+        """What a bridge could not offer (ROS 2's message packages with no wheel), each a line
+        the CLI prints at start-up after where()'s."""
+        return [note for b in self.bridges for note in (b.notes() if hasattr(b, "notes") else [])]
 
     def where(self) -> str:
         """Where the robot is now visible, for the line the CLI prints."""

@@ -32,9 +32,13 @@ HELP = """\
 Run a control routine (a Python file using `from mexone import rospy`, or a shipped routine:
 sweep, arms, home) against the robot with its controllers, headless and as fast as the physics
 allows, in lockstep with sim time. Then print per-joint tracking of every position-controlled
-joint: RMS and max error (rad), worst overshoot (% of a setpoint change) and settling time (s,
-to within 2% or 5 mrad), and whether the robot stayed standing (or when it fell: any time in
-the run, which lasts its duration even when the routine ends first).
+joint: RMS and max error (rad), and the worst overshoot and settling time of the moves its
+setpoint made, and whether the robot stayed standing (or when it fell: any time in the run,
+which lasts its duration even when the routine ends first). A move is a setpoint change, with
+the changes in the same direction that came before the joint settled (a staircase the joint
+cannot follow step by step is one move): overshoot is a % of the move, settling the time from
+its last change to within 2% of it (or 5 mrad); '> T' when the next change (or the run's end)
+came T s after it, before the joint settled.
 
 Routine parameters are given ROS-style: `_joint:=r_elbow` sets the routine's ~joint (under
 the name its init_node gives, as rosrun; `__name:=n` renames it).
@@ -116,6 +120,8 @@ def _run(args: argparse.Namespace, params: dict, bridge) -> int:
         print(f"mexone: {sim.robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
               "Ctrl-C stops",
               file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
         on_tick, tick = (lambda _sim: bridge.pump()), 0.002  # /clock every 2 ms, as sim --ros
     marks = PhaseMarks(np.array([0.0, *start_pose]))  # the base at the routine's phase bounds
     fell_at: list[float] = []  # when it first fell, if it did: a fall is one even if it gets up
@@ -246,10 +252,14 @@ def _base_xy_yaw(sim) -> np.ndarray:
 def _print_table(metrics) -> None:
     moving = {k: m for k, m in metrics.items() if m.steps}
     shown = moving or metrics
-    print(f"{'joint':<18} {'RMS err':>9} {'max err':>9} {'overshoot':>10} {'settling':>9}")
+    print(f"{'joint':<18} {'RMS err':>9} {'max err':>9} {'steps':>6} {'moves':>6} "
+          f"{'overshoot':>10} {'settling':>10}")
     for name, m in sorted(shown.items()):
-        settle = "never" if m.settling_time is None else f"{m.settling_time:.3f} s"
-        print(f"{name:<18} {m.rms_error:9.4f} {m.max_error:9.4f} {m.overshoot * 100:9.1f}% "
-              f"{settle:>9}")
+        print(f"{name:<18} {m.rms_error:9.4f} {m.max_error:9.4f} {m.steps:6d} {m.moves:6d} "
+              f"{m.overshoot * 100:9.1f}% {m.settling_text:>10}")
     if moving and len(moving) < len(metrics):
         print(f"({len(metrics) - len(moving)} more joints held still; --json lists all)")
+    if moving:
+        print("(errors in rad; a move: a setpoint step, or the steps in one direction that came "
+              "before the joint settled; overshoot: % of the move; settling: from its last step "
+              "to within 2% or 5 mrad, '> T': the next step came T s after, unsettled)")

@@ -42,7 +42,8 @@ until Ctrl-C or --duration.
 With --headless the run is unpaced (as fast as the machine allows) and ends with a summary:
 sim time, wall time, real-time factor, base height, the fastest link speed seen, and whether
 the robot came to rest; with --json also, under "controllers", the report() of each running
-Python controller that defines one (the worked controllers' measurements).
+Python controller that defines one (the worked controllers' measurements) and each one's
+real-time "budget" (ms per update, mean and worst, its deadline, deadline misses).
 
 A simulation that diverges (NaN, or links faster than physics allows) stops with the link and
 the likely cause instead of a robot flying apart: exit 1. Bad input: exit 2. Stopped by Ctrl-C or
@@ -104,13 +105,14 @@ def _serve_gui(args: argparse.Namespace, rtf: float, duration: float | None, bri
     except OSError as exc:
         raise InputError(f"cannot serve the GUI on {args.host}:{args.port}: {exc.strerror}",
                          hint="pick another --port") from None
-    host = "127.0.0.1" if args.host in ("0.0.0.0", "") else args.host
     port = app.server.get_port()  # viser moves on to the next free port if this one is taken
     note = "" if port == args.port or args.port == 0 else f" (port {args.port} was taken)"
-    print(f"mexone: {app.lab.sim.robot.name} at http://{host}:{port}{note}  (Ctrl-C stops)",
-          file=sys.stderr)
+    url = app.access.page_url(args.host, port)  # in a JupyterHub: through its proxy, with the key
+    print(f"mexone: {app.lab.sim.robot.name} at {url}{note}  (Ctrl-C stops)", file=sys.stderr)
     if bridge is not None:
         print(f"mexone: {app.lab.sim.robot.name} is on {bridge.where()}", file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
     if exercise is not None:
         ex = exercise.exercise
         print(f"mexone: Exercises panel: {ex.title} ({ex.name}); Check grades "
@@ -170,7 +172,8 @@ def _strict(value):
 
 def controller_reports(lab) -> dict:
     """`report()` of every Python controller that defines one (the worked controllers' figures),
-    by controller name; a report that raises is its one-line error, not the end of the run. A
+    and every Python controller's real-time `budget` (ms per update, deadline misses), by
+    controller name; a report that raises is its one-line error, not the end of the run. A
     controller a fault stopped is there with `"fault"`, its one line: a script reading the
     summary must not take a run whose controller died at t = 0.5 s for a clean one."""
     out: dict = {}
@@ -186,6 +189,10 @@ def controller_reports(lab) -> dict:
             report = out.get(name, {})
             out[name] = {"fault": fault} | (report if isinstance(report, dict) else
                                             {"report": report}) | {"fault": fault}
+        budget = getattr(ctrl, "budget", None)  # the real-time budget meter (Python controllers)
+        if callable(budget) and (ctrl.running or fault):
+            entry = out.get(name, {})
+            out[name] = (entry if isinstance(entry, dict) else {"report": entry}) | {"budget": budget()}
     return out
 
 
@@ -196,6 +203,8 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
         bridge.attach(lab, urdf_text(args, robot))
         print(f"mexone: {robot.name} is on {bridge.where()} (namespace {lab.namespace}); "
               "Ctrl-C stops", file=sys.stderr)
+        for note in bridge.notes():
+            print(f"mexone: {note}", file=sys.stderr)
     monitor = RunMonitor(sim)  # after joining ROS: the summary's wall time is the run's
 
     def tick(s: Simulation) -> None:

@@ -242,7 +242,8 @@ def _inputs(reader: _Reader, name: str, cls, key: yaml.Node,
                 raise reader.error(vnode, f"controller '{name}': input '{local}' must name "
                                           "'<controller>/<export>'", "e.g. estimator/tilt")
             bound[local] = source
-    missing = [k for k in declared if k not in bound]
+    optional = set(getattr(cls, "optional_inputs", ()))
+    missing = [k for k in declared if k not in bound and k not in optional]
     if missing:
         raise reader.error(field[0] if field is not None else key,
                            f"controller '{name}': input '{missing[0]}' is not bound",

@@ -59,6 +59,8 @@ class ControllerInfo:
     update_time: float | None = None  # s of wall time per update (Python controllers)
     fault: str | None = None  # why a Python controller was stopped
     params: dict[str, Any] | None = None  # a Python controller's declared parameters now
+    deadline_misses: int | None = None  # updates over their deadline since it started (Python)
+    update_time_max: float | None = None  # s, the longest update since it started (Python)
 
 
 class ControllerManager:
@@ -480,7 +482,8 @@ class ControllerManager:
             if isinstance(c, PythonRunner):
                 info = replace(info, update_rate=NS / c.period_ns if c.running else
                                c.plugin.update_rate, update_time=c.update_time, fault=c.fault,
-                               params=c.params)
+                               params=c.params, deadline_misses=c.meter.misses,
+                               update_time_max=c.meter.worst)
             out.append(info)
         return out
 

@@ -1,5 +1,13 @@
 """Tracking metrics of position-controlled joints: command vs actual, as a control student
-reports them (RMS and max error, overshoot and settling time of each setpoint change)."""
+reports them (RMS and max error; overshoot and settling time of each move the setpoint made).
+
+A move is a setpoint change, and each next change in the same direction that comes while the
+joint is still outside its settling band: a routine's staircase (`arms` sends 2 degrees every
+0.1 s, ramping 30 degrees in 1.5 s) is one move of 30 degrees, not fifteen steps of 2 that
+each "overshoot" by half and "never settle" because the next comes first. Overshoot is a
+fraction of the whole move; settling counts from its last change. A move the next command (or
+the end of the run) cut before the joint settled tells only that settling takes longer than
+it was held (`unsettled_for`)."""
 
 from __future__ import annotations
 
@@ -26,9 +34,21 @@ class JointTracking:
     joint: str
     rms_error: float  # rad
     max_error: float  # rad
-    overshoot: float  # worst over setpoint changes, fraction of the step (0.1 = 10%)
-    settling_time: float | None  # worst over setpoint changes, s; None if one never settled
+    overshoot: float  # worst over the moves, fraction of the move (0.1 = 10%)
+    # worst over the moves that settled, s from a move's last change; None when a move held at
+    # least that long never settled (then it takes more than `unsettled_for`)
+    settling_time: float | None
     steps: int  # setpoint changes of at least MIN_STEP
+    moves: int = 0  # the moves those changes made (a staircase is one)
+    unsettled_for: float | None = None  # s: the longest a move was held without settling
+
+    @property
+    def settling_text(self) -> str:
+        """The settling time as the report prints it: '0.120 s', or '> 0.100 s' when a move
+        was cut (by the next command or the run's end) that long after its last change."""
+        if self.settling_time is not None:
+            return f"{self.settling_time:.3f} s"
+        return f"> {self.unsettled_for:.3f} s" if self.unsettled_for is not None else "never"
 
     def as_json(self) -> dict:
         return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in asdict(self).items()}
@@ -124,17 +144,30 @@ CHUNK = 1024  # samples (5 s) buffered before they are folded into the running s
 
 
 @dataclass
-class _Segment:
-    """One setpoint change's samples so far: from `start` to `target`, from sim time t0."""
+class _Move:
+    """One move's samples so far (see the module's docstring): from `start` to `target`, its
+    latest setpoint change at sim time t0."""
     start: float
     target: float
     t0: float
-    peak: float = -np.inf  # highest step progress (1 = at the target)
+    extreme: float = -np.inf  # furthest the joint went in the move's direction (sign * q)
     settled_at: float = 0.0  # time from t0 of the sample after the last one outside the band
     outside: bool = False  # the latest sample is outside the band
 
+    @property
+    def sign(self) -> float:
+        return 1.0 if self.target > self.start else -1.0
+
+    def continues(self, target: float) -> bool:
+        """Whether a setpoint change to `target` continues this move: the same direction,
+        before the joint settled."""
+        return self.outside and (target - self.target) * self.sign > 0
+
+    def extend(self, target: float, t0: float) -> None:
+        self.target, self.t0, self.settled_at = target, t0, 0.0
+
     def fold(self, t: np.ndarray, q: np.ndarray) -> None:
-        self.peak = max(self.peak, float(step_progress(q, self.start, self.target).max()))
+        self.extreme = max(self.extreme, float((self.sign * q).max()))
         out = np.flatnonzero(np.abs(q - self.target) > settle_band(self.target - self.start))
         if out.size == 0:
             if self.outside:
@@ -146,11 +179,41 @@ class _Segment:
 
     @property
     def overshoot(self) -> float:
-        return max(self.peak - 1.0, 0.0)
+        return _past(self.extreme, self.start, self.target)
+
+
+def _past(extreme: float, start: float, target: float) -> float:
+    """How far `extreme` (sign * q at its furthest) went past `target`, as a fraction of the
+    move from `start`."""
+    sign = 1.0 if target > start else -1.0
+    return max((extreme - sign * target) / abs(target - start), 0.0)
+
+
+@dataclass
+class _Moves:
+    """What the closed moves of a joint add up to."""
+    worst: float = 0.0  # overshoot
+    settled: float | None = None  # the longest settling among the moves that settled
+    unsettled: float | None = None  # the longest hold of a move that did not settle
+
+    def close(self, overshoot: float, settling: float | None, held: float) -> _Moves:
+        """These figures with one more move's (a new _Moves: the open move is added to a copy)."""
+        if settling is None:
+            return _Moves(max(self.worst, overshoot), self.settled,
+                          max(self.unsettled if self.unsettled is not None else 0.0, held))
+        return _Moves(max(self.worst, overshoot),
+                      max(self.settled if self.settled is not None else 0.0, settling),
+                      self.unsettled)
 
     @property
-    def settling(self) -> float | None:
-        return None if self.outside else self.settled_at
+    def settling_time(self) -> float | None:
+        """The worst settling time of the moves held long enough to tell: a move cut before
+        it settled tells nothing if it was held less than another took to settle."""
+        if self.unsettled is None:
+            return self.settled if self.settled is not None else 0.0
+        if self.settled is not None and self.unsettled < self.settled:
+            return self.settled
+        return None
 
 
 class _JointStream:
@@ -160,9 +223,10 @@ class _JointStream:
         self.recent: deque[tuple[float, float, float]] = deque(maxlen=keep)
         self.n, self.sum_sq, self.max_abs = 0, 0.0, 0.0
         self.last_sp: float | None = None
-        self.segment: _Segment | None = None  # the latest setpoint change's
-        self.worst, self.settling = 0.0, 0.0  # over the closed segments
-        self.steps = 0
+        self.last_t = 0.0
+        self.move: _Move | None = None  # the latest move's
+        self.closed = _Moves()
+        self.steps = self.moves = 0
 
     def fold(self, t: np.ndarray, sp: np.ndarray, q: np.ndarray) -> None:
         """The next samples, in time order."""
@@ -177,30 +241,28 @@ class _JointStream:
         bounds = [0, *changes.tolist(), len(t)]
         for k in range(len(bounds) - 1):
             a, b = bounds[k], bounds[k + 1]
-            if k > 0:  # a setpoint change at a: the previous segment ends
-                self._close()
-                self.segment = _Segment(float(sp[a - 1] if a else before), float(sp[a]),
-                                        float(t[a]))
+            if k > 0:  # a setpoint change at a
                 self.steps += 1
-            if self.segment is not None and b > a:
-                self.segment.fold(t[a:b], q[a:b])
-        self.last_sp = float(sp[-1])
+                if self.move is not None and self.move.continues(float(sp[a])):
+                    self.move.extend(float(sp[a]), float(t[a]))
+                else:
+                    if self.move is not None:
+                        self.closed = self._with_move(float(t[a]))
+                    self.move = _Move(float(sp[a - 1] if a else before), float(sp[a]), float(t[a]))
+                    self.moves += 1
+            if self.move is not None and b > a:
+                self.move.fold(t[a:b], q[a:b])
+        self.last_sp, self.last_t = float(sp[-1]), float(t[-1])
 
-    def _close(self) -> None:
-        if self.segment is not None:
-            self.worst = max(self.worst, self.segment.overshoot)
-            if self.settling is not None:
-                s = self.segment.settling
-                self.settling = None if s is None else max(self.settling, s)
+    def _with_move(self, until: float) -> _Moves:
+        m = self.move
+        return self.closed.close(m.overshoot, None if m.outside else m.settled_at, until - m.t0)
 
     def metrics(self, joint: str) -> JointTracking:
-        worst, settling = self.worst, self.settling
-        if self.segment is not None:  # the latest change is open to the end of the run
-            worst = max(worst, self.segment.overshoot)
-            s = self.segment.settling
-            settling = None if settling is None or s is None else max(settling, s)
-        return JointTracking(joint, float(np.sqrt(self.sum_sq / self.n)), self.max_abs, worst,
-                             settling, self.steps)
+        moves = self._with_move(self.last_t) if self.move is not None else self.closed
+        return JointTracking(joint, float(np.sqrt(self.sum_sq / self.n)), self.max_abs,
+                             moves.worst, moves.settling_time, self.steps, self.moves,
+                             moves.unsettled)
 
 
 def full_metrics(joint: str, data: np.ndarray) -> JointTracking:
@@ -208,18 +270,33 @@ def full_metrics(joint: str, data: np.ndarray) -> JointTracking:
     TrackingRecorder's running statistics equal (kept as their reference)."""
     t, sp, q = data.T
     error = sp - q
-    changes = np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1
-    worst, settling = 0.0, 0.0
-    bounds = list(changes) + [len(t)]
-    for k, start in enumerate(changes):
-        end = bounds[k + 1]
-        step = sp[start] - sp[start - 1]
-        worst = max(worst, overshoot(q[start:end], sp[start - 1], sp[start]))
-        if settling is not None:
-            settle = settling_time(t[start:end] - t[start], q[start:end], sp[start], step)
-            settling = None if settle is None else max(settling, settle)
+    changes = list(np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1)
+    closed = _Moves()
+    moves = 0
+    move: list | None = None  # [start, target, first sample, latest change's sample]
+
+    def close(end: int) -> _Moves:
+        start, target, first, last = move
+        sign = 1.0 if target > start else -1.0
+        over = _past(float((sign * q[first:end]).max()), start, target)
+        settle = settling_time(t[last:end] - t[last], q[last:end], target, target - start)
+        held = t[end] - t[last] if end < len(t) else t[-1] - t[last]
+        return closed.close(over, settle, float(held))
+
+    for c in changes:
+        if move is not None:
+            start, target = move[0], move[1]
+            sign = 1.0 if target > start else -1.0
+            outside = abs(q[c - 1] - target) > settle_band(target - start)
+            if outside and (sp[c] - target) * sign > 0:
+                move[1], move[3] = float(sp[c]), c
+                continue
+            closed = close(c)
+        move, moves = [float(sp[c - 1]), float(sp[c]), c, c], moves + 1
+    if move is not None:
+        closed = close(len(t))
     return JointTracking(joint, float(np.sqrt(np.mean(error**2))), float(np.abs(error).max()),
-                         worst, settling, len(changes))
+                         closed.worst, closed.settling_time, len(changes), moves, closed.unsettled)
 
 
 def settle_band(step: float) -> float:

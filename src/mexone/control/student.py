@@ -189,7 +189,8 @@ class PythonController:
 
     Subclass it, set `command_interface`, declare parameters with `Param`, and write `update`.
     Before `configure` the framework sets `name`, `joints`, `dofs` (each joint's index into
-    nv-long vectors: columns of M and Jacobians, entries of g), `params` and `log`; `dynamics`
+    nv-long vectors: columns of M and Jacobians, entries of g), `effort_limits` (each joint's
+    URDF effort limit, N m: what the framework clamps to), `params` and `log`; `dynamics`
     is the robot's dynamics at the live state (mexone.dynamics.Dynamics), computed when first
     read in an update. See docs/controllers.md.
 
@@ -198,16 +199,21 @@ class PythonController:
     framework's arrays, NaN until written), `inputs` those it reads (name -> length), which its
     YAML entry binds to other controllers' exports (`inputs: {tilt: estimator/tilt}`) and
     `state.inputs[name]` shows. The manager updates an exporter before its readers.
+    `optional_inputs` names inputs the class can run without: left unbound in the YAML, they are
+    absent from `state.inputs` (a walking part computing from the simulator's truth until an
+    estimator is chained in).
     """
 
     command_interface: ClassVar[str] = "effort"  # "effort" | "position" | "velocity"
     exports: Any = {}  # the class declares name -> length; an instance holds name -> array
     inputs: ClassVar[Mapping[str, int]] = {}
+    optional_inputs: ClassVar[tuple[str, ...]] = ()
     _declared: ClassVar[dict[str, Param]] = {}
 
     name: str
     joints: list[str]
     dofs: np.ndarray
+    effort_limits: np.ndarray
     params: dict[str, Any]
     log: logging.LoggerAdapter
 

@@ -39,7 +39,7 @@ from mexone.editor.session import EDIT_TYPES, MAX_SNAP_CHOICES, EditSession, sel
 from mexone.editor.snapping import SNAP_RADIUS
 from mexone.errors import MexoneError
 from mexone.gui.scene import _wxyz, trimesh_of
-from mexone.gui.security import guard, warn_if_exposed
+from mexone.gui.security import guard, lab_access, warn_if_exposed
 from mexone.ranges import MASS
 
 __all__ = ["EditorApp"]
@@ -62,7 +62,8 @@ class EditorApp:
         self.host = host
         self.lock = threading.RLock()
         self.server = viser.ViserServer(host=host, port=port, label="mexone edit", verbose=False)
-        guard(self.server)
+        self.access = lab_access()  # a secret inside a JupyterHub (gui/security.py)
+        guard(self.server, self.access)
         warn_if_exposed(host, self.server.get_port())
         self.pending: list[Part] = []
         self.selected_link: str | None = None

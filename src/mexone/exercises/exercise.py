@@ -22,7 +22,9 @@ __all__ = ["Exercise", "LiveController", "SUBMISSION_KINDS", "load_exercise", "f
 
 COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
-SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json")
+# what a student hands in: a rospy routine, a PythonController, a controllers YAML, a routine's
+# parameters, a model, JSON, or a Python file of functions the grader calls (ctx.run)
+SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json", "function")
 _FIELDS = {"name", "title", "points", "pass_mark", "time_limit", "cpu_limit", "memory_mb", "seeds",
            "secret_seed", "submission", "file", "summary", "number", "live", "live_controller"}
 

@@ -30,14 +30,14 @@ from pathlib import Path
 
 from mexone.bus import msgs, ros_map
 from mexone.bus.topics import Relay
-from mexone.errors import InputError, MexoneError
+from mexone.errors import InputError, MexoneError, install_extra
 
 __all__ = ["FoxgloveBridge", "DEFAULT_PORT", "FOXGLOVE_INSTALL", "json_schema", "to_json"]
 
 log = logging.getLogger("mexone.foxglove")
 
 DEFAULT_PORT = 8765  # the Foxglove WebSocket protocol's usual port
-FOXGLOVE_INSTALL = "pip install 'mexone[foxglove]'"
+FOXGLOVE_INSTALL = install_extra("foxglove")
 _POLL = 0.25  # s of wall time between looks at who subscribes
 _TIME_PERIOD = 0.02  # s of sim time between time broadcasts and /tf
 _DESCRIPTION_EVERY = 1.0  # s of wall time between /robot_description messages

@@ -34,7 +34,7 @@ from mexone.gui.panels import Panel, panel_types
 from mexone.gui.plots import PLOT_PERIOD, PlotPanel, SignalLog
 from mexone.gui.scene import OVERLAYS, RobotScene
 from mexone.gui.screenshot import Screenshots, page_picture
-from mexone.gui.security import guard, warn_if_exposed
+from mexone.gui.security import LabAccess, guard, lab_access, warn_if_exposed
 from mexone.gui.sensors import BALANCE, SensorPanel
 from mexone.gui.stepresponse import StepResponse
 from mexone.gui.walkpad import WalkPad
@@ -77,10 +77,12 @@ class GuiApp:
                  host: str = "127.0.0.1", port: int = 8080, target_rtf: float = 1.0,
                  routine_dirs: list[Path] | None = None, paused: bool = False,
                  record_folder: Path | None = None, model_folder: Path | None = None,
-                 server: viser.ViserServer | None = None, exercise=None):
+                 server: viser.ViserServer | None = None, exercise=None,
+                 access: LabAccess | None = None):
         """`server`: draw into that page (guarded by its owner, who stops it) instead of
         serving one (the model editor's Simulate). `exercise`: an ExerciseTarget
-        (gui/exercises.py) for the Exercises panel."""
+        (gui/exercises.py) for the Exercises panel. `access`: who may open the page (default:
+        as the environment says, a secret inside a JupyterHub; gui/security.py)."""
         self.options = options
         self.lab = make_lab(options)
         self.target_rtf = target_rtf
@@ -92,8 +94,9 @@ class GuiApp:
         self.model_label = self.lab.sim.robot.name
         self.owns_server = server is None
         self.server = server or viser.ViserServer(host=host, port=port, label="mexone", verbose=False)
+        self.access = access or lab_access()
         if self.owns_server:
-            guard(self.server)
+            guard(self.server, self.access)
             warn_if_exposed(host, self.server.get_port())
         self.work = WorkQueue()
         self.stopping = threading.Event()

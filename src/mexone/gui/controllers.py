@@ -37,6 +37,8 @@ def controllers_table(lab: Lab) -> str:
             parts.append(f"{number_text(info.update_rate)} Hz")
         if info.update_time:
             parts.append(f"{info.update_time * 1e6:.1f} us/update")
+        if info.update_time_max:  # the real-time budget: the worst update, the deadlines missed
+            parts.append(f"max {info.update_time_max * 1e6:.0f} us, {info.deadline_misses} missed")
         rows.append(f"- **{info.name}**: {' · '.join(parts)}")
         if info.fault:
             rows.append(f"  - {info.fault}")

@@ -59,6 +59,7 @@ LIVE = {  # what Check does in the running lab, per submission kind (docs/exerci
     "urdf": "opens your model (Load): see View > Center of Mass / Inertia",
     "params": "nothing: the self-check runs it",
     "json": "nothing: the self-check runs it",
+    "function": "nothing: the self-check runs it",
 }
 MAX_SHOWN = 200_000  # bytes of a file shown on the page
 STARTUP = 60.0  # s: a grading process's start-up and the grader's own work, beyond the limits

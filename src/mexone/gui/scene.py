@@ -29,6 +29,9 @@ _JOINT_RGB = (250, 220, 0)
 _CONTACT_RGB = (230, 30, 30)
 _MAX_CONTACTS = 64
 ENVIRONMENT_LIGHT, AMBIENT_LIGHT = 0.35, 0.35  # (viser's default environment is 1.0)
+# a link is sent to the page when its position (m) or a quaternion component moved more than this
+# since it was last sent: 20 um, 0.002 degree -- far below a pixel at any view of a robot
+SENT_MOVE = 2e-5
 SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
@@ -77,12 +80,25 @@ class RobotScene:
     visuals: list = field(default_factory=list)
     triangles: int = 0  # drawn in the robot's visuals, after simplification
     overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
+    _sent: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # poses last sent
+
+    def _terrain(self) -> None:
+        """The world's static boxes (slopes, steps: physics.world.Block), as MuJoCo places them."""
+        model = self.sim.model
+        for i in range(model.ngeom):
+            name = model.geom(i).name
+            if not name.startswith("world/") or model.geom_type[i] != mujoco.mjtGeom.mjGEOM_BOX:
+                continue
+            self.server.scene.add_box(f"/terrain/{i}", dimensions=tuple(2 * model.geom_size[i]),
+                                      color=(150, 144, 134), position=tuple(model.geom_pos[i]),
+                                      wxyz=tuple(model.geom_quat[i]))
 
     def build(self) -> None:
         scene, robot = self.server.scene, self.sim.robot
         scene.set_up_direction("+z")
         scene.add_grid("/ground", width=20, height=20, cell_size=0.25, section_size=1.0,
                        plane_color=(225, 228, 232), plane_opacity=1.0, position=(0, 0, -0.0005))
+        self._terrain()
         # the world's sun casts the one shadow (viser's default lights would add a second pass)
         scene.configure_default_lights(cast_shadow=False)
         # dimmer than viser's defaults, which wash a white robot's dark servos out to mid grey
@@ -143,14 +159,28 @@ class RobotScene:
             opacity=0.35, position=com, wxyz=_wxyz(axes), visible=False))
 
     # ----- per frame ------------------------------------------------------------------------
-    def update(self) -> None:
+    def update(self, everything: bool = False) -> None:
+        """Send the links that moved since they were last sent (SENT_MOVE): a standing robot
+        costs the page almost no messages, where each link's pose every frame was most of a
+        lab's CPU with its page open (benchmarks/RESULTS.md, "what one lab costs").
+        `everything`: every link's pose (a recording's first frame, where its loop restarts)."""
         data = self.sim.data
+        names = list(self.sim.compiled.bodies)
+        if everything or len(self._sent) != len(names):
+            self._sent = np.full((len(names), 7), np.nan)  # nothing sent yet
+        ids = list(self.sim.compiled.bodies.values())
+        now = np.hstack([data.xpos[ids], data.xquat[ids]])
+        # NaN (never sent) compares False: every link goes out the first time
+        moved = np.flatnonzero(~(np.abs(now - self._sent).max(axis=1) <= SENT_MOVE))
+        contacts = self.overlays["Contacts"][0]
+        if moved.size == 0 and not contacts.visible:
+            return  # nothing to send: not even an empty batch (each wakes viser's event loop)
         with self.server.atomic():
-            for name, body in self.sim.compiled.bodies.items():
-                node = self.links[name]
-                node.position = data.xpos[body]
-                node.wxyz = data.xquat[body]
-            contacts = self.overlays["Contacts"][0]
+            for i in moved:
+                node = self.links[names[i]]
+                node.position = now[i, :3]
+                node.wxyz = now[i, 3:]
+            self._sent[moved] = now[moved]
             if contacts.visible:
                 contacts.points = self._contact_segments()
 

@@ -409,6 +409,25 @@ def _add_world(spec: mujoco.MjSpec, world: World) -> None:
     plane.pos = (0, 0, world.ground.z)
     plane.contype = 0  # contacts with the ground come from explicit <pair>s
     plane.conaffinity = 0
+    _add_blocks(spec, world)
+
+
+def _add_blocks(spec: mujoco.MjSpec, world: World) -> None:
+    """The world's static boxes (terrain), in geom group 0 with the ground: every robot link
+    touches them; the robot's surface (friction, contact stiffness) wins the pair, as against the
+    ground (priority)."""
+    for i, block in enumerate(world.blocks):
+        geom = spec.worldbody.add_geom(name=f"world/{block.name}/{i}", type=mujoco.mjtGeom.mjGEOM_BOX,
+                                       size=np.asarray(block.size) / 2, pos=block.xyz,
+                                       rgba=(0.55, 0.52, 0.48, 1.0))
+        matrix = rpy_to_matrix(block.rpy)
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, matrix.ravel())
+        geom.quat = quat
+        geom.contype = geom.conaffinity = _SELF | _PLAIN
+        geom.friction = (block.mu, 0.005, 0.0001)
+        geom.priority = 0
+        geom.solmix = 0.0
 
 
 def _add_joint(body: mujoco.MjsBody, robot: RobotModel, joint, options: CompileOptions) -> None:

@@ -15,7 +15,7 @@ from mexone.description.xmlio import XmlReader
 from mexone.errors import UnsupportedError
 from mexone.ranges import GRAVITY, RTF, TIMESTEP, number_text
 
-__all__ = ["World", "Ground", "read_world", "default_world"]
+__all__ = ["World", "Ground", "Block", "read_world", "default_world"]
 
 
 @dataclass(frozen=True)
@@ -23,6 +23,19 @@ class Ground:
     mu1: float = 100.0  # Gazebo's stock ground_plane
     mu2: float = 50.0
     z: float = 0.0
+
+
+@dataclass(frozen=True)
+class Block:
+    """A static box in the world (terrain: a slope, a step), from a `<static>` SDF model whose
+    link collides as one `<box>`: its size (m), pose (model pose composed with the link's:
+    x y z, roll pitch yaw) and friction."""
+
+    name: str
+    size: tuple[float, float, float]
+    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    mu: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -35,6 +48,7 @@ class World:
     ground: Ground | None = Ground()
     sun_direction: tuple[float, float, float] = (-0.5, 0.1, -0.9)
     source: Path | None = None
+    blocks: tuple[Block, ...] = ()
 
 
 def default_world() -> World:
@@ -83,16 +97,58 @@ def read_world(path: Path | str) -> World:
                                    file=path, line=include.sourceline,
                                    hint="write the model into the world file; only ground_plane "
                                         "and sun are built in")
+    blocks = []
     for model in world.iterfind("model"):
         plane = model.find("link/collision/geometry/plane")
+        box = model.find("link/collision/geometry/box/size")
+        if plane is None and box is not None and (model.findtext("static") or "").strip() in ("1", "true"):
+            blocks.append(_block(xml, model, box))
+            continue
         if plane is None:
-            raise UnsupportedError(f"world model '{model.get('name')}' is not a ground plane",
-                                   file=path, line=model.sourceline,
-                                   hint="spawn robots with 'mexone sim MODEL'; worlds hold the ground")
+            raise UnsupportedError(f"world model '{model.get('name')}' is neither a ground plane nor "
+                                   "a static box", file=path, line=model.sourceline,
+                                   hint="spawn robots with 'mexone sim MODEL'; worlds hold the ground "
+                                        "and static boxes (terrain)")
         friction = model.find("link/collision/surface/friction/ode")
         mu1 = xml.text_number(friction, "mu", 1.0) if friction is not None else 1.0
         mu2 = xml.text_number(friction, "mu2", mu1) if friction is not None else mu1
         values["ground"] = Ground(mu1, mu2)
     if (sun := world.find("light/direction")) is not None:
         values["sun_direction"] = xml.numbers(sun, sun.text or "", 3, "value")
+    values["blocks"] = tuple(blocks)
     return World(**values)
+
+
+def _pose(xml: XmlReader, el) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    pose = el.find("pose")
+    if pose is None:
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    values = xml.numbers(pose, pose.text or "", 6, "pose")
+    return values[:3], values[3:]
+
+
+def _block(xml: XmlReader, model, size_el) -> Block:
+    """A static model's box: its model and link poses composed (as SDF frames: model, then link)."""
+    import numpy as np
+
+    from mexone.description.transforms import rpy_to_matrix
+
+    size = xml.numbers(size_el, size_el.text or "", 3, "size")
+    if not all(0 < v <= 1000 for v in size):
+        raise xml.fail(size_el, f"box size {' '.join(number_text(v) for v in size)} m: each must be "
+                                "> 0 and <= 1000", "a box is three positive lengths, x y z")
+    (mx, mr), (lx, lr) = _pose(xml, model), _pose(xml, model.find("link"))
+    outer, inner = rpy_to_matrix(mr), rpy_to_matrix(lr)
+    rotation = outer @ inner
+    xyz = tuple(float(v) for v in np.asarray(mx) + outer @ np.asarray(lx))
+    rpy = _matrix_to_rpy(rotation)
+    friction = model.find("link/collision/surface/friction/ode")
+    mu = xml.text_number(friction, "mu", 1.0) if friction is not None else 1.0
+    return Block(model.get("name", "block"), size, xyz, rpy, mu)
+
+
+def _matrix_to_rpy(r) -> tuple[float, float, float]:
+    import math
+
+    pitch = math.asin(max(-1.0, min(1.0, -r[2, 0])))
+    return math.atan2(r[2, 1], r[2, 2]), pitch, math.atan2(r[1, 0], r[0, 0])

@@ -74,7 +74,7 @@ def import_rospy():
 
 
 def _refuse_ros2_messages() -> None:
-    """ROS 2's message wheels (mexone[ros2]) install `std_msgs`, `sensor_msgs`, ... under the
+    """ROS 2's message wheels (the ros2 extra) install `std_msgs`, `sensor_msgs`, ... under the
     names ROS 1's packages have: in one environment Python finds only one of each. rospy with
     ROS 2's messages fails deep inside; say so at once instead."""
     import importlib.util
@@ -85,7 +85,7 @@ def _refuse_ros2_messages() -> None:
     if origin and os.path.exists(os.path.join(origin, "msg", "_clock.py")):  # rosidl's naming
         raise MexoneError(f"this Python environment has ROS 2's message packages ({origin}), "
                           "which hide ROS 1's of the same names",
-                          hint="run --ros from an environment without mexone[ros2] (a venv), or "
+                          hint="run --ros from an environment without the ros2 extra (a venv), or "
                                "use --ros2")
 
 

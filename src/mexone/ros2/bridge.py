@@ -1,5 +1,5 @@
 """Ros2Bridge: the simulation as a participant in a ROS 2 graph, through rclpy from PyPI's ROS 2
-wheels (`pip install mexone[ros2]`), on the default middleware (Fast DDS).
+wheels (the `ros2` extra), on the default middleware (Fast DDS).
 
 What gazebo_ros and ros2_control's gazebo plug-in offer a ROS 2 user: /clock (sim time, for
 `use_sim_time`), /robot_description (transient-local, as robot_state_publisher offers it), every
@@ -24,7 +24,7 @@ from collections.abc import Callable
 from mexone.bus import msgs, ros_map
 from mexone.bus.clock import clock_period_ns, respace
 from mexone.bus.topics import Relay
-from mexone.errors import InputError, MexoneError
+from mexone.errors import InputError, MexoneError, install_extra
 from mexone.physics.simulation import NS
 from mexone.ros2 import cdr, convert
 
@@ -33,7 +33,7 @@ __all__ = ["Ros2Bridge", "import_rclpy", "check_not_both", "ROS2_INSTALL", "DEFA
 
 log = logging.getLogger("mexone.ros2")
 
-ROS2_INSTALL = "pip install 'mexone[ros2]'"
+ROS2_INSTALL = install_extra("ros2")
 DEFAULT_NODE = "mexone"
 CLOCK_FREQUENCY = 1000.0  # Hz of /clock in sim time (gazebo_ros' default), and at most in wall time
 FLAT_OUT_CLOCK = 200.0  # Hz of wall time: /clock's rate when running as fast as possible
@@ -108,6 +108,8 @@ class Ros2Bridge:
         self.lab = None
         self.ready = threading.Event()
         self.params = None
+        self._skipped: dict[str, list[str]] = {}  # package -> what it left out, in order
+        self._started = False  # attach() has finished: what is left out now was at start-up
 
     def _spin_loop(self) -> None:
         """rclpy's callbacks, woken only by work (a message, a request) or by shutdown: a
@@ -133,7 +135,6 @@ class Ros2Bridge:
             pub = node.create_publisher(String, name, _qos(ros_map.LATCHED))
             pub.publish(description)
             self._descriptions.append(pub)
-        self._skipped: set[str] = set()
         self._mirrors: dict[str, _Mirror] = {}
         self._inbound: dict[str, object] = {}
         self._known_topics = -1
@@ -149,6 +150,7 @@ class Ros2Bridge:
         self._controller_manager()
         self.params = Parameters(self)
         lab.sim.recover_outside = True  # no input from the graph may end the simulation
+        self._started = True
         self.ready.set()
 
     def _services(self) -> None:
@@ -218,18 +220,34 @@ class Ros2Bridge:
 
     def _skip(self, name: str, bus_type: type) -> None:
         """A type whose message package has no ROS 2 wheel (tf2_msgs, control_msgs,
-        gazebo_msgs): said once, at info level (docs/ros2.md says what to do instead)."""
+        gazebo_msgs): left out. What start-up left out is one line (`notes()`, which the CLI
+        prints); a topic of such a package that appears later is said once, at info level."""
         self._skip_package(name, ros_map.package_of(bus_type))
 
     def _skip_package(self, name: str, package: str) -> None:
-        if package not in self._skipped:
-            self._skipped.add(package)
-            from mexone.ros2 import interfaces
+        left_out = self._skipped.setdefault(package, [])
+        left_out.append(name)
+        if self._started and len(left_out) == 1:
+            log.info("%s is not on ROS 2: %s has no wheel on PyPI%s; see docs/ros2.md", name,
+                     package, _builds(package))
 
-            build = " (python -m mexone.ros2.interfaces builds it)" \
-                if package in interfaces.PACKAGES else ""
-            log.info("%s and other %s topics are not on ROS 2: %s has no wheel on PyPI%s; "
-                     "see docs/ros2.md", name, package, package, build)
+    def notes(self) -> list[str]:
+        """What the start-up left out of the graph for want of a message package, as one line
+        naming each package and what it carries (docs/ros2.md promises it); none when all were
+        there."""
+        if not self._started or not self._skipped:
+            return []
+        parts = []
+        for package, names in self._skipped.items():
+            more = f" and {len(names) - 1} more" if len(names) > 1 else ""
+            parts.append(f"{names[0]}{more} ({package})")
+        from mexone.ros2 import interfaces
+
+        buildable = [p for p in self._skipped if p in interfaces.PACKAGES]
+        build = (f"; python -m mexone.ros2.interfaces (the ros2-build extra) builds "
+                 f"{', '.join(buildable)}") if buildable else ""
+        return [f"not on ROS 2 (their message packages have no wheel on PyPI): "
+                f"{', '.join(parts)}{build} (docs/ros2.md)"]
 
     def _relay(self, topic: str, build: Callable, via: str | None = None):
         def callback(ros_msg) -> None:  # the executor's thread: hand over, in order
@@ -372,6 +390,13 @@ class _RosoutHandler(logging.Handler):
                 record.getMessage())
         except Exception:  # noqa: BLE001 - logging must never take the simulation down
             pass
+
+
+def _builds(package: str) -> str:
+    from mexone.ros2 import interfaces
+
+    return " (python -m mexone.ros2.interfaces, the ros2-build extra, builds it)" \
+        if package in interfaces.PACKAGES else ""
 
 
 def _text(exc: BaseException) -> str:

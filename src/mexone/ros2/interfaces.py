@@ -1,5 +1,5 @@
 """ROS 2 message packages PyPI has no wheel for, built on this machine from their official
-definitions with the rosidl tools that are on PyPI (`pip install 'mexone[ros2-build]'`):
+definitions with the rosidl tools that are on PyPI (the `ros2-build` extra):
 today tf2_msgs (TFMessage, for /tf), control_msgs (JointControllerState, the
 controllers' state topics) and controller_manager_msgs (ros2_control's controller manager
 services, mexone.ros2.controller_manager).
@@ -25,13 +25,13 @@ import sysconfig
 import tempfile
 from pathlib import Path
 
-from mexone.errors import MexoneError
+from mexone.errors import MexoneError, install_extra
 
 __all__ = ["SHARE", "PACKAGES", "BUILD_INSTALL", "build", "missing"]
 
 SHARE = Path(__file__).resolve().parent / "share"
 PACKAGES = ("tf2_msgs", "control_msgs", "controller_manager_msgs")
-BUILD_INSTALL = "pip install 'mexone[ros2-build]' (and apt-get install cmake g++)"
+BUILD_INSTALL = f"{install_extra('ros2-build')} (and apt-get install cmake g++)"
 _PYTHON_TOOLS = ("ament_package", "catkin_pkg", "rosidl_adapter", "rosidl_generator_py")
 
 

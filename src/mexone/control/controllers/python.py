@@ -40,7 +40,7 @@ from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
 
-__all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH"]
+__all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH", "BudgetMeter"]
 
 log = logging.getLogger("mexone.control")
 # the students' own lines: info and up (mexone's own loggers say only warnings); the terminal
@@ -51,6 +51,24 @@ HOLD_BANDWIDTH = 0.1  # w dt of the hold after a fault (autotune's STEP_BANDWIDT
 _SATURATION_ERROR = 0.1  # rad: the hold's p reaches the effort limit at this error
 _EMPTY = np.zeros(0)
 _EMPTY.flags.writeable = False
+
+
+class BudgetMeter:
+    """A Python controller's real-time budget since it started: updates, wall time (mean and
+    worst) and deadline misses (updates longer than max_update_time, else its period), each
+    counted: a miss the OS caused is a miss too (the fault for overruns is the student's alone)."""
+
+    __slots__ = ("updates", "total", "worst", "misses")
+
+    def __init__(self) -> None:
+        self.updates, self.total, self.worst, self.misses = 0, 0.0, 0.0, 0
+
+    def as_dict(self, deadline: float) -> dict:
+        """For `sim --json` and the page: ms per update (mean, worst), the deadline (ms), misses."""
+        mean = self.total / self.updates if self.updates else 0.0
+        return {"updates": self.updates, "update_ms_mean": round(mean * 1e3, 4),
+                "update_ms_max": round(self.worst * 1e3, 4), "deadline_ms": round(deadline * 1e3, 4),
+                "deadline_misses": self.misses}
 
 
 class _StudentLog(logging.LoggerAdapter):
@@ -74,6 +92,7 @@ class PythonRunner(Controller):
         self.fault: str | None = None
         self.updates = 0
         self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
+        self.meter = BudgetMeter()  # the real-time budget since it started: every update counted
         self._update_time = 0.0
         self.due = False
         self.next_ns = 0
@@ -126,6 +145,10 @@ class PythonRunner(Controller):
     def timed(self) -> bool:
         return True
 
+    def budget(self) -> dict:
+        """The real-time budget meter's figures (BudgetMeter.as_dict)."""
+        return self.meter.as_dict(self._max_time)
+
     @property
     def params(self) -> dict[str, Any]:
         return dict(self.impl.params)
@@ -157,6 +180,7 @@ class PythonRunner(Controller):
         impl = self._call(plugin.cls, "creating")
         impl.name, impl.joints = self.name, list(self.joints)
         impl.dofs = self.dofs.copy()
+        impl.effort_limits = self._effort_limit.copy()
         impl.params = dict(plugin.params)
         impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
         impl.exports = self.exports
@@ -218,6 +242,7 @@ class PythonRunner(Controller):
         hw.release(rows)
         c = hw.command
         self.fault, self._overruns, self._last_t, self._suspect = None, 0, None, False
+        self.meter = BudgetMeter()
         self.next_ns, self.due = -1, False  # the manager schedules the first update now
         self._limits_said.clear()
         for array in self.exports.values():  # NaN until this run writes them
@@ -379,7 +404,13 @@ class PythonRunner(Controller):
             return
         self._spent += elapsed
         self._timed_updates += 1
+        meter = self.meter
+        meter.updates += 1
+        meter.total += elapsed
+        if elapsed > meter.worst:
+            meter.worst = elapsed
         if elapsed > self._max_time:
+            meter.misses += 1  # counted whoever's doing it was (the fault below is theirs only)
             if not self._suspect:  # the first: measure the next ones for preemption
                 self._suspect = True
             elif _preemptions() == switches:  # not the machine's doing: theirs

@@ -5,7 +5,7 @@ from __future__ import annotations
 from importlib.resources import as_file, files
 from pathlib import Path
 
-__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "END_EFFECTORS"]
+__all__ = ["package_dir", "urdf_path", "controllers_path", "world_path", "walking_path", "END_EFFECTORS"]
 
 # Named frames whole-body motion commands (mexone.motion): link and offset (m) in its frame.
 # Hands: the far end of the forearm (its 0.15 m cylinder centred 0.095 m down); feet: the
@@ -35,5 +35,11 @@ def controllers_path() -> Path:
     return package_dir() / "config" / "controllers.yaml"
 
 
-def world_path() -> Path:
-    return package_dir() / "worlds" / "empty.world"
+def world_path(name: str = "empty") -> Path:
+    """A shipped world: empty (the ground), slope (5 degrees up and down), step (2 cm)."""
+    return package_dir() / "worlds" / f"{name}.world"
+
+
+def walking_path() -> Path:
+    """The walking stack's controllers (config/walking.yaml: four chained parts, torque-level)."""
+    return package_dir() / "config" / "walking.yaml"

@@ -1,0 +1,160 @@
+"""What one student's lab costs the machine: `mexone sim` at real time, headless and with its page
+open, as CPU share (of one core) and resident memory, with the real-time factor it kept.
+
+A "page" here is the page's wire traffic: a websocket client that joins as viser's browser
+client does (its first camera message) and reads every message the lab sends -- the server's
+whole cost of a page, without a browser drawing it on the same two cores. The class benchmark
+(benchmarks/hub_class.py) puts 20 of these behind a real JupyterHub.
+
+    python benchmarks/lab_cost.py [--seconds 20] [--pages 0 1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import struct
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+SIM_TIME = re.compile(rb"sim time\*\*\s+([0-9]+\.[0-9]+) s")
+CLOCK = os.sysconf("SC_CLK_TCK")
+
+
+@dataclass
+class Cost:
+    pages: int
+    cpu_percent: float  # of one core, over the window
+    rss_mb: float
+    rtf: float  # sim time over wall time the page saw (status line), or the lab's own
+    messages_per_s: float
+    kbytes_per_s: float
+
+
+def cpu_seconds(pid: int) -> float:
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / CLOCK
+
+
+def rss_mb(pid: int) -> float:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def unpack(data: bytes) -> bytes:
+    """The msgpack of one viser websocket message (its wire format: two little-endian sizes,
+    then the zstd-compressed msgpack, then raw binary buffers)."""
+    import zstandard
+
+    size, compressed = struct.unpack_from("<QQ", data, 0)
+    return zstandard.ZstdDecompressor().decompress(data[16:16 + compressed], max_output_size=size)
+
+
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [1.3, -1.35, 0.95],
+          "fov": 0.785, "near": 0.01, "far": 100.0, "image_height": 800, "image_width": 1100,
+          "look_at": [0.0, 0.0, 0.52], "up_direction": [0.0, 0.0, 1.0]}
+
+
+class Page(threading.Thread):
+    """A page's traffic: join, then read everything; remember the sim time the status shows."""
+
+    def __init__(self, url: str, headers: dict | None = None):
+        super().__init__(daemon=True)
+        self.url, self.headers = url, headers or {}
+        self.messages = self.bytes = 0
+        self.samples: list[tuple[float, float]] = []  # (wall, sim time shown)
+        self.stop = threading.Event()
+        self.error: str | None = None
+
+    def run(self) -> None:
+        import msgspec
+        import viser
+        from websockets.sync.client import connect
+
+        try:
+            with connect(self.url, additional_headers=self.headers, open_timeout=120, max_size=None,
+                         subprotocols=[f"viser-v{viser.__version__}"]) as ws:
+                ws.send(msgspec.msgpack.encode(CAMERA))
+                while not self.stop.is_set():
+                    try:
+                        data = ws.recv(timeout=0.5)
+                    except TimeoutError:
+                        continue
+                    self.messages += 1
+                    self.bytes += len(data)
+                    found = SIM_TIME.findall(unpack(data))
+                    if found:
+                        self.samples.append((time.monotonic(), float(found[-1])))
+        except Exception as exc:  # noqa: BLE001 - reported with the result
+            self.error = f"{type(exc).__name__}: {exc}"
+
+    def rtf(self, since: float) -> float:
+        window = [s for s in self.samples if s[0] >= since]
+        if len(window) < 2:
+            return float("nan")
+        (w0, s0), (w1, s1) = window[0], window[-1]
+        return (s1 - s0) / (w1 - w0)
+
+
+def measure(pid: int, pages: list[Page], seconds: float, warmup: float = 5.0) -> Cost:
+    time.sleep(warmup)
+    c0, t0, m0, b0 = cpu_seconds(pid), time.monotonic(), sum(p.messages for p in pages), \
+        sum(p.bytes for p in pages)
+    time.sleep(seconds)
+    c1, t1 = cpu_seconds(pid), time.monotonic()
+    rtfs = [p.rtf(t0) for p in pages]
+    return Cost(len(pages), 100 * (c1 - c0) / (t1 - t0), rss_mb(pid),
+                min(rtfs) if rtfs else float("nan"),
+                (sum(p.messages for p in pages) - m0) / (t1 - t0),
+                (sum(p.bytes for p in pages) - b0) / (t1 - t0) / 1024)
+
+
+def start_lab(port: int, env: dict | None = None) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "mexone", "sim", "--port", str(port)],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            env={**os.environ, **(env or {})})
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--pages", type=int, nargs="+", default=[0, 1])
+    args = parser.parse_args()
+    import socket
+
+    print(f"load: {os.getloadavg()}", file=sys.stderr)
+    for n in args.pages:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        lab = start_lab(port)
+        try:
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline:
+                try:
+                    socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                    break
+                except OSError:
+                    time.sleep(0.2)
+            pages = [Page(f"ws://127.0.0.1:{port}/") for _ in range(n)]
+            for page in pages:
+                page.start()
+            cost = measure(lab.pid, pages, args.seconds)
+            for page in pages:
+                page.stop.set()
+            print(json.dumps(asdict(cost)))
+        finally:
+            lab.terminate()
+            lab.wait(timeout=20)
+
+
+if __name__ == "__main__":
+    main()
