@@ -58,8 +58,8 @@ def _plain(value: object, depth: int = 0) -> object:
     if numpy is not None:
         if isinstance(value, numpy.ndarray):
             dtype = value.dtype.name if value.dtype.name in _DTYPES else "float64"
-            array = numpy.ascontiguousarray(value, dtype=dtype)
-            return {"$a": [dtype, list(array.shape), base64.b64encode(array.tobytes()).decode()]}
+            data = numpy.asarray(value, dtype=dtype).tobytes()  # C order, any layout, 0-d too
+            return {"$a": [dtype, list(value.shape), base64.b64encode(data).decode()]}
         if isinstance(value, numpy.generic):
             return _plain(value.item(), depth)
     raise SchemaError(f"cannot send a {type(value).__name__}")
@@ -74,6 +74,8 @@ def dumps(value: object) -> bytes:
     """`value` as JSON bytes (NaN and infinities as JSON's common extension)."""
     try:
         return json.dumps(_plain(value), separators=(",", ":")).encode()
+    except SchemaError:
+        raise
     except (TypeError, ValueError, RecursionError) as exc:
         raise SchemaError(f"cannot send it: {exc}") from None
 
