@@ -1,17 +1,23 @@
 """The walking stack's numbers (issue 39), with today's position-controlled walk in the same run:
-the COM MPC per solve and the whole-body QP per update, 60 s of torque-level walking at 0.3 m/s
-(real-time factor, each part's real-time budget and deadline misses), the largest 0.1 s torso
-push survived while walking, forward and sideways, and the same for `mexone run walk`.
+the COM MPC per solve and the whole-body QP per solve (problems recorded from a walk, solved
+again by each solver), each part's time per update (CPU time), the stack's real-time factor at
+the shipped rates and with every part at 500 Hz, 60 s of walking paced at real time (each part's
+deadline misses), the largest 0.1 s torso push survived while walking, forward and sideways,
+and the same for `mexone run walk`.
 
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py [--seconds 60] [--quick]
 
-The machine is shared: the load average is printed before and after. Record the figures in
-benchmarks/RESULTS.md.
+The machine is shared: the load average is printed before and after. What the code costs is
+measured on a core of its own: run it as root under `chrt -f 20 taskset -c 1` (SCHED_FIFO on one
+core: other processes do not preempt it; the paced run sleeps, so the kernel's real-time
+throttling never cuts in); without, the figures are the machine's load as much as the code's.
+Record the figures in benchmarks/RESULTS.md.
 """
 
 from __future__ import annotations
 
 import argparse
+import copy
 import math
 import os
 import time
@@ -21,48 +27,142 @@ import numpy as np
 from mexone.lab import Lab
 from mexone.robots import mex_one
 from mexone.routines.runner import RoutineRunner
-from mexone.walking.footsteps import FootstepPlanner, Gait
-from mexone.walking.mpc import LipmMpc, supports
 
 PUSH_AT = 5.0  # s: the push lands while walking at full speed
 FALLEN = 0.4  # m: the base lower than this is a fall
 
 
-def mpc_solve_times(n: int = 2000) -> np.ndarray:
-    """s per COM MPC solve (the ComPlanner's defaults), over a model walk at 0.3 m/s."""
-    mpc = LipmMpc(0.54, 0.05, 24, w_shift=0.3, max_shift=0.2)
-    planner = FootstepPlanner(Gait(), np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]))
-    planner.set_command(0.3, 0.0, 0.0)
-    x, y = np.zeros(3), np.zeros(3)
-    times = []
-    for k in range(n):
-        t = k * 0.002
-        sup = supports(planner.update(t), t, 0.05, 24, (0.16, 0.08), 0.015)
-        start = time.perf_counter()
-        jx, jy, _ = mpc.solve(x, y, sup)
-        times.append(time.perf_counter() - start)
-        x, y = LipmMpc.advance(x, jx[0], 0.002), LipmMpc.advance(y, jy[0], 0.002)
-    return np.array(times)
+def record_problems(seconds: float = 7.0) -> dict:
+    """Every COM MPC and whole-body QP the shipped stack solves walking at 0.3 m/s for
+    `seconds`, pushed 4 N s forward at 5 s: (args, kwargs) of each solve, and the solvers."""
+    from mexone.walking import mpc, wbc
+
+    problems: dict = {"mpc": [], "wbc": []}
+    solve_mpc, solve_wbc = mpc.LipmMpc.solve, wbc.WholeBodyQP.solve
+
+    def rec_mpc(self, *args, **kwargs):
+        problems["mpc"].append(copy.deepcopy((args, kwargs)))
+        return solve_mpc(self, *args, **kwargs)
+
+    def rec_wbc(self, *args, **kwargs):
+        problems["wbc"].append(copy.deepcopy((args, kwargs)))
+        return solve_wbc(self, *args, **kwargs)
+
+    mpc.LipmMpc.solve, wbc.WholeBodyQP.solve = rec_mpc, rec_wbc
+    try:
+        lab = stack()
+        lab.sim.apply_wrench("torso", [40.0, 0.0, 0.0], duration=0.1, start=5.0)
+        lab.sim.step(round((seconds - 1.0) / lab.sim.model.opt.timestep))
+    finally:
+        mpc.LipmMpc.solve, wbc.WholeBodyQP.solve = solve_mpc, solve_wbc
+    parts = lab.manager.controllers
+    problems["mpc_of"] = parts["com_planner"].impl.mpc
+    problems["wbc_of"] = parts["whole_body"].impl.qp
+    return problems
 
 
-def stack(vx: float = 0.3, world=None) -> Lab:
-    lab = Lab.create(controllers=mex_one.walking_path(), world=world)
+def bare_step_ms(steps: int = 3000) -> float:
+    """CPU ms per bare MuJoCo step of Mex-One walking (the state of a walk, no controller): the
+    yardstick the parts' costs are given against, measured in the same run (the machine's speed
+    drifts with its load by tens of percent; the ratios do not)."""
+    import mujoco
+
+    lab = stack()
+    lab.sim.step(2000)
+    model, data = lab.sim.model, mujoco.MjData(lab.sim.model)
+    data.qpos[:], data.qvel[:], data.ctrl[:] = lab.sim.data.qpos, lab.sim.data.qvel, lab.sim.data.ctrl
+    data.qfrc_applied[:] = lab.sim.data.qfrc_applied
+    start = time.thread_time()
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+    return (time.thread_time() - start) / steps * 1e3
+
+
+def solve_times(problems: dict, solver: str) -> dict:
+    """ms per solve (median, p99) of the recorded problems, each solved again by `solver`, and
+    how many it found no solution to."""
+    from mexone.walking import mpc, qp, wbc
+
+    m, w = problems["mpc_of"], problems["wbc_of"]
+    solvers = {"mpc": mpc.LipmMpc(m.h, m.T, m.n, w_jerk=m.w_jerk, w_shift=m.w_shift,
+                                  max_shift=m.max_shift, solver=solver),
+               "wbc": wbc.WholeBodyQP(w.nv, w.actuated, w.limit, mu=w.mu, solver=solver)}
+    out = {}
+    for name, obj in solvers.items():
+        times, failed = [], 0
+        for _ in range(2):  # the first pass warms the caches
+            times, failed = [], 0
+            for args, kwargs in problems[name]:
+                start = time.perf_counter()
+                try:
+                    obj.solve(*args, **kwargs)
+                except qp.Infeasible:
+                    failed += 1
+                times.append(time.perf_counter() - start)
+        t = np.array(times) * 1e3
+        out[name] = (len(t), float(np.median(t)), float(np.percentile(t, 99)), failed)
+    return out
+
+
+def per_update(seconds: float, every_500: bool) -> dict:
+    """CPU ms per update of each part (median, p99) and the stack's real-time factor (wall and
+    per CPU second), walking at 0.3 m/s; `every_500`: every part at 500 Hz."""
+    lab = stack(rates=500 if every_500 else None)
+    times: dict[str, list[float]] = {}
+    for name, runner in lab.manager.controllers.items():
+        impl = getattr(runner, "impl", None)
+        if impl is None:
+            continue
+        spent = times.setdefault(name, [])
+
+        def timed(state, t, dt, update=impl.update, spent=spent):
+            start = time.thread_time()
+            out = update(state, t, dt)
+            spent.append(time.thread_time() - start)
+            return out
+
+        impl.update = timed
+    lab.sim.step(2000)  # up to speed
+    for spent in times.values():
+        spent.clear()
+    wall, cpu = time.perf_counter(), time.process_time()
+    lab.sim.step(round(seconds / lab.sim.model.opt.timestep))
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    parts = {name: (len(t), float(np.median(t) * 1e3), float(np.percentile(t, 99) * 1e3))
+             for name, t in ((n, np.array(v)) for n, v in times.items())}
+    return {"rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu, "parts": parts}
+
+
+def stack(vx: float = 0.3, world=None, rates: int | None = None) -> Lab:
+    """The shipped stack walking at `vx` after a second's settling; `rates`: every part's."""
+    controllers = mex_one.walking_path()
+    if rates is not None:
+        import re
+        import tempfile
+
+        text = re.sub(r"update_rate: \d+", f"update_rate: {rates}", controllers.read_text())
+        controllers = os.path.join(tempfile.mkdtemp(), "walking.yaml")
+        with open(controllers, "w") as out:
+            out.write(text)
+    lab = Lab.create(controllers=controllers, world=world)
     lab.sim.step(1000)
-    lab.controllers.set_param("footsteps", "vx", vx)
+    lab.manager.set_param("footsteps", "vx", vx)
     return lab
 
 
 def walk_stack(seconds: float) -> dict:
+    """`seconds` of walking at 0.3 m/s paced at real time (as `mexone sim` runs): the distance,
+    the lowest base, each part's real-time budget (deadline misses) and report."""
     lab = stack()
     sim = lab.sim
+    sim.target_rtf = 1.0
     x0 = float(sim.data.qpos[0])
     wall, cpu = time.perf_counter(), time.process_time()
-    lowest = 1.0
-    for _ in range(round(seconds / 0.1)):
-        sim.step(100)
-        lowest = min(lowest, float(sim.data.qpos[2]))
+    lowest = [1.0]
+    sim.run(seconds, on_tick=lambda s: lowest.__setitem__(0, min(lowest[0], float(s.data.qpos[2]))))
+    lowest = lowest[0]
     wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    mgr = lab.controllers
+    mgr = lab.manager
     parts = {n: c for n, c in mgr.controllers.items() if hasattr(c, "budget")}
     return {"seconds": seconds, "distance": float(sim.data.qpos[0]) - x0, "lowest": lowest,
             "rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu,
@@ -70,17 +170,76 @@ def walk_stack(seconds: float) -> dict:
             "reports": {n: c.impl.report() for n, c in parts.items()}}
 
 
-def survives_stack(impulse: float, direction: float) -> bool:
+def survives_stack(impulse: float, direction: float, at: float = PUSH_AT) -> bool:
+    """A 0.1 s push of `impulse` N s at the torso, `direction` rad (0 forward, pi/2 left),
+    `at` s (walking at 0.3 m/s from 1 s): still standing 4 s later?"""
     lab = stack()
     sim = lab.sim
     force = impulse / 0.1
     sim.apply_wrench("torso", [force * math.cos(direction), force * math.sin(direction), 0.0],
-                     duration=0.1, start=PUSH_AT)
-    for _ in range(50):  # 5 s after the start of walking: the push and 4 s to fall or not
+                     duration=0.1, start=at)
+    while sim.time < at + 4.0:
         sim.step(100)
         if sim.data.qpos[2] < FALLEN:
             return False
     return True
+
+
+def course(world: str | None = None, seconds: float = 20.0) -> dict:
+    """The issue's course on the shipped stack (the estimator in the loop): on flat ground 0.3
+    m/s forward (speed over 3 s once up to speed), a stop, a quarter turn left, a stop, 1 m to
+    the right; on `world` ("slope", "step") straight on at 0.3 m/s for `seconds`."""
+    from mexone.physics.world import read_world
+
+    lab = stack(world=read_world(mex_one.world_path(world)) if world else None)
+    sim = lab.sim
+    out: dict = {"lowest": 1.0}
+
+    def run(seconds: float) -> None:
+        for _ in range(round(seconds / 0.05)):
+            sim.step(50)
+            out["lowest"] = min(out["lowest"], float(sim.data.qpos[2]))
+
+    def command(vx=0.0, vy=0.0, wz=0.0) -> None:
+        for key, value in (("vx", vx), ("vy", vy), ("wz", wz)):
+            lab.manager.set_param("footsteps", key, value)
+
+    def yaw() -> float:
+        q = sim.data.qpos
+        return math.degrees(2 * math.atan2(q[6], q[3]))
+
+    if world:
+        run(seconds)
+        out["x"] = float(sim.data.qpos[0])
+    else:
+        run(4.0)
+        x0, t0 = float(sim.data.qpos[0]), sim.time
+        run(3.0)
+        out["speed"] = (float(sim.data.qpos[0]) - x0) / (sim.time - t0)
+        command()
+        run(1.5)
+        yaw0, t0 = yaw(), sim.time
+        command(wz=0.75)
+        while yaw() - yaw0 < 90.0 and sim.time < t0 + 15.0:
+            run(0.1)
+        out["turn_s"] = sim.time - t0 if yaw() - yaw0 >= 90.0 else math.inf
+        command()
+        run(1.5)
+        heading, start, t0 = math.radians(yaw()), sim.data.qpos[:2].copy(), sim.time
+
+        def right() -> float:
+            moved = sim.data.qpos[:2] - start
+            return -(-moved[0] * math.sin(heading) + moved[1] * math.cos(heading))
+
+        command(vy=-0.3)
+        while right() < 1.0 and sim.time < t0 + 30.0:
+            run(0.1)
+        out["sideways_s"] = sim.time - t0 if right() >= 1.0 else math.inf
+        command()
+        run(1.5)
+    out["reports"] = {n: c.impl.report() for n, c in lab.manager.controllers.items()
+                      if hasattr(c, "impl")}
+    return out
 
 
 def routine_walk(impulse: float = 0.0, direction: float = 0.0) -> tuple[bool, float, float, float]:
@@ -115,14 +274,32 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="s of walking for the RTF")
     parser.add_argument("--quick", action="store_true", help="no push scans")
     args = parser.parse_args()
-    print(f"load average before: {os.getloadavg()}")
-    t = mpc_solve_times() * 1e3
-    print(f"COM MPC per solve (standalone, 2000 solves): median {np.median(t):.3f} ms, "
-          f"p99 {np.percentile(t, 99):.3f} ms")
+    print(f"load average before: {os.getloadavg()}; scheduler: "
+          f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
+          f"cores {sorted(os.sched_getaffinity(0))}")
+    bare = bare_step_ms()
+    print(f"bare MuJoCo step of Mex-One walking: {bare * 1e3:.1f} us (CPU): the yardstick, 'x' below")
+    problems = record_problems()
+    import qpsolvers
+
+    for solver in ["daqp"] + [s for s in ("proxqp", "osqp") if s in qpsolvers.available_solvers]:
+        times = solve_times(problems, solver)
+        for name, label in (("mpc", "COM MPC"), ("wbc", "whole-body QP")):
+            n, median, p99, failed = times[name]
+            none = f", no solution to {failed}" if failed else ""
+            print(f"{label} per solve, {solver} ({n} problems from a walk): median {median:.3f} ms "
+                  f"({median / bare:.1f}x), p99 {p99:.3f} ms{none}")
+    for every in (False, True):
+        result = per_update(8.0, every)
+        print(f"stack walking 8 s, {'every part at 500 Hz' if every else 'shipped rates'}: RTF "
+              f"{result['rtf_wall']:.2f} (wall), {result['rtf_cpu']:.2f} (per CPU second)")
+        for name, (n, median, p99) in result["parts"].items():
+            print(f"  {name:12s} CPU per update: median {median:.3f} ms ({median / bare:.1f}x), "
+                  f"p99 {p99:.3f} ms ({n} updates)")
     result = walk_stack(args.seconds)
-    print(f"stack, {args.seconds:g} s at 0.3 m/s: {result['distance']:.2f} m "
-          f"({result['distance'] / (args.seconds - 0.6):.3f} m/s), lowest base {result['lowest']:.3f} m, "
-          f"RTF {result['rtf_wall']:.2f} (wall), {result['rtf_cpu']:.2f} (per CPU second)")
+    print(f"stack, {args.seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
+          f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
+          f"{result['rtf_cpu']:.2f} (per CPU second)")
     for name, budget in result["budget"].items():
         print(f"  {name:12s} {budget['update_ms_mean']:.3f} ms/update (max {budget['update_ms_max']:.2f}), "
               f"deadline {budget['deadline_ms']:g} ms, {budget['deadline_misses']} missed of "
@@ -131,12 +308,29 @@ def main() -> None:
     print(f"today's walk (mexone run walk, 2 m): stood {ok}, {speed:.3f} m/s, RTF {rtf_wall:.2f} "
           f"(wall), {rtf_cpu:.2f} (per CPU second)")
     if not args.quick:
+        flat = course()
+        print(f"course, flat: {flat['speed']:.3f} m/s once up to speed, quarter turn in "
+              f"{flat['turn_s']:.1f} s, 1 m to the right in {flat['sideways_s']:.1f} s, lowest base "
+              f"{flat['lowest']:.3f} m; estimator {flat['reports']['estimator']}")
+        for world in ("slope", "step"):
+            walk = course(world)
+            print(f"course, {world}.world 20 s at 0.3 m/s: x = {walk['x']:.2f} m (the terrain ends at "
+                  f"5.5 m / 2.5 m), lowest base {walk['lowest']:.3f} m; "
+                  f"{walk['reports']['whole_body']}")
         impulses = [2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
-        for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2)):
+        for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2),
+                                 ("sideways (right)", -math.pi / 2)):
             mine = largest(lambda i, d=direction: survives_stack(i, d), impulses)
             theirs = largest(lambda i, d=direction: routine_walk(i, d)[0], impulses)
-            print(f"largest push survived while walking, {label}: stack {mine:g} N s "
-                  f"(at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s)")
+            print(f"largest push survived while walking, {label}, at t = {PUSH_AT:g} s: stack "
+                  f"{mine:g} N s (at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s)")
+        phases = [PUSH_AT + 0.1 * k for k in range(8)]  # a stride: two steps of 0.4 s
+        for impulse in (5.0, 6.0):
+            for label, direction in (("forward", 0.0), ("left", math.pi / 2), ("right", -math.pi / 2)):
+                stood = [survives_stack(impulse, direction, at) for at in phases]
+                print(f"{impulse:g} N s {label} over a stride (pushed at {phases[0]:g}..{phases[-1]:g} s "
+                      f"by 0.1 s): survived {sum(stood)} of {len(stood)} "
+                      f"({''.join('S' if ok else 'F' for ok in stood)})")
     print(f"load average after: {os.getloadavg()}")
 
 

@@ -56,4 +56,5 @@ npm install --prefix tests/hub --no-audit --no-fund --silent
 [ -x .venv-hub/bin/python ] || /usr/bin/python3 -m venv .venv-hub
 .venv-hub/bin/python -m pip install -q --disable-pip-version-check -e ".[hub]" jupyterhub
 python3 -m ruff check .
+python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
 python3 -m pytest "$@"

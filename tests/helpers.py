@@ -114,3 +114,21 @@ def fuzz(examples: int):
 
     return settings(max_examples=FUZZ_EXAMPLES or examples, derandomize=not FUZZ_EXAMPLES,
                     deadline=None, database=None, suppress_health_check=list(HealthCheck))
+
+
+def built_panel(cls, server, lab):
+    """A GUI panel (gui/panels.py) on its own, outside a page: built for `lab` on `server`, its
+    work (`do`) run at once, in the caller's thread."""
+    from types import SimpleNamespace
+
+    from mexone.gui.fields import NumberFields
+    from mexone.gui.panels import PageSettings
+    from mexone.gui.plots import SignalLog
+
+    host = SimpleNamespace(lab=lab, server=server, settings=PageSettings(), do=lambda fn: fn(),
+                           refuse=lambda text: None, notify=lambda *a, **k: None,
+                           panel=lambda name: None)
+    host.fields, host.log = NumberFields(server.gui, host.refuse), SignalLog(lab)
+    panel = cls(host)
+    panel.build()
+    return panel

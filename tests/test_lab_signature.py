@@ -40,7 +40,7 @@ def files(tmp_path_factory, turntable) -> tuple[Path, Path]:
 
 
 def running(lab: Lab) -> set[str]:
-    return {name for name, c in lab.controllers.controllers.items() if c.running}
+    return {name for name, c in lab.manager.controllers.items() if c.running}
 
 
 # ----- model ------------------------------------------------------------------------------------
@@ -59,7 +59,7 @@ def test_model_as_robot_model_str_or_path(files, kind):
     urdf, _ = files
     model = {"RobotModel": load_model(urdf), "str": str(urdf), "Path": urdf}[kind]
     lab = Lab.create(model)
-    assert lab.sim.robot.name == "turntable" and lab.controllers is None  # no YAML of its own
+    assert lab.sim.robot.name == "turntable" and lab.manager is None  # no YAML of its own
 
 
 # ----- controllers ------------------------------------------------------------------------------
@@ -75,12 +75,12 @@ def test_controllers_true_for_another_robot_says_what_to_pass(files):
 
 def test_controllers_false_lets_the_builtin_robot_go_limp():
     lab = Lab.create(controllers=False)
-    assert lab.controllers is None and "No controllers" in lab.no_controllers
+    assert lab.manager is None and "No controllers" in lab.no_controllers
 
 
 def test_controllers_none_for_another_robot_is_none_with_a_note(files):
     lab = Lab.create(files[0], controllers=None)
-    assert lab.controllers is None and "no controller YAML was given" in lab.no_controllers
+    assert lab.manager is None and "no controller YAML was given" in lab.no_controllers
 
 
 def test_controllers_auto(files):
@@ -116,7 +116,7 @@ def test_target_rtf_none_int_or_float(files, rtf):
 @pytest.mark.parametrize("period", [None, 0.005, 1])
 def test_control_period_none_float_or_int(files, period):
     lab = Lab.create(files[0], controllers=files[1], control_period=period)
-    assert lab.controllers.control_period == (period or lab.sim.timestep)
+    assert lab.manager.control_period == (period or lab.sim.timestep)
 
 
 @pytest.mark.parametrize("namespace, expected", [(None, "/turntable"), ("/bench", "/bench"), ("arm", "/arm")])

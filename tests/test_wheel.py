@@ -25,7 +25,7 @@ from wheelenv import Venv
 pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
-SHIPPED = sorted(p.stem for p in (ROOT / "src/mexone/routines/shipped").glob("*.py")
+SHIPPED = sorted(p.stem for p in (ROOT / "src/mexone/robots/mex_one/routines").glob("*.py")
                  if p.stem != "__init__")
 EXAMPLES = sorted((ROOT / "examples").glob("[0-9][0-9]_*.py"))
 TIMES = wheelenv.TIMES  # what building and installing cost, for the report
@@ -130,7 +130,7 @@ def test_the_wheel_keeps_the_executable_bits(wheel):
     executable = {line.split("\t", 1)[1].removeprefix("src/")
                   for line in wheelenv.git("ls-files", "-s", "src").splitlines() if line.startswith("100755")}
     assert {"mexone/robots/mex_one/scripts/arms_node.py",
-            "mexone/robots/mex_one/scripts/sweep_node.py"} <= executable
+            "mexone/robots/mex_one/scripts/joint_steps_node.py"} <= executable
     with zipfile.ZipFile(wheel) as z:
         modes = {i.filename: i.external_attr >> 16 for i in z.infolist()}
     assert sorted(n for n in executable if not modes[n] & 0o111) == []
@@ -138,7 +138,7 @@ def test_the_wheel_keeps_the_executable_bits(wheel):
 
 def test_the_installed_files_keep_the_executable_bits(installed):
     scripts = installed / "robots" / "mex_one" / "scripts"
-    for name in ("arms_node.py", "sweep_node.py", "mexone_node"):
+    for name in ("arms_node.py", "joint_steps_node.py", "mexone_node"):
         assert os.access(scripts / name, os.X_OK), name
     assert os.access(installed / "ros1/share/controller_manager/scripts/spawner", os.X_OK)
 
@@ -234,7 +234,7 @@ def test_ros_env_finds_the_installed_packages(jobs, installed):
     assert lines[0] == str(installed / "robots" / "mex_one")
     assert lines[1:3] == ["9ed9c82c96abe1a00c3e8cdaeee24413", "987ad85e4756f3aef7f1e5e7fe0595d1"]
     scripts = installed / "robots" / "mex_one" / "scripts"
-    assert lines[3].endswith(f"{scripts}/sweep_node.py __name:=routine")
+    assert lines[3].endswith(f"{scripts}/joint_steps_node.py __name:=routine")
     assert lines[4].endswith(f"{scripts}/arms_node.py __name:=routine")
 
 

@@ -2,11 +2,13 @@
 docs/ranges.md; none of them is committed):
 
 - `_generated/cli.md`: every `mexone` verb's `--help`, from the parser `mexone` itself runs;
-- `_generated/api/*.md`: an `automodule` per module with a public `__all__`, each object
-  documented once, where users import it from (the shallowest module that exports it);
+- `_generated/api/*.md`: an `automodule` per public module (`mexone.API`), each object of its
+  `__all__` documented once, where users import it from (the shallowest module that exports it);
 - `ranges.md`: `python -m mexone.ranges`'s table (`mexone.ranges.docs_page`);
 - `_generated/gallery.md`: each numbered example run into a scratch folder, with what it
   prints and the picture it draws (cached by a hash of the example and of mexone's source);
+- `_generated/layout.md`: the layers, from tests/test_layers.py (docs/contributing.md includes
+  it);
 - `_generated/more.md`: a table of contents of the topic pages at docs/*.md that no section
   lists by name (so a new page is on the site as soon as it is in docs/).
 """
@@ -17,7 +19,6 @@ import hashlib
 import importlib
 import json
 import os
-import pkgutil
 import shutil
 import subprocess
 import sys
@@ -32,22 +33,15 @@ __all__ = ["public_modules", "setup"]
 
 # pages the hand-written sections list by name: not repeated under "More guides"
 LISTED = {"index", "DECISIONS", "ranges"}
-# not importable modules: the shipped routines run only under a simulation, genpy's output
-SKIP_PARTS = ("routines.shipped", "robots.mex_one.scripts")
 
 
 def public_modules() -> list:
-    """Every importable mexone module with a public `__all__`, shallowest first."""
+    """The public API's modules (`mexone.API`: what a student, a teacher and a plug-in author
+    import), shallowest first; every other module is internal and has no reference page."""
     import mexone
 
-    found = [mexone] if getattr(mexone, "__all__", None) is not None else []
-    for info in pkgutil.walk_packages(mexone.__path__, "mexone."):
-        name = info.name
-        if any(part.startswith("_") for part in name.split(".")) or any(s in name for s in SKIP_PARTS):
-            continue
-        module = importlib.import_module(name)
-        if getattr(module, "__all__", None) is not None:
-            found.append(module)
+    names = {name for modules in mexone.API.values() for name in modules}
+    found = [importlib.import_module(name) for name in names]
     return sorted(found, key=lambda m: (m.__name__.count("."), m.__name__))
 
 
@@ -130,7 +124,7 @@ def _api_pages(out: Path) -> None:
         groups.setdefault(group, []).extend(block)
     (out / "api").mkdir(parents=True, exist_ok=True)
     index = ["# Python API, module by module", "",
-             "Every name in a public module's `__all__`, from its docstring. A class or function",
+             "Every name of the public API (`mexone.API`), from its docstring. A class or function",
              "exported by several modules is documented once, where you import it from.", "",
              "```{toctree}", ":maxdepth: 1", ""]
     for group, lines in groups.items():
@@ -224,6 +218,46 @@ def _more_page(docs: Path, out: Path) -> None:
     (out / "more.md").write_text("\n".join(lines))
 
 
+def _first_sentence(text: str | None) -> str:
+    paragraph = " ".join((text or "").strip().split("\n\n")[0].split())
+    return paragraph.split(". ")[0].rstrip(".") + "." if paragraph else ""
+
+
+def _layout_page(root: Path, out: Path) -> None:
+    """docs/contributing.md's Layout: the layers as tests/test_layers.py enforces them (its CORE
+    and FRONT_END_ORDER, the one home of the order), each with its docstring's first sentence."""
+    import importlib
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_layers", root / "tests" / "test_layers.py")
+    layers = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(layers)
+
+    def line(name: str) -> str:
+        if name == "__main__":
+            return "- `__main__`: `python -m mexone`, the same as the `mexone` command."
+        module = importlib.import_module(f"mexone.{name}")
+        kind = "package" if hasattr(module, "__path__") else "module"
+        return f"- `{name}` ({kind}): {_first_sentence(module.__doc__)}"
+
+    levels: dict[int, list[str]] = {}
+    for name, level in layers.CORE.items():
+        levels.setdefault(level, []).append(name)
+    lines = ["`src/mexone/` has one sub-package (or module) per layer. The **core** first, each",
+             "layer importing only its own level and the levels before it:", ""]
+    for level in sorted(levels):
+        lines += [f"**Core, level {level}**", ""]
+        lines += [line(name) for name in sorted(levels[level])] + [""]
+    lines += ["Then the **front ends**, which the core never imports, each importing the core, its",
+              "own front end and those of the levels before it:", ""]
+    for level, names in enumerate(layers.FRONT_END_ORDER):
+        lines += [f"**Front ends, level {level}**", ""]
+        lines += [line(name) for name in sorted(names)] + [""]
+    lines += ["No two modules import each other. `tests/test_layers.py` checks all of it, and this",
+              "list is generated from it when the site is built.", ""]
+    _write_if_changed(out / "layout.md", "\n".join(lines))
+
+
 def _write_if_changed(path: Path, text: str) -> None:
     if not path.is_file() or path.read_text() != text:
         path.write_text(text)
@@ -238,6 +272,7 @@ def generate(app: Sphinx) -> None:
 
     _write_if_changed(docs / "ranges.md", ranges.docs_page())
     _cli_page(out)
+    _layout_page(root, out)
     _api_pages(out)
     _more_page(docs, out)
     _gallery_page(root, out)

@@ -2,7 +2,7 @@
 from the torso IMU (gyro, accelerometer) and the joint encoders, compared with the true state
 (issue 32, worked example 6d).
 
-The model is the one-foot LQR's (lqr_balance.py): `linearize` with the IMU's sensor outputs
+The model is the one-foot LQR's (one_foot_lqr.py): `linearize` with the IMU's sensor outputs
 (MuJoCo's sensor derivatives) and the stance foot's pose (the leg-odometry assumption: a foot
 flat on the ground does not move, which makes the base's position observable from the
 encoders); the encoders are the joint-angle states. `control.dlqe` gives the gain of
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import control
 import mujoco
 import numpy as np
-from lqr_balance import Design, design, lqr, noise_std, one_foot_pose, run, setup, smoothed_noise
+from one_foot_lqr import Design, design, lqr, noise_std, one_foot_pose, run, setup, smoothed_noise
 
 from mexone.design import linearize
 from mexone.lab import Lab

@@ -60,7 +60,7 @@ def main() -> None:
     ax = axes[0, 0]
     for label, gravity in (("gravity compensation + PD", 1.0), ("plain PD, same gains", 0.0)):
         lab = lab_of("01_gravity_compensation")
-        lab.controllers.controllers["gravity_compensation"].set_param("gravity", gravity)
+        lab.manager.controllers["gravity_compensation"].set_param("gravity", gravity)
         q = joint(lab, "l_shoulder_pitch")
         q0 = q(lab.sim)
         t, v = record(lab, 1.0, lambda sim, q=q, q0=q0: 1e3 * (q(sim) - q0))
@@ -77,8 +77,8 @@ def main() -> None:
         if shipped:
             def command(sim, lab=lab):
                 q = reference(sim.time, q0, 0.5, 0.5)[0]
-                lab.controllers.command("l_shoulder_pitch_position_controller", [q[0]])
-                lab.controllers.command("l_elbow_position_controller", [q[1]])
+                lab.manager.command("l_shoulder_pitch_position_controller", [q[0]])
+                lab.manager.command("l_elbow_position_controller", [q[1]])
             lab.sim.add_periodic(lab.sim.timestep, command)
         elbow = joint(lab, "l_elbow")
         t, v = record(lab, 2.0, lambda sim, e=elbow: 1e3 * (e(sim) - reference(sim.time, q0, 0.5, 0.5)[0][1]))
@@ -98,7 +98,7 @@ def main() -> None:
     start = hand(sim)
     sim.apply_wrench("l_forearm", (0.0, 10.0, 0.0), point=start, duration=1.2)
     t, v = record(lab, 1.9, lambda s: 1e3 * (hand(s) - start)[1])
-    stiffness = lab.controllers.controllers["hand_impedance"].params["stiffness"]
+    stiffness = lab.manager.controllers["hand_impedance"].params["stiffness"]
     ax.plot(t, v, label="hand, sideways")
     ax.axhline(1e3 * 10.0 / stiffness, ls="--", c="k", label="F / K")
     ax.set(title="3. push the hand: 10 N for 1.2 s", xlabel="t (s)", ylabel="displacement (mm)")

@@ -4,9 +4,24 @@ Importing mexone changes nothing in the environment: offscreen rendering picks i
 platform where it starts (mexone.record.video).
 """
 
-__version__ = "0.1.0"
+__version__ = "0.1.0"  #: mexone's version (the wheel's)
 
-__all__ = ["Controller", "Param", "StateFeedback", "LinearController", "__version__"]
+__all__ = ["Controller", "Param", "StateFeedback", "LinearController", "API", "__version__"]
+
+#: The public API, by who imports it: a student (a lab, controllers, experiments, notebooks), a
+#: teacher (exercises, sweeps) and a plug-in author (a controller, sensor type, GUI panel or
+#: exercise in a package of their own, found through entry points). A public module's `__all__`
+#: is its public API, each name documented; every other module of mexone, and every name not in
+#: such an `__all__`, is internal and may change without notice (tests/test_public_api.py).
+API: dict[str, tuple[str, ...]] = {
+    "student": ("mexone", "mexone.lab", "mexone.physics", "mexone.control", "mexone.dynamics",
+                "mexone.design", "mexone.sensors", "mexone.motion", "mexone.rospy",
+                "mexone.msgs", "mexone.record.bag", "mexone.record.reader", "mexone.notebook",
+                "mexone.errors"),
+    "teacher": ("mexone.exercises", "mexone.sweep"),
+    "plug-in author": ("mexone.control", "mexone.sensors", "mexone.gui.panels",
+                       "mexone.exercises"),
+}
 
 
 def __getattr__(name: str):

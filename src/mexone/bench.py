@@ -74,9 +74,9 @@ def _best(fn, repeats: int) -> float:
 
 def with_integral_terms(lab: Lab) -> None:
     """Give every position controller an I term that acts (i and a clamp), keeping p and d."""
-    manager = lab.controllers
+    manager = lab.manager
     for ctrl in manager.controllers.values():
-        if ctrl.kind == "position" and ctrl.gains is not None:
+        if ctrl.holds_position and ctrl.tunable:
             manager.set_gains(ctrl.name, [replace(g, i=0.5 * g.p, i_clamp_min=-2.0, i_clamp_max=2.0)
                                           for g in ctrl.gains])
     lab.sim.step(1)  # the update writes the new gains into the actuators
@@ -230,7 +230,7 @@ def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
             (Path(folder) / name).write_text(text)
         (Path(folder) / "my_pd.py").write_text(_BENCH_CONTROLLER)
         lab = Lab.create(controllers=Path(folder) / "controllers.yaml")
-    sim, manager = lab.sim, lab.controllers
+    sim, manager = lab.sim, lab.manager
     runner = manager.controllers["my_pd_controller"]
     steps = round(sim_seconds / sim.timestep)
     clock = time.thread_time  # CPU time of this thread: a loaded machine's other tenants excluded

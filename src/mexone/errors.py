@@ -5,9 +5,11 @@ The CLI prints ``mexone: <str(error)>`` and exits 2; nothing else of the error r
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 __all__ = [
+    "warn_renamed",
     "MexoneError",
     "InputError",
     "ModelError",
@@ -44,6 +46,7 @@ class MexoneError(Exception):
         super().__init__(self.one_line())
 
     def one_line(self) -> str:
+        """The error as one line: file:line: what (hint)."""
         where = ""
         if self.file is not None:
             where = f"{self.file}:{self.line}: " if self.line else f"{self.file}: "
@@ -91,3 +94,10 @@ class RoutineError(MexoneError):
                  hint: str | None = None, details: str = "") -> None:
         self.details = details or what
         super().__init__(what, file=file, line=line, hint=hint)
+
+
+def warn_renamed(old: str, new: str) -> None:
+    """A renamed name was used: it still works for one release, and says what to write instead
+    (a DeprecationWarning at the caller's line)."""
+    warnings.warn(f"{old} is renamed {new}; the old name goes in the next release",
+                  DeprecationWarning, stacklevel=3)

@@ -21,7 +21,7 @@ from mexone.control.hardware import SimHardware, build_actuators
 from mexone.control.manager import ControllerManager
 from mexone.description.loader import load_model
 from mexone.description.model import RobotModel
-from mexone.errors import ArgumentTypeError, InputError
+from mexone.errors import ArgumentTypeError, InputError, warn_renamed
 from mexone.physics.compile import CompileOptions, Spawn, SpecEdit
 from mexone.physics.simulation import Simulation
 from mexone.physics.world import World, default_world
@@ -35,8 +35,8 @@ __all__ = ["Lab", "CLOCK_RATE", "TF_RATE", "robot_namespace", "cached_lab", "AUT
 def _conjugate(q: np.ndarray) -> np.ndarray:
     return np.array([q[0], -q[1], -q[2], -q[3]])
 
-CLOCK_RATE = 1000.0  # Hz of /clock, as gazebo_ros publishes it (only while someone listens)
-TF_RATE = 50.0  # Hz of /tf, robot_state_publisher's default (only while someone listens)
+CLOCK_RATE = 1000.0  #: Hz of /clock, as gazebo_ros publishes it (only while someone listens)
+TF_RATE = 50.0  #: Hz of /tf, robot_state_publisher's default (only while someone listens)
 
 
 def robot_namespace(robot: RobotModel, config: ControlConfig | None = None,
@@ -53,9 +53,12 @@ def robot_namespace(robot: RobotModel, config: ControlConfig | None = None,
 
 @dataclass
 class Lab:
+    """One simulation with its bus (ROS-named topics), its controller manager and its sensors,
+    assembled the way every front end needs it: `Lab.create(...)`."""
+
     sim: Simulation
     bus: Bus
-    controllers: ControllerManager | None
+    manager: ControllerManager | None  # ros_control's controller manager (None: no controllers)
     namespace: str
     sensors: SensorSuite
     _timers: dict = field(default_factory=dict, repr=False)  # lazy publishers that run now
@@ -123,6 +126,13 @@ class Lab:
         bus.on_subscribers("/tf", lambda n: lab._lazy("tf", n, TF_RATE, lab._publish_tf))
         return lab
 
+    @property
+    def controllers(self) -> ControllerManager | None:
+        """The former name of `manager` (it read `lab.manager.controllers`), for one
+        release."""
+        warn_renamed("Lab.controllers", "Lab.manager")
+        return self.manager
+
     def _lazy(self, key: str, listeners: int, rate: float, publish) -> None:
         """Run a publisher only while someone listens: a 1 kHz /clock costs a Python call per
         physics step, which nobody should pay for unless they asked."""
@@ -151,6 +161,7 @@ class Lab:
                                 tuple(sim.data.xquat[body]))
 
     def transforms(self) -> list[TransformStamped]:
+        """Every link's transform now, as robot_state_publisher and the base's odometry send them on /tf."""
         sim = self.sim
         stamp = Time.from_nsec(sim.time_ns)
         data, bodies = sim.data, sim.compiled.bodies
@@ -169,7 +180,7 @@ class Lab:
         return out
 
 
-AUTO = "auto"  # Lab.create(controllers=AUTO): controllers with gains from the robot's physics
+AUTO = "auto"  #: Lab.create(controllers=AUTO): controllers with gains from the robot's physics
 
 _PATH = (str, os.PathLike)
 _ACCEPTED = {  # Lab.create's parameters: (types, what to say); None is accepted where listed

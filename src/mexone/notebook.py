@@ -53,6 +53,7 @@ class Replay:
 
     @property
     def duration(self) -> float:
+        """The replay's length in seconds of sim time."""
         return self.times[-1] - self.times[0] if self.times else 0.0
 
     def scene_html(self, dark_mode: bool = False) -> str:
@@ -203,6 +204,7 @@ class LivePage:
 
     @property
     def running(self) -> bool:
+        """Whether the page's simulation loop runs."""
         return self.thread.is_alive()
 
     def _repr_html_(self) -> str:

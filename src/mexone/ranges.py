@@ -12,7 +12,9 @@ deliberately wide (a 100 t link is allowed) so no real robot is refused.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 
 from mexone.errors import InputError
 
@@ -69,7 +71,7 @@ class Range:
             return False
         return not (self.integer and number != int(number))
 
-    def check(self, value: float, what: str | None = None, **where) -> float:
+    def check(self, value: float, what: str | None = None, **where: Any) -> float:
         """`value` as a float, or an InputError naming `what` (default: the quantity) and the range.
         `where` (file=, line=, hint=) locates it, as every MexoneError."""
         if isinstance(value, bool) or not self.contains(value):
@@ -77,7 +79,7 @@ class Range:
             raise InputError(f"{label} {number_text(value)} must be {self.describe()}", **where)
         return int(value) if self.integer else float(value)
 
-    def check_all(self, values, what: str | None = None, **where) -> list[float]:
+    def check_all(self, values: Iterable[float], what: str | None = None, **where: Any) -> list[float]:
         return [self.check(v, what, **where) for v in values]
 
 
@@ -118,7 +120,7 @@ MESH_SCALE = Range("mesh scale", "", 0.0, 1e3, low_open=True, why="an STL in mm 
 TIMEOUT = Range("timeout", "s", 0.0, 1e6, why="a ROS service's timeout (0: none)")
 FORCE = Range("force", "N or N m", -1e6, 1e6, why="a pushed force or torque, an applied joint "
               "effort (signed)")
-# the divergence watchdog's limits (physics/watchdog.py): a body set moving faster is a divergence
+# the divergence watchdog's limits (physics/divergence.py): a body set moving faster is a divergence
 SPEED = Range("speed", "m/s", -50.0, 50.0, why="a set linear velocity (component and length)")
 SPIN = Range("spin", "rad/s", -500.0, 500.0, why="a set angular velocity (component and length)")
 CONTROL_PERIOD = Range("control period", "s", 1e-5, 10.0, why="the controllers' period (at least "

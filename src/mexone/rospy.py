@@ -29,6 +29,7 @@ __all__ = [
 
 
 class ROSException(Exception):
+    """rospy's base exception: what a routine catches around a ROS call."""
     pass
 
 
@@ -38,6 +39,7 @@ class ROSInterruptException(ROSException, KeyboardInterrupt, Shutdown):
 
 
 class ROSInitException(ROSException):
+    """init_node was not called (or called twice), as rospy raises it."""
     pass
 
 
@@ -67,19 +69,23 @@ def init_node(name: str, anonymous: bool = False, **_ignored: Any) -> None:
 
 
 def get_name() -> str:
+    """The routine's node name (`/name`, init_node's, or `__name:=` renamed)."""
     return current().node_name
 
 
 def get_namespace() -> str:
+    """The node's namespace: the root, as for a node rosrun starts."""
     return "/"
 
 
 def is_shutdown() -> bool:
+    """Whether the routine should end: its run is over or it called signal_shutdown."""
     ctx = current()
     return ctx.scheduler.stopped or ctx.shutdown_reason is not None
 
 
 def signal_shutdown(reason: str) -> None:
+    """End the routine (its loops see is_shutdown()), running its on_shutdown hooks."""
     ctx = current()
     ctx.shutdown_reason = reason
     for hook in ctx.shutdown_hooks:
@@ -87,25 +93,32 @@ def signal_shutdown(reason: str) -> None:
 
 
 def on_shutdown(hook) -> None:
+    """Run `hook()` when the routine is shut down (signal_shutdown)."""
     current().shutdown_hooks.append(hook)
 
 
 # ----- time -------------------------------------------------------------------------------
 class Time(_msgs.Time):
+    """rospy's Time: a stamp in sim time (`Time.now()`)."""
+
     @staticmethod
     def now() -> _msgs.Time:
+        """Sim time now."""
         return _msgs.Time.from_nsec(current().lab.sim.time_ns)
 
 
 def Duration(secs: float = 0, nsecs: int = 0) -> _msgs.Duration:  # noqa: N802 - rospy's name
+    """rospy's Duration: a span of sim time."""
     return _msgs.Duration.from_sec(secs + nsecs * 1e-9)
 
 
 def get_time() -> float:
+    """Sim time now, in seconds (the simulation's clock, /use_sim_time)."""
     return current().time
 
 
 def get_rostime() -> _msgs.Time:
+    """Sim time now, as a rospy Time."""
     return Time.now()
 
 
@@ -120,6 +133,7 @@ def _wait(wake: float, ready=None) -> None:
 
 
 def sleep(duration) -> None:
+    """Wait `duration` s of sim time (a number or a Duration): the simulation runs meanwhile."""
     seconds = duration.to_sec() if hasattr(duration, "to_sec") else float(duration)
     if math.isnan(seconds):
         raise ROSException("rospy.sleep(nan): the duration is not a number")
@@ -137,6 +151,7 @@ class Rate:
         self.last = current().time
 
     def sleep(self) -> None:
+        """Sleep the rest of this period, in sim time (the simulation runs meanwhile)."""
         now = current().time
         wake = self.last + self.period
         if now - wake > self.period:
@@ -145,16 +160,21 @@ class Rate:
         _wait(max(wake, now))
 
     def remaining(self) -> _msgs.Duration:
+        """What is left of this period, as a Duration."""
         return _msgs.Duration.from_sec(max(0.0, self.last + self.period - current().time))
 
 
 def spin() -> None:
+    """Handle callbacks until the routine is shut down."""
     while not is_shutdown():
         _wait(float("inf"))
 
 
 # ----- topics -----------------------------------------------------------------------------
 class Publisher:
+    """rospy's Publisher on the lab's bus: `publish(msg)` (or the message's fields); a command
+    topic nobody subscribes to is said once in the console."""
+
     def __init__(self, name: str, data_class: type, queue_size: int | None = None,
                  latch: bool = False, **_ignored: Any):
         self.name = _resolve(name)
@@ -164,6 +184,7 @@ class Publisher:
         self._bus.advertise(self.name, data_class)
 
     def publish(self, *args: Any, **kwargs: Any) -> None:
+        """Publish a message (or build one from its fields), as rospy."""
         ctx = self._context
         if ctx.abandoned:
             raise Shutdown
@@ -172,9 +193,9 @@ class Publisher:
         if self.name not in ctx.warned_topics and self.name.endswith("/command") \
                 and not self.get_num_connections():
             ctx.warned_topics.add(self.name)
-            manager = ctx.lab.controllers
+            manager = ctx.lab.manager
             topics = [manager.topic(c.name) for c in manager.controllers.values()
-                      if c.running and c.kind != "state"] if manager else []
+                      if c.running and c.drives_joints] if manager else []
             notice = (f"{self.name} has no subscriber; this robot's command topics are: "
                       + (", ".join(topics) or "none"))
             ctx.notices.append(notice)
@@ -182,14 +203,19 @@ class Publisher:
         self._bus.publish(self.name, msg)
 
     def get_num_connections(self) -> int:
+        """How many subscribe to the topic."""
         topic = self._bus.topics.get(self.name)
         return len(topic.subscriptions) if topic else 0
 
     def unregister(self) -> None:
+        """Stop publishing (nothing to undo on the lab's bus)."""
         pass
 
 
 class Subscriber:
+    """rospy's Subscriber on the lab's bus: `callback(msg[, callback_args])` runs in the
+    routine's own thread, between its calls to sleep, as rospy's would."""
+
     def __init__(self, name: str, data_class: type, callback=None, callback_args=None,
                  queue_size: int | None = None, **_ignored: Any):
         self.name = _resolve(name)
@@ -209,6 +235,7 @@ class Subscriber:
         self._sub = ctx.lab.bus.subscribe(self.name, data_class, deliver, node=ctx.node_name)
 
     def unregister(self) -> None:
+        """Stop receiving the topic's messages."""
         self._sub.unregister()
 
 
@@ -230,6 +257,8 @@ def wait_for_message(topic: str, topic_type: type, timeout: float | None = None)
 
 # ----- parameters and logging -------------------------------------------------------------
 def get_param(name: str, default: Any = KeyError) -> Any:
+    """A parameter from the routine's parameter server (the controller YAML and its
+    arguments), or `default`; a KeyError without one, as rospy."""
     key = _resolve(name)
     params = current().params
     if key in params:
@@ -251,10 +280,12 @@ def get_param(name: str, default: Any = KeyError) -> Any:
 
 
 def set_param(name: str, value: Any) -> None:
+    """Set a parameter on the routine's parameter server."""
     current().params[_resolve(name)] = value
 
 
 def has_param(name: str) -> bool:
+    """Whether the parameter server holds `name`."""
     try:
         get_param(name)
     except KeyError:
@@ -267,20 +298,25 @@ def _log(level: str, text: str, *args: Any) -> None:
 
 
 def loginfo(msg: str, *args: Any, **_kw: Any) -> None:
+    """Log at INFO in the routine's console (`msg % args`, as rospy)."""
     _log("INFO", msg, *args)
 
 
 def logwarn(msg: str, *args: Any, **_kw: Any) -> None:
+    """Log at WARN in the routine's console."""
     _log("WARN", msg, *args)
 
 
 def logerr(msg: str, *args: Any, **_kw: Any) -> None:
+    """Log at ERROR in the routine's console."""
     _log("ERROR", msg, *args)
 
 
 def logdebug(msg: str, *args: Any, **_kw: Any) -> None:
+    """Log at DEBUG in the routine's console."""
     _log("DEBUG", msg, *args)
 
 
 def logfatal(msg: str, *args: Any, **_kw: Any) -> None:
+    """Log at FATAL in the routine's console."""
     _log("FATAL", msg, *args)

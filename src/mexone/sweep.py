@@ -31,7 +31,9 @@ from mexone.ranges import GAINS, number_text
 __all__ = ["SweepSpec", "Trial", "grid_trials", "random_trials", "run_trial", "run_sweep",
            "parse_range", "best_row", "best_yaml", "heatmap", "METRICS", "GAIN_KEYS"]
 
+#: the gains a sweep varies (a PID's terms and its integral clamp)
 GAIN_KEYS = ("p", "i", "d", "i_clamp")
+#: what each trial measures: a row's columns, and what the best trial is chosen by
 METRICS = ("rise_time", "overshoot", "settling_time", "iae", "max_effort", "fell")
 DEFAULT_STEP = 0.5  # rad
 STEP_AT = 0.1  # s: the step command comes after the robot has settled on its feet
@@ -48,6 +50,7 @@ class SweepSpec:
     controllers: str | None = None
 
     def key(self) -> str:
+        """What identifies the sweep (its definition, for --resume)."""
         return json.dumps(asdict(self), sort_keys=True)
 
 
@@ -85,6 +88,7 @@ def parse_range(text: str, name: str) -> np.ndarray:
 
 
 def grid_trials(ranges: dict[str, np.ndarray]) -> list[Trial]:
+    """Every combination of the gains' values (key -> values), numbered."""
     keys = list(ranges)
     return [Trial(i, {k: float(v) for k, v in zip(keys, combo, strict=True)})
             for i, combo in enumerate(itertools.product(*(ranges[k] for k in keys)))]
@@ -101,21 +105,21 @@ def random_trials(ranges: dict[str, np.ndarray], count: int, seed: int = 0) -> l
 def _lab(spec: SweepSpec) -> Lab:
     """This worker's Lab for `spec`, back at home (compiling costs more than a trial)."""
     lab = cached_lab(spec.model, spec.controllers)
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("the robot has no controllers to tune", hint="give --controllers")
     lab.sim.reset()  # controllers restart, holding home, with the configured gains
-    for ctrl in lab.controllers.controllers.values():
+    for ctrl in lab.manager.controllers.values():
         if ctrl.gains is not None:
-            lab.controllers.set_gains(ctrl.name, [ctrl.pid_for(j) for j in ctrl.joints])
+            lab.manager.set_gains(ctrl.name, [ctrl.pid_for(j) for j in ctrl.joints])
     return lab
 
 
 def _apply_gains(lab: Lab, spec: SweepSpec, gains: dict[str, float]) -> np.ndarray:
-    manager = lab.controllers
+    manager = lab.manager
     by_joint = manager.by_joint()
     for joint in spec.joints:
         ctrl = by_joint.get(joint)
-        if ctrl is None or ctrl.kind != "position" or ctrl.gains is None:
+        if ctrl is None or not (ctrl.holds_position and ctrl.tunable):
             raise InputError(f"joint '{joint}' has no running position controller to tune")
         base = ctrl.gains[ctrl.joints.index(joint)]
         clamp = gains.get("i_clamp", max(abs(base.i_clamp_min), abs(base.i_clamp_max)))
@@ -127,6 +131,7 @@ def _apply_gains(lab: Lab, spec: SweepSpec, gains: dict[str, float]) -> np.ndarr
 
 
 def run_trial(spec: SweepSpec, trial: Trial) -> dict:
+    """One trial in a lab of its own: the gains set, the step applied, the metrics (a row)."""
     lab = _lab(spec)
     sim = lab.sim
     rows = _apply_gains(lab, spec, trial.gains)
@@ -138,7 +143,7 @@ def run_trial(spec: SweepSpec, trial: Trial) -> dict:
 
 
 def _home_and_limits(lab: Lab, joint: str) -> tuple[float, float, float]:
-    hw = lab.controllers.hw
+    hw = lab.manager.hw
     row = int(hw.rows((joint,))[0])
     return float(hw.position(np.array([row]))[0]), float(hw.lower[row]), float(hw.upper[row])
 
@@ -165,7 +170,7 @@ def step_target(lab: Lab, spec: SweepSpec) -> float:
 
 
 def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
-    sim, hw, manager = lab.sim, lab.controllers.hw, lab.controllers
+    sim, hw, manager = lab.sim, lab.manager.hw, lab.manager
     joint = spec.joints[0]
     start = float(hw.position(np.array([row]))[0])
     target = step_target(lab, spec)
@@ -190,7 +195,7 @@ def _step_trial(lab: Lab, spec: SweepSpec, row: int) -> dict:
 def _routine_trial(lab: Lab, spec: SweepSpec, rows: np.ndarray) -> dict:
     from mexone.routines.runner import RoutineRunner
 
-    sim, hw, manager = lab.sim, lab.controllers.hw, lab.controllers
+    sim, hw, manager = lab.sim, lab.manager.hw, lab.manager
     totals = {"iae": 0.0, "max_effort": 0.0}
 
     def sample(s) -> None:
@@ -313,6 +318,7 @@ def best_row(rows: list[dict], metric: str) -> dict | None:
 
 
 def best_yaml(spec: SweepSpec, row: dict, metric: str, namespace: str, runs: int) -> str:
+    """The controller YAML with the best trial's gains, with a comment on how it was chosen."""
     import yaml
 
     controllers = {}

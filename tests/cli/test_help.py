@@ -38,7 +38,7 @@ def test_no_verb_is_a_usage_error():
 
 
 def test_bad_option_value_is_one_line():
-    out = subprocess.run([shutil.which("mexone"), "run", "sweep", "--duration", "-1"],
+    out = subprocess.run([shutil.which("mexone"), "run", "joint_steps", "--duration", "-1"],
                          capture_output=True, text=True)
     assert out.returncode == 2
     assert out.stderr == ("mexone: run: argument --duration: -1 must be a finite number >= 0.001 "

@@ -78,7 +78,7 @@ def _lab(folder: Path, turntable, estimator_type: str = "Estimator") -> Lab:
 
 def test_a_reader_sees_its_exporters_value_of_the_same_cycle(tmp_path, turntable):
     lab = _lab(tmp_path, turntable)
-    manager = lab.controllers
+    manager = lab.manager
     assert [c.name for c in manager._running if c.kind == "python"] == ["estimator", "holder"]
     lab.sim.step(2000)
     holder = manager.controllers["holder"].impl
@@ -92,7 +92,7 @@ def test_a_reader_sees_its_exporters_value_of_the_same_cycle(tmp_path, turntable
 
 def test_a_stopped_exporter_reads_nan_and_a_swapped_one_is_read_the_same_way(tmp_path, turntable):
     lab = _lab(tmp_path, turntable)
-    manager = lab.controllers
+    manager = lab.manager
     lab.sim.step(10)
     manager.stop("estimator")
     lab.sim.step(10)
@@ -105,7 +105,7 @@ def test_a_stopped_exporter_reads_nan_and_a_swapped_one_is_read_the_same_way(tmp
     (tmp_path / "swapped").mkdir()
     swapped = _lab(tmp_path / "swapped", turntable, estimator_type="DoubledEstimator")
     swapped.sim.step(1500)
-    _, angle, q = swapped.controllers.controllers["holder"].impl.seen[-1]
+    _, angle, q = swapped.manager.controllers["holder"].impl.seen[-1]
     assert angle == 2 * q and q == pytest.approx(0.25, abs=1e-3)  # only the estimator changed
 
 
@@ -116,7 +116,7 @@ def test_rebinding_an_export_is_the_students_fault(tmp_path, turntable):
         """)
     lab = Lab.create(read_urdf(tmp_path / "turntable.urdf"), load_control_config(path))
     lab.sim.step(3)
-    fault = lab.controllers.controllers["estimator"].fault
+    fault = lab.manager.controllers["estimator"].fault
     assert "write into it" in fault and "chained.py:" in fault
 
 

@@ -45,9 +45,9 @@ def test_only_the_simulation_thread_writes_the_actuators(monkeypatch):
     loop = threading.Thread(target=app.serve_forever, daemon=True)
     loop.start()
     try:
-        app.routine_choice.value = "arms"
-        app.do(app.start_routine)
-        manager = app.lab.controllers
+        app.panels["routines"].choice.value = "arms"
+        app.do(app.panels["routines"].start)
+        manager = app.lab.manager
         topic = manager.topic("neck_yaw_position_controller")
         end = time.time() + 1.5
         k = 0
@@ -93,7 +93,7 @@ def test_write_changes_exactly_the_actuator_fields_recompiling_carries_over():
     from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 
     lab = Lab.create()
-    hw, model = lab.controllers.hw, lab.sim.model
+    hw, model = lab.manager.hw, lab.sim.model
     fields = [name for name in dir(model) if name.startswith("actuator_")
               and isinstance(getattr(model, name), np.ndarray)]
     before = {name: getattr(model, name).copy() for name in fields}
@@ -118,12 +118,12 @@ def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable
     joint: yaw
     pid: {{p: 10.0, i: {i}, d: 0.1, i_clamp_min: -1000, i_clamp_max: 1000}}
 """))
-    sim, hw = lab.sim, lab.controllers.hw
+    sim, hw = lab.sim, lab.manager.hw
     sim.data.qfrc_applied[0] = 5.0
     sim.step(2000)  # pinned at the limit by now
     lab.bus.publish("/turntable/yaw_controller/command", Float64(2.5))
     sim.step(1)
-    t0, z0 = sim.time, sim.data.act[hw._act_integral[0]]
+    t0, z0 = sim.time, sim.data.act[hw.layout.i_act[0]]
     sim.step(500)
     sim.set_timestep(0.0005)
     sim.step(1000)
@@ -131,10 +131,10 @@ def test_the_integral_term_integrates_with_the_new_time_step(tmp_path, turntable
     assert elapsed == pytest.approx(1.0)
     error = sim.joint_positions()[0] - 3.0
     assert abs(error) < 0.01  # pinned (MuJoCo's limits are soft by a hair)
-    z = sim.data.act[hw._act_integral[0]] - z0
+    z = sim.data.act[hw.layout.i_act[0]] - z0
     assert z == pytest.approx(e * elapsed, rel=0.02)
-    i_term = sim.data.actuator_force[hw.integral[0]]
-    assert i_term == pytest.approx(i * sim.data.act[hw._act_integral[0]], rel=1e-9)
+    i_term = sim.data.actuator_force[hw.layout.integral[0]]
+    assert i_term == pytest.approx(i * sim.data.act[hw.layout.i_act[0]], rel=1e-9)
     assert abs(z - e * (0.5 + 2 * 0.5)) > 0.2  # what a stale dt would have given
 
 
@@ -217,11 +217,11 @@ def test_the_gui_stays_responsive_and_stop_works_with_a_stuck_routine(tmp_path):
     loop = threading.Thread(target=app.serve_forever, daemon=True)
     loop.start()
     try:
-        app.routine_choice.value = "spin.py"
-        app.do(app.start_routine)
+        app.panels["routines"].choice.value = "spin.py"
+        app.do(app.panels["routines"].start)
         time.sleep(0.5)
         t0 = app.lab.sim.time
-        app.do(app.stop_routine)  # Stop works at once, although the routine never yields
+        app.do(app.panels["routines"].stop_routine)  # Stop works at once, although the routine never yields
         deadline = time.time() + 3
         while (app.routine is not None or app.lab.sim.time < t0 + 0.5) and time.time() < deadline:
             time.sleep(0.05)

@@ -80,7 +80,7 @@ def test_mechanical_reduction_scales_actuator_effort_and_position(tmp_path, turn
     mujoco.mj_forward(model, data)
     assert data.actuator_length[0] == pytest.approx(10.0 * lab.sim.joint_positions()[0])
     assert data.qfrc_actuator[0] == pytest.approx(10.0 * data.actuator_force[0])  # MuJoCo's own
-    assert lab.controllers.hw.effort(np.array([0]))[0] == pytest.approx(data.qfrc_actuator[0])
+    assert lab.manager.hw.effort(np.array([0]))[0] == pytest.approx(data.qfrc_actuator[0])
     assert model.actuator_forcerange[0, 1] == pytest.approx(50.0 / 10.0)
 
 
@@ -172,7 +172,7 @@ def test_bad_commands_are_refused_or_clamped_and_never_reach_physics(tmp_path, c
         lab.sim.step(1)  # subscribers only buffer: the next control update applies it
     assert "not finite; ignored" in caplog.text
     assert "clamped: yaw 5 -> 3" in caplog.text
-    assert lab.controllers.controllers["yaw_controller"].setpoint[0] == 3.0
+    assert lab.manager.controllers["yaw_controller"].setpoint[0] == 3.0
 
 
 def test_wrong_message_type_on_a_command_topic(tmp_path, turntable):
@@ -190,10 +190,10 @@ def test_unknown_joint_and_conflicting_controllers(tmp_path, turntable):
 """)
     # alternatives for one joint: the first starts, the other loads stopped (was: the sim exited)
     lab = Lab.create(read_urdf(turntable[0](tmp_path)), config)
-    assert {c.name: c.state for c in lab.controllers.list()} == {
+    assert {c.name: c.state for c in lab.manager.list_controllers()} == {
         "joint_state_controller": "running", "yaw_controller": "running", "yaw_effort": "stopped"}
-    lab.controllers.switch(start=["yaw_effort"], stop=["yaw_controller"])  # one switch swaps them
-    assert lab.controllers.controllers["yaw_effort"].running
+    lab.manager.switch(start=["yaw_effort"], stop=["yaw_controller"])  # one switch swaps them
+    assert lab.manager.controllers["yaw_effort"].running
     with pytest.raises(InputError, match="joint 'yaw' is driven by 'yaw_controller'"):
         Lab.create(read_urdf(turntable[0](tmp_path)), config, start=["yaw_controller", "yaw_effort"])
 
@@ -203,10 +203,10 @@ def test_switch_stop_start_and_list(tmp_path, turntable):
 """)
     lab = Lab.create(read_urdf(turntable[0](tmp_path)), ControlConfig(config.namespace, {
         k: v for k, v in config.controllers.items() if k != "yaw_effort"}, {}, None))
-    manager = lab.controllers
+    manager = lab.manager
     manager.config = config
     manager.switch(start=["yaw_effort"], stop=["yaw_controller"])
-    states = {c.name: c.state for c in manager.list()}
+    states = {c.name: c.state for c in manager.list_controllers()}
     assert states == {"joint_state_controller": "running", "yaw_controller": "stopped",
                       "yaw_effort": "running"}
     lab.bus.publish("/turntable/yaw_effort/command", Float64(0.5))
@@ -221,7 +221,7 @@ def test_trajectory_controller_interpolates(tmp_path, turntable):
     joints: [yaw]
     gains: {yaw: {p: 40.0, d: 2.0}}
 """)
-    traj = lab.controllers.controllers["arm_trajectory"]
+    traj = lab.manager.controllers["arm_trajectory"]
     msg = JointTrajectory(joint_names=["yaw"], points=[
         JointTrajectoryPoint(positions=[1.0], time_from_start=Duration.from_sec(1.0)),
         JointTrajectoryPoint(positions=[1.0], velocities=[0.0], time_from_start=Duration.from_sec(2.0)),
@@ -257,7 +257,7 @@ def test_state_topic_publishes_only_while_someone_listens(tmp_path, turntable):
     assert lab.bus.topics[topic].count == 0  # nobody listened: nothing built
     heard: list[JointControllerState] = []
     sub = lab.bus.subscribe(topic, JointControllerState, heard.append)
-    lab.controllers.command("yaw_controller", [0.3])
+    lab.manager.command("yaw_controller", [0.3])
     lab.sim.step(1000)
     assert len(heard) == pytest.approx(100, abs=2)
     last = heard[-1]

@@ -36,7 +36,7 @@ def test_home_position_is_held_for_10_seconds():
 @pytest.mark.slow
 def test_arms_routine_tracks_and_the_robot_stays_standing():
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     runner = RoutineRunner(lab, "arms")
     runner.run(9.0)
     assert runner.error is None
@@ -57,7 +57,7 @@ def test_joint_states_at_50hz_alphabetical_with_applied_effort():
     np.testing.assert_allclose(stamps, 0.02 * np.arange(1, 51), atol=1e-9)
     assert got[-1].name == sorted(got[-1].name) and len(got[-1].name) == 21
     last = got[-1]
-    hw = lab.controllers.hw
+    hw = lab.manager.hw
     rows = np.array([hw.index[n] for n in last.name])
     np.testing.assert_allclose(last.effort, lab.sim.data.qfrc_actuator[hw.dof_adr[rows]], atol=1e-9)
     np.testing.assert_allclose(last.position, lab.sim.data.qpos[hw.qpos_adr[rows]])
@@ -67,7 +67,7 @@ def test_routine_timing_follows_sim_time_and_is_deterministic():
     runs = []
     for _ in range(2):
         lab = Lab.create()
-        runner = RoutineRunner(lab, "sweep")
+        runner = RoutineRunner(lab, "joint_steps")
         runner.run(2.5)
         runs.append((runner.log_lines, lab.sim.joint_positions()))
     (logs, q), (logs2, q2) = runs
@@ -116,11 +116,11 @@ def test_a_failing_routine_reports_the_students_line(tmp_path):
 
 
 def test_run_cli_report():
-    out = subprocess.run([sys.executable, "-m", "mexone", "run", "sweep", "--duration", "3",
+    out = subprocess.run([sys.executable, "-m", "mexone", "run", "joint_steps", "--duration", "3",
                           "--json", "_joint:=r_elbow"], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
-    assert report["routine"] == "sweep" and report["fell"] is False and report["error"] is None
+    assert report["routine"] == "joint_steps" and report["fell"] is False and report["error"] is None
     elbow = report["joints"]["r_elbow"]
     assert elbow["steps"] >= 20 and elbow["rms_error"] < 0.1
     assert {"rms_error", "max_error", "overshoot", "settling_time"} <= set(elbow)
@@ -132,9 +132,9 @@ def test_run_bad_input():
     assert out.returncode == 2
     from mexone.routines.runner import shipped_routines
 
-    shipped = ", ".join(shipped_routines())  # sweep, arms, home, then whatever joined them
-    assert shipped.startswith("sweep, arms, home")
+    shipped = ", ".join(shipped_routines())  # joint_steps, arms, home, then whatever joined them
+    assert shipped.startswith("joint_steps, arms, home")
     assert out.stderr == f"mexone: no routine 'nowhere' (give a Python file or one of: {shipped})\n"
-    out = subprocess.run([sys.executable, "-m", "mexone", "run", "sweep", "joint=r_elbow"],
+    out = subprocess.run([sys.executable, "-m", "mexone", "run", "joint_steps", "joint=r_elbow"],
                          capture_output=True, text=True)
     assert out.returncode == 2 and "is not name:=value" in out.stderr

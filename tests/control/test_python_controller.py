@@ -65,12 +65,12 @@ def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
                 self.dts.append(dt)
                 assert state.time == t
         """, "update_rate: 250\n")
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     lab.sim.step(1000)  # 1 s of 1 ms steps
     times = np.array(ctrl.impl.times)
     assert len(times) == 251  # t = 0, 0.004, ..., 1.0
     assert np.allclose(np.diff(times), 0.004) and np.allclose(ctrl.impl.dts, 0.004)
-    info = {i.name: i for i in lab.controllers.list()}["ctl"]
+    info = {i.name: i for i in lab.manager.list_controllers()}["ctl"]
     assert info.update_rate == pytest.approx(250.0) and info.update_time > 0
 
 
@@ -81,17 +81,17 @@ def test_effort_reaches_qfrc_actuator_exactly_and_is_clamped_once(tmp_path, turn
             def update(self, state, t, dt):
                 return [self.tau]
         """)
-    sim, dof = lab.sim, lab.controllers.hw.dof_adr[0]
+    sim, dof = lab.sim, lab.manager.hw.dof_adr[0]
     sim.step(3)
     assert sim.data.qfrc_actuator[dof] == 1.5
-    lab.controllers.set_param("ctl", "tau", 80.0)  # beyond the 50 N m limit
+    lab.manager.set_param("ctl", "tau", 80.0)  # beyond the 50 N m limit
     sim.step(20)
     assert sim.data.qfrc_actuator[dof] == 50.0
     said = [r for r in caplog.records if "clamped" in r.getMessage()]
     assert len(said) == 1 and "yaw 80 -> 50" in said[0].getMessage()
     with pytest.raises(InputError, match="tau NaN must be a finite number >= -1000"):
-        lab.controllers.set_param("ctl", "tau", math.nan)
-    assert lab.controllers.controllers["ctl"].impl.tau == 80.0
+        lab.manager.set_param("ctl", "tau", math.nan)
+    assert lab.manager.controllers["ctl"].impl.tau == 80.0
 
 
 def test_position_interface_without_gains_is_an_ideal_servo(tmp_path, turntable):
@@ -113,7 +113,7 @@ def test_nan_output_stops_it_and_names_update(tmp_path, turntable, caplog):
                 return [np.nan] if t >= 0.01 else [0.0]
         """)
     lab.sim.step(50)
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "yaw NaN" in ctrl.fault
     [line] = errors(caplog)
     assert "controller 'ctl' stopped" in line and f"{tmp_path / 'ctl.py'}:6)" in line
@@ -129,7 +129,7 @@ def test_overrun_stops_it(tmp_path, turntable, caplog):
                 time.sleep(0.003)   # a 3 ms blocking call at 1 kHz: the lab waits on it
         """, "max_overruns: 3\n")
     lab.sim.step(30)
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     # the first overrun starts the watch; the next three are counted (a sleep is the update's own
     # doing; a busy loop the OS preempted on a loaded machine would not be)
     assert not ctrl.running and ctrl.updates == 4
@@ -147,7 +147,7 @@ def test_an_update_that_never_returns_is_interrupted(tmp_path, turntable, caplog
                     n += 1
         """, "hang_timeout: 0.2\n")
     lab.sim.step(10)  # returns: the watchdog interrupted the loop
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "hang_timeout" in ctrl.fault
     assert f"{tmp_path / 'ctl.py'}:8)" in ctrl.fault or f"{tmp_path / 'ctl.py'}:9)" in ctrl.fault
     assert lab.sim.time == pytest.approx(0.01)
@@ -192,7 +192,7 @@ def arm(tmp_path_factory):
 
 def test_raise_on_1000th_update_holds_then_reload_restores(arm, caplog):
     folder, lab = arm
-    manager, sim = lab.controllers, lab.sim
+    manager, sim = lab.manager, lab.sim
     ctrl = manager.controllers["my_pd_controller"]
     sim.step(RAISE_AT + 1)
     assert not ctrl.running and ctrl.updates == RAISE_AT
@@ -219,7 +219,7 @@ def test_raise_on_1000th_update_holds_then_reload_restores(arm, caplog):
 
 def test_reload_keeps_the_running_one_when_configure_fails(arm):
     folder, lab = arm
-    manager = lab.controllers
+    manager = lab.manager
     manager.reload("my_pd_controller")
     ctrl = manager.controllers["my_pd_controller"]
     assert ctrl.running
@@ -239,7 +239,7 @@ def test_a_student_loop_at_import_configure_or_activate_never_freezes_the_lab(ar
 
     monkeypatch.setattr(watchdog, "STUDENT_SETUP_TIMEOUT", 0.3)
     folder, lab = arm
-    manager = lab.controllers
+    manager = lab.manager
     manager.reload("my_pd_controller")
     ctrl = manager.controllers["my_pd_controller"]
     loops = {
@@ -270,9 +270,9 @@ def test_a_student_loop_at_import_configure_or_activate_never_freezes_the_lab(ar
 
 def test_state_reads_sensors_and_base(arm):
     _, lab = arm
-    ctrl = lab.controllers.controllers["my_pd_controller"]
+    ctrl = lab.manager.controllers["my_pd_controller"]
     lab.sim.step(200)  # landed and at rest, whichever test ran before
-    lab.controllers.hw.read()
+    lab.manager.hw.read()
     ctrl._read(lab.sim.time)
     state = ctrl.state
     # read in activate at Lab.create: the robot spawns just above the floor, so at t = 0 it is
@@ -282,7 +282,7 @@ def test_state_reads_sensors_and_base(arm):
     assert imu.linear_acceleration[2] == pytest.approx(9.81, abs=0.5)  # at rest: proper acc up
     assert np.linalg.norm(imu.orientation) == pytest.approx(1.0)
     assert state.base.position[2] > 0.3 and state.all_q.shape == (lab.sim.model.nq,)
-    assert list(ctrl.impl.dofs) == list(lab.controllers.hw.dof_adr[lab.controllers.hw.rows(ARM_JOINTS)])
+    assert list(ctrl.impl.dofs) == list(lab.manager.hw.dof_adr[lab.manager.hw.rows(ARM_JOINTS)])
 
 
 
@@ -290,7 +290,7 @@ def test_a_controller_cannot_write_into_what_the_sensors_hand_out(arm, caplog):
     # was: state.sensors["imu"].linear_acceleration was a writable view of the one buffer every
     # controller and broadcaster reads: one student's `+= 1` changed it for all of them
     folder, lab = arm
-    manager = lab.controllers
+    manager = lab.manager
     ctrl = manager.controllers["my_pd_controller"]
     manager.hw.read()
     ctrl._read(lab.sim.time)
@@ -454,7 +454,7 @@ def test_on_fault_damp_leaves_only_damping(tmp_path, turntable, caplog):
                 raise ValueError("no")
         """, "on_fault: damp\n")
     lab.sim.step(2)
-    hw = lab.controllers.hw
+    hw = lab.manager.hw
     assert hw.command.kp[0] == 0.0 and hw.command.kd[0] > 0.0
     assert "its joints damped: update raised" in errors(caplog)[0]
 
@@ -463,7 +463,7 @@ def test_dynamics_is_the_live_state_refreshed_each_update(arm):
     """self.dynamics reads the state of the update it is used in: its q is state.all_q, and at
     rest its g(q) is MuJoCo's bias force of that instant (no velocity: only gravity)."""
     folder, lab = arm
-    manager, sim = lab.controllers, lab.sim
+    manager, sim = lab.manager, lab.sim
     (folder / "my_pd.py").write_text(ARM.replace(
         "        return self.kp", "        self.seen = getattr(self, 'seen', []) + [(state.all_q.copy(), "
         "self.dynamics.q.copy(), self.dynamics.gravity()[self.dofs].copy(), "
@@ -499,9 +499,9 @@ def test_sys_exit_and_a_hostile_return_value_are_faults(tmp_path, turntable, cap
                 return [0.0]
         """)
     lab.sim.step(1)
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "update returned Bad" in ctrl.fault
-    lab.controllers.switch(start=["ctl"])
+    lab.manager.switch(start=["ctl"])
     lab.sim.step(5)  # sys.exit inside update: a fault, not the end of the lab
     assert not ctrl.running and "SystemExit: 3" in ctrl.fault and lab.sim.time == pytest.approx(0.006)
 
@@ -541,10 +541,10 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
             joints: [r_elbow, l_shoulder_pitch, waist_yaw]
         """)
     lab = Lab.create(controllers=path)
-    ctrl = lab.controllers.controllers["ctl"]
+    ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.direct
     lab.sim.step(3)
-    dofs = lab.controllers.hw.dof_adr[lab.controllers.hw.rows(["r_elbow", "l_shoulder_pitch",
+    dofs = lab.manager.hw.dof_adr[lab.manager.hw.rows(["r_elbow", "l_shoulder_pitch",
                                                                  "waist_yaw"])]
     assert list(lab.sim.data.qfrc_actuator[dofs]) == [0.5, -0.25, 0.125]
     q, q_from_all = ctrl.impl.seen[-1]  # qpos has one more entry than qvel (the base quaternion)
@@ -555,23 +555,23 @@ def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
     """A Python controller's fast write (a few joints, Python floats) sends the same bits to
     MuJoCo's ctrl and to the hardware's effort commands as the numpy writer does."""
     _, lab = arm
-    hw, data = lab.controllers.hw, lab.sim.data
+    hw, data = lab.manager.hw, lab.sim.data
     saved = data.ctrl.copy(), hw.command.effort.copy()
     values = np.random.default_rng(25).normal(0.0, 30.0, 3)
     try:
         for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # a strided view
                        ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
             rows = hw.rows(joints)
-            hw.effort_floats_writer(rows)(values.tolist())
+            hw.writers(rows, "effort").floats(values.tolist())
             fast = data.ctrl.copy(), hw.command.effort.copy()
             data.ctrl[:], hw.command.effort[:] = saved
             hw.command.effort[rows] = values
-            hw.rows_writer(rows, "effort")(values)
+            hw.writers(rows, "effort").values(values)
             np.testing.assert_array_equal(fast[0], data.ctrl)
             np.testing.assert_array_equal(fast[1], hw.command.effort)
-            assert list(fast[0][hw._ctrl_motor[rows] + 2]) == list(values / hw.gear[rows])
+            assert list(fast[0][hw.layout.ff[rows]]) == list(values / hw.gear[rows])
             data.ctrl[:], hw.command.effort[:] = saved
-        assert hw.effort_floats_writer(np.arange(len(hw.joints))) is None  # many joints: numpy
+        assert hw.writers(np.arange(len(hw.joints)), "effort").floats is None  # many joints: numpy
     finally:
         data.ctrl[:], hw.command.effort[:] = saved
 

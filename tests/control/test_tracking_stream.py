@@ -30,7 +30,7 @@ class _Ctrl:
     hw: _Hw
     setpoint: np.ndarray
     rows: np.ndarray
-    kind: str = "position"
+    tracks_position: bool = True  # a position or a trajectory controller
     running: bool = True
 
 
@@ -147,7 +147,7 @@ def test_a_joint_handed_to_another_controller(monkeypatch):
     series = _series([0.0, 0.4, -0.3], 70, 3)
     hw = _Hw(np.zeros(2))
     first = _Ctrl(["k", "j"], hw, np.zeros(2), np.array([0, 1]))
-    second = _Ctrl(["j"], hw, np.zeros(1), np.array([1]), kind="trajectory", running=False)
+    second = _Ctrl(["j"], hw, np.zeros(1), np.array([1]), running=False)
     sim = _Sim()
     recorder = TrackingRecorder(sim, _Manager({"a": first, "b": second}))
     for n, (t, sp, q) in enumerate(series):
@@ -170,18 +170,18 @@ def test_the_robots_run_equals_its_whole_series(monkeypatch):
 
     monkeypatch.setattr(metrics, "CHUNK", 64)  # folds in the run, not only at its end
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     rows: dict[str, list] = {}
 
     def keep(sim) -> None:
-        for ctrl in lab.controllers.controllers.values():
-            if ctrl.running and ctrl.kind in ("position", "trajectory"):
+        for ctrl in lab.manager.controllers.values():
+            if ctrl.running and ctrl.tracks_position:
                 q = ctrl.hw.position(ctrl.rows)
                 for joint, sp, actual in zip(ctrl.joints, ctrl.setpoint, q, strict=True):
                     rows.setdefault(joint, []).append((sim.time, float(sp), float(actual)))
 
     lab.sim.add_periodic(1.0 / SAMPLE_RATE, keep)
-    RoutineRunner(lab, "sweep").run(2.0)
+    RoutineRunner(lab, "joint_steps").run(2.0)
     got = recorder.metrics()
     assert set(got) == set(rows) and len(rows) > 10
     assert any(m.steps for m in got.values())  # the sweep moved something

@@ -31,7 +31,7 @@ YAML = """turntable:
 @pytest.fixture()
 def arm(tmp_path, turntable):
     lab = Lab.create(read_urdf(turntable[0](tmp_path)), parse_control_config(YAML))
-    return lab, lab.controllers.controllers["arm"]
+    return lab, lab.manager.controllers["arm"]
 
 
 def trajectory(*points):

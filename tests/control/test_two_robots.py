@@ -27,8 +27,8 @@ def joints(lab: Lab, topic: str) -> dict[str, float]:
 def test_two_robots_are_commanded_independently_and_the_second_can_go():
     lab = Lab.create()
     sim = lab.sim
-    lab.controllers.set_gains("l_elbow_position_controller",
-                              lab.controllers.controllers["l_elbow_position_controller"]
+    lab.manager.set_gains("l_elbow_position_controller",
+                              lab.manager.controllers["l_elbow_position_controller"]
                               .gains[0].__class__(p=80.0, d=1.0))
     kp_before = sim.model.actuator_biasprm[sim.model.actuator("l_elbow").id, 1]
     robot = lab.sim.robot

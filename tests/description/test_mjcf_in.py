@@ -132,8 +132,8 @@ def test_check_and_sim_take_mjcf_with_auto_controllers(mjcf):
                  "1", cwd=mjcf.parent)
     assert run.returncode == 0, run.stderr
     lab = Lab.create(mjcf, "auto")
-    assert lab.controllers is not None and "hip_position_controller" in lab.controllers.controllers
-    assert "toe_position_controller" not in lab.controllers.controllers  # the mimic follows
+    assert lab.manager is not None and "hip_position_controller" in lab.manager.controllers
+    assert "toe_position_controller" not in lab.manager.controllers  # the mimic follows
     assert "/hopper_arm/hip_position_controller/command" in lab.bus.topics  # ROS-named topics
 
 

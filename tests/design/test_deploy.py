@@ -78,9 +78,9 @@ def test_lqr_gain_runs_and_matches_the_closed_loop_prediction(lab, arm):
     K, _, poles = lqr(arm, np.diag([1000.0] * 3 + [1.0] * 3), np.eye(3))
     controller = deploy(lab, K, arm, name="arm_lqr")
     assert isinstance(controller, StateFeedback) and controller.rate == pytest.approx(500.0)
-    running = lab.controllers.controllers["arm_lqr"]
+    running = lab.manager.controllers["arm_lqr"]
     assert running.running and running.impl is controller
-    assert not lab.controllers.controllers["l_elbow_position_controller"].running
+    assert not lab.manager.controllers["l_elbow_position_controller"].running
     deviation = {"l_shoulder_pitch:q": -0.05, "l_elbow:q": 0.05}
     result = compare(lab, controller, arm, deviation, duration=1.0)
     assert result.t[-1] == pytest.approx(1.0, abs=0.005)
@@ -90,7 +90,7 @@ def test_lqr_gain_runs_and_matches_the_closed_loop_prediction(lab, arm):
     assert result.relative < 0.05, result.relative
     fig = plot_comparison(result)
     assert len(fig.axes[0].lines) == 2 * min(4, 3)
-    lab.controllers.switch(stop=["arm_lqr"], start=[f"{j}_position_controller" for j in ARM])
+    lab.manager.switch(stop=["arm_lqr"], start=[f"{j}_position_controller" for j in ARM])
 
 
 def test_a_deviation_past_a_joint_limit_is_refused_before_the_robot_moves(lab, arm):
@@ -100,7 +100,7 @@ def test_a_deviation_past_a_joint_limit_is_refused_before_the_robot_moves(lab, a
     with pytest.raises(InputError, match=r"puts l_elbow at 4\.99\d*, outside its limits \[-2.5, 0.1\]"):
         compare(lab, controller, arm, {"l_elbow:q": 5.0})  # was: a divergence blaming the gains
     np.testing.assert_array_equal(lab.sim.data.qpos, before)
-    lab.controllers.switch(stop=["arm_limits"], start=[f"{j}_position_controller" for j in ARM])
+    lab.manager.switch(stop=["arm_limits"], start=[f"{j}_position_controller" for j in ARM])
 
 
 def test_pid_step_rise_time_and_overshoot_match_the_linear_prediction(fixed_lab, elbow):
@@ -155,11 +155,11 @@ def test_pd_frequency_response_matches_the_model_up_to_the_bandwidth(fixed_lab, 
     (np.full((3, 6), np.nan), "K has a NaN"),
 ])
 def test_bad_gain_is_one_line_and_the_lab_runs_on(lab, arm, bad, match):
-    before = {n: c.running for n, c in lab.controllers.controllers.items()}
+    before = {n: c.running for n, c in lab.manager.controllers.items()}
     with pytest.raises(InputError, match=match) as info:
         deploy(lab, bad, arm, name="bad")
     assert "\n" not in str(info.value)
-    assert {n: c.running for n, c in lab.controllers.controllers.items()} == before
+    assert {n: c.running for n, c in lab.manager.controllers.items()} == before
     t = lab.sim.time
     lab.sim.run(0.01)
     assert lab.sim.time > t
@@ -182,7 +182,7 @@ def test_singular_r_and_undiscretisable_designs_are_one_line(lab, arm):
         deploy(lab, K, arm, rate=1000)
     with pytest.raises(InputError, match="reference names 'nope:q'"):
         deploy(lab, K, arm, name="never", reference={"nope:q": 1.0})
-    assert "never" not in lab.controllers.controllers  # refused before anything changed
+    assert "never" not in lab.manager.controllers  # refused before anything changed
     unnamed = control.tf([1.0], [1.0, 1.0])
     with pytest.raises(InputError, match="output 'y\\[0\\]' is not '<joint>:effort'"):
         deploy(lab, unnamed, rate=1000)
@@ -209,7 +209,7 @@ def test_yaml_names_the_state_feedback_and_reads_its_gains_beside_it(lab, arm, t
         "    update_rate: 1000\n"
         "    design_file: arm.npz\n")
     config = load_control_config(tmp_path / "controllers.yaml")
-    manager = lab.controllers
+    manager = lab.manager
     for name in ("yaml_lqr", "arm_wrong_rate"):
         manager.define(config.controllers[name])
     with pytest.raises(InputError, match="period is 0.002 s but the controller runs at 1000 Hz"):
@@ -233,22 +233,22 @@ def test_create_statefbk_iosystem_controller_runs_as_its_gain(lab, arm):
     result = compare(lab, controller, arm, {"l_elbow:q": 0.05}, duration=0.5)
     assert np.abs(result.measured[-1, :3]).max() < 0.005
     assert result.relative < 0.05, result.relative
-    lab.controllers.switch(stop=["arm_fbk"], start=[f"{j}_position_controller" for j in ARM])
+    lab.manager.switch(stop=["arm_fbk"], start=[f"{j}_position_controller" for j in ARM])
 
 
 def test_a_position_design_runs_through_the_joints_pid(fixed_lab):
-    manager = fixed_lab.controllers
+    manager = fixed_lab.manager
     busy = [c.name for c in manager.controllers.values() if c.running and "l_elbow" in c.joints]
     manager.switch(stop=busy, start=["l_elbow_position_controller"])  # the PID the model closes
     fixed_lab.sim.run(0.3)  # at rest, so the model's point is an equilibrium
     plant = linearize(fixed_lab, inputs="position", joints=["l_elbow"], period=0.001)
     controller = deploy(fixed_lab, np.zeros((1, plant.nstates)), plant, name="elbow_position")
     assert controller.command_interface == "position"
-    running = fixed_lab.controllers.controllers["elbow_position"]
+    running = fixed_lab.manager.controllers["elbow_position"]
     assert running.pid_for("l_elbow").p == 60.0  # the shipped controller's, which the model has
     result = compare(fixed_lab, controller, plant, {"l_elbow:q": -0.05}, duration=0.5)
     assert result.relative < 0.05, result.relative
-    fixed_lab.controllers.switch(stop=["elbow_position"], start=["l_elbow_position_controller"])
+    fixed_lab.manager.switch(stop=["elbow_position"], start=["l_elbow_position_controller"])
 
 
 def test_a_bad_design_file_is_one_line_naming_it(lab, tmp_path):
@@ -259,15 +259,15 @@ def test_a_bad_design_file_is_one_line_naming_it(lab, tmp_path):
         f"    joints: [{', '.join(ARM)}]\n"
         "    design_file: missing.npz\n")
     config = load_control_config(tmp_path / "controllers.yaml")
-    lab.controllers.define(config.controllers["broken"])
+    lab.manager.define(config.controllers["broken"])
     with pytest.raises(InputError, match="missing.npz does not exist") as info:
-        lab.controllers.load("broken")
+        lab.manager.load("broken")
     assert "\n" not in str(info.value)
     # located at the YAML's line, not at 'missing.npz:2' (a line of a file that does not exist)
     assert str(info.value).startswith(f"{tmp_path / 'controllers.yaml'}:2: controller 'broken': ")
     (tmp_path / "missing.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="cannot be read"):
-        lab.controllers.load("broken")
+        lab.manager.load("broken")
 
 
 @settings(derandomize=True, max_examples=40, deadline=None)

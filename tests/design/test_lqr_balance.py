@@ -10,7 +10,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples" / "control_design"))
 
-import lqr_balance as lq  # noqa: E402
+import one_foot_lqr as lq  # noqa: E402
 import tilt_observer as to  # noqa: E402
 
 from mexone.lab import Lab  # noqa: E402

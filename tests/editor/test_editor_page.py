@@ -87,7 +87,7 @@ def test_simulate_hands_the_page_to_mexone_sim_and_back(app):
     step, joint = session.index, app.selected_joint
     assert app.act("simulate", app.simulate)
     sim_app = app.sim_app
-    assert sim_app.server is app.server and sim_app.lab.controllers is not None  # the same page
+    assert sim_app.server is app.server and sim_app.lab.manager is not None  # the same page
     start = sim_app.lab.sim.time
     end = time.time() + 20
     while sim_app.lab.sim.time - start < 0.5 and time.time() < end:

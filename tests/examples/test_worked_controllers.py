@@ -56,7 +56,7 @@ class JointLog:
 
 def worst_drift(example: Path, joints: list[str], seconds: float, gravity: float) -> float:
     lab = make_lab(example)
-    ctrl = lab.controllers.controllers["gravity_compensation"]
+    ctrl = lab.manager.controllers["gravity_compensation"]
     ctrl.set_param("gravity", gravity)  # before the first update: 0 is plain PD, same gains
     assert ctrl.params["kp"] == 5.0
     start = lab.sim.data.qpos[[int(lab.sim.model.joint(j).qposadr[0]) for j in joints]].copy()
@@ -99,7 +99,7 @@ def test_computed_torque_tracks_five_times_closer_than_the_shipped_pid():
 
     def command(q):
         for name, value in zip(pids, q, strict=True):
-            lab.controllers.command(name, [value])
+            lab.manager.command(name, [value])
 
     shipped = tracking_rms(lab, joints, command)
     assert computed * 5 <= shipped, (computed, shipped)
@@ -114,7 +114,7 @@ def test_hand_impedance_moves_the_hand_force_over_stiffness():
         sys.path.remove(str(IMPEDANCE))
     lab = make_lab(IMPEDANCE)
     sim = lab.sim
-    stiffness = lab.controllers.controllers["hand_impedance"].params["stiffness"]
+    stiffness = lab.manager.controllers["hand_impedance"].params["stiffness"]
     body = sim.body_id(HAND)
 
     def hand() -> np.ndarray:
@@ -172,13 +172,13 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
 
     lab = make_lab(GRAVITY)
     lab.sim.run(0.01)
-    impl = lab.controllers.controllers["gravity_compensation"].impl
+    impl = lab.manager.controllers["gravity_compensation"].impl
     impl.report = lambda: {"q0": impl.q0, "worst": np.float64(impl.worst)}
     reports = controller_reports(lab)
     assert reports["gravity_compensation"]["q0"] == pytest.approx(list(impl.q0))
-    lab.controllers.switch(stop=["gravity_compensation"])
+    lab.manager.switch(stop=["gravity_compensation"])
     assert "gravity_compensation" not in controller_reports(lab)  # stopped: no report
-    lab.controllers.switch(start=["gravity_compensation"])
+    lab.manager.switch(start=["gravity_compensation"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
     assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
@@ -188,14 +188,14 @@ def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY)
-    impl = lab.controllers.controllers["gravity_compensation"].impl
+    impl = lab.manager.controllers["gravity_compensation"].impl
 
     def update(state, t, dt):
         raise RuntimeError("student's bug")
 
     impl.update = update
     lab.sim.run(0.01)
-    assert not lab.controllers.controllers["gravity_compensation"].running
+    assert not lab.manager.controllers["gravity_compensation"].running
     entry = controller_reports(lab)["gravity_compensation"]  # not a clean-looking run
     assert entry["fault"].startswith("update raised") and "student's bug" in entry["fault"]
     assert "max_error_mrad" in entry  # its report up to the fault
@@ -205,7 +205,7 @@ def test_a_report_with_nan_is_strict_json():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY)
-    impl = lab.controllers.controllers["gravity_compensation"].impl
+    impl = lab.manager.controllers["gravity_compensation"].impl
     impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
     text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
     assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {

@@ -43,7 +43,7 @@ def fresh(app, paused: bool = False) -> None:
     def reset():
         app.reset_world()
         if app.lab.sim.paused != paused:
-            app._toggle_pause()
+            app.toggle_pause()
     call(app, reset)
 
 
@@ -56,7 +56,7 @@ def typed(app, handle, text: str) -> None:
 def test_pause_keeps_the_plot_history_and_step_n_adds_n_samples(app):
     fresh(app)
     assert wait_until(lambda: app.lab.sim.time > 2.0)
-    call(app, app._toggle_pause)
+    call(app, app.toggle_pause)
     before = app.log.count
     t_before, _ = app.log.window(10.0, ["l_elbow/position"])
     assert wait_frames(app, 20)  # paused: nothing is added, nothing is lost
@@ -73,8 +73,8 @@ def test_pause_keeps_the_plot_history_and_step_n_adds_n_samples(app):
 
 
 def test_plot_panes_show_sim_seconds_and_readable_small_ranges(app):
-    panel = app.plot_panel
-    call(app, lambda: panel.update(force=True))
+    panel = app.panels["plots"]
+    call(app, lambda: panel.show_joint("l_elbow"))  # a joint that sags under gravity
     plot = panel.plots[0]
     assert plot.scales["x"]["time"] is False  # seconds, not a date
     t = np.asarray(plot.data[0])
@@ -92,7 +92,7 @@ def test_plot_panes_show_sim_seconds_and_readable_small_ranges(app):
 
 
 def test_any_signal_in_any_pane_and_csv_export(app):
-    panel = app.plot_panel
+    panel = app.panels["plots"]
     panel.pane.value, panel.signal.value = "pane 3", "imu/linear_acceleration/z"
     call(app, lambda: panel._edit("Add"))
     panel.signal.value = "r_knee/effort"
@@ -121,9 +121,9 @@ def test_refused_numbers_get_a_message_and_the_field_shows_the_server_value(app)
         typed(app, knee_p, text)
         assert wait_until(lambda m=message: any(r.startswith(m) for r in app.refusals)), text
         assert knee_p.value == f"{held[0]:.10g}"
-    typed(app, app.steps, "1e3")  # scientific notation is a number
+    typed(app, app.panels["simulation"].steps, "1e3")  # scientific notation is a number
     # the server takes the value, then shows it in the field (a moment later on a loaded machine)
-    assert wait_until(lambda: app.fields.held(app.steps) == [1000.0] and app.steps.value == "1000")
+    assert wait_until(lambda: app.fields.held(app.panels["simulation"].steps) == [1000.0] and app.panels["simulation"].steps.value == "1000")
 
 
 def test_a_huge_gain_shows_on_the_status_line_within_a_second(app):
@@ -156,12 +156,12 @@ def test_a_mujoco_warning_shows_on_the_status_line(app):
 
 def test_divergence_names_the_setting_changed_last(app):
     fresh(app)
-    typed(app, app.gravity, "0, 0, -1000")
+    typed(app, app.panels["physics"].gravity, "0, 0, -1000")
     assert wait_until(lambda: app.fields.last_change == "Gravity (m/s²) = 0, 0, -1000")
-    from mexone.physics.watchdog import DivergenceError
+    from mexone.physics.divergence import DivergenceError
     call(app, lambda: app._diverged(DivergenceError("simulation diverged", hint="gains?")))
     assert "last setting changed on this page: Gravity (m/s²) = 0, 0, -1000" in app._status.content
-    typed(app, app.gravity, "0 0 -9.81")
+    typed(app, app.panels["physics"].gravity, "0 0 -9.81")
     assert wait_until(lambda: app.lab.sim.model.opt.gravity[2] == -9.81)
     fresh(app)
     assert app.error is None
@@ -171,11 +171,11 @@ def test_clicking_a_link_shows_its_urdf_mass(app):
     fresh(app, paused=True)
     torso = app.lab.sim.robot.links["torso"].inertial.mass
     origin, target = np.array([2.0, 0.0, 0.75]), app.lab.sim.data.xipos[app.lab.sim.compiled.bodies["torso"]]
-    link = call(app, lambda: app.inspector.click(origin, target - origin))
+    link = call(app, lambda: app.panels["tools"].click(origin, target - origin))
     assert link == "torso"
-    assert f"mass {torso:.6g} kg (URDF)" in app.inspector.report.content
-    assert "joint above" in app.inspector.report.content
-    assert call(app, lambda: app.inspector.click(origin, -(target - origin))) is None  # sky
+    assert f"mass {torso:.6g} kg (URDF)" in app.panels["tools"].report.content
+    assert "joint above" in app.panels["tools"].report.content
+    assert call(app, lambda: app.panels["tools"].click(origin, -(target - origin))) is None  # sky
 
 
 # Mex-One on its PD controllers stands 3 N s at the torso and falls from 4 N s (the issue's
@@ -186,20 +186,20 @@ def test_pushing_the_torso_forward(app, impulse, falls):
     sim = app.lab.sim
     height = sim.base_height
     point = sim.data.xipos[sim.compiled.bodies["torso"]].copy()
-    app.inspector.impulse = impulse
+    app.panels["tools"].impulse = impulse
 
     def push():
-        app.inspector.push("torso", point, (1.0, 0.0, 0.0))
-        app._toggle_pause()
+        app.panels["tools"].push("torso", point, (1.0, 0.0, 0.0))
+        app.toggle_pause()
     call(app, push)
-    assert app.inspector.arrow.visible  # drawn while it acts
+    assert app.panels["tools"].arrow.visible  # drawn while it acts
     assert wait_until(lambda: sim.time > 2.5, timeout=15)
     fell = call(app, lambda: has_fallen(sim, height))
     forward = call(app, lambda: sim.data.xpos[sim.compiled.root_body][0])
     assert fell is falls
     if falls:
         assert forward > 0.1
-    assert not app.inspector.arrow.visible
+    assert not app.panels["tools"].arrow.visible
     fresh(app)
 
 
@@ -207,27 +207,27 @@ def test_recording_from_the_page_never_overwrites(app):
     from mcap.reader import make_reader
 
     fresh(app)
-    call(app, lambda: app.record_panel.start("run.mcap"))
+    call(app, lambda: app.panels["record"].start("run.mcap"))
     t0 = app.lab.sim.time
     assert wait_until(lambda: app.lab.sim.time > t0 + 3.0, timeout=20)
-    call(app, app.record_panel.stop)
-    path = app.record_folder / "run.mcap"
+    call(app, app.panels["record"].stop)
+    path = app.settings.record_folder / "run.mcap"
     with path.open("rb") as f:
         count = sum(1 for _s, channel, _m in make_reader(f).iter_messages()
                     if channel.topic == "/mex_rb/joint_states")
     assert 140 <= count <= 165  # 50 Hz for 3 s of sim time
-    assert f"{path.stat().st_size / 1024:.0f} kB" in app.record_panel.status.content
+    assert f"{path.stat().st_size / 1024:.0f} kB" in app.panels["record"].status.content
     size = path.stat().st_size
     with pytest.raises(OutputExistsError):
-        call(app, lambda: app.record_panel.start("run.mcap"))
+        call(app, lambda: app.panels["record"].start("run.mcap"))
     assert path.stat().st_size == size
     with pytest.raises(Exception, match="must be a file name"):
-        call(app, lambda: app.record_panel.start("../elsewhere.mcap"))
+        call(app, lambda: app.panels["record"].start("../elsewhere.mcap"))
 
 
 def test_topics_panel_rates_and_echo(app):
     fresh(app)
-    panel = app.topics_panel
+    panel = app.panels["topics"]
     panel.choice.value = "/mex_rb/joint_states"
     panel.echoing.value = True
     call(app, panel._resubscribe)
@@ -259,32 +259,32 @@ def test_topics_panel_rates_and_echo(app):
 def test_step_response_matches_the_metrics_of_mexone_run(app):
     fresh(app)
     assert wait_until(lambda: app.lab.sim.time > 0.5)
-    call(app, lambda: app.step_response.start("l_elbow", -0.8))
-    assert wait_until(lambda: app.step_response.result is not None, timeout=15)
-    page = app.step_response.result
+    call(app, lambda: app.panels["step_response"].start("l_elbow", -0.8))
+    assert wait_until(lambda: app.panels["step_response"].result is not None, timeout=15)
+    page = app.panels["step_response"].result
     # the same step without the page: TrackingRecorder, as `mexone run` measures a routine
     lab = Lab.create()
-    recorder = TrackingRecorder(lab.sim, lab.controllers)
+    recorder = TrackingRecorder(lab.sim, lab.manager)
     lab.sim.run(page_start(app))
-    lab.controllers.command("l_elbow_position_controller", {"l_elbow": -0.8})
+    lab.manager.command("l_elbow_position_controller", {"l_elbow": -0.8})
     lab.sim.run(2.0)
     ref = recorder.metrics()["l_elbow"]
     assert page["overshoot"] == pytest.approx(ref.overshoot, rel=0.05, abs=0.005)
     assert page["settling_time"] == pytest.approx(ref.settling_time, rel=0.05, abs=0.01)
     assert page["rise_time"] is not None and page["rise_time"] < page["settling_time"]
     assert page["steady_error"] < 0.01
-    assert "overshoot" in app.step_response.view.content
+    assert "overshoot" in app.panels["step_response"].view.content
 
 
 def page_start(app) -> float:
-    return round(app.step_response.started, 3)
+    return round(app.panels["step_response"].started, 3)
 
 
 def test_start_paused_holds_after_a_reset(app):
-    app.paused_after_reset.value = True
+    app.panels["simulation"].paused_after_reset.value = True
     call(app, app.reset_model)
     assert app.lab.sim.paused
     assert wait_frames(app, 8)
     assert app.lab.sim.time == 0.0
-    app.paused_after_reset.value = False
+    app.panels["simulation"].paused_after_reset.value = False
     fresh(app)

@@ -75,7 +75,7 @@ def test_a_slider_moves_its_joint(app, page):
 
 
 def _slider_index(app, joint: str) -> int:
-    return [j for (_, j) in app.sliders].index(joint)
+    return [j for (_, j) in app.panels["joints"].sliders].index(joint)
 
 
 def test_collisions_toggle_adds_collision_geometry(app, page):
@@ -88,10 +88,10 @@ def test_collisions_toggle_adds_collision_geometry(app, page):
 
 
 def test_bad_numbers_are_refused_not_crashing(app):
-    gains = app.lab.controllers.controllers["l_knee_position_controller"].gains[0]
+    gains = app.lab.manager.controllers["l_knee_position_controller"].gains[0]
     with pytest.raises(MexoneError, match="negative p"):
-        app._set_gain(app.lab.controllers.controllers["l_knee_position_controller"], "p", -5.0)
-    assert app.lab.controllers.controllers["l_knee_position_controller"].gains[0] == gains
+        app.panels["joints"].set_gain(app.lab.manager.controllers["l_knee_position_controller"], "p", -5.0)
+    assert app.lab.manager.controllers["l_knee_position_controller"].gains[0] == gains
     with pytest.raises(MexoneError, match="time step 1 must be a finite number >= 1e-05 and <= 0.01 s"):
         app.lab.sim.set_timestep(1.0)
     assert app.lab.sim.model.opt.timestep == 0.001
@@ -123,16 +123,16 @@ def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
 def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
     if app.lab.sim.paused:
         app.do(app.lab.sim.resume)
-    app.routine_choice.value = "sweep"
-    app.do(app.start_routine)
+    app.panels["routines"].choice.value = "joint_steps"
+    app.do(app.panels["routines"].start)
     shoulder = app.lab.sim.joint_names.index("l_shoulder_pitch")
     assert wait_until(lambda: app.lab.sim.joint_positions()[shoulder] < -0.3, timeout=20)
-    assert "Publishing: " in app.console_view.content
-    slider = app.sliders[("l_shoulder_pitch_position_controller", "l_shoulder_pitch")]
+    assert "Publishing: " in app.panels["routines"].console_view.content
+    slider = app.panels["joints"].sliders[("l_shoulder_pitch_position_controller", "l_shoulder_pitch")]
     assert wait_until(lambda: slider.value < -0.3)  # the slider shows the routine's command
-    app.do(app.stop_routine)
+    app.do(app.panels["routines"].stop_routine)
     assert wait_until(lambda: app.routine is None)
-    assert "sweep.py ended" in app.console_view.content
+    assert "joint_steps.py ended" in app.panels["routines"].console_view.content
 
 
 def test_reset_model_returns_home(app):
@@ -142,28 +142,29 @@ def test_reset_model_returns_home(app):
 
 
 def test_sensors_panel_shows_the_kinect_and_balance_says_stable(app, page, tmp_path):
-    panel = app.sensor_panel
+    panel = app.panels["sensors"]
     blank = np.asarray(panel.images["kinect"].image).copy()
     panel.show_camera["kinect"].value = True
     assert wait_until(lambda: not np.array_equal(np.asarray(panel.images["kinect"].image), blank))
     assert wait_until(lambda: np.asarray(panel.images["kinect/depth"].image).any())  # the floor
     assert np.asarray(panel.images["kinect/depth"].image).shape == (240, 320, 3)
-    app.do(lambda: panel.show_balance(True))
+    app.do(lambda: panel.show(True))
     assert wait_until(lambda: "statically stable**: yes" in app._status.content)
     assert "🟢" in panel.contact_view.content  # both soles on the ground
     panel.show_camera["kinect"].value = False
-    app.do(lambda: panel.show_balance(False))
+    app.do(lambda: panel.show(False))
 
 
 def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app, page):
     """uPlot draws its labels on a canvas: read what it formatted from the chart itself."""
     if app.lab.sim.paused:
-        app.do(app._toggle_pause)
-    app.do(lambda: app.lab.controllers.command("l_elbow_position_controller", {"l_elbow": -1.0}))
+        app.do(app.toggle_pause)
+    app.do(lambda: app.panels["plots"].show_joint("l_elbow"))
+    app.do(lambda: app.lab.manager.command("l_elbow_position_controller", {"l_elbow": -1.0}))
     elbow, start = app.lab.sim.joint_names.index("l_elbow"), app.lab.sim.time
     assert wait_until(lambda: app.lab.sim.joint_positions()[elbow] < -0.95  # on the plot too
                       and app.lab.sim.time > start + 2.0, timeout=30)  # and 2 s of samples
-    app.do(app._toggle_pause)
+    app.do(app.toggle_pause)
     assert wait_until(lambda: app.lab.sim.paused)
     script = """() => { const p = window.__viserTestpoints?.uplots?.['PANE'];
         return p ? [p.chart.axes[0]._values ?? [], p.chart.axes[1]._values ?? [],
@@ -171,7 +172,7 @@ def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app,
     shown = []
 
     def drawn() -> bool:
-        pane = app.plot_panel.plots[0]._impl.uuid  # l_elbow: command and position
+        pane = app.panels["plots"].plots[0]._impl.uuid  # l_elbow: command and position
         shown[:] = [page.evaluate(script.replace("PANE", pane))]
         return bool(shown[0] and any(v.startswith(("-1", "−1")) for v in shown[0][1]))
     assert wait_until(drawn, timeout=10), shown  # -1 rad has its minus sign
@@ -188,4 +189,4 @@ def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app,
     field.fill("1e9")
     assert wait_until(lambda: any(r.startswith("Steps: 1e+09 must be") for r in app.refusals))
     assert wait_until(lambda: page.locator("input[value='100']").count() > 0)
-    app.do(app._toggle_pause)
+    app.do(app.toggle_pause)

@@ -91,7 +91,7 @@ def paused_fresh(app) -> None:
     def reset():
         app.reset_model()
         if not app.lab.sim.paused:
-            app._toggle_pause()
+            app.toggle_pause()
     app.work.call(reset)
 
 
@@ -101,36 +101,36 @@ def test_a_click_in_the_page_inspects_the_link_under_the_mouse(app, page):
     torso = sim.data.xipos[sim.compiled.bodies["torso"]]
     page.mouse.click(*on_screen(page, app.server, torso))
     mass = sim.robot.links["torso"].inertial.mass
-    assert wait_until(lambda: f"mass {mass:.6g} kg (URDF)" in app.inspector.report.content,
-                      timeout=15), app.inspector.report.content
-    assert "**link** `torso`" in app.inspector.report.content
+    assert wait_until(lambda: f"mass {mass:.6g} kg (URDF)" in app.panels["tools"].report.content,
+                      timeout=15), app.panels["tools"].report.content
+    assert "**link** `torso`" in app.panels["tools"].report.content
     page.get_by_text(f"mass {mass:.6g} kg (URDF)").first.wait_for(timeout=15_000)  # on the page
 
 
 def test_a_click_on_a_joint_axis_arrow_inspects_the_joint(app, page):
     paused_fresh(app)
     page.get_by_text("Joints", exact=True).first.click()  # View > Joints
-    assert wait_until(lambda: app.overlay_boxes["Joints"].value, timeout=10)
+    assert wait_until(lambda: app.panels["view"].overlay_boxes["Joints"].value, timeout=10)
     sim = app.lab.sim
     joint = sim.robot.joints["r_knee"]
     body = sim.compiled.bodies[joint.child]
     tip = sim.data.xpos[body] + sim.data.xmat[body].reshape(3, 3) @ (
         0.7 * JOINT_ARROW * np.asarray(joint.axis) / np.linalg.norm(joint.axis))
     page.mouse.click(*on_screen(page, app.server, tip))
-    assert wait_until(lambda: "**joint** `r_knee`" in app.inspector.report.content, timeout=15), \
-        app.inspector.report.content
-    report = app.inspector.report.content
+    assert wait_until(lambda: "**joint** `r_knee`" in app.panels["tools"].report.content, timeout=15), \
+        app.panels["tools"].report.content
+    report = app.panels["tools"].report.content
     assert f"limits [{joint.limit.lower:g}, {joint.limit.upper:g}]" in report
     assert "parent `r_thigh`" in report or f"parent `{joint.parent}`" in report
     page.get_by_text("(revolute, rad)").first.wait_for(timeout=10_000)  # on the page
     shoot(page, "gui_joint.png", page.get_by_text("(revolute, rad)").first)
     page.get_by_text("Joints", exact=True).first.click()
-    assert wait_until(lambda: not app.overlay_boxes["Joints"].value, timeout=10)
+    assert wait_until(lambda: not app.panels["view"].overlay_boxes["Joints"].value, timeout=10)
 
 
 def test_the_push_handle_is_dragged_with_the_mouse(app, page):
     paused_fresh(app)
-    tools = app.inspector
+    tools = app.panels["tools"]
     tools.mode.value, tools.direction.value = "push", DRAG
     sim = app.lab.sim
     torso = sim.data.xipos[sim.compiled.bodies["torso"]]
@@ -171,7 +171,7 @@ def test_the_push_handle_is_dragged_with_the_mouse(app, page):
 
 def test_the_move_gizmo_lifts_the_robot_with_the_mouse(app, page):
     paused_fresh(app)
-    sim, move = app.lab.sim, app.move
+    sim, move = app.lab.sim, app.panels["tools"].move
     root = sim.compiled.root_body
     before = sim.data.xpos[root].copy()
     page.get_by_text("Move the robot").click()
@@ -199,12 +199,12 @@ def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, pa
     from PIL import Image
 
     paused_fresh(app)
-    folder = app.screenshots.folder
+    folder = app.panels["simulation"].screenshots.folder
     camera = client(app).camera
     page.get_by_role("button", name="Screenshot").click()
     first = folder / "mexone_screenshot_001.png"
     assert wait_until(first.exists, timeout=30)
-    assert wait_until(lambda: app.last_screenshot == first, timeout=10)
+    assert wait_until(lambda: app.panels["simulation"].last_screenshot == first, timeout=10)
     plain = np.asarray(Image.open(first).convert("RGB"), dtype=np.int16)
     # the page's picture (its canvas' size, not MuJoCo's 1280 x 720): the robot in the middle,
     # dark against the light floor
@@ -219,7 +219,7 @@ def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, pa
     page.get_by_role("button", name="Screenshot").click()
     second = folder / "mexone_screenshot_002.png"
     assert wait_until(second.exists, timeout=30)
-    assert wait_until(lambda: app.last_screenshot == second, timeout=10)
+    assert wait_until(lambda: app.panels["simulation"].last_screenshot == second, timeout=10)
     marked = np.asarray(Image.open(second).convert("RGB"), dtype=np.int16)
     page.get_by_text("Center of Mass", exact=True).click()
     blue = lambda im: ((im[..., 2] - np.maximum(im[..., 0], im[..., 1])) > 80).sum()  # noqa: E731
@@ -229,7 +229,7 @@ def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, pa
 def test_follow_robot_keeps_it_in_view_after_a_jump_and_a_reset(app, page):
     paused_fresh(app)
     page.get_by_text("Follow robot").click()
-    assert wait_until(lambda: app.follow.value, timeout=10)
+    assert wait_until(lambda: app.panels["simulation"].follow.value, timeout=10)
     sim = app.lab.sim
     base = sim.robot.base_link
 
@@ -246,7 +246,7 @@ def test_follow_robot_keeps_it_in_view_after_a_jump_and_a_reset(app, page):
                       timeout=15)
     _assert_robot_in_the_middle(app, page)
     page.get_by_text("Follow robot").click()
-    assert wait_until(lambda: not app.follow.value, timeout=10)
+    assert wait_until(lambda: not app.panels["simulation"].follow.value, timeout=10)
 
 
 def _assert_robot_in_the_middle(app, page) -> None:
@@ -263,7 +263,7 @@ def _assert_robot_in_the_middle(app, page) -> None:
 def test_centre_of_mass_markers_show_through_the_links(app, page):
     paused_fresh(app)
     page.get_by_text("Center of Mass", exact=True).click()
-    assert wait_until(lambda: app.overlay_boxes["Center of Mass"].value, timeout=10)
+    assert wait_until(lambda: app.panels["view"].overlay_boxes["Center of Mass"].value, timeout=10)
     assert wait_until(lambda: all(h.opacity for h in app.scene.visuals), timeout=10)
     time.sleep(1.5)
     with_markers = pixels(page)
@@ -275,13 +275,13 @@ def test_centre_of_mass_markers_show_through_the_links(app, page):
     changed = np.abs(with_markers - without).sum(axis=2) > 40
     assert changed.mean() > 0.0005
     page.get_by_text("Center of Mass", exact=True).click()
-    assert wait_until(lambda: not app.overlay_boxes["Center of Mass"].value, timeout=10)
+    assert wait_until(lambda: not app.panels["view"].overlay_boxes["Center of Mass"].value, timeout=10)
     assert wait_until(lambda: all(h.opacity is None for h in app.scene.visuals), timeout=10)
 
 
 def test_topic_fields_plot_and_the_topics_table_in_the_page(app, page):
-    panel = app.plot_panel
-    app.work.call(app._toggle_pause)  # running
+    panel = app.panels["plots"]
+    app.work.call(app.toggle_pause)  # running
     panel.topic.value = "/mex_rb/imu"
     app.work.call(panel._browse)
     assert wait_until(lambda: "angular_velocity/x" in panel.field.options, timeout=15)
@@ -310,7 +310,7 @@ def test_a_robot_uploaded_through_the_page_replaces_the_running_one(app, page, t
     assert wait_until(lambda: app.lab.sim.robot.name == "pendulum", timeout=60)
     # the page is rebuilt for it: its panels, its one joint's slider
     page.get_by_text("now: pendulum.urdf").wait_for(state="attached", timeout=30_000)
-    assert app.lab.controllers is not None and "swing" in app.lab.sim.joint_names
+    assert app.lab.manager is not None and "swing" in app.lab.sim.joint_names
     page.get_by_role("slider").first.wait_for(timeout=15_000)
     assert page.get_by_role("slider").count() == 1
     assert page.get_by_text("mex_rb").count() == 0

@@ -38,7 +38,7 @@ def app(tmp_path_factory):
 
 def test_table_params_switch_and_reload(app):
     gui, folder = app
-    panel, manager = gui.controllers_panel, gui.lab.controllers
+    panel, manager = gui.panels["controllers"], gui.lab.manager
     call(gui, panel.update)
     first = panel.table.content.splitlines()[0]  # the student's controller comes first
     assert first.startswith(f"- **{NAME}**: running · MyPd · 1000 Hz · ") and "us/update" in first

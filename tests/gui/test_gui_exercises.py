@@ -133,7 +133,7 @@ def test_check_names_the_starters_failing_checks_then_gives_the_solution_full_ma
     assert text.count("✅") == 3
     wanted = load_control_config(folder / "controllers.yaml").controllers
     for name in ("l_elbow_position_controller", "r_knee_position_controller"):
-        assert app.lab.controllers.controllers[name].gains[0] == wanted[name].pid  # retuned live
+        assert app.lab.manager.controllers[name].gains[0] == wanted[name].pid  # retuned live
 
 
 def test_the_exercise_list_shows_another_statement_and_refuses_what_it_does_not_offer(home):
@@ -192,7 +192,7 @@ def hanging(tmp_path, monkeypatch):
 def test_a_hanging_submission_shows_its_reason_and_the_lab_runs_on(hanging):
     app = hanging
     panel = app.panels["exercises"]
-    assert app.routine_files["exercise: routine.py"].name == "routine.py"  # to Start by hand
+    assert app.panels["routines"].files["exercise: routine.py"].name == "routine.py"  # to Start by hand
     sent = panel.statement._impl.props._markdown  # what the page gets: the figure inlined
     assert "![the arms](data:image/png;base64," in sent
     assert wait_until(lambda: any("broken_for_test panel stopped: RuntimeError: a panel's bug"
@@ -266,7 +266,7 @@ def test_check_runs_a_controller_plug_in_in_the_lab_and_grades_it(tmp_path):
         text = _result(panel, timeout=90)
         assert "not applied: your file did not run in the self-check" in text
         assert "failing: **runs**" in text and "score 0/10" in text
-        assert "gravity_compensation" not in app.lab.controllers.controllers  # never imported
+        assert "gravity_compensation" not in app.lab.manager.controllers  # never imported
         t0 = app.lab.sim.time
         assert wait_until(lambda: app.lab.sim.time > t0 + 0.1)  # the page's lab runs on
         shutil.copyfile(find_exercise("gravity_compensation").solution, mine)
@@ -274,7 +274,7 @@ def test_check_runs_a_controller_plug_in_in_the_lab_and_grades_it(tmp_path):
         text = _result(panel, timeout=90)
         assert "the lab restarted with your GravityCompensation" in text
         assert "**score 10/10** (passed" in text
-        manager = app.lab.controllers
+        manager = app.lab.manager
         ctrl = manager.controllers["gravity_compensation"]
         assert ctrl.running and ctrl.fault is None
         assert Path(ctrl.plugin.file).read_text() == (folder / "gravity_compensation.py").read_text()

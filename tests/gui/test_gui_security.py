@@ -133,11 +133,11 @@ def test_the_origin_rule():
 
 def test_a_same_origin_client_cannot_start_a_file_it_names(app):
     port = app.server.get_port()
-    assert set(app.routine_files) >= {"wave.py", "arms", "sweep", "home"}
+    assert set(app.panels["routines"].files) >= {"wave.py", "arms", "joint_steps", "home"}
     with client(app, f"http://127.0.0.1:{port}") as ws:
         join(ws)
-        send(ws, app.routine_choice, str(app.evil))
-        wait_until(lambda: app.routine_choice.value == str(app.evil), timeout=5)
+        send(ws, app.panels["routines"].choice, str(app.evil))
+        wait_until(lambda: app.panels["routines"].choice.value == str(app.evil), timeout=5)
         start = next(h for h in app.server.gui._gui_input_handle_from_uuid.values()
                      if getattr(h, "label", None) == "Start")
         send(ws, start, True)
@@ -152,17 +152,17 @@ def test_steps_1e9_is_refused_and_step_n_never_freezes_the_page(app):
     port = app.server.get_port()
     with client(app, f"http://127.0.0.1:{port}") as ws:
         join(ws)
-        send(ws, app.steps, 1e9)
+        send(ws, app.panels["simulation"].steps, 1e9)
         message = "Steps: 1e+09 must be a whole number >= 1 and <= 100000"
         assert _wait(lambda: message in app.refusals)
-        assert app.steps.value == "100"  # the field shows what the server holds
-        send(ws, app.steps, "NaN")
+        assert app.panels["simulation"].steps.value == "100"  # the field shows what the server holds
+        send(ws, app.panels["simulation"].steps, "NaN")
         assert _wait(lambda: "Steps: 'NaN' is not a finite number" in app.refusals)
-        assert app.fields.held(app.steps) == [100]
+        assert app.fields.held(app.panels["simulation"].steps) == [100]
     app.do(lambda: app.step_n(MAX_STEPS))  # the most a page may ask for
     time.sleep(0.3)
     t0 = time.perf_counter()
-    app.do(app._toggle_pause)  # Play interrupts it
+    app.do(app.toggle_pause)  # Play interrupts it
     while app.steps_left and time.perf_counter() - t0 < 2:
         time.sleep(0.01)
     assert app.steps_left == 0 and time.perf_counter() - t0 < 1.0

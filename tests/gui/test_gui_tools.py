@@ -41,7 +41,7 @@ def fresh(app, paused: bool = False) -> None:
     def reset():
         app.reset_world()
         if app.lab.sim.paused != paused:
-            app._toggle_pause()
+            app.toggle_pause()
     call(app, reset)
 
 
@@ -50,7 +50,7 @@ def fresh(app, paused: bool = False) -> None:
 def test_a_push_aimed_by_dragging_the_handle(app, impulse, falls):
     """Drag the handle behind the torso, as long as the impulse wanted: forward it falls."""
     fresh(app, paused=True)
-    sim, tools = app.lab.sim, app.inspector
+    sim, tools = app.lab.sim, app.panels["tools"]
     height = sim.base_height
     point = sim.data.xipos[sim.compiled.bodies["torso"]].copy()
     tools.mode.value, tools.direction.value = "push", DRAG
@@ -69,7 +69,7 @@ def test_a_push_aimed_by_dragging_the_handle(app, impulse, falls):
 
     def fire():
         tools.push_aimed()
-        app._toggle_pause()
+        app.toggle_pause()
     call(app, fire)
     assert tools.arrow.visible and not tools.handle.visible  # drawn while it acts
     assert wait_until(lambda: sim.time > 2.5, timeout=15)
@@ -93,10 +93,10 @@ def test_clicking_a_joint_axis_arrow_shows_the_joint(app):
     axis_world = sim.data.xmat[body].reshape(3, 3) @ np.array(elbow.axis)
     target = sim.data.xpos[body] + 0.6 * JOINT_ARROW * axis_world  # on the arrow
     origin = target + np.array([2.0, 0.0, 0.0])  # from in front
-    app.overlay_boxes["Joints"].value = True
-    call(app, lambda: app._show_overlay("Joints", True))
-    assert call(app, lambda: app.inspector.click(origin, target - origin)) == "l_elbow"
-    report = app.inspector.report.content
+    app.panels["view"].overlay_boxes["Joints"].value = True
+    call(app, lambda: app.panels["view"].show_overlay("Joints", True))
+    assert call(app, lambda: app.panels["tools"].click(origin, target - origin)) == "l_elbow"
+    report = app.panels["tools"].report.content
     q = sim.joint_positions()[sim.joint_names.index("l_elbow")]
     assert "**joint** `l_elbow` (revolute, rad)" in report
     assert "parent `l_upper_arm` → child `l_forearm`" in report
@@ -104,18 +104,18 @@ def test_clicking_a_joint_axis_arrow_shows_the_joint(app):
     assert f"limits [{elbow.limit.lower:g}, {elbow.limit.upper:g}]" in report
     # a ray 5 cm off the arrow is a link click, and without View > Joints the arrow is not there
     off = target + np.array([0.0, 0.0, 0.05])
-    assert call(app, lambda: app.inspector.click(origin + (off - target), -np.array([1, 0, 0.0]))) \
+    assert call(app, lambda: app.panels["tools"].click(origin + (off - target), -np.array([1, 0, 0.0]))) \
         != "l_elbow"
-    app.overlay_boxes["Joints"].value = False
-    call(app, lambda: app._show_overlay("Joints", False))
-    assert call(app, lambda: app.inspector.click(origin, target - origin)) != "l_elbow"
+    app.panels["view"].overlay_boxes["Joints"].value = False
+    call(app, lambda: app.panels["view"].show_overlay("Joints", False))
+    assert call(app, lambda: app.panels["tools"].click(origin, target - origin)) != "l_elbow"
     fresh(app)
 
 
 # ----- move the floating base ---------------------------------------------------------------------
 def test_move_tool_places_the_base_paused_and_holds_it_while_running(app):
     fresh(app, paused=True)
-    sim, move = app.lab.sim, app.move
+    sim, move = app.lab.sim, app.panels["tools"].move
     root = sim.compiled.root_body
     move.enabled.value = True
     call(app, lambda: move.enable(True))
@@ -125,7 +125,7 @@ def test_move_tool_places_the_base_paused_and_holds_it_while_running(app):
     call(app, lambda: move.place((0.5, -0.3, 1.4), yaw, hold=True))  # a drag, paused
     np.testing.assert_allclose(sim.data.xpos[root], (0.5, -0.3, 1.4), atol=1e-9)
     np.testing.assert_allclose(sim.data.xquat[root], yaw, atol=1e-9)
-    call(app, app._toggle_pause)  # running, still held by the drag
+    call(app, app.toggle_pause)  # running, still held by the drag
     start = sim.time
     assert wait_until(lambda: sim.time > start + 0.5, timeout=10)
     assert abs(call(app, lambda: sim.data.xpos[root][2]) - 1.4) < 0.01
@@ -143,13 +143,13 @@ def test_move_tool_places_the_base_paused_and_holds_it_while_running(app):
 # ----- screenshot -------------------------------------------------------------------------------------
 def test_screenshot_saves_numbered_pngs_and_never_overwrites(app):
     fresh(app, paused=True)
-    folder: Path = app.screenshots.folder
+    folder: Path = app.panels["simulation"].screenshots.folder
     mine = folder / "mexone_screenshot_001.png"
     mine.write_bytes(b"the user's own file")
     base = app.lab.sim.data.xpos[app.lab.sim.compiled.root_body].copy()
     eye = base + np.array([1.6, -1.6, 0.4])
-    first = call(app, lambda: app.screenshot(eye, base, np.radians(45.0)))
-    away = call(app, lambda: app.screenshot(eye, eye + np.array([1.0, -1.0, 0.0]), np.radians(45.0)))
+    first = call(app, lambda: app.panels["simulation"].screenshot(eye, base, np.radians(45.0)))
+    away = call(app, lambda: app.panels["simulation"].screenshot(eye, eye + np.array([1.0, -1.0, 0.0]), np.radians(45.0)))
     assert (first.name, away.name) == ("mexone_screenshot_002.png", "mexone_screenshot_003.png")
     assert mine.read_bytes() == b"the user's own file"
     robot = np.asarray(Image.open(first).convert("RGB"), dtype=float)
@@ -174,11 +174,11 @@ def test_a_page_that_sends_no_picture_gets_mujocos_render(app):
     base = app.lab.sim.data.xpos[app.lab.sim.compiled.root_body].copy()
     view = (base + np.array([1.6, -1.6, 0.4]), base, np.radians(45.0))
     for camera in (SilentCamera(), BlankCamera()):
-        before = app.last_screenshot
+        before = app.panels["simulation"].last_screenshot
         client = type("Client", (), {"camera": camera})()
-        app._page_screenshot(client, (400, 600), view)
-        assert wait_until(lambda b=before: app.last_screenshot not in (None, b), timeout=20)
-        assert Image.open(app.last_screenshot).size == (1280, 720)  # MuJoCo's, not the page's
+        app.panels["simulation"].page_screenshot(client, (400, 600), view)
+        assert wait_until(lambda b=before: app.panels["simulation"].last_screenshot not in (None, b), timeout=20)
+        assert Image.open(app.panels["simulation"].last_screenshot).size == (1280, 720)  # MuJoCo's, not the page's
 
 
 def test_a_page_picture_is_put_on_white_and_a_blank_one_refused():
@@ -196,7 +196,7 @@ def test_a_page_picture_is_put_on_white_and_a_blank_one_refused():
 # ----- plots of any topic, subscriber names, one plot implementation ---------------------------------
 def test_any_topic_field_is_plotted_and_its_subscribers_are_named(app):
     fresh(app)
-    panel = app.plot_panel
+    panel = app.panels["plots"]
     imu_topic = "/mex_rb/imu"
     panel.topic.value = imu_topic
     call(app, panel._browse)
@@ -228,8 +228,8 @@ def test_any_topic_field_is_plotted_and_its_subscribers_are_named(app):
     assert not app.lab.bus.topics[image].subscriptions
     assert imu_topic in app.log.watched  # plotted: kept
     # who listens: the plot, and on a command topic its controller
-    call(app, app.topics_panel.update)
-    table = app.topics_panel.table.content
+    call(app, app.panels["topics"].update)
+    table = app.panels["topics"].table.content
     row = next(r for r in table.splitlines() if r.startswith(f"- `{imu_topic}`"))
     assert "subscribers: mexone GUI (plots)" in row
     row = next(r for r in table.splitlines()
@@ -242,9 +242,9 @@ def test_sensor_panel_plots_are_panes_of_the_signal_log(app):
     fresh(app)
     t0 = app.lab.sim.time
     assert wait_until(lambda: app.lab.sim.time > t0 + 0.5, timeout=10)
-    call(app, app._toggle_pause)  # the log and the panes hold still while compared
-    call(app, app.sensor_panel.update_plots)
-    imu, forces = app.sensor_panel.panes
+    call(app, app.toggle_pause)  # the log and the panes hold still while compared
+    call(app, app.panels["sensors"].update_plots)
+    imu, forces = app.panels["sensors"].panes
     assert imu.names == [f"imu/linear_acceleration/{a}" for a in "xyz"]
     z = np.asarray(imu.plot.data[3])
     from mexone.gui.plots import axis_scale
@@ -263,12 +263,12 @@ def test_sensor_panel_plots_are_panes_of_the_signal_log(app):
 # ----- view: see-through links for COM and inertia, follow robot --------------------------------------
 def test_center_of_mass_and_inertia_make_the_links_see_through(app):
     for overlay in ("Center of Mass", "Inertia"):
-        app.overlay_boxes[overlay].value = True
-        call(app, lambda o=overlay: app._show_overlay(o, True))
+        app.panels["view"].overlay_boxes[overlay].value = True
+        call(app, lambda o=overlay: app.panels["view"].show_overlay(o, True))
         assert all(h.visible for h in app.scene.overlays[overlay])
         assert all(h.opacity is not None and h.opacity < 1 for h in app.scene.visuals)
-        app.overlay_boxes[overlay].value = False
-        call(app, lambda o=overlay: app._show_overlay(o, False))
+        app.panels["view"].overlay_boxes[overlay].value = False
+        call(app, lambda o=overlay: app.panels["view"].show_overlay(o, False))
         assert all(h.opacity is None for h in app.scene.visuals)
 
 
@@ -289,37 +289,37 @@ PENDULUM = """<?xml version="1.0"?>
 
 
 def test_load_opens_another_robot_and_a_bad_file_changes_nothing(app):
-    folder = app.model_folder
+    folder = app.settings.model_folder
     (folder / "robots").mkdir()
     (folder / "robots" / "pendulum.urdf").write_text(PENDULUM)
     (folder / "broken.urdf").write_text("<robot name='x'><link name='a'></robot>")
-    call(app, app.load_panel.refresh)
-    assert set(app.load_panel.choices) == {"broken.urdf", "robots/pendulum.urdf"}
+    call(app, app.panels["load"].refresh)
+    assert set(app.panels["load"].choices) == {"broken.urdf", "robots/pendulum.urdf"}
     before = app.lab
     with pytest.raises(Exception, match="broken.urdf"):
-        call(app, lambda: app.load_panel.open("broken.urdf"))
+        call(app, lambda: app.panels["load"].open("broken.urdf"))
     assert app.lab is before and app.lab.sim.robot.name == "mex_rb"  # still the old robot
     with pytest.raises(Exception, match="not one of the files"):
-        call(app, lambda: app.load_panel.open("../../etc/passwd.urdf"))
+        call(app, lambda: app.panels["load"].open("../../etc/passwd.urdf"))
     with pytest.raises(Exception, match="not a robot file"):
         save_upload("notes.txt", b"hello")
-    call(app, lambda: app.load_panel.open("robots/pendulum.urdf"))
+    call(app, lambda: app.panels["load"].open("robots/pendulum.urdf"))
     lab = app.lab
     assert lab is not before and lab.sim.robot.name == "pendulum"
     assert set(app.scene.links) == set(lab.sim.compiled.bodies)  # the scene is rebuilt
     assert "swing/position" in app.log.index and "l_elbow/position" not in app.log.index
-    assert "swing_position_controller" in lab.controllers.controllers  # gains from its physics
-    assert [j for (_, j) in app.sliders] == ["swing"]
+    assert "swing_position_controller" in lab.manager.controllers  # gains from its physics
+    assert [j for (_, j) in app.panels["joints"].sliders] == ["swing"]
     # it runs, and the panels work on it: the step helper on its one joint
     t0 = lab.sim.time
     assert wait_until(lambda: lab.sim.time > t0 + 0.3, timeout=10)
-    call(app, lambda: app.step_response.start("swing", 0.3))
-    assert wait_until(lambda: app.step_response.result is not None, timeout=20)
+    call(app, lambda: app.panels["step_response"].start("swing", 0.3))
+    assert wait_until(lambda: app.panels["step_response"].result is not None, timeout=20)
     q = lab.sim.joint_positions()[lab.sim.joint_names.index("swing")]
     assert abs(q - 0.3) < 0.05
     with pytest.raises(Exception, match="fixed to the world"):  # said, not silently ignored
-        call(app, lambda: app.move.enable(True))
-    assert not app.move.gizmo.visible
+        call(app, lambda: app.panels["tools"].move.enable(True))
+    assert not app.panels["tools"].move.gizmo.visible
     # an upload: saved in a temporary folder, never the start folder
     path = save_upload("up.urdf", PENDULUM.replace("pendulum", "uploaded").encode())
     assert path.parent != folder and path.read_text().startswith("<?xml")
@@ -330,15 +330,15 @@ def test_load_opens_another_robot_and_a_bad_file_changes_nothing(app):
 def test_the_walk_plan_overlay_belongs_to_the_robot_loaded(app):
     """View > Walk plan: built with the page's panels (Load builds it anew on the new lab);
     shown, it asks for the measured ZMP; hidden, it stops asking."""
-    view = app.walk_plan
+    view = app.panels["walk_plan"]
     assert view.lab is app.lab
     zmp = f"{app.lab.namespace}/zmp"
-    app.walk_plan_box.value = True  # the View menu's box, as a click sets it
+    app.panels["view"].walk_plan_box.value = True  # the View menu's box, as a click sets it
     call(app, lambda: None)  # its handler has run in the simulation thread
     assert view.visible and app.lab.bus.wanted(zmp)
     # no walk: nothing planned, so no node shows (an empty one would be a zero-length line)
     assert not any(view.nodes[k].visible for k in ("footsteps", "zmp_plan", "com_plan"))
-    app.walk_plan_box.value = False
+    app.panels["view"].walk_plan_box.value = False
     call(app, lambda: None)
     assert not view.visible and not any(node.visible for node in view.nodes.values())
     assert not app.lab.bus.wanted(zmp) or app.lab.bus.taps

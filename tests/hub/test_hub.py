@@ -48,7 +48,7 @@ def _shoulder_slider() -> int:
     from mexone.lab import Lab
 
     lab = Lab.create()
-    joints = [j for c in lab.controllers.controllers.values() if c.sliders for j in c.joints]
+    joints = [j for c in lab.manager.controllers.values() if c.sliders for j in c.joints]
     return joints.index("l_shoulder_pitch")
 
 

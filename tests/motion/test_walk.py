@@ -269,6 +269,7 @@ def test_course_timing_is_planned():
 
 
 def test_the_gui_walk_pad_sends_cmd_vel():
+    from helpers import built_panel
     from mexone.gui.walkpad import PAD, WalkPad
     from mexone.msgs import Twist
 
@@ -276,7 +277,7 @@ def test_the_gui_walk_pad_sends_cmd_vel():
     lab = Lab.create(controllers=False)
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     try:
-        pad = WalkPad(server, lab, lambda action: action())
+        pad = built_panel(WalkPad, server, lab)
         got = []
         lab.bus.subscribe(pad.topic, Twist, got.append)
         lab.sim.run(0.3)

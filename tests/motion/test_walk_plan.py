@@ -74,11 +74,12 @@ def walked():
     """The shipped walk routine over SHORT, every plan message kept; the GUI's overlay built
     on the same bus before the walk, as a page would be."""
     viser = pytest.importorskip("viser")
+    from helpers import built_panel
     from mexone.gui.walkplan import WalkPlanView
 
     lab = Lab.create()
     server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    view = WalkPlanView(server, lab)
+    view = built_panel(WalkPlanView, server, lab)
     got = {"footsteps": [], "zmp_plan": [], "com_plan": []}
     for key, kind in (("footsteps", PoseArray), ("zmp_plan", Path), ("com_plan", Path)):
         lab.bus.subscribe(f"/mex_rb/walk/{key}", kind, got[key].append)

@@ -75,7 +75,7 @@ def test_bad_pushes_are_one_line_errors():
 def test_a_spawned_box_lands_on_the_robot_and_the_robot_keeps_its_state(tmp_path):
     lab = Lab.create()
     sim = lab.sim
-    lab.controllers.command("l_elbow_position_controller", [-0.8])
+    lab.manager.command("l_elbow_position_controller", [-0.8])
     sim.step(500)
     before = sim.joint_positions()
     x, y, z = sim.link_pose("head")[0]

@@ -24,7 +24,7 @@ def _teleport(lab, undo=None) -> None:
     lab.sim.reset()
     lab.sim.step(100)
     lab.sim.set_joint_positions({"l_elbow": 100.0})
-    lab.controllers.hold({"l_elbow": 100.0})
+    lab.manager.hold({"l_elbow": 100.0})
     lab.sim.note_input("/gazebo/set_model_configuration (l_elbow 100)", undo)
 
 
@@ -59,7 +59,7 @@ def test_an_input_long_ago_is_not_blamed(lab):
     lab.sim.step(2100)  # 2.1 s of sim time: beyond OUTSIDE_WINDOW
     assert lab.sim.recent_input() is None
     lab.sim.set_joint_positions({"l_elbow": 100.0})
-    lab.controllers.hold({"l_elbow": 100.0})
+    lab.manager.hold({"l_elbow": 100.0})
     with pytest.raises(DivergenceError) as err:  # the robot's own divergence still ends the run
         lab.sim.step(2000)
     assert "outside input" not in err.value.one_line()

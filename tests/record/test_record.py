@@ -26,7 +26,7 @@ def mexone(*args, cwd=None, timeout=240):
 def record_sweep(path: Path):
     lab = Lab.create()
     recorder = BagRecorder(lab, path)
-    RoutineRunner(lab, "sweep").run(2.0)
+    RoutineRunner(lab, "joint_steps").run(2.0)
     recorder.close()
     published = {name: topic.count for name, topic in lab.bus.topics.items() if topic.count}
     return path, published

@@ -113,7 +113,7 @@ def test_a_rospy_sweep_node_follows_sim_time(ros):
     topic = "/mex_rb/l_shoulder_pitch_position_controller/command"
     heard: list[tuple[float, float]] = []
     sub = rospy.Subscriber(topic, Float64, lambda m: heard.append((rospy.get_time(), m.data)))
-    node = subprocess.Popen(["/usr/bin/python3", str(SCRIPTS / "sweep_node.py")],
+    node = subprocess.Popen(["/usr/bin/python3", str(SCRIPTS / "joint_steps_node.py")],
                             env=ros_env(port), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, start_new_session=True)
     try:

@@ -347,7 +347,7 @@ class Harness:
         self.gazebo = GazeboNode(bridge)
         self.gazebo.attach()
         lab.sim.recover_outside = True  # as the bridge sets it
-        manager = lab.controllers
+        manager = lab.manager
         import yaml
 
         manager.define(parse_control_config(yaml.safe_dump({"mex_rb": {"arm_controller": ARM}}))
@@ -375,7 +375,7 @@ class Harness:
 
     def restore(self) -> None:
         """The controllers that ran at the start run again, and only those."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         running = {n for n, c in manager.controllers.items() if c.running}
         manager.switch(start=sorted(self.running - running), stop=sorted(running - self.running),
                        strictness=1)
@@ -618,7 +618,7 @@ def test_fuzz_controller_manager_services(harness, start, stop, strictness, time
     cm._load(LoadControllerRequest(load))
     assert not cm._reload(ReloadControllerLibrariesRequest(False)).ok  # controllers are loaded
     assert cm._list(ListControllersRequest()).controller
-    if load not in harness.lab.controllers.controllers:
+    if load not in harness.lab.manager.controllers:
         assert not cm._unload(UnloadControllerRequest(load)).ok
     harness.restore()
     harness.settle()
@@ -630,7 +630,7 @@ def test_fuzz_controller_manager_services(harness, start, stop, strictness, time
                                      for k in ("p", "i", "d", "i_clamp_min", "i_clamp_max")}))
 def test_fuzz_dynamic_reconfigure_gains(harness, values):
     server = harness.cm.extras["neck_yaw_position_controller"][0]
-    manager = harness.lab.controllers
+    manager = harness.lab.manager
     server.update_configuration(dict(values))
     [gains] = manager.controllers["neck_yaw_position_controller"].gains
     for key in ("p", "i", "d", "i_clamp_min", "i_clamp_max"):
@@ -729,7 +729,7 @@ def test_fuzz_command_topics(harness, points, names, command):
     bus.publish("/mex_rb/arm_controller/command", convert.from_ros(trajectory))
     bus.publish("/mex_rb/neck_yaw_position_controller/command", convert.from_ros(Float64(command)))
     harness.settle()
-    [neck] = harness.lab.controllers.controllers["neck_yaw_position_controller"].setpoint
+    [neck] = harness.lab.manager.controllers["neck_yaw_position_controller"].setpoint
     assert -1.2 <= neck <= 1.2  # within its limits whatever was sent
 
 

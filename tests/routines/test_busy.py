@@ -81,3 +81,40 @@ def test_the_same_watchdog_stops_a_students_own_loop(tmp_path, burning_cores):
 def test_busy_outside_a_routine_does_nothing():
     with busy("a library call"):
         pass
+
+
+@pytest.fixture
+def starved():
+    """This process and four others on one core: every thread of it gets a fifth of a CPU."""
+    before = os.sched_getaffinity(0)
+    core = min(before)
+    os.sched_setaffinity(0, {core})  # this thread, and the threads it starts from now on
+    burners = [subprocess.Popen([sys.executable, "-c", f"import os; os.sched_setaffinity(0, {{{core}}})\n"
+                                 "while True: pass"]) for _ in range(4)]
+    yield
+    for proc in burners:
+        proc.kill()
+        proc.wait()
+    os.sched_setaffinity(0, before)
+
+
+STARVED_ROUTINE = """
+import time
+from mexone import rospy
+rospy.init_node("starved")
+for _ in range(3):
+    start = time.thread_time()
+    while time.thread_time() - start < 0.1:  # 0.1 s of its own computing, then it yields
+        pass
+    rospy.sleep(0.01)
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the run queue's wait is Linux's")
+def test_a_routine_the_machine_starves_is_not_abandoned_for_it(tmp_path, starved):
+    """0.1 s of its own computing takes about 0.5 s of wall time on a fifth of a core, over the
+    watchdog's 0.25 s: the time it waited for the CPU is the machine's, not the routine's."""
+    start = time.perf_counter()
+    runner = _run(tmp_path, STARVED_ROUTINE)
+    assert time.perf_counter() - start > 3 * 0.1 * 2  # it really was starved
+    assert runner.error is None

@@ -219,12 +219,12 @@ def test_a_gui_routine_that_calls_os_exit_and_forks_leaves_the_lab_running(tmp_p
     loop.start()
     children = my_children()
     try:
-        app.routine_choice.value = "bye.py"
-        app.do(app.start_routine)
+        app.panels["routines"].choice.value = "bye.py"
+        app.do(app.panels["routines"].start)
         # it ended, with its error on the page
-        assert wait_until(lambda: "os._exit(0)" in app.console_view.content, timeout=20)
-        assert "the routine called os._exit(0)" in app.console_view.content
-        assert "the routine left process" in app.console_view.content
+        assert wait_until(lambda: "os._exit(0)" in app.panels["routines"].console_view.content, timeout=20)
+        assert "the routine called os._exit(0)" in app.panels["routines"].console_view.content
+        assert "the routine left process" in app.panels["routines"].console_view.content
         t0 = app.lab.sim.time
         assert wait_until(lambda: app.lab.sim.time > t0 + 0.2, timeout=10)  # the lab goes on
         assert wait_until(lambda: my_children() <= children, timeout=5)

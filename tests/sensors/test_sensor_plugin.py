@@ -73,7 +73,6 @@ def joint_torque():
     cls = register_sensor("joint_torque")(joint_torque_type())
     yield cls
     del SENSOR_CLASSES["joint_torque"]  # leave the registry as other tests expect it
-    declared.SENSOR_TYPES.remove("joint_torque")
 
 
 PENDULUM = f"""<robot name="pendulum">
@@ -105,11 +104,56 @@ def pendulum(joint_torque, tmp_path_factory) -> Lab:
     return lab
 
 
-def test_without_the_plugin_the_type_is_refused_with_the_types_known():
-    if "joint_torque" in declared.SENSOR_TYPES:
-        pytest.skip("registered by the fixture in this process")
-    with pytest.raises(Exception, match="type 'joint_torque'.*types: imu"):
-        parse_urdf(XmlReader("pendulum.urdf", PENDULUM.encode()))
+def test_without_the_plugin_the_type_is_read_and_refused_where_it_is_built(tmp_path):
+    """What a file parses to never depends on what was imported: the reader keeps any type; the
+    model builder and `mexone check` refuse one no plug-in simulates, at its line."""
+    robot = parse_urdf(XmlReader("pendulum.urdf", PENDULUM.replace("joint_torque", "torque_x").encode()))
+    assert [(s.name, s.type, s.line) for s in robot.sensors] == [("hinge_torque", "torque_x", 13)]
+    assert declared.SENSOR_TYPES == ("imu", "force_torque", "contact", "camera", "depth")
+    path = tmp_path / "pendulum.urdf"
+    path.write_text(PENDULUM.replace("joint_torque", "torque_x"))
+    with pytest.raises(Exception, match=r"pendulum.urdf:13: sensor 'hinge_torque': mexone does not "
+                                        r"simulate sensor type 'torque_x' \(types: camera, contact, depth"):
+        Lab.create(read_urdf(path), parse_control_config(PENDULUM_YAML))
+    from mexone.cli import main
+
+    assert main(["check", str(path)]) == 1
+
+
+def test_a_packages_sensor_type_is_found_through_its_entry_point(tmp_path):
+    """A package that declares `[project.entry-points."mexone.sensors"]` is picked up without
+    being imported by anyone: the URDF naming its type runs in a fresh interpreter."""
+    import inspect
+    import subprocess
+    import sys
+    import textwrap
+
+    package = tmp_path / "torque_pkg"
+    package.mkdir()
+    source = inspect.getsource(JointEffort) + inspect.getsource(JointTorqueState) + \
+        textwrap.dedent(inspect.getsource(joint_torque_type)) + \
+        'register_sensor("joint_torque")(joint_torque_type())\n'
+    (package / "__init__.py").write_text("")
+    (package / "joint_torque.py").write_text(
+        "from dataclasses import dataclass, field\nimport mujoco\nimport numpy as np\n"
+        "from mexone.bus.msgs import Header\nfrom mexone.sensors import Sensor, register_sensor\n"
+        + source)
+    info = tmp_path / "torque_pkg-0.1.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: torque-pkg\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[mexone.sensors]\njoint_torque = torque_pkg.joint_torque\n")
+    (tmp_path / "pendulum.urdf").write_text(PENDULUM)
+    code = ("import sys; from mexone.lab import Lab; from mexone.control import parse_control_config;"
+            f"lab = Lab.create(sys.argv[1], parse_control_config({PENDULUM_YAML!r})); lab.sim.run(0.5);"
+            "print(type(lab.sensors.sensors['hinge_torque']).__module__, "
+            "float(lab.sensors.states['hinge_torque'].effort[0]))")
+    env = {**__import__("os").environ}
+    env["PYTHONPATH"] = f"{tmp_path}:{env.get('PYTHONPATH', '')}"
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "pendulum.urdf")],
+                         capture_output=True, text=True, env=env, timeout=60)
+    assert out.returncode == 0, out.stderr
+    module, effort = out.stdout.split()
+    assert module == "torque_pkg.joint_torque" and float(effort) == pytest.approx(-MASS * G * ARM, rel=0.05)
 
 
 def test_a_new_sensor_type_is_declared_built_and_read(pendulum, joint_torque):

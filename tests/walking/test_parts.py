@@ -16,7 +16,7 @@ from mexone.walking import body as walking_body
 from mexone.walking import qp
 from mexone.walking.estimator import H_POSITION, H_VELOCITY, BaseKalman
 from mexone.walking.footsteps import FootstepPlanner, Gait, Steps, swing_point
-from mexone.walking.mpc import G, LipmMpc, lipm_matrices, supports
+from mexone.walking.mpc import G, LipmMpc, Reach, lipm_matrices, supports
 from mexone.walking.wbc import Foot, Task, WholeBodyQP, corner_jacobians, sole_corners
 
 LEGS = ["l_hip_yaw", "l_hip_roll", "l_hip_pitch", "l_knee", "l_ankle_pitch", "l_ankle_roll",
@@ -148,8 +148,8 @@ def _standing_steps(width=0.12):
 def test_at_rest_between_the_feet_the_plan_stays_at_rest():
     mpc = LipmMpc(0.54, 0.05, 24)
     sup = supports(_standing_steps(), 0.0, 0.05, 24, (0.16, 0.08), 0.015)
-    jx, jy, shift = mpc.solve(np.zeros(3), np.zeros(3), sup)
-    assert np.abs(jx).max() < 1e-6 and np.abs(jy).max() < 1e-6 and np.abs(shift).max() < 1e-9
+    jx, jy, shifts = mpc.solve(np.zeros(3), np.zeros(3), sup)
+    assert np.abs(jx).max() < 1e-6 and np.abs(jy).max() < 1e-6 and shifts.shape == (0, 2)
 
 
 W_SHIFT = 0.3  # the ComPlanner's default
@@ -180,7 +180,7 @@ def _model_walk(seconds, command=(0.3, 0.0, 0.0), push=None, h=0.54, T=0.05, n=2
         adjustable = len(rows) > 0 and t < rows[0][8] - 0.05
         jx, jy, d = mpc.solve(x, y, sup, adjustable)
         if adjustable:
-            landing = (rows[0].copy(), d.copy())
+            landing = (rows[0].copy(), d[0].copy())
         yield t, x, y, sup, mpc, jx, jy, d, steps
         x, y = LipmMpc.advance(x, jx[0], dt), LipmMpc.advance(y, jy[0], dt)
 
@@ -190,9 +190,9 @@ def test_walking_plan_keeps_the_zmp_in_the_support_and_the_capture_point_bounded
     omega = math.sqrt(G / h)
     at_4s = None
     for t, x, y, sup, mpc, jx, jy, d, steps in _model_walk(6.0):
-        # the ZMP relative to its support, which moves with the landing's shift d where E = 1
-        zx = mpc.zs @ x + mpc.zu @ jx - sup.shifted * d[0]
-        zy = mpc.zs @ y + mpc.zu @ jy - sup.shifted * d[1]
+        # the ZMP relative to its support, which moves with each landing's shift as E says
+        zx = mpc.zs @ x + mpc.zu @ jx - sup.shifted @ d[:, 0]
+        zy = mpc.zs @ y + mpc.zu @ jy - sup.shifted @ d[:, 1]
         c, s = np.cos(sup.yaw), np.sin(sup.yaw)
         u = c * (zx - sup.centre[:, 0]) + s * (zy - sup.centre[:, 1])
         w = -s * (zx - sup.centre[:, 0]) + c * (zy - sup.centre[:, 1])
@@ -218,9 +218,35 @@ def test_a_push_moves_the_next_landing_by_about_the_capture_point_offset():
     steps = Steps.pack(np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]), rows)
     sup = supports(steps, 0.0, T, n, (0.16, 0.08), 0.015)
     v = -0.3  # pushed toward the right foot's side
-    _, _, shift = mpc.solve(np.array([0.0, 0.0, 0.0]), np.array([0.06, v, 0.0]), sup)
-    assert shift[1] < 0  # out to the right
-    assert abs(shift[1]) == pytest.approx(abs(v) / omega * math.exp(omega * 0.2), rel=0.6)
+    _, _, shifts = mpc.solve(np.array([0.0, 0.0, 0.0]), np.array([0.06, v, 0.0]), sup)
+    assert shifts[0, 1] < 0  # out to the right
+    assert abs(shifts[0, 1]) == pytest.approx(abs(v) / omega * math.exp(omega * 0.2), rel=0.6)
+
+
+def test_a_push_towards_the_standing_foot_moves_the_step_after_out_within_reach():
+    """Pushed left standing on the left foot (the right one in the air): the right foot cannot
+    cross over (it keeps min_apart), so the left foot's next landing goes out, by more than the
+    right's moves and never beyond max_apart of where the right one lands."""
+    h, T, n = 0.54, 0.05, 24
+    mpc = LipmMpc(h, T, n, w_shift=0.01, max_shift=0.4)
+    rows = [np.array([1, 0.0, -0.06, 0, 0, 0, 0, -0.1, 0.2]),
+            np.array([0, 0.1, 0.06, 0, 0, 0, 0, 0.3, 0.6]),
+            np.array([1, 0.2, -0.06, 0, 0, 0, 0, 0.7, 1.0])]
+    steps = Steps.pack(np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]), rows)
+    sup = supports(steps, 0.0, T, n, (0.16, 0.08), 0.015)
+    assert sup.shifted.shape == (n, 3)
+    reach = Reach(min_apart=0.09, max_apart=0.3)
+    _, _, shifts = mpc.solve(np.zeros(3), np.array([0.03, 0.3, 0.0]), sup, reach=reach)
+    right, left = rows[0][1:3] + shifts[0], rows[1][1:3] + shifts[1]
+    assert right[1] <= 0.06 - 0.09 + 1e-9  # not across the standing left foot
+    assert shifts[1, 1] > 0.05 and shifts[1, 1] > shifts[0, 1]  # the left foot steps out
+    assert left[1] - right[1] <= 0.3 + 1e-9
+    # a plan already out of reach stays as planned rather than being infeasible
+    far = [rows[0], np.array([0, 0.1, 0.6, 0, 0, 0, 0, 0.3, 0.6])]
+    sup = supports(Steps.pack(np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]), far), 0.0, T, n,
+                   (0.16, 0.08), 0.015)
+    _, _, shifts = mpc.solve(np.zeros(3), np.array([0.03, 0.0, 0.0]), sup, reach=reach)
+    assert np.isfinite(shifts).all()
 
 
 # ----- the Kalman filter ------------------------------------------------------------------------
@@ -308,6 +334,36 @@ def test_sideways_the_feet_never_come_closer_than_min_apart():
         feet[int(row[0])] = row[[1, 2, 3, 4]]
         assert feet[0, 1] - feet[1, 1] >= gait.min_apart - 1e-9
     assert feet[:, 1].mean() < -0.3
+
+
+def test_hurry_lands_the_step_in_the_air_sooner_and_takes_the_next_quick():
+    """Step timing adaptation: mid-swing, the step lands `quick_landing` from now (its swing at
+    least `quick_single` long), the next lifts `quick_double` later and swings `quick_single`;
+    then the gait's timing again. Both feet down, the foot on the push's side steps next unless
+    it just stepped."""
+    gait = Gait()
+    planner = FootstepPlanner(gait, np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]))
+    planner.set_command(0.3, 0.0, 0.0)
+    _walk(planner, 2.0)  # at t = 2.0 a step is in the air
+    swing = planner.swing.copy()
+    t = swing[7] + 0.2
+    assert planner.hurry(t) and not planner.hurry(t)  # once per hurried step
+    rows = Steps.rows(planner.update(t))
+    assert rows[0][8] == pytest.approx(max(t + gait.quick_landing, swing[7] + gait.quick_single))
+    assert rows[1][7] == pytest.approx(rows[0][8] + gait.quick_double)
+    assert rows[1][8] - rows[1][7] == pytest.approx(gait.quick_single)
+    assert rows[2][8] - rows[2][7] == pytest.approx(gait.single_support)  # then as before
+    assert rows[2][7] - rows[1][8] == pytest.approx(gait.double_support)
+    # both feet down: the foot on the push's side steps next (the other just stepped)
+    steps = _walk(planner, 0.5, t0=t)
+    t = steps[-1][8] + 0.01
+    planner.update(t)
+    just = planner.last_foot
+    assert planner.swing is None or t >= planner.swing[8]
+    assert planner.hurry(t, outward=just) and planner.next_foot == 1 - just  # it just stepped
+    planner.quick = False
+    assert planner.hurry(t, outward=1 - just) and planner.next_foot == 1 - just
+    assert Steps.rows(planner.update(t))[0][7] == pytest.approx(t + gait.quick_double)
 
 
 def test_the_swing_lands_softly_on_its_target():

@@ -4,6 +4,7 @@ changing imports. Times are rospy-like Time/Duration values in sim time."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Self, overload
 
 __all__ = [
     "Time",
@@ -51,12 +52,12 @@ class _Stamp:
     nsecs: int = 0
 
     @classmethod
-    def from_sec(cls, seconds: float):
+    def from_sec(cls, seconds: float) -> Self:
         secs, nsecs = divmod(round(seconds * 1e9), 1_000_000_000)  # round first: 1.9999999999 -> 2
         return cls(int(secs), int(nsecs))
 
     @classmethod
-    def from_nsec(cls, nanoseconds: int):
+    def from_nsec(cls, nanoseconds: int) -> Self:
         secs, nsecs = divmod(int(nanoseconds), 1_000_000_000)
         return cls(secs, nsecs)
 
@@ -77,7 +78,12 @@ class Time(_Stamp):
     def __add__(self, other: Duration) -> Time:
         return Time.from_sec(self.to_sec() + other.to_sec())
 
-    def __sub__(self, other):
+    @overload
+    def __sub__(self, other: Time) -> Duration: ...
+    @overload
+    def __sub__(self, other: Duration) -> Time: ...
+
+    def __sub__(self, other: Time | Duration) -> Time | Duration:
         if isinstance(other, Time):
             return Duration.from_sec(self.to_sec() - other.to_sec())
         return Time.from_sec(self.to_sec() - other.to_sec())
@@ -325,6 +331,7 @@ class Path:
 
 
 # class -> ROS type name (for topic listings, the ROS bridge and bag files)
+#: each message class -> its ROS type name ("sensor_msgs/JointState")
 ROS_TYPES: dict[type, str] = {
     Float64: "std_msgs/Float64",
     Float64MultiArray: "std_msgs/Float64MultiArray",

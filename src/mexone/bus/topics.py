@@ -149,7 +149,7 @@ class Relay:
     mirror of one topic (ROS 1, ROS 2, Foxglove) says `want(...)` with whether its own
     subscribers exist, so a topic nobody outside reads costs nothing. Simulation thread."""
 
-    def __init__(self, bus: Bus, topic: str, callback: Callable[[object], None], node: str):
+    def __init__(self, bus: Bus, topic: str, callback: Callable[[object], None], node: str) -> None:
         self.bus, self.topic, self.callback, self.node = bus, topic, callback, node
         self.sub: Subscription | None = None
 

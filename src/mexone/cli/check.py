@@ -14,7 +14,8 @@ from mexone.control.lint import lint_controllers
 from mexone.description.check import check_model, format_tree, summary
 from mexone.description.loader import load_model, model_format
 from mexone.robots import mex_one
-from mexone.sensors import SENSOR_CLASSES
+from mexone.sensors import sensor_types
+from mexone.sensors.build import lint_sensors
 
 HELP = """\
 Read a robot (URDF, .urdf.xacro or Gazebo SDF), print its kinematic tree the way ROS's
@@ -58,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
         path = mex_one.urdf_path()
         controllers = controllers or mex_one.controllers_path()
     model = load_model(path)
-    findings = check_model(model)
+    findings = check_model(model) + lint_sensors(model)  # the sensor rules: the plug-ins' layer
     if controllers:  # the controller rules live in the control layer, above the model's
         findings += lint_controllers(model, load_control_config(controllers))
     if model_format(path) == "xacro":  # a line of the expanded document is nowhere in the source
@@ -91,7 +92,7 @@ def sensor_rows(model) -> list[dict]:
     state interfaces (the fields of its type's state object)."""
     rows = []
     for spec in model.sensors:
-        cls = SENSOR_CLASSES.get(spec.type)
+        cls = sensor_types().get(spec.type)
         state = cls.state_type if cls is not None else None
         names = [f.name for f in dataclasses.fields(state)] if state is not None else []
         if state is not None and isinstance(getattr(state, "in_contact", None), property):

@@ -230,6 +230,6 @@ def lab_from_args(args: argparse.Namespace, target_rtf: float | None = None,
         namespace=getattr(args, "namespace", None),  # sim --namespace
         start=getattr(args, "start_controllers", None),  # None: every one that does not clash
     )
-    if lab.controllers is None and not args.no_controllers:
+    if lab.manager is None and not args.no_controllers:
         print(f"mexone: {lab.no_controllers}", file=sys.stderr)
     return lab

@@ -100,7 +100,7 @@ def _with_actuators(model, controllers) -> tuple:
         config = load_control_config(controllers)
         gains = {}
         for spec in config.controllers.values():
-            if spec.kind in ("position", "trajectory"):
+            if spec.controller_class.tracks_position:
                 for joint in spec.joints:
                     pid = (spec.gains or {}).get(joint) or spec.pid or config.pid_gains.get(joint)
                     if pid is not None and model.transmission_for(joint) is not None:

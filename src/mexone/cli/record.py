@@ -11,7 +11,7 @@ from mexone import signals
 from mexone.cli.common import DURATION, add_model_options, lab_from_args, recording
 from mexone.errors import InputError, RoutineError
 from mexone.files import check_output, move_into_place, temporary_path, usable
-from mexone.physics.watchdog import DivergenceError
+from mexone.physics.divergence import DivergenceError
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
 HELP = """\

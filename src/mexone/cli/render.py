@@ -11,7 +11,7 @@ from tqdm import tqdm
 from mexone.cli.common import DURATION, Number, add_model_options, lab_from_args
 from mexone.errors import RoutineError
 from mexone.files import check_output, replacing
-from mexone.physics.watchdog import DivergenceError
+from mexone.physics.divergence import DivergenceError
 from mexone.record.video import Camera, VideoWriter, check_video_path, ensure_gl_backend
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 

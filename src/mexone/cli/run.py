@@ -21,8 +21,8 @@ from mexone.cli.common import (
 from mexone.cli.ros import add_ros_options, connect_bridges, urdf_text
 from mexone.control.metrics import TrackingRecorder
 from mexone.errors import InputError, RoutineError
+from mexone.physics.divergence import DivergenceError
 from mexone.physics.monitor import has_fallen
-from mexone.physics.watchdog import DivergenceError
 from mexone.routines import supervisor
 from mexone.routines.runner import RoutineRunner, parse_param_args, shipped_routines
 
@@ -30,7 +30,7 @@ TRACK_PERIOD = 0.02  # s between samples of the base's pose (for the routine's p
 
 HELP = """\
 Run a control routine (a Python file using `from mexone import rospy`, or a shipped routine:
-sweep, arms, home) against the robot with its controllers, headless and as fast as the physics
+joint_steps, arms, home) against the robot with its controllers, headless and as fast as the physics
 allows, in lockstep with sim time. Then print per-joint tracking of every position-controlled
 joint: RMS and max error (rad), and the worst overshoot and settling time of the moves its
 setpoint made, and whether the robot stayed standing (or when it fell: any time in the run,
@@ -100,13 +100,13 @@ def run(args: argparse.Namespace) -> int:
 def _run(args: argparse.Namespace, params: dict, bridge) -> int:
     rtf = args.rtf if args.rtf is not None else (1.0 if bridge is not None else 0.0)
     lab = lab_from_args(args, target_rtf=rtf or None)
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("the robot has no controllers to command",
                          hint="give --controllers YAML (the built-in Mex-One has its own)")
     sim = lab.sim
     start_height = sim.base_height
     start_pose = _base_xy_yaw(sim)
-    recorder = TrackingRecorder(sim, lab.controllers)
+    recorder = TrackingRecorder(sim, lab.manager)
     log_stream = sys.stderr if args.json else sys.stdout  # stdout: the JSON alone, for scripts
 
     def log(level: str, text: str) -> None:

@@ -177,7 +177,7 @@ def controller_reports(lab) -> dict:
     controller a fault stopped is there with `"fault"`, its one line: a script reading the
     summary must not take a run whose controller died at t = 0.5 s for a clean one."""
     out: dict = {}
-    for name, ctrl in (lab.controllers.controllers.items() if lab.controllers else ()):
+    for name, ctrl in (lab.manager.controllers.items() if lab.manager else ()):
         fault = getattr(ctrl, "fault", None)
         report = getattr(getattr(ctrl, "impl", None), "report", None)
         if callable(report) and (ctrl.running or fault):

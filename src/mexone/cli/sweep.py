@@ -155,12 +155,12 @@ def _check_spec(spec: SweepSpec, step_given: bool) -> tuple[SweepSpec, str]:
     if spec.routine:
         resolve_routine(spec.routine)
     lab = Lab.create(spec.model, spec.controllers)
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("the robot has no controllers to tune", hint="give --controllers")
-    missing = [j for j in spec.joints if j not in lab.controllers.by_joint()]
+    missing = [j for j in spec.joints if j not in lab.manager.by_joint()]
     if missing:
         raise InputError(f"no running controller moves joint {', '.join(missing)}",
-                         hint="controlled joints: " + ", ".join(sorted(lab.controllers.by_joint())))
+                         hint="controlled joints: " + ", ".join(sorted(lab.manager.by_joint())))
     if not spec.routine:
         if not step_given:
             spec = replace(spec, step=toward_room(lab, spec))

@@ -18,7 +18,7 @@ writes the same gains with a comment per joint saying how each was derived, and
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -96,7 +96,8 @@ def _support(robot: RobotModel, frames: dict[str, np.ndarray]) -> set[str]:
     return {name for name, z in lowest.items() if z <= floor + _SUPPORT_BAND}
 
 
-def _mass_properties(robot: RobotModel, frames, links) -> list[tuple[float, np.ndarray, np.ndarray]]:
+def _mass_properties(robot: RobotModel, frames: dict[str, np.ndarray],
+                     links: Iterable[str]) -> list[tuple[float, np.ndarray, np.ndarray]]:
     """(mass, COM in world, inertia tensor about the COM in world) of each link with mass."""
     out = []
     for name in links:

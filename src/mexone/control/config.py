@@ -8,7 +8,9 @@ level, plus ``gazebo_ros_control/pid_gains/<joint>`` as gazebo_ros_control reads
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -39,12 +41,14 @@ __all__ = [
 
 
 def load_control_config(path: Path | str) -> ControlConfig:
+    """A ros_control controller YAML (what `rosparam load` and the controller_manager read), every
+    mistake one line at the file's line."""
     path = Path(path)
     return parse_control_config(read_input_text(path), path)
 
 
 class _Reader:
-    def __init__(self, path: Path | None):
+    def __init__(self, path: Path | None) -> None:
         self.path = path
 
     def error(self, node: yaml.Node, what: str, hint: str | None = None) -> InputError:
@@ -55,7 +59,7 @@ class _Reader:
             raise self.error(node, f"{what} must be a mapping of names to settings")
         return [(str(k.value), k, v) for k, v in node.value]
 
-    def value(self, node: yaml.Node):
+    def value(self, node: yaml.Node) -> Any:
         try:
             return yamlio.construct(node)
         except InputError as exc:
@@ -66,7 +70,8 @@ class _Reader:
         bool('no') is True."""
         value = self.value(node)
         if not isinstance(value, bool):
-            quoted = " (quoted, so a string)" if isinstance(value, str) and node.style in ("'", '"') else ""
+            style = getattr(node, "style", None)  # a scalar's quoting
+            quoted = " (quoted, so a string)" if isinstance(value, str) and style in ("'", '"') else ""
             raise self.error(node, f"{what}: '{node.value}'{quoted} is not a boolean",
                              "write true or false, without quotes")
         return value
@@ -81,6 +86,7 @@ class _Reader:
 
 
 def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
+    """A controller YAML's text (`path` names it in messages): see load_control_config."""
     reader = _Reader(path)
     root = yamlio.compose(text, path)
     if root is None:
@@ -120,9 +126,9 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
         return _plugin(reader, name, key, ctype, type_node, fields)
-    kind, single = CONTROLLER_TYPES[ctype].kind, CONTROLLER_TYPES[ctype].single_joint
+    cls, single = CONTROLLER_TYPES[ctype].cls, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
-    if kind != "state":
+    if cls.drives_joints:
         if single:
             if "joint" not in fields:
                 raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joint'")
@@ -148,7 +154,7 @@ def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> 
     ideal = False
     if "ideal_servo" in fields:
         ideal = reader.boolean(fields["ideal_servo"][1], f"'{name}' ideal_servo")
-        if kind not in ("position", "trajectory"):
+        if not cls.tracks_position:
             raise reader.error(fields["ideal_servo"][1], f"'{name}': ideal_servo is for position "
                                                          "controllers")
     return ControllerSpec(name, ctype, joints, pid, rate, key.start_mark.line + 1, gains, ideal,
@@ -203,7 +209,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
         raise reader.error(key, f"controller '{name}' ({ctype}) has no 'joints' list",
                            "add joints: [joint, ...]")
     if len(set(joints)) != len(joints):
-        raise reader.error(fields.get("joints", fields.get("joint"))[1],
+        raise reader.error((fields.get("joints") or fields["joint"])[1],
                            f"controller '{name}' names a joint twice")
     lines = {k: (reader.value(v), v.start_mark.line + 1) for k, (_, v) in fields.items()}
     settings = check_settings(lines, name, where)
@@ -225,7 +231,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
                           reader.path, plugin)
 
 
-def _inputs(reader: _Reader, name: str, cls, key: yaml.Node,
+def _inputs(reader: _Reader, name: str, cls: type, key: yaml.Node,
             field: tuple[yaml.Node, yaml.Node] | None) -> dict[str, str]:
     """A chained controller's `inputs:` (declared input -> "controller/export"): every input the
     class declares bound, nothing else. Whether the exporter exists is `check_chains`'s."""
@@ -292,7 +298,7 @@ def check_chains(config: ControlConfig) -> None:
                          hint="an exporter cannot read its own readers' exports")
 
 
-def _readers_of(specs) -> dict[str, set[str]]:
+def _readers_of(specs: Mapping[str, Any]) -> dict[str, set[str]]:
     """controller -> the controllers whose exports it reads."""
     out: dict[str, set[str]] = {}
     for name, spec in specs.items():
@@ -302,7 +308,7 @@ def _readers_of(specs) -> dict[str, set[str]]:
     return out
 
 
-def chain_order(specs) -> list[str] | None:
+def chain_order(specs: Mapping[str, Any]) -> list[str] | None:
     """The controllers' names (any mapping name -> object with `.plugin`) with every exporter
     before its readers, otherwise in their own order; None if they read each other in a
     circle."""
@@ -310,7 +316,7 @@ def chain_order(specs) -> list[str] | None:
     return None if left else order
 
 
-def _kahn(specs) -> tuple[list[str], list[str]]:
+def _kahn(specs: Mapping[str, Any]) -> tuple[list[str], list[str]]:
     """Kahn's algorithm, stable: (the ordered names, those left in or behind a circle)."""
     needs = _readers_of(specs)
     done: list[str] = []
@@ -324,7 +330,7 @@ def _kahn(specs) -> tuple[list[str], list[str]]:
     return done, left
 
 
-def _cycle(specs) -> list[str]:
+def _cycle(specs: Mapping[str, Any]) -> list[str]:
     """One circle of chained controllers (for the message): among those Kahn could not place,
     each reads another of them, so following the reads comes back around."""
     needs = _readers_of(specs)

@@ -13,16 +13,21 @@ gives every joint with a <transmission> two MuJoCo actuators::
 and limits the joint's total actuator torque to the URDF effort limit. Gains, clamps and setpoints
 are model and data fields, so retuning costs nothing and the whole PID runs in C every step.
 
-`read()` copies the joint state into `state`; `write()` sends `command` to MuJoCo. Both run in the
-simulation thread only (the ControllerManager's update). Everything is in joint space: the
-transmission's mechanicalReduction r is folded in here (actuator length = r q, torque = r force).
+`read()` copies the joint state into `state`; `write()` sends `command` to MuJoCo; `writers(rows,
+interface)` is write() of one command interface on a few joints alone, for a Python controller's
+update (the manager's fast path). All run in the simulation thread only. Where each joint's
+controls live is one `ControlLayout`, which every writer reads (write, the writers, a
+linearisation's copies); nothing outside this module writes ctrl, and it is the one writer of
+qpos and qvel for ideal servos. Everything is in joint space: the transmission's
+mechanicalReduction r is folded in here (actuator length = r q, torque = r force).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass, field, fields
+from typing import TypeVar
 
 import mujoco
 import numpy as np
@@ -32,14 +37,15 @@ from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware", "strided_view", "JointCommands", "JointStates", "build_actuators", "bake_gains",
-           "INTEGRAL_SUFFIX", "set_motor_gain", "motor_gains", "set_integral_gain",
-           "set_hold_controls", "clear_integrals", "copy_actuator_state", "gain_to_biasprm",
-           "biasprm_to_gain",
+__all__ = ["SimHardware", "ControlLayout", "RowWriters", "strided_view", "JointCommands",
+           "JointStates", "build_actuators", "bake_gains", "INTEGRAL_SUFFIX", "set_motor_gain",
+           "motor_gains", "set_integral_gain", "set_hold_controls", "clear_integrals",
+           "copy_actuator_state", "gain_to_biasprm", "biasprm_to_gain", "Q_REF", "V_REF", "FF",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
 INTEGRAL_SUFFIX = "/i"
-FLOAT_WRITE_JOINTS = 6  # effort_floats_writer up to this many joints (numpy beyond)
+Q_REF, V_REF, FF = 0, 1, 2  # the motor's three control inputs, in ctrl order (_MOTOR_INPUTS)
+FLOAT_WRITE_JOINTS = 6  # a float-by-float effort writer up to this many joints (numpy beyond)
 TELEPORT_NONE, TELEPORT_POSITION, TELEPORT_VELOCITY = 0, 1, 2
 _MOTOR_INPUTS = int(mujoco.mjtCtrlInput.mjINPUT_POS | mujoco.mjtCtrlInput.mjINPUT_VEL
                     | mujoco.mjtCtrlInput.mjINPUT_FF)
@@ -49,7 +55,8 @@ _TINY = 1e-12  # the compiler wants forcerange lo < hi; write() sets the real cl
 def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
     """A physics.compile SpecEdit: the motor and integral actuators of every transmission."""
     for joint in robot.actuated_joints:
-        reduction = robot.transmission_for(joint.name).mechanical_reduction
+        transmission = robot.transmission_for(joint.name)
+        reduction = transmission.mechanical_reduction if transmission is not None else 1.0
         effort = joint.limit.effort if joint.limit and joint.limit.effort > 0 else 0.0
         motor = spec.add_actuator(name=joint.name, target=joint.name,
                                   trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -85,14 +92,15 @@ def build_actuators(spec: mujoco.MjSpec, robot: RobotModel) -> None:
 # The one home of the gain <-> actuator mapping: MuJoCo's PID servo holds -gain / gear^2 of the
 # joint-space p and d gains in biasprm[1] and biasprm[2] (actuator length = gear q).
 _BIAS_COLUMN = {"p": 1, "d": 2}
+Numeric = TypeVar("Numeric", float, np.ndarray)  # a gain, or an array of them
 
 
-def gain_to_biasprm(gain, gear):
+def gain_to_biasprm(gain: Numeric, gear: Numeric) -> Numeric:
     """A joint-space p or d gain as the motor's biasprm entry."""
     return -gain / gear**2
 
 
-def biasprm_to_gain(biasprm, gear):
+def biasprm_to_gain(biasprm: Numeric, gear: Numeric) -> Numeric:
     """The joint-space gain a motor's biasprm entry holds (gain_to_biasprm's inverse)."""
     return -biasprm * gear**2
 
@@ -114,11 +122,13 @@ def set_hold_controls(model: mujoco.MjModel, data: mujoco.MjData, motor: int, in
     """The controls of one joint's motor (q_ref = q, v_ref = 0, `effort` feed-forward, in joint
     space) and integral actuator (q_ref = q; none if `integral` < 0), on a model and data that are
     not a running simulation's (linearisation's copies); write() does the same at run time."""
-    gear = model.actuator_gear[motor, 0]
-    adr = model.actuator_ctrladr[motor]
-    data.ctrl[adr:adr + 3] = gear * q, 0.0, effort / gear
+    layout = ControlLayout.of_actuators(model, [motor], [integral])
+    gear = layout.gear[0]
+    data.ctrl[layout.q_ref] = gear * q
+    data.ctrl[layout.v_ref] = 0.0
+    data.ctrl[layout.ff] = effort / gear
     if integral >= 0:
-        data.ctrl[model.actuator_ctrladr[integral]] = q
+        data.ctrl[layout.i_ref] = q
 
 
 def copy_actuator_state(source: mujoco.MjModel, source_data: mujoco.MjData,
@@ -144,8 +154,9 @@ def clear_integrals(data: mujoco.MjData) -> None:
 def motor_gains(model: mujoco.MjModel, actuator: int) -> tuple[float, float]:
     """(p, d) of a motor actuator of `model`, in joint space."""
     gear = model.actuator_gear[actuator, 0]
-    return tuple(float(biasprm_to_gain(model.actuator_biasprm[actuator, _BIAS_COLUMN[term]], gear))
-                 for term in ("p", "d"))
+    p, d = (float(biasprm_to_gain(model.actuator_biasprm[actuator, _BIAS_COLUMN[term]], gear))
+            for term in ("p", "d"))
+    return p, d
 
 
 def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotModel], None]:
@@ -179,6 +190,70 @@ def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
     if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
         return None
     return array[int(index[0]):int(index[-1]) + 1:step]
+
+
+@dataclass(frozen=True)
+class ControlLayout:
+    """Where some joints' controls and states live in a MuJoCo model: the one home of the
+    actuators' control layout (build_actuators' two actuators per joint), read by every writer.
+
+    Per joint, in the given order: the motor actuator (its ctrl inputs `q_ref` = r q, `v_ref` =
+    r qdot and the feed-forward `ff` = torque / r, at Q_REF, V_REF and FF after its ctrl
+    address), the integral actuator (its ctrl input `i_ref` = q and its state `i_act`; -1 where a
+    model has none), the gear r, and the joint's qpos and dof addresses."""
+
+    motor: np.ndarray
+    integral: np.ndarray
+    gear: np.ndarray
+    q_ref: np.ndarray
+    v_ref: np.ndarray
+    ff: np.ndarray
+    i_ref: np.ndarray
+    i_act: np.ndarray
+    qpos: np.ndarray
+    dof: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, joints: Sequence[str], prefix: str = "") -> ControlLayout:
+        """The layout of `joints` (their MuJoCo names carry `prefix`); a model without mexone's
+        actuators is a ModelError."""
+        try:
+            motor = [model.actuator(prefix + j).id for j in joints]
+            integral = [model.actuator(prefix + j + INTEGRAL_SUFFIX).id for j in joints]
+        except KeyError:
+            raise ModelError("the model was compiled without mexone's actuators",
+                             hint="build the Simulation with edits=[build_actuators]") from None
+        return cls.of_actuators(model, motor, integral)
+
+    @classmethod
+    def of_actuators(cls, model: mujoco.MjModel, motor: Sequence[int],
+                     integral: Sequence[int]) -> ControlLayout:
+        """The layout of the joints these motor (and integral, -1: none) actuators drive."""
+        motors = np.asarray(motor, dtype=int)
+        integrals = np.asarray(integral, dtype=int)
+        has = integrals >= 0
+        ctrl = model.actuator_ctrladr[motors].astype(int)
+        joint = model.actuator_trnid[motors, 0].astype(int)
+        return cls(motors, integrals, model.actuator_gear[motors, 0].copy(), ctrl + Q_REF,
+                   ctrl + V_REF, ctrl + FF,
+                   np.where(has, model.actuator_ctrladr[np.where(has, integrals, 0)], -1).astype(int),
+                   np.where(has, model.actuator_actadr[np.where(has, integrals, 0)], -1).astype(int),
+                   model.jnt_qposadr[joint].astype(int), model.jnt_dofadr[joint].astype(int))
+
+    def take(self, rows: np.ndarray) -> ControlLayout:
+        """The layout of some of these joints (`rows` into this one's order)."""
+        rows = np.asarray(rows, dtype=int)
+        return ControlLayout(*(getattr(self, f.name)[rows] for f in fields(self)))
+
+
+@dataclass(frozen=True)
+class RowWriters:
+    """write() of one command interface on a few joints alone, taking the new values: `values`
+    (a numpy array) always; `floats` (a list of checked Python floats) for the effort of up to
+    FLOAT_WRITE_JOINTS joints, a handful of stores costing less than two numpy calls."""
+
+    values: Callable[[np.ndarray], None]
+    floats: Callable[[list[float]], None] | None = None
 
 
 @dataclass
@@ -226,10 +301,10 @@ class SimHardware:
         sim.on_model_change(self._bind)  # models added or removed: MuJoCo ids may move
         joints = [robot.joints[j] for j in self.joints]
         limited = [j.type in ("revolute", "prismatic") for j in joints]
-        self.lower = np.array([j.limit.lower if lim else -np.inf for j, lim in zip(joints, limited,
-                                                                                    strict=True)])
-        self.upper = np.array([j.limit.upper if lim else np.inf for j, lim in zip(joints, limited,
-                                                                                   strict=True)])
+        self.lower = np.array([j.limit.lower if lim and j.limit else -np.inf
+                               for j, lim in zip(joints, limited, strict=True)])
+        self.upper = np.array([j.limit.upper if lim and j.limit else np.inf
+                               for j, lim in zip(joints, limited, strict=True)])
         self.effort_limit = np.array([j.limit.effort if j.limit and j.limit.effort > 0 else np.inf
                                       for j in joints])
         self.velocity_limit = np.array([j.limit.velocity if j.limit and j.limit.velocity > 0
@@ -242,29 +317,19 @@ class SimHardware:
         self.writes = 0  # write() calls, for tests and benchmarks
 
     def _bind(self) -> None:
-        """MuJoCo ids and addresses of this robot's actuators and joints, by name."""
+        """The control layout of this robot's joints, found by name (MuJoCo ids move when
+        models are added or removed)."""
         model, pre = self.sim.model, self.prefix
         if pre and not any(model.actuator(i).name.startswith(pre) for i in range(model.nactuator)):
             return  # the model was deleted; its manager is closed
-        try:
-            self.motor = np.array([model.actuator(pre + j).id for j in self.joints], dtype=int)
-            self.integral = np.array([model.actuator(pre + j + INTEGRAL_SUFFIX).id
-                                      for j in self.joints], dtype=int)
-        except KeyError:
-            raise ModelError("the model was compiled without mexone's actuators",
-                             hint="build the Simulation with edits=[build_actuators]") from None
-        ids = [model.joint(pre + j).id for j in self.joints]
-        self.qpos_adr = np.array([model.jnt_qposadr[i] for i in ids], dtype=int)
-        self.dof_adr = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
-        self.gear = model.actuator_gear[self.motor, 0].copy()
-        self._ctrl_motor = model.actuator_ctrladr[self.motor]  # [q_ref, v_ref, ff] each
-        self._ctrl_integral = model.actuator_ctrladr[self.integral]
-        self._act_integral = model.actuator_actadr[self.integral]
-        motor = self._ctrl_motor
-        self._ctrl_all = np.concatenate((motor, motor + 1, motor + 2, self._ctrl_integral))
+        self.layout = layout = ControlLayout.of(model, self.joints, pre)
+        self.qpos_adr, self.dof_adr, self.gear = layout.qpos, layout.dof, layout.gear
+        # write()'s one scatter: the motors' q_ref, v_ref, ff, then the integral actuators' q_ref
+        self._ctrl_all = np.concatenate((layout.q_ref, layout.v_ref, layout.ff, layout.i_ref))
         self._ctrl_values = np.zeros(len(self._ctrl_all))
 
-    def rows(self, names) -> np.ndarray:
+    def rows(self, names: Iterable[str]) -> np.ndarray:
+        """The hardware rows of these joints (an InputError naming one without a transmission)."""
         missing = [n for n in names if n not in self.index]
         if missing:
             raise InputError(f"joint {', '.join(missing)} has no transmission, so no controller "
@@ -272,17 +337,20 @@ class SimHardware:
         return np.array([self.index[n] for n in names], dtype=int)
 
     # ----- state (reading is safe in the simulation thread at any time) --------------------------
-    def position(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def position(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Joint positions now (rad or m), of `rows` or all, read from MuJoCo."""
         return self.sim.data.qpos[self.qpos_adr[rows]]
 
-    def velocity(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def velocity(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
+        """Joint velocities now (rad/s or m/s), of `rows` or all, read from MuJoCo."""
         return self.sim.data.qvel[self.dof_adr[rows]]
 
-    def effort(self, rows: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def effort(self, rows: int | np.ndarray | slice = slice(None)) -> np.ndarray:
         """Joint torque the motors applied in the last step (after the effort limit)."""
         return self.sim.data.qfrc_actuator[self.dof_adr[rows]]
 
     def read(self) -> None:
+        """Copy every joint's position, velocity and effort into `state` (the loop's read)."""
         data, state = self.sim.data, self.state
         state.position[:] = data.qpos[self.qpos_adr]
         state.velocity[:] = data.qvel[self.dof_adr]
@@ -307,18 +375,62 @@ class SimHardware:
         self.gains_changed(rows)
         self.reset_integral(rows)
 
-    def effort_floats_writer(self, rows: np.ndarray) -> Callable[[list[float]], None] | None:
-        """For a few joints: their effort commands from Python floats (checked already), into
-        the hardware's commands and MuJoCo's ctrl at once, float by float (a handful of stores
-        cost less than two numpy calls); None for more joints (rows_writer then). Rebuilt with
-        rows_writer."""
-        rows = [int(r) for r in rows]
-        gears = [float(self.gear[r]) for r in rows]
-        if len(rows) > FLOAT_WRITE_JOINTS or not all(g != 0.0 and math.isfinite(g) for g in gears):
+    def writers(self, rows: np.ndarray, interface: str) -> RowWriters:
+        """write() of one command interface ("effort", "position", "velocity") on `rows` alone,
+        for a loop cycle in which nothing else changed (a Python controller's update): the same
+        ctrl (and, for an ideal servo, qpos/qvel) as write() would send, in a few stores. Built
+        after the controller started (its teleport mode is read now); rebuilt when the model
+        changes."""
+        layout = self.layout.take(rows)
+        ctrl = self.sim.data.ctrl  # MuJoCo keeps its arrays for the model's life
+        gear = layout.gear
+        teleport = bool(np.count_nonzero(self.command.teleport[rows]))
+        if interface == "effort":
+            return RowWriters(self._effort_writer(layout, ctrl),
+                              self._effort_floats(np.asarray(rows, dtype=int), layout, ctrl))
+        sim = self.sim
+        if interface == "velocity":
+            v_ref, dofs = layout.v_ref, layout.dof
+
+            def write_velocity(values: np.ndarray) -> None:
+                ctrl[v_ref] = gear * values
+                if teleport:
+                    sim.data.qvel[dofs] = values
+            return RowWriters(write_velocity)
+        index = np.concatenate((layout.q_ref, layout.i_ref))  # the motor's, the integral's
+        both = np.concatenate((gear, np.ones(len(gear))))
+        qpos, dofs = layout.qpos, layout.dof
+
+        def write_position(values: np.ndarray) -> None:
+            ctrl[index] = both * np.concatenate((values, values))
+            if teleport:
+                data = sim.data
+                data.qpos[qpos] = values
+                data.qvel[dofs] = 0.0
+        return RowWriters(write_position)
+
+    @staticmethod
+    def _effort_writer(layout: ControlLayout, ctrl: np.ndarray) -> Callable[[np.ndarray], None]:
+        ff, gear = layout.ff, layout.gear
+        view = strided_view(ctrl, ff)
+        if view is not None:  # one ufunc into MuJoCo's ctrl, no temporary
+            def write_effort_view(values: np.ndarray) -> None:
+                np.divide(values, gear, out=view)
+            return write_effort_view
+
+        def write_effort(values: np.ndarray) -> None:
+            ctrl[ff] = values / gear
+        return write_effort
+
+    def _effort_floats(self, rows: np.ndarray, layout: ControlLayout,
+                       ctrl: np.ndarray) -> Callable[[list[float]], None] | None:
+        """Effort commands from Python floats (checked already) into the hardware's commands
+        and MuJoCo's ctrl at once, float by float; None for more than FLOAT_WRITE_JOINTS."""
+        gears = [float(g) for g in layout.gear]
+        if len(gears) > FLOAT_WRITE_JOINTS or not all(g != 0.0 and math.isfinite(g) for g in gears):
             return None
-        effort, ctrl = self.command.effort, self.sim.data.ctrl
-        slots = [(row, int(self._ctrl_motor[row]) + 2, gear)
-                 for row, gear in zip(rows, gears, strict=True)]
+        effort = self.command.effort
+        slots = [(int(row), int(ff), gear) for row, ff, gear in zip(rows, layout.ff, gears, strict=True)]
 
         def write_effort_floats(values: list[float]) -> None:
             for (row, ff, gear), value in zip(slots, values):  # noqa: B905 - both n long
@@ -326,47 +438,6 @@ class SimHardware:
                 ctrl[ff] = value / gear
 
         return write_effort_floats
-
-    def rows_writer(self, rows: np.ndarray, interface: str) -> Callable[[np.ndarray], None]:
-        """write() of one command interface ("effort", "position", "velocity") on `rows` alone,
-        taking the new values: for a loop cycle in which nothing else changed (a Python
-        controller's update), a few numpy calls instead of every actuator's. Built after the
-        controller started (its teleport mode is read now); rebuilt when the model changes."""
-        rows = np.asarray(rows, dtype=int)
-        sim, gear = self.sim, self.gear[rows].copy()
-        motor = self._ctrl_motor[rows]
-        teleport = bool(np.count_nonzero(self.command.teleport[rows]))
-        if interface == "effort":
-            ff = motor + 2
-            view = strided_view(sim.data.ctrl, ff)
-            if view is not None:  # one ufunc into MuJoCo's ctrl, no temporary
-                def write_effort_view(values: np.ndarray) -> None:
-                    np.divide(values, gear, out=view)
-                return write_effort_view
-
-            def write_effort(values: np.ndarray) -> None:
-                sim.data.ctrl[ff] = values / gear
-            return write_effort
-        if interface == "velocity":
-            v_ref, dofs = motor + 1, self.dof_adr[rows]
-
-            def write_velocity(values: np.ndarray) -> None:
-                data = sim.data
-                data.ctrl[v_ref] = gear * values
-                if teleport:
-                    data.qvel[dofs] = values
-            return write_velocity
-        index = np.concatenate((motor, self._ctrl_integral[rows]))
-        both = np.concatenate((gear, np.ones(len(rows))))
-        qpos, dofs = self.qpos_adr[rows], self.dof_adr[rows]
-
-        def write_position(values: np.ndarray) -> None:
-            data = sim.data
-            data.ctrl[index] = both * np.concatenate((values, values))
-            if teleport:
-                data.qpos[qpos] = values
-                data.qvel[dofs] = 0.0
-        return write_position
 
     def write(self) -> None:
         """Send the commands to MuJoCo: the only place that writes ctrl, act and actuator
@@ -383,7 +454,7 @@ class SimHardware:
         if np.count_nonzero(self._gains_changed):
             rows = np.flatnonzero(self._gains_changed)
             self._gains_changed[:] = False
-            motor, integral = self.motor[rows], self.integral[rows]
+            motor, integral = self.layout.motor[rows], self.layout.integral[rows]
             model.actuator_biasprm[motor, _BIAS_COLUMN["p"]] = gain_to_biasprm(c.kp[rows], r[rows])
             model.actuator_biasprm[motor, _BIAS_COLUMN["d"]] = gain_to_biasprm(c.kd[rows], r[rows])
             ki = c.ki[rows]
@@ -399,7 +470,7 @@ class SimHardware:
         if np.count_nonzero(self._integral_reset):
             rows = np.flatnonzero(self._integral_reset)
             self._integral_reset[:] = False
-            data.act[self._act_integral[rows]] = 0.0
+            data.act[self.layout.i_act[rows]] = 0.0
         teleport = c.teleport
         if np.count_nonzero(teleport):
             pos = teleport == TELEPORT_POSITION

@@ -12,12 +12,13 @@ PIDs themselves run in MuJoCo, so with nothing waiting the loop costs nothing.
 
 from __future__ import annotations
 
+import builtins
 import contextlib
 import logging
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -26,8 +27,8 @@ from mexone.bus.topics import Bus, Subscription
 from mexone.control.config import chain_order, check_chains
 from mexone.control.controllers import (
     CONTROLLER_TYPES,
-    Controller,
     ControllerContext,
+    ControllerInterface,
     PythonRunner,
     controller_type,
 )
@@ -37,8 +38,11 @@ from mexone.control.notes import gazebo_differences
 from mexone.control.resolve import resolve_class, validate_params
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.control.student import declared_lengths, sensor_states
-from mexone.errors import InputError
+from mexone.errors import InputError, warn_renamed
 from mexone.physics.simulation import NS, Periodic, Simulation
+
+if TYPE_CHECKING:
+    from mexone.sensors import SensorSuite
 
 __all__ = ["ControllerManager", "ControllerInfo", "STRICT", "BEST_EFFORT"]
 
@@ -64,6 +68,10 @@ class ControllerInfo:
 
 
 class ControllerManager:
+    """ros_control's controller_manager for one robot: loads controllers from the configuration,
+    starts, stops and switches them (one running controller per joint), and runs the control
+    loop (see the module's doc). `Lab.manager` is the lab's."""
+
     def __init__(self, sim: Simulation, bus: Bus, config: ControlConfig, hw: SimHardware,
                  namespace: str, control_period: float | None = None):
         self.sim, self.bus, self.config, self.hw = sim, bus, config, hw
@@ -72,13 +80,13 @@ class ControllerManager:
         if control_period is not None and control_period < sim.timestep * (1 - 1e-9):
             raise InputError(f"control period {control_period} s is shorter than the physics "
                              f"step {sim.timestep} s")
-        self.controllers: dict[str, Controller] = {}
+        self.controllers: dict[str, ControllerInterface] = {}
         self._subs: dict[str, Subscription] = {}
         self._ctx = ControllerContext(sim, hw, bus, namespace, config.pid_gains)
-        self._periodic: list[Controller] = []  # running controllers that need every period
-        self._running: list[Controller] = []
+        self._periodic: list[ControllerInterface] = []  # running controllers that need every period
+        self._running: list[ControllerInterface] = []
         self._timed: list[PythonRunner] = []  # running Python controllers (own update rates)
-        self._every: list[Controller] = []  # running controllers that update every period
+        self._every: Sequence[ControllerInterface] = []  # running controllers that update every period
         self._waiting = False  # a command was buffered since the last update
         self._half_step_ns = 0
         self._direct = False  # only Python controllers reading MuJoCo directly run every period
@@ -105,37 +113,31 @@ class ControllerManager:
         return max(self._explicit_period or 0.0, self.sim.timestep)
 
     def update(self, sim: Simulation) -> None:
-        """read -> every running controller's update -> write."""
+        """read -> every running controller's update -> write. When only Python controllers that
+        read MuJoCo themselves run and no command waits (the common case with a student's
+        controller), there is no read, and each one's command goes out through its own hardware
+        writer, so no full write either: what that costs per update is the framework's cost of
+        a Python controller (benchmarks/RESULTS.md), so keep it to plain attribute work."""
         now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
-        if self._fast and not self._waiting:
-            self._update_python(now)
-            return
-        if self._periodic:
-            period = round(self.control_period * NS)
-            if now >= self._next_period_ns - sim.timestep * NS / 2:
-                self._next_period_ns = now + period
-            self.wake_ns = self._next_period_ns
-        if self._timed:
-            half = self._half_step_ns
-            for ctrl in self._timed:
-                if now >= ctrl.next_ns - half:
-                    ctrl.due = True
-                    ctrl.next_ns += ctrl.period_ns
-                    if ctrl.next_ns < now + half:  # fell behind (a step longer than the period)
-                        ctrl.next_ns = now + ctrl.period_ns
-                if ctrl.next_ns < self.wake_ns:
-                    self.wake_ns = ctrl.next_ns
+        self._due(now)  # every controller first: a hang below must not lose a wake
         self.updates += 1
-        waiting, self._waiting = self._waiting, False
-        if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
-            self.hw.read()
         t = now / NS
-        dt = self._dt
-        try:  # an idle controller (no command waiting, no period) has nothing to do
-            for ctrl in self._running if waiting else self._every:
-                if ctrl.every_period or ctrl._pending is not None:
-                    ctrl.update(t, dt)
+        waiting = self._waiting
+        fast = self._fast and not waiting
+        if not fast:
+            self._waiting = False
+            if waiting or not self._direct:  # else only Python controllers that read MuJoCo run
+                self.hw.read()
+        try:
+            if fast:
+                for runner in self._timed:
+                    runner.update(t, 0.0)  # a Python controller takes its own dt
+            else:  # an idle controller (no command waiting, no period) has nothing to do
+                dt = self._dt
+                for ctrl in self._running if waiting else self._every:
+                    if ctrl.every_period or ctrl._pending is not None:
+                        ctrl.update(t, dt)
         except ControllerHang:  # the watchdog's interrupt landed just after a student's update
             log.error("a controller's update was interrupted after it returned; no harm done")
         if self._ctx.faults:
@@ -144,15 +146,17 @@ class ControllerManager:
             return  # wrote its own joints' commands (its hardware writer)
         self.hw.write()
 
-    def _update_python(self, now: int) -> None:
-        """update() when only Python controllers that read MuJoCo directly run and no command
-        waits (the common case with a student's controller): no hardware read, and each
-        controller's command goes out through its own writer, so no full write either. What
-        this costs per update is the framework's cost of a Python controller (benchmarks/
-        RESULTS.md): keep it to plain attribute work."""
-        half, timed = self._half_step_ns, self._timed
+    def _due(self, now: int) -> None:
+        """The one schedule of the loop: the control period's next instant, which Python
+        controllers are due at `now` (each at its own rate), and when to wake next (the earliest
+        of those; a command buffered meanwhile by another thread has set -inf, which stays)."""
         wake = math.inf
-        for ctrl in timed:  # scheduled first, all of them: a hang below must not lose a wake
+        if self._periodic:
+            if now >= self._next_period_ns - self.sim.timestep * NS / 2:
+                self._next_period_ns = now + round(self.control_period * NS)
+            wake = self._next_period_ns
+        half = self._half_step_ns
+        for ctrl in self._timed:
             if now >= ctrl.next_ns - half:
                 ctrl.due = True
                 ctrl.next_ns += ctrl.period_ns
@@ -160,18 +164,8 @@ class ControllerManager:
                     ctrl.next_ns = now + ctrl.period_ns
             if ctrl.next_ns < wake:
                 wake = ctrl.next_ns
-        if wake < self.wake_ns:  # a command buffered meanwhile (another thread) set -inf
+        if wake < self.wake_ns:
             self.wake_ns = wake
-        self.updates += 1
-        t = now / NS
-        try:
-            for ctrl in timed:
-                ctrl.update(t, 0.0)  # a Python controller takes its own dt
-        except ControllerHang:  # the watchdog's interrupt landed just after a student's update
-            log.error("a controller's update was interrupted after it returned; no harm done")
-        if self._ctx.faults:
-            self._stop_faulted()
-            self.hw.write()
 
     def _rebind(self) -> None:
         """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
@@ -188,7 +182,7 @@ class ControllerManager:
         if running:
             self.switch(stop=running)
 
-    def use_sensors(self, suite) -> None:
+    def use_sensors(self, suite: SensorSuite) -> None:
         """Python controllers read `state.sensors` from `suite` (a mexone.sensors.SensorSuite)."""
         self._ctx.sensors = lambda: sensor_states(suite)
         for ctrl in self.controllers.values():
@@ -204,15 +198,16 @@ class ControllerManager:
         self._schedule()
 
     def _suspect(self) -> str | None:
-        if any(c.kind != "state" for c in self._running):
+        if any(c.drives_joints for c in self._running):
             return "controller gains too high for the time step: lower p and d, or the step"
         return None
 
     # ----- loading ---------------------------------------------------------------------------------
     def topic(self, name: str) -> str:
+        """The command topic of controller `name` (/<ns>/<name>/command)."""
         return f"{self.namespace}/{name}/command"
 
-    def load(self, name: str) -> Controller:
+    def load(self, name: str) -> ControllerInterface:
         """Create controller `name` from the configuration (stopped)."""
         if name in self.controllers:
             raise InputError(f"controller '{name}' is already loaded")
@@ -242,18 +237,20 @@ class ControllerManager:
         self.config.controllers[spec.name] = spec
 
     def unload(self, name: str) -> None:
+        """Forget a stopped controller (controller_manager's unload_controller)."""
         ctrl = self._get(name)
         if ctrl.running:
             raise InputError(f"cannot unload '{name}': it is running", hint="stop it first")
         del self.controllers[name]
 
     def load_all(self) -> list[str]:
+        """Load every controller of the configuration not loaded yet; the names, in its order."""
         for name in self.config.controllers:
             if name not in self.controllers:
                 self.load(name)
         return list(self.config.controllers)
 
-    def _get(self, name: str) -> Controller:
+    def _get(self, name: str) -> ControllerInterface:
         ctrl = self.controllers.get(name)
         if ctrl is None:
             raise InputError(f"no controller named '{name}' is loaded",
@@ -262,12 +259,15 @@ class ControllerManager:
 
     # ----- running ---------------------------------------------------------------------------------
     def start(self, *names: str) -> None:
+        """Start these controllers (a strict switch)."""
         self.switch(start=names)
 
     def stop(self, *names: str) -> None:
+        """Stop these controllers (a strict switch): their joints are released."""
         self.switch(stop=names)
 
     def start_all(self) -> None:
+        """Load and start every controller of the configuration."""
         self.load_all()
         self.switch(start=[n for n, c in self.controllers.items() if not c.running])
 
@@ -347,7 +347,7 @@ class ControllerManager:
             ctrl = self.controllers[name]
             ctrl.starting(t)
             ctrl.running = True
-            if ctrl.kind != "state" and ctrl.msg_type is not None:
+            if ctrl.drives_joints and ctrl.msg_type is not None:
                 self._subs[name] = self.bus.subscribe(self.topic(name), ctrl.msg_type,
                                                       self._buffer(ctrl), node=name)
             if ctrl.has_state:
@@ -356,15 +356,15 @@ class ControllerManager:
         if self._ctx.faults:  # a Python controller whose activate failed
             names, self._ctx.faults[:] = list(self._ctx.faults), []
             for name in dict.fromkeys(names):
-                ctrl = self.controllers.get(name)
-                if ctrl is not None and ctrl.running:
-                    ctrl.running = False
-                    ctrl.stopping()
+                faulted = self.controllers.get(name)
+                if faulted is not None and faulted.running:
+                    faulted.running = False
+                    faulted.stopping()
             self._schedule()
         self.hw.write()
 
-    def _buffer(self, ctrl: Controller):
-        def on_message(msg) -> None:  # the publisher's thread: buffer only
+    def _buffer(self, ctrl: ControllerInterface) -> Callable[[object], None]:
+        def on_message(msg: object) -> None:  # the publisher's thread: buffer only
             if ctrl.on_command(msg):
                 self._waiting = True
                 self._wake()
@@ -375,7 +375,7 @@ class ControllerManager:
         self._running = [self.controllers[n] for n in order if self.controllers[n].running]
         self._bind_inputs()
         self._periodic = [c for c in self._running if c.periodic]
-        self._timed = [c for c in self._running if c.timed]
+        self._timed = [c for c in self._running if isinstance(c, PythonRunner) and c.timed]
         for ctrl in self._running:
             ctrl.every_period = ctrl.periodic or ctrl.timed
         self._every = [c for c in self._running if c.every_period]
@@ -388,9 +388,8 @@ class ControllerManager:
         self._half_step_ns = round(self.sim.timestep * NS / 2)
         self._dt = self.control_period
         for ctrl in self._timed:
-            ctrl.writer = self.hw.rows_writer(ctrl.rows, ctrl.interface_name)
-            ctrl.float_writer = self.hw.effort_floats_writer(ctrl.rows) \
-                if ctrl.interface_name == "effort" else None
+            writers = self.hw.writers(ctrl.rows, ctrl.interface_name)
+            ctrl.writer, ctrl.float_writer = writers.values, writers.floats
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
             ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now
@@ -431,6 +430,7 @@ class ControllerManager:
 
     # ----- `state` topics (published only while someone listens) ---------------------------------
     def state_topic(self, name: str) -> str:
+        """The JointControllerState topic of controller `name` (/<ns>/<name>/state)."""
         return f"{self.namespace}/{name}/state"
 
     def _watch_state(self, topic: str) -> None:
@@ -474,7 +474,10 @@ class ControllerManager:
         self.switch(stop=running)
         self.switch(start=running)
 
-    def list(self) -> list[ControllerInfo]:
+    def list_controllers(self) -> list[ControllerInfo]:
+        """Every loaded controller: name, type, state, joints, interface and, for a Python
+        controller, its rate, time per update, fault and parameters (controller_manager's
+        list_controllers)."""
         out = []
         for c in self.controllers.values():
             info = ControllerInfo(c.name, c.type.name, "running" if c.running else "stopped",
@@ -486,6 +489,11 @@ class ControllerManager:
                                update_time_max=c.meter.worst)
             out.append(info)
         return out
+
+    def list(self) -> builtins.list[ControllerInfo]:
+        """The former name of `list_controllers` (it shadowed the built-in), for one release."""
+        warn_renamed("ControllerManager.list", "ControllerManager.list_controllers")
+        return self.list_controllers()
 
     # ----- Python controllers: reload and live parameters (simulation thread) -------------------
     def reload(self, name: str) -> None:
@@ -505,7 +513,7 @@ class ControllerManager:
                 with contextlib.suppress(InputError):
                     params[key] = declared[key].check(value)
         new_spec = replace(spec, plugin=replace(plugin, cls=cls, origin=origin, params=params))
-        new = PythonRunner(new_spec, self._ctx)  # creates and configures: may raise
+        new = PythonRunner(new_spec, self._ctx)  # type: ignore[no-untyped-call]  # configures: may raise
         restart = old.running or old.fault is not None
         if old.running:
             self.switch(stop=[name])
@@ -515,7 +523,7 @@ class ControllerManager:
             self.switch(start=[name])
         log.info("%s: reloaded from %s", name, origin)
 
-    def set_param(self, name: str, key: str, value) -> Any:
+    def set_param(self, name: str, key: str, value: Any) -> Any:
         """Set a Python controller's declared parameter live (validated as the YAML's)."""
         ctrl = self._get(name)
         if not isinstance(ctrl, PythonRunner):
@@ -524,10 +532,12 @@ class ControllerManager:
         return ctrl.set_param(key, value)
 
     @staticmethod
-    def list_types() -> list[str]:
+    def list_types() -> builtins.list[str]:
+        """Every ros_control type name a YAML may use (controller_manager's list_controller_types)."""
         return list(CONTROLLER_TYPES)
 
-    def by_joint(self) -> dict[str, Controller]:
+    def by_joint(self) -> dict[str, ControllerInterface]:
+        """joint -> the running controller that drives it."""
         return {j: c for c in self._running for j in c.joints}
 
     # ----- what front ends change and read (simulation thread) -------------------------------------
@@ -578,6 +588,6 @@ class ControllerManager:
         controller takes commands; 0 without a controller)."""
         out = np.zeros(len(self.hw.joints))
         for ctrl in self._running:
-            if ctrl.kind != "state":
+            if ctrl.drives_joints:
                 out[ctrl.rows] = ctrl.setpoint
         return out

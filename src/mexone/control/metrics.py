@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -50,7 +51,7 @@ class JointTracking:
             return f"{self.settling_time:.3f} s"
         return f"> {self.unsettled_for:.3f} s" if self.unsettled_for is not None else "never"
 
-    def as_json(self) -> dict:
+    def as_json(self) -> dict[str, Any]:
         return {k: (round(v, 6) if isinstance(v, float) else v) for k, v in asdict(self).items()}
 
 
@@ -73,7 +74,7 @@ class TrackingRecorder:
 
     def sample(self, sim: Simulation) -> None:
         tracked = [c for c in self.manager.controllers.values()
-                   if c.running and c.kind in ("position", "trajectory")]
+                   if c.running and c.tracks_position]
         if not tracked:
             return
         key = tuple(map(id, tracked))
@@ -103,7 +104,7 @@ class TrackingRecorder:
         """Hand the pending samples to each joint's statistics, in time order."""
         if not self._pending:
             return
-        groups: dict[int, tuple[_Layout, list]] = {}
+        groups: dict[int, tuple[_Layout, list[Any]]] = {}
         for row in self._pending:
             groups.setdefault(id(row[1]), (row[1], []))[1].append(row)
         self._pending = []
@@ -132,7 +133,7 @@ class _Layout:
     commanded: bool  # every controller's setpoint is its joints' position command
 
     @staticmethod
-    def of(controllers: list) -> _Layout:
+    def of(controllers: list[Any]) -> _Layout:
         return _Layout(tuple(j for c in controllers for j in c.joints),
                        np.concatenate([np.asarray(c.rows, dtype=int).reshape(-1)
                                        for c in controllers]),
@@ -256,6 +257,7 @@ class _JointStream:
 
     def _with_move(self, until: float) -> _Moves:
         m = self.move
+        assert m is not None  # callers check
         return self.closed.close(m.overshoot, None if m.outside else m.settled_at, until - m.t0)
 
     def metrics(self, joint: str) -> JointTracking:
@@ -270,12 +272,13 @@ def full_metrics(joint: str, data: np.ndarray) -> JointTracking:
     TrackingRecorder's running statistics equal (kept as their reference)."""
     t, sp, q = data.T
     error = sp - q
-    changes = list(np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1)
+    changes = [int(c) for c in np.flatnonzero(np.abs(np.diff(sp)) >= MIN_STEP) + 1]
     closed = _Moves()
     moves = 0
-    move: list | None = None  # [start, target, first sample, latest change's sample]
+    move: list[Any] | None = None  # [start, target, first sample, latest change's sample]
 
     def close(end: int) -> _Moves:
+        assert move is not None
         start, target, first, last = move
         sign = 1.0 if target > start else -1.0
         over = _past(float((sign * q[first:end]).max()), start, target)

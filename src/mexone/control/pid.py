@@ -21,7 +21,10 @@ __all__ = ["PidArray"]
 
 
 class PidArray:
-    def __init__(self, gains: Sequence[PidGains]):
+    """control_toolbox's PID for several joints at once, as arrays (the velocity controllers'
+    terms that do not run in MuJoCo's actuators)."""
+
+    def __init__(self, gains: Sequence[PidGains]) -> None:
         self.p = np.array([g.p for g in gains], dtype=float)
         self.i = np.array([g.i for g in gains], dtype=float)
         self.d = np.array([g.d for g in gains], dtype=float)
@@ -37,6 +40,7 @@ class PidArray:
         return bool(np.any((self.i != 0) & ((self.i_min != 0) | (self.i_max != 0))))
 
     def reset(self) -> None:
+        """Forget the integral and the last error (a controller starting)."""
         self.i_error[:] = 0.0
         self.last_error[:] = 0.0
 

@@ -16,6 +16,7 @@ the file again (the manager's reload).
 
 from __future__ import annotations
 
+import builtins
 import difflib
 import importlib
 import importlib.metadata
@@ -23,9 +24,10 @@ import importlib.util
 import inspect
 import sys
 import traceback
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import ModuleType
+from types import ModuleType, TracebackType
 from typing import Any
 
 from mexone import signals
@@ -50,7 +52,7 @@ class Plugin:
     """A resolved Python controller type and what its YAML entry says about running it."""
 
     type: str
-    cls: type[PythonController]
+    cls: builtins.type[PythonController]
     origin: str  # where it was found, for messages ("/x/my_controllers.py", "module pkg.mod")
     yaml_dir: Path | None
     raw: dict[str, tuple[Any, int | None]] = field(default_factory=dict)  # YAML value, line
@@ -78,7 +80,7 @@ class Plugin:
             return self.origin
 
 
-def student_line(file: str, tb) -> int | None:
+def student_line(file: str, tb: TracebackType | None) -> int | None:
     """The line of the innermost traceback frame in `file` (their code, not numpy's)."""
     line = None
     for frame in traceback.extract_tb(tb):
@@ -114,7 +116,7 @@ def _import_failure(exc: BaseException, file: str | None, what: str) -> InputErr
                       hint="fix the file; Reload imports it again")
 
 
-def _watched(what: str, file: str | None):
+def _watched(what: str, file: str | None) -> AbstractContextManager[None]:
     """An import of a student's code under the watchdog: a module-level infinite loop is
     interrupted (ControllerHang, then one line) instead of freezing the lab."""
     return GUARD.watching(Watched(f"controller code {what}", file or what, "import"))
@@ -183,7 +185,7 @@ def _class_from(module: ModuleType, cls_name: str, where: str) -> type[PythonCon
     return cls
 
 
-def _entry_point(ctype: str):
+def _entry_point(ctype: str) -> importlib.metadata.EntryPoint | None:
     try:
         points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
     except Exception:  # noqa: BLE001 - a broken installed distribution must not stop the lookup

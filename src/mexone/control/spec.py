@@ -6,12 +6,16 @@ use these types without importing each other.
 
 from __future__ import annotations
 
+import builtins
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, I_CLAMP, number_text
+
+if TYPE_CHECKING:
+    from mexone.control.controllers import ControllerInterface
 
 __all__ = ["PidGains", "ControllerSpec", "ControlConfig", "controller_name", "joint_label",
            "POSITION_SUFFIX"]
@@ -85,15 +89,21 @@ class ControllerSpec:
     @property
     def kind(self) -> str:
         """position, velocity, effort, trajectory, state (from the controller registry) or
-        python (a student's controller)."""
-        if self.plugin is not None:
-            return "python"
-        from mexone.control.controllers import controller_type
+        python (a student's controller): control/'s own label; front ends ask the class's
+        capabilities (`controller_class`)."""
+        return self.controller_class.kind
 
-        return controller_type(self.type).kind
+    @property
+    def controller_class(self) -> builtins.type[ControllerInterface]:
+        """The ControllerInterface class that runs this entry (the registry's, or the Python
+        controllers' runner): its capabilities say what it can do before it is loaded."""
+        from mexone.control.controllers import PythonRunner, controller_type
+
+        return PythonRunner if self.plugin is not None else controller_type(self.type).cls
 
     @property
     def interface(self) -> str:
+        """The hardware interface its type claims."""
         if self.plugin is not None:
             return self.plugin.interface
         from mexone.control.controllers import controller_type
@@ -108,4 +118,4 @@ class ControlConfig:
     pid_gains: dict[str, PidGains] = field(default_factory=dict)  # gazebo_ros_control/pid_gains
     source: Path | None = None
     # the file as `rosparam load` puts it on the parameter server (routines' get_param reads it)
-    parameters: dict = field(default_factory=dict, compare=False, repr=False)
+    parameters: dict[str, Any] = field(default_factory=dict, compare=False, repr=False)

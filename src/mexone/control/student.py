@@ -65,6 +65,7 @@ class Param:
 
     @property
     def numeric(self) -> bool:
+        """Whether the parameter is a number (int or float): a page shows it as a number field."""
         return self.kind in (int, float)
 
     def __set_name__(self, owner: type, name: str) -> None:
@@ -143,7 +144,7 @@ class State:
     declared `inputs` (NaN while the exporter is stopped)."""
 
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
-                 "_sensors", "_base", "inputs")
+                 "_sensors", "_base", "inputs", "messages")
 
     def __init__(self, n: int, data, base_joint: int | None, sensor_source=None):
         self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -154,6 +155,7 @@ class State:
         self._sensors: Mapping | None = None
         self._base: BaseState | None = None
         self.inputs: Mapping[str, np.ndarray] = {}
+        self.messages: Mapping[str, object | None] = {}
 
     def _refresh(self, time: float) -> None:
         self.time = time
@@ -162,14 +164,18 @@ class State:
 
     @property
     def all_q(self) -> np.ndarray:
+        """The whole robot's joint positions (every actuated joint, hardware order), not only the
+        controller's."""
         return self._data.qpos
 
     @property
     def all_dq(self) -> np.ndarray:
+        """The whole robot's joint velocities (every actuated joint, hardware order)."""
         return self._data.qvel
 
     @property
     def base(self) -> BaseState | None:
+        """The floating base's pose and twist (a BaseState), or None for a robot fixed to the world."""
         if self._base is None and self._base_joint is not None:
             qa, va = self._base_joint
             data = self._data
@@ -179,6 +185,7 @@ class State:
 
     @property
     def sensors(self) -> Mapping:
+        """The sensors' state interfaces by name (state.sensors["imu"].orientation, ...)."""
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
         return self._sensors
@@ -202,12 +209,20 @@ class PythonController:
     `optional_inputs` names inputs the class can run without: left unbound in the YAML, they are
     absent from `state.inputs` (a walking part computing from the simulator's truth until an
     estimator is chained in).
+
+    Topics: `topics` declares the bus topics this controller takes, name (under the robot's
+    namespace: `cmd_vel` is `/<ns>/cmd_vel`, what ROS 1, ROS 2, the page and routines publish)
+    -> message class (mexone.bus.msgs). Each update, `state.messages[name]` is the newest
+    message that arrived since the last update, or None: nothing of the bus reaches your code
+    between updates (no callback, no thread), so it runs the same in the simulation's process
+    and in a worker process.
     """
 
     command_interface: ClassVar[str] = "effort"  # "effort" | "position" | "velocity"
     exports: Any = {}  # the class declares name -> length; an instance holds name -> array
     inputs: ClassVar[Mapping[str, int]] = {}
     optional_inputs: ClassVar[tuple[str, ...]] = ()
+    topics: ClassVar[Mapping[str, type]] = {}
     _declared: ClassVar[dict[str, Param]] = {}
 
     name: str
@@ -230,6 +245,7 @@ class PythonController:
                             f"{', '.join(COMMAND_INTERFACES)}, not {cls.command_interface!r}")
         for attribute in ("exports", "inputs"):
             declared_lengths(cls, attribute)  # a malformed declaration fails at the class
+        declared_topics(cls)
 
     @classmethod
     def declared_params(cls) -> dict[str, Param]:
@@ -284,6 +300,25 @@ def declared_lengths(cls: type[PythonController], attribute: str) -> dict[str, i
             raise TypeError(f"{cls.__name__}.{attribute}['{name}'] must be a whole number >= 1 "
                             f"(its length), not {length!r:.40}")
         out[name] = length
+    return out
+
+
+def declared_topics(cls: type[PythonController]) -> dict[str, type]:
+    """A class's `topics` declaration checked: relative topic name (letters, digits, _ and /
+    between them) -> message class, or a TypeError naming the class."""
+    value = getattr(cls, "topics", {})
+    if not isinstance(value, Mapping):
+        raise TypeError(f"{cls.__name__}.topics must be a dict of topic name -> message class, not "
+                        f"{type(value).__name__}")
+    out = {}
+    for name, msg_type in value.items():
+        if not isinstance(name, str) or not all(part.isidentifier() for part in name.split("/")):
+            raise TypeError(f"{cls.__name__}.topics: {name!r:.40} is not a topic name relative to the "
+                            "robot's namespace (e.g. 'cmd_vel')")
+        if not isinstance(msg_type, type):
+            raise TypeError(f"{cls.__name__}.topics['{name}'] must be a message class (mexone.bus.msgs), "
+                            f"not {msg_type!r:.40}")
+        out[name] = msg_type
     return out
 
 

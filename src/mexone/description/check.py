@@ -11,12 +11,13 @@ import math
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from mexone.description.findings import Finding
 from mexone.description.meshes import geometry_bounds
-from mexone.description.model import GazeboLink, Geometry, Inertial, Link, Mesh, Pose, RobotModel
+from mexone.description.model import GazeboLink, Geometry, Inertial, Joint, Link, Mesh, Pose, RobotModel
 from mexone.errors import MexoneError
 from mexone.ranges import MASS, MOMENT, number_text
 
@@ -226,45 +227,54 @@ def _rule_inertial(ctx: _Context) -> Iterator[Finding]:
 
 def _inertia_size(ctx: _Context, link: Link, moments: np.ndarray) -> Iterator[Finding]:
     """No moment can exceed m r^2 with r the distance from the COM to the furthest point."""
+    inertial = link.inertial  # the caller checked it has one
+    if inertial is None:
+        return
     aabb = _aabb(ctx.boxes(link.name))
     if aabb is None:
         return
-    com = np.asarray(link.inertial.origin.xyz)
+    com = np.asarray(inertial.origin.xyz)
     corners = np.array([[x, y, z] for x in (aabb[0][0], aabb[1][0]) for y in (aabb[0][1], aabb[1][1])
                         for z in (aabb[0][2], aabb[1][2])])
     reach = float(np.max(np.linalg.norm(corners - com, axis=1)))
-    bound = link.inertial.mass * reach**2
+    bound = inertial.mass * reach**2
     if moments[2] > _INERTIA_SLACK * bound:
         yield Finding("inertia-too-large", "error", _element("link", link.name),
                       f"largest moment {moments[2]:.3g} kg m^2 is {moments[2] / bound:.0f}x what "
-                      f"{link.inertial.mass:g} kg within {reach:.3f} m can have: the link will spin "
+                      f"{inertial.mass:g} kg within {reach:.3f} m can have: the link will spin "
                       "like a flywheel and explode (seed Fig. 4.7); check units and values",
                       link.line)
 
 
 def _density(ctx: _Context, link: Link) -> Iterator[Finding]:
+    inertial = link.inertial  # the caller checked it has one
+    if inertial is None:
+        return
     aabb = _aabb(ctx.boxes(link.name))
     if aabb is None:
         return
     volume = float(np.prod(np.maximum(aabb[1] - aabb[0], 1e-6)))
-    if (density := link.inertial.mass / volume) > MAX_DENSITY:
+    if (density := inertial.mass / volume) > MAX_DENSITY:
         yield Finding("mass-implausible", "error", _element("link", link.name),
-                      f"{link.inertial.mass:.3g} kg in {volume:.3g} m^3 of geometry is {density:.3g} "
+                      f"{inertial.mass:.3g} kg in {volume:.3g} m^3 of geometry is {density:.3g} "
                       "kg/m^3, over 40x the densest metal: check the mass's unit (kg) or the "
                       "geometry's scale", link.line)
 
 
 def _com_inside(ctx: _Context, link: Link) -> Iterator[Finding]:
+    inertial = link.inertial  # the caller checked it has one
+    if inertial is None:
+        return
     boxes = ctx.boxes(link.name)
     if not boxes:
         return
-    com = np.asarray(link.inertial.origin.xyz)
+    com = np.asarray(inertial.origin.xyz)
     if not any(b.contains(com, _COM_TOL) for b in boxes):
         where = (f"centre of mass ({', '.join(f'{v:.3f}' for v in com)}) m lies outside the "
                  "link's geometry")
         if _tiny(ctx.model, link):  # a 1 g logo or sensor mount: harmless wherever its COM is
             yield Finding("com-outside", "info", _element("link", link.name),
-                          f"{where}, but at {link.inertial.mass:.3g} kg (under "
+                          f"{where}, but at {inertial.mass:.3g} kg (under "
                           f"{_TINY_FRACTION:.0%} of the robot) it cannot matter", link.line)
         else:
             yield Finding("com-outside", "error", _element("link", link.name),
@@ -282,8 +292,10 @@ def _rule_collision_matches_visual(ctx: _Context) -> Iterator[Finding]:
         collisions = ctx.collision_boxes.get(name)
         if not collisions:
             continue
-        v_lo, v_hi = _aabb(visuals)
-        c_lo, c_hi = _aabb(collisions)
+        v_box, c_box = _aabb(visuals), _aabb(collisions)
+        if v_box is None or c_box is None:
+            continue
+        (v_lo, v_hi), (c_lo, c_hi) = v_box, c_box
         offset = float(np.linalg.norm((v_lo + v_hi) / 2 - (c_lo + c_hi) / 2))
         allowed = max(_MISMATCH_MIN, _MISMATCH_FRACTION * float(np.linalg.norm(v_hi - v_lo)))
         # a pad inside its fingertip, or a box around a torso, shares the visual's place
@@ -294,9 +306,9 @@ def _rule_collision_matches_visual(ctx: _Context) -> Iterator[Finding]:
                           "the <collision> origin", ctx.model.links[name].line)
 
 
-def _overlap(a_lo, a_hi, b_lo, b_hi) -> float:
+def _overlap(a_lo: np.ndarray, a_hi: np.ndarray, b_lo: np.ndarray, b_hi: np.ndarray) -> float:
     """Volume two boxes share, as a fraction of the smaller one (flat boxes count as 1 mm)."""
-    def volume(lo, hi):
+    def volume(lo: np.ndarray, hi: np.ndarray) -> float:
         return float(np.prod(np.maximum(hi - lo, 1e-3)))
 
     shared_lo, shared_hi = np.maximum(a_lo, b_lo), np.minimum(a_hi, b_hi)
@@ -394,10 +406,13 @@ def _rule_joint_values(ctx: _Context) -> Iterator[Finding]:
                               "values add energy and make the simulation diverge", joint.line)
 
 
-def _passive_limits(joint, element: str, sdf: bool) -> Iterator[Finding]:
+def _passive_limits(joint: Joint, element: str, sdf: bool) -> Iterator[Finding]:
     """Limits of a joint without transmission: nothing drives it, but Gazebo still reads them."""
-    for code, what, value, unit in (("effort-limit", "effort", joint.limit.effort, "N m or N"),
-                                    ("velocity-limit", "velocity", joint.limit.velocity,
+    limit = joint.limit
+    if limit is None:
+        return
+    for code, what, value, unit in (("effort-limit", "effort", limit.effort, "N m or N"),
+                                    ("velocity-limit", "velocity", limit.velocity,
                                      "rad/s or m/s")):
         if value < 0 and not sdf:
             yield Finding(code, "error", element,
@@ -439,9 +454,11 @@ def _rule_mimic(ctx: _Context) -> Iterator[Finding]:
                           "constraint; drive the joint it mimics instead", joint.line)
 
 
-def mimic_problem(model: RobotModel, joint) -> str | None:
+def mimic_problem(model: RobotModel, joint: Joint) -> str | None:
     """Why a joint's <mimic> cannot be simulated, or None."""
     mimic, joints = joint.mimic, model.joints
+    if mimic is None:
+        return None
     if not joint.moving:
         return f"is {joint.type} and cannot mimic anything"
     if mimic.joint not in joints:
@@ -569,7 +586,7 @@ def format_tree(model: RobotModel) -> str:
     return "\n".join(lines)
 
 
-def summary(model: RobotModel, findings: list[Finding]) -> dict:
+def summary(model: RobotModel, findings: list[Finding]) -> dict[str, Any]:
     return {
         "robot": model.name,
         "root": model.root,

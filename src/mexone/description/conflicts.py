@@ -42,7 +42,7 @@ def _meaning(text: str) -> object:
 class Statements:
     """Every value a file states, by element and quantity; a second, different one is reported."""
 
-    def __init__(self, label: str, findings: list[Finding]):
+    def __init__(self, label: str, findings: list[Finding]) -> None:
         self.label, self.findings = label, findings
         self._said: dict[tuple[str, str], Statement] = {}
 

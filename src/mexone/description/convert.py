@@ -6,7 +6,7 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-from mexone.description.model import GazeboLink, Mesh, Pose, RobotModel
+from mexone.description.model import GazeboLink, Geometry, Mesh, Pose, RobotModel
 
 __all__ = ["rebase_meshes", "merge_massless"]
 
@@ -17,7 +17,7 @@ def rebase_meshes(model: RobotModel, out_dir: Path) -> RobotModel:
     """Relative mesh paths are relative to the model file; keep them pointing at the same
     files when the model is written into another folder. URIs and absolute paths stay."""
 
-    def rebase(geometry):
+    def rebase(geometry: Geometry) -> Geometry:
         if not isinstance(geometry, Mesh) or geometry.filename.startswith(_SCHEMES) \
                 or os.path.isabs(geometry.filename):
             return geometry

@@ -18,7 +18,7 @@ class Finding:
     line: int | None = None
     file: str | None = None  # where line points when it is not the model (a controller YAML)
 
-    def as_dict(self, file: str | None = None) -> dict:
+    def as_dict(self, file: str | None = None) -> dict[str, object]:
         """For --json: file (the model's unless the finding names another) and line included."""
         out = asdict(self)
         out["file"] = self.file or file

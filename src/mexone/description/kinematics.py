@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -12,7 +12,7 @@ from mexone.description.model import RobotModel
 __all__ = ["link_frames_at", "joint_motion", "with_mimics"]
 
 
-def joint_motion(axis, joint_type: str, q: float) -> np.ndarray:
+def joint_motion(axis: Sequence[float] | np.ndarray, joint_type: str, q: float) -> np.ndarray:
     """The 4x4 transform a joint at position q adds after its origin."""
     out = np.eye(4)
     if not q:

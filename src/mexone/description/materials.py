@@ -8,6 +8,8 @@ MuJoCo's geoms, hence videos and the MJCF export).
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 from mexone.description.model import Link, RobotModel, Visual
 
 __all__ = ["GAZEBO_COLORS", "DEFAULT_RGBA", "gazebo_rgba", "display_rgba", "apply_named_colors"]
@@ -59,7 +61,7 @@ def gazebo_rgba(name: str | None) -> tuple[float, float, float, float] | None:
     return GAZEBO_COLORS.get(name.strip().lower()) if name else None
 
 
-def display_rgba(robot: RobotModel, link: str, visual: Visual) -> tuple[float, float, float, float]:
+def display_rgba(robot: RobotModel, link: str, visual: Visual) -> tuple[float, ...]:
     """What Gazebo draws: the link's <gazebo><material> if Gazebo knows it, else the visual's
     URDF colour, else unpainted grey."""
     props = robot.gazebo_links.get(link)
@@ -79,7 +81,7 @@ def apply_named_colors(links: list[Link], named: dict[str, tuple[float, ...]]) -
                         else _with_rgba(v, table[v.material]) for v in link.visuals]
 
 
-def _with_rgba(visual: Visual, rgba) -> Visual:
+def _with_rgba(visual: Visual, rgba: Iterable[float]) -> Visual:
     from dataclasses import replace
 
     return replace(visual, rgba=tuple(float(c) for c in rgba))

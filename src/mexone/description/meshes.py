@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,6 +19,9 @@ from mexone.description.model import Box, Cylinder, Geometry, Mesh, Sphere
 from mexone.description.packages import require_package
 from mexone.errors import InputError, ModelError
 from mexone.inputs import vet_regular_file
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["resolve_mesh", "load_mesh", "geometry_bounds"]
 
@@ -53,7 +57,7 @@ def resolve_mesh(filename: str, base_dir: Path) -> Path:
 
 
 @lru_cache(maxsize=256)
-def _load(path: str, mtime: float):
+def _load(path: str, mtime: float) -> trimesh.Trimesh:
     import trimesh  # slow to import; only meshes need it
 
     try:
@@ -66,7 +70,7 @@ def _load(path: str, mtime: float):
     return loaded
 
 
-def load_mesh(path: Path):
+def load_mesh(path: Path) -> trimesh.Trimesh:
     """The trimesh.Trimesh in the file's own units (cached; reloaded if the file changes)."""
     if not path.exists():
         raise ModelError(f"mesh file '{path}' does not exist", hint="check the filename and path")

@@ -28,6 +28,7 @@ from mexone.description.model import (
     Cylinder,
     Dynamics,
     GazeboLink,
+    Geometry,
     Inertial,
     Joint,
     Limit,
@@ -51,7 +52,7 @@ _FREE, _BALL, _SLIDE, _HINGE = (int(mujoco.mjtJoint.mjJNT_FREE), int(mujoco.mjtJ
 _G = mujoco.mjtGeom
 
 
-def _pose(pos, quat) -> np.ndarray:
+def _pose(pos: np.ndarray, quat: np.ndarray | tuple[float, ...]) -> np.ndarray:
     out = np.eye(4)
     mat = np.zeros(9)
     mujoco.mju_quat2Mat(mat, np.asarray(quat, dtype=float))
@@ -74,7 +75,10 @@ def _compile(path: Path) -> tuple[mujoco.MjSpec, mujoco.MjModel]:
                          hint="load it with mujoco.MjModel.from_xml_path to see the same") from None
 
 
-def _lines(path: Path) -> dict[tuple[str, str], int]:
+_Lines = dict[tuple[str, str | None], int]  # (tag, name) -> source line
+
+
+def _lines(path: Path) -> _Lines:
     """(tag, name) -> source line in the main file, for findings and errors."""
     xml = XmlReader(path)
     return {(el.tag, el.get("name")): el.sourceline for el in xml.root.iter()
@@ -131,8 +135,8 @@ def read_mjcf(path: Path | str) -> RobotModel:
             continue
         world_body = _pose(data.xpos[b], data.xquat[b])
         joints = [model.body_jntadr[b] + k for k in range(model.body_jntnum[b])]
-        parent_frame = link_frame.get(model.body_parentid[b])
-        parent_link = body_link.get(model.body_parentid[b])
+        parent_frame: np.ndarray | None = link_frame.get(model.body_parentid[b])
+        parent_link: str | None = body_link.get(model.body_parentid[b])
         bname = body_names[b]
         free = b == root and joints and model.jnt_type[joints[0]] == _FREE
         if b == root and not free:  # welded where it stands, as URDF says with a 'world' link
@@ -147,11 +151,12 @@ def read_mjcf(path: Path | str) -> RobotModel:
                                        hint="make it three hinge joints in a chain of bodies")
         if not moving:
             frame = world_body
-            if parent_link is not None:
+            if parent_link is not None and parent_frame is not None:
                 robot.joints[f"{bname}_fixed"] = Joint(
                     f"{bname}_fixed", "fixed", parent_link, bname,
                     Pose.from_matrix(np.linalg.inv(parent_frame) @ frame), line=lines.get(("body", bname)))
         for k, j in enumerate(moving):
+            assert parent_link is not None and parent_frame is not None, "a hinge on a free root"
             frame = world_body @ _pose(model.jnt_pos[j], (1, 0, 0, 0))
             jname = model.joint(j).name or f"{bname}_joint{k}"
             child = bname if k == len(moving) - 1 else f"{bname}__{jname}"
@@ -180,7 +185,8 @@ def read_mjcf(path: Path | str) -> RobotModel:
     return robot
 
 
-def _joint(model, j: int, name: str, parent: str, child: str, origin: Pose, line) -> Joint:
+def _joint(model: mujoco.MjModel, j: int, name: str, parent: str, child: str, origin: Pose,
+           line: int | None) -> Joint:
     kind = model.jnt_type[j]
     limited = bool(model.jnt_limited[j])
     ref = model.qpos0[model.jnt_qposadr[j]]
@@ -196,7 +202,7 @@ def _joint(model, j: int, name: str, parent: str, child: str, origin: Pose, line
                  Dynamics(float(model.dof_damping[dof]), float(model.dof_frictionloss[dof])), line)
 
 
-def _inertial(model, data, b: int, frame: np.ndarray) -> Inertial | None:
+def _inertial(model: mujoco.MjModel, data: mujoco.MjData, b: int, frame: np.ndarray) -> Inertial | None:
     mass = float(model.body_mass[b])
     if mass <= 0:
         return None
@@ -213,7 +219,8 @@ def _mesh_file(spec: mujoco.MjSpec, path: Path, name: str) -> Path:
     return (folder / mesh.file).resolve()
 
 
-def _geoms(model, spec, data, b: int, frame: np.ndarray, link: Link, path: Path,
+def _geoms(model: mujoco.MjModel, spec: mujoco.MjSpec, data: mujoco.MjData, b: int, frame: np.ndarray,
+           link: Link, path: Path,
            robot: RobotModel) -> None:
     inverse = np.linalg.inv(frame)
     visuals, collisions = [], []
@@ -225,7 +232,7 @@ def _geoms(model, spec, data, b: int, frame: np.ndarray, link: Link, path: Path,
         world[:3, :3] = data.geom_xmat[g].reshape(3, 3)
         local = inverse @ world
         kind, size = model.geom_type[g], model.geom_size[g]
-        shapes: list[tuple] = []
+        shapes: list[tuple[Geometry, np.ndarray]] = []
         if kind == _G.mjGEOM_BOX:
             shapes = [(Box(tuple(float(2 * v) for v in size)), local)]
         elif kind == _G.mjGEOM_SPHERE:
@@ -235,7 +242,7 @@ def _geoms(model, spec, data, b: int, frame: np.ndarray, link: Link, path: Path,
         elif kind == _G.mjGEOM_CAPSULE:
             r, h = float(size[0]), float(size[1])
             shapes = [(Cylinder(r, 2 * h), local)] + [
-                (Sphere(r), local @ _pose((0, 0, s * h), (1, 0, 0, 0))) for s in (-1, 1)]
+                (Sphere(r), local @ _pose(np.array([0.0, 0.0, s * h]), (1, 0, 0, 0))) for s in (-1, 1)]
         elif kind == _G.mjGEOM_ELLIPSOID:
             shapes = [(Box(tuple(float(2 * v) for v in size)), local)]
         elif kind == _G.mjGEOM_MESH:
@@ -265,7 +272,7 @@ def _geoms(model, spec, data, b: int, frame: np.ndarray, link: Link, path: Path,
         robot.gazebo_links[link.name] = GazeboLink(mu1=friction, mu2=friction)
 
 
-def _effort(model, a: int) -> float:
+def _effort(model: mujoco.MjModel, a: int) -> float:
     gear = abs(float(model.actuator_gear[a][0])) or 1.0
     if model.actuator_forcelimited[a]:
         return float(max(abs(model.actuator_forcerange[a]))) * gear
@@ -275,7 +282,7 @@ def _effort(model, a: int) -> float:
     return 0.0
 
 
-def _transmissions(model, robot: RobotModel, lines) -> None:
+def _transmissions(model: mujoco.MjModel, robot: RobotModel, lines: _Lines) -> None:
     for a in range(model.nactuator):  # MuJoCo 4: nu counts control inputs (a PID has 3)
         if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_JOINT:
             continue
@@ -291,7 +298,7 @@ def _transmissions(model, robot: RobotModel, lines) -> None:
             current.limit = Limit(lim.lower, lim.upper, effort, lim.velocity)
 
 
-def _mimics(model, robot: RobotModel, findings: list[Finding], lines) -> None:
+def _mimics(model: mujoco.MjModel, robot: RobotModel, findings: list[Finding], lines: _Lines) -> None:
     for e in range(model.neq):
         ename = model.equality(e).name or f"equality {e}"
         if model.eq_type[e] == mujoco.mjtEq.mjEQ_JOINT and model.eq_obj2id[e] >= 0:

@@ -49,8 +49,8 @@ MOVING_JOINT_TYPES = ("revolute", "continuous", "prismatic")
 
 @dataclass(frozen=True)
 class Pose:
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    xyz: tuple[float, ...] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, ...] = (0.0, 0.0, 0.0)
 
     @property
     def matrix(self) -> np.ndarray:
@@ -67,7 +67,7 @@ class Pose:
 
 @dataclass(frozen=True)
 class Box:
-    size: tuple[float, float, float]
+    size: tuple[float, ...]
 
     def half_extents(self) -> np.ndarray:
         return np.asarray(self.size) / 2
@@ -95,7 +95,7 @@ class Sphere:
 @dataclass(frozen=True)
 class Mesh:
     filename: str  # as written in the file: package://, model://, file://, absolute or relative
-    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    scale: tuple[float, ...] = (1.0, 1.0, 1.0)
 
 
 Geometry = Box | Cylinder | Sphere | Mesh
@@ -104,7 +104,7 @@ Geometry = Box | Cylinder | Sphere | Mesh
 @dataclass(frozen=True)
 class Inertial:
     mass: float
-    inertia: tuple[float, float, float, float, float, float]  # ixx ixy ixz iyy iyz izz
+    inertia: tuple[float, ...]  # ixx ixy ixz iyy iyz izz
     origin: Pose = Pose()
 
     @property
@@ -120,7 +120,7 @@ class Visual:
     origin: Pose = Pose()
     name: str | None = None
     material: str | None = None
-    rgba: tuple[float, float, float, float] | None = None
+    rgba: tuple[float, ...] | None = None
     line: int | None = None
 
 
@@ -173,7 +173,7 @@ class Joint:
     parent: str
     child: str
     origin: Pose = Pose()
-    axis: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    axis: tuple[float, ...] = (1.0, 0.0, 0.0)
     limit: Limit | None = None
     dynamics: Dynamics = Dynamics()
     line: int | None = None

@@ -60,7 +60,7 @@ _ENVIRONMENT_MODELS = ("model://ground_plane", "model://sun")
 class _SdfModel:
     """One <model> with a resolver for the poses of its links, joints and frames."""
 
-    def __init__(self, xml: XmlReader, el: etree._Element, version: tuple[int, int]):
+    def __init__(self, xml: XmlReader, el: etree._Element, version: tuple[int, int]) -> None:
         self.xml, self.el, self.version = xml, el, version
         self.links = self._named(el, "link")
         self.joints = self._named(el, "joint")
@@ -313,6 +313,8 @@ def _joint(sdf: _SdfModel, el: etree._Element, frames: dict[str, np.ndarray]) ->
     name = xml.attr(el, "name")
     sdf_type = xml.attr(el, "type")
     parent, child = xml.text(el, "parent"), xml.text(el, "child")
+    if not parent or not child:
+        raise xml.fail(el, f"joint '{name}' needs a <parent> and a <child>")
     axis_el = el.find("axis")
     limit = None
     dynamics = Dynamics()
@@ -359,7 +361,8 @@ def _mimic(xml: XmlReader, axis_el: etree._Element) -> Mimic | None:
     return Mimic(xml.attr(el, "joint"), multiplier, offset, el.sourceline)
 
 
-def _axis_in_joint_frame(sdf: _SdfModel, axis_el, xyz_el, axis: np.ndarray,
+def _axis_in_joint_frame(sdf: _SdfModel, axis_el: etree._Element, xyz_el: etree._Element,
+                         axis: np.ndarray,
                          joint_frame: np.ndarray) -> np.ndarray:
     """Rotate the SDF axis into the joint frame, whatever frame this SDF version wrote it in."""
     expressed_in = xyz_el.get("expressed_in")
@@ -387,7 +390,7 @@ def _plugins(sdf: _SdfModel, model: RobotModel) -> None:
 
 
 # ----- writing ---------------------------------------------------------------------------------
-def _sub(parent: etree._Element, tag: str, text: str | None = None, **attrs) -> etree._Element:
+def _sub(parent: etree._Element, tag: str, text: str | None = None, **attrs: str | None) -> etree._Element:
     el = etree.SubElement(parent, tag, attrs)
     if text is not None:
         el.text = text

@@ -11,6 +11,7 @@ would use. Existing robot packages need no mexone-specific markup.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 from lxml import etree
@@ -20,11 +21,13 @@ from mexone.description.xmlio import XmlReader
 
 __all__ = ["Noise", "CameraSpec", "SensorSpec", "SENSOR_TYPES", "MODEL_PLUGINS", "read_sensor",
            "read_model_plugin", "write_sensor", "write_model_plugin", "needs_sensor_element",
-           "merge_model_plugin", "add_sensor_type"]
+           "merge_model_plugin"]
 
-# the sensor types the reader accepts: the built-in ones, and every plug-in mexone.sensors
-# registers (mexone.sensors.register_sensor calls add_sensor_type)
-SENSOR_TYPES = ["imu", "force_torque", "contact", "camera", "depth"]
+# the types whose SDF elements the reader knows (<imu>, <camera>, <force_torque>, <contact>);
+# any other <sensor type="..."> is read with its common elements and kept: whether mexone
+# simulates it is the sensor plug-ins' registry's answer (mexone.sensors), asked when the model
+# is built, so what a file parses to never depends on what was imported
+SENSOR_TYPES = ("imu", "force_torque", "contact", "camera", "depth")
 MODEL_PLUGINS = ("libgazebo_ros_imu.so", "libgazebo_ros_ft_sensor.so")  # plugins of the model,
 # not of a <sensor>: they name their body or joint themselves
 IMU_CHANNELS = tuple(f"{group}/{axis}" for group in ("angular_velocity", "linear_acceleration")
@@ -74,7 +77,7 @@ class CameraSpec:
 @dataclass
 class SensorSpec:
     name: str
-    type: str  # one of SENSOR_TYPES
+    type: str  # SDF's <sensor type>: one of SENSOR_TYPES or a sensor plug-in's
     link: str | None = None  # the link it is fixed to (force_torque: the joint's child)
     joint: str | None = None  # force_torque: the joint it measures
     pose: Pose = Pose()  # in the link's frame (SDF <sensor><pose>)
@@ -92,12 +95,6 @@ class SensorSpec:
     collisions: tuple[str, ...] = ()  # contact: the collision elements it watches
     range: tuple[float, float] | None = None  # depth: the valid range (point cloud cutoffs)
     line: int | None = None
-
-
-def add_sensor_type(kind: str) -> None:
-    """Let the reader accept `<sensor type="kind">` (a sensor plug-in registered it)."""
-    if kind not in SENSOR_TYPES:
-        SENSOR_TYPES.append(kind)
 
 
 # ----- reading -------------------------------------------------------------------------------
@@ -226,11 +223,11 @@ def _apply_plugin(xml: XmlReader, spec: SensorSpec, plugin: etree._Element) -> S
 def read_sensor(xml: XmlReader, el: etree._Element, link: str | None = None,
                 joint: str | None = None) -> SensorSpec:
     """A ``<sensor>`` element (and its gazebo_ros ``<plugin>``), fixed to `link` or on `joint`."""
-    kind = el.get("type", "")
+    kind = el.get("type", "").strip()
     name = el.get("name") or f"{link or joint}_{kind}"
-    if kind not in SENSOR_TYPES:
-        raise xml.fail(el, f"sensor '{name}' has type '{kind}', which mexone does not simulate",
-                       "types: " + ", ".join(SENSOR_TYPES))
+    if not kind:
+        raise xml.fail(el, f"sensor '{name}' has no type", "types: " + ", ".join(SENSOR_TYPES)
+                       + " (and the sensor plug-ins')")
     if kind == "force_torque" and joint is None:
         raise xml.fail(el, f"force_torque sensor '{name}' is not on a joint",
                        'put it in <gazebo reference="JOINT">')
@@ -320,7 +317,7 @@ def _write_noise(parent: etree._Element, noise: Noise) -> None:
             _text(el, tag, format(value, ".12g"))
 
 
-def write_sensor(parent: etree._Element, spec: SensorSpec, fmt) -> etree._Element:
+def write_sensor(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> etree._Element:
     """The <sensor> element (with its plugin) a reader reads back to `spec`."""
     el = etree.SubElement(parent, "sensor", name=spec.name, type=spec.type)
     _text(el, "always_on", "true" if spec.always_on else "false")
@@ -358,7 +355,7 @@ def write_sensor(parent: etree._Element, spec: SensorSpec, fmt) -> etree._Elemen
     return el
 
 
-def write_model_plugin(parent: etree._Element, spec: SensorSpec, fmt) -> None:
+def write_model_plugin(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> None:
     """A model-level gazebo_ros plugin (IMU on a body, force-torque on a joint), under `parent`."""
     _write_plugin(parent, spec, fmt)
 
@@ -368,18 +365,19 @@ def needs_sensor_element(spec: SensorSpec) -> bool:
     return spec.plugin != "libgazebo_ros_imu.so"
 
 
-def _write_plugin(parent: etree._Element, spec: SensorSpec, fmt) -> None:
+def _write_plugin(parent: etree._Element, spec: SensorSpec, fmt: Callable[[float], str]) -> None:
     plugin = etree.SubElement(parent, "plugin", name=f"{spec.name}_plugin", filename=spec.plugin)
     if spec.namespace:
         _text(plugin, "robotNamespace", spec.namespace)
     if spec.topic:
-        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin, {}).items() if k == "main"),
-                     "topicName")
+        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin or "", {}).items()
+                      if k == "main"), "topicName")
         _text(plugin, param, spec.topic)
     for key, topic in spec.topics.items():
-        param = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin, {}).items() if k == key), None)
-        if param:
-            _text(plugin, param, topic)
+        keyed = next((p for p, k in _TOPIC_PARAMS.get(spec.plugin or "", {}).items() if k == key),
+                      None)
+        if keyed:
+            _text(plugin, keyed, topic)
     if spec.frame:
         _text(plugin, "frameName", spec.frame)
     if spec.joint and spec.plugin == "libgazebo_ros_ft_sensor.so":

@@ -6,12 +6,14 @@ half a second, and every CLI verb needs these few lines.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 __all__ = ["rpy_to_matrix", "matrix_to_rpy", "make_transform", "split_transform", "invert"]
 
 
-def rpy_to_matrix(rpy) -> np.ndarray:
+def rpy_to_matrix(rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     r, p, y = (float(v) for v in rpy)
     cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
     return np.array(
@@ -35,7 +37,7 @@ def matrix_to_rpy(rot: np.ndarray) -> np.ndarray:
     )
 
 
-def make_transform(xyz, rpy) -> np.ndarray:
+def make_transform(xyz: Sequence[float] | np.ndarray, rpy: Sequence[float] | np.ndarray) -> np.ndarray:
     out = np.eye(4)
     out[:3, :3] = rpy_to_matrix(rpy)
     out[:3, 3] = np.asarray(xyz, dtype=float)

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 from lxml import etree
 
@@ -89,14 +91,14 @@ def parse_urdf(xml: XmlReader, source: Path | None = None) -> RobotModel:
 
 def _named_colors(xml: XmlReader, root: etree._Element) -> dict[str, tuple[float, ...]]:
     """Robot-level <material name><color rgba/></material>: what visuals may name."""
-    out = {}
+    out: dict[str, tuple[float, ...]] = {}
     for el in root.iterfind("material"):
-        if (color := el.find("color")) is not None and el.get("name"):
-            out.setdefault(el.get("name"), xml.vector_attr(color, "rgba", count=4))
+        if (color := el.find("color")) is not None and (name := el.get("name")):
+            out.setdefault(name, xml.vector_attr(color, "rgba", count=4))
     return out
 
 
-def _keep_first(table: dict, item, kind: str, findings: list[Finding]) -> bool:
+def _keep_first(table: dict[str, Any], item: Any, kind: str, findings: list[Finding]) -> bool:
     """Add item unless its name is taken (reported); whether it was added."""
     if item.name in table:
         findings.append(Finding("duplicate-name", "error", f'{kind} "{item.name}"',
@@ -178,7 +180,7 @@ def _joint(xml: XmlReader, el: etree._Element) -> Joint:
         raise xml.fail(el, f"has unknown type '{jtype}'", "use one of " + ", ".join(JOINT_TYPES))
     parent = xml.attr(xml.child(el, "parent", required=True), "link")
     child = xml.attr(xml.child(el, "child", required=True), "link")
-    axis = (1.0, 0.0, 0.0)
+    axis: tuple[float, ...] = (1.0, 0.0, 0.0)
     axis_el = el.find("axis")
     if axis_el is not None:
         axis = xml.vector_attr(axis_el, "xyz", (1, 0, 0))
@@ -292,11 +294,11 @@ def fmt(value: float) -> str:
     return format(value, ".12g")
 
 
-def _vec(values) -> str:
+def _vec(values: Iterable[float]) -> str:
     return " ".join(fmt(v) for v in values)
 
 
-def _sub(parent: etree._Element, tag: str, text: str | None = None, **attrs) -> etree._Element:
+def _sub(parent: etree._Element, tag: str, text: str | None = None, **attrs: str | None) -> etree._Element:
     el = etree.SubElement(parent, tag, {k: v for k, v in attrs.items() if v is not None})
     if text is not None:
         el.text = text

@@ -15,7 +15,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from mexone.errors import InputError
+from mexone.errors import InputError, MexoneError
 
 __all__ = ["expand_xacro", "TIMEOUT_ENV", "DEFAULT_TIMEOUT"]
 
@@ -69,14 +69,15 @@ def expand_xacro(path: Path) -> bytes:
 
 # ----- the child ---------------------------------------------------------------------------------
 class _PackageNotFound(Exception):
-    def __init__(self, error):
+    def __init__(self, error: MexoneError) -> None:
         super().__init__(error.one_line())
         self.error = error
 
 
 def _root_cause(exc: BaseException) -> BaseException:
     """The first of our, memory or recursion errors that xacro wrapped (else exc itself)."""
-    cause, seen = exc, 0
+    cause: BaseException | None = exc
+    seen = 0
     while cause is not None and seen < 20:
         if isinstance(cause, _PackageNotFound | MemoryError | RecursionError):
             return cause

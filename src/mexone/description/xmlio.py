@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal, overload
 from xml.etree.ElementTree import ParseError
 
 import defusedxml.ElementTree as safe_et
@@ -38,7 +40,7 @@ def describe(el: etree._Element) -> str:
 class XmlReader:
     """Parses one file and turns its attributes and texts into checked values."""
 
-    def __init__(self, path: Path | str, data: bytes | None = None, label: str | None = None):
+    def __init__(self, path: Path | str, data: bytes | None = None, label: str | None = None) -> None:
         self.path = Path(path)
         self.label = label or str(path)
         if data is None:
@@ -97,7 +99,13 @@ class XmlReader:
             raise self.fail(el, f"is missing attribute '{name}'")
         return value
 
-    def child(self, el: etree._Element, tag: str, required: bool = False):
+    @overload
+    def child(self, el: etree._Element, tag: str, required: Literal[True]) -> etree._Element: ...
+    @overload
+    def child(self, el: etree._Element, tag: str, required: bool = False) -> etree._Element | None: ...
+
+    def child(self, el: etree._Element, tag: str, required: bool = False) -> etree._Element | None:
+        """Child <tag> of `el`; with `required`, a missing one is this file's error at el's line."""
         found = el.find(tag)
         if found is None and required:
             raise self.fail(el, f"is missing its <{tag}> element")
@@ -128,7 +136,8 @@ class XmlReader:
             return default
         return self.number(el, text, f"attribute '{name}'")
 
-    def vector_attr(self, el: etree._Element, name: str, default=None, count: int = 3):
+    def vector_attr(self, el: etree._Element, name: str, default: Sequence[float] | None = None,
+                    count: int = 3) -> tuple[float, ...]:
         text = el.get(name)
         if text is None:
             if default is None:

@@ -17,23 +17,34 @@ for create_statefbk_iosystem's controller, e = its inputs (xd, ud = r; x = S dx)
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, TypeAlias, TypeVar
 
 import control
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
-from mexone.design.deploy import StateFeedback, _Deployed
+from mexone.design.deploy import GainDesign, _Deployed
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+
+    from mexone.lab import Lab
+
+StateSpace: TypeAlias = Any  # control.StateSpace: python-control has no type information
+T = TypeVar("T")
 
 __all__ = ["compare", "Comparison", "plot_comparison", "measure_frequency_response",
            "FrequencyResponse", "plot_frequency_response", "closed_loop", "loop_gain", "margins"]
 
 
 # ----- the linear closed loop ----------------------------------------------------------------
-def _check(controller, plant) -> None:
+def _check(controller: object, plant: StateSpace) -> None:
     if not isinstance(controller, _Deployed):
         raise ArgumentTypeError("give the controller deploy() returned (a StateFeedback or "
                                 f"LinearController), not {type(controller).__name__}")
@@ -50,13 +61,13 @@ def _check(controller, plant) -> None:
         raise InputError("the plant's states are not those the controller was deployed with")
 
 
-def _parts(controller, plant):
+def _parts(controller: _Deployed, plant: StateSpace) -> tuple[np.ndarray, ...]:
     """(Ac, Bc, Cc, Dc, G, H, E): the controller's matrices, e = G dx + H r, u = E uc."""
     nx = plant.nstates
     labels = list(plant.state_labels)
     inputs = list(plant.input_labels)
     d = controller.design
-    if isinstance(controller, StateFeedback):
+    if isinstance(d, GainDesign):  # a StateFeedback's
         E = np.zeros((plant.ninputs, len(d.joints)))
         for j, joint in enumerate(d.joints):
             E[inputs.index(f"{joint}:{d.interface}"), j] = 1.0
@@ -83,7 +94,7 @@ def _parts(controller, plant):
     return d.A, d.B, d.C, d.D, G, H, E
 
 
-def closed_loop(controller, plant) -> control.StateSpace:
+def closed_loop(controller: _Deployed, plant: StateSpace) -> StateSpace:
     """The linear closed loop of a deployed controller on its plant: states [dx, xc], inputs the
     controller's references (`controller.reference`), outputs dx (the plant's states)."""
     _check(controller, plant)
@@ -100,7 +111,7 @@ def closed_loop(controller, plant) -> control.StateSpace:
                       outputs=list(plant.state_labels), name="closed loop")
 
 
-def loop_gain(controller, plant) -> control.StateSpace | None:
+def loop_gain(controller: _Deployed, plant: StateSpace) -> StateSpace | None:
     """The loop transfer L(z) broken at the plant's input (one input: a SISO loop, the
     negative-feedback convention: the closed loop is 1/(1 + L)); None for several inputs."""
     _check(controller, plant)
@@ -116,12 +127,12 @@ def loop_gain(controller, plant) -> control.StateSpace | None:
 
 
 # ----- running the robot ---------------------------------------------------------------------
-def _on_sim(lab, fn):
+def _on_sim(lab: Lab, fn: Callable[[], T]) -> T:
     sim = lab.sim
     return sim.work.call(fn) if sim.loop_elsewhere() else fn()
 
 
-def _check_limits(model, qpos: np.ndarray, dofs: np.ndarray) -> None:
+def _check_limits(model: mujoco.MjModel, qpos: np.ndarray, dofs: np.ndarray) -> None:
     """A deviation that puts a limited joint past its range is refused before the state is
     touched: the run would start inside a stop (or diverge), and the comparison mean nothing."""
     for dof in dofs:
@@ -138,12 +149,13 @@ def _check_limits(model, qpos: np.ndarray, dofs: np.ndarray) -> None:
                              hint="a deviation the linear model holds is small: a few hundredths")
 
 
-def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
+def _start(lab: Lab, controller: _Deployed, dx0: np.ndarray | None, duration: float) -> None:
     """Put the robot at the point + dx0 (the model's coordinates; the joints outside the model
     as they are) and clear the controller's state; it records `duration` s of updates."""
     sim, point = lab.sim, controller.design.point
+    assert point is not None  # _check: compare needs a controller deployed with its plant
 
-    def set_state():
+    def set_state() -> None:
         model, data = sim.model, sim.data
         if dx0 is not None:
             nv = point.qvel.size
@@ -153,9 +165,9 @@ def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
             v[point.qvel_index] = dx0[:nv]
             mujoco.mj_integratePos(model, qpos, v, 1.0)
             _check_limits(model, qpos, point.qvel_index[dx0[:nv] != 0])
-            data.qpos[:] = qpos
-            data.qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
-            mujoco.mj_forward(model, data)
+            qvel = data.qvel.copy()
+            qvel[point.qvel_index] = point.qvel + dx0[nv:2 * nv]
+            sim.set_state(qpos, qvel)
         controller.reset()
         controller.trace_full.clear()
         controller.trace_length = max(2, round(duration * controller.rate))
@@ -163,7 +175,7 @@ def _start(lab, controller, dx0: np.ndarray | None, duration: float) -> None:
     _on_sim(lab, set_state)
 
 
-def _run(lab, controller, duration: float) -> list:
+def _run(lab: Lab, controller: _Deployed, duration: float) -> list[Any]:
     """`duration` s of the controller's updates: simulated here, or, while another thread runs
     the loop (the page, a notebook's live lab), waited for as it runs them."""
     sim = lab.sim
@@ -179,7 +191,7 @@ def _run(lab, controller, duration: float) -> list:
     return trace
 
 
-def _vector(values, labels: list[str], what: str) -> np.ndarray:
+def _vector(values: Mapping[str, float] | ArrayLike | None, labels: list[str], what: str) -> np.ndarray:
     out = np.zeros(len(labels))
     if values is None:
         return out
@@ -221,7 +233,9 @@ class Comparison:
         return self.measured[:, i], self.predicted[:, i]
 
 
-def compare(lab, controller, plant, deviation=None, reference=None,
+def compare(lab: Lab, controller: _Deployed, plant: StateSpace,
+            deviation: Mapping[str, float] | ArrayLike | None = None,
+            reference: Mapping[str, float] | ArrayLike | None = None,
             duration: float = 1.0) -> Comparison:
     """Run the robot under `controller` (from deploy, on `plant`) from the point plus
     `deviation` (a mapping of state labels, e.g. {"l_elbow:q": 0.05}, or an nx vector), with
@@ -230,7 +244,8 @@ def compare(lab, controller, plant, deviation=None, reference=None,
     _check(controller, plant)
     labels = list(plant.state_labels)
     dx0 = _vector(deviation, labels, "deviation")
-    ref_labels = labels if isinstance(controller, StateFeedback) else list(controller.design.inputs)
+    design = controller.design
+    ref_labels = labels if isinstance(design, GainDesign) else list(design.inputs)
     r = _vector(reference, ref_labels, "reference")
     if not np.isfinite(duration) or duration <= 0:
         raise InputError(f"duration {duration} is not a positive number of seconds")
@@ -256,7 +271,8 @@ def compare(lab, controller, plant, deviation=None, reference=None,
                       relative, r)
 
 
-def plot_comparison(result: Comparison, labels: Sequence[str] | None = None, ax=None):
+def plot_comparison(result: Comparison, labels: Sequence[str] | None = None,
+                    ax: Axes | None = None) -> Figure | SubFigure:
     """The "model vs plant" figure: the chosen states (default: the positions that move most)
     measured (solid) and predicted (dashed); returns the matplotlib Figure."""
     import matplotlib.pyplot as plt
@@ -265,6 +281,7 @@ def plot_comparison(result: Comparison, labels: Sequence[str] | None = None, ax=
         npos = len(result.labels) // 2
         moved = np.abs(result.measured[:, :npos]).max(axis=0)
         labels = [result.labels[i] for i in np.argsort(moved)[::-1][:4]]
+    fig: Figure | SubFigure
     if ax is None:
         fig, ax = plt.subplots(figsize=(7, 4))
     else:
@@ -304,22 +321,27 @@ class FrequencyResponse:
 
     @property
     def measured_db(self) -> np.ndarray:
+        """The measured gain at each frequency, in dB."""
         return 20 * np.log10(np.abs(self.measured))
 
     @property
     def measured_phase(self) -> np.ndarray:
+        """The measured phase at each frequency, in degrees."""
         return np.degrees(np.angle(self.measured))
 
     @property
     def model_db(self) -> np.ndarray:
+        """The linear closed loop's gain at each frequency, in dB."""
         return 20 * np.log10(np.abs(self.model))
 
     @property
     def model_phase(self) -> np.ndarray:
+        """The linear closed loop's phase at each frequency, in degrees."""
         return np.degrees(np.angle(self.model))
 
 
-def measure_frequency_response(lab, controller, plant, signal: str, output: str | None = None,
+def measure_frequency_response(lab: Lab, controller: _Deployed, plant: StateSpace, signal: str,
+                               output: str | None = None,
                                frequencies: Sequence[float] = (1, 2, 3, 5, 8, 13),
                                amplitude: float = 0.01, settle: float = 0.5,
                                duration: float = 1.0) -> FrequencyResponse:
@@ -336,8 +358,8 @@ def measure_frequency_response(lab, controller, plant, signal: str, output: str 
     if freqs.max() >= nyquist:
         raise InputError(f"frequency {number_text(freqs.max())} Hz is not below the controller's "
                          f"Nyquist frequency {number_text(nyquist)} Hz")
-    ref_labels = list(plant.state_labels) if isinstance(controller, StateFeedback) \
-        else list(controller.design.inputs)
+    design = controller.design
+    ref_labels = list(plant.state_labels) if isinstance(design, GainDesign) else list(design.inputs)
     if signal not in ref_labels:
         raise InputError(f"signal {signal!r} is not one of the controller's references",
                          hint=", ".join(ref_labels[:8]))
@@ -416,7 +438,7 @@ def _bandwidth(siso: control.StateSpace) -> float:
     return float(f[below[0]]) if below.size else float(f[-1])
 
 
-def plot_frequency_response(result: FrequencyResponse, fig=None):
+def plot_frequency_response(result: FrequencyResponse, fig: Figure | None = None) -> Figure:
     """The model's Bode plot (lines) with the measured points (markers), the bandwidth and the
     loop's margins in the title; returns the matplotlib Figure."""
     import matplotlib.pyplot as plt

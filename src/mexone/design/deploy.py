@@ -29,21 +29,31 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, TypeAlias, cast
 
 import control
 import mujoco
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 
 from mexone.control.student import Param, PythonController
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.files import replacing
 from mexone.ranges import number_text
 
+if TYPE_CHECKING:
+    from mexone.control.resolve import Plugin
+    from mexone.control.spec import PidGains
+    from mexone.control.student import State
+    from mexone.lab import Lab
+
+StateSpace: TypeAlias = Any  # control.StateSpace: python-control has no type information
+
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
            "lqr", "METHODS", "GainDesign", "SystemDesign"]
 
+#: how a continuous controller is discretised (python-control's sample_system methods)
 METHODS = ("zoh", "foh", "tustin", "bilinear", "matched", "impulse", "euler", "backward_diff")
 _INTERFACES = ("effort", "position", "velocity")
 
@@ -112,7 +122,7 @@ def _shape(shape: tuple[int, ...]) -> str:
     return "(" + ", ".join(str(n) for n in shape) + ")"
 
 
-def _point_of(plant, who: str) -> tuple[_Point, Any]:
+def _point_of(plant: StateSpace, who: str) -> tuple[_Point, Any]:
     point = getattr(plant, "linearization", None)
     if point is None:
         raise _fail(f"{who}: the plant is not a StateSpace made by mexone.design.linearize "
@@ -153,25 +163,26 @@ def _finite(name: str, values: np.ndarray, who: str) -> None:
         raise _fail(f"{who}: {name} has a NaN or inf (at {tuple(int(i) for i in bad)})")
 
 
-def gain_design(K, plant, who: str = "deploy") -> GainDesign:
+def gain_design(K: ArrayLike, plant: StateSpace, who: str = "deploy") -> GainDesign:
     """K checked against the plant from linearize: (inputs x states), finite."""
     point, lin = _point_of(plant, who)
     try:
-        K = np.atleast_2d(np.asarray(K, dtype=float))
+        gains = np.atleast_2d(np.asarray(K, dtype=float))
     except (TypeError, ValueError):
         raise _fail(f"{who}: K is not a matrix of numbers") from None
     expected = (plant.ninputs, plant.nstates)
-    if K.shape != expected:
-        raise _fail(f"{who}: K has shape {_shape(K.shape)}; this plant needs {_shape(expected)} "
+    if gains.shape != expected:
+        raise _fail(f"{who}: K has shape {_shape(gains.shape)}; this plant needs {_shape(expected)} "
                     f"({plant.ninputs} inputs x {plant.nstates} states)",
                     hint="K from control.dlqr(plant, Q, R) or control.place(plant.A, plant.B, poles)")
-    _finite("K", K, who)
+    _finite("K", gains, who)
     joints, kind = _joints_of(plant.input_labels, who)
     dt = None if plant.dt in (0, None, True) else float(plant.dt)
-    return GainDesign(K, np.asarray(lin.u0, float), joints, kind, point, dt)
+    return GainDesign(gains, np.asarray(lin.u0, float), joints, kind, point, dt)
 
 
-def system_design(system, plant=None, rate: float | None = None, method: str = "zoh",
+def system_design(system: Any, plant: StateSpace | None = None, rate: float | None = None,
+                  method: str = "zoh",
                   u0: Sequence[float] | None = None, who: str = "deploy") -> SystemDesign:
     """A python-control controller checked and discretised at `rate` (Hz)."""
     if isinstance(system, tuple):  # create_statefbk_iosystem's (controller, closed loop)
@@ -232,16 +243,17 @@ def system_design(system, plant=None, rate: float | None = None, method: str = "
                            for s in inputs)
     joints, kind = _joints_of(system.output_labels, who)
     if u0 is None:
-        u0 = np.zeros(len(joints))
+        offsets = np.zeros(len(joints))
         if plant is not None:
             names = list(plant.input_labels)
             for i, label in enumerate(system.output_labels):
                 if label in names:
-                    u0[i] = lin.u0[names.index(label)]
-    u0 = np.asarray(u0, dtype=float).reshape(-1)
-    if u0.shape != (len(joints),):
-        raise _fail(f"{who}: u0 has {u0.size} values; the controller has {len(joints)} outputs")
-    _finite("u0", u0, who)
+                    offsets[i] = lin.u0[names.index(label)]
+    else:
+        offsets = np.asarray(u0, dtype=float).reshape(-1)
+    if offsets.shape != (len(joints),):
+        raise _fail(f"{who}: u0 has {offsets.size} values; the controller has {len(joints)} outputs")
+    _finite("u0", offsets, who)
     for label in inputs:
         if direct and label.startswith(("xd[", "ud[")):
             continue
@@ -255,10 +267,10 @@ def system_design(system, plant=None, rate: float | None = None, method: str = "
                         hint=f"name its inputs after {known}")
     return SystemDesign(np.asarray(system.A, float), np.asarray(system.B, float),
                         np.asarray(system.C, float), np.asarray(system.D, float), period, inputs,
-                        joints, kind, u0, point, direct)
+                        joints, kind, offsets, point, direct)
 
 
-def lqr(plant, Q, R):
+def lqr(plant: StateSpace, Q: ArrayLike, R: ArrayLike) -> Any:
     """`control.dlqr` (discrete plant) or `control.lqr`, with Q and R checked first: one line for
     a shape that does not fit, a NaN, a Q that is not positive semidefinite or an R that is not
     positive definite (singular). Returns K, S, E as python-control does."""
@@ -289,7 +301,7 @@ def lqr(plant, Q, R):
 
 
 # ----- files beside a YAML -----------------------------------------------------------------------
-def save_design(path: str | Path, K, plant) -> Path:
+def save_design(path: str | Path, K: ArrayLike, plant: StateSpace) -> Path:
     """Write K and the plant's operating point (what StateFeedback needs) to a .npz, for a YAML's
     `design:` entry. Nothing is overwritten without the caller removing it first."""
     design = gain_design(K, plant, "save_design")
@@ -304,7 +316,7 @@ def save_design(path: str | Path, K, plant) -> Path:
     return path
 
 
-def _save_npz(path: Path, design: GainDesign, p) -> None:
+def _save_npz(path: Path, design: GainDesign, p: _Point) -> None:
     np.savez(path, K=design.K, u0=design.u0, joints=np.array(design.joints),
              interface=design.interface, qpos=p.qpos, qvel=p.qvel, qpos_index=p.qpos_index,
              qvel_index=p.qvel_index, states=np.array(p.states), act=p.act,
@@ -370,6 +382,9 @@ class _Deployed(PythonController):
 
     design_file = Param("", doc="the design file next to the YAML (.npz or .yaml)")
     _given: ClassVar[Any] = None  # set on a per-deploy subclass by `deploy`
+    reference: np.ndarray  # r: the set point, in the design's reference signals (reset())
+    design: GainDesign | SystemDesign  # checked in configure()
+    _kinds: list[str]  # a LinearController's inputs: what feeds each ("x", "xd", "ud", ...)
 
     def configure(self) -> None:
         binding = self.__dict__["_mexone_binding"]
@@ -384,13 +399,13 @@ class _Deployed(PythonController):
             live = [int(model.actuator_actadr[model.actuator(n).id]) + int(o) for n, o in point.act_index]
             self.design = replace(self.design, point=replace(point, act_index=np.asarray(live, int)))
         self.excitation: Callable[[float], np.ndarray] | None = None
-        self.trace: list | None = None
+        self.trace: list[tuple[Any, ...]] | None = None
         self.trace_full = threading.Event()  # set when `trace` holds `trace_length` rows
         self.trace_length = 0
         self.reset()
 
     @classmethod
-    def check_entry(cls, name: str, joints: tuple[str, ...], plugin, timestep: float) -> None:
+    def check_entry(cls, name: str, joints: tuple[str, ...], plugin: Plugin, timestep: float) -> None:
         """`mexone check --controllers`: what configure() refuses, from the YAML alone (the same
         checks: a missing or unreadable design file, a rate that is not the design's, other
         joints), at the line of the YAML key it concerns."""
@@ -409,13 +424,13 @@ class _Deployed(PythonController):
 
     @classmethod
     def _checked_design(cls, name: str, joints: tuple[str, ...], design_file: str,
-                        yaml_dir: Path | None, rate: float):
+                        yaml_dir: Path | None, rate: float) -> GainDesign | SystemDesign:
         design = cls._design_of(name, design_file, yaml_dir)
         cls._check_design(name, joints, design, rate)
         return design
 
     @classmethod
-    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None):
+    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None) -> GainDesign | SystemDesign:
         """The design given from Python (deploy), else the YAML's design_file."""
         design = cls._given if cls._given is not None else cls._load(name, design_file, yaml_dir)
         if issubclass(cls, LinearController) and not isinstance(design, SystemDesign):
@@ -425,7 +440,8 @@ class _Deployed(PythonController):
         return design
 
     @classmethod
-    def _check_design(cls, name: str, joints: tuple[str, ...], design, rate: float) -> None:
+    def _check_design(cls, name: str, joints: tuple[str, ...], design: GainDesign | SystemDesign,
+                      rate: float) -> None:
         dt = getattr(design, "dt", None)
         if dt is not None and abs(dt * rate - 1.0) > 1e-6:
             raise InputError(f"controller '{name}': the design's period is {number_text(dt)} s "
@@ -436,7 +452,7 @@ class _Deployed(PythonController):
                              f"design's {list(design.joints)} (in that order)")
 
     @classmethod
-    def _load(cls, name: str, design_file: str, yaml_dir: Path | None):
+    def _load(cls, name: str, design_file: str, yaml_dir: Path | None) -> GainDesign:
         if not design_file:
             raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
                              "beside the YAML", hint="write one with mexone.design.save_design")
@@ -455,7 +471,7 @@ class _Deployed(PythonController):
     def reset(self) -> None:
         """Forget the controller's own state (a LinearController's x)."""
 
-    def _record(self, *row) -> None:
+    def _record(self, *row: Any) -> None:
         trace = self.trace
         if trace is not None:
             trace.append(row)
@@ -464,7 +480,9 @@ class _Deployed(PythonController):
 
     def deviation(self) -> np.ndarray:
         """The live state's deviation from the design's point (the model's x)."""
-        return self.design.point.deviation(self._sim.model, self._sim.data, self._scratch, self._dq)
+        point = self.design.point
+        assert point is not None, "a controller deployed without a plant has no point"
+        return point.deviation(self._sim.model, self._sim.data, self._scratch, self._dq)
 
 
 class StateFeedback(_Deployed):
@@ -473,11 +491,12 @@ class StateFeedback(_Deployed):
     YAML: `type: mexone/StateFeedback` with `design_file: gains.npz` (save_design)."""
 
     command_interface = "effort"
+    design: GainDesign
 
     def reset(self) -> None:
         self.reference = np.zeros(self.design.K.shape[1])
 
-    def update(self, state, t: float, dt: float):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray:
         dx = self.deviation()
         r = self.reference if self.excitation is None else self.reference + self.excitation(t)
         u = self.design.u0 - self.design.K @ (dx - r)
@@ -492,6 +511,7 @@ class LinearController(_Deployed):
     not a file)."""
 
     command_interface = "effort"
+    design: SystemDesign
 
     def configure(self) -> None:
         super().configure()
@@ -524,7 +544,7 @@ class LinearController(_Deployed):
         data = self._sim.data
         y = np.zeros(len(self._rows))
         for i, (row, kind) in enumerate(zip(self._rows, self._kinds, strict=True)):
-            if kind == "x":
+            if kind == "x" and dx is not None:
                 y[i] = dx[row]
             elif kind == "q":
                 y[i] = data.qpos[row]
@@ -532,7 +552,7 @@ class LinearController(_Deployed):
                 y[i] = data.qvel[row]
         return y, dx
 
-    def update(self, state, t: float, dt: float):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray:
         d = self.design
         y, dx = self.measured()
         r = self.reference if self.excitation is None else self.reference + self.excitation(t)
@@ -544,7 +564,8 @@ class LinearController(_Deployed):
 
 
 # ----- from Python -------------------------------------------------------------------------------
-def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None = None,
+def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str = "design",
+           rate: float | None = None,
            method: str = "zoh", u0: Sequence[float] | None = None,
            reference: Mapping[str, float] | None = None) -> StateFeedback | LinearController:
     """Run a design in the lab's loop and return the running controller (its `reference`,
@@ -557,10 +578,11 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
     design's 1/dt, else every physics step). The controllers driving the design's joints are
     stopped; a controller called `name` already loaded is replaced."""
     sim = getattr(lab, "sim", None)
-    manager = getattr(lab, "controllers", None)
+    manager = getattr(lab, "manager", None)
     if sim is None or manager is None:
         raise ArgumentTypeError("deploy takes a mexone Lab with controllers "
                                 "(Lab.create(controllers=...))")
+    built: GainDesign | SystemDesign
     if isinstance(design, control.InputOutputSystem | tuple):
         built = system_design(design, plant, rate, method, u0)
         cls: type[_Deployed] = LinearController
@@ -575,7 +597,8 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
         if rate is None and built.dt is not None:
             rate = 1.0 / built.dt
     rate = rate if rate is not None else 1.0 / built.dt if isinstance(built, SystemDesign) else None
-    if isinstance(built, GainDesign) and built.dt is not None and abs(built.dt * rate - 1) > 1e-6:
+    if isinstance(built, GainDesign) and built.dt is not None and rate is not None \
+            and abs(built.dt * rate - 1) > 1e-6:
         raise _fail(f"deploy: K was designed for a period of {number_text(built.dt)} s; rate "
                     f"{number_text(rate)} Hz runs it at {number_text(1.0 / rate)} s",
                     hint=f"rate={number_text(1.0 / built.dt)}, or linearize at period=1/rate")
@@ -599,7 +622,7 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
                     {"design_file": ""}, update_rate=rate)
     spec = ControllerSpec(name, plugin.type, tuple(built.joints), plugin=plugin)
 
-    def install():
+    def install() -> _Deployed:
         old = manager.controllers.get(name)
         if old is not None:
             if old.running:
@@ -610,11 +633,12 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
             raise _fail(f"deploy: the design drives joint {missing[0]!r}, which the robot does not have")
         busy = sorted({c.name for c in manager.controllers.values()
                        if c.running and c.name != name and set(c.joints) & set(built.joints)})
-        gains = None
+        gains: dict[str, PidGains] | None = None
         if built.interface != "effort":  # the model closed the joints' PIDs as set: keep them
             drivers = {j: c for c in manager.controllers.values() if c.name in busy for j in c.joints}
-            gains = {j: drivers[j].pid_for(j) if j in drivers else None for j in built.joints}
-            missing = [j for j, g in gains.items() if g is None]
+            found = {j: drivers[j].pid_for(j) if j in drivers else None for j in built.joints}
+            gains = {j: g for j, g in found.items() if g is not None}
+            missing = [j for j in found if j not in gains]
             if missing:
                 raise _fail(f"deploy: a {built.interface} design runs through the joints' PIDs, "
                             f"and no running controller gives {missing[0]!r} its gains",
@@ -627,4 +651,4 @@ def deploy(lab, design, plant=None, *, name: str = "design", rate: float | None 
 
     impl = sim.work.call(install) if sim.loop_elsewhere() else install()
     impl.reference[:] = r
-    return impl
+    return cast(StateFeedback | LinearController, impl)

@@ -36,13 +36,16 @@ from __future__ import annotations
 import copy
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import control
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.control.hardware import (
     INTEGRAL_SUFFIX,
+    ControlLayout,
     clear_integrals,
     copy_actuator_state,
     set_hold_controls,
@@ -56,7 +59,9 @@ from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
 
+#: what linearize's inputs may be: the joints' effort, position or velocity commands, or MuJoCo's ctrl
 INPUT_KINDS = ("effort", "position", "velocity", "ctrl")
+#: what operating_point may stand the robot on: both feet, one, or nothing (the base held)
 SUPPORTS = ("both", "left", "right", "fixed")
 _FEET = {"both": ("l_foot", "r_foot"), "left": ("l_foot",), "right": ("r_foot",), "fixed": ()}
 _BASE = "base"
@@ -75,11 +80,11 @@ class _Plant:
     root_joint: str | None = None  # the robot's free joint
     spec: mujoco.MjSpec | None = None
     feet: tuple[str, ...] = ()
-    qpos_index: np.ndarray | None = None  # this model's qpos entries in the source's qpos
-    qvel_index: np.ndarray | None = None
+    qpos_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # its qpos in the source's
+    qvel_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
 
-def _take(source, data: mujoco.MjData | None, who: str = "linearize") -> _Plant:
+def _take(source: Any, data: mujoco.MjData | None, who: str = "linearize") -> _Plant:
     """A copy of the source's model (its gains as set now) and state, taken in the simulation
     thread when a loop runs in another one."""
     if isinstance(source, mujoco.MjModel):
@@ -107,15 +112,16 @@ def _take(source, data: mujoco.MjData | None, who: str = "linearize") -> _Plant:
     return sim.work.call(take)
 
 
-def _copy_plant(model, data, joints, root, spec, feet) -> _Plant:
-    model = copy.copy(model)
+def _copy_plant(source: mujoco.MjModel, data: mujoco.MjData, joints: list[str], root: str | None,
+                spec: mujoco.MjSpec | None, feet: tuple[str, ...]) -> _Plant:
+    model = copy.copy(source)
     copied = mujoco.MjData(model)
     mujoco.mj_copyData(copied, model, data)
     return _Plant(model, copied, joints, root, spec, feet,
                   np.arange(model.nq), np.arange(model.nv))
 
 
-def _actuator(model, name: str) -> int:
+def _actuator(model: mujoco.MjModel, name: str) -> int:
     return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
 
 
@@ -140,7 +146,7 @@ class OperatingPoint:
         return float(self.efforts[self.joints.index(joint)])
 
 
-def operating_point(source, pose: Mapping[str, float] | None = None, support: str = "both",
+def operating_point(source: Any, pose: Mapping[str, float] | None = None, support: str = "both",
                     data: mujoco.MjData | None = None) -> OperatingPoint:
     """The joint torques that hold `pose` (joint -> angle; the others as now) still on its
     support, by inverse dynamics through the contacts (MuJoCo's LQR tutorial: mj_inverse at zero
@@ -201,7 +207,7 @@ def operating_point(source, pose: Mapping[str, float] | None = None, support: st
                           contacts=contacts)
 
 
-def _joint_names(model) -> list[str]:
+def _joint_names(model: mujoco.MjModel) -> list[str]:
     return [model.joint(i).name for i in range(model.njnt)]
 
 
@@ -265,28 +271,28 @@ class Linearization:
     qvel_index: np.ndarray
     names: tuple[str, ...] = field(default=())
 
-    def dx(self, qpos, qvel, act=None) -> np.ndarray:
+    def dx(self, qpos: ArrayLike, qvel: ArrayLike, act: ArrayLike | None = None) -> np.ndarray:
         """The state deviation x - x0 of a measured state: `qpos`, `qvel` (and `act`) of the
         simulation as read (full length; a reduced model picks its entries)."""
-        qpos = np.asarray(qpos, dtype=float).reshape(-1)
-        qvel = np.asarray(qvel, dtype=float).reshape(-1)
-        if qpos.size > self.qpos.size:
-            qpos = qpos[self.qpos_index]
-        if qvel.size > self.qvel.size:
-            qvel = qvel[self.qvel_index]
-        if qpos.shape != self.qpos.shape or qvel.shape != self.qvel.shape:
-            raise InputError(f"state has {qpos.size} positions and {qvel.size} velocities; the model "
+        q = np.asarray(qpos, dtype=float).reshape(-1)
+        v = np.asarray(qvel, dtype=float).reshape(-1)
+        if q.size > self.qpos.size:
+            q = q[self.qpos_index]
+        if v.size > self.qvel.size:
+            v = v[self.qvel_index]
+        if q.shape != self.qpos.shape or v.shape != self.qvel.shape:
+            raise InputError(f"state has {q.size} positions and {v.size} velocities; the model "
                              f"needs nq = {self.qpos.size}, nv = {self.qvel.size}")
         dq = np.zeros(self.qvel.size)
-        mujoco.mj_differentiatePos(self.model, dq, 1.0, self.qpos, qpos)
-        out = [dq, qvel - self.qvel]
+        mujoco.mj_differentiatePos(self.model, dq, 1.0, self.qpos, q)
+        out = [dq, v - self.qvel]
         if self.act_rows.size:
-            act = self.act if act is None else np.asarray(act, dtype=float).reshape(-1)
-            out.append(act[self.act_rows] - self.act[self.act_rows])
+            a = self.act if act is None else np.asarray(act, dtype=float).reshape(-1)
+            out.append(a[self.act_rows] - self.act[self.act_rows])
         return np.concatenate(out)
 
 
-def state_deviation(sys: control.StateSpace, qpos, qvel, act=None) -> np.ndarray:
+def state_deviation(sys: Any, qpos: ArrayLike, qvel: ArrayLike, act: ArrayLike | None = None) -> np.ndarray:
     """x - x0 for a StateSpace from `linearize`: the measured state in its coordinates."""
     point = getattr(sys, "linearization", None)
     if point is None:
@@ -294,19 +300,19 @@ def state_deviation(sys: control.StateSpace, qpos, qvel, act=None) -> np.ndarray
     for name, values, own, index in (("qpos", qpos, point.qpos, point.qpos_index),
                                      ("qvel", qvel, point.qvel, point.qvel_index)):
         try:
-            values = np.asarray(values, dtype=float).reshape(-1)
+            numbers = np.asarray(values, dtype=float).reshape(-1)
         except (TypeError, ValueError):
             raise InputError(f"state_deviation: {name} is not a list of numbers") from None
         full = int(index.max()) + 1 if index.size else 0
-        if values.size != own.size and values.size < full:  # neither the model's nor the robot's
-            raise InputError(f"state_deviation: {name} has {values.size} values; give the "
+        if numbers.size != own.size and numbers.size < full:  # neither the model's nor the robot's
+            raise InputError(f"state_deviation: {name} has {numbers.size} values; give the "
                              f"simulation's whole {name} or the model's {own.size}")
-        if not np.all(np.isfinite(values)):
+        if not np.all(np.isfinite(numbers)):
             raise InputError(f"state_deviation: {name} has a NaN or inf")
     return point.dx(qpos, qvel, act)
 
 
-def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoint | None = None,
+def linearize(source: Any, data: mujoco.MjData | None = None, *, point: OperatingPoint | None = None,
               inputs: str = "effort", joints: Sequence[str] | None = None, held: str = "controllers",
               fixed_base: bool = False, outputs: Iterable[str] | None = None,
               period: float | None = None, joint_friction: bool = False,
@@ -374,7 +380,8 @@ def linearize(source, data: mujoco.MjData | None = None, *, point: OperatingPoin
     u_map, input_names, u0 = _input_map(plant, chosen, inputs)
     b = b @ u_map
     state_names = _state_names(plant)
-    c_all, d_all, output_names = np.zeros((0, nx)), np.zeros((0, b.shape[1])), []
+    output_names: list[str] = []
+    c_all, d_all = np.zeros((0, nx)), np.zeros((0, b.shape[1]))
     if output_list is not None:
         c_all, d_all, output_names = _outputs(model, d, output_list, c, dd @ u_map)
     keep = _kept_states(model, a, c_all)
@@ -530,10 +537,10 @@ def _kept_states(model: mujoco.MjModel, a: np.ndarray, c: np.ndarray) -> list[in
     return keep
 
 
-def _input_map(plant: _Plant, joints: list[str], kind: str):
+def _input_map(plant: _Plant, joints: list[str], interface: str) -> tuple[np.ndarray, list[str], np.ndarray]:
     """(nu x m) ctrl per input, the inputs' names, and their values at the point."""
     model, d = plant.model, plant.data
-    if kind == "ctrl":
+    if interface == "ctrl":
         names = []
         for i in range(model.nactuator):
             n = int(model.actuator_ctrlnum[i])
@@ -545,22 +552,22 @@ def _input_map(plant: _Plant, joints: list[str], kind: str):
         return np.eye(model.nu), names, d.ctrl.copy()
     u_map = np.zeros((model.nu, len(joints)))
     u0 = np.zeros(len(joints))
-    for col, joint in enumerate(joints):
-        motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
-        gear = model.actuator_gear[motor, 0]
-        adr = model.actuator_ctrladr[motor]
-        if kind == "effort":
-            u_map[adr + 2, col] = 1.0 / gear
-            u0[col] = d.ctrl[adr + 2] * gear
-        elif kind == "velocity":
-            u_map[adr + 1, col] = gear
-            u0[col] = d.ctrl[adr + 1] / gear
+    layout = ControlLayout.of_actuators(
+        model, [_actuator(model, j) for j in joints],
+        [_actuator(model, j + INTEGRAL_SUFFIX) for j in joints])
+    for col, gear in enumerate(layout.gear):  # each interface's ctrl input, as the hardware writes it
+        if interface == "effort":
+            u_map[layout.ff[col], col] = 1.0 / gear
+            u0[col] = d.ctrl[layout.ff[col]] * gear
+        elif interface == "velocity":
+            u_map[layout.v_ref[col], col] = gear
+            u0[col] = d.ctrl[layout.v_ref[col]] / gear
         else:
-            u_map[adr, col] = gear
-            if integral >= 0:
-                u_map[model.actuator_ctrladr[integral], col] = 1.0
-            u0[col] = d.ctrl[adr] / gear
-    return u_map, [f"{_signal(j)}:{kind}" for j in joints], u0
+            u_map[layout.q_ref[col], col] = gear
+            if layout.i_ref[col] >= 0:
+                u_map[layout.i_ref[col], col] = 1.0
+            u0[col] = d.ctrl[layout.q_ref[col]] / gear
+    return u_map, [f"{_signal(j)}:{interface}" for j in joints], u0
 
 
 # ----- reduced models ----------------------------------------------------------------------------
@@ -595,7 +602,8 @@ def _welded(plant: _Plant, joints: list[str], fixed_base: bool) -> _Plant:
     _copy_settings(model, reduced)
     data = mujoco.MjData(reduced)
     mujoco.mj_setConst(reduced, data)  # what the compiler derives from the poses (invweight0...)
-    qpos_index, qvel_index = [], []
+    qpos_index: list[int] = []
+    qvel_index: list[int] = []
     for j in range(reduced.njnt):
         old = model.joint(reduced.joint(j).name).id
         width_q = {_FREE: 7, _BALL: 4}.get(int(reduced.jnt_type[j]), 1)
@@ -608,7 +616,7 @@ def _welded(plant: _Plant, joints: list[str], fixed_base: bool) -> _Plant:
     mujoco.mj_forward(reduced, data)
     joints_left = [j for j in plant.joints if j not in gone]
     return _Plant(reduced, data, joints_left, None if fixed_base else plant.root_joint, None,
-                  plant.feet, np.asarray(plant.qpos_index)[qpos_index],
+                  plant.feet, plant.qpos_index[qpos_index],
                   np.asarray(plant.qvel_index)[qvel_index])
 
 

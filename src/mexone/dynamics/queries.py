@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.ranges import number_text
@@ -52,7 +53,7 @@ class Dynamics:
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData,
                  links: Mapping[str, int] | None = None,
-                 robot_bodies: Iterable[int] | None = None, *, copy: bool = True):
+                 robot_bodies: Iterable[int] | None = None, *, copy: bool = True) -> None:
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise ArgumentTypeError("Dynamics(model, data) takes a mujoco.MjModel and a mujoco.MjData")
         self.model = model
@@ -75,7 +76,7 @@ class Dynamics:
 
     # ----- state ---------------------------------------------------------------------------------
     @classmethod
-    def snapshot(cls, lab, timeout: float = 10.0) -> Dynamics:
+    def snapshot(cls, lab: Any, timeout: float = 10.0) -> Dynamics:
         """A `Dynamics` of a Lab's (or a Simulation's) robot at its current state, for routines
         and notebooks: the state is copied in the simulation thread (through `sim.work`) when a
         loop runs in another thread, so it is consistent. Its `refresh()` changes nothing."""
@@ -210,7 +211,7 @@ class Dynamics:
         self._stage = 1  # mj_inverse recomputed the same kinematics; the velocity stage to redo
         return d.qfrc_inverse.copy()
 
-    def _vector(self, value, what: str) -> np.ndarray:
+    def _vector(self, value: ArrayLike, what: str) -> np.ndarray:
         out = _floats(value, what)
         if out.shape != (self.model.nv,):
             raise InputError(f"{what} has {out.size} values; the model has nv = {self.model.nv}")
@@ -226,7 +227,7 @@ class Dynamics:
                              hint="frames: " + ", ".join(sorted(self._frames)))
         return found
 
-    def _body_and_point(self, frame: str, point) -> tuple[int, np.ndarray]:
+    def _body_and_point(self, frame: str, point: ArrayLike | None) -> tuple[int, np.ndarray]:
         kind, index = self._frame(frame)
         d = self._positions()
         if kind == _SITE:
@@ -249,7 +250,7 @@ class Dynamics:
             return d.site_xpos[index].copy(), d.site_xmat[index].reshape(3, 3).copy()
         return d.xpos[index].copy(), d.xmat[index].reshape(3, 3).copy()
 
-    def jacobian(self, frame: str, point=None) -> np.ndarray:
+    def jacobian(self, frame: str, point: ArrayLike | None = None) -> np.ndarray:
         """(6, nv): rows linear velocity (3) then angular velocity (3), world frame, of the
         frame's origin or of `point` (a world point moving with the frame)."""
         body, p = self._body_and_point(frame, point)
@@ -257,7 +258,7 @@ class Dynamics:
         mujoco.mj_jac(self.model, self._data, jac[:3], jac[3:], p, body)
         return jac
 
-    def jacobian_dot_qdot(self, frame: str, point=None) -> np.ndarray:
+    def jacobian_dot_qdot(self, frame: str, point: ArrayLike | None = None) -> np.ndarray:
         """(6,): J̇ dq, the acceleration of the frame's origin (or point) and of its angular
         velocity at zero qacc: a = J qacc + J̇ dq."""
         body, p = self._body_and_point(frame, point)
@@ -307,7 +308,7 @@ class Dynamics:
         out[3:] = d.subtree_angmom[self._roots].sum(axis=0) + np.cross(offsets, momenta).sum(axis=0)
         return out
 
-def _shown(name) -> str:
+def _shown(name: object) -> str:
     """A name for a one-line message: quoted, control characters escaped."""
     if isinstance(name, str):
         text = name
@@ -316,7 +317,7 @@ def _shown(name) -> str:
     return "'" + text.encode("unicode_escape").decode("ascii")[:80] + "'"
 
 
-def _floats(value, what: str) -> np.ndarray:
+def _floats(value: ArrayLike, what: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):

@@ -63,14 +63,17 @@ class Exercise:
 
     @property
     def statement(self) -> Path:
+        """The exercise's statement (Markdown) in its folder."""
         return self.folder / "statement.md"
 
     @property
     def starter(self) -> Path:
+        """The starter file a student edits, in the exercise's folder."""
         return self.folder / "starter" / self.file
 
     @property
     def solution(self) -> Path:
+        """The reference solution's file (the teacher's), in the exercise's folder."""
         return self.folder / "solution" / self.file
 
     def grader(self) -> ModuleType:

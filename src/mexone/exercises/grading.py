@@ -71,6 +71,7 @@ class Check:
     @classmethod
     def at_least(cls, name: str, value: float | None, limit: float, unit: str = "",
                  weight: float = 1.0, requires: str | None = None) -> Check:
+        """Pass if `value` is at least `limit` (finite), saying both (with `unit`)."""
         ok = value is not None and np.isfinite(value) and value >= limit
         shown = "none" if value is None else f"{value:.4g}{unit}"
         return cls(name, 1.0 if ok else 0.0, weight, f"{shown} (at least {limit:g}{unit})",
@@ -79,10 +80,12 @@ class Check:
     @classmethod
     def true(cls, name: str, ok: bool, output: str = "", weight: float = 1.0,
              requires: str | None = None) -> Check:
+        """Pass if `ok`, saying `output`."""
         return cls(name, 1.0 if ok else 0.0, weight, output, requires=requires)
 
     @property
     def passed(self) -> bool:
+        """Whether the check passed."""
         return self.fraction >= 1.0
 
 
@@ -181,6 +184,7 @@ class GradeContext:
         return folder
 
     def cleanup(self) -> None:
+        """Remove the grading's scratch folder."""
         if self._scratch is not None:
             shutil.rmtree(self._scratch, ignore_errors=True)
             self._scratch = None
@@ -229,10 +233,12 @@ class Result:
 
     @property
     def max_score(self) -> float:
+        """The points the checks are worth together."""
         return self.exercise.points
 
     @property
     def passed(self) -> bool:
+        """Whether the score reaches the exercise's pass mark."""
         return self.score >= self.exercise.pass_mark
 
     @property

@@ -11,8 +11,8 @@ import numpy as np
 
 from mexone.errors import MexoneError, RoutineError
 from mexone.lab import Lab
+from mexone.physics.divergence import DivergenceError
 from mexone.physics.monitor import has_fallen
-from mexone.physics.watchdog import DivergenceError
 
 __all__ = ["Variation", "simulate", "Run"]
 
@@ -84,9 +84,9 @@ def simulate(duration: float, routine: str | Path | None = None,
     rows: list[tuple] = []
     names: list[str] = []
     ctrls: list = []
-    if lab.controllers is not None:  # the joints TrackingRecorder follows
-        ctrls = [c for c in lab.controllers.controllers.values()
-                 if c.running and c.kind in ("position", "trajectory")]
+    if lab.manager is not None:  # the joints TrackingRecorder follows
+        ctrls = [c for c in lab.manager.controllers.values()
+                 if c.running and c.tracks_position]
         names = [j for c in ctrls for j in c.joints]
     fell: list[float] = []
 

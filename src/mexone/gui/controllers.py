@@ -9,11 +9,6 @@ action runs in the simulation thread (`do`); a refusal is one line on the page.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
-import viser
-
-from mexone.control.controllers.python import PythonRunner
 from mexone.errors import InputError
 from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
@@ -25,10 +20,10 @@ __all__ = ["ControllersPanel", "controllers_table"]
 def controllers_table(lab: Lab) -> str:
     """The panel's list (Markdown, one line per controller, the students' first): name, state,
     type, update rate, time per update; and why a stopped Python controller stopped."""
-    manager = lab.controllers
+    manager = lab.manager
     if manager is None:
         return lab.no_controllers or "no controllers"
-    infos = sorted(manager.list(), key=lambda i: i.update_rate is None)  # stable: YAML order
+    infos = sorted(manager.list_controllers(), key=lambda i: i.update_rate is None)  # stable: YAML order
     rows = []
     for info in infos:
         state = "**fault**" if info.fault else info.state
@@ -51,32 +46,21 @@ class ControllersPanel(Panel):
     parameters (a plug-in panel: gui/panels.py)."""
 
     name = "controllers"
-    order = 10
+    order = 11
     period = 30
-
-    @property
-    def lab(self) -> Lab:
-        return self.app.lab  # the robot loaded now (Load replaces it)
-
-    @property
-    def server(self) -> viser.ViserServer:
-        return self.app.server
-
-    def do(self, action: Callable[[], None]) -> None:
-        self.app.do(action)
 
     def build(self) -> None:
         self.fields: dict[tuple[str, str], object] = {}
         gui = self.server.gui
         lab = self.lab
         self.folder = gui.add_folder("Controllers", expand_by_default=False)
-        manager = lab.controllers
+        manager = lab.manager
         with self.folder:
             self.table = gui.add_markdown(controllers_table(lab))
             if manager is None:
                 return
             names = list(manager.controllers) or ["(none)"]
-            python = [n for n, c in manager.controllers.items() if isinstance(c, PythonRunner)]
+            python = [n for n, c in manager.controllers.items() if c.reloadable]
             self.pick = gui.add_dropdown("Controller", names, initial_value=(python or names)[0])
             self.start_button = gui.add_button("Start", hint="switch_controller: start it")
             self.stop_button = gui.add_button("Stop", hint="switch_controller: stop it")
@@ -91,8 +75,8 @@ class ControllersPanel(Panel):
 
     # ----- parameters ---------------------------------------------------------------------------
     def _add_params(self, name: str) -> None:
-        ctrl = self.lab.controllers.controllers[name]
-        declared = ctrl.plugin.cls.declared_params()
+        ctrl = self.lab.manager.controllers[name]
+        declared = ctrl.declared_params()
         if not declared:
             return
         gui = self.server.gui
@@ -116,10 +100,10 @@ class ControllersPanel(Panel):
 
     def set_param(self, name: str, key: str, text) -> None:
         """Simulation thread: a field's new text, parsed and checked as the YAML's value."""
-        ctrl = self.lab.controllers.controllers.get(name)
-        if not isinstance(ctrl, PythonRunner):
+        ctrl = self.lab.manager.controllers.get(name)
+        if ctrl is None or not ctrl.reloadable:
             raise InputError(f"controller '{name}' is gone", hint="it was unloaded")
-        param = ctrl.plugin.cls.declared_params().get(key)
+        param = ctrl.declared_params().get(key)
         value = text
         try:
             if param is not None and param.numeric and isinstance(text, str):
@@ -128,15 +112,15 @@ class ControllersPanel(Panel):
                 except ValueError:
                     raise InputError(f"controller '{name}': {key} '{text[:30]}' is not a number",
                                      hint=param.describe()) from None
-            self.lab.controllers.set_param(name, key, value)
+            self.lab.manager.set_param(name, key, value)
         except InputError:
             self.show_param(name, key)
             raise
 
     def show_param(self, name: str, key: str) -> None:
         handle = self.fields.get((name, key))
-        ctrl = self.lab.controllers.controllers.get(name)
-        if handle is None or not isinstance(ctrl, PythonRunner):
+        ctrl = self.lab.manager.controllers.get(name)
+        if handle is None or ctrl is None or not ctrl.reloadable:
             return
         value = ctrl.params.get(key)
         handle.value = value if isinstance(value, bool) else (
@@ -145,13 +129,13 @@ class ControllersPanel(Panel):
     # ----- switch and reload --------------------------------------------------------------------
     def picked(self) -> str:
         name = str(self.pick.value)
-        if name not in self.lab.controllers.controllers:
+        if name not in self.lab.manager.controllers:
             raise InputError(f"no controller '{name}' is loaded")
         return name
 
     def switch(self, start: bool) -> None:
         name = self.picked()
-        manager = self.lab.controllers
+        manager = self.lab.manager
         if start:
             manager.switch(start=[name])
         else:
@@ -160,8 +144,8 @@ class ControllersPanel(Panel):
 
     def reload(self) -> None:
         name = self.picked()
-        self.lab.controllers.reload(name)
-        for key in self.lab.controllers.controllers[name].params:
+        self.lab.manager.reload(name)
+        for key in self.lab.manager.controllers[name].params:
             self.show_param(name, key)
         self.update()
         self.server_notify(f"{name} reloaded")

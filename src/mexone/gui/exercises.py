@@ -287,9 +287,9 @@ class ExercisesPanel(Panel):
     order = 0
     period = 5
 
-    def __init__(self, app):
-        super().__init__(app)
-        self.started: ExerciseTarget = app.exercise  # what --exercise named
+    def __init__(self, host):
+        super().__init__(host)
+        self.started: ExerciseTarget = host.settings.exercise  # what --exercise named
         self.cwd = Path.cwd()  # where `mexone exercise start NAME` puts ./NAME
         self.target = self.started
         self._offer_routine()
@@ -305,12 +305,12 @@ class ExercisesPanel(Panel):
         self._scratch: Path | None = None  # the live controller's YAML and file copy
 
     @classmethod
-    def wanted(cls, app) -> bool:
-        return getattr(app, "exercise", None) is not None
+    def wanted(cls, host) -> bool:
+        return host.settings.exercise is not None
 
     def _offer_routine(self) -> None:
         """A started routine exercise's file in the Routines panel's list (to Start by hand)."""
-        routines = self.app.extra_routines
+        routines = self.host.extra_routines
         for key in [k for k in routines if k.startswith("exercise: ")]:
             del routines[key]
         if self.target.folder is not None and self.target.live == "routine":
@@ -351,7 +351,10 @@ class ExercisesPanel(Panel):
             open_exercise(choice, cwd=self.cwd)
         self.outcome = None
         self._offer_routine()
-        self.app.refresh_routines()
+        routines = self.host.panel("routines")
+        if routines is not None:
+            routines.refresh()
+        self._order = self.folder.order  # rebuilt where it was
         self.folder.remove()
         self.build()
 
@@ -369,9 +372,8 @@ class ExercisesPanel(Panel):
         return found
 
     def build(self) -> None:
-        ex, gui = self.target.exercise, self.app.server.gui
-        status = getattr(self.app, "_status", None)
-        order = None if status is None else status.order + 0.5  # first, under the status line
+        ex, gui = self.target.exercise, self.server.gui
+        order, self._order = getattr(self, "_order", None), None  # first (order 0) unless rebuilt
         self.folder = gui.add_folder("Exercises", order=order)
         folder = self.target.folder
         with self.folder:
@@ -379,7 +381,7 @@ class ExercisesPanel(Panel):
             self.pick = gui.add_dropdown("Exercise", labels, initial_value=self._label(),
                                          hint="the one mexone sim --exercise named, and the "
                                               "course's (./NAME if you started it there)")
-            self.pick.on_update(lambda e: e.client is not None and self.app.do(
+            self.pick.on_update(lambda e: e.client is not None and self.host.do(
                 lambda v=e.target.value: self.choose(v)))
             gui.add_markdown(f"### {ex.number or ''}{'. ' if ex.number else ''}{ex.title}\n"
                              f"hand in **{ex.file}** ({ex.submission}): {ex.points:g} points, pass "
@@ -395,7 +397,7 @@ class ExercisesPanel(Panel):
                 self.file_choice = gui.add_dropdown("File", names, initial_value=first,
                                                     hint=f"the files of {folder}")
                 self.file_view = gui.add_markdown("")
-                self.file_choice.on_update(lambda e: self.app.do(
+                self.file_choice.on_update(lambda e: self.host.do(
                     lambda v=e.target.value: self.show_file(v)))
             where = f"`{self.target.submission}`" if folder else \
                 f"not started: `mexone exercise start {ex.name} DIR`, then `mexone sim " \
@@ -405,7 +407,7 @@ class ExercisesPanel(Panel):
                              f"in this lab it {live}.")
             self.check_button = gui.add_button("Check", icon=viser.Icon.CHECKLIST,
                                                hint="run the exercise's self-check on your file")
-            self.check_button.on_click(lambda _: self.app.do(self.check))
+            self.check_button.on_click(lambda _: self.host.do(self.check))
             self.result = gui.add_markdown("*no check yet*")
         self._shown_outcome = None
         if folder is not None:
@@ -484,7 +486,7 @@ class ExercisesPanel(Panel):
             outcome.live = "not applied: your file did not run in the self-check"
             self._publish(outcome)
         elif not self._cancel.is_set():
-            self.app.do(lambda: self._live_then_publish(submission, outcome))
+            self.host.do(lambda: self._live_then_publish(submission, outcome))
 
     def _live_then_publish(self, submission: Path, outcome: CheckOutcome) -> None:
         """Simulation thread: the live step after a self-check the file ran in."""
@@ -510,7 +512,7 @@ class ExercisesPanel(Panel):
             if kind == "controller":
                 return self._live_controller(submission)
             if kind == "urdf":
-                self.app.load(submission)  # rebuilds every panel, this one too
+                self.host.load(submission)  # rebuilds every panel, this one too
                 return f"opened {submission.name} (Load)"
         except MexoneError as exc:
             return f"not applied: {exc.one_line()}"
@@ -519,7 +521,7 @@ class ExercisesPanel(Panel):
     def _live_gains(self, submission: Path) -> str:
         from mexone.control.config import CONTROLLER_TYPES, parse_control_config
 
-        manager = self.app.lab.controllers
+        manager = self.host.lab.manager
         if manager is None:
             return "not applied: this lab runs no controllers"
         text = submission.read_text(encoding="utf-8", errors="replace")
@@ -540,28 +542,26 @@ class ExercisesPanel(Panel):
         if not done:
             return "not applied: no controller of your file runs in this lab with PID gains"
         self._show_gains(done)
-        self.app.reset_model()  # the episode from t = 0, with the new gains
+        self.host.reset_model()  # the episode from t = 0, with the new gains
         return f"your gains retune {len(done)} running controllers; the robot was reset"
 
     def _show_gains(self, names: list[str]) -> None:
         """The Joints panel's Gains fields show what the controllers now hold."""
         from mexone.control.spec import joint_label
 
-        manager = self.app.lab.controllers
-        fields = {getattr(f.handle, "label", None): f.handle for f in self.app.fields.fields}
+        manager = self.host.lab.manager
+        fields = {getattr(f.handle, "label", None): f.handle for f in self.host.fields.fields}
         for name in names:
             gains = manager.controllers[name].gains[0]
             for key in ("p", "i", "d"):
                 handle = fields.get(f"{key} ({joint_label(name)})")
                 if handle is not None:
-                    self.app.fields.set_held(handle, [float(getattr(gains, key))])
+                    self.host.fields.set_held(handle, [float(getattr(gains, key))])
 
     def _live_controller(self, submission: Path) -> str:
-        from mexone.control.controllers.python import PythonRunner
-
-        manager = self.app.lab.controllers
+        manager = self.host.lab.manager
         mine = [n for n, c in (manager.controllers.items() if manager else ())
-                if isinstance(c, PythonRunner) and Path(c.plugin.file).resolve() == submission.resolve()]
+                if c.code_file and Path(c.code_file).resolve() == submission.resolve()]
         for name in mine:  # the lab runs it from the student's own file: the panel's Reload
             manager.reload(name)
         if mine:
@@ -571,7 +571,7 @@ class ExercisesPanel(Panel):
             return (f"not reloaded: this lab runs no controller from {submission.name} (give mexone "
                     "sim --controllers a YAML that uses it to watch it here)")
         yaml_path = self._live_yaml(submission, live)
-        self.app.load(None, controllers=yaml_path, spawn=Spawn(joints=live.pose))
+        self.host.load(None, controllers=yaml_path, spawn=Spawn(joints=live.pose))
         return (f"the lab restarted with your {live.cls} on {', '.join(live.joints)} (the "
                 "Controllers panel shows it; a fault there is your controller's)")
 
@@ -584,7 +584,7 @@ class ExercisesPanel(Panel):
 
         if self._scratch is None:
             self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-page-"))
-        manager = self.app.lab.controllers
+        manager = self.host.lab.manager
         given = manager.config.parameters if manager is not None else None
         if not isinstance(given, dict) or not given:
             given = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
@@ -623,7 +623,7 @@ class ExercisesPanel(Panel):
         if outcome is not None and outcome is not self._notified:
             self._notified = outcome
             title = "Check" if outcome.error is None else "Check failed"
-            self.app.notify(title, outcome_summary(outcome),
+            self.host.notify(title, outcome_summary(outcome),
                             color="green" if outcome.report and outcome.report.get(
                                 "extra_data", {}).get("passed") else "orange")
 

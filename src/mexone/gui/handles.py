@@ -13,10 +13,11 @@ import mujoco
 import numpy as np
 import viser
 
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.motion.ik import WholeBodyIK
 
-__all__ = ["IkHandles", "FRAMES", "POSED", "GAZE"]
+__all__ = ["IkHandles", "IkHandlesPanel", "FRAMES", "POSED", "GAZE"]
 
 FRAMES = ("l_hand", "r_hand", "l_foot", "r_foot")
 POSED = ("l_foot", "r_foot")  # handles that turn too; a hand's orientation is left to the IK
@@ -59,7 +60,7 @@ class IkHandles:
         for handle in self.handles.values():
             handle.remove()
         self.handles.clear()
-        if not on or self.lab.controllers is None:
+        if not on or self.lab.manager is None:
             return
         with self.lock:
             if self.ik is None:
@@ -135,10 +136,30 @@ class IkHandles:
 
     def send(self, joints: dict[str, float], error=None) -> None:
         """Command every position controller's joints (simulation thread)."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         for ctrl in manager.controllers.values():
-            if ctrl.kind == "position":
+            if ctrl.holds_position:
                 command = {j: joints[j] for j in ctrl.joints if j in joints}
                 if command:
                     manager.command(ctrl.name, command)
         self.status.content = "" if error is None else f"IK: {error} from the handle"
+
+
+@register_panel
+class IkHandlesPanel(Panel):
+    """The IK handles folder: an IkHandles (and its worker thread) per robot loaded."""
+
+    name = "ik_handles"
+    order = 92
+    handles: IkHandles | None = None
+
+    def build(self) -> None:
+        self.handles = IkHandles(self.server, self.lab, self.do)
+
+    def unload(self) -> None:
+        if self.handles is not None:
+            self.handles.close(join=0)  # the simulation thread, which its worker may await
+
+    def stop(self) -> None:
+        if self.handles is not None:
+            self.handles.close()

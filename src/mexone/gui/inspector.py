@@ -22,6 +22,8 @@ import mujoco
 import numpy as np
 import viser
 
+from mexone.gui.move import MoveTool
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.ranges import IMPULSE, PUSH_DURATION
 
@@ -168,12 +170,27 @@ def joint_report(lab: Lab, name: str) -> str:
     return "<br>".join(lines)
 
 
-class Inspector:
-    """The Tools panel: what a click does, the last report, the push settings."""
+@register_panel
+class Inspector(Panel):
+    """The Tools panel: what a click does, the last report, the push settings, and the Move
+    tool (gui/move.py). A click on the 3D view reaches whichever robot is loaded now."""
 
-    def __init__(self, server: viser.ViserServer, lab: Lab, do, fields, joints_shown=lambda: False):
-        self.server, self.lab, self.do, self.fields = server, lab, do, fields
-        self.joints_shown = joints_shown  # View > Joints: the axis arrows can be clicked
+    name = "tools"
+    order = 6
+    period = 1
+
+    def __init__(self, host):
+        super().__init__(host)
+        self._on_click = self.server.scene.on_click()(lambda e: self.do(
+            lambda: self.click(e.ray_origin, e.ray_direction)))
+
+    def joints_shown(self) -> bool:
+        """View > Joints shows the axis arrows: they can be clicked."""
+        return "Joints" in self.host.scene.showing
+
+    def build(self) -> None:
+        server, fields = self.server, self.host.fields
+        self.fields = fields
         self.impulse, self.duration = 20.0, 0.1
         self.selected: tuple[str, str] | None = None  # ("link" | "joint", name)
         self.arrow_until = -1.0
@@ -200,6 +217,7 @@ class Inspector:
                                        hint=f"fire the aimed push ({DRAG})")
             self.fire.on_click(lambda _: self.do(self.push_aimed))
             self.report = gui.add_markdown("*click a link to inspect it*")
+            self.move = MoveTool(server, self.lab, self.do)
         self.arrow = server.scene.add_arrows("/tools/push", np.zeros((1, 2, 3), np.float32),
                                              (230, 30, 200), shaft_radius=0.01, head_radius=0.025,
                                              head_length=0.06, visible=False)
@@ -210,6 +228,9 @@ class Inspector:
                                                           disable_rotations=True, depth_test=False,
                                                           visible=False)
         self.handle.on_update(self._dragging)
+
+    def stop(self) -> None:
+        self.server.scene.remove_click_callback(self._on_click)
 
     def click(self, origin, direction) -> str | None:
         """What a click at this ray does (simulation thread); returns the link (or joint) hit."""
@@ -312,12 +333,14 @@ class Inspector:
                                f"along {_fmt(direction)} at {_fmt(point)}")
 
     def update(self) -> None:
-        """Once a frame: the arrow shows while the push acts (sim time); the report refreshes."""
+        """Once a frame: the arrow shows while the push acts (sim time); the report refreshes;
+        the Move tool holds or follows the robot."""
         if self.arrow.visible and not (0 <= self.lab.sim.time < self.arrow_until):
             self.arrow.visible = False
         if self.selected and self.mode.value == "inspect":
             kind, name = self.selected
             self.report.content = (link_report if kind == "link" else joint_report)(self.lab, name)
+        self.move.update()
 
 
 def _push_direction(choice: str, ray: np.ndarray) -> np.ndarray:

@@ -11,7 +11,6 @@ file that does not load leaves the running robot as it was, with the error on th
 from __future__ import annotations
 
 import tempfile
-from collections.abc import Callable
 from pathlib import Path
 
 import viser
@@ -73,18 +72,15 @@ class LoadPanel(Panel):
     name = "load"
     order = 90
 
-    def do(self, action: Callable[[], None]) -> None:
-        self.app.do(action)
-
     def load(self, path: Path) -> None:
-        self.app.load(path)
+        self.host.load(path)
 
     def build(self) -> None:
-        self.folder = self.app.model_folder
+        self.folder = self.host.settings.model_folder
         self.choices = model_choices(self.folder)
-        gui = self.app.server.gui
+        gui = self.server.gui
         with gui.add_folder("Load robot", expand_by_default=False):
-            gui.add_markdown(f"now: `{self.app.model_label}`")
+            gui.add_markdown(f"now: `{self.host.model_label}`")
             names = tuple(self.choices) or ("(no robot files here)",)
             self.choice = gui.add_dropdown("File", names, initial_value=names[0],
                                            hint=f"robot files under {self.folder}")

@@ -25,11 +25,12 @@ import numpy as np
 import viser
 import viser.uplot as uplot
 
+from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
 from mexone.ranges import PLOT_WINDOW
 
-__all__ = ["SignalLog", "PlotPanel", "Pane", "PLOT_PERIOD", "MAX_WINDOW", "axis_scale", "PANES",
-           "numeric_fields", "field_value"]
+__all__ = ["SignalLog", "PlotPanel", "Pane", "PLOT_PERIOD", "MAX_WINDOW",
+           "axis_scale", "PANES", "numeric_fields", "field_value", "first_joint"]
 
 PLOT_PERIOD = 0.01  # s of sim time between samples while running (100 Hz)
 MAX_WINDOW = PLOT_WINDOW.high  # s of sim time a pane may show
@@ -109,13 +110,13 @@ class SignalLog:
     def __init__(self, lab: Lab):
         self.lab = lab
         signals, readers = [], []
-        manager = lab.controllers
+        manager = lab.manager
         sim = lab.sim
         if manager is not None:
             hw = manager.hw
             joints = list(hw.joints)
             positional = [i for i, j in enumerate(joints)
-                          if (c := manager.by_joint().get(j)) is not None and c.kind == "position"]
+                          if (c := manager.by_joint().get(j)) is not None and c.holds_position]
             signals += [Signal(f"{j}/{f}", u) for f, u in (("position", "rad"), ("velocity", "rad/s"),
                                                            ("effort", "N m"), ("command", ""))
                         for j in joints]
@@ -286,17 +287,24 @@ class Pane:
             plot.data = data
 
 
-class PlotPanel:
+@register_panel
+class PlotPanel(Panel):
     """Panes of chosen signals over a window of sim time (uPlot, zoomable; double-click resets):
-    the robot's own signals, and any numeric field of any topic on the bus."""
+    the robot's own signals, and any numeric field of any topic on the bus. At first pane 1
+    shows the first held joint's command and position, pane 2 its effort (`first_joint`)."""
 
-    def __init__(self, server: viser.ViserServer, log: SignalLog, do: Callable, refuse: Callable,
-                 number: Callable, defaults: list[list[str]]):
-        self.server, self.log, self.do, self.refuse = server, log, do, refuse
+    name = "plots"
+    order = 4
+
+    def build(self) -> None:
+        self.log = log = self.host.log
+        joint = first_joint(self.lab)
+        defaults = [[f"{joint}/command", f"{joint}/position"], [f"{joint}/effort"]]
+        chosen = [[n for n in pane if n in log.index] for pane in defaults]
+        chosen = (chosen + [[] for _ in range(PANES)])[:PANES]
         self.seconds = 10.0
-        chosen = ([list(d) for d in defaults] + [[] for _ in range(PANES)])[:PANES]
         self.hold = False
-        gui = server.gui
+        server, gui, number = self.server, self.server.gui, self.host.fields.add
         names = tuple(s.name for s in log.signals)
         with gui.add_folder("Plots") as self.folder:
             self.signal = gui.add_dropdown("Signal", names, initial_value=names[0],
@@ -337,6 +345,10 @@ class PlotPanel:
         self.panes[i].names = list(names)
         self.panes[i].changed()
         self.update(force=True)
+
+    def show_joint(self, joint: str) -> None:
+        """Pane 1 shows `joint`'s command and position (the step response's joint)."""
+        self.show(0, [n for n in (f"{joint}/command", f"{joint}/position") if n in self.log.index])
 
     # ----- edits (simulation thread) ----------------------------------------------------------
     def _pane_index(self) -> int:
@@ -442,6 +454,16 @@ class PlotPanel:
         fig.savefig(out, format="png", dpi=100)
         plt.close(fig)
         return out.getvalue()
+
+
+def first_joint(lab: Lab) -> str | None:
+    """The joint a page shows first (plots, step response): the first a running position
+    controller holds, in the configuration's order; else the robot's first moving joint."""
+    manager = lab.manager
+    held = [j for c in (manager.controllers.values() if manager else ())
+            if c.running and c.holds_position for j in c.joints]
+    joints = held or lab.sim.joint_names
+    return joints[0] if joints else None
 
 
 def to_csv(t: np.ndarray, values: np.ndarray, names: list[str]) -> str:

@@ -80,6 +80,7 @@ class RobotScene:
     visuals: list = field(default_factory=list)
     triangles: int = 0  # drawn in the robot's visuals, after simplification
     overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
+    showing: set[str] = field(default_factory=set)  # the overlays shown now
     _sent: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # poses last sent
 
     def _terrain(self) -> None:
@@ -199,6 +200,7 @@ class RobotScene:
 
     # ----- toggles --------------------------------------------------------------------------
     def show(self, overlay: str, visible: bool) -> None:
+        (self.showing.add if visible else self.showing.discard)(overlay)
         for handle in self.overlays[overlay]:
             handle.visible = visible
         if overlay == "Contacts" and visible:

@@ -10,11 +10,13 @@ frames; nothing here writes the simulation.
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import viser
 
-from mexone.gui.plots import Pane, SignalLog
-from mexone.lab import Lab
+from mexone.gui.panels import Panel, register_panel
+from mexone.gui.plots import Pane
 from mexone.sensors import CameraSensor, ForceTorqueSensor, Sensor
 
 __all__ = ["SensorPanel", "BALANCE", "sensor_panes"]
@@ -24,6 +26,7 @@ CAMERA_FPS = 5.0  # images sent to the page per second of wall time
 PAGE_WIDTH = 320  # pixels of a camera image on the page
 NEWTONS_PER_METRE = 500.0  # force arrows: 500 N draws 1 m
 WINDOW = 10.0  # s of sim time the sensor plots show
+PLOT_FRAMES = 5  # frames between redraws of the sensor plots
 
 
 def _depth_colours(depth: np.ndarray) -> np.ndarray:
@@ -57,10 +60,18 @@ def sensor_panes(sensors) -> list[tuple[str, list[str]]]:
     return out
 
 
-class SensorPanel:
-    def __init__(self, server: viser.ViserServer, lab: Lab, log: SignalLog):
-        self.server, self.lab, self.log = server, lab, log
-        suite = lab.sensors
+@register_panel
+class SensorPanel(Panel):
+    """The Sensors folder and the Balance overlay (see the module's doc)."""
+
+    name = "sensors"
+    order = 7
+    period = 1
+
+    def build(self) -> None:
+        self.log = self.host.log
+        self._frames = 0
+        suite = self.lab.sensors
         self.cameras = {n: s for n, s in suite.sensors.items() if isinstance(s, CameraSensor)}
         self.fts = {n: s for n, s in suite.sensors.items() if isinstance(s, ForceTorqueSensor)}
         # every other sensor type's view: a markdown line each (contact lights, ...)
@@ -105,12 +116,19 @@ class SensorPanel:
                                               visible=False)
         self.stability = ""
 
-    def show_balance(self, on: bool) -> None:
+    def show(self, on: bool) -> None:
+        """The Balance overlay on or off (View > Balance)."""
         for handle in (self.com_marker, self.zmp_marker, self.polygon, self.arrows):
             handle.visible = on
 
+    def status_line(self) -> str | None:
+        """Whether the robot is statically stable, while the Balance overlay shows."""
+        return self.stability if self.com_marker.visible and self.stability else None
+
     # ----- per frame (simulation thread) --------------------------------------------------------
-    def update(self, now_wall: float) -> None:
+    def update(self) -> None:
+        self._frames += 1
+        now_wall = time.monotonic()
         if self.com_marker.visible:
             self._update_balance()
         if self.viewed:
@@ -119,6 +137,8 @@ class SensorPanel:
         if now_wall - self._last_image >= 1.0 / CAMERA_FPS:
             self._last_image = now_wall
             self._update_images()
+        if self._frames % PLOT_FRAMES == 0:
+            self.update_plots()
 
     def update_plots(self) -> None:
         for pane in self.panes:

@@ -8,11 +8,11 @@ The numbers come from `mexone.control.metrics`, sampled the way `mexone run` sam
 from __future__ import annotations
 
 import numpy as np
-import viser
 
 from mexone.control.metrics import TrackingRecorder, rise_time
 from mexone.errors import InputError
-from mexone.lab import Lab
+from mexone.gui.panels import Panel, register_panel
+from mexone.gui.plots import first_joint
 from mexone.ranges import STEP_SIZE
 
 __all__ = ["StepResponse", "STEP_WINDOW"]
@@ -21,34 +21,42 @@ STEP_WINDOW = 2.0  # s of sim time measured after the step
 _STEADY = 0.2  # s at the end of the window averaged for the steady error
 
 
-class StepResponse:
-    def __init__(self, server: viser.ViserServer, lab: Lab, do, number, on_start=None):
-        self.lab, self.do = lab, do
+@register_panel
+class StepResponse(Panel):
+    """The Step response folder (see the module's doc); pane 1 of the Plots panel shows the
+    stepped joint."""
+
+    name = "step_response"
+    order = 5
+    period = 1
+
+    def build(self) -> None:
         self.size = 0.5
-        self.running: tuple | None = None  # (joint, recorder, t0, start, target, timer)
+        self.running: tuple | None = None  # (joint, recorder, t0, start, target)
         self.result: dict | None = None
         self.started = 0.0
-        self.on_start = on_start
-        manager = lab.controllers
-        joints = tuple(j for j, c in manager.by_joint().items() if c.kind == "position") \
+        manager = self.lab.manager
+        joints = tuple(j for j, c in manager.by_joint().items() if c.holds_position) \
             if manager else ()
-        gui = server.gui
+        gui = self.server.gui
         with gui.add_folder("Step response", expand_by_default=False):
             if not joints:
                 gui.add_markdown("No position controllers.")
                 return
-            default = "l_elbow" if "l_elbow" in joints else joints[0]
-            self.joint = gui.add_dropdown("Joint", joints, initial_value=default)
-            number("Step (rad)", self.size, STEP_SIZE, lambda v: setattr(self, "size", v))
+            default = first_joint(self.lab)
+            self.joint = gui.add_dropdown("Joint", joints,
+                                          initial_value=default if default in joints else joints[0])
+            self.host.fields.add("Step (rad)", self.size, STEP_SIZE,
+                                 lambda v: setattr(self, "size", v))
             gui.add_button("Apply step").on_click(lambda _: self.do(
                 lambda: self.start(self.joint.value, self.size)))
             self.view = gui.add_markdown("")
 
     def start(self, joint: str, size: float) -> None:
         """Simulation thread: command the step now and measure for STEP_WINDOW s."""
-        manager = self.lab.controllers
+        manager = self.lab.manager
         ctrl = manager.by_joint().get(joint) if manager else None
-        if ctrl is None or ctrl.kind != "position":
+        if ctrl is None or not ctrl.holds_position:
             raise InputError(f"Step response: '{joint}' has no running position controller")
         if self.running:
             self.lab.sim.remove_periodic(self.running[1].timer)
@@ -66,8 +74,9 @@ class StepResponse:
         self.running = (joint, recorder, sim.time, start, target)
         self.result = None
         self.view.content = f"*stepping {joint} by {size:g} rad…*"
-        if self.on_start:
-            self.on_start(joint)
+        plots = self.host.panel("plots")
+        if plots is not None:
+            plots.show_joint(joint)
 
     def update(self) -> None:
         """Once a frame (simulation thread): report when the window is over."""

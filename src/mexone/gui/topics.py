@@ -19,7 +19,6 @@ import viser
 
 from mexone.errors import InputError
 from mexone.gui.panels import Panel, register_panel
-from mexone.lab import Lab
 from mexone.record.bag import BAG_SUFFIXES, BagRecorder
 
 __all__ = ["TopicsPanel", "RecordPanel", "echo_text", "recording_path", "subscriber_names"]
@@ -58,30 +57,12 @@ def _short(value) -> str:
     return str(value)
 
 
-class _AppPanel(Panel):
-    """A panel of the page's lab (the one loaded now: Load replaces it)."""
-
-    @property
-    def lab(self) -> Lab:
-        return self.app.lab
-
-    @property
-    def server(self) -> viser.ViserServer:
-        return self.app.server
-
-    def do(self, action) -> None:
-        self.app.do(action)
-
-    def refuse(self, text: str) -> None:
-        self.app.refuse(text)
-
-
 @register_panel
-class TopicsPanel(_AppPanel):
+class TopicsPanel(Panel):
     """rostopic list/hz/info/echo for the lab's bus (a plug-in panel: gui/panels.py)."""
 
     name = "topics"
-    order = 5
+    order = 10
     period = 30
 
     def build(self) -> None:
@@ -169,7 +150,7 @@ def recording_path(name: str, folder: Path) -> Path:
 
 
 @register_panel
-class RecordPanel(_AppPanel):
+class RecordPanel(Panel):
     """Record every topic to a bag from the page (a plug-in panel: gui/panels.py)."""
 
     name = "record"
@@ -177,7 +158,7 @@ class RecordPanel(_AppPanel):
     period = 5
 
     def build(self) -> None:
-        folder = self.app.record_folder
+        folder = self.host.settings.record_folder
         self.folder = Path.cwd() if folder is None else folder
         self.recorder: BagRecorder | None = None
         self.last: Path | None = None

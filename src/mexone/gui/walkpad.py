@@ -6,9 +6,7 @@ zero Twist.
 
 from __future__ import annotations
 
-import viser
-
-from mexone.lab import Lab
+from mexone.gui.panels import Panel, register_panel
 from mexone.msgs import Twist, Vector3
 
 __all__ = ["WalkPad", "PAD", "SEND_PERIOD"]
@@ -21,17 +19,23 @@ PAD = {"Forward": (0.15, 0.0, 0.0), "Back": (-0.1, 0.0, 0.0), "Left": (0.0, 0.06
        "Turn right": (0.0, 0.0, -0.4), "Stop": (0.0, 0.0, 0.0)}
 
 
-class WalkPad:
-    def __init__(self, server: viser.ViserServer, lab: Lab, do):
-        self.lab, self.do = lab, do
+@register_panel
+class WalkPad(Panel):
+    """The Walk (cmd_vel) folder (see the module's doc)."""
+
+    name = "walk_pad"
+    order = 91
+
+    def build(self) -> None:
+        lab, gui = self.lab, self.server.gui
         self.topic = f"{lab.namespace}/cmd_vel"
         self.command = (0.0, 0.0, 0.0)
         self.pending_stop = False
         lab.sim.add_periodic(SEND_PERIOD, self.tick)
-        with server.gui.add_folder("Walk (cmd_vel)", expand_by_default=False):
-            server.gui.add_markdown(f"Twist on `{self.topic}`: run the **walk_cmd_vel** routine")
+        with gui.add_folder("Walk (cmd_vel)", expand_by_default=False):
+            gui.add_markdown(f"Twist on `{self.topic}`: run the **walk_cmd_vel** routine")
             for name, command in PAD.items():
-                button = server.gui.add_button(name)
+                button = gui.add_button(name)
                 button.on_click(lambda _, c=command: self.do(lambda: self.set(c)))
 
     def set(self, command: tuple[float, float, float]) -> None:

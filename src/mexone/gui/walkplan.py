@@ -14,10 +14,9 @@ import math
 from collections import deque
 
 import numpy as np
-import viser
 
 from mexone.bus.msgs import Path, PointStamped, PoseArray
-from mexone.lab import Lab
+from mexone.gui.panels import Panel, register_panel
 from mexone.sensors.balance import RATE as BALANCE_RATE
 
 __all__ = ["WalkPlanView", "WALK_PLAN", "SOLE", "TRAIL", "PATH_STRIDE", "polyline"]
@@ -59,9 +58,16 @@ def polyline(points: np.ndarray) -> np.ndarray:
     return np.stack([points[:-1], points[1:]], axis=1)
 
 
-class WalkPlanView:
-    def __init__(self, server: viser.ViserServer, lab: Lab):
-        self.lab = lab
+@register_panel
+class WalkPlanView(Panel):
+    """The Walk plan overlay (no folder: View > Walk plan shows it; see the module's doc)."""
+
+    name = "walk_plan"
+    order = 93
+    period = 1
+
+    def build(self) -> None:
+        lab = self.lab
         ns = lab.namespace
         self.topics = {"footsteps": f"{ns}/walk/footsteps", "zmp_plan": f"{ns}/walk/zmp_plan",
                        "com_plan": f"{ns}/walk/com_plan", "zmp": f"{ns}/zmp"}
@@ -75,7 +81,7 @@ class WalkPlanView:
                       for k, kind in (("footsteps", PoseArray), ("zmp_plan", Path),
                                       ("com_plan", Path))]
         self._zmp_sub = None
-        scene = server.scene
+        scene = self.server.scene
         self.nodes = {
             "footsteps": scene.add_line_segments("/walk_plan/footsteps", _EMPTY, _FOOT_RGB,
                                                  thickness=3.0, thickness_units="screen", visible=False),
@@ -126,7 +132,8 @@ class WalkPlanView:
             self._trail_drawn = -1
             self.update()
 
-    def close(self) -> None:
+    def unload(self) -> None:
+        """The subscriptions end with the robot (Load)."""
         for sub in [*self._subs, self._zmp_sub]:
             if sub is not None:
                 sub.unregister()

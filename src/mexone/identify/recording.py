@@ -286,17 +286,17 @@ def _check_states(contents: BagContents, wanted: set[str], label: Path, notes: l
         for i, name in enumerate(m.names):
             if name not in wanted:
                 continue
-            for kind, values, limit in (("position", m.position, JOINT_VALUE.high),
+            for what, values, limit in (("position", m.position, JOINT_VALUE.high),
                                         ("velocity", m.velocity, VELOCITY.high)):
                 if len(values) <= i:
                     continue
                 value = float(values[i])
                 if not np.isfinite(value):
-                    if kind == "position":
+                    if what == "position":
                         bad += 1
                         first = first or f"{name} in {_where(m)}"
                 elif abs(value) > limit:
-                    raise InputError(f"{_where(m)}: {name} {kind} {number_text(value)} is not a "
+                    raise InputError(f"{_where(m)}: {name} {what} {number_text(value)} is not a "
                                      f"joint's (beyond +-{number_text(limit)})", file=label,
                                      hint="a broken driver or a wrong unit: fix or cut that "
                                           "stretch of the bag")

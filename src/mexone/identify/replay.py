@@ -24,7 +24,7 @@ from mexone.identify.recording import STILL, Recording
 from mexone.lab import Lab
 from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
 from mexone.physics.compile import CompileOptions, Spawn
-from mexone.physics.watchdog import DivergenceError
+from mexone.physics.divergence import DivergenceError
 from mexone.record.reader import FLOAT64, MULTI, TRAJECTORY
 
 __all__ = ["Experiment", "replay", "BASES", "HANG_HEIGHT", "SENSOR_SUFFIX"]
@@ -91,7 +91,7 @@ def replay(recording: Recording, robot: RobotModel, config: ControlConfig,
     fixed, spawn, notes = _base(recording, robot, base)
     options = CompileOptions(visuals=False, fixed_base=fixed)
     lab = Lab.create(robot, config, spawn=spawn, options=options)
-    sim, manager = lab.sim, lab.controllers
+    sim, manager = lab.sim, lab.manager
     _set_initial_pose(lab, recording, fixed)
     manager.restart()  # controllers hold the first recorded pose, as they held the robot's
     state = np.empty(mujoco.mj_stateSize(sim.model, _FULL))
@@ -160,20 +160,21 @@ def _base(recording: Recording, robot: RobotModel, base: str) -> tuple[bool, Spa
 
 def _set_initial_pose(lab: Lab, recording: Recording, fixed: bool) -> None:
     sim = lab.sim
-    model, data = sim.model, sim.data
+    model = sim.model
     sim.set_joint_positions(recording.q0)
+    qpos, qvel = sim.data.qpos.copy(), sim.data.qvel.copy()
     for name, velocity in recording.v0.items():
-        data.qvel[model.joint(name).dofadr[0]] = velocity
+        qvel[model.joint(name).dofadr[0]] = velocity
+    sim.set_state(qpos, qvel)
     if not fixed and sim.compiled.free:
         free = model.joint(f"{sim.robot.base_link}_free")
         adr = free.qposadr[0]
         if recording.base is not None:
-            data.qpos[adr:adr + 3] = recording.base.xyz
-            data.qpos[adr + 3:adr + 7] = recording.base.quat
+            qpos[adr:adr + 3] = recording.base.xyz
+            qpos[adr + 3:adr + 7] = recording.base.quat
         else:
-            mujoco.mj_forward(model, data)
-            data.qpos[adr + 2] -= _height_above_ground(model, data)
-    mujoco.mj_forward(model, data)
+            qpos[adr + 2] -= _height_above_ground(model, sim.data)
+        sim.set_state(qpos)
 
 
 def _height_above_ground(model: mujoco.MjModel, data: mujoco.MjData) -> float:
@@ -207,7 +208,7 @@ def _refuse_what_ctrl_cannot_carry(lab: Lab, recording: Recording) -> None:
     """Commands that act on the state in Python (ideal servos teleport, velocity PIDs with I or D
     terms) cannot be replayed open-loop: their output depends on the state being fitted."""
     for name in recording.commanded:
-        ctrl = lab.controllers.controllers[name]
+        ctrl = lab.manager.controllers[name]
         ideal = getattr(ctrl, "ideal", False)
         native = getattr(ctrl, "native", True)
         if ideal or not native:

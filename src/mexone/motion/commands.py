@@ -108,24 +108,22 @@ class _Mover:
                 break
 
 
-_movers: dict[int, _Mover] = {}
-
-
 def _mover() -> _Mover:
+    """The routine's own mover (kept in its context: it ends with the routine)."""
     context = current()
-    mover = _movers.get(id(context))
-    if mover is not None and mover.context is context:
+    mover = context.kept.get(__name__)
+    if isinstance(mover, _Mover):
         return mover
     lab = context.lab
-    if lab.controllers is None:
+    if lab.manager is None:
         raise InputError("this robot has no controllers to move it",
                          hint="run with the robot's controller YAML (--controllers)")
-    ns = lab.namespace
+    manager = lab.manager
     publishers = {}
-    for name, params in rospy.get_param(ns, {}).items():
-        if isinstance(params, dict) and str(params.get("type", "")).endswith("JointPositionController"):
-            publishers[params.get("joint")] = rospy.Publisher(f"{ns}/{name}/command", Float64,
-                                                              queue_size=1)
+    for ctrl in list(manager.controllers.values()):  # one position setpoint topic per joint
+        if ctrl.holds_position and ctrl.msg_type is Float64:
+            publishers[ctrl.joints[0]] = rospy.Publisher(manager.topic(ctrl.name), Float64,
+                                                         queue_size=1)
     with busy("the IK's set-up"):
         ik = WholeBodyIK.for_sim(lab.sim)
     mover = _Mover(context, ik, publishers, trimmed=set(publishers) - ik.support_joints())
@@ -134,8 +132,8 @@ def _mover() -> _Mover:
         mover.measured.update(zip(msg.name, msg.position, strict=False))
         mover.velocities.update(zip(msg.name, msg.velocity, strict=False))
 
-    rospy.Subscriber(f"{ns}/joint_states", JointState, on_state)
-    _movers[id(context)] = mover
+    rospy.Subscriber(f"{lab.namespace}/joint_states", JointState, on_state)
+    context.kept[__name__] = mover
     return mover
 
 
@@ -401,10 +399,11 @@ def _walk(source, gait: Gait) -> None:
     mover = _mover()
     qpos = mover.snapshot()
     ik = mover.ik
-    ik.reset(qpos)
-    standing = ik.joint_positions()
-    ik.reset(bent_knees(ik, qpos, gait.knee_bend))
-    bent = ik.joint_positions()
+    with busy("the walk's set-up"):  # IK solves: seconds on a loaded machine, not a stall
+        ik.reset(qpos)
+        standing = ik.joint_positions()
+        ik.reset(bent_knees(ik, qpos, gait.knee_bend))
+        bent = ik.joint_positions()
     rate = rospy.Rate(1.0 / gait.dt)
     ticks = round(BEND_SECONDS / gait.dt)
     for k in range(1, ticks + 1):  # down into the walking stance
@@ -423,11 +422,18 @@ def _walk(source, gait: Gait) -> None:
 
     imu = rospy.Subscriber(f"{current().lab.namespace}/imu", Imu, on_imu)
     plans = _PlanPublisher()
+    ticks = walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
+                       measured=lambda: Measured(mover.measured, mover.velocities,
+                                                 *attitude[0][:2], gyro[0]),
+                       on_replan=plans)
     try:
-        for joints in walk_ticks(ik, qpos, gait, source, imu=lambda: attitude[0],
-                                  measured=lambda: Measured(mover.measured, mover.velocities,
-                                                            *attitude[0][:2], gyro[0]),
-                                  on_replan=plans):
+        while True:
+            # mexone's own planning and IK between two ticks (the first sets up the preview
+            # control): the stall watchdog is for a routine's own code, not for this
+            with busy("the walk's plan and IK"):
+                joints = next(ticks, None)
+            if joints is None:
+                break
             mover.send(joints)
             plans.catch_up()
             rate.sleep()

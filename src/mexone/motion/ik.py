@@ -142,9 +142,11 @@ class WholeBodyIK:
 
     @property
     def qpos(self) -> np.ndarray:
+        """The IK's configuration now (MuJoCo's qpos of its model)."""
         return self.configuration.q.copy()
 
     def joint_positions(self) -> dict[str, float]:
+        """The IK's solution: joint -> position, for the position controllers."""
         q = self.configuration.q
         return {name: float(q[adr]) for name, adr in zip(self.joint_names, self.qpos_adr, strict=True)}
 
@@ -163,6 +165,7 @@ class WholeBodyIK:
         return data.site_xpos[site].copy(), data.site_xmat[site].reshape(3, 3).copy()
 
     def com(self) -> np.ndarray:
+        """The centre of mass of the IK's configuration (world frame)."""
         return self.configuration.data.subtree_com[1].copy()
 
     # ----- targets -------------------------------------------------------------------------------
@@ -183,6 +186,7 @@ class WholeBodyIK:
         self.targets[frame] = task
 
     def set_rpy_target(self, frame: str, xyz, rpy=None) -> None:
+        """Aim `frame` at `xyz` (world frame) and, given `rpy`, at that roll, pitch, yaw."""
         self.set_target(frame, xyz, None if rpy is None else rpy_to_matrix(tuple(rpy)))
 
     def look_at(self, xyz, frame: str = "camera") -> None:
@@ -200,6 +204,7 @@ class WholeBodyIK:
     # ----- solving -------------------------------------------------------------------------------
     @property
     def tasks(self) -> list:
+        """The IK's tasks now (mink's), in the order they are solved."""
         tasks = [*self.held.values(), *self.targets.values(), self.com_task, self.posture]
         tasks += [t for t in (self.base, self.gaze) if t is not None]
         return tasks
@@ -266,6 +271,7 @@ class WholeBodyIK:
         return out
 
     def error(self, frame: str) -> FrameError:
+        """How far `frame` is from its target (position and orientation)."""
         task = self.targets.get(frame) or self.held.get(frame)
         if task is None:
             raise InputError(f"frame '{frame}' has no target")

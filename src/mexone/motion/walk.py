@@ -53,7 +53,7 @@ SLIP_WINDOW = 2.0  # steps the slip is averaged over
 BIAS_SHARE = 0.2  # share of each landing's capture-point error its foot's running mean takes
 MAX_STEP_SHIFT = 0.04  # m: the most one landing moves against the COM's error
 MIN_APART = 0.10  # m between the feet's centres at least (Mex-One's soles are 0.08 m wide)
-GAIT_YAML = Path(__file__).resolve().parent.parent / "routines" / "shipped" / "walk.yaml"
+GAIT_YAML = Path(__file__).resolve().parents[1] / "robots" / "mex_one" / "routines" / "walk.yaml"
 LEGS = ("forward", "sideways", "turn")  # a course's legs: metres, metres (left +), degrees (left +)
 COURSE = (("forward", 3.0), ("turn", 90.0), ("sideways", -1.0))  # the issue's course
 DRAWN_STEPS = 40  # footsteps already walked that a WalkPlan keeps (cmd_vel walks for ever)
@@ -61,7 +61,7 @@ DRAWN_STEPS = 40  # footsteps already walked that a WalkPlan keeps (cmd_vel walk
 
 @dataclass(frozen=True)
 class Gait:
-    """The walking parameters a student edits (routines/shipped/walk.yaml)."""
+    """The walking parameters a student edits (robots/mex_one/routines/walk.yaml)."""
 
     step_length: float = 0.06   # m, forward per step at most
     side_step: float = 0.025    # m, sideways per step at most

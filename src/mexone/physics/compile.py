@@ -26,7 +26,7 @@ from mexone.description.check import (
 from mexone.description.kinematics import link_frames_at, with_mimics
 from mexone.description.materials import display_rgba
 from mexone.description.meshes import geometry_bounds, load_mesh, resolve_mesh
-from mexone.description.model import Box, Cylinder, GazeboLink, Mesh, RobotModel, Sphere
+from mexone.description.model import Box, Cylinder, GazeboLink, Geometry, Joint, Mesh, RobotModel, Sphere
 from mexone.description.transforms import rpy_to_matrix
 from mexone.errors import InputError, MexoneError, ModelError, UnsupportedError
 from mexone.physics.world import World, default_world
@@ -59,6 +59,7 @@ _CONTACTS_PER_GEOM = 4  # a box on a plane touches at its 4 corners
 SPAWN_KEY = "spawn"
 _MJ_STL_MAX_FACES = 200_000  # MuJoCo's own STL reader refuses more (and ASCII STL)
 
+#: how Gazebo's physics settings map to MuJoCo's: (Gazebo, MuJoCo, how) per setting
 GAZEBO_MAPPING: tuple[tuple[str, str, str], ...] = (
     ("<gazebo> mu1, mu2", "pair/geom friction[0:2]",
      "min-combined as ODE does: explicit <pair>s with the ground; between links, geom "
@@ -147,7 +148,7 @@ def _quat(rotation: np.ndarray) -> np.ndarray:
     return out
 
 
-def _set_pose(element, matrix: np.ndarray) -> None:
+def _set_pose(element: mujoco.MjsBody | mujoco.MjsGeom | mujoco.MjsSite, matrix: np.ndarray) -> None:
     element.pos = matrix[:3, 3]
     element.quat = _quat(matrix[:3, :3])
 
@@ -324,10 +325,11 @@ def initial_positions(robot: RobotModel, spawn: Spawn) -> dict[str, float]:
                              f"'{robot.name}'", hint=f"moving joints: {moving}")
         if not np.isfinite(value):
             raise InputError(f"initial position {number_text(value)} of '{name}' is not finite")
-        if joint.type in ("revolute", "prismatic") and not (
-                joint.limit.lower - 1e-9 <= value <= joint.limit.upper + 1e-9):
+        limit = joint.limit
+        if joint.type in ("revolute", "prismatic") and limit is not None and not (
+                limit.lower - 1e-9 <= value <= limit.upper + 1e-9):
             raise InputError(f"initial position {value:g} of '{name}' is outside its limits "
-                             f"[{joint.limit.lower:g}, {joint.limit.upper:g}]",
+                             f"[{limit.lower:g}, {limit.upper:g}]",
                              hint="give a value within the joint's <limit>")
     return with_mimics(robot, given)
 
@@ -430,12 +432,12 @@ def _add_blocks(spec: mujoco.MjSpec, world: World) -> None:
         geom.solmix = 0.0
 
 
-def _add_joint(body: mujoco.MjsBody, robot: RobotModel, joint, options: CompileOptions) -> None:
+def _add_joint(body: mujoco.MjsBody, robot: RobotModel, joint: Joint, options: CompileOptions) -> None:
     if not joint.moving:
         return
     kind = mujoco.mjtJoint.mjJNT_SLIDE if joint.type == "prismatic" else mujoco.mjtJoint.mjJNT_HINGE
     mj = body.add_joint(name=joint.name, type=kind, axis=joint.axis)
-    if joint.type in ("revolute", "prismatic"):
+    if joint.type in ("revolute", "prismatic") and joint.limit is not None:  # URDF requires one
         mj.limited = mujoco.mjtLimited.mjLIMITED_TRUE
         mj.range = (joint.limit.lower, joint.limit.upper)
     else:
@@ -460,7 +462,8 @@ def _add_inertial(body: mujoco.MjsBody, robot: RobotModel, name: str) -> None:
     body.explicitinertial = True
 
 
-def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_name: str,
+def _geom_shape(geom: mujoco.MjsGeom, geometry: Geometry, spec: mujoco.MjSpec, robot: RobotModel,
+                mesh_name: str,
                 line: int | None = None) -> None:
     match geometry:
         case Box(size):
@@ -477,7 +480,8 @@ def _geom_shape(geom, geometry, spec: mujoco.MjSpec, robot: RobotModel, mesh_nam
             geom.meshname = _add_mesh(spec, robot, filename, scale, mesh_name, line)
 
 
-def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale, name: str,
+def _add_mesh(spec: mujoco.MjSpec, robot: RobotModel, filename: str, scale: tuple[float, ...],
+              name: str,
               line: int | None = None) -> str:
     try:
         path = resolve_mesh(filename, robot.base_dir)
@@ -515,7 +519,8 @@ def _mujoco_reads(path: Path) -> bool:
     return 0 < faces <= _MJ_STL_MAX_FACES and path.stat().st_size == 84 + 50 * faces
 
 
-def _add_geoms(spec, body, robot: RobotModel, name: str, options: CompileOptions, world: World,
+def _add_geoms(spec: mujoco.MjSpec, body: mujoco.MjsBody, robot: RobotModel, name: str,
+               options: CompileOptions, world: World,
                robot_mass: float) -> list[str]:
     link = robot.links[name]
     props = robot.gazebo_links.get(name, GazeboLink())
@@ -559,7 +564,7 @@ def _friction_priority(mu: float) -> int:
     return int(np.clip(round(-np.log10(max(mu, 1e-6)) * 100), -1000, 1000)) + 1000
 
 
-def _add_contact_rules(spec, robot: RobotModel, world: World, geoms: dict[str, list[str]],
+def _add_contact_rules(spec: mujoco.MjSpec, robot: RobotModel, world: World, geoms: dict[str, list[str]],
                        robot_mass: float) -> None:
     lump = _lumps(robot)
     # never across a joint: every link of the parent lump against every link of the child lump

@@ -71,7 +71,9 @@ class Forces:
         """Sim time of the next start or end; soon again while a wrench must be re-aimed."""
         if self.changed:
             return now
-        times = [t for f in (*self.wrenches, *self.efforts) for t in (f.start_ns, f.end_ns) if t > now]
+        spans = [(w.start_ns, w.end_ns) for w in self.wrenches] + \
+            [(e.start_ns, e.end_ns) for e in self.efforts]
+        times = [t for span in spans for t in span if t > now]
         if any(w.moving and w.start_ns <= now for w in self.wrenches):
             times.append(now + _REFRESH_STEPS * step_ns)
         return min(times, default=FOREVER)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from collections import deque
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,21 +30,21 @@ class RunSummary:
     sim_time: float
     wall_time: float
     rtf: float
-    base_height: float
+    base_height: float | None  # None: not finite (diverged)
     max_link_speed: float
     at_rest: bool
     diverged: bool
     rest_time: float | None  # sim time since which the robot has been at rest
     error: str | None = None
 
-    def as_json(self) -> dict:
+    def as_json(self) -> dict[str, Any]:
         return asdict(self)
 
 
 class RunMonitor:
     """Pass `monitor.tick` as Simulation.run's on_tick."""
 
-    def __init__(self, sim: Simulation):
+    def __init__(self, sim: Simulation) -> None:
         self.sim = sim
         self.start_wall = time.perf_counter()
         self.start_sim = sim.time
@@ -74,4 +75,5 @@ class RunMonitor:
             base_height=round(height, 6) if np.isfinite(height) else None,
             max_link_speed=round(self.max_speed, 6), at_rest=at_rest,
             diverged=self.error is not None,
-            rest_time=round(self.rest_since, 4) if at_rest else None, error=self.error)
+            rest_time=round(self.rest_since, 4) if at_rest and self.rest_since is not None else None,
+            error=self.error)

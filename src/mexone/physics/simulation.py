@@ -24,6 +24,7 @@ from typing import Any, Protocol
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.description.check import check_model
 from mexone.description.loader import load_model
@@ -38,8 +39,8 @@ from mexone.physics.compile import (
     collision_bits,
     compile_model,
 )
+from mexone.physics.divergence import DivergenceError, Watchdog, link_speeds
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
-from mexone.physics.watchdog import DivergenceError, Watchdog, link_speeds
 from mexone.physics.world import World
 from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
@@ -110,15 +111,16 @@ class WorkQueue:
     thread that steps the simulation drains it between steps, so nobody else touches MuJoCo."""
 
     def __init__(self) -> None:
-        self._items: queue.SimpleQueue[tuple[Callable[[], Any], threading.Event | None, list]] = \
-            queue.SimpleQueue()
+        self._items: queue.SimpleQueue[tuple[Callable[[], Any], threading.Event | None,
+                                             list[Any]]] = queue.SimpleQueue()
 
     def put(self, fn: Callable[[], Any]) -> None:
         self._items.put((fn, None, []))
 
     def call(self, fn: Callable[[], Any], timeout: float = 10.0) -> Any:
         """Run `fn` in the simulation thread and wait for its result (its exception re-raised)."""
-        done, box = threading.Event(), []
+        done = threading.Event()
+        box: list[Any] = []
         self._items.put((fn, done, box))
         if not done.wait(timeout):
             raise TimeoutError("the simulation thread did not answer")
@@ -149,20 +151,23 @@ class WorkQueue:
 class RtfMeter:
     """Real-time factor over the last `window` seconds of wall time, as Gazebo shows it."""
 
-    def __init__(self, window: float = 1.0):
+    def __init__(self, window: float = 1.0) -> None:
         self.window = window
         self.samples: deque[tuple[float, float]] = deque()
 
     def add(self, wall: float, sim: float) -> None:
+        """One stretch of wall time and the sim time it advanced."""
         self.samples.append((wall, sim))
         while len(self.samples) > 2 and wall - self.samples[0][0] > self.window:
             self.samples.popleft()
 
     def clear(self) -> None:
+        """Forget the stretches measured (after a pause or a reset)."""
         self.samples.clear()
 
     @property
     def value(self) -> float:
+        """The real-time factor over the recent stretches (sim time / wall time)."""
         if len(self.samples) < 2:
             return 0.0
         (w0, s0), (w1, s1) = self.samples[0], self.samples[-1]
@@ -170,9 +175,14 @@ class RtfMeter:
 
 
 class Simulation:
+    """A robot in a world, compiled into MuJoCo and stepped as Gazebo would: MuJoCo's `model` and
+    `data` behind a Gazebo-like API (`step`, `run`, `reset`, `pause`; joint positions,
+    velocities and efforts; pushes and efforts; callbacks in sim time). Only the thread that
+    steps it touches MuJoCo: other threads hand work over through `work`."""
+
     def __init__(self, robot: RobotModel | Path | str, world: World | None = None,
                  spawn: Spawn = Spawn(), options: CompileOptions = CompileOptions(),
-                 target_rtf: float | None = None, edits: Sequence[SpecEdit] = ()):
+                 target_rtf: float | None = None, edits: Sequence[SpecEdit] = ()) -> None:
         if not isinstance(robot, RobotModel):
             robot = load_model(robot)
         self.robot = robot
@@ -220,6 +230,7 @@ class Simulation:
     # ----- clock ---------------------------------------------------------------------------------
     @property
     def time(self) -> float:
+        """Sim time, in seconds."""
         return self._time_ns / NS
 
     @property
@@ -229,6 +240,7 @@ class Simulation:
 
     @property
     def timestep(self) -> float:
+        """The physics step, in seconds."""
         return float(self.model.opt.timestep)
 
     def set_timestep(self, seconds: float) -> None:
@@ -240,6 +252,7 @@ class Simulation:
             hook(seconds)
 
     def on_timestep_change(self, hook: Callable[[float], None]) -> None:
+        """Call `hook(seconds)` whenever the physics step changes."""
         self._timestep_hooks.append(hook)
 
     def on_reset(self, hook: Callable[[], None]) -> None:
@@ -258,18 +271,24 @@ class Simulation:
         return timer
 
     def remove_periodic(self, timer: Periodic) -> None:
+        """Stop a callback add_periodic started."""
         if timer in self.periodic:
             self.periodic.remove(timer)
 
     def add_control(self, control: Control) -> None:
+        """Run `control.update(sim)` whenever it is due (its wake_ns): a controller manager."""
         self.controls.append(control)
 
     def remove_control(self, control: Control) -> None:
         """Forget a control and the hooks it registered (a deleted robot's controllers)."""
         if control in self.controls:
             self.controls.remove(control)
-        for hooks in (self._reset_hooks, self._timestep_hooks, self._model_hooks):
-            hooks[:] = [h for h in hooks if getattr(h, "__self__", None) is not control]
+        def kept(hook: object) -> bool:
+            return getattr(hook, "__self__", None) is not control
+
+        self._reset_hooks[:] = [h for h in self._reset_hooks if kept(h)]
+        self._timestep_hooks[:] = [h for h in self._timestep_hooks if kept(h)]
+        self._model_hooks[:] = [h for h in self._model_hooks if kept(h)]
 
     def _fire_due(self) -> None:
         # runs between every two chunks of steps (every step while a control needs each one):
@@ -440,9 +459,11 @@ class Simulation:
             self._pace_origin = (wall, self.time)
 
     def pause(self) -> None:
+        """Pause: run() and the page's loop stop advancing sim time."""
         self.paused = True
 
     def resume(self) -> None:
+        """Resume after pause; the pacing starts again from now."""
         self.paused = False
         self._pace_origin = None
 
@@ -492,6 +513,7 @@ class Simulation:
         return name
 
     def remove_model(self, name: str) -> None:
+        """Delete a model add_model spawned (its controllers leave with it)."""
         if name == self.robot.name:
             raise InputError(f"'{name}' is the simulated robot; it cannot be deleted",
                              hint="delete models you spawned")
@@ -549,9 +571,11 @@ class Simulation:
         return out, given
 
     def joint_positions(self) -> np.ndarray:
+        """Every moving joint's position now (joint_names order)."""
         return self.data.qpos[self.compiled.qpos_adr].copy()
 
     def joint_velocities(self) -> np.ndarray:
+        """Every moving joint's velocity now (joint_names order)."""
         return self.data.qvel[self.compiled.dof_adr].copy()
 
     def joint_efforts(self) -> np.ndarray:
@@ -565,6 +589,20 @@ class Simulation:
         self.data.qpos[self.compiled.qpos_adr[given]] = vec[given]
         self.data.qvel[self.compiled.dof_adr[given]] = 0.0
         mujoco.mj_forward(self.model, self.data)
+
+    def set_state(self, qpos: ArrayLike | None = None, qvel: ArrayLike | None = None) -> None:
+        """The generalized positions (nq) and velocities (nv) at once, as computed by a front end
+        that places the robot itself (a design check's deviation, a recording's first instant);
+        None keeps that part. Forward kinematics follow. Simulation thread only."""
+        for name, values, size in (("qpos", qpos, self.model.nq), ("qvel", qvel, self.model.nv)):
+            if values is None:
+                continue
+            array = np.asarray(values, dtype=float).reshape(-1)
+            if array.shape != (size,) or not np.isfinite(array).all():
+                raise InputError(f"{name} must be {size} finite numbers")
+            getattr(self.data, name)[:] = array
+        mujoco.mj_forward(self.model, self.data)
+        self.watchdog.forget()
 
     def within_limits(self, values: Mapping[str, float]) -> tuple[dict[str, float], list[str]]:
         """`values` clamped to each joint's URDF limits (revolute and prismatic joints), and a
@@ -658,18 +696,18 @@ class Simulation:
             rot = np.eye(3) if frame_body < 0 else self.data.xmat[frame_body].reshape(3, 3)
             origin = np.zeros(3) if frame_body < 0 else self.data.xpos[frame_body]
             point = rot.T @ (self.data.xipos[body] - origin)
-        point = np.asarray(point, dtype=float)
-        if point.shape != (3,) or not np.isfinite(point).all():
+        at = np.asarray(point, dtype=float)
+        if at.shape != (3,) or not np.isfinite(at).all():
             raise InputError("application point must be 3 finite numbers")
         if frame_body < 0:  # a world-frame push stays where it was put on the body
             frame_body, rot = body, self.data.xmat[body].reshape(3, 3)
-            point = rot.T @ (point - self.data.xpos[body])
+            at = rot.T @ (at - self.data.xpos[body])
             values = np.r_[rot.T @ values[:3], rot.T @ values[3:]]
             world_fixed = True
         else:
             world_fixed = False
         begin, end = self._duration_ns(duration, start)
-        wrench = Wrench(body, values[:3], values[3:], point, frame_body, begin, end)
+        wrench = Wrench(body, values[:3], values[3:], at, frame_body, begin, end)
         if world_fixed:  # force and torque keep their world direction as the body turns
             wrench = _WorldWrench.of(wrench, self.data)
         self.forces.wrenches.append(wrench)
@@ -691,6 +729,7 @@ class Simulation:
         self.forces.changed = True
 
     def clear_joint_efforts(self, joint: str | None = None) -> int:
+        """End the efforts applied to `joint` (every joint: None); how many ended."""
         return self.forces.clear_joint(None if joint is None else self._dof(joint))
 
     def _dof(self, joint: str) -> int:
@@ -701,9 +740,11 @@ class Simulation:
 
     @property
     def gravity(self) -> np.ndarray:
+        """Gravity now, (x, y, z) in m/s^2."""
         return self.model.opt.gravity.copy()
 
     def set_gravity(self, gravity: Sequence[float]) -> None:
+        """Change gravity at once (x, y, z in m/s^2; ranges.GRAVITY)."""
         try:
             values = np.asarray(gravity, dtype=float)
         except (TypeError, ValueError):
@@ -719,6 +760,7 @@ class Simulation:
 
     @property
     def base_height(self) -> float:
+        """The root link's height (z in the world frame), in m."""
         return float(self.data.xpos[self.compiled.root_body][2])
 
     @property

@@ -9,11 +9,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 from mexone.description.sdf import sdf_version
 from mexone.description.xmlio import XmlReader
 from mexone.errors import UnsupportedError
 from mexone.ranges import GRAVITY, RTF, TIMESTEP, number_text
+
+if TYPE_CHECKING:
+    import numpy as np
+    from lxml import etree
 
 __all__ = ["World", "Ground", "Block", "read_world", "default_world"]
 
@@ -32,9 +37,9 @@ class Block:
     x y z, roll pitch yaw) and friction."""
 
     name: str
-    size: tuple[float, float, float]
-    xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    size: tuple[float, ...]  # x y z
+    xyz: tuple[float, ...] = (0.0, 0.0, 0.0)
+    rpy: tuple[float, ...] = (0.0, 0.0, 0.0)
     mu: float = 1.0
 
 
@@ -57,6 +62,8 @@ def default_world() -> World:
 
 
 def read_world(path: Path | str) -> World:
+    """A Gazebo `.world` file (SDF): physics step, gravity, ground friction, the sun, static
+    boxes; every mistake one line at its line."""
     path = Path(path)
     xml = XmlReader(path)
     root = xml.root
@@ -64,7 +71,7 @@ def read_world(path: Path | str) -> World:
     if world is None:
         raise xml.fail(root, "holds no <world>", "a world file is <sdf><world>...</world></sdf>")
     sdf_version(xml, root)
-    values: dict = {"name": world.get("name", "default"), "source": path, "ground": None}
+    values: dict[str, Any] = {"name": world.get("name", "default"), "source": path, "ground": None}
     if (g := world.find("gravity")) is not None:
         values["gravity"] = xml.numbers(g, g.text or "", 3, "value")
         if not all(GRAVITY.contains(v) for v in values["gravity"]):
@@ -119,15 +126,15 @@ def read_world(path: Path | str) -> World:
     return World(**values)
 
 
-def _pose(xml: XmlReader, el) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    pose = el.find("pose")
+def _pose(xml: XmlReader, el: etree._Element | None) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    pose = el.find("pose") if el is not None else None
     if pose is None:
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     values = xml.numbers(pose, pose.text or "", 6, "pose")
     return values[:3], values[3:]
 
 
-def _block(xml: XmlReader, model, size_el) -> Block:
+def _block(xml: XmlReader, model: etree._Element, size_el: etree._Element) -> Block:
     """A static model's box: its model and link poses composed (as SDF frames: model, then link)."""
     import numpy as np
 
@@ -147,7 +154,7 @@ def _block(xml: XmlReader, model, size_el) -> Block:
     return Block(model.get("name", "block"), size, xyz, rpy, mu)
 
 
-def _matrix_to_rpy(r) -> tuple[float, float, float]:
+def _matrix_to_rpy(r: np.ndarray) -> tuple[float, float, float]:
     import math
 
     pitch = math.asin(max(-1.0, min(1.0, -r[2, 0])))

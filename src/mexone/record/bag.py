@@ -15,6 +15,7 @@ SIGKILL, a crash or a routine's ``os._exit`` everything older than that is in ``
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
@@ -28,10 +29,12 @@ from mexone.lab import Lab
 __all__ = ["BagRecorder", "ROS_NAMES", "to_ros", "typestore_for", "BAG_SUFFIXES", "active_path",
            "FLUSH_PERIOD"]
 
+#: the recordings mexone writes and reads: MCAP (ROS 2) and ROS 1 bags
 BAG_SUFFIXES = (".mcap", ".bag")
+#: each message class -> its type name in a bag ("sensor_msgs/msg/JointState")
 ROS_NAMES = {cls: name.replace("/", "/msg/", 1) for cls, name in msgs.ROS_TYPES.items()}
 _TF_MSG = "geometry_msgs/TransformStamped[] transforms\n"
-FLUSH_PERIOD = 0.25  # s of sim time between chunks written to disk: what a SIGKILL can lose
+FLUSH_PERIOD = 0.25  #: s of sim time between chunks written to disk: what a SIGKILL can lose
 _SMALL_CHUNK = 16 * 1024  # bytes: the chunk size where the mcap library cannot flush on demand
 
 
@@ -65,7 +68,9 @@ bool antiwindup
 """  # control_msgs 1.5's JointControllerState (ros_controllers' `state` topics)
 
 
-def typestore_for(ros1: bool):
+def typestore_for(ros1: bool) -> Any:
+    """rosbags' type store for a ROS 1 .bag (Noetic) or an MCAP (ROS 2), with mexone's message
+    types it lacks added."""
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     missing = {}
     if "tf2_msgs/msg/TFMessage" not in store.types:

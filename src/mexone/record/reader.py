@@ -29,9 +29,11 @@ __all__ = ["JointSeries", "read_joint_series", "FieldSeries", "read_field_series
 
 log = logging.getLogger(__name__)
 
+#: the joint states' type in a bag
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64, MULTI, TRAJECTORY = ("std_msgs/msg/Float64", "std_msgs/msg/Float64MultiArray",
                               "trajectory_msgs/msg/JointTrajectory")
+#: the controllers' command types a bag's commands are read from
 COMMAND_TYPES = (FLOAT64, MULTI, TRAJECTORY)
 _TF = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
 

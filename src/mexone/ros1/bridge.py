@@ -197,7 +197,7 @@ class Ros1Bridge:
         self.sync_topics()
         from mexone.ros1.controller_manager import ControllerManagerNode
 
-        if lab.controllers is not None:
+        if lab.manager is not None:
             self.services.append(ControllerManagerNode(self))
         self.gazebo.attach()
         lab.sim.recover_outside = True  # no input from the graph may end the simulation

@@ -48,7 +48,7 @@ class ControllerManagerNode:
 
         self.bridge, self.rospy = bridge, bridge.rospy
         self.lab = bridge.lab
-        self.manager = manager or self.lab.controllers
+        self.manager = manager or self.lab.manager
         self.ns = ns or self.lab.namespace
         rospy, base = self.rospy, f"{self.ns}/controller_manager/"
         self.services = [
@@ -77,7 +77,7 @@ class ControllerManagerNode:
         from controller_manager_msgs.msg import ControllerState, HardwareInterfaceResources
         from controller_manager_msgs.srv import ListControllersResponse
 
-        infos = self.bridge.call(self.manager.list)
+        infos = self.bridge.call(self.manager.list_controllers)
         return ListControllersResponse([ControllerState(
             i.name, i.state, i.type,
             [HardwareInterfaceResources(_INTERFACE_PREFIX + (i.interface or "JointStateInterface"),
@@ -180,10 +180,10 @@ class ControllerManagerNode:
         extras = []
         if ctrl.gains is not None and len(ctrl.joints) == 1:
             extras.append(self._reconfigure(name, ctrl.gains[0]))
-        params = getattr(ctrl, "plugin", None) and ctrl.plugin.cls.declared_params()
+        params = ctrl.declared_params()
         if params:
             extras.append(self._reconfigure_params(name, params, ctrl.params))
-        if ctrl.kind == "trajectory":
+        if ctrl.takes_trajectories:
             self.trajectories[name] = TrajectoryInterfaces(self, name)
             extras += self.trajectories[name].handles
         self.extras[name] = extras

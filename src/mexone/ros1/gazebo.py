@@ -391,8 +391,8 @@ class GazeboNode:
             # commands are; a teleport past it would be flung back faster than physics allows
             values, clamped = sim.within_limits(asked)
             sim.set_joint_positions(values)
-            if self.lab.controllers is not None:
-                self.lab.controllers.hold(values)  # they hold the new pose, not the old setpoint
+            if self.lab.manager is not None:
+                self.lab.manager.hold(values)  # they hold the new pose, not the old setpoint
             self._noted("set_model_configuration",
                         ", ".join(f"{n} {number_text(v)}" for n, v in values.items()))
             if not clamped:

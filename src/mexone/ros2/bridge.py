@@ -175,7 +175,7 @@ class Ros2Bridge:
         """ros2_control's services under /controller_manager/ when controller_manager_msgs is
         built (`python -m mexone.ros2.interfaces`: it has no wheel)."""
         self.controller_manager = None
-        if self.lab.controllers is None:
+        if self.lab.manager is None:
             return
         if convert.message_class("controller_manager_msgs/ControllerState") is None:
             self._skip_package("/controller_manager/... services", "controller_manager_msgs")

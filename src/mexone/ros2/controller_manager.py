@@ -50,7 +50,7 @@ class ControllerManagerServices:
         from controller_manager_msgs import srv
 
         self.bridge, self.base = bridge, base.rstrip("/")
-        self.manager = bridge.lab.controllers
+        self.manager = bridge.lab.manager
         types = {"list_controllers": srv.ListControllers,
                  "list_controller_types": srv.ListControllerTypes,
                  "list_hardware_interfaces": srv.ListHardwareInterfaces,
@@ -89,7 +89,7 @@ class ControllerManagerServices:
     def _snapshot(self) -> list[dict]:
         manager, out = self.manager, []
         rate = min(65535, round(1.0 / manager.control_period))
-        for info in manager.list():
+        for info in manager.list_controllers():
             ctrl = manager.controllers[info.name]
             command = command_interface(info.interface)
             joints = list(info.joints) or (list(manager.hw.joints) if command is None else [])

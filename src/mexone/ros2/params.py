@@ -49,7 +49,7 @@ class Parameters:
             "physics.gravity": [float(v) for v in sim.gravity],
             "physics.real_time_factor": float(sim.target_rtf or 0.0),
             "physics.solver_iterations": int(sim.model.opt.iterations)}
-        manager = self.lab.controllers
+        manager = self.lab.manager
         for name, ctrl in (manager.controllers.items() if manager is not None else ()):
             if ctrl.gains is None:
                 continue
@@ -93,7 +93,7 @@ class Parameters:
             raise InputError(f"{name} is not a physics parameter", hint=f"one of {PHYSICS}")
         controller, _, rest = name.partition(".gains.")
         joint, _, key = rest.rpartition(".")
-        manager = self.lab.controllers
+        manager = self.lab.manager
         ctrl = manager.controllers.get(controller) if manager is not None else None
         if ctrl is None or ctrl.gains is None or joint not in ctrl.joints or key not in GAIN_FIELDS:
             raise InputError(f"{name}: no such gain", hint="`ros2 param list` names them")
@@ -104,7 +104,7 @@ class Parameters:
         return name, GAIN_FIELDS[key].check(_number(name, value), name)
 
     def _apply(self, changes: list[tuple[str, object]]) -> None:  # simulation thread
-        sim, manager = self.lab.sim, self.lab.controllers
+        sim, manager = self.lab.sim, self.lab.manager
         for name, value in changes:
             if name == "physics.time_step":
                 sim.set_timestep(value)

@@ -24,17 +24,18 @@ from mexone.routines.runtime import STALL_SECONDS, RoutineContext, Scheduler, Sh
 __all__ = ["RoutineRunner", "Routine", "resolve_routine", "shipped_routines", "parse_param_args",
            "routine_choices"]
 
-_HERE = Path(__file__).resolve().parent
+# the shipped routines are Mex-One's programs, beside its ROS nodes: this package only runs them
+SHIPPED_DIR = Path(__file__).resolve().parents[1] / "robots" / "mex_one" / "routines"
 DEFAULT_DURATION = 10.0  # s of sim time a run lasts when neither its caller nor its routine says
 _BASE_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # a ROS base name (a node's)
 LOG_KEEP = 10_000  # routine log lines a runner keeps in memory at least (log_lines)
-SHIPPED = {"sweep": "sweep.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
+SHIPPED = {"joint_steps": "joint_steps.py", "arms": "arms.py", "home": "home.py", "balance": "balance.py",
            "walk": "walk.py", "excitation": "excitation.py", "walk_cmd_vel": "walk_cmd_vel.py",
            "reach_goals": "reach_goals.py"}
 
 
 def shipped_routines() -> dict[str, Path]:
-    return {name: _HERE / "shipped" / file for name, file in SHIPPED.items()}
+    return {name: SHIPPED_DIR / file for name, file in SHIPPED.items()}
 
 
 def routine_choices(folders: list[Path] | None = None) -> dict[str, Path]:
@@ -50,7 +51,17 @@ def routine_choices(folders: list[Path] | None = None) -> dict[str, Path]:
     return choices
 
 
+RENAMED = {"sweep": "joint_steps"}  # former shipped names (issue 40), for one release
+
+
 def resolve_routine(name_or_path: str | Path) -> Path:
+    """A routine file, or one of the shipped routines by name."""
+    if str(name_or_path) in RENAMED:
+        from mexone.errors import warn_renamed
+
+        warn_renamed(f"the routine '{name_or_path}'", f"'{RENAMED[str(name_or_path)]}' (a gain "
+                     "sweep is `mexone sweep`)")
+        name_or_path = RENAMED[str(name_or_path)]
     shipped = shipped_routines()
     if str(name_or_path) in shipped:
         return shipped[str(name_or_path)]
@@ -125,8 +136,8 @@ class RoutineRunner:
         if poll is not None:
             self.scheduler.poll = poll
         self.params: dict[str, object] = {}  # the parameter server the routines share
-        if lab.controllers:  # the controller YAML, as it was read
-            _flatten("", lab.controllers.config.parameters, self.params)
+        if lab.manager:  # the controller YAML, as it was read
+            _flatten("", lab.manager.config.parameters, self.params)
         self.params["/robot_description"] = write_urdf(lab.sim.robot)  # as on a ROS master
         # the latest LOG_KEEP to 2 x LOG_KEEP lines (a long run's routine may log without end)
         self.log_lines: list[tuple[float, str, str]] = []

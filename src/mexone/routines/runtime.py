@@ -68,6 +68,8 @@ class RoutineContext:
     # `_x:=v` arguments (~x: v), kept under the node's name, init_node's as in rospy
     private: dict[str, object] = field(default_factory=dict)
     name_remap: str | None = None  # `__name:=n`: init_node's name is n (as rosrun)
+    # what a library the routine calls keeps for this routine's life (motion's IK), by library
+    kept: dict[str, object] = field(default_factory=dict)
 
     @property
     def time(self) -> float:
@@ -97,6 +99,18 @@ class _Thread:
     running_since: float | None = None  # wall time it last got the clock (None: it waits)
     wait: _Wait | None = None
     busy: list[str] = field(default_factory=list)  # mexone's computations running (busy())
+    native: int = 0  # the OS's thread id (its scheduler statistics)
+    queued: tuple[float, float | None] | None = None  # (running_since, run queue wait then)
+
+
+def _queued(native: int) -> float | None:
+    """s the thread has waited, runnable, for a CPU the machine gave others (Linux's
+    schedstat), or None where that is not known."""
+    try:
+        with open(f"/proc/self/task/{native}/schedstat") as stats:
+            return int(stats.read().split()[1]) / 1e9
+    except (OSError, ValueError, IndexError):
+        return None
 
 
 class Scheduler:
@@ -115,7 +129,8 @@ class Scheduler:
     # ----- routine side ------------------------------------------------------------------------
     def enter(self, context: RoutineContext) -> None:
         with self._cond:
-            self._threads[threading.get_ident()] = _Thread(context, time.perf_counter())
+            self._threads[threading.get_ident()] = _Thread(context, time.perf_counter(),
+                                                          native=threading.get_native_id())
 
     def leave(self) -> None:
         with self._cond:
@@ -182,11 +197,24 @@ class Scheduler:
             self._cond.notify_all()
 
     def _abandon_stalled(self) -> None:
-        """Give up on routines that have not yielded for `stall` s: the simulation goes on."""
+        """Give up on routines that have not yielded for `stall` s: the simulation goes on.
+        The time a routine waited, runnable, while the machine ran other processes is not its
+        own: on a loaded machine it is discounted (measured from the first poll that sees the
+        routine running, 50 ms after it got the clock), so a watchdog meant for a routine's own
+        loop does not abandon one the machine starved."""
         now = time.perf_counter()
         for tid, t in list(self._threads.items()):
             limit = BUSY_SECONDS if t.busy else self.stall
-            if t.running_since is not None and now - t.running_since > limit:
+            if t.running_since is None:
+                continue
+            queued = _queued(t.native)
+            if t.queued is None or t.queued[0] != t.running_since:  # first seen running: from now
+                t.queued = (t.running_since, queued)
+                continue
+            ran = now - t.running_since
+            if queued is not None and t.queued[1] is not None:
+                ran -= queued - t.queued[1]
+            if ran > limit:
                 reason = (f"mexone's {t.busy[-1]} ran for {limit:g} s without yielding to the "
                           "simulation (a mexone bug: please report it)" if t.busy else
                           f"routine did not yield to the simulation for {self.stall:g} s "

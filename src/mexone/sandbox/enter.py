@@ -10,7 +10,7 @@ import sys
 
 def main(argv: list[str]) -> None:
     sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    import confine  # this folder's module, by path: no package is imported
+    import confine  # type: ignore[import-not-found]  # this folder's, by path: no package
 
     if argv[:1] == ["--probe"]:
         import json

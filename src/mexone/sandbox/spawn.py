@@ -237,7 +237,7 @@ def prepare(jail: Jail) -> tuple[Path, Path, Path, bool, UidSlot | None]:
     work = Path(tempfile.mkdtemp(prefix="mexone-jail-"))
     os.chmod(work, 0o711)
     own = jail.scratch is None
-    scratch = work / "scratch" if own else Path(jail.scratch).resolve()
+    scratch = work / "scratch" if jail.scratch is None else Path(jail.scratch).resolve()
     scratch.mkdir(parents=True, exist_ok=True)
     root = work / "root"
     root.mkdir()
@@ -267,13 +267,13 @@ class StudentProcess:
     """A running student process. `kill()` ends it and everything it started; it is a context
     manager that does so on exit."""
 
-    def __init__(self, popen: subprocess.Popen, jail: Jail, scratch: Path, work: Path,
+    def __init__(self, popen: subprocess.Popen[bytes], jail: Jail, scratch: Path, work: Path,
                  own_scratch: bool, plan: Plan, slot: UidSlot | None):
         self.popen = popen
         self.jail = jail
         self.scratch = scratch
         self.plan = plan
-        self._work = work
+        self._work: Path | None = work
         self._own_scratch = own_scratch
         self._slot = slot
         self._lock = threading.Lock()
@@ -330,7 +330,7 @@ class StudentProcess:
 
 def spawn(argv: Sequence[str], jail: Jail, *, pass_fds: Sequence[int] = (),
           env: Mapping[str, str] | None = None, stdin: Any = subprocess.DEVNULL,
-          stdout: IO | int | None = None, stderr: IO | int | None = None) -> StudentProcess:
+          stdout: IO[Any] | int | None = None, stderr: IO[Any] | int | None = None) -> StudentProcess:
     """Start `argv` (a program and its arguments, e.g. [sys.executable, "-m", module, ...]) in
     `jail`, its working folder the scratch folder. `env` is its environment (default: this
     process's), never with the teacher's secret; `pass_fds` the descriptors it inherits. The

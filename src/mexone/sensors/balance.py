@@ -14,6 +14,8 @@ of pressure, weighted by their normal forces, give the ZMP.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from mexone.bus.msgs import Header, Point, Point32, PointStamped, Polygon, PolygonStamped, Time
@@ -39,7 +41,7 @@ def convex_hull(points: np.ndarray) -> np.ndarray:
     if len(pts) < 3:
         return np.array(pts).reshape(-1, 2)
 
-    def half(seq):
+    def half(seq: Iterable[tuple[float, float]]) -> list[tuple[float, float]]:
         out: list[tuple[float, float]] = []
         for p in seq:
             while len(out) >= 2 and ((out[-1][0] - out[-2][0]) * (p[1] - out[-2][1])
@@ -76,16 +78,21 @@ def centre_of_pressure(force: np.ndarray, torque: np.ndarray, at: np.ndarray,
 class BalanceState:
     """One instant's COM, support polygon and ZMP (numbers; the GUI draws them)."""
 
-    def __init__(self, com: np.ndarray, polygon: np.ndarray, zmp: np.ndarray | None):
+    def __init__(self, com: np.ndarray, polygon: np.ndarray, zmp: np.ndarray | None) -> None:
         self.com, self.polygon, self.zmp = com, polygon, zmp
 
     @property
     def statically_stable(self) -> bool:
+        """Whether the COM's ground projection is inside the support polygon."""
         return inside(self.com, self.polygon)
 
 
 class Balance:
-    def __init__(self, sim: Simulation, bus: Bus, namespace: str, feet: list[ForceTorqueSensor]):
+    """A humanoid's balance quantities from its two foot force-torque sensors: the COM's ground
+    projection, the support polygon and the measured ZMP (`state()`), and their topics
+    (/<ns>/com, /<ns>/zmp, /<ns>/support_polygon), published while someone listens."""
+
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str, feet: list[ForceTorqueSensor]) -> None:
         self.sim, self.bus, self.feet = sim, bus, feet
         self.topics = {"com": f"{namespace}/com", "zmp": f"{namespace}/zmp",
                        "support_polygon": f"{namespace}/support_polygon"}
@@ -104,6 +111,7 @@ class Balance:
         self.seq = 0
 
     def state(self) -> BalanceState:
+        """The balance quantities now (COM, support polygon, ZMP)."""
         sim = self.sim
         data = sim.data
         com = data.subtree_com[sim.compiled.root_body].copy()
@@ -134,6 +142,7 @@ class Balance:
         return weighted / total if total > 0 else None
 
     def publish(self, sim: Simulation) -> None:
+        """The broadcaster's tick: /com, /zmp and /support_polygon for their listeners."""
         wanted = {k for k, t in self.topics.items() if self.bus.wanted(t)}
         if not wanted:
             return

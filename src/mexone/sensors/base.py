@@ -17,22 +17,33 @@ MuJoCo's sensors are evaluated on demand (`Measure`), once per instant however m
 
 from __future__ import annotations
 
+import importlib
+import logging
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from importlib.metadata import entry_points
+from typing import Any, ClassVar, cast
 
 import mujoco
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mexone.bus.msgs import Header, Time
-from mexone.bus.topics import Bus, resolve_name
-from mexone.description import sensors as declared
+from mexone.bus.topics import Bus, Topic, resolve_name
 from mexone.description.model import RobotModel
 from mexone.description.sensors import SensorSpec
+from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
 
 __all__ = ["Output", "Measure", "Sensor", "SensorStates", "topic_name", "register_sensor",
-           "SENSOR_CLASSES", "sensor_type", "AXES"]
+           "SENSOR_CLASSES", "sensor_type", "sensor_types", "AXES", "ENTRY_POINT_GROUP",
+           "BUILTIN_SENSORS"]
+
+log = logging.getLogger(__name__)
+
+ENTRY_POINT_GROUP = "mexone.sensors"
+BUILTIN_SENSORS = ("mexone.sensors.imu", "mexone.sensors.force_torque", "mexone.sensors.contact",
+                   "mexone.sensors.camera")
 
 _SENSOR_OFF = int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 # looked up once: the sensor pass runs between steps, where every attribute lookup counts
@@ -78,11 +89,11 @@ class Measure:
     however many sensors are read.
     """
 
-    def __init__(self, sim: Simulation):
+    def __init__(self, sim: Simulation) -> None:
         self.sim = sim
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
         self._stamp = Time()
-        self._contacts: tuple = ([], [], [], [], [])
+        self._contacts: tuple[list[Any], ...] = ([], [], [], [], [])
         self._cone_model: mujoco.MjModel | None = None
         self._elliptic = False
         self._force6 = np.zeros(6)
@@ -107,6 +118,7 @@ class Measure:
         self.invalidate()
 
     def invalidate(self) -> None:
+        """Forget this instant's readings (the state changed under them: a reset, a teleport)."""
         self._at = self._contacts_at = self._stamp_at = self._refreshed_at = -1
 
     def stamp(self) -> Time:
@@ -118,7 +130,7 @@ class Measure:
             self._stamp_at = sim.steps
         return self._stamp
 
-    def contacts(self) -> tuple:
+    def contacts(self) -> tuple[list[Any], ...]:
         """This instant's contacts as plain lists, read once for every contact sensor: (geom
         pairs, frames (9 each: normal, two tangents, world), positions, distances, each
         contact's (normal, tangent, tangent) force on geom2 in its frame). Elliptic cones
@@ -154,6 +166,7 @@ class Measure:
         return tuple(self._force6[:3].tolist())
 
     def data(self) -> np.ndarray:
+        """MuJoCo's sensordata after this instant's sensor pass."""
         sim = self.sim
         if self._at != sim.steps:
             self._sensor_pass(sim)
@@ -171,26 +184,27 @@ class Measure:
             opt.disableflags = flags
         self._at = sim.steps
 
-    def linear(self, rows, matrix, bind: Callable[[np.ndarray], None]) -> None:
+    def linear(self, rows: ArrayLike, matrix: ArrayLike, bind: Callable[[np.ndarray], None]) -> None:
         """Register out = matrix @ sensordata[rows] (matrix: len(out) x len(rows)); `bind(view)`
         receives out's view into the shared buffer once the buffer exists (before the first
         refresh), to make it the state's arrays."""
-        rows = np.asarray(rows, dtype=int)
-        matrix = np.asarray(matrix, dtype=float).reshape(-1, len(rows))
-        self._terms.append((self._size, rows, matrix))
-        self._views.append((bind, self._size, self._size + len(matrix)))
-        self._size += len(matrix)
+        index = np.asarray(rows, dtype=int)
+        weights = np.asarray(matrix, dtype=float).reshape(-1, len(index))
+        self._terms.append((self._size, index, weights))
+        self._views.append((bind, self._size, self._size + len(weights)))
+        self._size += len(weights)
         self._matrix = None
 
-    def _build(self) -> None:
+    def _build(self) -> np.ndarray:
         nsensordata = self.sim.model.nsensordata
-        self._matrix = np.zeros((self._size, nsensordata))
+        self._matrix = whole = np.zeros((self._size, nsensordata))
         for offset, rows, matrix in self._terms:
             for j, row in enumerate(rows):
-                self._matrix[offset:offset + len(matrix), row] += matrix[:, j]
+                whole[offset:offset + len(matrix), row] += matrix[:, j]
         self.buffer = np.zeros(self._size)
         for bind, start, stop in self._views:
             bind(self.buffer[start:stop])
+        return whole
 
     def refresh(self) -> None:
         """Every registered linear state at this instant (once per instant)."""
@@ -198,11 +212,12 @@ class Measure:
         now = sim.steps
         if self._refreshed_at == now:
             return
-        if self._matrix is None:
-            self._build()
+        matrix = self._matrix
+        if matrix is None:
+            matrix = self._build()
         if self._at != now:
             self._sensor_pass(sim)
-        self._matrix.dot(self._sensordata, out=self.buffer)  # the method: no dispatch layer
+        matrix.dot(self._sensordata, out=self.buffer)  # the method: no dispatch layer
         self._refreshed_at = now
 
 
@@ -245,8 +260,9 @@ class Sensor:
             self.outputs = [Output(topic_name(self.namespace, self.spec.topic or self.spec.name),
                                    self.message_type)]
         self._frame_id = self.frame  # fixed once set up: the messages' frame_id
-        self._topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
-            if self.outputs else None
+        # the main topic (a sensor without outputs never publishes: its broadcaster never runs)
+        self._topic: Topic = self.bus.topic(self.outputs[0].topic, self.outputs[0].type) \
+            if self.outputs else cast(Topic, None)
         if not hasattr(self, "_needs_read"):  # setup may say a reading needs no read() call
             self._needs_read = type(self).read is not Sensor.read
 
@@ -297,10 +313,12 @@ class Sensor:
         return self._state
 
     def invalidate(self) -> None:
+        """Forget this instant's reading (the state changed under it)."""
         self._at = -1
 
     @property
     def frame(self) -> str:
+        """The frame_id of its messages."""
         return self.spec.frame or self.link
 
     @property
@@ -309,10 +327,12 @@ class Sensor:
         return self.spec.update_rate or 1.0 / self.sim.timestep
 
     def header(self, frame: str | None = None) -> Header:
+        """A message header now: the next seq, this instant's stamp, the frame."""
         self.seq = seq = self.seq + 1
         return Header(seq, self.measure.stamp(), frame or self._frame_id)
 
     def wanted(self, output: Output) -> bool:
+        """Whether an output has listeners (a camera renders for subscribers only)."""
         topic = self.bus.topics.get(output.topic)
         if output.heavy:  # recorders alone do not make a camera render
             return topic is not None and bool(topic.subscriptions)
@@ -348,36 +368,57 @@ class Sensor:
         return None
 
 
-SENSOR_CLASSES: dict[str, type[Sensor]] = {}  # SDF sensor type -> its plug-in
+SENSOR_CLASSES: dict[str, type[Sensor]] = {}  #: SDF sensor type -> its plug-in
 
 
 def register_sensor(type_name: str) -> Callable[[type[Sensor]], type[Sensor]]:
     """Class decorator: make `cls` the plug-in of SDF sensor type `type_name` (declared in a
-    URDF's `<gazebo reference=...><sensor type="type_name">`), everywhere at once: the URDF/SDF
-    reader accepts the type, the model builder calls its `build`, the suite runs it."""
+    URDF's `<gazebo reference=...><sensor type="type_name">`): the model builder calls its
+    `build`, the suite runs it. A package's sensor types are found through the
+    `mexone.sensors` entry-point group (`name = "package.module"`: importing it registers)."""
 
     def add(cls: type[Sensor]) -> type[Sensor]:
         cls.type_name = cls.type_name or type_name
         SENSOR_CLASSES[type_name] = cls
-        declared.add_sensor_type(type_name)
         return cls
 
     return add
 
 
+_loaded_entry_points = False
+
+
+def sensor_types() -> dict[str, type[Sensor]]:
+    """Every sensor plug-in by type: the shipped ones and the entry points' (imported once). A
+    package's type that fails to import is logged and left out."""
+    global _loaded_entry_points
+    for module in BUILTIN_SENSORS:
+        importlib.import_module(module)
+    if not _loaded_entry_points:
+        _loaded_entry_points = True
+        for ep in entry_points(group=ENTRY_POINT_GROUP):
+            try:
+                importlib.import_module(ep.value)
+            except Exception as exc:  # noqa: BLE001 - someone else's package: the lab goes on
+                log.warning("sensor type %s (%s) did not load: %s", ep.name, ep.value, exc)
+    return SENSOR_CLASSES
+
+
 def sensor_type(type_name: str) -> type[Sensor]:
-    try:
-        return SENSOR_CLASSES[type_name]
-    except KeyError:
-        raise KeyError(f"no sensor plug-in for type '{type_name}' (registered: "
-                       f"{', '.join(SENSOR_CLASSES)})") from None
+    """The plug-in of sensor type `type_name`; an InputError listing the types if none."""
+    cls = SENSOR_CLASSES.get(type_name) or sensor_types().get(type_name)
+    if cls is None:
+        raise InputError(f"mexone does not simulate sensor type '{type_name}'",
+                         hint="types: " + ", ".join(sorted(sensor_types())) + f" (a package adds one "
+                              f"through the '{ENTRY_POINT_GROUP}' entry points)")
+    return cls
 
 
 class SensorStates(Mapping[str, Any]):
     """name -> the sensor's state object at this instant (see `Sensor.state`): what controllers
     read as `state.sensors[name]`. Only the sensors looked up are read."""
 
-    def __init__(self, sensors: Mapping[str, Sensor]):
+    def __init__(self, sensors: Mapping[str, Sensor]) -> None:
         self._sensors = {n: s for n, s in sensors.items() if s.state_type is not None}
 
     def __getitem__(self, name: str) -> Any:

@@ -11,13 +11,14 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from mexone.description.findings import Finding
 from mexone.description.model import Pose, RobotModel
 from mexone.description.sensors import SensorSpec
 from mexone.description.transforms import rpy_to_matrix
-from mexone.errors import ModelError
-from mexone.sensors.base import sensor_type
+from mexone.errors import InputError, ModelError
+from mexone.sensors.base import ENTRY_POINT_GROUP, sensor_type, sensor_types
 
-__all__ = ["build_sensors", "sensor_link", "site_name", "camera_name", "add_site",
+__all__ = ["build_sensors", "lint_sensors", "sensor_link", "site_name", "camera_name", "add_site",
            "add_mujoco_sensors", "OPTICAL_FROM_LINK", "quat"]
 
 # A Gazebo camera looks along its link's +x with +z up; MuJoCo's looks along -z with +y up.
@@ -74,6 +75,17 @@ def add_mujoco_sensors(spec: mujoco.MjSpec, sensor: SensorSpec, objtype: mujoco.
                         objname=objname)
 
 
+def lint_sensors(robot: RobotModel) -> list[Finding]:
+    """What `mexone check` says about the declared sensors (the rules that need the sensor
+    plug-ins, above the description layer): a type no plug-in simulates is an error."""
+    known = sensor_types()
+    return [Finding("sensor-type-unknown", "error", f'sensor "{s.name}"',
+                    f"mexone does not simulate sensor type '{s.type}' (types: "
+                    f"{', '.join(sorted(known))}; a package adds one through the '{ENTRY_POINT_GROUP}' "
+                    "entry points)", s.line)
+            for s in robot.sensors if s.type not in known]
+
+
 def build_sensors(spec: mujoco.MjSpec, robot: RobotModel) -> None:
     """A physics.compile SpecEdit: every declared sensor's plug-in edits the spec."""
     for sensor in robot.sensors:
@@ -82,4 +94,9 @@ def build_sensors(spec: mujoco.MjSpec, robot: RobotModel) -> None:
         if body is None:
             raise ModelError(f"sensor '{sensor.name}' sits on link '{link}', which has no body in "
                              "the simulated model", file=robot.source, line=sensor.line)
-        sensor_type(sensor.type).build(spec, body, sensor, robot)
+        try:
+            cls = sensor_type(sensor.type)
+        except InputError as exc:
+            raise ModelError(f"sensor '{sensor.name}': {exc.what}", file=robot.source,
+                             line=sensor.line, hint=exc.hint) from None
+        cls.build(spec, body, sensor, robot)

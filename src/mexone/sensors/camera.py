@@ -16,8 +16,11 @@ import time
 import mujoco
 import numpy as np
 
-from mexone.bus.msgs import CameraInfo, Image, PointCloud2, PointField
+from mexone.bus.msgs import CameraInfo, Header, Image, PointCloud2, PointField
+from mexone.description.model import RobotModel
+from mexone.description.sensors import CameraSpec, SensorSpec
 from mexone.description.transforms import rpy_to_matrix
+from mexone.physics.simulation import Simulation
 from mexone.sensors.base import Output, Sensor, register_sensor, topic_name
 from mexone.sensors.build import OPTICAL_FROM_LINK, camera_name, quat
 from mexone.sensors.noise import NoiseModel
@@ -28,7 +31,7 @@ _XYZ = [PointField("x", 0, PointField.FLOAT32, 1), PointField("y", 4, PointField
         PointField("z", 8, PointField.FLOAT32, 1)]
 
 
-def camera_info(header, camera) -> CameraInfo:
+def camera_info(header: Header, camera: CameraSpec) -> CameraInfo:
     f, cx, cy = camera.focal, (camera.width - 1) / 2.0, (camera.height - 1) / 2.0
     return CameraInfo(header, camera.height, camera.width, "plumb_bob", [0.0] * 5,
                       [f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0],
@@ -36,7 +39,7 @@ def camera_info(header, camera) -> CameraInfo:
                       [f, 0.0, cx, 0.0, 0.0, f, cy, 0.0, 0.0, 0.0, 1.0, 0.0])
 
 
-def cloud_from_depth(depth: np.ndarray, camera) -> np.ndarray:
+def cloud_from_depth(depth: np.ndarray, camera: CameraSpec) -> np.ndarray:
     """(height, width, 3) points in the optical frame from a depth image (NaN stays NaN)."""
     h, w = depth.shape
     f, cx, cy = camera.focal, (w - 1) / 2.0, (h - 1) / 2.0
@@ -68,15 +71,16 @@ class CameraSensor(Sensor):
     subscribers only)."""
 
     @classmethod
-    def build(cls, spec, body, sensor, robot) -> None:
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
         rotation = rpy_to_matrix(sensor.pose.rpy)
         cam = body.add_camera(name=camera_name(sensor), pos=sensor.pose.xyz,
                               quat=quat(rotation @ OPTICAL_FROM_LINK))
-        cam.fovy = float(np.degrees(sensor.camera.vertical_fov))  # MuJoCo: degrees, always
+        cam.fovy = float(np.degrees((sensor.camera or CameraSpec()).vertical_fov))  # MuJoCo: degrees, always
 
     def setup(self) -> None:
         spec, ns = self.spec, self.namespace
-        self.camera = spec.camera
+        self.camera = spec.camera or CameraSpec()  # the reader gives every camera one
         self.cam_id = self.sim.model.camera(camera_name(spec)).id
         topics = {"image": "image_raw", "camera_info": "camera_info"}
         if spec.type == "depth":
@@ -121,7 +125,7 @@ class CameraSensor(Sensor):
             image = (np.clip(noisy, 0.0, 1.0) * 255.0).round().astype(np.uint8).reshape(image.shape)
         return image
 
-    def publish(self, sim) -> None:
+    def publish(self, sim: Simulation) -> None:
         wants = {k for k, o in self._by_key.items() if self.wanted(o)}
         if not wants:
             return
@@ -147,6 +151,7 @@ class CameraSensor(Sensor):
             self.bus.publish(self.topics["depth_camera_info"], camera_info(stamp, cam))
 
     def close(self) -> None:
+        """Release the renderer (its GL context): before the model changes, or at the end."""
         if self.renderer is not None:
             self.renderer.close()
             self.renderer = None

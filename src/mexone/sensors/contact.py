@@ -9,13 +9,18 @@ point, its normal, depth and the force on the sensor's link, in the world frame.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from mexone.bus.msgs import ContactsState, ContactState, Header, Vector3, Wrench
+from mexone.description.model import RobotModel
+from mexone.description.sensors import SensorSpec
 from mexone.physics.compile import GROUP_VISUAL
+from mexone.physics.simulation import Simulation
 from mexone.sensors.base import Sensor, register_sensor
+from mexone.sensors.build import sensor_link
 
 __all__ = ["ContactSensor", "ContactSensorState", "collision_names"]
 
@@ -27,7 +32,7 @@ _FOUND_AND_FORCE = (1 << int(mujoco.mjtConDataField.mjCONDATA_FOUND)) \
 _NETFORCE = 3  # mjtConReduce's netforce: the sum over matching contacts, world frame
 
 
-def watched_collisions(robot, link: str, wanted: tuple[str, ...]) -> list[int]:
+def watched_collisions(robot: RobotModel, link: str, wanted: tuple[str, ...]) -> list[int]:
     """Indices of the link's collision elements a contact sensor watches: those it names (by
     Gazebo's element name), or all of them when it names none or none of those it names."""
     names = [col.name or (f"{link}_collision" if i == 0 else f"{link}_collision_{i}")
@@ -36,7 +41,7 @@ def watched_collisions(robot, link: str, wanted: tuple[str, ...]) -> list[int]:
     return picked or list(range(len(names)))
 
 
-def collision_names(sim) -> dict[int, tuple[str, str]]:
+def collision_names(sim: Simulation) -> dict[int, tuple[str, str]]:
     """MuJoCo collision geom -> (link, Gazebo's scoped name of the collision element)."""
     model, robot = sim.model, sim.robot
     out: dict[int, tuple[str, str]] = {}
@@ -69,6 +74,9 @@ class ContactSensorState:
 
 @register_sensor("contact")
 class ContactSensor(Sensor):
+    """Gazebo's contact sensor (libgazebo_ros_bumper.so) on a link's collisions: state
+    `in_contact`, `force`, `count`; broadcasts gazebo_msgs/ContactsState."""
+
     state_type = ContactSensorState
     message_type = ContactsState
     broadcaster = "gazebo_ros_bumper"
@@ -76,10 +84,11 @@ class ContactSensor(Sensor):
     linear = True
 
     @classmethod
-    def build(cls, spec, body, sensor, robot) -> None:
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
         """A MuJoCo contact sensor per watched collision geom (found, net force): the state
         interfaces come out of the shared sensor pass, with no Python per contact."""
-        link = sensor.link
+        link = sensor_link(robot, sensor)  # checked: build_sensors found its body
         for i in watched_collisions(robot, link, sensor.collisions):
             geom = f"{link}/collision/{i}"
             if spec.geom(geom) is None:
@@ -108,8 +117,10 @@ class ContactSensor(Sensor):
         if len(rows):
             self.measure.linear(rows, matrix, self.bind(force=slice(0, 3), count=slice(3, 4)))
         else:
-            self.linear = False  # nothing to watch: never in contact (the state stays zero)
-            for array in (self._state.force, self._state.count):
+            self.linear = False  # type: ignore[misc]  # this one: nothing to watch, never in contact
+            state = self._state
+            assert state is not None  # contact sensors have state interfaces
+            for array in (state.force, state.count):
                 array.flags.writeable = False
         self.names = collision_names(self.sim)
         mine = {g for g, (link, scoped) in self.names.items() if link == self.link}
@@ -126,7 +137,7 @@ class ContactSensor(Sensor):
         cold: every call and temporary counts, so the loop is written out flat)."""
         geoms, frames, positions, dists, local = self.measure.contacts()
         mine = self._mine_list
-        pairs: dict[tuple[int, int], list] = {}  # (own, other) -> [first index, points...]
+        pairs: dict[tuple[int, int], list[Any]] = {}  # (own, other) -> [first index, points...]
         i = 0
         for g1, g2 in geoms:
             # MuJoCo's force acts on geom2, along the normal (from geom1 to geom2)
@@ -173,7 +184,7 @@ class ContactSensor(Sensor):
     def message(self, state: ContactSensorState) -> ContactsState:
         return ContactsState(self.header("world"), self.contacts())
 
-    def publish(self, sim) -> None:
+    def publish(self, sim: Simulation) -> None:
         """The broadcaster's tick: the message is built from the contacts alone (the state
         interfaces need not be read for it)."""
         self.seq = seq = self.seq + 1

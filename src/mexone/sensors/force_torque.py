@@ -18,8 +18,8 @@ import mujoco
 import numpy as np
 
 from mexone.bus.msgs import Header, Vector3, Wrench, WrenchStamped
-from mexone.description.model import Pose
-from mexone.description.sensors import Noise
+from mexone.description.model import Pose, RobotModel
+from mexone.description.sensors import Noise, SensorSpec
 from mexone.description.transforms import rpy_to_matrix
 from mexone.sensors.base import Sensor, register_sensor
 from mexone.sensors.build import add_mujoco_sensors, add_site, site_name
@@ -43,6 +43,9 @@ class ForceTorqueState:
 
 @register_sensor("force_torque")
 class ForceTorqueSensor(Sensor):
+    """Gazebo's force-torque sensor on a joint (in the child, parent or sensor frame, either
+    measure direction): state `force`, `torque`; broadcasts geometry_msgs/WrenchStamped."""
+
     state_type = ForceTorqueState
     message_type = WrenchStamped
     broadcaster = "force_torque_sensor_broadcaster"
@@ -51,7 +54,8 @@ class ForceTorqueSensor(Sensor):
     linear = True
 
     @classmethod
-    def build(cls, spec, body, sensor, robot) -> None:
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
         site = add_site(body, sensor, Pose())  # at the joint, in the child's frame
         add_mujoco_sensors(spec, sensor, mujoco.mjtObj.mjOBJ_SITE, site,
                            (("force", mujoco.mjtSensor.mjSENS_FORCE),
@@ -63,7 +67,7 @@ class ForceTorqueSensor(Sensor):
         self.force = int(model.sensor_adr[model.sensor(f"{name}/force").id])
         self.torque = int(model.sensor_adr[model.sensor(f"{name}/torque").id])
         self.site = model.site(site_name(self.spec)).id
-        joint = robot.joints[self.spec.joint]
+        joint = robot.joints[self.spec.joint or ""]  # the reader puts every FT sensor on a joint
         self.parent_body = self.sim.compiled.bodies.get(joint.parent)
         self.noise = NoiseModel([self.spec.noise.get(c, Noise()) for c in _CHANNELS], name)
         spec = self.spec
@@ -86,10 +90,11 @@ class ForceTorqueSensor(Sensor):
 
     @property
     def frame(self) -> str:
+        """The frame_id of its messages: the frame it measures in."""
         if self.spec.frame:
             return self.spec.frame
         if self.spec.ft_frame == "parent":
-            return self.sim.robot.joints[self.spec.joint].parent
+            return self.sim.robot.joints[self.spec.joint or ""].parent
         return self.link
 
     def parent_on_child_world(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,6 +104,9 @@ class ForceTorqueSensor(Sensor):
         rot = self.sim.data.site_xmat[self.site].reshape(3, 3)
         return (rot @ data[self.force:self.force + 3], rot @ data[self.torque:self.torque + 3],
                 self.sim.data.site_xpos[self.site].copy())
+
+    _force: np.ndarray  # bound by setup (Measure.linear): writable views behind the state's
+    _torque: np.ndarray
 
     def read(self, state: ForceTorqueState) -> None:
         if self._to_parent:

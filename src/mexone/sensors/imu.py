@@ -14,7 +14,8 @@ import mujoco
 import numpy as np
 
 from mexone.bus.msgs import Header, Imu, Quaternion, Vector3
-from mexone.description.sensors import IMU_CHANNELS, Noise
+from mexone.description.model import RobotModel
+from mexone.description.sensors import IMU_CHANNELS, Noise, SensorSpec
 from mexone.sensors.base import Sensor, register_sensor
 from mexone.sensors.build import add_mujoco_sensors, add_site
 from mexone.sensors.noise import NoiseModel
@@ -37,6 +38,9 @@ class ImuState:
 
 @register_sensor("imu")
 class ImuSensor(Sensor):
+    """Gazebo's IMU (with its noise model): state `orientation`, `angular_velocity`,
+    `linear_acceleration`; broadcasts sensor_msgs/Imu."""
+
     state_type = ImuState
     message_type = Imu
     broadcaster = "imu_sensor_broadcaster"
@@ -45,7 +49,8 @@ class ImuSensor(Sensor):
     linear = True
 
     @classmethod
-    def build(cls, spec, body, sensor, robot) -> None:
+    def build(cls, spec: mujoco.MjSpec, body: mujoco.MjsBody, sensor: SensorSpec,
+              robot: RobotModel) -> None:
         site = add_site(body, sensor)
         add_mujoco_sensors(spec, sensor, mujoco.mjtObj.mjOBJ_SITE, site,
                            (("acc", mujoco.mjtSensor.mjSENS_ACCELEROMETER),
@@ -67,6 +72,8 @@ class ImuSensor(Sensor):
         var = self.noise.variance.tolist()
         self.gyro_cov = [var[0], 0.0, 0.0, 0.0, var[1], 0.0, 0.0, 0.0, var[2]]
         self.acc_cov = [var[3], 0.0, 0.0, 0.0, var[4], 0.0, 0.0, 0.0, var[5]]
+
+    _rates: np.ndarray  # bound by setup (Measure.linear): angular velocity and acceleration, 6
 
     def read(self, state: ImuState) -> None:
         if self.noise.active:  # angular velocity and linear acceleration: one view of 6

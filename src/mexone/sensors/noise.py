@@ -21,7 +21,7 @@ BLOCK = 256  # readings drawn per numpy call
 
 
 class NoiseModel:
-    def __init__(self, channels: list[Noise], seed_name: str, seed: int = 0):
+    def __init__(self, channels: list[Noise], seed_name: str, seed: int = 0) -> None:
         self.rng = np.random.default_rng([zlib.crc32(seed_name.encode()), seed])
         self.mean = np.array([n.mean for n in channels], dtype=float)
         self.stddev = np.array([n.stddev for n in channels], dtype=float)

@@ -20,7 +20,7 @@ from mexone.physics.compile import lowest_point
 from mexone.physics.simulation import Periodic, Simulation
 from mexone.sensors.balance import RATE as BALANCE_RATE
 from mexone.sensors.balance import Balance
-from mexone.sensors.base import SENSOR_CLASSES, Measure, Sensor, SensorStates, sensor_namespace
+from mexone.sensors.base import SENSOR_CLASSES, Measure, Sensor, SensorStates, sensor_namespace, sensor_type
 from mexone.sensors.build import sensor_link
 from mexone.sensors.force_torque import ForceTorqueSensor
 
@@ -35,7 +35,11 @@ def _broadcast(sim: Simulation, sensors: list[Sensor]) -> None:
 
 
 class SensorSuite:
-    def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None):
+    """Every declared sensor of a robot and the balance quantities: `states` (what controllers
+    read as state.sensors), the broadcasters (each publishing only while someone listens) and
+    the plot signals."""
+
+    def __init__(self, sim: Simulation, bus: Bus, namespace: str, override: str | None = None) -> None:
         self.sim, self.bus = sim, bus
         self.measure = Measure(sim)
         self.sensors: dict[str, Sensor] = {}
@@ -43,7 +47,7 @@ class SensorSuite:
             if not spec.always_on:
                 continue
             link = sensor_link(sim.robot, spec)
-            self.sensors[spec.name] = SENSOR_CLASSES[spec.type](
+            self.sensors[spec.name] = sensor_type(spec.type)(
                 spec, sim, bus, sensor_namespace(spec, namespace, override), self.measure, link)
         self.states = SensorStates(self.sensors)
         """name -> the sensor's state object at this instant (controllers' `state.sensors`)"""
@@ -57,7 +61,7 @@ class SensorSuite:
         for name, sensor in self.sensors.items():
             for output in sensor.outputs:
                 bus.advertise(output.topic, output.type)
-                bus.on_subscribers(output.topic, lambda _n, key=name: self._listeners_changed(key))
+                bus.on_subscribers(output.topic, partial(self._listener_count, name))
         for topic in self.balance.topics.values():
             bus.on_subscribers(topic, lambda _n: self._listeners_changed("balance"))
 
@@ -101,6 +105,9 @@ class SensorSuite:
         sensor = self.sensors[key]
         return any(sensor.wanted(o) for o in sensor.outputs)
 
+    def _listener_count(self, name: str, _count: int) -> None:
+        self._listeners_changed(name)
+
     def _listeners_changed(self, key: str) -> None:
         wanted = self._wanted(key)
         if key == "balance":
@@ -120,11 +127,12 @@ class SensorSuite:
                 self._groups[period] = (timer, group)
         elif not wanted and sensor in group:
             group.remove(sensor)
-            if not group:
+            if not group and timer is not None:
                 self.sim.remove_periodic(timer)
                 del self._groups[period]
 
     def close(self) -> None:
+        """Release what the sensors hold (the cameras' renderers)."""
         for sensor in self.sensors.values():
             close = getattr(sensor, "close", None)
             if close is not None:

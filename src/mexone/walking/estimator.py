@@ -22,10 +22,12 @@ walking is the velocity and the attitude.
 
 from __future__ import annotations
 
+from typing import Any
+
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
 from mexone.walking import body as _body
 
 __all__ = ["BaseKalman", "StateEstimator"]
@@ -95,21 +97,21 @@ class StateEstimator(PythonController):
         self.errors: list[tuple[float, float, float]] = []
         self.latched: list[np.ndarray | None] = [None, None]
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.scratch.qpos[:] = state.all_q  # starts from the spawn pose: where it was put
         self.scratch.qvel[:] = 0.0
         self.kf = BaseKalman(state.all_q[:3], self.accel_noise)
         self.latched = [None, None]
         self.t_last = state.time
 
-    def _attitude(self, state) -> tuple[np.ndarray, np.ndarray]:
+    def _attitude(self, state: State) -> tuple[np.ndarray, np.ndarray]:
         imu = state.sensors[self.imu]
         x, y, z, w = imu.orientation
         r_imu = _body.quat_to_matrix(np.array([w, x, y, z]))
         rotation = r_imu @ self.imu_in_base.T
         return rotation, self.imu_in_base @ np.asarray(imu.angular_velocity)
 
-    def update(self, state, t, dt):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         rotation, omega = self._attitude(state)
         imu = state.sensors[self.imu]
         accel = rotation @ self.imu_in_base @ np.asarray(imu.linear_acceleration) + GRAVITY
@@ -157,7 +159,7 @@ class StateEstimator(PythonController):
                                 float(np.linalg.norm(d.qpos[3:7] - truth.quaternion))))
         return None
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         """Its error against the simulator's truth: position (m, largest), velocity (m/s, RMS)."""
         if not self.errors:
             return {}

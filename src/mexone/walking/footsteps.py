@@ -14,11 +14,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.bus.msgs import Twist
+from mexone.control.student import Param, PythonController, State
 from mexone.walking import body as _body
 
 __all__ = ["Gait", "Steps", "FootstepPlanner", "swing_point", "flat_ground", "FootstepPlannerController"]
@@ -46,6 +48,9 @@ class Gait:
     min_apart: float = 0.10       # m between the feet's centres, across
     start_delay: float = 0.6      # s from the first command to the first lift (the COM moves first)
     max_change: float = 0.04      # m (and rad) a step's motion changes from the last one's at most
+    quick_single: float = 0.18    # s in the air of a hurried step (`FootstepPlanner.hurry`)
+    quick_double: float = 0.0     # s both feet down before a hurried step
+    quick_landing: float = 0.06   # s at least from a hurry to the step in the air's landing
 
     @property
     def period(self) -> float:
@@ -138,6 +143,8 @@ class FootstepPlanner:
         self.origin = self.feet[0].copy()  # where the foot in the air lifted from
         self.body = self._body()
         self.last_motion = np.zeros(3)  # the last committed step's motion
+        self.quick = False  # the next step lifts and swings as fast as the gait allows
+        self.last_foot: int | None = None  # the foot of the last step taken
 
     def _body(self) -> np.ndarray:
         yaw = math.atan2(math.sin(self.feet[0, 3]) + math.sin(self.feet[1, 3]),
@@ -198,6 +205,29 @@ class FootstepPlanner:
         return _compose(np.array([stance[0], stance[1], stance[3]]),
                         np.array([0.0, side * self.gait.width / 2, 0.0]))
 
+    def hurry(self, t: float, outward: int | None = None) -> bool:
+        """Step timing adaptation, for a push the capture point runs away with: the step in the
+        air lands as soon as it can (`quick_landing` from now, its swing sped up but at least
+        `quick_single` long), the next one lifts `quick_double` after it (or now, both feet
+        down) and swings `quick_single`. The standing foot's next step is what catches a push
+        towards its side (the foot in the air cannot cross over it): the sooner the less the
+        capture point has run away. `outward`: the foot on the side the push goes (both feet
+        down, it is the one that steps next, whichever's turn it was). False when there is
+        nothing to hurry (not walking, or the plan is already hurried)."""
+        g = self.gait
+        if self.quick or not self.walking:
+            return False
+        swing = self.swing
+        if swing is not None and t < swing[8]:
+            swing[8] = min(swing[8], max(t + g.quick_landing, swing[7] + g.quick_single))
+            self.t_next = min(self.t_next, swing[8] + g.quick_double)
+        else:
+            self.t_next = min(self.t_next, t + g.quick_double)
+            if outward is not None and outward != self.last_foot:
+                self.next_foot = outward  # the foot on the push's side steps out, unless it just did
+        self.quick = True
+        return True
+
     def update(self, t: float) -> np.ndarray:
         """The plan at time `t` (s), as a `Steps` array."""
         g = self.gait
@@ -216,11 +246,13 @@ class FootstepPlanner:
             self.body = self._next_body(self._anchor(foot, self.feet), foot, self.last_motion)
             row = self._target(foot, self.body, self.feet[1 - foot])
             lift = self.t_next
-            self.swing = np.array([*row, lift, lift + g.single_support])
+            single = g.quick_single if self.quick else g.single_support
+            self.quick = False
+            self.swing = np.array([*row, lift, lift + single])
             self.origin = self.feet[foot].copy()
             self.feet[foot] = row[[1, 2, 3, 4]]
-            self.next_foot = 1 - foot
-            self.t_next = lift + g.period
+            self.next_foot, self.last_foot = 1 - foot, foot
+            self.t_next = lift + single + g.double_support
             if self.closing:
                 self.closing -= 1
                 if self.closing == 0:
@@ -235,13 +267,16 @@ class FootstepPlanner:
         # the steps ahead, from the command as it is now
         feet, foot, lift, closing = self.feet.copy(), self.next_foot, self.t_next, self.closing
         walking, motion = self.walking, self.last_motion
+        quick = self.quick
         while walking and len(rows) < Steps.K:
             motion = self._motion(motion, closing)
             body = self._next_body(self._anchor(foot, feet), foot, motion)
             row = self._target(foot, body, feet[1 - foot])
-            rows.append(np.array([*row, lift, lift + g.single_support]))
+            single = g.quick_single if quick else g.single_support
+            quick = False
+            rows.append(np.array([*row, lift, lift + single]))
             feet[foot] = row[[1, 2, 3, 4]]
-            foot, lift = 1 - foot, lift + g.period
+            foot, lift = 1 - foot, lift + single + g.double_support
             if closing:
                 closing -= 1
                 walking = closing > 0
@@ -261,6 +296,7 @@ class FootstepPlannerController(PythonController):
     exports = {"steps": Steps.LENGTH}
     inputs = {"base": 13}
     optional_inputs = ("base",)
+    topics = {"cmd_vel": Twist}
 
     vx = Param(0.0, low=-1.0, high=1.0, doc="forward speed without cmd_vel", unit="m/s")
     vy = Param(0.0, low=-1.0, high=1.0, doc="sideways speed (left +) without cmd_vel", unit="m/s")
@@ -271,6 +307,8 @@ class FootstepPlannerController(PythonController):
     max_forward = Param(0.14, low=0.0, high=0.4, doc="longest step forward", unit="m")
     max_sideways = Param(0.05, low=0.0, high=0.2, doc="longest step sideways", unit="m")
     max_turn = Param(0.3, low=0.0, high=1.0, doc="largest turn per step", unit="rad")
+    hurry_at = Param(0.02, low=0.0, high=1.0, doc="the capture point this far outside the standing "
+                     "foot hurries the steps (step timing adaptation; 1 m: never)", unit="m")
     width = Param(0.12, low=0.08, high=0.4, doc="between the feet's centres", unit="m")
     settle = Param(1.0, low=0.0, high=60.0, doc="s after it starts before it walks (the robot "
                    "crouches into its stance)", unit="s")
@@ -282,19 +320,18 @@ class FootstepPlannerController(PythonController):
         self.dyn = _body.state_dynamics(self.model, self.scratch)
         self.robot_bodies = set(range(1, self.model.nbody))
         self._latest: tuple[float, np.ndarray] | None = None  # (wall-clock-free sim time, twist)
-        self._received: np.ndarray | None = None
-        self._sub = None
         self.refused: str | None = None
 
-    def _feet(self, state) -> np.ndarray:
+    def _feet(self, state: State) -> np.ndarray:
         """Each sole's (x, y, z, yaw) now, from the encoders and the base (the estimator's when
         `base` is bound, else the simulator's)."""
         d = self.scratch
-        d.qpos[:] = state.all_q
+        d.qpos[:], d.qvel[:] = state.all_q, state.all_dq
         inputs = getattr(state, "inputs", None) or {}
         base = inputs.get("base")
         if base is not None and np.isfinite(base[0]):
             d.qpos[:3], d.qpos[3:7] = base[:3], base[3:7]
+            d.qvel[:3], d.qvel[3:6] = base[7:10], base[10:13]
         self.dyn.refresh()
         feet = []
         for name in _body.FEET:
@@ -303,7 +340,7 @@ class FootstepPlannerController(PythonController):
             feet.append([sole[0], sole[1], sole[2], _body.yaw_of(r)])
         return np.array(feet)
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.ray.qpos[:] = state.all_q
         mujoco.mj_kinematics(self.model, self.ray)  # the world's geoms' poses (they never move)
         feet = self._feet(state)
@@ -311,21 +348,9 @@ class FootstepPlannerController(PythonController):
                     max_sideways=self.max_sideways, max_turn=self.max_turn)
         self.planner = FootstepPlanner(gait, feet, self.terrain)
         self.refused = None
+        self.hurried = 0  # steps hurried by a push (step timing adaptation)
         self.t_start = state.time
         self._heard_at: float | None = None
-        bus, namespace = _bus(self)
-        if bus is not None and self._sub is None:
-            from mexone.bus.msgs import Twist
-
-            self._sub = bus.subscribe(f"{namespace}/cmd_vel", Twist, self._on_twist, node=self.name)
-
-    def _on_twist(self, msg) -> None:  # the publisher's thread: only store it
-        self._received = np.array([msg.linear.x, msg.linear.y, msg.angular.z], dtype=float)
-
-    def deactivate(self) -> None:
-        if self._sub is not None:
-            self._sub.unregister()
-            self._sub = None
 
     def terrain(self, x: float, y: float) -> tuple[float, np.ndarray]:
         """(z, unit normal) of the world's surface under (x, y): a ray down onto the world's
@@ -338,9 +363,10 @@ class FootstepPlannerController(PythonController):
             return 0.0, UP
         return 2.0 - dist, normal if normal[2] > 0 else -normal
 
-    def update(self, state, t, dt):
-        received, self._received = self._received, None
-        if received is not None:
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
+        msg: Any = state.messages.get("cmd_vel")  # a Twist (the class `topics` names)
+        if msg is not None:
+            received = np.array([msg.linear.x, msg.linear.y, msg.angular.z], dtype=np.float64)
             if not np.all(np.isfinite(received)):
                 if self.refused is None:
                     self.log.error("cmd_vel (%s) is not finite: refused, the robot stops walking",
@@ -359,19 +385,34 @@ class FootstepPlannerController(PythonController):
             command = np.zeros(3)
         self.planner.set_command(*command)
         if self.planner.walking:
-            self.planner.measured(self._feet(state), t)
+            feet = self._feet(state)
+            self.planner.measured(feet, t)
+            outward = self._pushed_outwards(feet, t)
+            if outward is not None and self.planner.hurry(t, outward):
+                self.hurried += 1
         self.exports["steps"][:] = self.planner.update(t)
         return None
 
-    def report(self) -> dict:
-        return {"walking": bool(self.planner.walking), "refused": self.refused}
+    def _pushed_outwards(self, feet: np.ndarray, t: float) -> int | None:
+        """The standing foot the capture point (c + ċ/ω of the LIPM) is more than `hurry_at`
+        outside of, across (the standing one while the other is in the air, either in double
+        support), or None: a push sideways the next steps must catch, sooner than planned."""
+        swing = self.planner.swing
+        down = [1 - int(swing[0])] if swing is not None and t < swing[8] else [0, 1]
+        c = self.dyn.com()
+        v = self.dyn.com_jacobian() @ self.scratch.qvel
+        for f in down:
+            x, y, z, yaw = feet[f]
+            omega = math.sqrt(9.81 / max(c[2] - z, 0.1))
+            side = 1.0 if f == 0 else -1.0  # the foot's outward side: left for the left foot
+            out = side * (-math.sin(yaw) * (c[0] + v[0] / omega - x)
+                          + math.cos(yaw) * (c[1] + v[1] / omega - y))
+            if out > self.hurry_at:
+                return f
+        return None
+
+    def report(self) -> dict[str, Any]:
+        return {"walking": bool(self.planner.walking), "refused": self.refused, "hurried": self.hurried}
 
 
 _GROUND_GROUP = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)
-
-
-def _bus(controller: PythonController):
-    """The lab's bus and the robot's namespace, from the controller's binding (None outside)."""
-    binding = controller.__dict__.get("_mexone_binding")
-    ctx = getattr(binding, "ctx", None)
-    return (getattr(ctx, "bus", None), getattr(ctx, "namespace", "")) if ctx else (None, "")

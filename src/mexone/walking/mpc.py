@@ -21,24 +21,27 @@ from the measured COM (position, velocity) at the controller's rate.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
+from mexone.dynamics import Dynamics
 from mexone.walking import body as _body
 from mexone.walking import qp
 from mexone.walking.footsteps import Steps
 
-__all__ = ["LipmMpc", "Support", "supports", "lipm_matrices", "ComPlanner"]
+__all__ = ["LipmMpc", "Support", "Reach", "supports", "lipm_matrices", "ComPlanner"]
 
 G = 9.81
 HEIGHT_TIME = 0.2  # s: the COM height's time constant following the ground under the feet
 
 
-def lipm_matrices(T: float, n: int, h: float):
+def lipm_matrices(T: float, n: int, h: float) -> tuple[np.ndarray, ...]:
     """(A, B, P_ps, P_pu, P_vs, P_vu, P_as, P_au, P_zs, P_zu): the sample-to-sample model and
     the stacked predictions of position, velocity, acceleration and ZMP over n samples."""
     A = np.array([[1.0, T, T * T / 2], [0.0, 1.0, T], [0.0, 0.0, 1.0]])
@@ -62,39 +65,63 @@ def lipm_matrices(T: float, n: int, h: float):
 @dataclass
 class Support:
     """Where the ZMP may be at each sample: rectangles (centre (n, 2), yaw (n,), half sizes (n, 2)),
-    the ZMP reference (n, 2) and E (n,): 1 where the support moves with the next landing."""
+    the ZMP reference (n, 2), and E (n, m): how much each of the m planned landings' shifts moves
+    the support at each sample (1 where the foot it put down stands alone, 1/2 in double
+    support; the landings up to the last one the horizon sees). `landings` (m, 4): each step's
+    foot, x, y, yaw as planned; `feet` (2, 3): each foot's x, y, yaw on the ground now."""
 
     centre: np.ndarray
     yaw: np.ndarray
     half: np.ndarray
     ref: np.ndarray
     shifted: np.ndarray
+    landings: np.ndarray
+    feet: np.ndarray
 
 
-def _feet_at(steps: np.ndarray, rows: np.ndarray, taus: np.ndarray):
+@dataclass(frozen=True)
+class Reach:
+    """Where a landing may be moved, relative to the foot standing when it lands (in that
+    landing's heading frame): across, between `min_apart` and `max_apart` out to its side;
+    along, from `back` behind to `forward` ahead (m)."""
+
+    min_apart: float = 0.09
+    max_apart: float = 0.45
+    forward: float = 0.25
+    back: float = 0.15
+
+
+def _feet_at(steps: np.ndarray, rows: np.ndarray,
+             taus: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Each foot's (x, y, yaw) at the times `taus` (2, n, 3), whether it is in the air (2, n)
-    and whether it stands where a planned step put it (2, n)."""
+    and which planned step (its row's index) put it where it stands (2, n; -1: none yet)."""
     n = len(taus)
     feet = Steps.feet(steps)
     pose = np.repeat(feet[:, None, [0, 1, 3]], n, axis=1)
     air = np.zeros((2, n), dtype=bool)
-    moved = np.zeros((2, n), dtype=bool)
-    for row in rows:
+    by = np.full((2, n), -1)
+    for i in np.argsort(rows[:, 8], kind="stable") if len(rows) else ():
+        row = rows[i]
         f = int(row[0])
         air[f] |= (row[7] <= taus) & (taus < row[8])
         landed = taus >= row[8]
         pose[f, landed] = row[[1, 2, 4]]
-        moved[f] |= landed
-    return pose, air, moved
+        by[f, landed] = i
+    return pose, air, by
 
 
 def supports(steps: np.ndarray, t: float, T: float, n: int, sole: tuple[float, float],
              margin: float) -> Support:
     """The support rectangles and ZMP reference at the n samples after t."""
     rows = Steps.rows(steps)
+    m = len(rows)
     a, b = sole[0] / 2 - margin, sole[1] / 2 - margin
     taus = t + T * np.arange(1, n + 1)
-    pose, air, moved = _feet_at(steps, rows, taus)
+    pose, air, by = _feet_at(steps, rows, taus)
+    onehot = [np.zeros((n, m)), np.zeros((n, m))]  # foot f stands where step i put it
+    for f in range(2):
+        put = np.flatnonzero(by[f] >= 0)
+        onehot[f][put, by[f, put]] = 1.0
     # double support: the corridor between the soles' centres
     p0, p1 = pose[0, :, :2], pose[1, :, :2]
     delta = p1 - p0
@@ -106,23 +133,25 @@ def supports(steps: np.ndarray, t: float, T: float, n: int, sole: tuple[float, f
     centre = (p0 + p1) / 2
     yaw = th.copy()
     half = np.stack([dist / 2 + a * across + 0.5 * b * (1 - across), a * (1 - across) + b * across], axis=1)
-    shifted = 0.5 * (moved[0] + moved[1]).astype(float)
+    shifted = 0.5 * (onehot[0] + onehot[1])
     # the ZMP moves from the last stance foot to the next one across a double support
     lifts = rows[np.argsort(rows[:, 7])] if len(rows) else rows
     ref = centre.copy()
-    if len(lifts):
-        nxt = np.searchsorted(lifts[:, 7], taus - 1e-9)  # the first step lifting at or after tau
-        for k in np.flatnonzero(~(air[0] | air[1])):
-            i = nxt[k]
-            prev = i - 1 if i > 0 and lifts[i - 1, 8] <= taus[k] + 1e-9 else None
-            start = centre[k] if prev is None else pose[1 - int(lifts[prev, 0]), k, :2]
-            t0 = t if prev is None else lifts[prev, 8]
-            if i < len(lifts):
-                goal, t1 = pose[1 - int(lifts[i, 0]), k, :2], lifts[i, 7]
-            else:
-                goal, t1 = centre[k], t0 + 0.2
-            sfrac = min(max((taus[k] - t0) / max(t1 - t0, 1e-6), 0.0), 1.0)
-            ref[k] = start + (goal - start) * (3 * sfrac**2 - 2 * sfrac**3)
+    both = np.flatnonzero(~(air[0] | air[1]))
+    if len(lifts) and len(both):
+        tk = taus[both]
+        nxt = np.searchsorted(lifts[:, 7], tk - 1e-9)  # the first step lifting at or after tau
+        before = np.maximum(nxt - 1, 0)
+        prev = (nxt > 0) & (lifts[before, 8] <= tk + 1e-9)  # a step landed before tau
+        standing_prev = 1 - lifts[before, 0].astype(int)
+        start = np.where(prev[:, None], pose[standing_prev, both, :2], centre[both])
+        t0 = np.where(prev, lifts[before, 8], t)
+        ahead = nxt < len(lifts)
+        after = np.minimum(nxt, len(lifts) - 1)
+        goal = np.where(ahead[:, None], pose[1 - lifts[after, 0].astype(int), both, :2], centre[both])
+        t1 = np.where(ahead, lifts[after, 7], t0 + 0.2)
+        sfrac = np.clip((tk - t0) / np.maximum(t1 - t0, 1e-6), 0.0, 1.0)
+        ref[both] = start + (goal - start) * (3 * sfrac**2 - 2 * sfrac**3)[:, None]
     # single support: the standing foot's sole
     for f in range(2):
         single = air[1 - f]
@@ -130,8 +159,12 @@ def supports(steps: np.ndarray, t: float, T: float, n: int, sole: tuple[float, f
         ref[single] = pose[f, single, :2]
         yaw[single] = pose[f, single, 2]
         half[single] = (a, b)
-        shifted[single] = moved[f, single]
-    return Support(centre, yaw, half, ref, shifted)
+        shifted[single] = onehot[f][single]
+    # landings beyond the horizon move nothing in it: left out of the QP (the first kept)
+    used = np.flatnonzero(shifted.any(axis=0))
+    m = max(int(used[-1]) + 1 if len(used) else 0, min(1, m))
+    return Support(centre, yaw, half, ref, shifted[:, :m], rows[:m, [0, 1, 2, 4]].copy(),
+                   Steps.feet(steps)[:, [0, 1, 3]].copy())
 
 
 class LipmMpc:
@@ -151,60 +184,107 @@ class LipmMpc:
         self.xi_s = self.ps[-1] + self.vs[-1] / omega
         self.xi_u = self.pu[-1] + self.vu[-1] / omega
         self.qz = self.zu.T @ self.zu + w_dcm / w_zmp * np.outer(self.xi_u, self.xi_u)
+        self._hj = w_zmp * self.qz + w_jerk * np.eye(n)  # the jerks' block, never changing
+        self._zuT = np.ascontiguousarray(self.zu.T)
 
     def solve(self, x0: np.ndarray, y0: np.ndarray, support: Support, adjustable: bool = True,
               fixed_shift: np.ndarray | None = None,
-              apart: tuple[np.ndarray, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(jerk x (n,), jerk y (n,), landing shift (2,)) from the COM's states x0, y0 (c, ċ, c̈).
-        Not `adjustable`: the shift is `fixed_shift` (default 0: the landing as planned).
-        `apart` = (n, b): the shift keeps n . d >= b (the foot stays clear of the other one)."""
-        n, wz = self.n, self.w_zmp
-        nx = 2 * n + 2
+              reach: Reach | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(jerk x (n,), jerk y (n,), each planned landing's shift (m, 2)) from the COM's states
+        x0, y0 (c, ċ, c̈). Not `adjustable`: the first landing's shift is `fixed_shift`
+        (default 0: as planned; it is about to land). `reach`: each landing stays within reach
+        of the foot standing when it lands (the first one's: where it stands now)."""
+        n, m, wz, wd = self.n, support.shifted.shape[1], self.w_zmp, self.w_dcm
+        nx = 2 * n + 2 * m
         E = support.shifted
+        eN = E[-1]
+        zu, zuT = self.zu, self._zuT
         zsx, zsy = self.zs @ x0, self.zs @ y0
+        # the Hessian: the jerks' blocks, their coupling with the shifts, the shifts' own
         P = np.zeros((nx, nx))
-        q = np.zeros(nx)
-        hj = wz * self.qz + self.w_jerk * np.eye(n)
-        wd, eN = self.w_dcm, E[-1]
-        ze = wz * (self.zu.T @ E) + wd * eN * self.xi_u
-        P[:n, :n] = P[n:2 * n, n:2 * n] = hj
-        P[:n, 2 * n] = P[2 * n, :n] = -ze
-        P[n:2 * n, 2 * n + 1] = P[2 * n + 1, n:2 * n] = -ze
-        P[2 * n, 2 * n] = P[2 * n + 1, 2 * n + 1] = wz * (E @ E) + wd * eN * eN + self.w_shift
-        ex, ey = zsx - support.ref[:, 0], zsy - support.ref[:, 1]
-        xix = self.xi_s @ x0 - support.ref[-1, 0]
-        xiy = self.xi_s @ y0 - support.ref[-1, 1]
-        q[:n] = wz * (self.zu.T @ ex) + wd * xix * self.xi_u
-        q[n:2 * n] = wz * (self.zu.T @ ey) + wd * xiy * self.xi_u
-        q[2 * n] = -wz * (E @ ex) - wd * eN * xix
-        q[2 * n + 1] = -wz * (E @ ey) - wd * eN * xiy
+        P[:n, :n] = P[n:2 * n, n:2 * n] = self._hj
+        if m:
+            ze = -(wz * (zuT @ E) + wd * np.outer(self.xi_u, eN))  # (n, m)
+            ee = wz * (E.T @ E) + wd * np.outer(eN, eN) + self.w_shift * np.eye(m)
+            sx, sy = slice(2 * n, 2 * n + m), slice(2 * n + m, nx)
+            P[:n, sx] = P[n:2 * n, sy] = ze
+            P[sx, :n] = P[sy, n:2 * n] = ze.T
+            P[sx, sx] = P[sy, sy] = ee
+        ref = support.ref
+        ex, ey = zsx - ref[:, 0], zsy - ref[:, 1]
+        xix = self.xi_s @ x0 - ref[-1, 0]
+        xiy = self.xi_s @ y0 - ref[-1, 1]
+        q = np.empty(nx)
+        q[:n] = wz * (zuT @ ex) + (wd * xix) * self.xi_u
+        q[n:2 * n] = wz * (zuT @ ey) + (wd * xiy) * self.xi_u
+        q[2 * n:2 * n + m] = -wz * (E.T @ ex) - (wd * xix) * eN
+        q[2 * n + m:] = -wz * (E.T @ ey) - (wd * xiy) * eN
+        # the ZMP inside each sample's rectangle: -half <= R(θ)^T (z - centre) <= half, rows
+        # along (u) and across (w) the rectangle, each two-sided
         c, s = np.cos(support.yaw), np.sin(support.yaw)
-        du = c * (zsx - support.centre[:, 0]) + s * (zsy - support.centre[:, 1])
-        dw = -s * (zsx - support.centre[:, 0]) + c * (zsy - support.centre[:, 1])
-        U = np.hstack([c[:, None] * self.zu, s[:, None] * self.zu, -(c * E)[:, None], -(s * E)[:, None]])
-        W = np.hstack([-s[:, None] * self.zu, c[:, None] * self.zu, (s * E)[:, None], -(c * E)[:, None]])
-        Gm = np.vstack([U, -U, W, -W])
-        hv = np.concatenate([support.half[:, 0] - du, support.half[:, 0] + du,
-                             support.half[:, 1] - dw, support.half[:, 1] + dw])
-        if adjustable:
-            low, high = np.full(2, -self.max_shift), np.full(2, self.max_shift)
-            if apart is not None:
-                row = np.zeros(nx)
-                row[2 * n:] = -np.asarray(apart[0])
-                Gm = np.vstack([Gm, row])
-                hv = np.append(hv, -apart[1])
-        else:
-            low = high = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
-        lb = np.concatenate([np.full(2 * n, -np.inf), low])
-        ub = np.concatenate([np.full(2 * n, np.inf), high])
-        v = qp.solve(P, q, Gm, hv, lb=lb, ub=ub, solver=self.solver, what="COM MPC")
-        return v[:n], v[n:2 * n], v[2 * n:]
+        gx, gy = zsx - support.centre[:, 0], zsy - support.centre[:, 1]
+        du, dw = c * gx + s * gy, -s * gx + c * gy
+        rows = np.empty((2 * n, nx))
+        cz, sz = c[:, None] * zu, s[:, None] * zu
+        cE, sE = c[:, None] * E, s[:, None] * E
+        rows[:n, :n], rows[:n, n:2 * n], rows[:n, 2 * n:2 * n + m], rows[:n, 2 * n + m:] = cz, sz, -cE, -sE
+        rows[n:, :n], rows[n:, n:2 * n], rows[n:, 2 * n:2 * n + m], rows[n:, 2 * n + m:] = -sz, cz, sE, -cE
+        half = support.half
+        high = np.concatenate([half[:, 0] - du, half[:, 1] - dw])
+        low = np.concatenate([-half[:, 0] - du, -half[:, 1] - dw])
+        lb = np.full(nx, -np.inf)
+        ub = np.full(nx, np.inf)
+        lb[2 * n:], ub[2 * n:] = -self.max_shift, self.max_shift
+        if m and not adjustable:
+            fixed = np.zeros(2) if fixed_shift is None else np.asarray(fixed_shift, dtype=float)
+            lb[2 * n], lb[2 * n + m] = fixed
+            ub[2 * n], ub[2 * n + m] = fixed
+        if m and reach is not None:
+            extra, extra_low, extra_high = _reach_rows(support, reach, n, m, adjustable)
+            rows = np.vstack([rows, extra])
+            low, high = np.concatenate([low, extra_low]), np.concatenate([high, extra_high])
+        v = qp.solve(P, q, rows, high, lb=lb, ub=ub, G_low=low, solver=self.solver, what="COM MPC")
+        return v[:n], v[n:2 * n], np.stack([v[2 * n:2 * n + m], v[2 * n + m:]], axis=1)
 
     @staticmethod
     def advance(x: np.ndarray, jerk: float, dt: float) -> np.ndarray:
         """The axis state after dt of constant jerk."""
         return np.array([x[0] + x[1] * dt + x[2] * dt * dt / 2 + jerk * dt**3 / 6,
                          x[1] + x[2] * dt + jerk * dt * dt / 2, x[2] + jerk * dt])
+
+
+def _reach_rows(support: Support, reach: Reach, n: int, m: int, first: bool = True
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Two-sided rows (across, along) keeping each landing within reach of the foot standing
+    when it lands: the other foot's landing before it (its shift a variable too) or where that
+    foot stands now. A landing planned out of reach may stay where planned (the rows never make
+    the plan as given infeasible: a moved landing only comes closer); `first` False: the first
+    landing (fixed, about to land) has no rows."""
+    nx = 2 * n + 2 * m
+    landings, feet = support.landings.tolist(), support.feet.tolist()
+    rows = np.zeros((2 * m, nx))
+    low, high = np.empty(2 * m), np.empty(2 * m)
+    last = {0: -1, 1: -1}  # each foot's latest landing so far (-1: where it stands now)
+    for i in range(m):
+        f = int(landings[i][0])
+        j = last[1 - f]
+        sx, sy = (feet[1 - f][0], feet[1 - f][1]) if j < 0 else (landings[j][1], landings[j][2])
+        c, s = math.cos(landings[i][3]), math.sin(landings[i][3])
+        side = 1.0 if f == 0 else -1.0
+        gx, gy = landings[i][1] - sx, landings[i][2] - sy
+        for r, (ax, ay, lo, hi) in enumerate(((-side * s, side * c, reach.min_apart, reach.max_apart),
+                                              (c, s, -reach.back, reach.forward))):
+            k = 2 * i + r
+            if i == 0 and not first:
+                low[k], high[k] = -np.inf, np.inf
+                continue
+            rows[k, 2 * n + i], rows[k, 2 * n + m + i] = ax, ay
+            if j >= 0:
+                rows[k, 2 * n + j], rows[k, 2 * n + m + j] = -ax, -ay
+            now = ax * gx + ay * gy
+            low[k], high[k] = min(lo - now, 0.0), max(hi - now, 0.0)
+        last[f] = i
+    return rows, low, high
 
 
 class ComPlanner(PythonController):
@@ -225,14 +305,20 @@ class ComPlanner(PythonController):
     sample = Param(0.05, low=0.01, high=0.5, doc="MPC sample time", unit="s")
     horizon = Param(24, low=2, high=100, doc="MPC samples ahead")
     w_jerk = Param(1e-6, low=0.0, high=1e3, doc="weight on the jerk")
-    w_shift = Param(0.3, low=0.0, high=1e6, doc="weight on moving the next landing")
-    max_shift = Param(0.2, low=0.0, high=0.4, doc="how far a push may move the next landing", unit="m")
-    min_apart = Param(0.10, low=0.0, high=0.5, doc="a moved landing stays this far from the other foot",
-                      unit="m")
+    w_shift = Param(0.3, low=0.0, high=1e6, doc="weight on moving a planned landing")
+    max_shift = Param(0.4, low=0.0, high=0.6, doc="how far a push may move a planned landing", unit="m")
+    min_apart = Param(0.09, low=0.0, high=0.5, doc="a moved landing stays this far from the other foot, "
+                      "across", unit="m")
+    max_apart = Param(0.45, low=0.0, high=1.0, doc="a moved landing stays within this of the other "
+                      "foot, across", unit="m")
+    reach_forward = Param(0.25, low=0.0, high=1.0, doc="a moved landing is at most this far ahead of "
+                          "the other foot", unit="m")
+    reach_back = Param(0.15, low=0.0, high=1.0, doc="a moved landing is at most this far behind the "
+                       "other foot", unit="m")
     margin = Param(0.015, low=0.0, high=0.04, doc="the ZMP keeps this far inside the soles", unit="m")
     feedback = Param(1.0, low=0.0, high=1.0, doc="share of the measured COM state the plan starts from")
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles (0: as it stands at start)", unit="m")
-    solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
+    solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
         model = self.dynamics.model
@@ -242,7 +328,7 @@ class ComPlanner(PythonController):
         self.mpc: LipmMpc | None = None
         self.stopped: str | None = None
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         dyn = self._dynamics(state)
         soles = [dyn.pose(f)[0] + dyn.pose(f)[1] @ _body.SOLE_OFFSET for f in _body.FEET]
         ground = (soles[0][2] + soles[1][2]) / 2
@@ -250,16 +336,17 @@ class ComPlanner(PythonController):
         self.ground = ground
         self.mpc = LipmMpc(self.height, self.sample, self.horizon, w_jerk=self.w_jerk,
                            w_shift=self.w_shift, max_shift=self.max_shift, solver=self.solver)
+        self.reach = Reach(self.min_apart, self.max_apart, self.reach_forward, self.reach_back)
         c = dyn.com()
         self.shift_for, self.shift = np.nan, np.zeros(2)
         self.x = np.array([c[0], 0.0, 0.0])
         self.y = np.array([c[1], 0.0, 0.0])
         self.stopped = None
 
-    def joints_posture(self) -> dict:
+    def joints_posture(self) -> dict[str, float]:
         return _body.STANCE_POSTURE
 
-    def _dynamics(self, state):
+    def _dynamics(self, state: State) -> Dynamics:
         d = self.scratch
         d.qpos[:], d.qvel[:] = state.all_q, state.all_dq
         inputs = getattr(state, "inputs", None) or {}
@@ -270,7 +357,7 @@ class ComPlanner(PythonController):
         self.dyn.refresh()
         return self.dyn
 
-    def update(self, state, t, dt):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         out = self.exports
         steps = state.inputs["steps"]
         if self.stopped is not None or not np.isfinite(steps[0]):
@@ -283,18 +370,13 @@ class ComPlanner(PythonController):
         steps = self._measured(dyn, steps, t)
         rows = Steps.rows(steps)
         adjustable = len(rows) > 0 and t < rows[0][8] - 0.05
-        if len(rows) and rows[0][8] != self.shift_for:  # a new step: nothing moved yet
-            self.shift_for, self.shift = rows[0][8], np.zeros(2)
-        apart = None
-        if len(rows):  # the landing stays min_apart clear of the other foot, across
-            row, other = rows[0], Steps.feet(steps)[1 - int(rows[0][0])]
-            side = 1.0 if int(row[0]) == 0 else -1.0
-            across = side * np.array([-np.sin(row[4]), np.cos(row[4])])
-            apart = (across, self.min_apart - float(across @ (row[1:3] - other[:2])))
+        if len(rows) and rows[0][7] != self.shift_for:  # a new step: nothing moved yet
+            self.shift_for, self.shift = rows[0][7], np.zeros(2)
         support = supports(steps, t, self.sample, self.horizon, _body.SOLE_SIZE, self.margin)
         start = time.perf_counter()
+        assert self.mpc is not None  # activate() made it
         try:
-            jx, jy, shift = self.mpc.solve(self.x, self.y, support, adjustable, self.shift, apart)
+            jx, jy, shifts = self.mpc.solve(self.x, self.y, support, adjustable, self.shift, self.reach)
         except qp.Infeasible as exc:
             self.stopped = str(exc)
             self.log.error("%s at t = %.3f s: the COM reference holds still (a safe stop)", exc, t)
@@ -312,14 +394,14 @@ class ComPlanner(PythonController):
         out["com"][:] = [self.x[0], self.y[0], self.ground + self.height, self.x[1], self.y[1], rate,
                          self.x[2], self.y[2], 0.0]
         if len(rows):
-            row = rows[0]
+            row, shift = rows[0], shifts[0]
             self.shift = shift  # kept once the step can no longer move (its last 0.05 s)
             out["landing"][:] = [row[0], row[1] + shift[0], row[2] + shift[1], row[3], row[4]]
         else:
             out["landing"][:] = np.nan
         return None
 
-    def _measured(self, dyn, steps: np.ndarray, t: float) -> np.ndarray:
+    def _measured(self, dyn: Dynamics, steps: np.ndarray, t: float) -> np.ndarray:
         """The plan with the feet on the ground where they really are (the encoders and the base):
         the support is where the soles stand, whatever the planner believes (a landing moved by a
         push, a foot that slipped)."""
@@ -333,16 +415,16 @@ class ComPlanner(PythonController):
             steps[4 * f:4 * f + 4] = (sole[0], sole[1], sole[2], _body.yaw_of(r))
         return steps
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         times = np.asarray(self.solve_times[-20000:]) * 1e3
-        out = {"stopped": self.stopped}
+        out: dict[str, Any] = {"stopped": self.stopped}
         if len(times):
             out.update(mpc_ms_median=round(float(np.median(times)), 3),
                        mpc_ms_p99=round(float(np.percentile(times, 99)), 3))
         return out
 
 
-def _standing_height(dyn, posture: dict) -> float:
+def _standing_height(dyn: Dynamics, posture: dict[str, float]) -> float:
     """The COM's height above the soles in the standing posture (the feet flat, the pelvis level)."""
     model = dyn.model
     data = mujoco.MjData(model)

@@ -19,15 +19,18 @@ at the loop's rate.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import mujoco
 import numpy as np
 
-from mexone.control.student import Param, PythonController
+from mexone.control.student import Param, PythonController, State
+from mexone.dynamics import Dynamics
 from mexone.walking import body as _body
 from mexone.walking import qp
 from mexone.walking.footsteps import Steps, swing_point
@@ -95,9 +98,15 @@ class WholeBodyQP:
     """The QP above for a robot with `nv` dofs of which `actuated` (indices) have motors with
     `effort_limit` (N m); `mu`: the friction coefficient the pyramids use (keep it under the
     real one); `min_force`: N each corner of a foot on the ground pushes at least (keeps the
-    sole flat: every corner loaded)."""
+    sole flat: every corner loaded).
 
-    def __init__(self, nv: int, actuated: Sequence[int], effort_limit: Sequence[float],
+    The corner forces are solved in their sole's frame (f = R f'), where the pyramids are
+    constant rows (abs(f'_x), abs(f'_y) <= mu f'_z) and f'_z >= f_min a bound; a foot's four
+    corner forces act on the robot as the wrench W0 f' at the sole's centre (W0 constant in the
+    sole frame), so J_c^T f = (R^T J_foot)^T W0 f'. A foot in the air has no force variables."""
+
+    def __init__(self, nv: int, actuated: Sequence[int] | np.ndarray,
+                 effort_limit: Sequence[float] | np.ndarray,
                  n_feet: int = 2, mu: float = 0.6, min_force: float = 0.5,
                  accel_weight: float = 1e-6, force_weight: float = 1e-5, contact_weight: float = 1e3,
                  solver: str = "daqp"):
@@ -111,66 +120,83 @@ class WholeBodyQP:
         self.solver = qp.check_solver(solver)
         self.nf = 12 * n_feet
         self.nx = nv + self.nf
-        # friction pyramid rows per corner, in the sole frame: -n.f <= -f_min, ±t.f - mu n.f <= 0
-        self._pyramid = np.array([[0, 0, -1], [1, 0, -mu], [-1, 0, -mu], [0, 1, -mu], [0, -1, -mu]],
-                                 dtype=float)
+        # the pyramid's rows for one foot's 12 sole-frame corner forces: ±f'_t - mu f'_z <= 0
+        self._pyramid = np.zeros((16, 12))
+        for c in range(4):
+            for r, (axis, sign) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
+                self._pyramid[4 * c + r, 3 * c + axis] = sign
+                self._pyramid[4 * c + r, 3 * c + 2] = -mu
+        self._regularisation = np.concatenate([np.full(nv, accel_weight), np.full(self.nf, force_weight)])
 
     def solve(self, M: np.ndarray, h: np.ndarray, tasks: Sequence[Task], feet: Sequence[Foot]
               ) -> Solution:
         """The torques, forces and accelerations now; qp.Infeasible when there are none."""
-        nv, nx = self.nv, self.nx
-        P = np.zeros((nx, nx))
-        q = np.zeros(nx)
+        nv = self.nv
+        down = [foot for foot in feet if foot.contact]
+        nf = 12 * len(down)
+        nx = nv + nf
+        # the cost: every task's rows stacked, weighted by the square root of their weights
+        rows, rhs = [], []
         for task in tasks:
-            w = np.broadcast_to(np.asarray(task.weight, dtype=float), task.target.shape)
-            wj = task.jacobian * w[:, None]
-            P[:nv, :nv] += task.jacobian.T @ wj
-            q[:nv] -= wj.T @ (task.target - task.drift)
-        P[np.diag_indices(nv)] += self.accel_weight
-        P[np.arange(nv, nx), np.arange(nv, nx)] += self.force_weight
-        # J_c^T for every corner force: (nv, nf)
-        jct = np.zeros((nv, self.nf))
-        eq_rows, eq_rhs = [], []
-        g_rows, g_rhs = [], []
-        lb = np.full(nx, -np.inf)
-        ub = np.full(nx, np.inf)
-        for k, foot in enumerate(feet):
-            cols = slice(nv + 12 * k, nv + 12 * (k + 1))
-            if not foot.contact:
-                lb[cols] = ub[cols] = 0.0
-                continue
-            jp = corner_jacobians(foot)  # (4, 3, nv)
-            jct[:, 12 * k:12 * (k + 1)] = jp.reshape(12, nv).T
+            w = np.sqrt(np.asarray(task.weight, dtype=float))
+            rows.append(task.jacobian * (w[:, None] if w.ndim else w))
+            rhs.append((task.target - task.drift) * w)
+        held = math.sqrt(self.contact_weight)
+        jct = np.empty((nv, nf))  # J_c^T for each corner's sole-frame force
+        for k, foot in enumerate(down):
             # held on the ground: a stiff task rather than an equality, so torque limits never
             # make the QP infeasible (the foot would rather slip a little than the QP fail)
             target = np.zeros(6) if foot.target is None else foot.target
-            wj = foot.jacobian * self.contact_weight
-            P[:nv, :nv] += foot.jacobian.T @ wj
-            q[:nv] -= wj.T @ (target - foot.drift)
-            pyramid = self._pyramid @ foot.rotation.T  # (5, 3): rows act on the world force
-            block = np.zeros((20, nx))
-            for c in range(4):
-                block[5 * c:5 * c + 5, nv + 12 * k + 3 * c:nv + 12 * k + 3 * c + 3] = pyramid
-            g_rows.append(block)
-            g_rhs.append(np.tile([-self.min_force, 0, 0, 0, 0], 4))
-        # the unactuated rows of M q̈ + h = S^T τ + J_c^T f
-        base = np.zeros((len(self.unactuated), nx))
-        base[:, :nv] = M[self.unactuated]
-        base[:, nv:] = -jct[self.unactuated]
-        eq_rows.insert(0, base)
-        eq_rhs.insert(0, -h[self.unactuated])
-        # torque limits on τ = M_a q̈ + h_a - J_c,a^T f
-        act = np.zeros((len(self.actuated), nx))
+            rows.append(foot.jacobian * held)
+            rhs.append((target - foot.drift) * held)
+            rt = foot.rotation.T
+            local = np.vstack([rt @ foot.jacobian[:3], rt @ foot.jacobian[3:]])  # (6, nv)
+            corners = np.ascontiguousarray(foot.corners, dtype=float).tobytes()
+            jct[:, 12 * k:12 * (k + 1)] = local.T @ _wrench_map(corners)
+        J = np.vstack(rows)
+        P = np.zeros((nx, nx))
+        P[:nv, :nv] = J.T @ J
+        q = np.zeros(nx)
+        q[:nv] = -(J.T @ np.concatenate(rhs))
+        P[np.diag_indices(nx)] += self._regularisation[:nx]
+        # the unactuated rows of M q̈ + h = S^T τ + J_c^T f (equalities), then the torque limits
+        # on τ = M_a q̈ + h_a - J_c,a^T f and the pyramids (two-sided where they can be)
+        na, nu = len(self.actuated), len(self.unactuated)
+        G = np.zeros((nu + na + 16 * len(down), nx))
+        G[:nu, :nv] = M[self.unactuated]
+        G[:nu, nv:] = -jct[self.unactuated]
+        act = G[nu:nu + na]
         act[:, :nv] = M[self.actuated]
         act[:, nv:] = -jct[self.actuated]
+        for k in range(len(down)):
+            G[nu + na + 16 * k:nu + na + 16 * (k + 1), nv + 12 * k:nv + 12 * (k + 1)] = self._pyramid
         h_a = h[self.actuated]
-        g_rows += [act, -act]
-        g_rhs += [self.limit - h_a, self.limit + h_a]
-        x = qp.solve(P, q, np.vstack(g_rows), np.concatenate(g_rhs), np.vstack(eq_rows),
-                     np.concatenate(eq_rhs), lb, ub, solver=self.solver, what="whole-body QP")
-        qdd, f = x[:nv], x[nv:]
-        tau = act[:, :nv] @ qdd + act[:, nv:] @ f + h_a
-        return Solution(qdd, f.reshape(self.n_feet, 4, 3), tau)
+        high = np.concatenate([self.limit - h_a, np.zeros(16 * len(down))])
+        low = np.concatenate([-self.limit - h_a, np.full(16 * len(down), -np.inf)])
+        lb = np.full(nx, -np.inf)
+        lb[nv + 2::3] = self.min_force
+        x = qp.solve(P, q, G[nu:], high, G[:nu], -h[self.unactuated], lb=lb, G_low=low,
+                     solver=self.solver, what="whole-body QP")
+        qdd = x[:nv]
+        forces = np.zeros((self.n_feet, 4, 3))
+        k = 0
+        for i, foot in enumerate(feet):
+            if foot.contact:
+                forces[i] = x[nv + 12 * k:nv + 12 * (k + 1)].reshape(4, 3) @ foot.rotation.T
+                k += 1
+        tau = act[:, :nv] @ qdd + act[:, nv:] @ x[nv:] + h_a
+        return Solution(qdd, forces, tau)
+
+
+@functools.lru_cache(maxsize=16)
+def _wrench_map(corners: bytes) -> np.ndarray:
+    """(6, 12): the wrench at the sole's centre (force, moment) of its corners' forces (4, 3
+    float64, as bytes: cached per sole), all in the sole's frame: [I ... I; [r_1]x ... [r_4]x]."""
+    out = np.zeros((6, 12))
+    for c, (x, y, z) in enumerate(np.frombuffer(corners).reshape(4, 3)):
+        out[:3, 3 * c:3 * c + 3] = np.eye(3)
+        out[3:, 3 * c:3 * c + 3] = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
+    return out
 
 
 # ----- the plug-in: the whole-body controller in the manager's loop ----------------------------
@@ -216,9 +242,9 @@ class WholeBodyController(PythonController):
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles when standing (0: as it starts)",
                        unit="m")
     step_height = Param(0.04, low=0.0, high=0.2, doc="swing foot's lift", unit="m")
-    max_reach = Param(0.4, low=0.05, high=2.0, doc="a landing further from the standing foot is "
+    max_reach = Param(0.6, low=0.05, high=2.0, doc="a landing further from the standing foot is "
                       "refused (the robot stands)", unit="m")
-    solver = Param("daqp", choices=("daqp", "proxsuite", "osqp", "quadprog"), doc="qpsolvers' solver")
+    solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
 
     def configure(self) -> None:
         model = self.dynamics.model
@@ -235,7 +261,7 @@ class WholeBodyController(PythonController):
         self.solve_times: list[float] = []
         self.swing_from: dict[int, np.ndarray] = {}
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.stopped = self.standing = self.finish = None
         dyn = self._dynamics(state)
         soles = [self._sole(dyn, f) for f in range(2)]
@@ -247,14 +273,14 @@ class WholeBodyController(PythonController):
         self.q0 = state.q.copy()
 
     # ----- reading the state ----------------------------------------------------------------
-    def _input(self, state, name):
+    def _input(self, state: State, name: str) -> np.ndarray | None:
         inputs = getattr(state, "inputs", None)
         if not inputs or name not in inputs:
             return None
         value = inputs[name]
         return None if not np.isfinite(value[0]) else value
 
-    def _dynamics(self, state):
+    def _dynamics(self, state: State) -> Dynamics:
         d = self.scratch
         d.qpos[:] = state.all_q
         d.qvel[:] = state.all_dq
@@ -265,12 +291,12 @@ class WholeBodyController(PythonController):
         self.dyn.refresh()
         return self.dyn
 
-    def _sole(self, dyn, foot: int):
+    def _sole(self, dyn: Dynamics, foot: int) -> tuple[np.ndarray, np.ndarray]:
         p, r = dyn.pose(_body.FEET[foot])
         return p + r @ _body.SOLE_OFFSET, r
 
     # ----- the update -------------------------------------------------------------------------
-    def update(self, state, t, dt):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         if self.stopped is not None:
             return self._hold(state)
         dyn = self._dynamics(state)
@@ -300,7 +326,7 @@ class WholeBodyController(PythonController):
             in_air = swing is not None and int(swing[0]) == f
             feet.append(Foot(jac, drift, rot, self.corners, not in_air,
                              target=-20.0 * (jac @ dq)))
-            if in_air:
+            if in_air and swing is not None:
                 tasks.append(self._swing_task(swing, f, centre, rot, jac, drift, dq, t))
             elif f in self.swing_from:
                 del self.swing_from[f]
@@ -316,14 +342,14 @@ class WholeBodyController(PythonController):
         self.exports["status"][:] = (1.0, self.solve_times[-1] * 1e3)
         return sol.tau + self.damping * state.dq
 
-    def _target(self, state, swing: np.ndarray) -> np.ndarray:
+    def _target(self, state: State, swing: np.ndarray) -> np.ndarray:
         """Where the step in the air lands (x, y, z, yaw): the COM planner's `landing` when it
         moved it, else the plan's."""
         landing = self._input(state, "landing")
         moved = landing is not None and int(landing[0]) == int(swing[0])
-        return landing[1:5] if moved else swing[1:5]
+        return landing[1:5] if moved and landing is not None else swing[1:5]
 
-    def _unreachable(self, dyn, swing: np.ndarray) -> str | None:
+    def _unreachable(self, dyn: Dynamics, swing: np.ndarray) -> str | None:
         """Why the step in the air cannot be taken (not finite, or further from the standing
         foot than the legs reach), or None."""
         target = swing[1:5]
@@ -346,7 +372,8 @@ class WholeBodyController(PythonController):
             self.start_com = self.dyn.com()
             self.start_t = t
 
-    def _com_task(self, ref, swing, dyn, dq, t) -> Task:
+    def _com_task(self, ref: np.ndarray | None, swing: np.ndarray | None, dyn: Dynamics, dq: np.ndarray,
+                  t: float) -> Task:
         c, jc = dyn.com(), dyn.com_jacobian()
         v = jc @ dq
         if ref is None:  # stand: over the feet's middle (the standing foot while one is up)
@@ -362,7 +389,7 @@ class WholeBodyController(PythonController):
         # the COM's J̇q̇ by finite difference is not in Dynamics: the centroidal drift is small
         return Task(jc, np.zeros(3), acc, self.w_com)
 
-    def _torso_task(self, dyn, dq, feet) -> Task:
+    def _torso_task(self, dyn: Dynamics, dq: np.ndarray, feet: list[Any]) -> Task:
         p, r = dyn.pose(_body.TORSO)
         jac = dyn.jacobian(_body.TORSO)[3:]
         yaw = math.atan2(feet[0].rotation[1, 0] + feet[1].rotation[1, 0],
@@ -373,14 +400,15 @@ class WholeBodyController(PythonController):
         acc = self.kp_torso * err - self.kd_torso * w
         return Task(jac, dyn.jacobian_dot_qdot(_body.TORSO)[3:], acc, self.w_torso)
 
-    def _posture_task(self, state) -> Task:
+    def _posture_task(self, state: State) -> Task:
         n = self.scratch.qvel.shape[0]
         jac = np.zeros((len(self.dofs), n))
         jac[np.arange(len(self.dofs)), self.dofs] = 1.0
         acc = self.kp_posture * (self.posture - state.q) - self.kd_posture * state.dq
         return Task(jac, np.zeros(len(self.dofs)), acc, self.w_posture)
 
-    def _swing_task(self, swing, f, centre, rot, jac, drift, dq, t) -> Task:
+    def _swing_task(self, swing: np.ndarray, f: int, centre: np.ndarray, rot: np.ndarray,
+                    jac: np.ndarray, drift: np.ndarray, dq: np.ndarray, t: float) -> Task:
         if f not in self.swing_from:  # where it lifted from: x y z yaw, and its pitch and roll
             self.swing_from[f] = np.array([*centre, _body.yaw_of(rot), math.asin(-rot[2, 0]),
                                            math.atan2(rot[2, 1], rot[2, 2])])
@@ -399,21 +427,21 @@ class WholeBodyController(PythonController):
         return Task(jac, drift, a, self.w_foot)
 
     # ----- the safe stop ------------------------------------------------------------------------
-    def _stop(self, state, why: str):
+    def _stop(self, state: State, why: str) -> np.ndarray:
         self.stopped = why
         self.log.error("%s: holding the robot where it stands (a safe stop)", why)
         self.q_hold = state.q.copy()
         self.exports["status"][:] = (0.0, NAN)
         return self._hold(state)
 
-    def _hold(self, state):
+    def _hold(self, state: State) -> np.ndarray:
         """Stand, then hold: the joints' PD about where the stop found them, gravity compensated."""
         g = self.dynamics.gravity()[self.dofs]
         return g + 200.0 * (self.q_hold - state.q) - 5.0 * state.dq
 
-    def report(self) -> dict:
+    def report(self) -> dict[str, Any]:
         times = np.asarray(self.solve_times[-5000:]) * 1e3
-        out = {"stopped": self.stopped, "standing": self.standing}
+        out: dict[str, Any] = {"stopped": self.stopped, "standing": self.standing}
         if len(times):
             out.update(qp_ms_median=round(float(np.median(times)), 3),
                        qp_ms_p99=round(float(np.percentile(times, 99)), 3))

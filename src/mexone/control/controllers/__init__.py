@@ -7,8 +7,8 @@ loader, ``mexone check``, the GUI and the ROS bridge all read it; a new type is 
 
 from mexone.control.controllers.base import (
     CONTROLLER_TYPES,
-    Controller,
     ControllerContext,
+    ControllerInterface,
     ControllerType,
     controller_type,
     register,
@@ -22,7 +22,7 @@ from mexone.control.controllers.velocity import VelocityController
 
 __all__ = [
     "CONTROLLER_TYPES",
-    "Controller",
+    "ControllerInterface",
     "ControllerContext",
     "ControllerType",
     "controller_type",
@@ -34,3 +34,12 @@ __all__ = [
     "TrajectoryController",
     "VelocityController",
 ]
+
+
+def __getattr__(name: str) -> object:
+    if name == "Controller":  # the former name (issue 40): one release, with a warning
+        from mexone.errors import warn_renamed
+
+        warn_renamed("mexone.control.controllers.Controller", "ControllerInterface")
+        return ControllerInterface
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

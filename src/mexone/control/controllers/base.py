@@ -1,10 +1,12 @@
-"""Controller: what every ros_control controller type shares, and the registry of types.
+"""ControllerInterface: what every ros_control controller type shares, and the registry of types.
 
 A controller claims joints, buffers the latest command from its topic (`on_command`, any thread:
 subscribers only buffer), and in `update` (the simulation thread, inside the manager's
 read -> update -> write loop) turns it into joint commands on the hardware. Front ends read
-what they need from the attributes here (`kind`, `joints`, `setpoint`, `gains`, `unit`,
-`command_range`) and never test classes.
+what they need from the attributes here (`joints`, `setpoint`, `gains`, `unit`,
+`command_range`) and ask its capabilities (`holds_position`, `takes_trajectories`,
+`tracks_position`, `drives_joints`, `tunable`, `reloadable`) what it can do: never its `kind`
+string, its class or its type name.
 """
 
 from __future__ import annotations
@@ -12,7 +14,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -24,7 +26,7 @@ from mexone.errors import InputError
 from mexone.physics.simulation import Simulation
 from mexone.ranges import number_text
 
-__all__ = ["Controller", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
+__all__ = ["ControllerInterface", "ControllerType", "ControllerContext", "CONTROLLER_TYPES", "register",
            "controller_type"]
 
 log = logging.getLogger("mexone.control")
@@ -35,22 +37,25 @@ class ControllerType:
     """One ros_control type name: the class that implements it and the interface it claims."""
 
     name: str  # e.g. "effort_controllers/JointPositionController"
-    cls: type[Controller]
+    cls: type[ControllerInterface]
     interface: str  # hardware_interface it claims, "" for state controllers
     single_joint: bool  # `joint:` (True) or `joints:` (the JointGroup* and trajectory types)
 
     @property
     def kind(self) -> str:
+        """The class's label (position, velocity, effort, trajectory, state): control/'s own; front ends ask
+        its capabilities."""
         return self.cls.kind
 
 
 CONTROLLER_TYPES: dict[str, ControllerType] = {}  # the registry: filled by register()
 
 
-def register(name: str, interface: str, single_joint: bool = True):
+def register(name: str, interface: str,
+             single_joint: bool = True) -> Callable[[type[ControllerInterface]], type[ControllerInterface]]:
     """Class decorator: `cls` implements ros_control type `name`."""
 
-    def add(cls: type[Controller]) -> type[Controller]:
+    def add(cls: type[ControllerInterface]) -> type[ControllerInterface]:
         CONTROLLER_TYPES[name] = ControllerType(name, cls, interface, single_joint)
         return cls
 
@@ -74,16 +79,27 @@ class ControllerContext:
     bus: Bus
     namespace: str
     pid_gains: dict[str, PidGains]  # gazebo_ros_control/pid_gains/<joint>
-    sensors: Callable[[], Mapping] | None = None  # state.sensors of Python controllers
+    sensors: Callable[[], Mapping[str, Any]] | None = None  # state.sensors of Python controllers
     faults: list[str] = field(default_factory=list)  # controllers that faulted this cycle
 
 
-class Controller:
-    kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state
+class ControllerInterface:
+    """ros_control's controller interface: the base of every controller type (a shipped
+    ros_controllers type or the runner of a Python controller), which the manager loads, starts,
+    updates and stops (see the module's doc). Not the student's class: that is
+    `mexone.control.PythonController` (`mexone.Controller`)."""
+
+    kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state: control/'s own label
     unit: ClassVar[str] = ""  # of its commands: rad, rad/s, N m
     sliders: ClassVar[bool] = True  # a GUI slider per joint makes sense
+    # ----- capabilities: what front ends ask of a controller ----------------------------------
+    holds_position: ClassVar[bool] = False  # takes joint-position setpoints (`command`) and holds them
+    takes_trajectories: ClassVar[bool] = False  # follows control_msgs trajectories (FollowJointTrajectory)
+    tracks_position: ClassVar[bool] = False  # its reference is a joint position (either of the above)
+    drives_joints: ClassVar[bool] = True  # commands its joints (a state broadcaster does not)
+    reloadable: ClassVar[bool] = False  # its code can be imported again in place (`reload`)
 
-    def __init__(self, spec: ControllerSpec, ctx: ControllerContext):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         self.spec = spec
         self.name = spec.name
         self.type = self.type_of(spec)
@@ -93,7 +109,7 @@ class Controller:
         self.rows = self.hw.rows(self.joints) if self.joints else np.zeros(0, dtype=int)
         self.running = False
         self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
-        self._pending = None  # the latest command, waiting for the next update
+        self._pending: Any = None  # the latest command (values() made it), for the next update
         self.every_period = False  # the manager's: update runs every period (periodic or timed)
         self._warned: set[str] = set()
 
@@ -110,6 +126,7 @@ class Controller:
 
     @property
     def interface(self) -> str:
+        """The hardware interface it claims (EffortJointInterface, ...; "" for a state broadcaster)."""
         return self.type.interface
 
     @property
@@ -122,7 +139,28 @@ class Controller:
         """PID gains per joint, if this controller has any to tune."""
         return None
 
+    @property
+    def tunable(self) -> bool:
+        """Whether it has PID gains to retune live (`set_gains`)."""
+        return self.gains is not None
+
+    def declared_params(self) -> dict[str, Any]:
+        """Its live parameters by name (`mexone.control.Param`), set with `set_param`; none for
+        the shipped types, whose PID gains are `gains`."""
+        return {}
+
+    @property
+    def params(self) -> dict[str, Any]:
+        """Its declared parameters' values now."""
+        return {}
+
+    @property
+    def code_file(self) -> str | None:
+        """The file its code was imported from, if it is a user's (a Python controller)."""
+        return None
+
     def set_gains(self, gains: Sequence[PidGains]) -> None:
+        """Retune live: one PidGains per joint (a controller without gains refuses)."""
         raise InputError(f"{self.name} has no PID gains to set")
 
     def command_range(self, index: int) -> tuple[float, float]:
@@ -144,7 +182,8 @@ class Controller:
         """The controller's `state` message now (simulation thread; stamp set by the caller)."""
         raise InputError(f"{self.name} publishes no state")
 
-    def _state(self, set_point: float, value: float, value_dot: float, dt: float) -> JointControllerState:
+    def _state(self, set_point: float | np.ndarray, value: float | np.ndarray,
+               value_dot: float | np.ndarray, dt: float) -> JointControllerState:
         row = int(self.rows[0])
         gains = (self.gains or [PidGains(0.0)])[0]
         return JointControllerState(Header(), float(set_point), float(value), float(value_dot),
@@ -153,21 +192,24 @@ class Controller:
 
     # ----- lifecycle (simulation thread) ------------------------------------------------------
     def starting(self, t: float) -> None:
+        """ros_control's starting(): the controller is about to run (its joints hold where they are)."""
         self._pending = None
 
     def stopping(self) -> None:
+        """ros_control's stopping(): its joints are released (the motors apply nothing)."""
         self.hw.release(self.rows)
 
     def update(self, t: float, dt: float) -> None:
+        """One cycle of the loop (simulation thread): apply the command buffered since the last one."""
         pending, self._pending = self._pending, None
         if pending is not None:
             self.apply(pending, t)
 
-    def apply(self, values, t: float) -> None:
+    def apply(self, values: Any, t: float) -> None:
         """Turn a buffered command into joint commands."""
 
     # ----- commands (any thread) --------------------------------------------------------------
-    def on_command(self, msg) -> bool:
+    def on_command(self, msg: object) -> bool:
         """Check and buffer `msg`; True if there is something for the next update."""
         values = self.values(msg)
         if values is None:
@@ -175,7 +217,7 @@ class Controller:
         self._pending = values
         return True
 
-    def values(self, msg) -> np.ndarray | None:
+    def values(self, msg: object) -> Any:
         """The numbers of a command message, or None (warned once) if it cannot be used."""
         if isinstance(msg, Float64):
             values = np.array([msg.data], dtype=float)
@@ -195,6 +237,7 @@ class Controller:
         return values
 
     def warn_once(self, key: str, text: str) -> None:
+        """Log `text` as this controller's warning, once per `key` (a command stream repeats its mistake)."""
         if key not in self._warned:
             self._warned.add(key)
             log.warning("%s: %s", self.name, text)
@@ -212,3 +255,6 @@ class Controller:
         """Gains of one joint: the controller's pid:, its gains:, else gazebo_ros_control's."""
         spec = self.spec
         return (spec.gains or {}).get(joint) or spec.pid or self.ctx.pid_gains.get(joint)
+
+
+Controller = ControllerInterface  # its name before issue 40, kept for code written against it

@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from mexone.control.controllers.base import Controller, register
+from mexone.control.controllers.base import ControllerInterface, register
 
 __all__ = ["EffortController"]
 
 
 @register("effort_controllers/JointEffortController", "EffortJointInterface")
 @register("effort_controllers/JointGroupEffortController", "EffortJointInterface", False)
-class EffortController(Controller):
+class EffortController(ControllerInterface):
     kind = "effort"
     unit = "N m"
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from mexone.bus.msgs import Header, JointState, Time
-from mexone.control.controllers.base import Controller, register
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
+from mexone.control.spec import ControllerSpec
 from mexone.physics.simulation import Periodic, Simulation
 
 __all__ = ["JointStateController", "DEFAULT_RATE"]
@@ -15,11 +16,12 @@ DEFAULT_RATE = 50.0
 
 
 @register("joint_state_controller/JointStateController", "")
-class JointStateController(Controller):
+class JointStateController(ControllerInterface):
     kind = "state"
     sliders = False
+    drives_joints = False
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         super().__init__(spec, ctx)
         hw = ctx.hw
         self.names = sorted(hw.joints)

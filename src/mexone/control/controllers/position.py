@@ -11,12 +11,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-from mexone.control.controllers.base import Controller, register
+from mexone.bus.msgs import JointControllerState
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
 from mexone.control.hardware import TELEPORT_NONE, TELEPORT_POSITION
-from mexone.control.spec import PidGains
+from mexone.control.spec import ControllerSpec, PidGains
 from mexone.errors import InputError
 
 __all__ = ["PositionController"]
@@ -26,11 +28,13 @@ __all__ = ["PositionController"]
 @register("position_controllers/JointPositionController", "PositionJointInterface")
 @register("effort_controllers/JointGroupPositionController", "EffortJointInterface", False)
 @register("position_controllers/JointGroupPositionController", "PositionJointInterface", False)
-class PositionController(Controller):
+class PositionController(ControllerInterface):
     kind = "position"
     unit = "rad"
+    holds_position = True
+    tracks_position = True
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         super().__init__(spec, ctx)
         self.ideal = spec.ideal_servo
         gains = [self.pid_for(j) for j in self.joints]
@@ -38,7 +42,7 @@ class PositionController(Controller):
             raise InputError(f"controller '{spec.name}' has no PID gains", file=spec.source,
                              line=spec.line, hint="add pid: {p: ..., d: ...}, or ideal_servo: true "
                                                   "to teleport the joint as Gazebo 7 did")
-        self._gains: list[PidGains] | None = None if self.ideal else list(gains)
+        self._gains: list[PidGains] | None = None if self.ideal else [g for g in gains if g is not None]
 
     @property
     def setpoint(self) -> np.ndarray:
@@ -54,9 +58,9 @@ class PositionController(Controller):
 
     @property
     def has_state(self) -> bool:
-        return self.type.single_joint and self.kind == "position"
+        return self.type.single_joint and self.holds_position
 
-    def state_message(self, dt: float):
+    def state_message(self, dt: float) -> JointControllerState:
         row = self.rows[0]
         return self._state(self.hw.command.position[row], self.hw.position(row),
                            self.hw.velocity(row), dt)
@@ -77,6 +81,8 @@ class PositionController(Controller):
 
     def _write_gains(self) -> None:
         c, rows, gains = self.hw.command, self.rows, self._gains
+        if gains is None:  # an ideal servo: teleported, no gains
+            return
         c.kp[rows] = [g.p for g in gains]
         c.kd[rows] = [g.d for g in gains]
         c.ki[rows] = [g.i for g in gains]
@@ -97,7 +103,7 @@ class PositionController(Controller):
             hw.command.teleport[rows] = TELEPORT_NONE
             self._write_gains()
 
-    def apply(self, values: np.ndarray, t: float) -> None:
+    def apply(self, values: Any, t: float) -> None:  # np.ndarray here; a trajectory in a subclass
         rows = self.rows
         self.follow(self.clamp(values, self.hw.lower[rows], self.hw.upper[rows], "joint limits"),
                     np.zeros(len(rows)))

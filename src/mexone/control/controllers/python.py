@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import inspect
 import logging
+import threading
 import time
 from typing import Any
 
@@ -33,7 +34,7 @@ from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
 from mexone.control.resolve import Plugin, student_line
-from mexone.control.student import PythonController, State, declared_lengths, unit_of
+from mexone.control.student import PythonController, State, declared_lengths, declared_topics, unit_of
 from mexone.control.watchdog import GUARD as _GUARD
 from mexone.control.watchdog import ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
@@ -79,6 +80,7 @@ class _StudentLog(logging.LoggerAdapter):
 class PythonRunner(Controller):
     kind = "python"
     sliders = False
+    reloadable = True
 
     def __init__(self, spec, ctx):
         plugin: Plugin = spec.plugin
@@ -123,6 +125,11 @@ class PythonRunner(Controller):
         self.exports = _Exports({k: np.full(n, np.nan)
                                  for k, n in declared_lengths(plugin.cls, "exports").items()})
         self.impl = self._instantiate(plugin)
+        # declared topics: each callback (the publisher's thread) only keeps the newest message
+        self._topics = declared_topics(plugin.cls)
+        self._inbox: dict[str, object] = {}
+        self._inbox_lock = threading.Lock()
+        self._subscriptions: list = []
 
     @classmethod
     def type_of(cls, spec) -> ControllerType:
@@ -152,6 +159,13 @@ class PythonRunner(Controller):
     @property
     def params(self) -> dict[str, Any]:
         return dict(self.impl.params)
+
+    def declared_params(self) -> dict:
+        return self.plugin.cls.declared_params()
+
+    @property
+    def code_file(self) -> str | None:
+        return self.plugin.file
 
     def set_param(self, key: str, value) -> Any:
         """Change a declared parameter live (simulation thread), validated as the YAML's."""
@@ -235,9 +249,34 @@ class PythonRunner(Controller):
             self._dyn_at = self.updates
         return self._dyn
 
+    # ----- topics (PythonController.topics) ------------------------------------------------------
+    def _subscribe(self) -> None:
+        bus, ns = self.ctx.bus, self.ctx.namespace
+        if bus is None or self._subscriptions:
+            return
+        for name, msg_type in self._topics.items():
+            def keep(msg, name=name):
+                with self._inbox_lock:
+                    self._inbox[name] = msg
+            self._subscriptions.append(bus.subscribe(f"{ns}/{name}", msg_type, keep, node=self.name))
+
+    def _unsubscribe(self) -> None:
+        for sub in self._subscriptions:
+            sub.unregister()
+        self._subscriptions = []
+        self._inbox = {}
+
+    def _deliver(self, state: State) -> None:
+        """state.messages: each declared topic's newest message since the last update, or None."""
+        with self._inbox_lock:
+            inbox, self._inbox = self._inbox, {}
+        state.messages = {name: inbox.get(name) for name in self._topics}
+
     # ----- lifecycle (simulation thread) --------------------------------------------------------
     def starting(self, t: float) -> None:
         super().starting(t)
+        if self._topics:
+            self._subscribe()
         hw, rows = self.hw, self.rows
         hw.release(rows)
         c = hw.command
@@ -291,6 +330,7 @@ class PythonRunner(Controller):
         return True
 
     def stopping(self) -> None:
+        self._unsubscribe()
         try:
             self.impl.deactivate()
         except Exception as exc:  # noqa: BLE001 - said, and the stop goes on
@@ -380,6 +420,8 @@ class PythonRunner(Controller):
             self._read(t)
         else:  # q, dq, effort are views: nothing to copy
             state.time, state._sensors, state._base = t, None, None
+        if self._topics:
+            self._deliver(state)
         self.updates += 1
         guard = _GUARD
         switches = _preemptions() if self._suspect else 0  # only after an overrun: a syscall

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mexone.bus.msgs import JointTrajectory
-from mexone.control.controllers.base import register
+from mexone.control.controllers.base import ControllerContext, register
 from mexone.control.controllers.position import PositionController
+from mexone.control.spec import ControllerSpec
 from mexone.errors import InputError
 from mexone.ranges import JOINT_VALUE, VELOCITY, number_text
 
@@ -62,8 +63,10 @@ class _Segment:
 class TrajectoryController(PositionController):
     kind = "trajectory"
     sliders = False
+    holds_position = False  # its commands are trajectories, not setpoints
+    takes_trajectories = True
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         super().__init__(spec, ctx)
         self.msg_type = JointTrajectory
         self.segments: list[_Segment] = []
@@ -82,7 +85,7 @@ class TrajectoryController(PositionController):
         self._end_goal(PREEMPTED, "the controller stopped")
         super().stopping()
 
-    def values(self, msg) -> JointTrajectory | None:
+    def values(self, msg: object) -> JointTrajectory | None:
         if not isinstance(msg, JointTrajectory):
             raise InputError(f"{self.name} takes JointTrajectory, not {type(msg).__name__}")
         missing = [j for j in self.joints if j not in msg.joint_names]
@@ -164,6 +167,8 @@ class TrajectoryController(PositionController):
 
     def _check_goal(self, t: float, desired: np.ndarray, velocity: np.ndarray) -> None:
         goal = self.goal
+        if goal is None:
+            return
         actual = self.hw.state.position[self.rows]
         actual_v = self.hw.state.velocity[self.rows]
         error = desired - actual

@@ -14,10 +14,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from mexone.control.controllers.base import Controller, register
+from mexone.bus.msgs import JointControllerState
+from mexone.control.controllers.base import ControllerContext, ControllerInterface, register
 from mexone.control.hardware import TELEPORT_VELOCITY
 from mexone.control.pid import PidArray
-from mexone.control.spec import PidGains
+from mexone.control.spec import ControllerSpec, PidGains
 from mexone.errors import InputError
 
 __all__ = ["VelocityController"]
@@ -26,14 +27,15 @@ __all__ = ["VelocityController"]
 @register("effort_controllers/JointVelocityController", "EffortJointInterface")
 @register("velocity_controllers/JointVelocityController", "VelocityJointInterface")
 @register("velocity_controllers/JointGroupVelocityController", "VelocityJointInterface", False)
-class VelocityController(Controller):
+class VelocityController(ControllerInterface):
     kind = "velocity"
     unit = "rad/s"
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         super().__init__(spec, ctx)
-        gains = [self.pid_for(j) for j in self.joints]
-        if None in gains:
+        found = [self.pid_for(j) for j in self.joints]
+        gains: list[PidGains] | None = [g for g in found if g is not None]
+        if None in found:
             if self.interface == "EffortJointInterface":
                 raise InputError(f"controller '{spec.name}' has no PID gains", file=spec.source,
                                  line=spec.line, hint="add pid: {p: ..., d: ...}")
@@ -64,7 +66,7 @@ class VelocityController(Controller):
     def has_state(self) -> bool:
         return self.type.single_joint
 
-    def state_message(self, dt: float):
+    def state_message(self, dt: float) -> JointControllerState:
         row = self.rows[0]
         return self._state(self.target[0], self.hw.velocity(row), 0.0, dt)
 
@@ -75,8 +77,8 @@ class VelocityController(Controller):
     def set_gains(self, gains: Sequence[PidGains]) -> None:
         if self.pid is None:
             raise InputError(f"{self.name} is an ideal velocity servo: it has no gains")
-        self._gains = list(gains)
-        self.pid = PidArray(self._gains)
+        self._gains = new = list(gains)
+        self.pid = PidArray(new)
         if self.running:
             self._configure()
 

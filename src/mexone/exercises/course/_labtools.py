@@ -89,7 +89,7 @@ def _students_line(exc: MexoneError, yaml_path: Path) -> str:
 
 def controller_fault(lab: Lab, name: str) -> str | None:
     """Why the student's controller is not running (a fault, or it never started), else None."""
-    ctrl = lab.controllers.controllers.get(name)
+    ctrl = lab.manager.controllers.get(name)
     if ctrl is None:
         return f"controller {name} was not loaded"
     if getattr(ctrl, "fault", None):  # the student's file named without the grader's temp folder

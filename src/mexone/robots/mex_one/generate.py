@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import yaml
@@ -22,6 +23,7 @@ from mexone.description.model import (
     Cylinder,
     Dynamics,
     GazeboLink,
+    Geometry,
     Inertial,
     Joint,
     Limit,
@@ -35,6 +37,9 @@ from mexone.description.model import (
 from mexone.description.sensors import CameraSpec, Noise, SensorSpec
 from mexone.description.urdf import write_urdf
 from mexone.robots.mex_one import params
+
+if TYPE_CHECKING:
+    import trimesh
 
 __all__ = ["build_model", "controllers_yaml", "visual_meshes", "mesh_file", "generate", "HERE"]
 
@@ -75,11 +80,11 @@ def inertial_for(part: params.Part) -> Inertial:
     return Inertial(part.mass, rounded, Pose(tuple(float(f"{v:.6g}") for v in com)))
 
 
-def _primitive(shape: params.Shape):
+def _primitive(shape: params.Shape) -> Geometry:
     return Box(shape.size) if shape.kind == "box" else Cylinder(*shape.size)
 
 
-def _piece(piece: params.Piece):
+def _piece(piece: params.Piece) -> trimesh.Trimesh:
     """One visual solid in millimetres (convex hulls of spheres: rounded, closed, low-poly)."""
     import trimesh
 
@@ -95,16 +100,17 @@ def _piece(piece: params.Piece):
         r_top, r_bottom, z_top, z_bottom, squash = piece.size
         points = []
         for r, z in ((r_top, z_top), (r_bottom, z_bottom)):
-            ball = trimesh.creation.uv_sphere(radius=r * MM, count=list(params.LIMB_SEGMENTS))
-            points.append(ball.vertices * (1.0, squash, 1.0) + (0.0, 0.0, z * MM))
+            sphere = trimesh.creation.uv_sphere(radius=r * MM, count=list(params.LIMB_SEGMENTS))
+            points.append(sphere.vertices * (1.0, squash, 1.0) + (0.0, 0.0, z * MM))
         mesh = trimesh.convex.convex_hull(np.vstack(points))
         centre = centre * (1.0, 1.0, 0.0)  # the limb's heights are its own
     elif piece.kind == "horn":
         radius, length = size
         mesh = trimesh.creation.cylinder(radius=radius, height=length,
                                          sections=params.HORN_SECTIONS)
-        turn = {"x": trimesh.transformations.rotation_matrix(np.pi / 2, (0, 1, 0)),
-                "y": trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)),
+        rotation = trimesh.transformations.rotation_matrix  # untyped
+        turn = {"x": rotation(np.pi / 2, (0, 1, 0)),  # type: ignore[no-untyped-call]
+                "y": rotation(np.pi / 2, (1, 0, 0)),  # type: ignore[no-untyped-call]
                 "z": np.eye(4)}[piece.axis]
         mesh.apply_transform(turn)
     else:
@@ -113,15 +119,16 @@ def _piece(piece: params.Piece):
     return mesh
 
 
-def visual_meshes(link: str) -> dict[str, object]:
+def visual_meshes(link: str) -> dict[str, trimesh.Trimesh]:
     """The link's visual meshes in millimetres, in the link frame (as a CAD export would be),
     one per material in the order the link's pieces name them."""
     import trimesh
 
-    by_material: dict[str, list] = {}
+    by_material: dict[str, list[trimesh.Trimesh]] = {}
     for piece in params.looks()[link]:
         by_material.setdefault(piece.material, []).append(_piece(piece))
-    return {material: trimesh.util.concatenate(pieces) for material, pieces in by_material.items()}
+    return {material: cast("trimesh.Trimesh", trimesh.util.concatenate(pieces))
+            for material, pieces in by_material.items()}
 
 
 def mesh_file(link: str, material: str, first: bool) -> str:
@@ -209,7 +216,7 @@ def _add_sensors(model: RobotModel) -> None:
 
 
 def controllers_yaml() -> str:
-    controllers: dict = {
+    controllers: dict[str, Any] = {
         "joint_state_controller": {"type": "joint_state_controller/JointStateController",
                                    "publish_rate": params.JOINT_STATE_RATE},
     }

@@ -21,6 +21,9 @@ HEIGHT = 1.05  # m, sole to top of the Kinect
 PELVIS_HEIGHT = 0.60  # m, pelvis frame above the soles at home
 
 
+Vec = tuple[float, float, float]  # x y z, m
+
+
 @dataclass(frozen=True)
 class Shape:
     """A primitive in its link's frame: kind 'box' (size = x y z) or 'cylinder' (radius, length,
@@ -59,11 +62,11 @@ class Hinge:
     d: float
 
 
-def _box(x, y, z, center=(0.0, 0.0, 0.0)) -> Shape:
+def _box(x: float, y: float, z: float, center: Vec = (0.0, 0.0, 0.0)) -> Shape:
     return Shape("box", (x, y, z), center)
 
 
-def _cyl(r, length, center=(0.0, 0.0, 0.0)) -> Shape:
+def _cyl(r: float, length: float, center: Vec = (0.0, 0.0, 0.0)) -> Shape:
     return Shape("cylinder", (r, length), center)
 
 
@@ -183,19 +186,22 @@ class Piece:
     axis: str = "z"
 
 
-def _rbox(x, y, z, r, center=(0.0, 0.0, 0.0), material="shell_white") -> Piece:
+def _rbox(x: float, y: float, z: float, r: float, center: Vec = (0.0, 0.0, 0.0),
+          material: str = "shell_white") -> Piece:
     return Piece("rbox", (x, y, z, r), center, material)
 
 
-def _limb(r_top, r_bottom, z_top, z_bottom, squash=0.85, center=(0.0, 0.0, 0.0)) -> Piece:
+def _limb(r_top: float, r_bottom: float, z_top: float, z_bottom: float, squash: float = 0.85,
+          center: Vec = (0.0, 0.0, 0.0)) -> Piece:
     return Piece("limb", (r_top, r_bottom, z_top, z_bottom, squash), center)
 
 
-def _horn(r, length, axis, center=(0.0, 0.0, 0.0), material="servo_dark") -> Piece:
+def _horn(r: float, length: float, axis: str, center: Vec = (0.0, 0.0, 0.0),
+          material: str = "servo_dark") -> Piece:
     return Piece("horn", (r, length), center, material, axis)
 
 
-def _servo(x, y, z, center=(0.0, 0.0, 0.0)) -> Piece:
+def _servo(x: float, y: float, z: float, center: Vec = (0.0, 0.0, 0.0)) -> Piece:
     return _rbox(x, y, z, 0.006, center, "servo_dark")
 
 

@@ -69,7 +69,7 @@ def shipped_rms(var: dict) -> float:
     def command(sim) -> None:
         q = reference(np.array([sim.time]), var["amplitude"], var["frequency"])[0]
         for name, value in zip(pids, q, strict=True):
-            lab.controllers.command(name, [float(value)])
+            lab.manager.command(name, [float(value)])
 
     log = JointLog(lab, JOINTS)
     lab.sim.add_periodic(lab.sim.timestep, command)

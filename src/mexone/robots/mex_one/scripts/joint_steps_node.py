@@ -7,7 +7,7 @@ from std_msgs.msg import Float64
 
 
 def main() -> None:
-    rospy.init_node("sweep")
+    rospy.init_node("joint_steps")
     joint = rospy.get_param("~joint", "l_shoulder_pitch")
     ns = rospy.get_param("~namespace", "mex_rb")
     pub = rospy.Publisher(f"/{ns}/{joint}_position_controller/command", Float64, queue_size=1000)
