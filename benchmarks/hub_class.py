@@ -3,8 +3,8 @@ user with their own Jupyter server and `mexone sim` started by the launcher entr
 jupyter-server-proxy), each with its page's traffic open (a websocket client reading everything
 the lab sends, through the hub's proxy and the student's server, as a browser tab would). Prints
 each lab's real-time factor (from the sim time its page shows), CPU share and memory, and the
-students' Jupyter servers' cost. Needs root and what scripts/test.sh builds (.venv-hub,
-tests/hub's configurable-http-proxy).
+students' Jupyter servers' cost. Needs root and tests/hub's configurable-http-proxy (npm, as
+scripts/test.sh installs it); the students' venv is brought up to date with this checkout.
 
     python benchmarks/hub_class.py [--students 20] [--seconds 30]
 """
@@ -22,7 +22,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path[:0] = [str(HERE), str(HERE.parent / "tests" / "hub")]
 
-from classroom import Classroom, labs_of, missing, pids_of  # noqa: E402
+from classroom import Classroom, class_names, labs_of, missing, pids_of, students_venv  # noqa: E402
 from lab_cost import Page, cpu_seconds, rss_mb  # noqa: E402
 
 
@@ -34,7 +34,9 @@ def main() -> None:
     why = missing()
     if why:
         sys.exit(f"hub_class: {why}")
-    names = [f"mexone-s{i:02d}" for i in range(args.students)]
+    sys.path.insert(0, str(HERE.parent / "tests"))  # wheelenv, to build this checkout's wheel
+    students_venv()
+    names = class_names(*(f"s{i:02d}" for i in range(args.students)))
     room = Classroom(names).start()
     try:
         pages = []

@@ -49,12 +49,11 @@ python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs:
 export MEXONE_ROS2_PYTHON="$PWD/.venv-ros2/bin/python"
 # Foxglove's WebSocket client (npm @foxglove/ws-protocol), which tests/foxglove_ws runs on node
 npm install --prefix tests/foxglove_ws --no-audit --no-fund --silent
-# A class on this machine (tests/hub): JupyterHub's proxy from npm, and the students' Jupyter
-# with mexone's launcher entry in a venv of Debian's Python (students cannot enter /root, where
-# pyenv's lives). The pip line is deploy/zero-to-jupyterhub/Dockerfile's (tests/hub/test_deploy.py)
+# A class on this machine (tests/hub, as root: a Unix user per student): JupyterHub's proxy from
+# npm, and the students' venv of Debian's Python with mexone's wheel and deploy's Dockerfile's
+# packages, outside this checkout (students may not enter where it is cloned)
 npm install --prefix tests/hub --no-audit --no-fund --silent
-[ -x .venv-hub/bin/python ] || /usr/bin/python3 -m venv .venv-hub
-.venv-hub/bin/python -m pip install -q --disable-pip-version-check -e ".[hub]" jupyterhub
+[ "$(id -u)" != 0 ] || python3 tests/hub/classroom.py
 python3 -m ruff check .
 python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
 python3 -m pytest "$@"

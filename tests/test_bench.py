@@ -24,3 +24,6 @@ def test_bench_quick_json():
     assert pybullet["fall"]["pybullet"]["base_height_m"] < 0.5  # ...in both simulators
     backends = {(r["backend"], r["workers"]) for r in report["parallel"]}
     assert len(backends) == 2 * (os.cpu_count() or 1)
+    controller = report["python_controller"]  # in the lab's process, and in a worker process
+    assert controller["framework_us_per_update"] > 0 and controller["worker_round_trip_us"] > 0
+    assert controller["worker_lab_cpu_us_per_update"] > 0 and controller["worker_start_s"] > 0

@@ -35,12 +35,16 @@ def git(*args: str) -> str:
 def build_wheel(tmp_path_factory) -> Path:
     """The wheel built from a copy of the files git knows (tracked, or new and not ignored): a
     stale build/ or egg-info in the checkout cannot leak into it."""
-    tree = tmp_path_factory.mktemp("tree")
+    return wheel_of_checkout(tmp_path_factory.mktemp("tree"), tmp_path_factory.mktemp("dist"))
+
+
+def wheel_of_checkout(tree: Path, out: Path) -> Path:
+    """build_wheel's work, in the folders given: the checkout's files git knows copied to `tree`,
+    the wheel built into `out` (also tests/hub's students' venv, outside pytest)."""
     for name in git("ls-files", "-z", "--cached", "--others", "--exclude-standard").split("\0"):
         if name and (ROOT / name).is_file():
             (tree / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, tree / name)
-    out = tmp_path_factory.mktemp("dist")
     start = time.monotonic()
     built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
                             "--disable-pip-version-check", "-w", str(out), str(tree)],

@@ -17,6 +17,9 @@ noisy machine)::
   parallel       robot-seconds per wall second with 1..N workers: mujoco.rollout threads (the PD
                  controllers run inside MuJoCo, so the controlled robot rolls out in C) and
                  processes each running a full mexone Lab
+  Python ctrl    a student's PD at 1 kHz: the framework's cost per update in the lab's process
+                 (a class handed over), and in a worker process (a class the YAML names): the
+                 round trip, the lab's CPU per update, the real-time factor kept, start, memory
 """
 
 from __future__ import annotations
@@ -36,6 +39,7 @@ import numpy as np
 
 from mexone import signals
 from mexone.bus.msgs import JointState
+from mexone.control import load_control_config
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import RunMonitor
 from mexone.robots import mex_one
@@ -223,13 +227,12 @@ def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
     minus the same update() called in a bare loop on the same State, plus what waking the loop
     every physics step costs the simulation (a do-nothing control's extra time per step). The
     physics itself is left out: it is the same with any controller."""
-    from mexone.control.skeleton import skeleton_files
-
-    with tempfile.TemporaryDirectory() as folder:
-        for name, text in skeleton_files("my_pd").items():
-            (Path(folder) / name).write_text(text)
-        (Path(folder) / "my_pd.py").write_text(_BENCH_CONTROLLER)
-        lab = Lab.create(controllers=Path(folder) / "controllers.yaml")
+    with tempfile.TemporaryDirectory() as folder:  # the class handed over: in this process
+        yaml_path = _bench_controller(Path(folder))
+        namespace: dict = {"__name__": "mexone_bench_controller"}
+        exec(compile(_BENCH_CONTROLLER, str(Path(folder) / "my_pd.py"), "exec"), namespace)
+        lab = Lab.create(controllers=load_control_config(
+            yaml_path, classes={"my_pd/MyPd": namespace["MyPd"]}))
     sim, manager = lab.sim, lab.manager
     runner = manager.controllers["my_pd_controller"]
     steps = round(sim_seconds / sim.timestep)
@@ -303,7 +306,88 @@ def python_controller_cost(sim_seconds: float, repeats: int) -> dict:
     wake = max(0.0, float(np.median(wakes)))
     return {"student_us": student * 1e6, "manager_us_per_update": manager_time * 1e6,
             "wake_us_per_step": wake * 1e6,
-            "framework_us_per_update": (manager_time - student + wake) * 1e6}
+            "framework_us_per_update": (manager_time - student + wake) * 1e6,
+            **worker_controller_cost(sim_seconds)}
+
+
+def _bench_controller(folder: Path) -> Path:
+    """The benchmark's PD (my_pd.py) in Mex-One's YAML on the left arm; the YAML's path."""
+    from mexone.control.skeleton import skeleton_files
+
+    for name, text in skeleton_files("my_pd").items():
+        (folder / name).write_text(text)
+    (folder / "my_pd.py").write_text(_BENCH_CONTROLLER)
+    return folder / "controllers.yaml"
+
+
+def worker_controller_cost(sim_seconds: float) -> dict:
+    """The same PD named by the YAML, so in a worker process (control/worker.py): the wall time
+    of an update's round trip (the lab writes the state, wakes the worker, waits for its
+    command) and the lab's CPU time per update, both as medians per update; the real-time
+    factor the lab keeps at --rtf 1 with it at 1 kHz (the lateness per step, so a loaded
+    machine shows); the worker's start (the interpreter, mexone's imports, the student's file,
+    to the configured object) and its memory (proportional set size)."""
+    from mexone.control.controllers.isolated import IsolatedRunner
+    from mexone.control.worker import Worker
+
+    starts = []
+    for _ in range(3):  # the interpreter and mexone's imports, to its greeting: no student code
+        start = time.perf_counter()
+        worker = Worker()
+        worker.ready()
+        starts.append(time.perf_counter() - start)
+        worker.kill()
+    with tempfile.TemporaryDirectory() as folder:
+        yaml_path = _bench_controller(Path(folder))
+        start = time.perf_counter()
+        lab = Lab.create(controllers=yaml_path)
+        create_s = time.perf_counter() - start
+        sim, runner = lab.sim, lab.manager.controllers["my_pd_controller"]
+        assert isinstance(runner, IsolatedRunner)
+        walls, cpus = [], []
+        real_update = runner.update
+
+        def timed(t: float, dt: float) -> None:
+            wall, cpu = time.perf_counter(), time.thread_time()
+            real_update(t, dt)
+            walls.append(time.perf_counter() - wall)
+            cpus.append(time.thread_time() - cpu)
+
+        runner.update = timed
+        steps = round(sim_seconds / sim.timestep)
+        sim.step(200)  # warm
+        walls.clear()
+        cpus.clear()
+        sim.step(steps)
+        worker_us = float(runner._out[0]) * 1e6  # its last update, as it timed itself
+        runner.update = real_update
+        sim.target_rtf = 1.0
+        paced = time.perf_counter()
+        sim.run(min(sim_seconds, 1.0))
+        rtf = min(sim_seconds, 1.0) / (time.perf_counter() - paced)
+        pid = runner.worker.process.pid
+        pss = _pss_mb(pid)
+        start = time.perf_counter()
+        lab.manager.reload("my_pd_controller")  # a fresh worker: describe, create, configure
+        reload_s = time.perf_counter() - start
+        lab.manager.close()
+    return {"worker_round_trip_us": float(np.median(walls)) * 1e6,
+            "worker_round_trip_p99_us": float(np.percentile(walls, 99)) * 1e6,
+            "worker_lab_cpu_us_per_update": float(np.median(cpus)) * 1e6,
+            "worker_student_us": worker_us, "worker_rtf_at_1": rtf,
+            "worker_lab_create_s": create_s, "worker_reload_s": reload_s, "worker_pss_mb": pss,
+            "worker_start_s": float(np.median(starts))}
+
+
+def _pss_mb(pid: int) -> float | None:
+    """A process's proportional set size, MB (its private memory plus its share of libraries)."""
+    try:
+        for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+            if line.startswith("Pss:"):
+                return int(line.split()[1]) / 1024
+    except (OSError, ValueError):
+        pass
+    return None
 
 
 def camera_cost(sim_seconds: float) -> dict:
@@ -551,5 +635,15 @@ def format_report(report: BenchReport) -> str:
                   f"{'  manager cycle per update, CPU us':<44} {p['manager_us_per_update']:12.2f}",
                   f"{'  waking the loop every step, us':<44} {p['wake_us_per_step']:12.2f}",
                   f"{'  framework us per update (target <= 10)':<44} "
-                  f"{p['framework_us_per_update']:12.2f}"]
+                  f"{p['framework_us_per_update']:12.2f}",
+                  f"{'the same PD in a worker process: round trip us':<44} "
+                  f"{p['worker_round_trip_us']:12.2f}",
+                  f"{'  round trip p99, us':<44} {p['worker_round_trip_p99_us']:12.2f}",
+                  f"{'  lab CPU us per update (target <= 30)':<44} "
+                  f"{p['worker_lab_cpu_us_per_update']:12.2f}",
+                  f"{'  real-time factor kept at --rtf 1':<44} {p['worker_rtf_at_1']:12.3f}",
+                  f"{'  a worker process up (no student code), s':<44} {p['worker_start_s']:12.2f}",
+                  f"{'  Lab.create with it, s; a reload, s':<44} "
+                  f"{p['worker_lab_create_s']:6.2f} {p['worker_reload_s']:5.2f}",
+                  f"{'  worker memory (PSS), MB':<44} {p['worker_pss_mb'] or 0:12.1f}"]
     return "\n".join(lines)

@@ -3,7 +3,11 @@ MuJoCo exactly (clamped at the limit), its parameters validated with the YAML's 
 resolution (file next to the YAML, dotted module, entry point, unknown), and its faults -- an
 exception on the 1000th update, a NaN, an overrun, an update that never returns -- stopping it
 with the joints held and one line naming the student's file:line while the lab runs on; reload
-and live parameters; `mexone controllers new` writing a skeleton that runs as written."""
+and live parameters; `mexone controllers new` writing a skeleton that runs as written.
+
+A class the YAML names runs in a process of its own (control/worker.py): what the tests read of
+the student's object comes back through its report(). The same faults of a class handed over in
+Python (in the lab's process, under the watchdog thread) are checked beside them."""
 
 from __future__ import annotations
 
@@ -35,11 +39,13 @@ def write(folder: Path, name: str, text: str) -> Path:
     return path
 
 
-def turntable_lab(folder: Path, turntable, body: str, extra: str = "", effort: float = 50.0) -> Lab:
-    """The turntable (I q'' = torque, no gravity torque) driven by class Ctl of `body`."""
+def turntable_lab(folder: Path, turntable, body: str, extra: str = "", effort: float = 50.0,
+                  in_process: bool = False) -> Lab:
+    """The turntable (I q'' = torque, no gravity torque) driven by class Ctl of `body`: in its
+    own process, or (`in_process`) handed over in Python."""
     write_urdf, _ = turntable
-    write(folder, "ctl.py", "import numpy as np\nfrom mexone.control import Param, PythonController\n\n"
-          + textwrap.dedent(body))
+    path = write(folder, "ctl.py", "import numpy as np\nfrom mexone.control import Param, "
+                 "PythonController\n\n" + textwrap.dedent(body))
     yaml_path = write(folder, "controllers.yaml", """\
         turntable:
           joint_state_controller: {type: joint_state_controller/JointStateController, publish_rate: 50}
@@ -47,7 +53,19 @@ def turntable_lab(folder: Path, turntable, body: str, extra: str = "", effort: f
             type: ctl/Ctl
             joints: [yaw]
         """ + textwrap.indent(textwrap.dedent(extra), " " * 4))
-    return Lab.create(read_urdf(write_urdf(folder, effort=effort)), load_control_config(yaml_path))
+    classes = {"ctl/Ctl": _module(path).Ctl} if in_process else None
+    return Lab.create(read_urdf(write_urdf(folder, effort=effort)),
+                      load_control_config(yaml_path, classes=classes))
+
+
+def _module(path: Path):
+    """The student's file imported here (a class a notebook would hand over)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(f"handed_{path.parent.name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def errors(caplog) -> list[str]:
@@ -64,12 +82,15 @@ def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
                 self.times.append(t)
                 self.dts.append(dt)
                 assert state.time == t
+            def report(self):
+                return {"times": self.times, "dts": self.dts}
         """, "update_rate: 250\n")
     ctrl = lab.manager.controllers["ctl"]
     lab.sim.step(1000)  # 1 s of 1 ms steps
-    times = np.array(ctrl.impl.times)
+    report = ctrl.report()
+    times = np.array(report["times"])
     assert len(times) == 251  # t = 0, 0.004, ..., 1.0
-    assert np.allclose(np.diff(times), 0.004) and np.allclose(ctrl.impl.dts, 0.004)
+    assert np.allclose(np.diff(times), 0.004) and np.allclose(report["dts"], 0.004)
     info = {i.name: i for i in lab.manager.list_controllers()}["ctl"]
     assert info.update_rate == pytest.approx(250.0) and info.update_time > 0
 
@@ -91,7 +112,7 @@ def test_effort_reaches_qfrc_actuator_exactly_and_is_clamped_once(tmp_path, turn
     assert len(said) == 1 and "yaw 80 -> 50" in said[0].getMessage()
     with pytest.raises(InputError, match="tau NaN must be a finite number >= -1000"):
         lab.manager.set_param("ctl", "tau", math.nan)
-    assert lab.manager.controllers["ctl"].impl.tau == 80.0
+    assert lab.manager.controllers["ctl"].params["tau"] == 80.0
 
 
 def test_position_interface_without_gains_is_an_ideal_servo(tmp_path, turntable):
@@ -106,28 +127,34 @@ def test_position_interface_without_gains_is_an_ideal_servo(tmp_path, turntable)
 
 
 # ----- faults --------------------------------------------------------------------------------------
-def test_nan_output_stops_it_and_names_update(tmp_path, turntable, caplog):
+IN_PROCESS = pytest.mark.parametrize("in_process", [False, True], ids=["own process", "handed over"])
+
+
+@IN_PROCESS
+def test_nan_output_stops_it_and_names_the_return(tmp_path, turntable, caplog, in_process):
     lab = turntable_lab(tmp_path, turntable, """
         class Ctl(PythonController):
             def update(self, state, t, dt):
-                return [np.nan] if t >= 0.01 else [0.0]
-        """)
+                x = 0.0
+                return [np.nan] if t >= 0.01 else [x]
+        """, in_process=in_process)
     lab.sim.step(50)
     ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "yaw NaN" in ctrl.fault
-    [line] = errors(caplog)
-    assert "controller 'ctl' stopped" in line and f"{tmp_path / 'ctl.py'}:6)" in line
+    [line] = errors(caplog)  # was: the `def update` line (issue 41)
+    assert "controller 'ctl' stopped" in line and f"{tmp_path / 'ctl.py'}:8)" in line
     assert "\n" not in line
     assert lab.sim.time == pytest.approx(0.05)
 
 
-def test_overrun_stops_it(tmp_path, turntable, caplog):
+@IN_PROCESS
+def test_overrun_stops_it(tmp_path, turntable, caplog, in_process):
     lab = turntable_lab(tmp_path, turntable, """
         import time
         class Ctl(PythonController):
             def update(self, state, t, dt):
                 time.sleep(0.003)   # a 3 ms blocking call at 1 kHz: the lab waits on it
-        """, "max_overruns: 3\n")
+        """, "max_overruns: 3\n", in_process=in_process)
     lab.sim.step(30)
     ctrl = lab.manager.controllers["ctl"]
     # the first overrun starts the watch; the next three are counted (a sleep is the update's own
@@ -138,14 +165,15 @@ def test_overrun_stops_it(tmp_path, turntable, caplog):
     assert f"{tmp_path / 'ctl.py'}:7)" in line  # def update
 
 
-def test_an_update_that_never_returns_is_interrupted(tmp_path, turntable, caplog):
+@IN_PROCESS
+def test_an_update_that_never_returns_is_interrupted(tmp_path, turntable, caplog, in_process):
     lab = turntable_lab(tmp_path, turntable, """
         class Ctl(PythonController):
             def update(self, state, t, dt):
                 n = 0
                 while True:
                     n += 1
-        """, "hang_timeout: 0.2\n")
+        """, "hang_timeout: 0.2\n", in_process=in_process)
     lab.sim.step(10)  # returns: the watchdog interrupted the loop
     ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "hang_timeout" in ctrl.fault
@@ -169,10 +197,18 @@ class MyPd(PythonController):
         self.acc0 = state.sensors["imu"].linear_acceleration.copy()  # sensors ready at activate
 
     def update(self, state, t, dt):
+        self.state = state
         self.n += 1
         if self.n == {RAISE_AT}:
             raise RuntimeError("my bug")
         return self.kp * (self.q0 - state.q) - self.kd * state.dq
+
+    def report(self):  # what the tests read of this object, which runs in a process of its own
+        s = self.state
+        imu = s.sensors["imu"]
+        return {{"acc0": self.acc0, "acc": imu.linear_acceleration,
+                "orientation": imu.orientation, "base": s.base.position, "nq": len(s.all_q),
+                "dofs": self.dofs, "seen": getattr(self, "seen", [])}}
 """
 
 
@@ -272,18 +308,14 @@ def test_state_reads_sensors_and_base(arm):
     _, lab = arm
     ctrl = lab.manager.controllers["my_pd_controller"]
     lab.sim.step(200)  # landed and at rest, whichever test ran before
-    lab.manager.hw.read()
-    ctrl._read(lab.sim.time)
-    state = ctrl.state
+    report = ctrl.report()
     # read in activate at Lab.create: the robot spawns just above the floor, so at t = 0 it is
     # falling freely and the accelerometer reads ~0 (proper acceleration), not g
-    assert ctrl.impl.acc0.shape == (3,) and np.all(np.isfinite(ctrl.impl.acc0))
-    imu = state.sensors["imu"]
-    assert imu.linear_acceleration[2] == pytest.approx(9.81, abs=0.5)  # at rest: proper acc up
-    assert np.linalg.norm(imu.orientation) == pytest.approx(1.0)
-    assert state.base.position[2] > 0.3 and state.all_q.shape == (lab.sim.model.nq,)
-    assert list(ctrl.impl.dofs) == list(lab.manager.hw.dof_adr[lab.manager.hw.rows(ARM_JOINTS)])
-
+    assert len(report["acc0"]) == 3 and np.all(np.isfinite(report["acc0"]))
+    assert report["acc"][2] == pytest.approx(9.81, abs=0.5)  # at rest: proper acc up
+    assert np.linalg.norm(report["orientation"]) == pytest.approx(1.0)
+    assert report["base"][2] > 0.3 and report["nq"] == lab.sim.model.nq
+    assert report["dofs"] == list(lab.manager.hw.dof_adr[lab.manager.hw.rows(ARM_JOINTS)])
 
 
 def test_a_controller_cannot_write_into_what_the_sensors_hand_out(arm, caplog):
@@ -473,7 +505,7 @@ def test_dynamics_is_the_live_state_refreshed_each_update(arm):
     ctrl = manager.controllers["my_pd_controller"]
     bias = sim.data.qfrc_bias[ctrl.dofs].copy()  # after the reset's mj_forward, dq = 0
     sim.step(3)
-    seen = ctrl.impl.seen
+    seen = ctrl.report()["seen"]
     assert len(seen) >= 3
     np.testing.assert_allclose(seen[0][2], bias, rtol=1e-9, atol=1e-12)
     for all_q, dyn_q, _, same in seen:
@@ -533,6 +565,8 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
             def update(self, state, t, dt):
                 self.seen.append((state.q.copy(), state.all_q[self.dofs + 1].copy()))
                 return np.array([0.5, -0.25, 0.125])
+            def report(self):
+                return {"seen": self.seen[-1:]}
         """)
     path = write(tmp_path, "c.yaml", """\
         mex_rb:
@@ -547,8 +581,8 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
     dofs = lab.manager.hw.dof_adr[lab.manager.hw.rows(["r_elbow", "l_shoulder_pitch",
                                                                  "waist_yaw"])]
     assert list(lab.sim.data.qfrc_actuator[dofs]) == [0.5, -0.25, 0.125]
-    q, q_from_all = ctrl.impl.seen[-1]  # qpos has one more entry than qvel (the base quaternion)
-    np.testing.assert_array_equal(q, q_from_all)
+    [(q, q_from_all)] = ctrl.report()["seen"]  # qpos has one more entry than qvel (the base's
+    np.testing.assert_array_equal(q, q_from_all)  # quaternion)
 
 
 def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
@@ -576,11 +610,10 @@ def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
         data.ctrl[:], hw.command.effort[:] = saved
 
 
-def test_a_signal_while_an_update_is_blocked_outside_python_still_stops_the_run(tmp_path):
-    """The watchdog's exception waits, pending, while the update sleeps in C; a SIGTERM then
-    wakes the sleep and that exception lands in the signal handler before it records anything.
-    The signal must still stop the run (exit 143), not be swallowed into a long run that
-    exits 0."""
+def test_an_update_blocked_outside_python_is_ended_and_a_signal_still_stops_the_run(tmp_path):
+    """An update asleep in C code (which no watchdog thread can interrupt) is in a process of its
+    own: it is ended after hang_timeout, one line naming the line it slept on, and the lab runs
+    on; a SIGTERM then stops the run (exit 143), as ever."""
     import os
     import signal
     import subprocess
@@ -614,7 +647,7 @@ def test_a_signal_while_an_update_is_blocked_outside_python_still_stops_the_run(
     reader.start()
     try:
         assert wait_until(lambda: child.poll() is not None
-                          or any("interrupting it" in line for line in lines), 60), lines
+                          or any("hang_timeout" in line for line in lines), 60), lines
         assert child.poll() is None, lines
         os.kill(child.pid, signal.SIGTERM)
         assert child.wait(30) == 128 + signal.SIGTERM, lines
@@ -625,3 +658,62 @@ def test_a_signal_while_an_update_is_blocked_outside_python_still_stops_the_run(
     reader.join(5)
     assert any("interrupted by SIGTERM" in line for line in lines), lines
     assert any("hang_timeout" in line and "sleepy.py:11" in line for line in lines), lines
+
+
+def test_check_asks_a_classs_own_check_entry_in_its_process(tmp_path, capsys):
+    """`mexone check --controllers` runs the class's check_entry where the class runs (its own
+    process); the finding is at the YAML key's line, as the class says."""
+    write(tmp_path, "law.py", """\
+        from mexone.control import Param, PythonController
+        from mexone.errors import InputError
+
+        class Law(PythonController):
+            kp = Param(1.0)
+
+            @classmethod
+            def check_entry(cls, name, joints, plugin, timestep):
+                if plugin.params["kp"] > 5:
+                    raise InputError(f"controller '{name}': kp {plugin.params['kp']:g} is too "
+                                     f"stiff for a {timestep:g} s step", line=plugin.lines["kp"])
+        """)
+    path = write(tmp_path, "c.yaml", "mex_rb:\n  law:\n    type: law/Law\n    joints: [l_elbow]\n"
+                                     "    kp: 9\n")
+    assert main(["check", "--controllers", str(path)]) != 0
+    out = capsys.readouterr().out
+    assert f'{path}:5: error: controller "law": kp 9 is too stiff for a 0.001 s step' in out
+
+
+def test_a_ctrl_c_while_the_lab_waits_for_a_worker_leaves_it_in_step(tmp_path, turntable):
+    """A notebook's Ctrl-C (KeyboardInterrupt in the lab's thread) while an update runs in the
+    controller's process: the next step reads that update's late answer first, then goes on in
+    step with it (the controller keeps running, no fault)."""
+    import _thread
+    import signal
+    import threading
+
+    lab = turntable_lab(tmp_path, turntable, """
+        import time
+        class Ctl(PythonController):
+            def configure(self):
+                self.n = 0
+            def update(self, state, t, dt):
+                self.n += 1
+                if self.n == 3:
+                    time.sleep(0.5)
+                return [0.25]
+            def report(self):
+                return {"n": self.n}
+        """, "max_overruns: 1000\n")
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)  # a notebook's (the CLI's
+    try:  # handler, which an earlier test may have installed, only records a signal)
+        timer = threading.Timer(0.2, _thread.interrupt_main)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            lab.sim.step(100000)
+        timer.join()
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    ctrl = lab.manager.controllers["ctl"]
+    lab.sim.step(5)
+    assert ctrl.running and ctrl.fault is None
+    assert ctrl.report()["n"] == ctrl.updates and lab.sim.data.qfrc_actuator[0] == 0.25

@@ -22,6 +22,7 @@ import numpy as np
 import pytest
 
 from mexone.cli.common import read_pose
+from mexone.control import load_control_config
 from mexone.lab import Lab
 from mexone.motion.recovery import PushTrial, survives
 from mexone.physics.compile import Spawn
@@ -31,12 +32,35 @@ GRAVITY, TRACKING, IMPEDANCE, BALANCE = (EXAMPLES / n for n in (
     "01_gravity_compensation", "02_computed_torque", "03_hand_impedance", "04_lqr_balance"))
 
 
-def make_lab(example: Path, shipped: bool = False) -> Lab:
-    """The example's YAML (or, `shipped`, Mex-One's own controllers) with the example's pose."""
+def make_lab(example: Path, shipped: bool = False, in_process: bool = False) -> Lab:
+    """The example's YAML (or, `shipped`, Mex-One's own controllers) with the example's pose;
+    `in_process`: its class handed over in Python (a test that reaches into the object), not
+    run in a process of its own."""
     pose = example / "pose.yaml"
     joints = tuple(read_pose(pose).items()) if pose.exists() else ()
-    return Lab.create(controllers=None if shipped else example / "controllers.yaml",
-                      spawn=Spawn(joints=joints))
+    controllers = None if shipped else example / "controllers.yaml"
+    if in_process:
+        controllers = load_control_config(controllers, classes=_classes(controllers))
+    return Lab.create(controllers=controllers, spawn=Spawn(joints=joints))
+
+
+def _classes(yaml_path: Path) -> dict[str, type]:
+    """{type: class} of the YAML's controllers whose file is beside it, imported here."""
+    import importlib.util
+
+    import yaml
+
+    out = {}
+    for entry in next(iter(yaml.safe_load(yaml_path.read_text()).values())).values():
+        stem, _, name = str(entry.get("type", "")).rpartition("/")
+        file = yaml_path.parent / f"{stem}.py"
+        if file.is_file():
+            spec = importlib.util.spec_from_file_location(f"handed_{stem}", file)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[spec.name] = module
+            spec.loader.exec_module(module)
+            out[entry["type"]] = getattr(module, name)
+    return out
 
 
 class JointLog:
@@ -170,7 +194,7 @@ def test_each_runs_headless_with_a_json_report(example, seconds, check):
 def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
     from mexone.cli.sim import controller_reports
 
-    lab = make_lab(GRAVITY)
+    lab = make_lab(GRAVITY, in_process=True)
     lab.sim.run(0.01)
     impl = lab.manager.controllers["gravity_compensation"].impl
     impl.report = lambda: {"q0": impl.q0, "worst": np.float64(impl.worst)}
@@ -181,13 +205,14 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
     lab.manager.switch(start=["gravity_compensation"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
-    assert broken["gravity_compensation"] == {"error": "report() raised ZeroDivisionError: division by zero"}
+    assert broken["gravity_compensation"]["error"] == "report() raised ZeroDivisionError: division by zero"
+    assert set(broken["gravity_compensation"]) == {"error", "budget"}  # the budget meter goes on
 
 
 def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
     from mexone.cli.sim import controller_reports
 
-    lab = make_lab(GRAVITY)
+    lab = make_lab(GRAVITY, in_process=True)
     impl = lab.manager.controllers["gravity_compensation"].impl
 
     def update(state, t, dt):
@@ -204,9 +229,10 @@ def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
 def test_a_report_with_nan_is_strict_json():
     from mexone.cli.sim import controller_reports
 
-    lab = make_lab(GRAVITY)
+    lab = make_lab(GRAVITY, in_process=True)
     impl = lab.manager.controllers["gravity_compensation"].impl
     impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
     text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
-    assert json.loads(text, parse_constant=lambda c: pytest.fail(c)) == {
-        "gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}
+    read = json.loads(text, parse_constant=lambda c: pytest.fail(c))
+    assert read["gravity_compensation"].pop("budget")["updates"] == 0  # the meter's, beside it
+    assert read == {"gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}

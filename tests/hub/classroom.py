@@ -1,13 +1,20 @@
 """A real class on this machine: JupyterHub from PyPI, its proxy (configurable-http-proxy from
 npm), LocalProcessSpawner and one Unix user per student, each student's Jupyter server running
-mexone's launcher entry (jupyter-server-proxy) from the .venv-hub scripts/test.sh builds with
-Debian's Python (the students cannot enter /root, where the test's own Python lives).
+mexone's launcher entry (jupyter-server-proxy).
+
+The students' processes never touch this checkout: CI may clone it anywhere (under /root, mode
+0700, where other users cannot enter). They run a venv of Debian's Python in HOME, a folder every
+user can enter outside the checkout, with mexone installed from a wheel of the checkout (not
+editable), rebuilt when the wheel changes. `python tests/hub/classroom.py` (scripts/test.sh)
+builds it ahead of the tests; the tests' session fixture brings it up to date.
 
 Shared by tests/hub (two students in a browser) and benchmarks/hub_class.py (twenty)."""
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import hashlib
 import json
 import os
 import pwd
@@ -20,11 +27,18 @@ import tempfile
 import time
 import urllib.error
 import urllib.request
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-VENV = ROOT / ".venv-hub"
+# one per checkout (helpers' worktrees on one machine do not share their classes)
+HOME = Path(os.environ.get("MEXONE_HUB_DIR")
+            or f"/var/tmp/mexone-hub-{hashlib.sha256(str(ROOT).encode()).hexdigest()[:12]}")
+VENV = HOME / "venv"
+# the test's own Python may live where the students cannot enter (pyenv's, in /root)
+DEBIAN_PYTHON = Path("/usr/bin/python3")
+PACKAGES = ("mexone[hub]", "jupyterhub")  # deploy/zero-to-jupyterhub/Dockerfile's (test_deploy.py)
 CHP = Path(__file__).resolve().parent / "node_modules" / ".bin" / "configurable-http-proxy"
 PASSWORD = "mexone-class"
 
@@ -33,14 +47,72 @@ def missing() -> str | None:
     """Why a class cannot run here, or None."""
     if os.geteuid() != 0:
         return "a class on this machine needs root (one Unix user per student)"
-    if not (VENV / "bin" / "jupyterhub-singleuser").exists():
-        return ".venv-hub is missing: bash scripts/test.sh builds it"
     if not CHP.exists():
         return "configurable-http-proxy is missing: npm install --prefix tests/hub"
-    for folder in [ROOT, *ROOT.parents]:  # the students run .venv-hub and import this checkout
-        if not folder.stat().st_mode & 0o001:
-            return f"{folder} is closed to other users: the students cannot run .venv-hub there"
+    if subprocess.run([DEBIAN_PYTHON, "-c", "import ensurepip, venv"], capture_output=True).returncode:
+        return f"the students' venv needs {DEBIAN_PYTHON} with venv: apt-get install python3-venv"
+    closed = _closed_folder(HOME)
+    if closed:
+        return f"{closed} is closed to other users: the students cannot run {VENV} (MEXONE_HUB_DIR)"
     return None
+
+
+def _closed_folder(path: Path) -> Path | None:
+    """The first existing folder on `path` (or above it) other users cannot enter."""
+    for folder in [path, *path.parents]:
+        if folder.exists() and not folder.stat().st_mode & 0o001:
+            return folder
+    return None
+
+
+def _record(wheel: Path) -> str:
+    """What a wheel holds: its RECORD's hash (every file's own hash and size)."""
+    with zipfile.ZipFile(wheel) as z:
+        (name,) = [n for n in z.namelist() if n.endswith(".dist-info/RECORD")]
+        return hashlib.sha256(z.read(name)).hexdigest()
+
+
+def students_venv(wheel: Path | None = None) -> Path:
+    """VENV with PACKAGES, its mexone installed from `wheel` (by default one built here from the
+    checkout's files git knows): created when missing, mexone reinstalled when the wheel differs
+    from the one installed. Readable by every user whatever the umask. Returns VENV."""
+    if wheel is None:
+        import wheelenv  # tests/
+
+        with tempfile.TemporaryDirectory() as tmp:
+            (Path(tmp) / "tree").mkdir()
+            return students_venv(wheelenv.wheel_of_checkout(Path(tmp) / "tree", Path(tmp)))
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME", "VIRTUAL_ENV")}
+    stamp, record = VENV / "mexone-wheel.sha256", _record(wheel)
+    umask = os.umask(0o022)
+    try:
+        HOME.mkdir(mode=0o755, parents=True, exist_ok=True)
+        with (HOME / "venv.lock").open("w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # two sessions of one checkout: one builds
+            if stamp.exists() and stamp.read_text() == record:
+                return VENV
+            if not (VENV / "bin" / "python").exists():
+                subprocess.run([DEBIAN_PYTHON, "-m", "venv", str(VENV)], check=True, env=env)
+            pip = [str(VENV / "bin" / "python"), "-m", "pip", "install", "-q",
+                   "--disable-pip-version-check"]
+            extra = PACKAGES[0].removeprefix("mexone")
+            for args in ([f"{wheel}{extra}", *PACKAGES[1:]],  # what it needs (none when there)
+                         ["--no-deps", "--force-reinstall", str(wheel)]):  # this mexone
+                out = subprocess.run(pip + args, capture_output=True, text=True, env=env)
+                if out.returncode:
+                    raise RuntimeError(f"the students' venv {VENV}: pip {' '.join(args)}:\n"
+                                       f"{out.stderr[-3000:]}")
+            stamp.write_text(record)
+    finally:
+        os.umask(umask)
+    return VENV
+
+
+def class_names(*roles: str) -> list[str]:
+    """Unix user names for a class's students, e.g. mexone-3fa2-a: another class (a second test
+    run on the machine) never shares them."""
+    tag = secrets.token_hex(2)
+    return [f"mexone-{tag}-{role}" for role in roles]
 
 
 def _free_port() -> int:
@@ -56,7 +128,7 @@ class Classroom:
     """`students` Unix users (created here, deleted by stop()) and a hub serving them."""
 
     students: list[str]
-    folder: Path = field(default_factory=lambda: Path(tempfile.mkdtemp(prefix="mexone-class-")))
+    folder: Path = field(default_factory=lambda: _class_folder())
     port: int = field(default_factory=_free_port)
     api_token: str = field(default_factory=lambda: secrets.token_hex(16))
     hub: subprocess.Popen | None = None
@@ -68,6 +140,7 @@ class Classroom:
     def start(self, timeout: float = 120.0) -> Classroom:
         _end_stale_classes()
         self.folder.chmod(0o755)
+        (self.folder / "students").write_text("\n".join(self.students))
         for name in self.students:
             self._add_user(name)
         config = self.folder / "jupyterhub_config.py"
@@ -195,15 +268,38 @@ c.JupyterHub.load_roles = [{{'name': 'teacher', 'services': ['teacher'],
         shutil.rmtree(self.folder, ignore_errors=True)
 
 
+def _class_folder() -> Path:
+    HOME.mkdir(mode=0o755, parents=True, exist_ok=True)
+    folder = Path(tempfile.mkdtemp(prefix="class-", dir=HOME))
+    (folder / "owner").write_text(_process_id(os.getpid()))
+    return folder
+
+
+def _process_id(pid: int) -> str:
+    """A process named so that a later one reusing its pid is not mistaken for it."""
+    try:
+        return f"{pid} {Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[19]}"
+    except (FileNotFoundError, ProcessLookupError):
+        return ""
+
+
 def _end_stale_classes() -> None:
-    """A class a killed test run left behind (its teardown never ran): its hub's process group
-    (the hub and its proxy; the students' processes go with their users) and its folder."""
-    for pid_file in Path(tempfile.gettempdir()).glob("mexone-class-*/hub.pid"):
+    """The classes of this checkout whose test run ended without its teardown (a killed run):
+    their hub's process group (the hub and its proxy), their students (users and processes)
+    and folder. A class whose run is alive (another session of this checkout) is left alone."""
+    for folder in HOME.glob("class-*"):
+        with contextlib.suppress(OSError):
+            owner = (folder / "owner").read_text()
+            if owner and _process_id(int(owner.split()[0])) == owner:
+                continue
         with contextlib.suppress(ValueError, OSError):
-            pid = int(pid_file.read_text())
-            if str(pid_file.parent) in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace"):
+            pid = int((folder / "hub.pid").read_text())
+            if str(folder) in Path(f"/proc/{pid}/cmdline").read_bytes().decode(errors="replace"):
                 os.killpg(pid, signal.SIGKILL)
-        shutil.rmtree(pid_file.parent, ignore_errors=True)
+        with contextlib.suppress(OSError):
+            for name in (folder / "students").read_text().split():
+                Classroom._remove_user(name)
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 def pids_of(uid: int) -> list[int]:
@@ -250,3 +346,8 @@ def as_user(name: str, code: str, timeout: float = 60.0) -> dict:
                          timeout=timeout, cwd="/tmp", env={"PATH": "/usr/bin:/bin", "HOME": "/tmp"})
     assert out.returncode == 0, out.stderr[-2000:]
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+if __name__ == "__main__":  # scripts/test.sh: the students' venv before the tests
+    sys.path.insert(0, str(ROOT / "tests"))
+    print(f"the students' venv (tests/hub): {students_venv()}")

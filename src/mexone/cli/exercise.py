@@ -9,6 +9,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from mexone.cli.sweep import WORKERS
 from mexone.errors import InputError, OutputExistsError
 from mexone.files import check_output, replacing, write_text
 
@@ -59,6 +60,9 @@ def add_parser(sub) -> None:
     s.add_argument("--plots", type=Path, metavar="DIR", help="save the grader's plots here")
     s.add_argument("--local", action="store_true",
                    help="the self-check: the nominal robot, no hidden variation")
+    s.add_argument("--workers", type=WORKERS, default=1, metavar="N",
+                   help="grade a folder's submissions N at a time, each in its own isolated "
+                        "process (default 1; the report and CSV are the same in any case)")
     s.add_argument("--force", action="store_true", help="overwrite --json/--csv files and "
                    "--plots PNGs")
     s = verbs.add_parser("new", help="write a new exercise folder that grades as written")
@@ -152,10 +156,10 @@ def _grade(args) -> int:
         as_text,
         grade,
         gradescope_json,
-        not_handed_in,
         submissions_in,
         write_csv,
     )
+    from mexone.exercises.pool import grade_all
 
     ex = find_exercise(args.name)
     for out in (args.json, args.csv):  # before any grading: a class's grades take minutes
@@ -179,11 +183,8 @@ def _grade(args) -> int:
             _plots_clear(ex, [args.plots / student for student in found], args.force)
         results = {}
         to_stdout = args.csv == Path("-")
-        for student, path in found.items():
-            plots = args.plots / student if args.plots else None
-            result = grade(ex, path, local=args.local, plots=plots, force=args.force) \
-                if path.is_file() \
-                else not_handed_in(ex, path)
+        for student, result in grade_all(ex, found, args.workers, local=args.local,
+                                         plots=args.plots, force=args.force):
             results[student] = result
             print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "

@@ -20,6 +20,7 @@ from mexone.cli.common import (
 )
 from mexone.cli.ros import add_ros_options, connect_bridges, urdf_text
 from mexone.control.metrics import TrackingRecorder
+from mexone.control.worker import end_all as end_workers
 from mexone.errors import InputError, RoutineError
 from mexone.physics.divergence import DivergenceError
 from mexone.physics.monitor import has_fallen
@@ -93,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         if bridge is not None:
             bridge.shutdown()
         supervisor.ended()
+    end_workers()  # the Python controllers' processes (leave's os._exit skips atexit)
     supervisor.leave(signals.final_status(status))  # the run's process ends here, its report out
     return status
 

@@ -176,15 +176,23 @@ def controller_reports(lab) -> dict:
     controller name; a report that raises is its one-line error, not the end of the run. A
     controller a fault stopped is there with `"fault"`, its one line: a script reading the
     summary must not take a run whose controller died at t = 0.5 s for a clean one."""
+    from mexone.control.controllers import PythonRunner
+    from mexone.control.worker import StudentFault
+
     out: dict = {}
     for name, ctrl in (lab.manager.controllers.items() if lab.manager else ()):
-        fault = getattr(ctrl, "fault", None)
-        report = getattr(getattr(ctrl, "impl", None), "report", None)
-        if callable(report) and (ctrl.running or fault):
+        if not isinstance(ctrl, PythonRunner):
+            continue
+        fault = ctrl.fault
+        if ctrl.reports and (ctrl.running or fault):
             try:
-                out[name] = _strict(json.loads(json.dumps(report(), default=_plain)))
+                report = ctrl.report()
+                if report is not None:
+                    out[name] = _strict(json.loads(json.dumps(report, default=_plain)))
+            except StudentFault as exc:  # in its own process: its one line (file:line)
+                out[name] = {"error": str(exc)}
             except Exception as exc:  # noqa: BLE001 - the student's code: said, the summary goes on
-                out[name] = {"error": f"report() raised {type(exc).__name__}: {exc}"}
+                out[name] = {"error": f"report() raised {type(exc).__name__}: {_said(exc)}"}
         if fault:  # first, and not hidden by a report's own "fault"
             report = out.get(name, {})
             out[name] = {"fault": fault} | (report if isinstance(report, dict) else
@@ -194,6 +202,20 @@ def controller_reports(lab) -> dict:
             entry = out.get(name, {})
             out[name] = (entry if isinstance(entry, dict) else {"report": entry}) | {"budget": budget()}
     return out
+
+
+def _said(exc: BaseException) -> str:
+    try:
+        return str(exc).splitlines()[0] if str(exc) else ""
+    except Exception:  # noqa: BLE001 - an exception whose __str__ raises
+        return "(its message cannot be shown)"
+
+
+def faulted(lab) -> list[str]:
+    """The Python controllers a fault stopped during the run."""
+    manager = lab.manager
+    return [name for name, ctrl in (manager.controllers.items() if manager else ())
+            if getattr(ctrl, "fault", None)]
 
 
 def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, bridge) -> int:
@@ -219,6 +241,7 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
         except DivergenceError as exc:
             monitor.error = exc.one_line()
     summary = monitor.summary()
+    faults = faulted(lab)
     if args.json:
         reports = controller_reports(lab)
         print(json.dumps({k: v for k, v in summary.as_json().items() if k != "rest_time"}
@@ -233,4 +256,12 @@ def _run_headless(args: argparse.Namespace, rtf: float, duration: float | None, 
             rest = f"yes, since t = {summary.rest_time:.2f} s" if summary.at_rest else "no"
             print(f"base height {summary.base_height:.3f} m, fastest link {summary.max_link_speed:.2f}"
                   f" m/s, at rest: {rest}")
-    return 1 if summary.diverged else 0
+    if lab.manager is not None:  # ros_control stops its controllers at the end; each
+        lab.manager.close()  # worker says what its student left running, then ends
+    if faults and signals.requested():  # stopped by a signal: its status says so (130/143)
+        faults = []
+    if faults and not summary.error:
+        print(f"mexone: the run went on, but {len(faults)} controller"
+              f"{'s' if len(faults) > 1 else ''} stopped on a fault ({', '.join(faults)}): "
+              "exit status 1", file=sys.stderr)
+    return 1 if summary.diverged or faults else 0

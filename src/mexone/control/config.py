@@ -20,7 +20,6 @@ from mexone.control.resolve import (
     RESERVED_KEYS,
     Plugin,
     check_settings,
-    resolve_class,
     validate_params,
 )
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
@@ -40,11 +39,13 @@ __all__ = [
 ]
 
 
-def load_control_config(path: Path | str) -> ControlConfig:
+def load_control_config(path: Path | str, classes: dict[str, type] | None = None) -> ControlConfig:
     """A ros_control controller YAML (what `rosparam load` and the controller_manager read), every
-    mistake one line at the file's line."""
+    mistake one line at the file's line. A student's class its `type:` names runs in a process
+    of its own (control/worker.py); `classes` maps `type:` names to classes handed over in
+    Python (a notebook's own), which run in this process."""
     path = Path(path)
-    return parse_control_config(read_input_text(path), path)
+    return parse_control_config(read_input_text(path), path, classes)
 
 
 class _Reader:
@@ -85,7 +86,8 @@ class _Reader:
         return float(value)
 
 
-def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
+def parse_control_config(text: str, path: Path | None = None,
+                         classes: dict[str, type] | None = None) -> ControlConfig:
     """A controller YAML's text (`path` names it in messages): see load_control_config."""
     reader = _Reader(path)
     root = yamlio.compose(text, path)
@@ -101,31 +103,54 @@ def parse_control_config(text: str, path: Path | None = None) -> ControlConfig:
             raise reader.error(root, f"expected one robot namespace holding the controllers, "
                                      f"found {len(spaces)}", "e.g. 'mex_rb:' with controllers below")
         namespace, _, body = spaces[0]
-    parameters = yamlio.construct(root)
-    config = ControlConfig(namespace=namespace, source=path,
-                           parameters=parameters if isinstance(parameters, dict) else {})
-    for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
-        if name == "gazebo_ros_control":
-            _pid_gains(reader, node, config)
-        elif _is_controller(node):
-            config.controllers[name] = _controller(reader, name, key, node)
-        else:
-            raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
-                               "every controller needs type: <package>/<Controller>")
-    check_chains(config)
+    from mexone.control.worker import reading
+
+    with reading():  # the controllers' processes a refused file started end with the refusal
+        _prestart(reader, body, classes)
+        parameters = yamlio.construct(root)
+        config = ControlConfig(namespace=namespace, source=path,
+                               parameters=parameters if isinstance(parameters, dict) else {})
+        for name, key, node in reader.mapping(body, f"namespace '{namespace}'"):
+            if name == "gazebo_ros_control":
+                _pid_gains(reader, node, config)
+            elif _is_controller(node):
+                config.controllers[name] = _controller(reader, name, key, node, classes)
+            else:
+                raise reader.error(key, f"'{name}' is not a controller: it has no 'type'",
+                                   "every controller needs type: <package>/<Controller>")
+        check_chains(config)
     return config
+
+
+def _prestart(reader: _Reader, body: yaml.Node, classes: dict[str, type] | None) -> None:
+    """Start the processes of the file's student controllers side by side (control/worker.py),
+    before each is described in turn."""
+    from mexone.control.worker import prestart
+
+    if not isinstance(body, yaml.MappingNode):
+        return
+    count = 0
+    for _, node in body.value:
+        if _is_controller(node):
+            ctype = next((v.value for k, v in node.value if k.value == "type"), None)
+            if isinstance(ctype, str) and ctype not in CONTROLLER_TYPES and \
+                    ctype not in (classes or {}) and not ctype.startswith(("mexone/", "mexone.")):
+                count += 1
+    if count > 1:
+        prestart(count, (reader.path.resolve().parent,) if reader.path is not None else ())
 
 
 def _is_controller(node: yaml.Node) -> bool:
     return isinstance(node, yaml.MappingNode) and any(k.value == "type" for k, _ in node.value)
 
 
-def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node) -> ControllerSpec:
+def _controller(reader: _Reader, name: str, key: yaml.Node, node: yaml.Node,
+                classes: dict[str, type] | None = None) -> ControllerSpec:
     fields = {k: (knode, v) for k, knode, v in reader.mapping(node, f"controller '{name}'")}
     type_node = fields["type"][1]
     ctype = str(reader.value(type_node))
     if ctype not in CONTROLLER_TYPES:
-        return _plugin(reader, name, key, ctype, type_node, fields)
+        return _plugin(reader, name, key, ctype, type_node, fields, classes)
     cls, single = CONTROLLER_TYPES[ctype].cls, CONTROLLER_TYPES[ctype].single_joint
     joints: tuple[str, ...] = ()
     if cls.drives_joints:
@@ -186,13 +211,17 @@ def _pid_gains(reader: _Reader, node: yaml.Node, config: ControlConfig) -> None:
 
 
 def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: yaml.Node,
-            fields: dict[str, tuple[yaml.Node, yaml.Node]]) -> ControllerSpec:
+            fields: dict[str, tuple[yaml.Node, yaml.Node]],
+            classes: dict[str, type] | None = None) -> ControllerSpec:
     """A student's Python controller (control/resolve.py): its class found as pluginlib finds
-    C++ types, its declared parameters and settings checked with this file's lines."""
+    C++ types (and described by its own process, control/worker.py), its declared parameters
+    and settings checked with this file's lines."""
+    from mexone.control.worker import resolve
+
     where = reader.path or "<yaml>"
     yaml_dir = reader.path.resolve().parent if reader.path is not None else Path.cwd()
     try:
-        cls, origin = resolve_class(ctype, yaml_dir, list(CONTROLLER_TYPES))
+        cls, origin = resolve(ctype, yaml_dir, list(CONTROLLER_TYPES), classes=classes)
     except InputError as exc:
         exc.what = f"controller '{name}': {exc.what}"
         raise exc.located(where, type_node.start_mark.line + 1) from None
@@ -226,7 +255,7 @@ def _plugin(reader: _Reader, name: str, key: yaml.Node, ctype: str, type_node: y
     inputs = _inputs(reader, name, cls, key, fields.get("inputs"))
     plugin = Plugin(ctype, cls, origin, yaml_dir, raw, params, source=reader.path,
                     line=key.start_mark.line + 1, lines={k: n for k, (_, n) in lines.items()},
-                    inputs=inputs, **settings)
+                    inputs=inputs, handed=classes is not None and ctype in classes, **settings)
     return ControllerSpec(name, ctype, joints, pid, None, key.start_mark.line + 1, gains, False,
                           reader.path, plugin)
 

@@ -33,6 +33,7 @@ import mujoco
 import numpy as np
 
 from mexone.control.spec import PidGains
+from mexone.control.student import strided_view  # noqa: F401 - its home was here
 from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
@@ -177,19 +178,6 @@ def bake_gains(gains: Mapping[str, PidGains]) -> Callable[[mujoco.MjSpec, RobotM
                 integral.forcerange = (pid.i_clamp_min, pid.i_clamp_max)
 
     return edit
-
-
-def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
-    """A view of array[index] when the indices are evenly spaced and increasing (a limb's joints
-    usually are), else None."""
-    if len(index) == 0:
-        return None
-    if len(index) == 1:
-        return array[int(index[0]):int(index[0]) + 1]
-    step = int(index[1] - index[0])
-    if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
-        return None
-    return array[int(index[0]):int(index[-1]) + 1:step]
 
 
 @dataclass(frozen=True)

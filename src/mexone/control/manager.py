@@ -32,12 +32,14 @@ from mexone.control.controllers import (
     PythonRunner,
     controller_type,
 )
+from mexone.control.controllers.isolated import IsolatedRunner
 from mexone.control.controllers.python import ControllerHang, period_ns
 from mexone.control.hardware import SimHardware
 from mexone.control.notes import gazebo_differences
-from mexone.control.resolve import resolve_class, validate_params
+from mexone.control.resolve import validate_params
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
 from mexone.control.student import declared_lengths, sensor_states
+from mexone.control.worker import resolve
 from mexone.errors import InputError, warn_renamed
 from mexone.physics.simulation import NS, Periodic, Simulation
 
@@ -221,8 +223,8 @@ class ControllerManager:
                              "does not have", file=spec.source, line=spec.line,
                              hint="joints: " + ", ".join(self.hw.joints))
         try:
-            cls = PythonRunner if spec.plugin is not None else controller_type(spec.type).cls
-            ctrl = cls(spec, self._ctx)
+            ctrl = _runner(spec)(spec, self._ctx) if spec.plugin is not None \
+                else controller_type(spec.type).cls(spec, self._ctx)
         except InputError as exc:
             raise exc.located(spec.source or "<controllers>", spec.line) from None
         self.controllers[name] = ctrl
@@ -242,6 +244,8 @@ class ControllerManager:
         if ctrl.running:
             raise InputError(f"cannot unload '{name}': it is running", hint="stop it first")
         del self.controllers[name]
+        if isinstance(ctrl, PythonRunner):
+            ctrl.close()
 
     def load_all(self) -> list[str]:
         """Load every controller of the configuration not loaded yet; the names, in its order."""
@@ -467,6 +471,9 @@ class ControllerManager:
             self.sim.remove_periodic(self._state_timer)
             self._state_timer = None
         self.sim.remove_control(self)
+        for ctrl in self.controllers.values():
+            if isinstance(ctrl, PythonRunner):
+                ctrl.close()
 
     def restart(self) -> None:
         """Stop and start every running controller (after a reset: they hold the new pose)."""
@@ -505,7 +512,10 @@ class ControllerManager:
             raise InputError(f"controller '{name}' is a shipped type ({old.type.name}): nothing "
                              "to reload", hint="reload re-imports a Python controller's file")
         spec, plugin = old.spec, old.plugin
-        cls, origin = resolve_class(spec.type, plugin.yaml_dir, list(CONTROLLER_TYPES), fresh=True)
+        if plugin.handed:  # a class handed over in Python: a fresh object of the same class
+            cls, origin = plugin.cls, plugin.origin
+        else:
+            cls, origin = resolve(spec.type, plugin.yaml_dir, list(CONTROLLER_TYPES), fresh=True)
         params = validate_params(cls, plugin.raw, name, plugin.source)
         declared = cls.declared_params()
         for key, value in old.params.items():  # live changes survive when still valid
@@ -513,12 +523,13 @@ class ControllerManager:
                 with contextlib.suppress(InputError):
                     params[key] = declared[key].check(value)
         new_spec = replace(spec, plugin=replace(plugin, cls=cls, origin=origin, params=params))
-        new = PythonRunner(new_spec, self._ctx)  # type: ignore[no-untyped-call]  # configures: may raise
+        new = _runner(new_spec)(new_spec, self._ctx)  # configures: may raise
         restart = old.running or old.fault is not None
         if old.running:
             self.switch(stop=[name])
         self.controllers[name] = new
         self.config.controllers[name] = new_spec
+        old.close()
         if restart:
             self.switch(start=[name])
         log.info("%s: reloaded from %s", name, origin)
@@ -591,3 +602,9 @@ class ControllerManager:
             if ctrl.drives_joints:
                 out[ctrl.rows] = ctrl.setpoint
         return out
+
+
+def _runner(spec: ControllerSpec) -> type[PythonRunner]:
+    """A Python controller's runner: in a worker process unless its class is mexone's own or was
+    handed over in Python (control/worker.py)."""
+    return IsolatedRunner if spec.plugin.isolated else PythonRunner

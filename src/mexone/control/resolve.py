@@ -37,8 +37,8 @@ from mexone.control.watchdog import GUARD, ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
 from mexone.ranges import HANG_TIMEOUT, OVERRUNS, UPDATE_RATE, UPDATE_TIME, number_text
 
-__all__ = ["Plugin", "resolve_class", "validate_params", "student_line", "ENTRY_POINT_GROUP",
-           "RESERVED_KEYS", "FAULT_MODES"]
+__all__ = ["Plugin", "Found", "locate", "load_class", "resolve_class", "validate_params", "student_line",
+           "ENTRY_POINT_GROUP", "RESERVED_KEYS", "FAULT_MODES"]
 
 ENTRY_POINT_GROUP = "mexone.controllers"
 FAULT_MODES = ("hold", "damp")
@@ -66,18 +66,28 @@ class Plugin:
     line: int | None = None  # of the controller in the YAML
     lines: dict[str, int] = field(default_factory=dict)  # each key of the entry -> its line
     inputs: dict[str, str] = field(default_factory=dict)  # declared input -> "controller/export"
+    handed: bool = False  # the class was handed over in Python (load_control_config's classes)
 
     @property
     def interface(self) -> str:
         return COMMAND_INTERFACES[self.cls.command_interface]
 
     @property
+    def isolated(self) -> bool:
+        """The class runs in a process of its own (control/worker.py): `cls` stands for it."""
+        return getattr(self.cls, "_mexone_worker", None) is not None
+
+    @property
     def file(self) -> str:
         """The student's source file (for file:line in messages)."""
+        info = getattr(self.cls, "_mexone_worker", None)
+        if info is not None:
+            return info.file
         try:
             return inspect.getsourcefile(self.cls) or self.origin
-        except TypeError:
-            return self.origin
+        except TypeError:  # a class whose module is not imported by name (a notebook's)
+            code = getattr(getattr(self.cls, "update", None), "__code__", None)
+            return code.co_filename if code is not None else self.origin
 
 
 def student_line(file: str, tb: TracebackType | None) -> int | None:
@@ -193,10 +203,27 @@ def _entry_point(ctype: str) -> importlib.metadata.EntryPoint | None:
     return next((p for p in points if p.name == ctype), None)
 
 
-def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
-                  fresh: bool = False) -> tuple[type[PythonController], str]:
-    """The class `ctype` names and where it came from, or an InputError listing what was searched
-    (no location: the caller adds the YAML's file:line)."""
+@dataclass(frozen=True)
+class Found:
+    """Where a `type:` is, found without importing anything: a file beside the YAML ("file",
+    its path), a module on sys.path ("module", its dotted name) or an entry point ("entry",
+    its name); `cls_name` the class asked for (entry points name their own)."""
+
+    kind: str
+    name: str
+    cls_name: str
+
+    @property
+    def own(self) -> bool:
+        """mexone's own code (`mexone/StateFeedback`): trusted, it runs in the lab's process."""
+        top = self.name.partition(":")[0] if self.kind == "entry" else self.name
+        return self.kind != "file" and top.split(".")[0] == "mexone"
+
+
+def locate(ctype: str, yaml_dir: Path | None, shipped: list[str]) -> Found:
+    """Where `ctype` is, in pluginlib's order (this module's docstring), or an InputError listing
+    what was searched. Nothing is imported: a student's module runs only where it is imported
+    (a controller's own process, or `resolve_class`)."""
     searched: list[str] = []
     if "/" in ctype:
         stem, _, cls_name = ctype.rpartition("/")
@@ -210,36 +237,72 @@ def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
                 for path in (yaml_dir / f"{stem}.py", yaml_dir / stem / "__init__.py"):
                     searched.append(f"{path.relative_to(yaml_dir)} beside the YAML")
                     if path.is_file():
-                        return _class_from(_exec_file(path, stem), cls_name, path.name), str(path)
+                        return Found("file", str(path), cls_name)
             searched.append(f"module '{stem}' on sys.path")
-            module = _import_module(stem, fresh)
-            if module is not None:
-                return _class_from(module, cls_name, f"module {stem}"), f"module {stem}"
+            if _module_exists(stem, None):
+                return Found("module", stem, cls_name)
     elif "." in ctype:
         mod_name, _, cls_name = ctype.rpartition(".")
-        if yaml_dir is not None and str(yaml_dir) not in sys.path:
-            sys.path.append(str(yaml_dir))
         searched.append(f"module '{mod_name}' on sys.path")
-        module = _import_module(mod_name, fresh)
-        if module is not None:
-            return _class_from(module, cls_name, f"module {mod_name}"), f"module {mod_name}"
+        if all(part.isidentifier() for part in mod_name.split(".")) and \
+                _module_exists(mod_name.split(".")[0], yaml_dir):
+            return Found("module", mod_name, cls_name)
     searched.append(f"entry points '{ENTRY_POINT_GROUP}'")
     point = _entry_point(ctype)
     if point is not None:
-        try:
-            with _watched(f"entry point {point.value}", None):
-                cls = point.load()
-            if fresh:
-                cls = getattr(importlib.reload(sys.modules[cls.__module__]), cls.__name__)
-        except BaseException as exc:
-            if isinstance(exc, KeyboardInterrupt):
-                raise
-            raise _import_failure(exc, None, f"entry point {point.value}") from None
-        if not (isinstance(cls, type) and issubclass(cls, PythonController)):
-            raise InputError(f"entry point '{ctype}' ({point.value}) is not a PythonController")
-        return cls, f"entry point {point.value}"
+        return Found("entry", point.value, "")
     raise InputError(f"unknown controller type '{ctype}': searched {', '.join(searched)}",
                      hint=_beside_hint(ctype, yaml_dir) + "shipped types: " + ", ".join(sorted(shipped)))
+
+
+def _module_exists(top: str, yaml_dir: Path | None) -> bool:
+    """Whether top-level module `top` is there (beside the YAML or on sys.path), unimported."""
+    if yaml_dir is not None and ((yaml_dir / f"{top}.py").is_file() or
+                                 (yaml_dir / top / "__init__.py").is_file()):
+        return True
+    try:
+        return importlib.util.find_spec(top) is not None
+    except (ImportError, ValueError):
+        return False
+
+
+def resolve_class(ctype: str, yaml_dir: Path | None, shipped: list[str],
+                  fresh: bool = False) -> tuple[type[PythonController], str]:
+    """The class `ctype` names and where it came from, imported here, or an InputError listing
+    what was searched (no location: the caller adds the YAML's file:line)."""
+    return load_class(ctype, locate(ctype, yaml_dir, shipped), yaml_dir, fresh)
+
+
+def load_class(ctype: str, found: Found, yaml_dir: Path | None,
+               fresh: bool = False) -> tuple[type[PythonController], str]:
+    """Import the class `locate` found for `ctype` (in a controller's own process, or here for
+    mexone's own and for `mexone check`): the class and where it came from."""
+    if found.kind == "file":
+        path = Path(found.name)
+        return _class_from(_exec_file(path, path.parent.name if path.name == "__init__.py"
+                                      else path.stem), found.cls_name, path.name), str(path)
+    if found.kind == "module":
+        if "." in found.name and yaml_dir is not None and str(yaml_dir) not in sys.path:
+            sys.path.append(str(yaml_dir))
+        module = _import_module(found.name, fresh)
+        if module is None:
+            raise InputError(f"unknown controller type '{ctype}': module '{found.name}' not found")
+        return _class_from(module, found.cls_name, f"module {found.name}"), f"module {found.name}"
+    module_name, _, attribute = found.name.partition(":")
+    try:
+        with _watched(f"entry point {found.name}", None):
+            cls = importlib.import_module(module_name)
+            if fresh:
+                cls = importlib.reload(cls)
+            for part in attribute.split(".") if attribute else ():
+                cls = getattr(cls, part)
+    except BaseException as exc:
+        if isinstance(exc, KeyboardInterrupt):
+            raise
+        raise _import_failure(exc, None, f"entry point {found.name}") from None
+    if not (isinstance(cls, type) and issubclass(cls, PythonController)):
+        raise InputError(f"entry point '{ctype}' ({found.name}) is not a PythonController")
+    return cls, f"entry point {found.name}"
 
 
 def _beside_hint(ctype: str, yaml_dir: Path | None) -> str:

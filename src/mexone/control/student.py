@@ -1,13 +1,14 @@
 """A student's own controller: `PythonController`, its declared `Param`s and the `State` it reads.
 
 ros_control's controller plug-in, in Python: a class with the lifecycle configure -> activate ->
-update (every period, in the simulation thread, inside the manager's read -> update -> write) ->
+update (every period, in lockstep with the manager's read -> update -> write) ->
 deactivate, claiming one command interface ("effort", "position" or "velocity") on its joints and
 reading the joints' state, the whole robot's state, the sensors and the robot's dynamics. The
 framework (control/controllers/python.py) does everything around `update`: it builds the
 `State`, checks what `update` returns, clamps it and writes it to the hardware, and turns the
 student's mistakes (an exception, a NaN, an overrun, an update that never returns) into one line
-naming their file and line while the lab runs on.
+naming their file and line while the lab runs on. A class the YAML names runs in a process of
+its own (control/worker.py); one handed over in Python runs in the lab's.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from mexone.errors import InputError
 from mexone.ranges import Range, number_text
 
 __all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES",
-           "declared_lengths"]
+           "declared_lengths", "Exports"]
 
 # command_interface -> ros_control's hardware interface (what a <transmission> offers)
 COMMAND_INTERFACES = {"effort": "EffortJointInterface", "position": "PositionJointInterface",
@@ -141,21 +142,29 @@ class State:
     None) and `sensors` (name -> the sensor's state: mexone.sensors ImuState, ForceTorqueState,
     ContactSensorState). `base` and `sensors` are computed only when read. `inputs` (name ->
     read-only array) are the chained controllers' exports this controller's YAML binds to its
-    declared `inputs` (NaN while the exporter is stopped)."""
+    declared `inputs` (NaN while the exporter is stopped). Every array is read-only: a
+    controller reads the simulation, it never writes it."""
 
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
-                 "_sensors", "_base", "inputs", "messages")
+                 "_sensors", "_base", "inputs", "messages", "_all_q", "_all_dq")
 
-    def __init__(self, n: int, data, base_joint: int | None, sensor_source=None):
+    def __init__(self, n: int, data, base_joint: tuple[int, int] | None, sensor_source=None):
         self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
         self.time = 0.0
-        self._data = data
         self._base_joint = base_joint  # qpos/qvel address of the free joint, or None
         self._sensor_source = sensor_source  # () -> mapping, or None
         self._sensors: Mapping | None = None
         self._base: BaseState | None = None
         self.inputs: Mapping[str, np.ndarray] = {}
         self.messages: Mapping[str, object | None] = {}
+        self._bind(data)
+
+    def _bind(self, data) -> None:
+        """Read from `data` (MuJoCo's MjData, or anything with qpos and qvel arrays): all_q and
+        all_dq become read-only views of them."""
+        self._data = data
+        self._all_q = _read_only(data.qpos if data is not None else np.zeros(0))
+        self._all_dq = _read_only(data.qvel if data is not None else np.zeros(0))
 
     def _refresh(self, time: float) -> None:
         self.time = time
@@ -164,23 +173,23 @@ class State:
 
     @property
     def all_q(self) -> np.ndarray:
-        """The whole robot's joint positions (every actuated joint, hardware order), not only the
-        controller's."""
-        return self._data.qpos
+        """The whole robot's joint positions (MuJoCo's qpos: the free joint's 7 numbers first on a
+        floating robot), not only the controller's; read-only."""
+        return self._all_q
 
     @property
     def all_dq(self) -> np.ndarray:
-        """The whole robot's joint velocities (every actuated joint, hardware order)."""
-        return self._data.qvel
+        """The whole robot's joint velocities (MuJoCo's qvel); read-only."""
+        return self._all_dq
 
     @property
     def base(self) -> BaseState | None:
         """The floating base's pose and twist (a BaseState), or None for a robot fixed to the world."""
         if self._base is None and self._base_joint is not None:
             qa, va = self._base_joint
-            data = self._data
-            self._base = BaseState(data.qpos[qa:qa + 3].copy(), data.qpos[qa + 3:qa + 7].copy(),
-                                   data.qvel[va:va + 3].copy(), data.qvel[va + 3:va + 6].copy())
+            q, dq = self._all_q, self._all_dq
+            self._base = BaseState(q[qa:qa + 3].copy(), q[qa + 3:qa + 7].copy(),
+                                   dq[va:va + 3].copy(), dq[va + 3:va + 6].copy())
         return self._base
 
     @property
@@ -189,6 +198,25 @@ class State:
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
         return self._sensors
+
+
+def strided_view(array: np.ndarray, index: np.ndarray) -> np.ndarray | None:
+    """A view of array[index] when the indices are evenly spaced and increasing (a limb's joints
+    usually are), else None."""
+    if len(index) == 0:
+        return None
+    if len(index) == 1:
+        return array[int(index[0]):int(index[0]) + 1]
+    step = int(index[1] - index[0])
+    if step <= 0 or not np.array_equal(np.diff(index), np.full(len(index) - 1, step)):
+        return None
+    return array[int(index[0]):int(index[-1]) + 1:step]
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view
 
 
 class PythonController:
@@ -276,12 +304,21 @@ class PythonController:
         """ros_control's starting(): the controller takes over its joints at `state`."""
 
     def update(self, state: State, t: float, dt: float):
-        """Every period (simulation thread): return one command per joint in the claimed
+        """Every period (in lockstep with the simulation): return one command per joint in the claimed
         interface's unit (N m, rad, rad/s), or None to keep the last command."""
         return None
 
     def deactivate(self) -> None:
         """ros_control's stopping()."""
+
+
+class Exports(dict):
+    """A controller's exports: its readers hold views of these very arrays, so they are written
+    into, never replaced."""
+
+    def __setitem__(self, key, value) -> None:
+        raise TypeError(f"exports[{key!r:.40}] is the framework's array, which its readers see: "
+                        f"write into it (self.exports[{key!r:.40}][:] = value)")
 
 
 def declared_lengths(cls: type[PythonController], attribute: str) -> dict[str, int]:

@@ -6,8 +6,10 @@ faults, or the load or Reload is refused with one line, and the lab runs on."""
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import logging
+import os
 import sys
 import threading
 import time
@@ -18,7 +20,8 @@ from dataclasses import dataclass
 
 from mexone.ranges import number_text
 
-__all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running"]
+__all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running",
+           "run_delay"]
 
 log = logging.getLogger("mexone.control")
 # wall s for importing a student's file or creating/configuring/activating the controller: a
@@ -151,6 +154,25 @@ def where_running(tid: int, file: str) -> str:
     ours = [f for f in stack if f.filename == file]
     frame_info = ours[-1] if ours else (stack[-1] if stack else None)
     return f"{frame_info.filename}:{frame_info.lineno}" if frame_info else file
+
+
+_schedstat: dict[int, int] = {}  # thread -> its open /proc schedstat
+
+
+def run_delay() -> float:
+    """s the calling thread has waited for a CPU so far (runnable, not running: Linux's
+    schedstat); 0.0 where unknown. What a loaded machine, not the code, added to a wall time."""
+    tid = threading.get_native_id()
+    fd = _schedstat.get(tid)
+    try:
+        if fd is None:
+            fd = _schedstat[tid] = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
+        return int(os.pread(fd, 100, 0).split()[1]) / 1e9
+    except (OSError, ValueError, IndexError):
+        if _schedstat.pop(tid, None) is not None:  # a thread of that id that has ended
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        return 0.0
 
 
 GUARD = _HangGuard()

@@ -8,6 +8,7 @@ thread reads the state (a snapshot) and publishes the commands.
 from __future__ import annotations
 
 import threading
+from typing import TYPE_CHECKING
 
 import mujoco
 import numpy as np
@@ -15,7 +16,9 @@ import viser
 
 from mexone.gui.panels import Panel, register_panel
 from mexone.lab import Lab
-from mexone.motion.ik import WholeBodyIK
+
+if TYPE_CHECKING:  # mink and its QP solvers only when a student turns the handles on
+    from mexone.motion.ik import WholeBodyIK
 
 __all__ = ["IkHandles", "IkHandlesPanel", "FRAMES", "POSED", "GAZE"]
 
@@ -64,6 +67,8 @@ class IkHandles:
             return
         with self.lock:
             if self.ik is None:
+                from mexone.motion.ik import WholeBodyIK
+
                 self.ik = WholeBodyIK.for_sim(self.lab.sim)
             self.ik.reset(self.lab.sim.data.qpos.copy())
             poses = {frame: self.ik.pose(frame) for frame in FRAMES}

@@ -207,6 +207,9 @@ class Simulation:
         self._since_watch = 0
         self._time_ns = 0
         self.steps = 0  # physics steps taken, never reset: measures time across resets
+        # counts the changes of the model in place (gravity, the step, a recompile, collisions):
+        # a copy of it (a controller worker's) is stale when this moved
+        self.model_version = 0
         # the thread that last ran the loop (run): others reach MuJoCo through `work` (None: no
         # loop ever ran, so the thread that made the simulation steps it by hand)
         self.loop_thread: int | None = None
@@ -247,6 +250,7 @@ class Simulation:
         """Change the physics step; listeners (the controller manager) are told."""
         seconds = TIMESTEP.check(seconds, hint="Gazebo's default is 0.001")
         self.model.opt.timestep = seconds
+        self.model_version += 1
         self._step_ns = round(seconds * NS)
         for hook in self._timestep_hooks:
             hook(seconds)
@@ -529,6 +533,7 @@ class Simulation:
         carry_over(old, model)
         model.opt.disableflags |= mujoco.mjtDisableBit.mjDSBL_AUTORESET
         self.model = self.compiled.model = model
+        self.model_version += 1
         self.data = data
         mujoco.mj_forward(model, data)
         suspects = self.watchdog.suspects
@@ -547,6 +552,7 @@ class Simulation:
                 geom = self.model.geom(f"{link}/collision/{i}").id
                 self.model.geom_contype[geom] = contype
                 self.model.geom_conaffinity[geom] = conaffinity
+        self.model_version += 1
 
     # ----- joints -------------------------------------------------------------------------------
     def _vector(self, values: Mapping[str, float] | Sequence[float] | np.ndarray
@@ -752,6 +758,7 @@ class Simulation:
         if values.shape != (3,):
             raise InputError(f"gravity must be 3 numbers (x y z, m/s^2), not {values.size}")
         self.model.opt.gravity[:] = GRAVITY.check_all(values.tolist())
+        self.model_version += 1
 
     def link_speeds(self) -> np.ndarray:
         """Linear speed of each link's centre of mass, in the order of compiled.bodies."""

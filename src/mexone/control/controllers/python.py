@@ -32,9 +32,18 @@ import numpy as np
 from mexone import signals
 from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
-from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY, strided_view
+from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
+from mexone.control.mistakes import StudentLog, non_finite, not_numbers, return_lines, wrong_count
 from mexone.control.resolve import Plugin, student_line
-from mexone.control.student import PythonController, State, declared_lengths, declared_topics, unit_of
+from mexone.control.student import (
+    Exports,
+    PythonController,
+    State,
+    declared_lengths,
+    declared_topics,
+    strided_view,
+    unit_of,
+)
 from mexone.control.watchdog import GUARD as _GUARD
 from mexone.control.watchdog import ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
@@ -70,11 +79,6 @@ class BudgetMeter:
         return {"updates": self.updates, "update_ms_mean": round(mean * 1e3, 4),
                 "update_ms_max": round(self.worst * 1e3, 4), "deadline_ms": round(deadline * 1e3, 4),
                 "deadline_misses": self.misses}
-
-
-class _StudentLog(logging.LoggerAdapter):
-    def process(self, msg, kwargs):
-        return f"{self.extra['name']}: {msg}", kwargs
 
 
 class PythonRunner(Controller):
@@ -122,7 +126,7 @@ class PythonRunner(Controller):
         self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
         self._efforts = hw.command.effort  # the hardware's effort commands (a fixed array)
         # chained controllers: what it exports (its own arrays), what it reads (the manager binds)
-        self.exports = _Exports({k: np.full(n, np.nan)
+        self.exports = Exports({k: np.full(n, np.nan)
                                  for k, n in declared_lengths(plugin.cls, "exports").items()})
         self.impl = self._instantiate(plugin)
         # declared topics: each callback (the publisher's thread) only keeps the newest message
@@ -196,7 +200,7 @@ class PythonRunner(Controller):
         impl.dofs = self.dofs.copy()
         impl.effort_limits = self._effort_limit.copy()
         impl.params = dict(plugin.params)
-        impl.log = _StudentLog(STUDENT_LOG, {"name": self.name})
+        impl.log = StudentLog(STUDENT_LOG, {"name": self.name})
         impl.exports = self.exports
         impl.__dict__["_mexone_binding"] = self
         self._call(impl.configure, "configure")
@@ -228,12 +232,18 @@ class PythonRunner(Controller):
         return f"{file}:{line or '?'}: {type(exc).__name__}" + (f": {text}" if text else "")
 
     def update_line(self) -> str:
-        """file:line of the student's update method (what a NaN or an overrun points at)."""
+        """file:line of the student's update method (what an overrun points at)."""
         try:
             line = inspect.getsourcelines(type(self.impl).update)[1]
         except (OSError, TypeError):
             line = "?"
         return f"{self.plugin.file}:{line}"
+
+    def return_line(self) -> str:
+        """file:line of the `return` that produced what update returned: its only return of a
+        value, else (several) the def line. (A worker's controller names the very return.)"""
+        lines = return_lines(type(self.impl).update)
+        return f"{self.plugin.file}:{lines[0]}" if len(lines) == 1 else self.update_line()
 
     # ----- dynamics at the live state -----------------------------------------------------------
     def dynamics(self):
@@ -302,6 +312,10 @@ class PythonRunner(Controller):
         else:
             self._command = np.zeros(len(rows))
         self._read(t)
+        self._activate(t)
+
+    def _activate(self, t: float) -> None:
+        """The student's activate(state), watched; a failure is a fault."""
         try:
             with _GUARD.watching(Watched(f"controller '{self.name}'", self.plugin.file, "activate")):
                 self.impl.activate(self.state)
@@ -331,14 +345,40 @@ class PythonRunner(Controller):
 
     def stopping(self) -> None:
         self._unsubscribe()
-        try:
-            self.impl.deactivate()
-        except Exception as exc:  # noqa: BLE001 - said, and the stop goes on
-            log.warning("%s: deactivate raised %s", self.name, self._where(exc))
+        self._deactivate()
         if self.fault is None:
             super().stopping()
             return
         self.hold(damp=self.plugin.on_fault == "damp")
+
+    def _deactivate(self) -> None:
+        """The student's deactivate(), watched with hang_timeout: what it raises or a loop in it
+        is said, and the stop goes on."""
+        timeout = self.plugin.hang_timeout
+        try:
+            with _GUARD.watching(Watched(f"controller '{self.name}'", self.plugin.file,
+                                         "deactivate", timeout)):
+                self.impl.deactivate()
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - said, and the stop goes on
+            log.warning("controller '%s': deactivate raised %s", self.name, self._where(exc))
+        except ControllerHang as exc:
+            signals.recover()
+            log.warning("controller '%s': deactivate did not return within %s s (interrupted at "
+                        "%s)", self.name, number_text(timeout), self._line(exc))
+
+    def report(self) -> Any:
+        """The controller's report() (JSON-able numbers), None if its class has none; what it
+        raises is the caller's to say."""
+        report = getattr(self.impl, "report", None)
+        return report() if callable(report) else None
+
+    @property
+    def reports(self) -> bool:
+        """Its class defines report()."""
+        return callable(getattr(self.impl, "report", None))
+
+    def close(self) -> None:
+        """It is unloaded for good (nothing to end in-process)."""
 
     def hold(self, damp: bool = False) -> None:
         """The joints hold their measured position (or are only damped) by MuJoCo's servo."""
@@ -374,7 +414,7 @@ class PythonRunner(Controller):
         hardware's state when the rows are; else gathered each update."""
         hw, rows, state = self.hw, self.rows, self.state
         data = self.ctx.sim.data
-        state._data = data  # MuJoCo's data is replaced only with the model (then we are here)
+        state._bind(data)  # MuJoCo's data is replaced only with the model (then we are here)
         self.direct, self._span, self._gather = False, None, False
         if len(rows) == 0:  # a chained controller that only exports: nothing to read
             state.q, state.dq, state.effort = (_EMPTY for _ in range(3))
@@ -403,7 +443,6 @@ class PythonRunner(Controller):
             state.q[:] = joints.position[rows]
             state.dq[:] = joints.velocity[rows]
             state.effort[:] = joints.effort[rows]
-        state._data = self.ctx.sim.data
         state.time, state._sensors, state._base = t, None, None
 
     def update(self, t: float, dt: float) -> None:
@@ -444,6 +483,15 @@ class PythonRunner(Controller):
         if guard.leave(tid):
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
+        self._metered(elapsed)
+        if (elapsed > self._max_time or self._suspect) and self._overran(elapsed, switches):
+            return
+        if out is not None:
+            self._write(out, t)
+
+    def _metered(self, elapsed: float) -> None:
+        """An update's time, into the budget meter (a miss counted whoever's doing it was: the
+        fault `_overran` finds is the controller's only)."""
         self._spent += elapsed
         self._timed_updates += 1
         meter = self.meter
@@ -452,20 +500,26 @@ class PythonRunner(Controller):
         if elapsed > meter.worst:
             meter.worst = elapsed
         if elapsed > self._max_time:
-            meter.misses += 1  # counted whoever's doing it was (the fault below is theirs only)
+            meter.misses += 1
+
+    def _overran(self, elapsed: float, switches: int, theirs: float | None = None) -> bool:
+        """An update took `elapsed` s: count it if it overran and the OS did not preempt it
+        meanwhile (`switches`: this thread's preemptions before it), or (`theirs`, when known)
+        if the part of it that was not spent waiting for a CPU overran; True if that made it a
+        fault."""
+        if elapsed > self._max_time and (theirs is None or theirs > self._max_time):
             if not self._suspect:  # the first: measure the next ones for preemption
                 self._suspect = True
-            elif _preemptions() == switches:  # not the machine's doing: theirs
+            elif theirs is not None or _preemptions() == switches:  # not the machine's doing
                 self._overruns += 1
             if self._overruns >= self.plugin.max_overruns:
                 self._fault(f"update overran its period: {self._overruns} updates in a row took "
                             f"longer than {number_text(self._max_time * 1e3)} ms (the last "
                             f"{number_text(elapsed * 1e3)} ms) ({self.update_line()})")
-                return
-        elif self._suspect:
+                return True
+        else:
             self._suspect, self._overruns = False, 0
-        if out is not None:
-            self._write(out, t)
+        return False
 
     def _write(self, out, t: float) -> None:
         """Check the student's commands, clamp them, and send them to MuJoCo (through the
@@ -474,15 +528,13 @@ class PythonRunner(Controller):
         try:
             values = np.asarray(out, dtype=float)
         except Exception:  # noqa: BLE001 - whatever their object raises
-            self._fault(f"update returned {type(out).__name__} {str(out)[:40]!r}, not numbers "
-                        f"({self.update_line()})")
+            self._fault(not_numbers(out, self.return_line()))
             return
         if values.shape != (n,):
             if values.size == n:
                 values = values.reshape(n)
             else:
-                self._fault(f"update returned {values.size} values for {n} joints "
-                            f"({self.update_line()})")
+                self._fault(wrong_count(values.size, n, self.return_line()))
                 return
         if self._effort:  # the usual case, checked in Python floats (numpy calls cost more for
             # a limb's joints): every value finite and within +-its limit (NaN fails every test)
@@ -499,10 +551,7 @@ class PythonRunner(Controller):
                     self.writer(values)
                 return
         if not np.isfinite(values).all():
-            bad = [f"{self.joints[i]} {number_text(values[i])}"
-                   for i in np.flatnonzero(~np.isfinite(values))]
-            self._fault(f"update returned {', '.join(bad)} at t = {t:.3f} s "
-                        f"({self.update_line()})")
+            self._fault(non_finite(self.joints, values, t, self.return_line()))
             return
         hw, rows, kind = self.hw, self.rows, self.interface_name
         if kind == "effort":
@@ -543,15 +592,6 @@ class PythonRunner(Controller):
         self.fault = text
         log.error("controller '%s' stopped, its joints %s: %s", self.name, held, text)
         self.ctx.faults.append(self.name)
-
-
-class _Exports(dict):
-    """A controller's exports: its readers hold views of these very arrays, so they are written
-    into, never replaced."""
-
-    def __setitem__(self, key, value) -> None:
-        raise TypeError(f"exports[{key!r:.40}] is the framework's array, which its readers see: "
-                        f"write into it (self.exports[{key!r:.40}][:] = value)")
 
 
 def _span_of(rows: np.ndarray) -> slice | None:
