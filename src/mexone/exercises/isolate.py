@@ -1,6 +1,6 @@
 """Graded runs, out of the grading process: the simulator, where no student code runs, and the
 jail, where a student's part runs. The grading process never runs student code and reads
-nothing from a run but JSON checked against a schema (mexone.sandbox.schema).
+nothing from a run but JSON checked against a schema (mexone.sandbox.wire).
 
 Both kinds of run are forks of a fork server: a fresh interpreter started once per grading,
 with MuJoCo and mexone imported and nothing of a grader's (no secret in its environment, no
@@ -27,6 +27,7 @@ import contextlib
 import importlib
 import importlib.util
 import json
+import math
 import os
 import pickle
 import select
@@ -46,9 +47,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from mexone import signals
+from mexone.control import worker as controller_worker
 from mexone.errors import MexoneError
 from mexone.routines import processes
-from mexone.sandbox import Jail, Limits, confine, isolation, schema, trust
+from mexone.sandbox import Jail, Limits, confine, isolation, trust, wire
 from mexone.sandbox.spawn import SECRET_ENV, jail_plan, prepare
 from mexone.sandbox.trust import UntrustedCode
 
@@ -170,9 +172,9 @@ def _run(target: Callable, args: tuple, kwargs: dict, limits: Limits,
 def _returns(target: Callable) -> object:
     """`target`'s return annotation: the schema its result is read against."""
     try:
-        return typing.get_type_hints(target).get("return", schema.PLAIN)
+        return typing.get_type_hints(target).get("return", wire.PLAIN)
     except Exception:  # noqa: BLE001 - an annotation that does not resolve: plain JSON
-        return schema.PLAIN
+        return wire.PLAIN
 
 
 class _ForkServer:
@@ -344,6 +346,7 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
             else:
                 _limit(limits)
                 trust.trust_only(_trusted_roots(folders))
+                _jail_controllers(limits)
             payload = {"ok": target(*args, **kwargs)}
             for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
                 with contextlib.suppress(Exception):
@@ -356,9 +359,9 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
             last = traceback.format_exception_only(type(exc), exc)[-1].strip()
             payload = {"failed": f"the grader could not run the submission: {last}"}
         try:
-            data = schema.dumps(payload)
-        except schema.SchemaError as exc:
-            data = schema.dumps({"failed": f"the run's result cannot be sent: {exc}"})
+            data = wire.dumps(payload)
+        except wire.WireError as exc:
+            data = wire.dumps({"failed": f"the run's result cannot be sent: {exc}"})
         view = memoryview(data)
         while view:
             view = view[os.write(result_fd, view):]
@@ -369,6 +372,14 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
             with contextlib.suppress(Exception):
                 stream.flush()
         os._exit(code)
+
+
+def _jail_controllers(limits: Limits) -> None:
+    """In the simulator: a student's controller in the lab it builds runs in its worker
+    (control/worker.py), jailed as a grader's run is (a uid of the pool as root), under the
+    run's CPU and memory limits for as long as the lab lives."""
+    controller_worker.set_jail(Jail(limits=Limits(time=math.inf, cpu=limits.cpu,
+                                                  memory_mb=limits.memory_mb), another_user=True))
 
 
 def _limit(limits: Limits) -> None:
@@ -447,7 +458,7 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, returns: ob
             data = os.read(fd, 1 << 16)
             if data:
                 size += len(data)
-                if size <= schema.MAX_BYTES:
+                if size <= wire.MAX_BYTES:
                     chunks.append(data)
                 continue
         if status_fd in ready:
@@ -456,7 +467,7 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, returns: ob
                 status = signal.SIGKILL
     while data := _read_rest(fd):
         size += len(data)
-        if size <= schema.MAX_BYTES:
+        if size <= wire.MAX_BYTES:
             chunks.append(data)
     _kill(pid, plan)  # whatever it left
     output = _tail(out)
@@ -476,16 +487,16 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, returns: ob
         code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -1
         raise SubmissionFailed(f"the submission ended the grading process (exit status {code}) "
                                "before its result", output)
-    if size > schema.MAX_BYTES:
-        raise SubmissionFailed(f"the run sent more than {schema.MAX_BYTES >> 20} MB", output)
+    if size > wire.MAX_BYTES:
+        raise SubmissionFailed(f"the run sent more than {wire.MAX_BYTES >> 20} MB", output)
     try:
-        message = schema.loads(b"".join(chunks), dict[str, object])
+        message = wire.loads(b"".join(chunks), dict[str, object])
         if set(message) == {"failed"}:
-            raise SubmissionFailed(str(schema.read(message["failed"], str, "reason")), output)
+            raise SubmissionFailed(str(wire.read(message["failed"], str, "reason")), output)
         if set(message) != {"ok"}:
-            raise schema.SchemaError("result: neither ok nor failed")
-        value = schema.read(message["ok"], returns)
-    except schema.SchemaError as exc:  # a truncated or forged message is the submission's doing
+            raise wire.WireError("result: neither ok nor failed")
+        value = wire.read(message["ok"], returns)
+    except wire.WireError as exc:  # a truncated or forged message is the submission's doing
         raise SubmissionFailed(f"the run's result is not what the grader reads ({exc})",
                                output) from None
     if TRACEBACK in output:  # it caught its own error and printed it: a crash all the same

@@ -12,7 +12,7 @@ or delivered messages, which come back with the answer and run in the routine's 
 do in-process. Anything else of the lab (its model, mexone.motion's helpers that need it) is not
 offered: it raises one clear error.
 
-What crosses is JSON (mexone.sandbox.schema), read against the protocol's schema, never a pickle:
+What crosses is JSON (mexone.sandbox.wire), read against the protocol's schema, never a pickle:
 requests and answers are lists of plain data, a message is a mexone.msgs dataclass read as the
 class its topic was advertised or subscribed with (a routine names a message type by its name,
 which the simulator looks up among mexone.msgs' messages only). The routine's process is a jail
@@ -51,12 +51,12 @@ class NotOffered(Exception):  # noqa: N818 - what the routine asked for
 
 
 def send(sock: socket.socket, obj: object) -> None:
-    """One message: its length, then its JSON (mexone.sandbox.schema)."""
-    from mexone.sandbox import schema
+    """One message: its length, then its JSON (mexone.sandbox.wire)."""
+    from mexone.sandbox import wire
 
     try:
-        data = schema.dumps(obj)
-    except schema.SchemaError as exc:
+        data = wire.dumps(obj)
+    except wire.WireError as exc:
         raise ProtocolError(str(exc)) from None
     sock.sendall(_HEADER.pack(len(data)) + data)
 
@@ -74,11 +74,11 @@ def receive_bytes(sock: socket.socket, poll: Callable[[], None] | None = None) -
 def receive(sock: socket.socket, poll: Callable[[], None] | None = None) -> list:
     """One message: a non-empty list of plain JSON (its parts are read against their own
     schemas by the receiver: `message`); ProtocolError for anything else."""
-    from mexone.sandbox import schema
+    from mexone.sandbox import wire
 
     try:
-        value = schema.loads(receive_bytes(sock, poll), list, "message")
-    except schema.SchemaError as exc:
+        value = wire.loads(receive_bytes(sock, poll), list, "message")
+    except wire.WireError as exc:
         raise ProtocolError(str(exc)) from None
     if not value:
         raise ProtocolError("an empty message")
@@ -116,11 +116,11 @@ def type_name(msg_type: type) -> str:
 
 def message(raw: object, msg_type: type) -> object:
     """A message received, read as `msg_type` (ProtocolError if it is not one)."""
-    from mexone.sandbox import schema
+    from mexone.sandbox import wire
 
     try:
-        return schema.read(raw, msg_type, "message")
-    except schema.SchemaError as exc:
+        return wire.read(raw, msg_type, "message")
+    except wire.WireError as exc:
         raise ProtocolError(str(exc)) from None
 
 
@@ -223,11 +223,11 @@ class _Bus:
         self._client.post("adv", name, type_name(msg_type))
 
     def publish(self, name: str, msg: object) -> None:
-        from mexone.sandbox import schema
+        from mexone.sandbox import wire
 
         try:  # here, so a message that cannot cross fails at the routine's publish
-            data = schema.plain(msg)
-        except schema.SchemaError as exc:
+            data = wire.plain(msg)
+        except wire.WireError as exc:
             raise ProtocolError(f"{type_name(type(msg))} cannot be sent to the simulator: "
                                 f"{exc} (a routine graded in its own process sends mexone.msgs "
                                 "messages and plain data)") from None

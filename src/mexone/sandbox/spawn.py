@@ -241,6 +241,7 @@ def prepare(jail: Jail) -> tuple[Path, Path, Path, bool, UidSlot | None]:
     scratch.mkdir(parents=True, exist_ok=True)
     root = work / "root"
     root.mkdir()
+    _seed_home(scratch)
     slot = None
     if iso.root and iso.mode != "none" and jail.another_user:
         slot = UidSlot()
@@ -254,11 +255,51 @@ def prepare(jail: Jail) -> tuple[Path, Path, Path, bool, UidSlot | None]:
     return work, scratch, root, own, slot
 
 
+_font_list: list[Path | None] = []
+
+
+def _matplotlib_fonts() -> Path | None:
+    """This user's matplotlib font list, built once (in a throwaway process) where matplotlib is
+    installed and has none yet; None without matplotlib."""
+    if not _font_list:
+        import importlib.util
+
+        found = None
+        if importlib.util.find_spec("matplotlib") is not None:
+            cache = Path(os.environ.get("MPLCONFIGDIR") or Path(
+                os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "matplotlib")
+            for attempt in range(2):
+                found = max(cache.glob("fontlist-v*.json"), default=None)
+                if found is not None or attempt:
+                    break
+                with contextlib.suppress(OSError, subprocess.SubprocessError):
+                    subprocess.run([sys.executable, "-c", "import matplotlib.font_manager"],
+                                   capture_output=True, timeout=300, stdin=subprocess.DEVNULL)
+        _font_list.append(found)
+    return _font_list[0]
+
+
+def _seed_home(scratch: Path) -> None:
+    """A jail's home (its scratch folder) starts with a copy of matplotlib's font list:
+    python-control imports matplotlib, which would otherwise build the list by running fc-list,
+    and a controller's worker may start no process."""
+    fonts = _matplotlib_fonts()
+    if fonts is None:
+        return
+    folder = scratch / ".cache" / "matplotlib"
+    with contextlib.suppress(OSError):
+        folder.mkdir(parents=True, exist_ok=True)
+        if not (folder / fonts.name).exists():
+            shutil.copyfile(fonts, folder / fonts.name)
+
+
 def environment(env: Mapping[str, str] | None, scratch: Path) -> dict[str, str]:
     """A jail's environment: `env` (default: this process's) without the teacher's secret, its
     home and temporary folder its own."""
-    environ = {k: v for k, v in (os.environ if env is None else env).items() if k != SECRET_ENV}
+    environ = {k: v for k, v in (os.environ if env is None else env).items()
+               if k not in (SECRET_ENV, "MPLCONFIGDIR")}
     environ["HOME"] = str(scratch)
+    environ["XDG_CACHE_HOME"] = str(scratch / ".cache")
     environ["TMPDIR"] = "/tmp" if isolation().mode == "namespaces" else str(scratch)
     return environ
 

@@ -1,7 +1,8 @@
 """What the graders of course exercises 5-10 share: a lab with the student's controller on some
 joints (the shipped PIDs on the rest), a heavier or lighter link for the hidden variant, the
 controller's fault, a check. grade(ctx) runs in the grading process and draws the variant there;
-these helpers run inside ctx.run's isolated child, where the lab imports the student's file."""
+these helpers run in the simulator (ctx.measure), whose lab runs the student's class in its
+controller worker, a jail of its own: what they measure is the simulation's, not the student's."""
 
 from __future__ import annotations
 

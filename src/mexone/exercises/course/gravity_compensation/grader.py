@@ -52,7 +52,7 @@ def measure(submission: Path, var: dict) -> tuple[float, str | None]:
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    sag, fault = ctx.run(measure, ctx.submission, var)
+    sag, fault = ctx.measure(measure, ctx.submission, var)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
     frac = 0.0 if fault else float(np.clip((SAG - sag) / (SAG - HOLD), 0.0, 1.0))
     hold = check("holds the arm", 4.0, frac,

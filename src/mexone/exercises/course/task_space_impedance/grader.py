@@ -68,7 +68,7 @@ def measure(submission: Path, var: dict) -> tuple[dict[str, float], float, str |
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    moved, back, fault = ctx.run(measure, ctx.submission, var)
+    moved, back, fault = ctx.measure(measure, ctx.submission, var)
     expected = var["force"] / var["stiffness"]
     checks = [check("runs", 1.0, 0.0 if fault else 1.0, fault or "ran the pushes without a fault")]
     for name, value in moved.items():

@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from mexone.sandbox import schema as wire
-from mexone.sandbox.schema import SchemaError as WireError
+from mexone.sandbox import wire
+from mexone.sandbox.wire import WireError
 
 
 @dataclass
