@@ -300,3 +300,62 @@ def test_the_secret_is_never_in_a_report(tmp_path, monkeypatch):
     shown = as_text(result) + json.dumps(gradescope_json(result))
     assert result.score == 0 and "hunter2-guessed-secret" not in shown, shown
     assert "RuntimeError: [the secret]" in result.failure, result.failure
+
+
+CHEATING_CONTROLLER = '''
+import os
+import numpy as np
+from mexone.control import Param, PythonController
+
+FOUND = []
+for pid in os.listdir("/proc"):
+    if pid.isdigit():
+        try:
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                if b"SECRET_VALUE" in f.read():
+                    FOUND.append(pid)
+        except OSError:
+            pass
+try:
+    with open("OUTSIDE", "w") as f:
+        f.write("x")
+    FOUND.append("wrote outside")
+except OSError:
+    pass
+
+
+class GravityCompensation(PythonController):
+    command_interface = "effort"
+    kp = Param(5.0, low=0.0, high=1e4)
+    kd = Param(0.5, low=0.0, high=1e3)
+
+    def activate(self, state):
+        if FOUND:
+            raise RuntimeError(f"FOUND {FOUND}")
+        self.dynamics.model.opt.gravity[:] = 0  # was 10/10: no gravity left to compensate
+        self.q0 = np.array(state.q, dtype=float)
+
+    def update(self, state, t, dt):
+        return self.kp * (self.q0 - state.q) - self.kd * state.dq
+'''
+
+
+def test_a_graded_controller_runs_in_its_worker_and_changes_no_physics(tmp_path):
+    """gravity_compensation through `mexone exercise grade` with the secret set: the controller
+    (in its worker, a jail beside the simulator) zeroes its model's gravity, reads every
+    process's environment and writes outside its folder. It finds nothing, writes nothing, and
+    its do-nothing PD sags under the simulator's gravity: no pass."""
+    outside = tmp_path / "outside.txt"
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "gravity_compensation.py").write_text(
+        CHEATING_CONTROLLER.replace("SECRET_VALUE", SECRET).replace("OUTSIDE", str(outside)))
+    env = {**os.environ, "MEXONE_EXERCISE_SECRET": SECRET, "PYTHONPATH": SRC}
+    out = subprocess.run([sys.executable, "-m", "mexone", "exercise", "grade",
+                          "gravity_compensation", str(subs / "gravity_compensation.py"), "--json"],
+                         env=env, capture_output=True, text=True, timeout=300)
+    report = json.loads(out.stdout)
+    assert report["score"] < 7, report
+    shown = out.stdout + out.stderr
+    assert "FOUND" not in shown and SECRET not in shown and not outside.exists(), shown
+    assert "holds the arm" in shown and "runs" in shown
