@@ -39,6 +39,9 @@ if ((${#apt_packages[@]})); then
 fi
 
 python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs: tests/test_docs*.py
+# the teacher's pack: the shipped course's reference solutions, which the wheel leaves out (the
+# exercise tests grade them); its own distribution, never installed by `pip install .`
+python3 -m pip install -q --disable-pip-version-check --no-deps -e ./teacher
 # ROS 2's wheels name their packages as ROS 1's (std_msgs, ...): a venv of their own for the
 # --ros2 tests (tests/ros2), which start the simulator and their rclpy client with its python
 [ -x .venv-ros2/bin/python ] || python3 -m venv --system-site-packages .venv-ros2

@@ -106,7 +106,7 @@ def test_every_public_name_is_in_the_api_reference(site):
         return False
 
     modules = public_modules()
-    assert len(modules) > 100  # the walk found mexone's packages
+    assert len(modules) > 10  # mexone.API's modules (the public API; the rest is internal)
     missing = []
     for module in modules:
         for name in module.__all__:

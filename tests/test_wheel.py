@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import subprocess
 import zipfile
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
@@ -141,6 +142,47 @@ def test_the_installed_files_keep_the_executable_bits(installed):
     for name in ("arms_node.py", "joint_steps_node.py", "mexone_node"):
         assert os.access(scripts / name, os.X_OK), name
     assert os.access(installed / "ros1/share/controller_manager/scripts/spawner", os.X_OK)
+
+
+def test_the_wheel_holds_no_reference_solution(wheel, venv):
+    """The shipped course's answers are in the teacher's pack (teacher/), never in the wheel: no
+    solution/ folder but the template's, no file with an answer's bytes (a copy scored 10/10),
+    and the installed mexone says where they are instead of handing one out."""
+    pack = ROOT / "teacher" / "mexone_teacher" / "solutions"
+    answers = {p.read_bytes(): p.relative_to(pack) for p in pack.rglob("*") if p.is_file()}
+    assert len(answers) >= 10
+    with zipfile.ZipFile(wheel) as z:
+        names = [n for n in z.namelist() if not n.endswith("/")]
+        assert [n for n in names if "/solution/" in n and "/template/" not in n] == []
+        # two exercises' answers are the shipped robot itself (its URDF, its gains): those files
+        # are mexone's, not answers written for the exercise
+        robot = {z.read(n) for n in ("mexone/robots/mex_one/urdf/mex_rb.urdf",
+                                     "mexone/robots/mex_one/config/controllers.yaml")}
+        copies = [(n, answers[z.read(n)]) for n in names
+                  if z.read(n) in answers and z.read(n) not in robot]
+    assert copies == []
+    out = subprocess.run([str(venv.bin / "python"), "-c",
+                          "from mexone.exercises import find_exercise\n"
+                          "find_exercise('gravity_compensation').solution"],
+                         capture_output=True, text=True, env=venv.env, cwd=venv.work, timeout=120)
+    assert out.returncode == 1 and "in the teacher's pack, not in mexone" in out.stderr, out.stderr
+
+
+def test_the_teacher_pack_builds_with_every_answer(tmp_path_factory):
+    """What CI and a teacher install from a clone (`pip install ./teacher`, scripts/test.sh) is a
+    wheel of its own holding every solution git has, byte for byte, and the entry point mexone
+    finds them by: a solution in a folder its package data misses would be lost there only."""
+    pack = wheelenv.build_wheel(tmp_path_factory, "teacher", "mexone_teacher")
+    tracked = wheelenv.git("ls-files", "teacher/mexone_teacher").splitlines()
+    assert len(tracked) > 10
+    with zipfile.ZipFile(pack) as z:
+        names = set(z.namelist())
+        missing = [n for n in tracked if n.removeprefix("teacher/") not in names
+                   or z.read(n.removeprefix("teacher/")) != (ROOT / n).read_bytes()]
+        (points,) = [n for n in z.namelist() if n.endswith(".dist-info/entry_points.txt")]
+        assert "[mexone.solutions]\ncourse = mexone_teacher:solutions" in z.read(points).decode()
+        assert not any(n.startswith("mexone/") for n in z.namelist())  # not a second mexone
+    assert missing == []
 
 
 # ----- every shipped routine, every example -----------------------------------------------------

@@ -32,26 +32,30 @@ def git(*args: str) -> str:
                           check=True).stdout
 
 
-def build_wheel(tmp_path_factory) -> Path:
+def build_wheel(tmp_path_factory, project: str = "", name: str = "mexone") -> Path:
     """The wheel built from a copy of the files git knows (tracked, or new and not ignored): a
-    stale build/ or egg-info in the checkout cannot leak into it."""
-    return wheel_of_checkout(tmp_path_factory.mktemp("tree"), tmp_path_factory.mktemp("dist"))
+    stale build/ or egg-info in the checkout cannot leak into it. `project`: a folder of the
+    checkout holding another distribution (teacher: the teacher's pack, `name` mexone_teacher)."""
+    return wheel_of_checkout(tmp_path_factory.mktemp("tree"), tmp_path_factory.mktemp("dist"),
+                             project, name)
 
 
-def wheel_of_checkout(tree: Path, out: Path) -> Path:
-    """build_wheel's work, in the folders given: the checkout's files git knows copied to `tree`,
-    the wheel built into `out` (also tests/hub's students' venv, outside pytest)."""
-    for name in git("ls-files", "-z", "--cached", "--others", "--exclude-standard").split("\0"):
-        if name and (ROOT / name).is_file():
-            (tree / name).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copy2(ROOT / name, tree / name)
+def wheel_of_checkout(tree: Path, out: Path, project: str = "", name: str = "mexone") -> Path:
+    """build_wheel's work, in the folders given: the checkout's files git knows (under `project`)
+    copied to `tree`, the wheel built into `out` (also tests/hub's students' venv, outside
+    pytest)."""
+    for file in git("ls-files", "-z", "--cached", "--others", "--exclude-standard", "--",
+                    project or ".").split("\0"):
+        if file and (ROOT / file).is_file():
+            (tree / file).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / file, tree / file)
     start = time.monotonic()
     built = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q",
-                            "--disable-pip-version-check", "-w", str(out), str(tree)],
+                            "--disable-pip-version-check", "-w", str(out), str(tree / project)],
                            capture_output=True, text=True, timeout=600, env=CLEAN_ENV)
-    TIMES["build wheel"] = time.monotonic() - start
+    TIMES[f"build {name} wheel"] = time.monotonic() - start
     assert built.returncode == 0, built.stderr[-3000:]
-    (path,) = out.glob("mexone-*.whl")
+    (path,) = out.glob(f"{name}-*.whl")
     return path
 
 

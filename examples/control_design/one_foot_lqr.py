@@ -105,7 +105,8 @@ def design(lab: Lab, point: OperatingPoint, balance_cost: float = 1000.0,
     q_pos = balance_cost * q_balance + np.diag(joint_weights)
     q = np.block([[q_pos, np.zeros((nv, nv))],
                   [np.zeros((nv, nv)), velocity_cost * np.eye(nv)]])
-    gain, _, poles = control.dlqr(sys.A, sys.B, q, r * np.eye(sys.ninputs))
+    # method: SciPy's solver even where slycot is installed (SLICOT's refuses this model)
+    gain, _, poles = control.dlqr(sys.A, sys.B, q, r * np.eye(sys.ninputs), method="scipy")
     return Design(point, sys, np.asarray(gain), np.asarray(poles), seconds)
 
 

@@ -84,7 +84,7 @@ def estimate(d: Design, c, dd, y0, c_tilt, log: dict, dt: float, seed: int = 1,
                          x_true[:, 6:nv]]) - y0 + std * rng.standard_normal((n, len(std)))
     u_dev = u - d.sys.linearization.u0
     process = b @ np.diag(noise_std(d) ** 2) @ b.T + 1e-4 * np.eye(a.shape[0])
-    gain, _, _ = control.dlqe(a, np.eye(a.shape[0]), c, process, np.diag(std ** 2))
+    gain, _, _ = control.dlqe(a, np.eye(a.shape[0]), c, process, np.diag(std ** 2), method="scipy")
     x_hat = np.zeros(a.shape[0])
     est = np.zeros((n, a.shape[0]))
     for k in range(n):

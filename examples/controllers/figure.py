@@ -58,50 +58,61 @@ def main() -> None:
     fig, axes = plt.subplots(2, 2, figsize=(10, 7))
 
     ax = axes[0, 0]
-    for label, gravity in (("gravity compensation + PD", 1.0), ("plain PD, same gains", 0.0)):
-        lab = lab_of("01_gravity_compensation")
-        lab.manager.controllers["gravity_compensation"].set_param("gravity", gravity)
-        q = joint(lab, "l_shoulder_pitch")
+    for label, gravity in (("gravity compensation", 1.0), ("damping alone", 0.0)):
+        lab = lab_of("01_gravity_float")
+        lab.manager.controllers["gravity_float"].set_param("gravity", gravity)
+        lab.sim.apply_joint_effort("r_shoulder_pitch", 0.5, duration=0.2, start=0.5)
+        q = joint(lab, "r_shoulder_pitch")
         q0 = q(lab.sim)
-        t, v = record(lab, 1.0, lambda sim, q=q, q0=q0: 1e3 * (q(sim) - q0))
+        t, v = record(lab, 1.5, lambda sim, q=q, q0=q0: 1e3 * (q(sim) - q0))
         ax.plot(t, v, label=label)
-    ax.set(title="1. hold the raised arm (kp = 5)", xlabel="t (s)", ylabel="shoulder pitch error (mrad)")
+    ax.axvspan(0.5, 0.7, color="k", alpha=0.1, label="0.5 N m push")
+    ax.set(title="1. the right arm floats, then is pushed", xlabel="t (s)",
+           ylabel="shoulder pitch moved (mrad)", ylim=(-50, 450))
 
     ax = axes[0, 1]
-    sys.path.insert(0, str(HERE / "02_computed_torque"))
-    from computed_torque import reference
+    sys.path.insert(0, str(HERE / "02_computed_torque_move"))
+    from computed_torque_move import minimum_jerk
 
-    q0 = np.array(list(read_pose(HERE / "02_computed_torque" / "pose.yaml").values()))
+    q0 = np.array(list(read_pose(HERE / "02_computed_torque_move" / "pose.yaml").values()))
+    move = np.array([-0.8, -0.9])  # the YAML's move_shoulder, move_elbow, in 1 s
+
+    def reference(t: float) -> np.ndarray:
+        return q0 + minimum_jerk(t, 1.0)[0] * move
+
     for label, shipped in (("computed torque", False), ("shipped PID", True)):
-        lab = lab_of("02_computed_torque", shipped)
+        lab = lab_of("02_computed_torque_move", shipped)
         if shipped:
             def command(sim, lab=lab):
-                q = reference(sim.time, q0, 0.5, 0.5)[0]
-                lab.manager.command("l_shoulder_pitch_position_controller", [q[0]])
-                lab.manager.command("l_elbow_position_controller", [q[1]])
+                q = reference(sim.time)
+                lab.manager.command("r_shoulder_pitch_position_controller", [q[0]])
+                lab.manager.command("r_elbow_position_controller", [q[1]])
             lab.sim.add_periodic(lab.sim.timestep, command)
-        elbow = joint(lab, "l_elbow")
-        t, v = record(lab, 2.0, lambda sim, e=elbow: 1e3 * (e(sim) - reference(sim.time, q0, 0.5, 0.5)[0][1]))
+        elbow = joint(lab, "r_elbow")
+        t, v = record(lab, 1.5, lambda sim, e=elbow: 1e3 * (e(sim) - reference(sim.time)[1]))
         ax.plot(t, v, label=label)
-    ax.set(title="2. track q0 + 0.5 sin(pi t)", xlabel="t (s)", ylabel="elbow error (mrad)")
+    ax.set(title="2. a 1 s minimum-jerk move, then hold", xlabel="t (s)",
+           ylabel="elbow error (mrad)")
 
     ax = axes[1, 0]
-    lab = lab_of("03_hand_impedance")
+    lab = lab_of("03_hand_circle")
     sim = lab.sim
-    body = sim.body_id("l_forearm")
+    body = sim.body_id("r_forearm")
     point = np.array([0.0, 0.0, -0.17])
 
     def hand(s):
         return s.data.xpos[body] + s.data.xmat[body].reshape(3, 3) @ point
 
-    sim.run(0.3)
     start = hand(sim)
-    sim.apply_wrench("l_forearm", (0.0, 10.0, 0.0), point=start, duration=1.2)
-    t, v = record(lab, 1.9, lambda s: 1e3 * (hand(s) - start)[1])
-    stiffness = lab.manager.controllers["hand_impedance"].params["stiffness"]
-    ax.plot(t, v, label="hand, sideways")
-    ax.axhline(1e3 * 10.0 / stiffness, ls="--", c="k", label="F / K")
-    ax.set(title="3. push the hand: 10 N for 1.2 s", xlabel="t (s)", ylabel="displacement (mm)")
+    _, path = record(lab, 4.0, lambda s: 1e3 * (hand(s) - start))
+    sys.path.insert(0, str(HERE / "03_hand_circle"))
+    from hand_circle import circle
+
+    ring = np.array([1e3 * (circle(t, start, 0.04, 0.5)[0] - start) for t in np.linspace(0, 4, 400)])
+    ax.plot(ring[:, 1], ring[:, 2], "k--", label="the circle")
+    ax.plot(path[:, 1], path[:, 2], label="the hand, two turns")
+    ax.set(title="3. the right hand draws a 4 cm circle", xlabel="y (mm)", ylabel="z (mm)",
+           aspect="equal")
 
     ax = axes[1, 1]
     balance = HERE / "04_lqr_balance" / "controllers.yaml"

@@ -8,6 +8,8 @@ from __future__ import annotations
 import warnings
 from pathlib import Path
 
+PRINTABLE_LIMIT = 300  # characters of outside text a one-line message shows
+
 __all__ = [
     "warn_renamed",
     "MexoneError",
@@ -18,6 +20,7 @@ __all__ = [
     "ArgumentTypeError",
     "RoutineError",
     "install_extra",
+    "printable",
 ]
 
 
@@ -101,3 +104,18 @@ def warn_renamed(old: str, new: str) -> None:
     (a DeprecationWarning at the caller's line)."""
     warnings.warn(f"{old} is renamed {new}; the old name goes in the next release",
                   DeprecationWarning, stacklevel=3)
+
+
+def printable(text: object, limit: int = PRINTABLE_LIMIT) -> str:
+    """Text from outside (a file or folder name, a student's error, a ROS request's field) as one
+    line that shows what it is: every character Python does not print (a newline, a carriage
+    return, NUL, ESC, a bidi override, a line separator) escaped as Python writes it (`\\n`,
+    `\\x00`, `\\u202e`), and at most `limit` characters, the rest counted. The one rule for
+    echoing a value we did not write: it can neither fake a line of ours nor flood one."""
+    text = str(text)
+    head = text[:limit]
+    shown = head if head.isprintable() else "".join(
+        c if c.isprintable() else repr(c)[1:-1] for c in head)
+    if len(text) > limit:
+        shown += f"... ({len(text)} characters)"
+    return shown

@@ -25,7 +25,7 @@ __all__ = ["Range", "RANGES", "range_of", "number_text", "markdown_table", "docs
            "GAIN_D", "GAINS", "I_CLAMP", "TIMESTEP", "GRAVITY", "DURATION", "RTF", "IMPULSE",
            "PUSH_DURATION", "PLOT_WINDOW", "STEP_SIZE", "STEPS", "PORT", "MESH_SCALE", "TIMEOUT",
            "FORCE", "SPEED", "SPIN", "CONTROL_PERIOD", "UPDATE_RATE", "UPDATE_TIME", "OVERRUNS",
-           "HANG_TIMEOUT"]
+           "HANG_TIMEOUT", "SAMPLE_PERIOD", "DESIGN_VALUES", "COMPARE_DURATION", "SWITCH_NAMES"]
 
 
 def number_text(value: float) -> str:
@@ -133,6 +133,16 @@ OVERRUNS = Range("max overruns", "", 1, 1_000_000, integer=True, why="consecutiv
                  "updates that stop a Python controller")
 HANG_TIMEOUT = Range("hang timeout", "s", 0.05, 3600.0, why="wall time after which an update that "
                      "has not returned is interrupted")
+SAMPLE_PERIOD = Range("sampling period", "s", 1e-5, 0.1, why="a linear model's (linearize's period, a "
+                      "design file's dt): each of its steps is a finite difference of the "
+                      "physics; past 0.1 s it takes minutes and describes no robot")
+DESIGN_VALUES = Range("values in a design array", "", 0, 1_000_000, integer=True,
+                      why="one array of a design file (K: joints x states, at most 1000 x 1000): "
+                      "a file declaring more is broken or hostile, refused before it is read")
+COMPARE_DURATION = Range("comparison duration", "s", 1e-3, 600.0, why="design.compare runs the lab "
+                         "for it, in the caller's thread: ten minutes of sim time is a mistake")
+SWITCH_NAMES = Range("controllers named in one switch request", "", 0, 1000, integer=True,
+                     why="a ROS switch_controller's activate + deactivate lists: a robot has tens")
 REPLAY_FPS = Range("replay frames per second", "Hz", 1.0, 120.0,
                    why="a notebook's inline replay: each frame is a pose per body in the page")
 REPLAY_SECONDS = Range("seconds simulated in one call", "s", 0.0, 3600.0,

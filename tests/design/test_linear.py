@@ -203,6 +203,26 @@ def _ctrl_at(lab, point):
     return ctrl
 
 
+def test_linearize_leaves_the_live_model_as_it_found_it(standing):
+    """linearize edits the lab's own model while it differentiates (no 3 MB copy: issue 38):
+    the claimed joints' gains, the dry friction and the sensor flag are back afterwards, also
+    after a refused request, and `linearization.model` is the model as linearised."""
+    model = standing.sim.model
+    fields = ("actuator_biasprm", "actuator_gainprm", "dof_frictionloss")
+    before = {name: getattr(model, name).copy() for name in fields}
+    flags = model.opt.disableflags
+    sys = linearize(standing, outputs=["imu/gyro"])
+    with pytest.raises(InputError):
+        linearize(standing, outputs=["imu/gyro"], period=0.0015)
+    for name in fields:
+        np.testing.assert_array_equal(getattr(model, name), before[name])
+    assert model.opt.disableflags == flags
+    linearised = sys.linearization.model
+    assert linearised is not model and not linearised.dof_frictionloss.any()
+    motor = model.actuator("l_knee").id
+    assert linearised.actuator_biasprm[motor, 1] == 0.0 != model.actuator_biasprm[motor, 1]
+
+
 def test_operating_point_on_both_feet_and_on_one(standing):
     both = operating_point(standing)
     assert both.contacts == ("l_foot", "r_foot")

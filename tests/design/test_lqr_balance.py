@@ -13,17 +13,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples" / "contr
 import one_foot_lqr as lq  # noqa: E402
 import tilt_observer as to  # noqa: E402
 
-from mexone.lab import Lab  # noqa: E402
-
 pytestmark = pytest.mark.slow
-
-
-@pytest.fixture(scope="module")
-def designed():
-    lab = Lab.create()
-    lq.setup(lab)
-    point = lq.one_foot_pose(lab)
-    return lab, point, lq.design(lab, point)
 
 
 def test_operating_point_balances_on_the_left_foot(designed):

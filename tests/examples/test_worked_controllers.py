@@ -2,11 +2,16 @@
 acceptance), each measured here independently of the controller's own report: joint positions
 and the hand sampled from the simulation every step, falls by the push-recovery rule.
 
-- gravity compensation + PD (kp 5) holds the left arm within 2 mrad; plain PD sags > 50 mrad;
-- computed torque tracks q0 + 0.5 sin(pi t) with an RMS error >= 5x below the shipped PIDs';
-- the hand impedance moves F / K (within 10 %) under a 10 N push;
+- gravity compensation alone floats the right arm: it drifts < 2 mrad in 1 s (without g(q) it
+  falls > 500 mrad), and a push moves it to a new pose where it stays;
+- computed torque tracks a minimum-jerk move of the right arm >= 20x closer than the shipped PIDs
+  fed the same trajectory;
+- the right hand draws a 4 cm circle within 4 mm RMS;
 - the LQR balance survives a torso push PD alone does not;
 - each runs headless from its YAML and reports in `mexone sim --json`.
+
+The first three teach the methods of course exercises 5-7 on another arm and another task: none
+of them is an exercise's answer (issue 36).
 """
 
 from __future__ import annotations
@@ -28,8 +33,9 @@ from mexone.motion.recovery import PushTrial, survives
 from mexone.physics.compile import Spawn
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "controllers"
-GRAVITY, TRACKING, IMPEDANCE, BALANCE = (EXAMPLES / n for n in (
-    "01_gravity_compensation", "02_computed_torque", "03_hand_impedance", "04_lqr_balance"))
+GRAVITY, TRACKING, CIRCLE, BALANCE = (EXAMPLES / n for n in (
+    "01_gravity_float", "02_computed_torque_move", "03_hand_circle", "04_lqr_balance"))
+ARM = ["r_shoulder_pitch", "r_shoulder_roll", "r_elbow"]
 
 
 def make_lab(example: Path, shipped: bool = False, in_process: bool = False) -> Lab:
@@ -78,88 +84,91 @@ class JointLog:
         self.q.append(sim.data.qpos[self.adr].copy())
 
 
-def worst_drift(example: Path, joints: list[str], seconds: float, gravity: float) -> float:
-    lab = make_lab(example)
-    ctrl = lab.manager.controllers["gravity_compensation"]
-    ctrl.set_param("gravity", gravity)  # before the first update: 0 is plain PD, same gains
-    assert ctrl.params["kp"] == 5.0
-    start = lab.sim.data.qpos[[int(lab.sim.model.joint(j).qposadr[0]) for j in joints]].copy()
+def example_module(example: Path, name: str):
+    """The example's own module (its reference or constants), imported from its folder."""
+    sys.path.insert(0, str(example))
+    try:
+        return __import__(name)
+    finally:
+        sys.path.remove(str(example))
+
+
+def farthest(lab: Lab, joints: list[str], seconds: float) -> float:
+    """The farthest any of `joints` gets from where it is, over `seconds` (rad)."""
     log = JointLog(lab, joints)
     lab.sim.run(seconds)
-    return float(np.abs(np.array(log.q) - start).max())
+    return float(np.abs(np.array(log.q) - log.q[0]).max())
 
 
-def test_gravity_compensation_holds_the_arm_where_plain_pd_sags():
-    arm = ["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"]
-    compensated = worst_drift(GRAVITY, arm, 1.0, gravity=1.0)
-    plain = worst_drift(GRAVITY, arm, 1.0, gravity=0.0)
-    assert compensated < 2e-3, f"gravity compensation drifted {compensated * 1e3:.2f} mrad"
-    assert plain > 50e-3, f"plain PD sagged only {plain * 1e3:.1f} mrad"
+def test_gravity_compensation_floats_the_arm_where_it_is_left():
+    floating = make_lab(GRAVITY)
+    drift = farthest(floating, ARM, 1.0)
+    falling = make_lab(GRAVITY)
+    falling.manager.controllers["gravity_float"].set_param("gravity", 0.0)  # damping alone
+    fell = farthest(falling, ARM, 1.0)
+    assert drift < 2e-3, f"the floating arm drifted {drift * 1e3:.2f} mrad"
+    assert fell > 0.5, f"without g(q) the arm fell only {fell * 1e3:.0f} mrad"
+    log = JointLog(floating, ARM)  # a push moves it; released, it stays (no spring to return)
+    floating.sim.apply_joint_effort("r_shoulder_pitch", 0.5, duration=0.2)
+    floating.sim.run(0.7)
+    pushed = log.q[-1] - log.q[0]
+    floating.sim.run(0.5)
+    assert pushed[0] > 0.1, pushed
+    assert np.abs(log.q[-1] - log.q[0] - pushed).max() < 2e-3, (pushed, log.q[-1] - log.q[0])
 
 
-def tracking_rms(lab: Lab, joints: list[str], command=None) -> float:
-    """RMS of q - (q0 + 0.5 sin(pi t)) over one period (2 s), sampled every step."""
-    sys.path.insert(0, str(TRACKING))
-    try:
-        from computed_torque import reference
-    finally:
-        sys.path.remove(str(TRACKING))
+def move_rms(lab: Lab, command=None) -> float:
+    """RMS of q - q_r over the 1 s minimum-jerk move and 0.5 s of hold, every step."""
+    move = example_module(TRACKING, "computed_torque_move")
+    joints = ["r_shoulder_pitch", "r_elbow"]
     q0 = np.array([v for _, v in read_pose(TRACKING / "pose.yaml").items()])
+    delta = np.array([-0.8, -0.9])  # the YAML's move_shoulder, move_elbow
+
+    def reference(t: float) -> np.ndarray:
+        return q0 + move.minimum_jerk(t, 1.0)[0] * delta
+
     log = JointLog(lab, joints)
     if command is not None:  # the shipped PIDs: a new setpoint every step, as a node would send
-        lab.sim.add_periodic(lab.sim.timestep, lambda sim: command(reference(sim.time, q0, 0.5, 0.5)[0]))
+        lab.sim.add_periodic(lab.sim.timestep, lambda sim: command(reference(sim.time)))
         command(q0)
-    lab.sim.run(2.0)
-    errors = np.array(log.q) - np.array([reference(t, q0, 0.5, 0.5)[0] for t in log.times])
+    lab.sim.run(1.5)
+    errors = np.array(log.q) - np.array([reference(t) for t in log.times])
     return float(np.sqrt(np.mean(errors**2)))
 
 
-def test_computed_torque_tracks_five_times_closer_than_the_shipped_pid():
-    joints = ["l_shoulder_pitch", "l_elbow"]
+def test_computed_torque_moves_twenty_times_closer_than_the_shipped_pid():
+    joints = ["r_shoulder_pitch", "r_elbow"]
     assert list(read_pose(TRACKING / "pose.yaml")) == joints  # q0 in the joints' order
-    computed = tracking_rms(make_lab(TRACKING), joints)
+    computed = move_rms(make_lab(TRACKING))
     pids = [f"{j}_position_controller" for j in joints]
     lab = make_lab(TRACKING, shipped=True)
 
     def command(q):
         for name, value in zip(pids, q, strict=True):
-            lab.manager.command(name, [value])
+            lab.manager.command(name, [float(value)])
 
-    shipped = tracking_rms(lab, joints, command)
-    assert computed * 5 <= shipped, (computed, shipped)
+    shipped = move_rms(lab, command)
+    print(f"computed torque {computed * 1e3:.3f} mrad RMS, shipped PIDs {shipped * 1e3:.2f}")
+    assert computed * 20 <= shipped, (computed, shipped)
     assert shipped > 5e-3  # the PIDs did track (not a lab where nothing moved)
 
 
-def test_hand_impedance_moves_the_hand_force_over_stiffness():
-    sys.path.insert(0, str(IMPEDANCE))
-    try:
-        from hand_impedance import HAND, HAND_POINT
-    finally:
-        sys.path.remove(str(IMPEDANCE))
-    lab = make_lab(IMPEDANCE)
+def test_the_hand_draws_its_circle():
+    example = example_module(CIRCLE, "hand_circle")
+    lab = make_lab(CIRCLE)
     sim = lab.sim
-    stiffness = lab.manager.controllers["hand_impedance"].params["stiffness"]
-    body = sim.body_id(HAND)
+    body = sim.body_id(example.HAND)
 
-    def hand() -> np.ndarray:
-        return sim.data.xpos[body] + sim.data.xmat[body].reshape(3, 3) @ HAND_POINT
+    def hand() -> np.ndarray:  # as the simulation has it
+        return sim.data.xpos[body] + sim.data.xmat[body].reshape(3, 3) @ example.HAND_POINT
 
-    pushes = {}
-    for direction in ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):  # sideways (out of the body), up
-        sim.run(0.3)
-        before = hand()
-        force = 10.0 * np.array(direction)
-        sim.apply_wrench(HAND, force, point=before, duration=1.2)  # at the hand, world frame
-        sim.run(0.7)  # the hand settles; the standing robot still sways a little on its ankles:
-        samples = []  # the mean over the push's last 0.5 s (about one period of that sway)
-        timer = sim.add_periodic(sim.timestep, lambda s, samples=samples: samples.append(hand()))
-        sim.run(0.5)
-        sim.remove_periodic(timer)
-        pushes[direction] = (np.mean(samples, axis=0) - before) @ np.array(direction)
-        sim.run(0.5)  # released: back to where it was
-    for direction, moved in pushes.items():
-        print(f"10 N along {direction}: the hand moved {moved * 1e3:.1f} mm")
-        assert moved == pytest.approx(10.0 / stiffness, rel=0.10), (direction, moved)
+    start, misses = hand(), []  # the circle starts where the hand is, at t = 0
+    sim.add_periodic(sim.timestep, lambda s: misses.append(
+        hand() - example.circle(s.time, start, 0.04, 0.5)[0]))  # the YAML's radius, frequency
+    sim.run(4.0)  # two turns
+    rms = float(np.sqrt(np.mean(np.sum(np.array(misses) ** 2, axis=1))))
+    print(f"the hand's RMS distance from the circle: {rms * 1e3:.2f} mm")
+    assert rms < 4e-3, rms
 
 
 @pytest.mark.slow
@@ -171,12 +180,12 @@ def test_lqr_balance_survives_a_push_pd_alone_does_not():
 
 
 @pytest.mark.parametrize("example, seconds, check", [
-    (GRAVITY, 0.5, lambda r: r["gravity_compensation"]["max_error_mrad"] < 2.0),
-    (TRACKING, 0.5, lambda r: r["computed_torque"]["rms_error_mrad"] < 5.0),
-    (IMPEDANCE, 0.5, lambda r: max(map(abs, r["hand_impedance"]["displacement_mm"])) < 5.0),
+    (GRAVITY, 0.5, lambda r: r["gravity_float"]["moved_mrad"] < 2.0),
+    (TRACKING, 0.5, lambda r: r["computed_torque_move"]["max_error_mrad"] < 5.0),
+    (CIRCLE, 0.5, lambda r: r["hand_circle"]["rms_error_mm"] < 5.0),
     (BALANCE, 0.5, lambda r: r["lqr_balance"]["max_com_offset_mm"] < 5.0
      and r["lqr_balance"]["gain"][0] > 0),
-], ids=["gravity", "tracking", "impedance", "balance"])
+], ids=["gravity", "tracking", "circle", "balance"])
 def test_each_runs_headless_with_a_json_report(example, seconds, check):
     pose = ["--pose", str(example / "pose.yaml")] if (example / "pose.yaml").exists() else []
     out = subprocess.run([sys.executable, "-m", "mexone", "sim", "--headless", "--json",
@@ -196,43 +205,43 @@ def test_a_report_that_raises_or_holds_numpy_does_not_end_the_summary():
 
     lab = make_lab(GRAVITY, in_process=True)
     lab.sim.run(0.01)
-    impl = lab.manager.controllers["gravity_compensation"].impl
-    impl.report = lambda: {"q0": impl.q0, "worst": np.float64(impl.worst)}
+    impl = lab.manager.controllers["gravity_float"].impl
+    impl.report = lambda: {"start": impl.start, "worst": np.float64(impl.moved)}
     reports = controller_reports(lab)
-    assert reports["gravity_compensation"]["q0"] == pytest.approx(list(impl.q0))
-    lab.manager.switch(stop=["gravity_compensation"])
-    assert "gravity_compensation" not in controller_reports(lab)  # stopped: no report
-    lab.manager.switch(start=["gravity_compensation"])
+    assert reports["gravity_float"]["start"] == pytest.approx(list(impl.start))
+    lab.manager.switch(stop=["gravity_float"])
+    assert "gravity_float" not in controller_reports(lab)  # stopped: no report
+    lab.manager.switch(start=["gravity_float"])
     impl.report = lambda: 1 / 0
     assert reports != (broken := controller_reports(lab))
-    assert broken["gravity_compensation"]["error"] == "report() raised ZeroDivisionError: division by zero"
-    assert set(broken["gravity_compensation"]) == {"error", "budget"}  # the budget meter goes on
+    assert broken["gravity_float"]["error"] == "report() raised ZeroDivisionError: division by zero"
+    assert set(broken["gravity_float"]) == {"error", "budget"}  # the budget meter goes on
 
 
 def test_a_controller_a_fault_stopped_is_in_the_summary_with_its_line():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY, in_process=True)
-    impl = lab.manager.controllers["gravity_compensation"].impl
+    impl = lab.manager.controllers["gravity_float"].impl
 
     def update(state, t, dt):
         raise RuntimeError("student's bug")
 
     impl.update = update
     lab.sim.run(0.01)
-    assert not lab.manager.controllers["gravity_compensation"].running
-    entry = controller_reports(lab)["gravity_compensation"]  # not a clean-looking run
+    assert not lab.manager.controllers["gravity_float"].running
+    entry = controller_reports(lab)["gravity_float"]  # not a clean-looking run
     assert entry["fault"].startswith("update raised") and "student's bug" in entry["fault"]
-    assert "max_error_mrad" in entry  # its report up to the fault
+    assert "moved_mrad" in entry  # its report up to the fault
 
 
 def test_a_report_with_nan_is_strict_json():
     from mexone.cli.sim import controller_reports
 
     lab = make_lab(GRAVITY, in_process=True)
-    impl = lab.manager.controllers["gravity_compensation"].impl
+    impl = lab.manager.controllers["gravity_float"].impl
     impl.report = lambda: {"worst": float("nan"), "gain": [np.inf, 2.0], "ok": np.float32(1.5)}
     text = json.dumps(controller_reports(lab))  # was NaN / Infinity: not JSON, jq refuses it
     read = json.loads(text, parse_constant=lambda c: pytest.fail(c))
-    assert read["gravity_compensation"].pop("budget")["updates"] == 0  # the meter's, beside it
-    assert read == {"gravity_compensation": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}
+    assert read["gravity_float"].pop("budget")["updates"] == 0  # the meter's, beside it
+    assert read == {"gravity_float": {"worst": None, "gain": [None, 2.0], "ok": 1.5}}

@@ -95,7 +95,7 @@ def test_gradescope_json_and_folder_csv(tmp_path):
                               tmp_path / "grades.csv"])
     assert code == 0, err
     rows = (tmp_path / "grades.csv").read_text().splitlines()
-    assert rows[0].startswith("student,score,max_score,passed,stays upright")
+    assert rows[0].startswith("student,score,max_score,passed,runs,stays upright")  # runs: eve's
     by_student = {row.split(",")[0]: row.split(",") for row in rows[1:]}
     assert set(by_student) == {"ada", "bob", "cat", "dan", "eve"}
     assert by_student["ada"][1:4] == ["10", "10", "yes"]

@@ -21,6 +21,7 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64, Float64MultiArray, String
 from std_srvs.srv import Empty
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from waiting import Waiter
 
 SIM = sys.argv[1] if len(sys.argv) > 1 else "mexone"
 NS = "/mex_rb"
@@ -74,21 +75,8 @@ reset = node.create_client(Empty, "/reset_simulation")
 out: dict[str, object] = {}
 
 
-def spin_until(predicate, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
-        rclpy.spin_once(node, timeout_sec=0.02)
-    return bool(predicate())
-
-
-def call(client, request, timeout: float = 20.0):
-    if not client.wait_for_service(timeout_sec=timeout):
-        raise SystemExit(f"no service {client.srv_name}")
-    future = client.call_async(request)
-    spin_until(future.done, timeout)
-    return future.result()
+waiter = Waiter(node)  # tests/ros2/waiting.py
+spin_until, call = waiter.spin_until, waiter.call
 
 
 def sim_time(clock_msg) -> float:

@@ -83,20 +83,24 @@ def controllers_with_a_trajectory_controller(folder: Path) -> Path:
 @pytest.fixture(scope="module")
 def acceptance(python, tmp_path_factory):
     """Run the simulator and the client once; every test below reads what the client saw."""
-    env = ros2_env()
     controllers = controllers_with_a_trajectory_controller(tmp_path_factory.mktemp("ros2"))
-    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless",
-                            "--controllers", str(controllers)], env=env,
-                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return sim_and_client(python, ros2_env(), "client.py", 180, "--controllers", str(controllers))
+
+
+def sim_and_client(python, env: dict, client: str, timeout: float, *sim_args: str) -> dict:
+    """`mexone sim --ros2 --headless SIM_ARGS` while the rclpy script `client` runs against it:
+    the client's last line (JSON) with the simulator's stderr and exit status."""
+    sim = subprocess.Popen([python, "-m", "mexone", "sim", "--ros2", "--headless", *sim_args],
+                           env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        client = subprocess.run([python, str(HERE / "client.py"), "mexone"], env=env,
-                                capture_output=True, text=True, timeout=180)
+        done = subprocess.run([python, str(HERE / client), "mexone"], env=env,
+                              capture_output=True, text=True, timeout=timeout)
     finally:
         sim.terminate()
         _, sim_err = sim.communicate(timeout=30)
-    assert client.returncode == 0, client.stderr[-3000:] + sim_err[-2000:]
-    return json.loads(client.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err,
-                                                                   "sim_status": sim.returncode}
+    assert done.returncode == 0, done.stderr[-3000:] + sim_err[-2000:]
+    return json.loads(done.stdout.strip().splitlines()[-1]) | {"sim_stderr": sim_err,
+                                                                 "sim_status": sim.returncode}
 
 
 def test_clock_joint_states_and_description_flow(acceptance):
@@ -315,3 +319,54 @@ def test_hand_built_cdr_is_what_rclpy_serializes(python):
     report = json.loads(done.stdout.strip().splitlines()[-1])
     assert report["mismatch"] is None, report["mismatch"]
     assert report["joint_states"] >= 300 and report["clocks"] >= 100
+
+
+# ----- hostile requests (issue 36): hostile_client.py, a plain rclpy node ----------------------------
+@pytest.fixture(scope="module")
+def hostile(python):
+    """The simulator and hostile_client.py once; the tests below read its answers."""
+    env = ros2_env()
+    env["ROS_DOMAIN_ID"] = str(101 + os.getpid() % 100)  # apart from the acceptance run's
+    return sim_and_client(python, env, "hostile_client.py", 240)
+
+
+def test_a_parameter_without_a_name_is_refused(hostile):
+    ok, reason, warnings = hostile["param_empty"]
+    assert not ok and "parameter name '' is not a parameter's name" in reason  # was a success
+    assert any("parameter refused" in w for w in warnings)
+    for case in ("param_slash", "param_nul", "param_long"):
+        ok, reason, _ = hostile[case]
+        assert not ok and len(reason) < 1000, (case, reason[:200])
+
+
+def test_switch_controller_is_bounded_and_says_what_it_skipped(hostile):
+    ok, message, warnings, seconds = hostile["switch_many"]
+    assert not ok and "100000" in message and "at most 1000" in message, message[:300]
+    assert len(message) < 1000 and seconds < 10  # was ok, a 1.5 MB message, 3.4 s
+    ok, message, warnings, _ = hostile["switch_some"]
+    assert not ok and "nothing to switch" in message and len(message) < 1000, message[:300]
+    assert "nul\\x00name" in message or "nul" in message  # escaped, or cut at the NUL by rcl
+    assert "xxxxxxxxxx..." in message and "(100000 characters)" in message  # not 100 000 x
+
+
+def test_echoed_names_are_printable_and_bounded(hostile):
+    for case in ("load_nul", "load_long"):
+        ok, warnings = hostile[case]
+        assert not ok and warnings and all(len(w) < 1500 for w in warnings), (case, warnings)
+        assert all(w.isprintable() for w in warnings)
+    assert len(hostile["sim_stderr"]) < 20_000 and "Traceback" not in hostile["sim_stderr"]
+
+
+def test_a_huge_or_nul_controller_type_is_not_echoed_raw(tmp_path):
+    import yaml
+
+    from mexone.robots import mex_one
+
+    config = yaml.safe_load(mex_one.controllers_path().read_text())
+    for name, kind in (("long", "x" * 100_000), ("nul", "my\0type/Cls")):
+        config["mex_rb"]["weird"] = {"type": kind, "joints": ["neck_yaw"]}
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(config))
+        code, _, err = run_cli(["sim", "--headless", "--duration", "0.01", "--controllers", path])
+        assert code == 2 and err.count("\n") == 1 and len(err) < 2000, err[:300]
+        assert err.isprintable() or err[:-1].isprintable()

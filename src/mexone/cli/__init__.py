@@ -41,6 +41,7 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     from mexone.cli import (
         bench,
+        certify,
         check,
         controllers,
         convert,
@@ -65,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="verb", metavar="<verb>", required=True)
     for module in (sim, run, record, plot, render, sweep, identify, check, convert, controllers,
-                   bench, edit, rosenv, example_robot, exercise):
+                   bench, edit, rosenv, example_robot, exercise, certify):
         module.add_parser(sub)
     return parser
 

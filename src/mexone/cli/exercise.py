@@ -1,4 +1,5 @@
-"""`mexone exercise list | show | start | grade | new`: exercises a teacher assigns and grades."""
+"""`mexone exercise list | show | start | grade | new | autograder`: exercises a teacher assigns
+and grades."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ import tempfile
 from pathlib import Path
 
 from mexone.cli.sweep import WORKERS
-from mexone.errors import InputError, OutputExistsError
+from mexone.errors import InputError, OutputExistsError, printable
 from mexone.files import check_output, replacing, write_text
 
 HELP = """\
@@ -20,6 +21,7 @@ starter and a self-check (check.py) into a folder for a student; `grade` runs a 
 headless in its own process with CPU-time and memory limits and prints each check and the
 score (--json: Gradescope's results.json); given a folder of submissions, --csv writes one row
 per student. `new` writes a teacher's own exercise that grades as written (docs/exercises.md).
+`autograder` writes Gradescope's autograder zip for an exercise (docs/teaching.md).
 
 A submission that raises, hangs, exits or runs out of memory gets 0 points with the reason:
 that is a grade, exit status 0. exit status: 0 graded, 2 bad input (a missing file, a broken
@@ -69,12 +71,19 @@ def add_parser(sub) -> None:
     s.add_argument("name", help="the new exercise's name (letters, digits, _)")
     s.add_argument("dir", nargs="?", type=Path, help="where (default: ./NAME)")
     s.add_argument("--force", action="store_true", help="overwrite files already there")
+    s = verbs.add_parser("autograder", help="write Gradescope's autograder zip for an exercise")
+    s.add_argument("name", help="exercise name or folder")
+    s.add_argument("-o", "--output", type=Path, default=Path("autograder.zip"),
+                   help="the zip to write (default: autograder.zip)")
+    s.add_argument("--wheel", type=Path, help="mexone's wheel to carry (default: built from "
+                   "the mexone that runs this)")
+    s.add_argument("--force", action="store_true", help="overwrite the zip")
     p.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     return {"list": _list, "show": _show, "start": _start, "grade": _grade,
-            "new": _new}[args.action](args)
+            "new": _new, "autograder": _autograder}[args.action](args)
 
 
 def _list(_args) -> int:
@@ -186,7 +195,7 @@ def _grade(args) -> int:
         for student, result in grade_all(ex, found, args.workers, local=args.local,
                                          plots=args.plots, force=args.force):
             results[student] = result
-            print(f"{student:<24} {result.score:6.2f}/{result.max_score:g} "
+            print(f"{printable(student, 80):<24} {result.score:6.2f}/{result.max_score:g} "
                   f"{'passed' if result.passed else 'not passed':<11} "
                   + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
                   file=sys.stderr if to_stdout else sys.stdout)
@@ -248,4 +257,23 @@ def _new(args) -> int:
     _copy_tree(files, args.force)
     print(f"mexone: wrote the exercise {name} to {dest}/ (grade its solution: mexone exercise "
           f"grade {dest} {dest}/solution/routine.py)")
+    return 0
+
+
+def _autograder(args) -> int:
+    import os
+
+    from mexone.exercises.autograder import write_bundle
+    from mexone.exercises.grading import SECRET_ENV, SECRET_MIN
+
+    secret = os.environ.get(SECRET_ENV, "")
+    if len(secret) < SECRET_MIN:  # the zip could grade nothing (grading.hidden_rng refuses it)
+        said = "is not set" if not secret else f"has {len(secret)} characters"
+        raise InputError(f"${SECRET_ENV} {said}: the zip carries the secret your grades are "
+                         f"keyed by (at least {SECRET_MIN} characters)",
+                         hint=f"export {SECRET_ENV}=<the secret you grade with>")
+    bundle = write_bundle(args.name, args.output, args.force, args.wheel, secret)
+    print(f"mexone: wrote {bundle.path} (Gradescope's autograder: setup.sh, run_autograder, "
+          f"{bundle.wheel}, your secret): upload it as "
+          "the assignment's autograder, Ubuntu base image")
     return 0

@@ -7,6 +7,7 @@ import argparse
 from mexone.cli.common import PORT
 from mexone.description.loader import load_model
 from mexone.description.urdf import write_urdf
+from mexone.errors import InputError
 from mexone.lab import robot_namespace
 from mexone.robots import mex_one
 from mexone.ros1.bridge import DEFAULT_NODE, ROS_INSTALL
@@ -26,6 +27,10 @@ def add_ros_options(p: argparse.ArgumentParser) -> None:
                    help="serve every topic, the robot (URDF, meshes, TF) and sim time on the "
                         "Foxglove WebSocket protocol at ws://HOST:PORT (default 8765, on --host: "
                         "this machine only); needs the foxglove extra (docs/foxglove.md)")
+    p.add_argument("--foxglove-origin", action="append", default=[], metavar="ORIGIN",
+                   help="a web page's origin allowed to connect to --foxglove besides this "
+                        "machine's pages (repeatable), e.g. Foxglove's web app: "
+                        "--foxglove-origin https://app.foxglove.dev")
     p.add_argument("--name", default=DEFAULT_NODE, type=_ros_name,
                    help=f"ROS node name (default {DEFAULT_NODE}; its gazebo_ros services are under "
                         "/gazebo, another simulator's under /NAME): one per simulator on a master")
@@ -103,10 +108,14 @@ def connect_bridges(args: argparse.Namespace) -> Bridges | None:
             from mexone.ros2 import Ros2Bridge
 
             bridges.append(Ros2Bridge(args.name))
+        if getattr(args, "foxglove_origin", None) and getattr(args, "foxglove", None) is None:
+            raise InputError("--foxglove-origin allows a web page to connect to --foxglove, "
+                             "which is not on", hint="add --foxglove [PORT]")
         if getattr(args, "foxglove", None) is not None:
             from mexone.foxglove import FoxgloveBridge
 
-            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1")))
+            bridges.append(FoxgloveBridge(args.foxglove, getattr(args, "host", "127.0.0.1"),
+                                          getattr(args, "foxglove_origin", ())))
     except BaseException:
         Bridges(bridges).shutdown()
         raise

@@ -41,7 +41,8 @@ from mexone.physics.simulation import Simulation
 __all__ = ["SimHardware", "ControlLayout", "RowWriters", "strided_view", "JointCommands",
            "JointStates", "build_actuators", "bake_gains", "INTEGRAL_SUFFIX", "set_motor_gain",
            "motor_gains", "set_integral_gain", "set_hold_controls", "clear_integrals",
-           "copy_actuator_state", "gain_to_biasprm", "biasprm_to_gain", "Q_REF", "V_REF", "FF",
+           "copy_actuator_state", "set_actuator_state", "gain_to_biasprm", "biasprm_to_gain",
+           "Q_REF", "V_REF", "FF",
            "TELEPORT_NONE", "TELEPORT_POSITION", "TELEPORT_VELOCITY"]
 
 INTEGRAL_SUFFIX = "/i"
@@ -145,6 +146,19 @@ def copy_actuator_state(source: mujoco.MjModel, source_data: mujoco.MjData,
         if m:
             start, from_ = target.actuator_actadr[i], source.actuator_actadr[old]
             target_data.act[start:start + m] = source_data.act[from_:from_ + m]
+
+
+def set_actuator_state(data: mujoco.MjData, ctrl: np.ndarray | None = None,
+                       act: np.ndarray | None = None, rows: np.ndarray | None = None) -> None:
+    """The controls and actuator states (all of `act`, or its `rows`) of a data that is not a
+    running simulation's: the analysis's copies (mexone.design's twin, probes, rollouts)."""
+    if ctrl is not None:
+        data.ctrl[:] = ctrl
+    if act is not None:
+        if rows is None:
+            data.act[:] = act
+        else:
+            data.act[rows] = act
 
 
 def clear_integrals(data: mujoco.MjData) -> None:

@@ -7,6 +7,7 @@ the YAML's file and line, and the `check` verb prints both lists.
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable, Iterator
 
 from mexone.control.notes import gazebo_differences
@@ -96,7 +97,9 @@ def _rule_plugins(model: RobotModel, config: ControlConfig) -> Iterator[Finding]
         if spec.plugin is None:
             continue
         try:
-            spec.plugin.cls.check_entry(spec.name, tuple(spec.joints), spec.plugin, step)
+            check = spec.plugin.cls.check_entry
+            robot = {"robot": model} if "robot" in inspect.signature(check).parameters else {}
+            check(spec.name, tuple(spec.joints), spec.plugin, step, **robot)
         except InputError as exc:
             hint = f" ({exc.hint})" if exc.hint else ""
             prefix = f"controller '{spec.name}': "

@@ -34,7 +34,7 @@ from mexone import signals
 from mexone.control import watchdog
 from mexone.control.student import COMMAND_INTERFACES, PythonController
 from mexone.control.watchdog import GUARD, ControllerHang, Watched
-from mexone.errors import InputError, MexoneError
+from mexone.errors import InputError, MexoneError, printable
 from mexone.ranges import HANG_TIMEOUT, OVERRUNS, UPDATE_RATE, UPDATE_TIME, number_text
 
 __all__ = ["Plugin", "Found", "locate", "load_class", "resolve_class", "validate_params", "student_line",
@@ -229,7 +229,7 @@ def locate(ctype: str, yaml_dir: Path | None, shipped: list[str]) -> Found:
         stem, _, cls_name = ctype.rpartition("/")
         if stem in {known.partition("/")[0] for known in shipped}:  # a shipped type, misspelt
             close = difflib.get_close_matches(ctype, shipped, n=1)
-            raise InputError(f"unknown controller type '{ctype}'",
+            raise InputError(f"unknown controller type '{printable(ctype, 120)}'",
                              hint=(f"did you mean '{close[0]}'? " if close else "")
                              + "shipped types: " + ", ".join(sorted(shipped)))
         if stem and cls_name and "/" not in stem and stem.isidentifier():
@@ -251,7 +251,8 @@ def locate(ctype: str, yaml_dir: Path | None, shipped: list[str]) -> Found:
     point = _entry_point(ctype)
     if point is not None:
         return Found("entry", point.value, "")
-    raise InputError(f"unknown controller type '{ctype}': searched {', '.join(searched)}",
+    raise InputError(f"unknown controller type '{printable(ctype, 120)}': searched "
+                     f"{', '.join(printable(s, 200) for s in searched)}",
                      hint=_beside_hint(ctype, yaml_dir) + "shipped types: " + ", ".join(sorted(shipped)))
 
 

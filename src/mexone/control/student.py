@@ -282,9 +282,10 @@ class PythonController:
 
     @classmethod
     def check_entry(cls, name: str, joints: tuple[str, ...], plugin: Any,
-                    timestep: float) -> None:
+                    timestep: float, robot: Any = None) -> None:
         """What `mexone check --controllers` asks of this class's YAML entry (`plugin`: the
-        resolved entry, control/resolve.py's Plugin; `timestep`: the physics step, s), with no
+        resolved entry, control/resolve.py's Plugin; `timestep`: the physics step, s; `robot`:
+        the RobotModel the YAML drives, given to a class whose check_entry takes it), with no
         simulation: raise InputError (its line: the YAML key's) for what configure() would
         refuse that the YAML alone shows. Nothing by default."""
 

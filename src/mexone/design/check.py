@@ -28,7 +28,7 @@ from numpy.typing import ArrayLike
 
 from mexone.design.deploy import GainDesign, _Deployed
 from mexone.errors import ArgumentTypeError, InputError
-from mexone.ranges import number_text
+from mexone.ranges import COMPARE_DURATION, number_text
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -111,19 +111,26 @@ def closed_loop(controller: _Deployed, plant: StateSpace) -> StateSpace:
                       outputs=list(plant.state_labels), name="closed loop")
 
 
-def loop_gain(controller: _Deployed, plant: StateSpace) -> StateSpace | None:
+def loop_gain(controller: _Deployed, plant: StateSpace,
+              channel: int | None = None) -> StateSpace | None:
     """The loop transfer L(z) broken at the plant's input (one input: a SISO loop, the
-    negative-feedback convention: the closed loop is 1/(1 + L)); None for several inputs."""
+    negative-feedback convention: the closed loop is 1/(1 + L)); None for several inputs,
+    unless `channel` picks one: the loop broken there, every other input's loop closed."""
     _check(controller, plant)
     Ac, Bc, Cc, Dc, G, H, E = _parts(controller, plant)
-    if E.shape[1] != 1:
+    m = E.shape[1]
+    if m != 1 and channel is None:
         return None
+    i = 0 if channel is None else channel
     A, B = np.asarray(plant.A), np.asarray(plant.B) @ E
     nx, nc = A.shape[0], Ac.shape[0]
     a = np.block([[A, np.zeros((nx, nc))], [Bc @ G, Ac]]) if nc else A
-    b = np.vstack([B, np.zeros((nc, 1))]) if nc else B
-    c = -np.hstack([Dc @ G, Cc]) if nc else -(Dc @ G)
-    return control.ss(a, b, c, np.zeros((1, 1)), plant.dt, name="loop")
+    b = np.vstack([B, np.zeros((nc, m))]) if nc else B
+    c = np.hstack([Dc @ G, Cc]) if nc else Dc @ G
+    others = np.ones(m)
+    others[i] = 0.0
+    a = a + b @ (others[:, None] * c)  # the other loops closed
+    return control.ss(a, b[:, [i]], -c[[i]], np.zeros((1, 1)), plant.dt, name="loop")
 
 
 # ----- running the robot ---------------------------------------------------------------------
@@ -247,8 +254,7 @@ def compare(lab: Lab, controller: _Deployed, plant: StateSpace,
     design = controller.design
     ref_labels = labels if isinstance(design, GainDesign) else list(design.inputs)
     r = _vector(reference, ref_labels, "reference")
-    if not np.isfinite(duration) or duration <= 0:
-        raise InputError(f"duration {duration} is not a positive number of seconds")
+    COMPARE_DURATION.check(duration, "duration")
     _start(lab, controller, dx0, duration)
     controller.reference = r.copy()
     trace = _run(lab, controller, duration)
@@ -304,8 +310,9 @@ class FrequencyResponse:
     """The closed loop from one reference to one signal: `frequencies` (Hz), `measured` and
     `model` (complex gains), their magnitudes (dB) and phases (deg), the model's `bandwidth`
     (Hz, -3 dB), the loop's `gain_margin` (dB), `phase_margin` (deg) and their crossover
-    frequencies (Hz; None where the loop has several inputs or never crosses), and the worst
-    `magnitude_error` (dB) and `phase_error` (deg) at the frequencies up to the bandwidth."""
+    frequencies (Hz; with several inputs the smallest over the breaks at each; None where the
+    loop never crosses, `margins_note` says why), and the worst `magnitude_error` (dB) and
+    `phase_error` (deg) at the frequencies up to the bandwidth."""
 
     frequencies: np.ndarray
     measured: np.ndarray
@@ -318,6 +325,7 @@ class FrequencyResponse:
     magnitude_error: float
     phase_error: float
     system: control.StateSpace  # the closed loop's SISO model (reference -> signal)
+    margins_note: str = ""  # where the margins come from, or why one is None
 
     @property
     def measured_db(self) -> np.ndarray:
@@ -393,16 +401,48 @@ def measure_frequency_response(lab: Lab, controller: _Deployed, plant: StateSpac
     siso = full[o, i]
     model = np.asarray(siso(np.exp(1j * omega * float(plant.dt)))).reshape(-1)
     bandwidth = _bandwidth(siso)
-    gm = pm = wcg = wcp = None
-    loop = loop_gain(controller, plant)
-    if loop is not None:
-        gm, pm, wcg, wcp = margins(loop)
+    gm, pm, wcg, wcp, note = _worst_margins(controller, plant)
     inside = freqs <= bandwidth * (1 + 1e-9)
     mag_err = np.abs(20 * np.log10(np.abs(measured) / np.abs(model)))
     phase_err = np.abs(np.degrees(np.angle(measured / model)))
     return FrequencyResponse(freqs, measured, model, bandwidth, gm, pm, wcp, wcg,
                              float(mag_err[inside].max(initial=0.0)),
-                             float(phase_err[inside].max(initial=0.0)), siso)
+                             float(phase_err[inside].max(initial=0.0)), siso, note)
+
+
+def _worst_margins(controller: _Deployed, plant: StateSpace
+                   ) -> tuple[float | None, float | None, float | None, float | None, str]:
+    """(gm, pm, phase-crossover Hz, gain-crossover Hz, note): the loop's margins, or with several
+    inputs the smallest over the breaks at each (the others closed), the note naming where; a
+    margin the loop does not have is None and the note says why."""
+    inputs = len(controller.design.joints)
+    found = []
+    for i in range(inputs):
+        found.append((i, *margins(loop_gain(controller, plant, i if inputs > 1 else None))))
+    notes = []
+    gains = [f for f in found if f[1] is not None]
+    phases = [f for f in found if f[2] is not None]
+    gm = wcg = pm = wcp = None
+    name = [f"{j}:{controller.design.interface}" for j in controller.design.joints]
+    if gains:
+        best = min(gains, key=lambda f: float(f[1] or 0.0))
+        gm, wcg = best[1], best[3]
+        if inputs > 1:
+            notes.append(f"gain margin: the smallest of the {inputs} single-input breaks "
+                         f"({name[best[0]]})")
+    else:
+        notes.append("no gain margin: the loop's phase never reaches -180 deg (any gain increase "
+                     "keeps it stable)")
+    if phases:
+        best = min(phases, key=lambda f: float(f[2] or 0.0))
+        pm, wcp = best[2], best[4]
+        if inputs > 1:
+            notes.append(f"phase margin: the smallest of the breaks ({name[best[0]]}); all at "
+                         "once: mexone.design.loop_margins(linearize_loop(lab))")
+    else:
+        notes.append("no phase margin: the loop's gain never crosses 1 (no delay destabilises "
+                     "it)")
+    return gm, pm, wcg, wcp, "; ".join(notes)
 
 
 def margins(loop: control.StateSpace) -> tuple[float | None, float | None, float | None,
@@ -426,6 +466,10 @@ def margins(loop: control.StateSpace) -> tuple[float | None, float | None, float
         k = cross[0]
         wcg = float(f[k])
         gm = float(-20 * np.log10(gain[k]))
+    else:  # the phase may reach -180 deg at the Nyquist frequency itself, where L is real
+        at_nyquist = complex(np.asarray(loop(-1.0)).reshape(-1)[0])
+        if at_nyquist.real < 0 and abs(at_nyquist.imag) <= 1e-9 * max(1.0, abs(at_nyquist)):
+            wcg, gm = 0.5 / dt, float(-20 * np.log10(abs(at_nyquist)))
     return gm, pm, wcg, wcp
 
 

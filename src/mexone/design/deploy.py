@@ -34,13 +34,14 @@ from typing import TYPE_CHECKING, Any, ClassVar, TypeAlias, cast
 import control
 import mujoco
 import numpy as np
-import yaml
 from numpy.typing import ArrayLike
 
+from mexone.control.hardware import INTEGRAL_SUFFIX
 from mexone.control.student import Param, PythonController
-from mexone.errors import ArgumentTypeError, InputError
+from mexone.design.design_file import check_on_robot, read_design
+from mexone.errors import ArgumentTypeError, InputError, printable
 from mexone.files import replacing
-from mexone.ranges import number_text
+from mexone.ranges import UPDATE_RATE, number_text
 
 if TYPE_CHECKING:
     from mexone.control.resolve import Plugin
@@ -51,7 +52,7 @@ if TYPE_CHECKING:
 StateSpace: TypeAlias = Any  # control.StateSpace: python-control has no type information
 
 __all__ = ["StateFeedback", "LinearController", "deploy", "save_design", "load_design",
-           "lqr", "METHODS", "GainDesign", "SystemDesign"]
+           "lqr", "METHODS", "GainDesign", "SystemDesign", "install"]
 
 #: how a continuous controller is discretised (python-control's sample_system methods)
 METHODS = ("zoh", "foh", "tustin", "bilinear", "matched", "impulse", "euler", "backward_diff")
@@ -129,7 +130,7 @@ def _point_of(plant: StateSpace, who: str) -> tuple[_Point, Any]:
                     "(its operating point is unknown)",
                     hint="pass the StateSpace linearize returned (python-control's "
                          "transformations drop .linearization)")
-    model = point.model
+    model = point.source
     act_index = []
     for row in point.act_rows:  # an act entry of the model -> the same actuator's in the live model
         starts, counts = model.actuator_actadr, np.maximum(model.actuator_actnum, 1)
@@ -274,10 +275,17 @@ def lqr(plant: StateSpace, Q: ArrayLike, R: ArrayLike) -> Any:
     """`control.dlqr` (discrete plant) or `control.lqr`, with Q and R checked first: one line for
     a shape that does not fit, a NaN, a Q that is not positive semidefinite or an R that is not
     positive definite (singular). Returns K, S, E as python-control does."""
+    if not isinstance(plant, control.StateSpace):
+        raise _fail(f"lqr: the plant is {printable(type(plant).__name__, 40)}, not a StateSpace",
+                    hint="pass the StateSpace linearize returned")
     nx, nu = plant.nstates, plant.ninputs
     mats = {}
     for name, value, n in (("Q", Q, nx), ("R", R, nu)):
-        m = np.atleast_2d(np.asarray(value, dtype=float))
+        try:
+            m = np.atleast_2d(np.asarray(value, dtype=float))
+        except (TypeError, ValueError):
+            raise _fail(f"lqr: {name} is not a matrix of numbers ({printable(value, 60)})",
+                        hint=f"a ({n}, {n}) array, or its diagonal") from None
         if m.shape == (1, n) or m.shape == (n, 1) and n > 1:
             m = np.diag(m.ravel())
         if m.shape != (n, n):
@@ -294,22 +302,40 @@ def lqr(plant: StateSpace, Q: ArrayLike, R: ArrayLike) -> Any:
         raise _fail("lqr: Q is not positive semidefinite")
     solve = control.lqr if plant.dt == 0 else control.dlqr
     try:
-        return solve(plant, mats["Q"], mats["R"])
+        # SciPy's Riccati solver: with slycot installed python-control would take SLICOT's,
+        # which refuses the robot's models (modes on the unit circle: docs/DECISIONS.md)
+        return solve(plant, mats["Q"], mats["R"], method="scipy")
     except (ValueError, np.linalg.LinAlgError, control.ControlArgument) as exc:
         raise _fail(f"lqr: no stabilising solution: {str(exc).splitlines()[0]}",
                     hint="is the plant stabilisable? weight the unstable states in Q") from None
 
 
 # ----- files beside a YAML -----------------------------------------------------------------------
+def _design_path(name: str, design_file: str, yaml_dir: Path | None, writer: str) -> Path:
+    """A controller's `design_file:` (relative to its YAML's folder), or the one line saying to
+    set it (written by mexone.design's `writer`)."""
+    if not design_file:
+        raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
+                         "beside the YAML", hint=f"write one with mexone.design.{writer}")
+    path = Path(design_file)
+    return yaml_dir / path if not path.is_absolute() and yaml_dir is not None else path
+
+
+def _new_npz(path: str | Path, what: str) -> Path:
+    """`path` if it names a .npz file that does not exist yet, else the one line why not."""
+    path = Path(path)
+    if path.suffix != ".npz":
+        raise _fail(f"{what}: {path} is not a .npz file")
+    if path.exists():
+        raise _fail(f"{what}: {path} exists", hint="remove it first, or choose another name")
+    return path
+
+
 def save_design(path: str | Path, K: ArrayLike, plant: StateSpace) -> Path:
     """Write K and the plant's operating point (what StateFeedback needs) to a .npz, for a YAML's
     `design:` entry. Nothing is overwritten without the caller removing it first."""
     design = gain_design(K, plant, "save_design")
-    path = Path(path)
-    if path.suffix != ".npz":
-        raise _fail(f"save_design: {path} is not a .npz file")
-    if path.exists():
-        raise _fail(f"save_design: {path} exists", hint="remove it first, or choose another name")
+    path = _new_npz(path, "save_design")
     p = design.point
     with replacing(path, force=False) as temporary:  # its folder checked; never half-written
         _save_npz(temporary, design, p)
@@ -317,62 +343,25 @@ def save_design(path: str | Path, K: ArrayLike, plant: StateSpace) -> Path:
 
 
 def _save_npz(path: Path, design: GainDesign, p: _Point) -> None:
+    period: dict[str, Any] = {} if design.dt is None else {"dt": design.dt}  # no dt: continuous
     np.savez(path, K=design.K, u0=design.u0, joints=np.array(design.joints),
              interface=design.interface, qpos=p.qpos, qvel=p.qvel, qpos_index=p.qpos_index,
              qvel_index=p.qvel_index, states=np.array(p.states), act=p.act,
              act_actuators=np.array([a for a, _ in p.act_index] if p.act_index.size else [], dtype=str),
              act_offsets=np.array([o for _, o in p.act_index] if p.act_index.size else [], dtype=int),
-             dt=np.nan if design.dt is None else design.dt)
+             **period)
 
 
 def load_design(path: str | Path) -> GainDesign:
     """A gain design from a .npz written by save_design, or a .yaml with K, u0, joints,
-    interface, states, qpos, qvel (and qpos_index/qvel_index for a reduced model), dt."""
-    path = Path(path)
-    if not path.is_file():
-        raise InputError(f"design file {path} does not exist", file=str(path))
-    try:
-        if path.suffix == ".npz":
-            with np.load(path, allow_pickle=False) as f:
-                raw = {k: f[k] for k in f.files}
-        elif path.suffix in (".yaml", ".yml"):
-            raw = yaml.safe_load(path.read_text()) or {}
-            if not isinstance(raw, dict):
-                raise ValueError("not a mapping")
-        else:
-            raise InputError(f"design file {path} is not .npz or .yaml", file=str(path))
-        K = np.atleast_2d(np.asarray(raw["K"], dtype=float))
-        qpos, qvel = np.asarray(raw["qpos"], float).ravel(), np.asarray(raw["qvel"], float).ravel()
-        states = tuple(str(s) for s in np.asarray(raw["states"]).ravel())
-        joints = tuple(str(s) for s in np.asarray(raw["joints"]).ravel())
-        point = _Point(qpos, qvel,
-                       np.asarray(raw.get("qpos_index", np.arange(qpos.size)), int).ravel(),
-                       np.asarray(raw.get("qvel_index", np.arange(qvel.size)), int).ravel(), states,
-                       np.asarray(raw.get("act", []), float).ravel(),
-                       np.asarray(list(zip(np.asarray(raw.get("act_actuators", [])).ravel(),
-                                           np.asarray(raw.get("act_offsets", []), int).ravel(),
-                                           strict=True)), dtype=object))
-        dt = float(np.asarray(raw.get("dt", np.nan)))
-        u0 = np.asarray(raw.get("u0", np.zeros(len(joints))), float).ravel()
-        interface = str(np.asarray(raw.get("interface", "effort")))
-    except InputError:
-        raise
-    except KeyError as exc:
-        raise InputError(f"design file {path} has no {exc.args[0]!r}", file=str(path),
-                         hint="write it with mexone.design.save_design(path, K, plant)") from None
-    except (ValueError, TypeError, OSError, yaml.YAMLError) as exc:
-        raise InputError(f"design file {path} cannot be read: {str(exc).splitlines()[0]}",
-                         file=str(path)) from None
-    nx = 2 * qvel.size + point.act.size
-    if K.shape != (len(joints), nx):
-        raise InputError(f"design file {path}: K has shape {_shape(K.shape)}; its point needs "
-                         f"{_shape((len(joints), nx))} ({len(joints)} joints x {nx} states)",
-                         file=str(path))
-    _finite("K", K, f"design file {path}")
-    if u0.shape != (len(joints),):
-        raise InputError(f"design file {path}: u0 has {u0.size} values for {len(joints)} joints",
-                         file=str(path))
-    return GainDesign(K, u0, joints, interface, point, None if np.isnan(dt) else dt)
+    interface, states, qpos, qvel (and qpos_index/qvel_index for a reduced model), dt (left out:
+    a continuous design's gain, any rate). A file a student hands in: design_file.read_design
+    checks every field (one InputError line naming the file)."""
+    raw = read_design(path)
+    acts = np.empty(len(raw.act_actuators), dtype=object)
+    acts[:] = list(zip(raw.act_actuators, raw.act_offsets.tolist(), strict=True))
+    point = _Point(raw.qpos, raw.qvel, raw.qpos_index, raw.qvel_index, raw.states, raw.act, acts)
+    return GainDesign(raw.K, raw.u0, raw.joints, raw.interface, point, raw.dt)
 
 
 # ----- the controllers ---------------------------------------------------------------------------
@@ -390,9 +379,11 @@ class _Deployed(PythonController):
         binding = self.__dict__["_mexone_binding"]
         self._sim = binding.ctx.sim
         self.rate = binding.plugin.update_rate or 1.0 / self._sim.model.opt.timestep
-        self.design = self._checked_design(self.name, tuple(self.joints), self.design_file,
-                                           binding.plugin.yaml_dir, self.rate)
         model = self._sim.model
+        acting = {model.actuator(i).name for i in range(model.nactuator) if model.actuator_actnum[i]}
+        self.design = self._checked_design(self.name, tuple(self.joints), self.design_file,
+                                           binding.plugin.yaml_dir, self.rate,
+                                           (model.nq, model.nv, acting))
         self._scratch, self._dq = np.zeros(model.nq), np.zeros(model.nv)
         point = self.design.point
         if point is not None and point.act_index.size and point.act_index.dtype == object:
@@ -405,13 +396,21 @@ class _Deployed(PythonController):
         self.reset()
 
     @classmethod
-    def check_entry(cls, name: str, joints: tuple[str, ...], plugin: Plugin, timestep: float) -> None:
-        """`mexone check --controllers`: what configure() refuses, from the YAML alone (the same
-        checks: a missing or unreadable design file, a rate that is not the design's, other
-        joints), at the line of the YAML key it concerns."""
+    def check_entry(cls, name: str, joints: tuple[str, ...], plugin: Plugin, timestep: float,
+                    robot: Any = None) -> None:
+        """`mexone check --controllers`: what configure() refuses, from the YAML and the robot
+        (the same checks: a missing or unreadable design file, a rate that is not the design's,
+        other joints, indices or actuators the robot cannot have), at the line of the YAML key
+        it concerns."""
         lines = plugin.lines
+        sizes = None
+        if robot is not None:  # at most: a floating base, every moving joint one entry
+            moving = sum(1 for j in robot.joints.values() if j.moving)
+            sizes = (7 + moving, 6 + moving,
+                     {j.name + INTEGRAL_SUFFIX for j in robot.actuated_joints})
         try:
-            design = cls._design_of(name, plugin.params.get("design_file", ""), plugin.yaml_dir)
+            design = cls._design_of(name, plugin.params.get("design_file", ""), plugin.yaml_dir,
+                                    sizes)
         except InputError as exc:
             exc.line = lines.get("design_file")
             raise
@@ -424,15 +423,19 @@ class _Deployed(PythonController):
 
     @classmethod
     def _checked_design(cls, name: str, joints: tuple[str, ...], design_file: str,
-                        yaml_dir: Path | None, rate: float) -> GainDesign | SystemDesign:
-        design = cls._design_of(name, design_file, yaml_dir)
+                        yaml_dir: Path | None, rate: float, robot: Any = None
+                        ) -> GainDesign | SystemDesign:
+        design = cls._design_of(name, design_file, yaml_dir, robot)
         cls._check_design(name, joints, design, rate)
         return design
 
     @classmethod
-    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None) -> GainDesign | SystemDesign:
-        """The design given from Python (deploy), else the YAML's design_file."""
-        design = cls._given if cls._given is not None else cls._load(name, design_file, yaml_dir)
+    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None, robot: Any = None
+                   ) -> GainDesign | SystemDesign:
+        """The design given from Python (deploy), else the YAML's design_file (checked against
+        `robot`: (nq, nv, the actuators with a state), when known)."""
+        design = cls._given if cls._given is not None \
+            else cls._load(name, design_file, yaml_dir, robot)
         if issubclass(cls, LinearController) and not isinstance(design, SystemDesign):
             raise InputError(f"controller '{name}': a LinearController runs a python-control "
                              "system given from Python (deploy); a design file holds a gain",
@@ -452,15 +455,15 @@ class _Deployed(PythonController):
                              f"design's {list(design.joints)} (in that order)")
 
     @classmethod
-    def _load(cls, name: str, design_file: str, yaml_dir: Path | None) -> GainDesign:
-        if not design_file:
-            raise InputError(f"controller '{name}': no design: set design_file: <file.npz> "
-                             "beside the YAML", hint="write one with mexone.design.save_design")
-        path = Path(design_file)
-        if not path.is_absolute() and yaml_dir is not None:
-            path = yaml_dir / path
+    def _load(cls, name: str, design_file: str, yaml_dir: Path | None, robot: Any = None
+              ) -> GainDesign:
+        path = _design_path(name, design_file, yaml_dir, "save_design")
         try:
             design = load_design(path)
+            if robot is not None:
+                p = design.point
+                check_on_robot(path, p.qpos_index, p.qvel_index, [a for a, _ in p.act_index],
+                               *robot)
         except InputError as exc:  # its message names the design file: locate it at the YAML's line
             raise InputError(f"controller '{name}': {exc.what}", hint=exc.hint) from None
         if design.interface != cls.command_interface:
@@ -574,7 +577,8 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
     design: a gain matrix K with `plant` (the StateSpace from linearize: u = u0 - K dx); a
     python-control StateSpace or TransferFunction whose inputs are measured signals and outputs
     `<joint>:effort` (u = u0 + C(r - y); continuous ones discretised at `rate` Hz by `method`);
-    or what control.create_statefbk_iosystem returns, with the plant. rate: Hz (default: the
+    or what control.create_statefbk_iosystem returns, with the plant; or an estimator or LQG
+    design from mexone.design.observers (an `Observer` or `Lqg`). rate: Hz (default: the
     design's 1/dt, else every physics step). The controllers driving the design's joints are
     stopped; a controller called `name` already loaded is replaced."""
     sim = getattr(lab, "sim", None)
@@ -582,6 +586,14 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
     if sim is None or manager is None:
         raise ArgumentTypeError("deploy takes a mexone Lab with controllers "
                                 "(Lab.create(controllers=...))")
+    if not isinstance(name, str) or not name.isidentifier():
+        raise _fail(f"deploy: name {printable(name, 60)!r} is not a controller name",
+                    hint="letters, digits and _, starting with a letter: name='arm_lqr'")
+    if rate is not None:
+        rate = UPDATE_RATE.check(rate, "deploy: rate")
+    own = getattr(design, "deployed", None)  # an observer or LQG design (design/observers.py)
+    if own is not None:
+        return cast(StateFeedback | LinearController, install(lab, *own(rate), name=name))
     built: GainDesign | SystemDesign
     if isinstance(design, control.InputOutputSystem | tuple):
         built = system_design(design, plant, rate, method, u0)
@@ -611,9 +623,23 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
         r[labels.index(label)] = float(value)
     if not np.all(np.isfinite(r)):
         raise _fail("deploy: the reference has a NaN or inf")
-    attrs = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
+    impl = install(lab, cls, built, rate, name=name)
+    impl.reference[:] = r
+    return cast(StateFeedback | LinearController, impl)
+
+
+def install(lab: Lab, cls: type[_Deployed], built: GainDesign | SystemDesign, rate: float | None,
+            exports: Mapping[str, int] | None = None, *, name: str) -> _Deployed:
+    """Run `cls` (a _Deployed type) with the checked design `built` (its joints, interface) in
+    the lab's loop as controller `name` at `rate` Hz: the controllers driving its joints are
+    stopped, one of that name replaced. `exports`: the chained state interfaces it declares."""
+    manager: Any = lab.manager  # deploy checked it is there
+    sim = lab.sim
+    attrs: dict[str, Any] = {"_given": built, "__module__": cls.__module__, "__doc__": cls.__doc__}
     if built.interface != "effort":
         attrs["command_interface"] = built.interface
+    if exports:
+        attrs["exports"] = dict(exports)
     runner_cls = type(cls.__name__, (cls,), attrs)
     from mexone.control.resolve import Plugin
     from mexone.control.spec import ControllerSpec
@@ -622,7 +648,7 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
                     {"design_file": ""}, update_rate=rate)
     spec = ControllerSpec(name, plugin.type, tuple(built.joints), plugin=plugin)
 
-    def install() -> _Deployed:
+    def load() -> _Deployed:
         old = manager.controllers.get(name)
         if old is not None:
             if old.running:
@@ -647,8 +673,6 @@ def deploy(lab: Lab, design: Any, plant: StateSpace | None = None, *, name: str 
         manager.config.controllers[name] = replace(spec, gains=gains)
         manager.load(name)
         manager.switch(start=[name], stop=busy)
-        return manager.controllers[name].impl
+        return cast(_Deployed, manager.controllers[name].impl)
 
-    impl = sim.work.call(install) if sim.loop_elsewhere() else install()
-    impl.reference[:] = r
-    return cast(StateFeedback | LinearController, impl)
+    return sim.work.call(load) if sim.loop_elsewhere() else load()

@@ -34,7 +34,11 @@ nothing else approximated.
 from __future__ import annotations
 
 import copy
-from collections.abc import Iterable, Mapping, Sequence
+import functools
+import threading
+import weakref
+from collections.abc import Iterable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,8 +57,9 @@ from mexone.control.hardware import (
     set_motor_gain,
 )
 from mexone.dynamics import Dynamics
-from mexone.errors import ArgumentTypeError, InputError
+from mexone.errors import ArgumentTypeError, InputError, printable
 from mexone.physics.attach import RUNTIME_ACTUATOR_FIELDS
+from mexone.ranges import SAMPLE_PERIOD
 
 __all__ = ["linearize", "operating_point", "OperatingPoint", "Linearization", "state_deviation",
            "INPUT_KINDS", "SUPPORTS"]
@@ -82,6 +87,7 @@ class _Plant:
     feet: tuple[str, ...] = ()
     qpos_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # its qpos in the source's
     qvel_index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    shared: bool = False  # the source's own model (edits undone after): `Linearization` snapshots
 
 
 def _take(source: Any, data: mujoco.MjData | None, who: str = "linearize") -> _Plant:
@@ -112,6 +118,87 @@ def _take(source: Any, data: mujoco.MjData | None, who: str = "linearize") -> _P
     return sim.work.call(take)
 
 
+def _sim_of(source: Any) -> Any:
+    """The Simulation behind a Lab or Simulation source, None for a bare MjModel."""
+    if isinstance(source, mujoco.MjModel):
+        return None
+    return getattr(source, "sim", source)
+
+
+def _live(source: Any, data: mujoco.MjData | None) -> _Plant:
+    """The source's own model (not a copy: `_edits_undone` restores what linearize changes) and
+    a scratch copy of its state; called in the simulation thread. Copying the 3 MB model and
+    allocating an MjData cost more than the finite differences' bookkeeping (issue 38)."""
+    if isinstance(source, mujoco.MjModel):
+        if not isinstance(data, mujoco.MjData):
+            raise ArgumentTypeError("linearize(model, data): give the MjData of the state too")
+        joints: list[str] = []
+        feet: tuple[str, ...] = ()
+        model, live, root, spec = source, data, None, None
+    else:
+        sim = source
+        model, live, spec = sim.model, sim.data, sim.compiled.spec
+        joints, root, feet = _robot_layout(sim)
+    scratch = _scratch(model)
+    mujoco.mj_copyData(scratch, model, live)
+    return _Plant(model, scratch, joints, root, spec, feet, np.arange(model.nq), np.arange(model.nv),
+                  shared=True)
+
+
+_LAYOUT: weakref.WeakKeyDictionary[Any, tuple[list[str], str | None, tuple[str, ...]]] = \
+    weakref.WeakKeyDictionary()  # model -> (joints, root, feet)
+_SCRATCH: weakref.WeakKeyDictionary[Any, list[Any]] = weakref.WeakKeyDictionary()  # model -> [MjData, MjData]
+_SCRATCH_LOCK = threading.Lock()
+
+
+def _robot_layout(sim: Any) -> tuple[list[str], str | None, tuple[str, ...]]:
+    model = sim.model
+    cached = _LAYOUT.get(model)
+    if cached is None:
+        joints = [j.name for j in sim.robot.actuated_joints if _actuator(model, j.name) >= 0]
+        root = None
+        if sim.compiled.free:
+            root = model.joint(int(model.body_jntadr[sim.compiled.root_body])).name
+        feet = tuple(f for f in ("l_foot", "r_foot") if f in sim.compiled.bodies)
+        cached = _LAYOUT[model] = (joints, root, feet)
+    return list(cached[0]), cached[1], cached[2]
+
+
+def _scratch(model: mujoco.MjModel, which: int = 0) -> mujoco.MjData:
+    """One of two MjData kept per model for linearize's state and its held-input rollout (the
+    caller holds _SCRATCH_LOCK)."""
+    pair = _SCRATCH.get(model)
+    if pair is None:
+        pair = _SCRATCH[model] = [mujoco.MjData(model), None]
+    if pair[which] is None:
+        pair[which] = mujoco.MjData(model)
+    return pair[which]
+
+
+def _settings(model: mujoco.MjModel) -> tuple[tuple[str, Any], ...]:
+    """What a model's copy needs to be the model as linearised: the fields a running simulation
+    changes (the controllers' gains and clamps) and linearize's own (friction, flags)."""
+    fields = (*RUNTIME_ACTUATOR_FIELDS, "dof_frictionloss")
+    return (*((name, getattr(model, name).copy()) for name in fields),
+            *((f"opt.{name}", copy.copy(getattr(model.opt, name))) for name in _OPTIONS))
+
+
+_OPTIONS = ("timestep", "gravity", "disableflags", "enableflags", "integrator", "iterations")
+
+
+@contextmanager
+def _edits_undone(model: mujoco.MjModel) -> Iterator[None]:
+    """What linearize changes in a model it does not own (the claimed joints' gains, the dry
+    friction, the sensor flag) put back as it was, whatever happens."""
+    saved = (model.actuator_biasprm.copy(), model.actuator_gainprm.copy(),
+             model.dof_frictionloss.copy(), model.opt.disableflags)
+    try:
+        yield
+    finally:
+        model.actuator_biasprm[:], model.actuator_gainprm[:], model.dof_frictionloss[:] = saved[:3]
+        model.opt.disableflags = saved[3]
+
+
 def _copy_plant(source: mujoco.MjModel, data: mujoco.MjData, joints: list[str], root: str | None,
                 spec: mujoco.MjSpec | None, feet: tuple[str, ...]) -> _Plant:
     model = copy.copy(source)
@@ -123,6 +210,23 @@ def _copy_plant(source: mujoco.MjModel, data: mujoco.MjData, joints: list[str], 
 
 def _actuator(model: mujoco.MjModel, name: str) -> int:
     return mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+
+
+_IDS: weakref.WeakKeyDictionary[Any, dict[str, tuple[int, int, int]]] = \
+    weakref.WeakKeyDictionary()  # model -> {joint: ids}
+
+
+def _joint_ids(model: mujoco.MjModel, joint: str) -> tuple[int, int, int]:
+    """(motor actuator, integral actuator, qpos address) of a joint, looked up once per model."""
+    table = _IDS.get(model)
+    if table is None:
+        table = _IDS[model] = {}
+    ids = table.get(joint)
+    if ids is None:
+        jid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint)
+        ids = table[joint] = (_actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX),
+                              int(model.jnt_qposadr[jid]) if jid >= 0 else -1)
+    return ids
 
 
 # ----- operating points --------------------------------------------------------------------------
@@ -258,9 +362,11 @@ def _touching(plant: _Plant) -> tuple[str, ...]:
 class Linearization:
     """Where a model was linearised, attached to the StateSpace as `sys.linearization`:
     `qpos`, `qvel`, `act` (the full state of the linearised model), `u0` (the inputs' values
-    there), `period`, and which source entries the model's qpos/qvel are (reduced models)."""
+    there), `period`, which source entries the model's qpos/qvel are (reduced models), and
+    `model`: the MuJoCo model as linearised (the claimed joints' PD off, the dry friction out),
+    to simulate against the linear model."""
 
-    model: mujoco.MjModel
+    source: mujoco.MjModel  # the model linearised (a Lab's live one: its layout, never edited)
     qpos: np.ndarray
     qvel: np.ndarray
     act: np.ndarray
@@ -270,6 +376,23 @@ class Linearization:
     qpos_index: np.ndarray
     qvel_index: np.ndarray
     names: tuple[str, ...] = field(default=())
+    # (field, value) the source had while linearised; () = it is `model`
+    settings: tuple[tuple[str, Any], ...] = ()
+    ctrl: np.ndarray | None = None  # MuJoCo's controls at the point (the sensors' values there)
+
+    @functools.cached_property
+    def model(self) -> mujoco.MjModel:
+        """The model as linearised: `source` itself, or a copy of a live model with the
+        settings it was linearised with (made when first asked for: linearize never copies)."""
+        if not self.settings:
+            return self.source
+        model = copy.copy(self.source)
+        for name, value in self.settings:
+            if name.startswith("opt."):
+                setattr(model.opt, name[4:], value)
+            else:
+                getattr(model, name)[:] = value
+        return model
 
     def dx(self, qpos: ArrayLike, qvel: ArrayLike, act: ArrayLike | None = None) -> np.ndarray:
         """The state deviation x - x0 of a measured state: `qpos`, `qvel` (and `act`) of the
@@ -284,7 +407,7 @@ class Linearization:
             raise InputError(f"state has {q.size} positions and {v.size} velocities; the model "
                              f"needs nq = {self.qpos.size}, nv = {self.qvel.size}")
         dq = np.zeros(self.qvel.size)
-        mujoco.mj_differentiatePos(self.model, dq, 1.0, self.qpos, q)
+        mujoco.mj_differentiatePos(self.source, dq, 1.0, self.qpos, q)
         out = [dq, v - self.qvel]
         if self.act_rows.size:
             a = self.act if act is None else np.asarray(act, dtype=float).reshape(-1)
@@ -332,10 +455,33 @@ def linearize(source: Any, data: mujoco.MjData | None = None, *, point: Operatin
         raise InputError(f"inputs '{inputs}' is not one of {', '.join(INPUT_KINDS)}")
     if held not in ("controllers", "rigid"):
         raise InputError(f"held '{held}' is not 'controllers' or 'rigid'")
-    plant = _take(source, data)
+    args = (point, inputs, joints, held, fixed_base, outputs, period, joint_friction, eps)
+    if held == "rigid" or fixed_base:  # a recompiled private copy: built outside the loop's thread
+        return _linearized(_take(source, data), *args)
+    sim = _sim_of(source)
+    if sim is not None and not (hasattr(sim, "work") and hasattr(sim, "compiled")):
+        raise ArgumentTypeError(f"linearize takes a mexone Lab or Simulation, or a mujoco.MjModel "
+                                f"and its MjData, not {type(source).__name__}")
+
+    def work() -> control.StateSpace:  # in the simulation thread: the model is the live one
+        with _SCRATCH_LOCK:
+            plant = _live(sim if sim is not None else source, data)
+            with _edits_undone(plant.model):
+                return _linearized(plant, *args)
+
+    return sim.work.call(work) if sim is not None and sim.loop_elsewhere() else work()
+
+
+def _linearized(plant: _Plant, point: Any, inputs: Any, joints: Any, held: Any, fixed_base: Any,
+                outputs: Any, period: Any, joint_friction: Any, eps: Any) -> control.StateSpace:
+    """linearize's work on a plant taken from the source (its model changed freely: a copy, or
+    the live one under `_edits_undone`)."""
     if point is not None:
         _apply(plant, point)
-    chosen = list(plant.joints if joints is None else [joints] if isinstance(joints, str) else joints)
+    if isinstance(joints, str):  # a string is a sequence of letters: 'l_elbow' is no joint list
+        raise InputError(f"joints is the string {printable(joints, 60)!r}: give a list of joint names",
+                         hint=f"joints=[{printable(joints, 60)!r}]")
+    chosen = list(plant.joints if joints is None else joints)
     unknown = [j for j in chosen if j not in plant.joints]
     if unknown and inputs != "ctrl":
         raise InputError(f"{', '.join(map(repr, unknown))}: not an actuated joint of the model",
@@ -363,19 +509,22 @@ def linearize(source: Any, data: mujoco.MjData | None = None, *, point: Operatin
         model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_SENSOR)
 
     nx, nu, ns = 2 * model.nv + model.na, model.nu, model.nsensordata
-    a, b = np.eye(nx), np.zeros((nx, nu))
     c, dd = np.zeros((ns, nx)), np.zeros((ns, nu))
     x0 = (d.qpos.copy(), d.qvel.copy(), d.act.copy())
-    rollout = mujoco.MjData(model)
-    mujoco.mj_copyData(rollout, model, d)
+    a, b = np.eye(nx), np.zeros((nx, nu))
+    rollout = d  # mjd_transitionFD leaves the state as it found it; a longer period steps a copy
+    if steps > 1:
+        rollout = _scratch(model, 1)
+        mujoco.mj_copyData(rollout, model, d)
     for k in range(steps):
-        ak, bk = np.zeros((nx, nx)), np.zeros((nx, nu))
+        ak, bk = np.empty((nx, nx)), np.empty((nx, nu))
         if k == 0 and output_list is not None:
             mujoco.mjd_transitionFD(model, rollout, eps, True, ak, bk, c, dd)
         else:
             mujoco.mjd_transitionFD(model, rollout, eps, True, ak, bk, None, None)
-        a, b = ak @ a, ak @ b + bk
-        mujoco.mj_step(model, rollout)
+        a, b = (ak, bk) if k == 0 else (ak @ a, ak @ b + bk)
+        if k + 1 < steps:
+            mujoco.mj_step(model, rollout)
 
     u_map, input_names, u0 = _input_map(plant, chosen, inputs)
     b = b @ u_map
@@ -394,7 +543,9 @@ def linearize(source: Any, data: mujoco.MjData | None = None, *, point: Operatin
     sys = control.ss(a, b, c_out, d_out, steps * model.opt.timestep, states=state_names,
                      inputs=input_names, outputs=output_names, name="robot")
     act_rows = np.array([i - 2 * model.nv for i in keep if i >= 2 * model.nv], dtype=int)
-    sys.linearization = Linearization(model=model, qpos=x0[0], qvel=x0[1], act=x0[2], act_rows=act_rows,
+    settings = _settings(model) if plant.shared else ()
+    sys.linearization = Linearization(source=model, settings=settings, qpos=x0[0], qvel=x0[1],
+                                      act=x0[2], act_rows=act_rows, ctrl=d.ctrl.copy(),
                                       u0=u0, period=steps * model.opt.timestep,
                                       qpos_index=plant.qpos_index, qvel_index=plant.qvel_index,
                                       names=tuple(state_names))
@@ -411,18 +562,17 @@ def _apply(plant: _Plant, point: OperatingPoint) -> None:
     d.qvel[:] = 0.0
     clear_integrals(d)
     for joint, effort in zip(point.joints, point.efforts, strict=True):
-        motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
+        motor, integral, qpos_adr = _joint_ids(model, joint)
         if motor < 0:
             continue
-        q = d.qpos[model.jnt_qposadr[model.joint(joint).id]]
-        set_hold_controls(model, d, motor, integral, q, effort)
+        set_hold_controls(model, d, motor, integral, d.qpos[qpos_adr], effort)
     mujoco.mj_forward(plant.model, d)
 
 
 def _open_loop(model: mujoco.MjModel, joints: Iterable[str]) -> None:
     """The effort-claimed joints' PD and I terms off, as an effort controller runs them."""
     for joint in joints:
-        motor, integral = _actuator(model, joint), _actuator(model, joint + INTEGRAL_SUFFIX)
+        motor, integral, _ = _joint_ids(model, joint)
         set_motor_gain(model, motor, "p", 0.0)
         set_motor_gain(model, motor, "d", 0.0)
         if integral >= 0:
@@ -433,8 +583,7 @@ def _steps(model: mujoco.MjModel, period: float | None) -> int:
     step = model.opt.timestep
     if period is None:
         return 1
-    if not np.isfinite(period) or period <= 0:
-        raise InputError(f"period {period} is not a positive number of seconds")
+    SAMPLE_PERIOD.check(period, "period")
     steps = round(period / step)
     if steps < 1 or abs(steps * step - period) > 1e-9 * max(period, 1.0):
         raise InputError(f"period {period:g} s is not a multiple of the time step {step:g} s",
@@ -500,7 +649,20 @@ def _signal(name: str) -> str:
     return name.replace(".", "_")  # python-control reserves '.' for system.signal
 
 
+_NAMES: weakref.WeakKeyDictionary[Any, Any] = weakref.WeakKeyDictionary()  # model -> {root: names}
+
+
 def _state_names(plant: _Plant) -> list[str]:
+    by_root = _NAMES.get(plant.model)
+    if by_root is None:
+        by_root = _NAMES[plant.model] = {}
+    names = by_root.get(plant.root_joint)
+    if names is None:
+        names = by_root[plant.root_joint] = _named_states(plant)
+    return list(names)
+
+
+def _named_states(plant: _Plant) -> list[str]:
     model = plant.model
     positions, velocities = [], []
     for j in range(model.njnt):
@@ -528,13 +690,10 @@ def _kept_states(model: mujoco.MjModel, a: np.ndarray, c: np.ndarray) -> list[in
     """Every position and velocity; an actuator state only if something depends on it (an
     integral with ki = 0 would be a mode at 1 nothing sees: dlqr refuses such a model)."""
     first = 2 * model.nv
-    keep = list(range(first))
-    for i in range(first, a.shape[0]):
-        column = a[:, i].copy()
-        column[i] = 0.0
-        if np.abs(column).max(initial=0.0) > 0 or np.abs(c[:, i]).max(initial=0.0) > 0:
-            keep.append(i)
-    return keep
+    acts = np.abs(a[:, first:]).copy()
+    acts[first + np.arange(acts.shape[1]), np.arange(acts.shape[1])] = 0.0  # its own entry
+    used = (acts.max(axis=0, initial=0.0) > 0) | (np.abs(c[:, first:]).max(axis=0, initial=0.0) > 0)
+    return list(range(first)) + [first + int(i) for i in np.flatnonzero(used)]
 
 
 def _input_map(plant: _Plant, joints: list[str], interface: str) -> tuple[np.ndarray, list[str], np.ndarray]:
@@ -656,5 +815,5 @@ def _copy_settings(source: mujoco.MjModel, target: mujoco.MjModel) -> None:
         old = source.actuator(target.actuator(i).name).id
         for name in RUNTIME_ACTUATOR_FIELDS:  # the rest compiled from the same spec
             getattr(target, name)[i] = getattr(source, name)[old]
-    for name in ("timestep", "gravity", "disableflags", "enableflags", "integrator", "iterations"):
+    for name in _OPTIONS:
         setattr(target.opt, name, getattr(source.opt, name))

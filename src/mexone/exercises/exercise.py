@@ -1,6 +1,8 @@
 """An exercise is a folder: exercise.yaml (what it is and its limits), grader.py (its checks),
-statement.md, starter/ and solution/. This module reads one and finds them: shipped ones under
-mexone/exercises/course/, a teacher's from a path or the `mexone.exercises` entry-point group."""
+statement.md, starter/ and (a teacher's own) solution/. This module reads one and finds them:
+shipped ones under mexone/exercises/course/, a teacher's from a path or the `mexone.exercises`
+entry-point group. The shipped ones' reference solutions are not in mexone: they are in the
+teacher's pack (`pip install ./teacher`), found through the `mexone.solutions` group."""
 
 from __future__ import annotations
 
@@ -18,10 +20,12 @@ from mexone.exercises.isolate import Limits
 from mexone.inputs import read_input_text
 
 __all__ = ["Exercise", "LiveController", "SUBMISSION_KINDS", "load_exercise", "find_exercise", "exercises",
-           "COURSE", "ENTRY_POINT_GROUP"]
+           "COURSE", "ENTRY_POINT_GROUP", "SOLUTIONS_GROUP", "TEACHER_PACK"]
 
 COURSE = Path(__file__).resolve().parent / "course"
 ENTRY_POINT_GROUP = "mexone.exercises"
+SOLUTIONS_GROUP = "mexone.solutions"  # a teacher's pack: <folder>/<exercise>/<file>
+TEACHER_PACK = "pip install ./teacher (from a clone of mexone's repository; teachers only)"
 # what a student hands in: a rospy routine, a PythonController, a controllers YAML, a routine's
 # parameters, a model, JSON, or a Python file of functions the grader calls (ctx.run)
 SUBMISSION_KINDS = ("routine", "controller", "gains", "params", "urdf", "json", "function")
@@ -73,8 +77,18 @@ class Exercise:
 
     @property
     def solution(self) -> Path:
-        """The reference solution's file (the teacher's), in the exercise's folder."""
-        return self.folder / "solution" / self.file
+        """The reference solution: the exercise's own solution/FILE (a teacher's exercise), else
+        the teacher's pack's. The shipped course's are only in the pack, never in mexone's wheel:
+        without it this is an InputError saying where they are."""
+        own = self.folder / "solution" / self.file
+        if own.is_file():
+            return own
+        for folder in _entry_point_folders(SOLUTIONS_GROUP).values():
+            path = folder / self.name / self.file
+            if path.is_file():
+                return path
+        raise InputError(f"no reference solution of '{self.name}' here: the shipped course's are "
+                         "in the teacher's pack, not in mexone", hint=TEACHER_PACK)
 
     def grader(self) -> ModuleType:
         """The exercise's grader.py, imported (it is the teacher's code, run in the grader)."""
@@ -224,7 +238,16 @@ def exercises() -> dict[str, Path]:
     folder being the exercise's, or "package:FOLDER" for a folder inside it)."""
     found = {p.name: p for p in sorted(COURSE.iterdir(), key=_course_order)
              if (p / "exercise.yaml").is_file()}
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
+    for name, folder in _entry_point_folders(ENTRY_POINT_GROUP).items():
+        found.setdefault(name, folder)
+    return found
+
+
+def _entry_point_folders(group: str) -> dict[str, Path]:
+    """name -> folder of each entry point of `group`: "package.module" names the module's
+    folder, "package:FOLDER" a folder inside it (found without importing the package)."""
+    found: dict[str, Path] = {}
+    for ep in entry_points(group=group):
         try:
             module, _, sub = ep.value.partition(":")
             spec = importlib.util.find_spec(module)

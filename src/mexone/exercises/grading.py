@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import hmac
 import json
 import logging
 import os
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from mexone.errors import InputError
+from mexone.errors import InputError, printable
 from mexone.exercises.exercise import Exercise
 from mexone.exercises.isolate import (
     SECRET_ENV,
@@ -40,8 +41,11 @@ from mexone.files import replacing
 from mexone.sandbox import isolation, keep_private
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
-           "submissions_in", "not_handed_in", "existing_plots", "SECRET_ENV"]
+           "submissions_in", "not_handed_in", "existing_plots", "SECRET_ENV", "SECRET_MIN",
+           "hidden_rng", "csv_cell", "refused_link"]
 
+SECRET_MIN = 16  # characters of $MEXONE_EXERCISE_SECRET: fewer could be guessed from a variant
+REASON_LIMIT = 500  # characters of a reason or a check's output a report shows
 
 
 @dataclass
@@ -123,12 +127,15 @@ class GradeContext:
 
     @property
     def rng(self) -> np.random.Generator:
-        """The hidden variation's generator for this seed: the exercise's secret seed (and the
-        teacher's $MEXONE_EXERCISE_SECRET) with the episode's seed. Draw from it here, in the
-        grader; hand only the drawn values to ctx.simulate."""
-        secret = os.environ.get(SECRET_ENV, "")
-        mixed = int.from_bytes(hashlib.sha256(secret.encode()).digest()[:8], "little")
-        return np.random.default_rng([self.exercise.secret_seed, mixed, self.seed])
+        """The hidden variation's generator for this seed, keyed by the teacher's
+        $MEXONE_EXERCISE_SECRET (hidden_rng): draw from it here, in the grader; hand only the
+        drawn values to ctx.simulate. Without the secret it is refused (InputError): the
+        exercise's secret_seed is in the wheel, and a variation anyone can draw is no secret.
+        The self-check (local) hides nothing: its generator is the public one of the exercise's
+        secret_seed and the episode, the same on every machine."""
+        if self.local:
+            return np.random.default_rng([self.exercise.secret_seed, self.seed])
+        return hidden_rng(self.exercise, self.seed, os.environ.get(SECRET_ENV, ""))
 
     def variation(self, mass: float = 0.0, damping: float = 0.0,
                   friction: float = 0.0) -> Variation:
@@ -218,6 +225,23 @@ class GradeContext:
         return saved
 
 
+def hidden_rng(exercise: Exercise, seed: int, secret: str) -> np.random.Generator:
+    """The generator of episode `seed`'s hidden variation: seeded by HMAC-SHA256 keyed with the
+    teacher's secret over the exercise's name, its secret_seed and the episode. Whoever lacks
+    the secret cannot tell one variant from another; secret_seed only tells exercises (and a
+    teacher's redraws) apart."""
+    if len(secret) < SECRET_MIN:
+        said = "is not set" if not secret else f"has {len(secret)} characters"
+        raise InputError(f"${SECRET_ENV} {said}: the hidden variation is keyed by the teacher's "
+                         f"secret (at least {SECRET_MIN} characters)",
+                         hint=f"export {SECRET_ENV}=\"$(python3 -c 'import secrets; "
+                              "print(secrets.token_urlsafe())')\" on the grading machine, or "
+                              "grade the nominal robot with --local")
+    message = f"mexone-exercise\0{exercise.name}\0{exercise.secret_seed}\0{seed}".encode()
+    digest = hmac.new(secret.encode(), message, hashlib.sha256).digest()
+    return np.random.default_rng(np.frombuffer(digest, dtype=np.uint32))
+
+
 @dataclass
 class Result:
     """A graded submission: its score and each check's (the worst over the seeds)."""
@@ -268,6 +292,9 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     """Grade `submission` (the student's file) on every seed of the exercise; its figures go to
     `plots` (a PNG already there is replaced only with `force`)."""
     submission = Path(submission)
+    link = refused_link(submission)
+    if link is not None:
+        return zero(exercise, submission, link)
     if not submission.is_file():
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
@@ -344,9 +371,7 @@ def _grade(exercise: Exercise, submission: Path, copy: Path, local: bool, plots:
         try:
             checks = list(grader.grade(ctx))
         except SubmissionFailed as exc:
-            return Result(exercise, submission, 0.0,
-                          [(Check("runs", 0.0, 1.0, exc.reason), 0.0, exercise.points)],
-                          exc.reason, exc.output, seconds=time.monotonic() - began)
+            return zero(exercise, submission, exc.reason, exc.output, time.monotonic() - began)
         finally:
             ctx.cleanup()
         saved += ctx.save_figures()
@@ -360,8 +385,9 @@ def _grade(exercise: Exercise, submission: Path, copy: Path, local: bool, plots:
             fraction = float(np.clip(np.nan_to_num(check.fraction), 0.0, 1.0))
             seen = combined.get(check.name)
             if seen is None or fraction < seen.fraction:
-                combined[check.name] = Check(check.name, fraction, check.weight,
-                                             check.output, check.visibility)
+                combined[check.name] = Check(printable(check.name, 80), fraction, check.weight,
+                                             printable(check.output, REASON_LIMIT),
+                                             check.visibility)
     total = sum(max(c.weight, 0.0) for c in combined.values()) or 1.0
     rows = []
     for check in combined.values():
@@ -371,6 +397,29 @@ def _grade(exercise: Exercise, submission: Path, copy: Path, local: bool, plots:
                                         for c in combined.values()) / total, 4)
     return Result(exercise, submission, score, rows, plots=saved,
                   seconds=time.monotonic() - began)
+
+
+def zero(exercise: Exercise, submission: Path, reason: str, output: str = "",
+         seconds: float = 0.0) -> Result:
+    """0 points for a submission that could not be graded, and why (one line, as printable)."""
+    reason = printable(reason, REASON_LIMIT)
+    return Result(exercise, submission, 0.0,
+                  [(Check("runs", 0.0, 1.0, reason), 0.0, exercise.points)], reason, output,
+                  seconds=seconds)
+
+
+def refused_link(path: Path) -> str | None:
+    """Why a submission that is a symbolic link (a file, or a student's folder in a folder of
+    submissions) is refused, not read and not run: it could name anything (/etc/passwd, the
+    reference, another student's file). None for anything else."""
+    if not path.is_symlink():
+        return None
+    try:
+        target = os.readlink(path)
+    except OSError:
+        target = "?"
+    return (f"{printable(path.name, 80)} is a symbolic link (to {printable(target, 120)}): "
+            "refused, not read; hand in the file itself")
 
 
 def gradescope_json(result: Result) -> dict:
@@ -388,7 +437,8 @@ def gradescope_json(result: Result) -> dict:
     if result.failure:
         summary += f" -- {result.failure}"
         if result.output.strip():
-            summary += "\n\nthe submission's output (its end):\n" + result.output
+            summary += "\n\nthe submission's output (its end):\n" + "\n".join(
+                output_lines(result))
     return {"score": result.score, "execution_time": max(0, round(result.seconds)),
             "output": summary, "visibility": "visible", "stdout_visibility": "hidden",
             "tests": tests,
@@ -401,21 +451,26 @@ def submissions_in(folder: Path, file: str) -> dict[str, Path]:
     """A folder of submissions: each student a subfolder holding `file`, or a file of the
     same kind (its stem is the student's name; .yml counts as .yaml). A subfolder without
     `file` is a student too, mapped to the missing path (not_handed_in grades it 0, with why):
-    no student drops out of the CSV. Two submissions of one student are refused."""
+    no student drops out of the CSV. A symbolic link (a file or a subfolder) is the student's
+    entry itself, which grade refuses (refused_link). Two submissions of one student are
+    refused."""
     found: dict[str, Path] = {}
     suffix = Path(file).suffix
     kinds = {".yaml", ".yml"} if suffix in (".yaml", ".yml") else {suffix}
     for entry in sorted(folder.iterdir()):
         if entry.name.startswith("."):
             continue
-        if entry.is_dir():
+        if entry.is_symlink():
+            student, path = entry.stem if entry.suffix in kinds else entry.name, entry
+        elif entry.is_dir():
             student, path = entry.name, entry / file
         elif entry.is_file() and entry.suffix in kinds:
             student, path = entry.stem, entry
         else:
             continue
         if student in found:
-            raise InputError(f"two submissions of {student}: {found[student]} and {path}",
+            raise InputError(f"two submissions of {printable(student, 80)}: "
+                             f"{printable(found[student])} and {printable(path)}",
                              hint="keep one of them in the folder")
         found[student] = path
     return found
@@ -427,42 +482,73 @@ def not_handed_in(exercise: Exercise, path: Path) -> Result:
     reason = f"no {exercise.file} in {path.parent}" + (
         f" (it holds {', '.join(held[:5])}{', ...' if len(held) > 5 else ''}: hand in "
         f"{exercise.file})" if held else " (it is empty)")
-    return Result(exercise, path, 0.0, [(Check("runs", 0.0, 1.0, reason), 0.0, exercise.points)],
-                  reason)
+    return zero(exercise, path, reason)
+
+
+def reason(result: Result) -> str:
+    """Why a submission lost points, in one line: the reason it could not be graded, else each
+    failing check and what it measured ("" for full marks)."""
+    if result.failure:
+        return result.failure
+    return "; ".join(f"{c.name}: {c.output}" if c.output else c.name
+                     for c, _, _ in result.checks if not c.passed)
+
+
+CSV_FORMULA = ("=", "+", "-", "@", "\t", "\r")  # what a spreadsheet reads as a formula (OWASP)
+
+
+def csv_cell(value: object) -> str:
+    """A CSV cell a spreadsheet shows as text: printable, and a leading ' where it would start
+    with = + - @ tab or CR (OWASP's rule against CSV injection)."""
+    raw = str(value)
+    text = printable(raw, REASON_LIMIT * 4)
+    return "'" + text if raw.startswith(CSV_FORMULA) or text.startswith(CSV_FORMULA) else text
 
 
 def write_csv(results: dict[str, Result], path: Path) -> None:
-    """One row per student: score, passed, each check's score, why it failed."""
+    """One row per student: score, passed, each check's points (runs included: they add up to
+    the score; empty where a submission has no such check), the failing checks, and the reason
+    (reason()) for every score below full marks. Every cell is csv_cell'd."""
     names: list[str] = []
     for result in results.values():
         for check, _, _ in result.checks:
-            if check.name not in names and check.name != "runs":
+            if check.name not in names:
                 names.append(check.name)
+    if "runs" in names:  # first: a submission that did not run has nothing else
+        names.insert(0, names.pop(names.index("runs")))
     with open(path, "w", newline="") as f:
         out = csv.writer(f)
-        out.writerow(["student", "score", "max_score", "passed", *names, "failing", "reason"])
+        out.writerow([csv_cell(c) for c in
+                      ("student", "score", "max_score", "passed", *names, "failing", "reason")])
         for student, r in results.items():
             by_name = {c.name: s for c, s, _ in r.checks}
-            out.writerow([student, f"{r.score:g}", f"{r.max_score:g}", "yes" if r.passed else "no",
-                          *(f"{by_name.get(n, 0):g}" for n in names), " ".join(r.failing),
-                          r.failure or ""])
+            out.writerow([csv_cell(c) for c in (
+                student, f"{r.score:g}", f"{r.max_score:g}", "yes" if r.passed else "no",
+                *(f"{by_name[n]:g}" if n in by_name else "" for n in names),
+                " ".join(r.failing), reason(r))])
 
 
 def as_text(result: Result) -> str:
     """The report `mexone exercise grade` prints."""
-    lines = [f"{result.exercise.title} ({result.exercise.name}): {result.submission}"]
+    lines = [f"{result.exercise.title} ({result.exercise.name}): {printable(result.submission)}"]
     for check, score, top in result.checks:
         mark = "PASS" if check.passed else "FAIL"
         lines.append(f"  {mark} {check.name:<28} {score:6.2f}/{top:<6.2f} {check.output}")
     if result.failure and result.output.strip():
         lines.append("  the submission's output (its end):")
-        lines += ["    " + line for line in result.output.strip().splitlines()[-15:]]
+        lines += ["    | " + line for line in output_lines(result)[-15:]]
     for path in result.plots:
         lines.append(f"  plot: {path}")
     verdict = "passed" if result.passed else "not passed"
     lines.append(f"score {result.score:g}/{result.max_score:g} ({verdict}; pass mark "
                  f"{result.exercise.pass_mark:g})")
     return "\n".join(lines)
+
+
+def output_lines(result: Result) -> list[str]:
+    """The submission's own output (its end), each line printable: whatever it printed (a
+    carriage return, an escape sequence, "score 10/10") stays inside its own quoted lines."""
+    return [printable(line, 200) for line in result.output.strip().splitlines()]
 
 
 def dumps(data: dict) -> str:

@@ -30,8 +30,9 @@ POOLS = 3  # pools that may break (a worker killed) before the grading gives up
 
 def _grade_one(exercise: Exercise, path: Path, local: bool, plots: Path | None,
                force: bool) -> Result:
-    return grade(exercise, path, local=local, plots=plots, force=force) if path.is_file() \
-        else not_handed_in(exercise, path)
+    # a symlink is graded too: grade() refuses it unread, with its reason
+    return grade(exercise, path, local=local, plots=plots, force=force) \
+        if path.is_file() or path.is_symlink() else not_handed_in(exercise, path)
 
 
 def grade_all(exercise: Exercise, submissions: dict[str, Path], workers: int = 1,

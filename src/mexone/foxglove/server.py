@@ -11,7 +11,9 @@ Foxglove and Lichtblick, with the robot drawn in their 3D panel.
   listens: the protocol has no latching) for the 3D panel's URDF layer, whose meshes
   (`package://...`) the server hands out through the protocol's asset fetch, from the robot's
   package folders only;
-- sim time (the protocol's Time capability), messages stamped with it.
+- sim time (the protocol's Time capability), messages stamped with it;
+- only pages on this machine, and the origins given (`--foxglove-origin`, e.g. Foxglove's web
+  app), may connect from a browser (foxglove/gate.py: the SDK's server sits behind it).
 
 Channels send only while a client subscribes (polled between steps). Only the simulation thread
 reads MuJoCo; the SDK sends from its own threads.
@@ -24,13 +26,16 @@ import contextlib
 import dataclasses
 import logging
 import os
+import stat
 import time
 import typing
+from collections.abc import Sequence
 from pathlib import Path
 
 from mexone.bus import msgs, ros_map
 from mexone.bus.topics import Relay
-from mexone.errors import InputError, MexoneError, install_extra
+from mexone.errors import InputError, MexoneError, install_extra, printable
+from mexone.origins import origin_of
 
 __all__ = ["FoxgloveBridge", "DEFAULT_PORT", "FOXGLOVE_INSTALL", "json_schema", "to_json"]
 
@@ -133,22 +138,33 @@ def _json_bytes(value) -> bytes:
 class FoxgloveBridge:
     """Serve (`__init__`), attach the lab (`attach`), `pump` between steps, `shutdown`."""
 
-    def __init__(self, port: int = DEFAULT_PORT, host: str = "127.0.0.1"):
+    def __init__(self, port: int = DEFAULT_PORT, host: str = "127.0.0.1",
+                 origins: Sequence[str] = ()):
         try:
+            import cryptography  # noqa: F401 - the gate's certificate (the foxglove extra)
             import foxglove
         except ImportError:
             raise MexoneError("foxglove-sdk is not installed",
                               hint=f"install it with: {FOXGLOVE_INSTALL}") from None
+        from mexone.foxglove.gate import Gate, loopback_certificate
+
+        trusted = [origin_of(o) for o in origins]  # a bad --foxglove-origin: one line, first
         self.context = foxglove.Context()
         self._roots: dict[str, Path] = {}
-        try:
+        certificate, key = loopback_certificate()
+        try:  # the SDK's server: loopback, TLS; only the gate (which checks Origin) gets in
             self.server = foxglove.start_server(
-                name="mexone", host=host, port=port, context=self.context,
-                capabilities=[foxglove.Capability.Time], asset_handler=self._asset)
+                name="mexone", host="127.0.0.1", port=0, context=self.context,
+                capabilities=[foxglove.Capability.Time], asset_handler=self._asset,
+                tls_cert=certificate, tls_key=key)
         except Exception as exc:  # noqa: BLE001 - the SDK's error for a taken or bad address
-            raise InputError(f"cannot serve Foxglove on {host}:{port}: {exc}",
-                             hint="pick another port: --foxglove PORT") from None
-        self.host, self.port = host, self.server.port
+            raise InputError(f"cannot serve Foxglove: {exc}") from None
+        try:
+            self.gate = Gate(host, port, self.server.port, certificate, trusted)
+        except BaseException:
+            self.server.stop()
+            raise
+        self.host, self.port = host, self.gate.port
         self.lab = None
 
     def where(self) -> str:
@@ -222,21 +238,40 @@ class FoxgloveBridge:
                                  log_time=self.lab.sim.time_ns)
 
     def _asset(self, uri: str) -> bytes | None:
-        """package://<pkg>/<path> from the robot's package folders, nothing else (SDK thread)."""
+        """package://<pkg>/<path> from the robot's package folders, nothing else (SDK thread):
+        None (not found) for anything outside them or not a regular file (a FIFO would hold the
+        SDK's thread); an error that cannot be read names the URI, never the folder it is in."""
         if not uri.startswith("package://"):
             return None
         package, _, rest = uri[len("package://"):].partition("/")
         root = self._roots.get(package)
         if root is None:
             return None
-        path = (root / rest).resolve()
-        if not path.is_relative_to(root) or not path.is_file():
+        try:
+            path = (root / rest).resolve()
+        except (OSError, RuntimeError):  # a symbolic link loop: its message names the folder
+            raise OSError(f"{printable(uri, 200)}: a symbolic link loop") from None
+        if not path.is_relative_to(root):
             return None
-        return path.read_bytes()
+        try:
+            fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            raise OSError(f"{printable(uri, 200)}: {exc.strerror or 'cannot be read'}") from None
+        with os.fdopen(fd, "rb") as handle:
+            if not stat.S_ISREG(os.fstat(fd).st_mode):
+                return None
+            try:
+                return handle.read()
+            except OSError as exc:
+                raise OSError(f"{printable(uri, 200)}: {exc.strerror or 'cannot be read'}") \
+                    from None
 
     def shutdown(self) -> None:
         if self.lab is not None:
             self.lab.sim.remove_periodic(self._timer)
+        self.gate.close()
         with contextlib.suppress(Exception):  # already stopped
             self.server.stop()
 

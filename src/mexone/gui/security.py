@@ -4,7 +4,8 @@ Any web page the user has open can open a websocket to ws://127.0.0.1:8080. A br
 sends the page's Origin with that handshake, so the server refuses a websocket whose Origin is
 not the page it served itself (same scheme, host and port as the request's Host header), and a
 Host header that names some other site (DNS rebinding: evil.example resolving to 127.0.0.1).
-Clients that send no Origin are not web pages (scripts, tests) and pass the Origin check.
+Clients that send no Origin are not web pages (scripts, tests) and pass the Origin check. The
+rule itself is mexone.origins', which the Foxglove bridge applies too.
 
 On a machine shared by many users (a JupyterHub: every student's lab listens on the same
 loopback) the Origin is no fence: another user's process can connect to 127.0.0.1:PORT and say
@@ -28,11 +29,9 @@ from __future__ import annotations
 import asyncio
 import hmac
 import http
-import ipaddress
 import logging
 import os
 import secrets
-import socket
 import sys
 import threading
 import weakref
@@ -43,11 +42,12 @@ from urllib.parse import parse_qs, urlsplit
 import viser
 from websockets.asyncio import server as ws_server
 
+from mexone.origins import allowed, is_loopback  # the rule, shared with the Foxglove bridge
+
 __all__ = ["guard", "allowed", "is_loopback", "warn_if_exposed", "LabAccess", "lab_access",
            "TOKEN_ENV", "TOKEN_HEADER", "TOKEN_PARAM"]
 
 log = logging.getLogger("mexone.gui")
-_LOCAL_NAMES = {"localhost", "localhost.localdomain"}
 
 TOKEN_ENV = "MEXONE_LAB_TOKEN"  # the secret a hub's launcher hands the lab it starts
 TOKEN_HEADER = "X-Mexone-Token"  # what the hub's proxy adds to every request it forwards
@@ -57,50 +57,6 @@ HUB_ENV = "JUPYTERHUB_SERVICE_PREFIX"  # set in every process of a JupyterHub us
 # own URL less a trailing slash, and jupyter-server-proxy answers .../8123 (no slash) with a
 # redirect, which a websocket cannot follow; .../8123/index.html reaches the lab either way.
 PAGE = "index.html"
-
-
-def is_loopback(host: str) -> bool:
-    if host in _LOCAL_NAMES:
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False
-
-
-def _host_ok(hostname: str) -> bool:
-    """A Host header we serve: an IP literal (no DNS name, so no rebinding), a loopback name,
-    or this machine's own name."""
-    if not hostname:
-        return False
-    try:
-        ipaddress.ip_address(hostname.strip("[]"))
-        return True
-    except ValueError:
-        pass
-    own = {socket.gethostname().lower(), socket.getfqdn().lower()}
-    return hostname.lower() in _LOCAL_NAMES | own
-
-
-def _same_origin(origin: str, host_header: str) -> bool:
-    parts = urlsplit(origin)
-    return parts.scheme in ("http", "https") and parts.netloc.lower() == host_header.lower()
-
-
-def allowed(origin: str | None, host_header: str | None, secret_shown: bool = False
-            ) -> tuple[bool, str]:
-    """(accepted, reason) for a request's Origin and Host headers. `secret_shown`: the request
-    presented the lab's secret (LabAccess), so its Host may be a hub's public name."""
-    if not host_header:
-        return False, "no Host header"
-    hostname = urlsplit(f"//{host_header}").hostname or ""
-    if not secret_shown and not _host_ok(hostname):
-        return False, f"Host '{host_header}' is not this machine"
-    if origin is None:
-        return True, "no Origin: not a web page"
-    if not _same_origin(origin, host_header):
-        return False, f"Origin '{origin}' is not the page this server served ({host_header})"
-    return True, "same origin"
 
 
 @dataclass(frozen=True)

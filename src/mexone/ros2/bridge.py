@@ -94,7 +94,10 @@ class Ros2Bridge:
             # warnings go to stderr through mexone's own log already: rcl's copy only to /rosout
             rclpy.init(args=["--ros-args", "--disable-stdout-logs"], context=self.context,
                        signal_handler_options=SignalHandlerOptions.NO)
-            self.node = rclpy.create_node(node_name, context=self.context)
+            # the parameter services start with our check of every set (params.Parameters): a
+            # request before it would meet rclpy's own, which lets an empty name through
+            self.node = rclpy.create_node(node_name, context=self.context,
+                                          start_parameter_services=False)
         except Exception as exc:  # noqa: BLE001 - rcl's errors: a bad domain id, no middleware
             raise MexoneError(f"cannot join the ROS 2 graph: {exc}",
                               hint="check ROS_DOMAIN_ID (0-232) and RMW_IMPLEMENTATION") from None

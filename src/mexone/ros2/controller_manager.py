@@ -18,8 +18,8 @@ from __future__ import annotations
 import logging
 
 from mexone.control.manager import BEST_EFFORT, STRICT
-from mexone.errors import InputError, MexoneError
-from mexone.ranges import TIMEOUT
+from mexone.errors import InputError, MexoneError, printable
+from mexone.ranges import SWITCH_NAMES, TIMEOUT
 
 __all__ = ["ControllerManagerServices", "SERVICES", "INTERFACES", "command_interface",
            "AUTO", "FORCE_AUTO"]
@@ -149,7 +149,7 @@ class ControllerManagerServices:
     def _load_controller(self, request, _response) -> str:
         name = request.name
         self.bridge.call(lambda: self.manager.load(name))
-        return f"{name} loaded (inactive)"
+        return f"{printable(name, 80)} loaded (inactive)"
 
     def _configure_controller(self, request, _response) -> str:
         """ros2_control cleans an inactive controller up and configures it again: here it is
@@ -172,12 +172,12 @@ class ControllerManagerServices:
                 self.manager.controllers[name] = ctrl  # as it was
                 raise
         self.bridge.call(configure)
-        return f"{name} configured (inactive)"
+        return f"{printable(name, 80)} configured (inactive)"
 
     def _unload_controller(self, request, _response) -> str:
         name = request.name
         self.bridge.call(lambda: self.manager.unload(name))
-        return f"{name} unloaded"
+        return f"{printable(name, 80)} unloaded"
 
     def _switch_controller(self, request, _response) -> str:
         strictness = request.strictness
@@ -192,9 +192,24 @@ class ControllerManagerServices:
         TIMEOUT.check(timeout, "timeout")
         start = list(request.activate_controllers)
         stop = list(request.deactivate_controllers)
+        if not SWITCH_NAMES.contains(len(start) + len(stop)):
+            raise InputError(f"switch_controller names {len(start) + len(stop)} controllers: at "
+                             f"most {SWITCH_NAMES.high:g} in one request",
+                             hint="name the controllers to switch")
         manager = self.manager
+        unknown: list[str] = []
 
         def switch() -> list[str]:
+            nonlocal start, stop
+            known = set(manager.controllers) | set(manager.config.controllers)
+            unknown[:] = [n for n in dict.fromkeys(start + stop) if n not in known]
+            if unknown and strictness != STRICT:  # skipped, and said so (ros2_control warns)
+                start = [n for n in start if n in known]
+                stop = [n for n in stop if n in known]
+                if not start and not stop:
+                    raise InputError(f"no controller named {_names(unknown)} is loaded or "
+                                     "configured: nothing to switch",
+                                     hint="loaded: " + ", ".join(manager.controllers))
             extra: list[str] = []
             if strictness == FORCE_AUTO:  # deactivate whatever claims the joints asked for
                 wanted = {j for n in start if n in manager.controllers
@@ -208,8 +223,12 @@ class ControllerManagerServices:
             manager.sim.note_input(f"{self.base}/switch_controller")
             return extra
         extra = self.bridge.call(switch)
-        said = [f"activated {', '.join(start)}" if start else "",
-                f"deactivated {', '.join(stop + extra)}" if stop or extra else ""]
+        said = [f"activated {_names(start)}" if start else "",
+                f"deactivated {_names(stop + extra)}" if stop or extra else "",
+                f"skipped {len(unknown)} unknown: {_names(unknown)}" if unknown else ""]
+        if unknown:
+            log.warning("%s/switch_controller: skipped %d unknown controller(s): %s (best "
+                        "effort)", self.base, len(unknown), _names(unknown))
         return "; ".join(s for s in said if s) or "nothing to switch"
 
     def _reload_controller_libraries(self, request, _response) -> str:
@@ -230,4 +249,13 @@ class ControllerManagerServices:
 
 
 def _text(exc: BaseException) -> str:
-    return exc.one_line() if isinstance(exc, MexoneError) else str(exc) or type(exc).__name__
+    """A refusal's one line, printable (a request's names are echoed in it: a NUL, a newline or
+    100 000 characters stay out of the response and /rosout)."""
+    return printable(exc.one_line() if isinstance(exc, MexoneError)
+                     else str(exc) or type(exc).__name__, 500)
+
+
+def _names(names: list[str], shown: int = 5) -> str:
+    """Controller names from a request, for a message: the first `shown`, printable."""
+    listed = ", ".join(printable(n, 80) for n in names[:shown])
+    return listed + (f" (and {len(names) - shown} more)" if len(names) > shown else "")

@@ -17,7 +17,7 @@ import dataclasses
 import logging
 import math
 
-from mexone.errors import InputError
+from mexone.errors import InputError, printable
 from mexone.ranges import GAIN_D, GAIN_I, GAIN_P, GRAVITY, I_CLAMP, RTF, TIMESTEP, number_text
 
 __all__ = ["Parameters", "GAIN_FIELDS", "PHYSICS"]
@@ -41,6 +41,9 @@ class Parameters:
         for name, value in self._current().items():  # attach() runs in the simulation thread
             node.declare_parameter(name, value, any_type)
         node.add_on_set_parameters_callback(self._on_set)
+        from rclpy.parameter_service import ParameterService
+
+        self.service = ParameterService(node)  # now: every set meets _on_set
 
     def _current(self) -> dict[str, object]:
         sim = self.lab.sim
@@ -64,12 +67,16 @@ class Parameters:
         from rcl_interfaces.msg import SetParametersResult
 
         try:
+            for parameter in parameters:  # rclpy lets an empty name through as a success
+                if not parameter.name or not parameter.name.isprintable():
+                    raise InputError(f"parameter name {printable(parameter.name, 80)!r} is not "
+                                     "a parameter's name", hint="`ros2 param list` names them")
             changes = [self._check(p.name, p.value) for p in parameters
                        if p.name.startswith("physics.") or ".gains." in p.name]
             if changes:
                 self.bridge.call(lambda: self._apply(changes))
         except Exception as exc:  # noqa: BLE001 - a refused set is a warning, never a crash
-            text = exc.one_line() if isinstance(exc, InputError) else f"{exc}"
+            text = printable(exc.one_line() if isinstance(exc, InputError) else f"{exc}")
             log.warning("parameter refused: %s", text)
             return SetParametersResult(successful=False, reason=text)
         return SetParametersResult(successful=True)

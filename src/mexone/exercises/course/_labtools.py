@@ -24,11 +24,13 @@ from mexone.physics.compile import CompileOptions, Spawn
 from mexone.robots import mex_one
 
 __all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
-           "controller_fault", "HAND", "HAND_POINT", "ARM"]
+           "controller_fault", "gain_share", "fit_gains", "HAND", "HAND_POINT", "ARM",
+           "GAIN_FULL", "GAIN_NONE"]
 
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
 HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
 ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
+GAIN_FULL, GAIN_NONE = 1.25, 2.0  # a measured gain within x/÷ GAIN_FULL of the asked: full marks
 
 
 def check(name: str, weight: float, fraction: float, output: str,
@@ -36,6 +38,27 @@ def check(name: str, weight: float, fraction: float, output: str,
     """A framework Check from (name, weight, share earned 0..1, why); `requires`: the check it
     presumes (Check.requires: nothing earned when that one failed)."""
     return Check(name, float(np.clip(fraction, 0.0, 1.0)), weight, output, requires=requires)
+
+
+def gain_share(measured: float, asked: float) -> float:
+    """The share (0..1) a gain the controller was measured to apply earns: 1 within a factor
+    GAIN_FULL of the gain asked, none beyond GAIN_NONE (or of the wrong sign), log-linear
+    between: a method check (the statement's law at the grader's gains)."""
+    if not np.isfinite(measured) or measured <= 0:
+        return 0.0
+    off = abs(np.log(measured / asked))
+    return float(np.clip((np.log(GAIN_NONE) - off) / (np.log(GAIN_NONE) - np.log(GAIN_FULL)),
+                         0.0, 1.0))
+
+
+def fit_gains(force: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:
+    """(stiffness, damping, rest point) of the spring-damper force = stiffness (rest - x) -
+    damping v that fits the samples best (least squares): the law a controller applies, measured
+    from what it did (the samples must move: a probe pushes the joint or the hand)."""
+    columns = np.c_[-x, -v, np.ones(len(x))]
+    (stiffness, damping, offset), *_ = np.linalg.lstsq(columns, force, rcond=None)
+    rest = offset / stiffness if stiffness else float("nan")
+    return float(stiffness), float(damping), float(rest)
 
 
 def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
@@ -70,11 +93,13 @@ def scale_mass(body: str, factor: float) -> Callable:
 
 
 def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Callable] = (),
-                   fixed_base: bool = False) -> Lab:
-    """Mex-One with the controllers of `yaml_path`, its joints at `pose`, the variant's edits."""
+                   fixed_base: bool = False, model: Path | None = None, world=None) -> Lab:
+    """Mex-One (or `model`, a variant of its URDF) with the controllers of `yaml_path`, its
+    joints at `pose`, the variant's edits, in `world` (default: the empty world)."""
     try:
-        return Lab.create(controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
-                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base))
+        return Lab.create(model, controllers=yaml_path, spawn=Spawn(joints=tuple(pose.items())),
+                          edits=tuple(edits), options=CompileOptions(fixed_base=fixed_base),
+                          world=world)
     except MexoneError as exc:  # the student's class did not load: its one line is the reason
         raise SubmissionFailed(_students_line(exc, yaml_path)) from None
 
@@ -117,4 +142,8 @@ class JointLog:
 
     def sample(self, sim) -> None:
         self.times.append(sim.time)
-        self.q.append(sim.data.qpos[self.adr].copy())
+        self.q.append(self.positions(sim))
+
+    def positions(self, sim) -> np.ndarray:
+        """The joints' positions now (rad)."""
+        return sim.data.qpos[self.adr].copy()

@@ -2,8 +2,9 @@
 the largest push forward at the torso. Hidden variant: the torso lighter or heavier than the
 robot given (0.75-0.85x or 1.2-1.35x): a controller built on the live model's mass and centre of
 mass balances either; gains tuned by hand on the given robot may not. The shipped PD alone
-survives 3.5 N s (benchmarks/RESULTS.md). The pushes scale with the variant's total mass (the
-same change of speed on any variant)."""
+survives 3.5 N s (benchmarks/RESULTS.md) and, on a heavy torso, 4.5 N s but never 5.0 (4.5 was
+the pass line once: the starter scored 6.7/10 on half the variants). The pushes scale with the
+variant's total mass (the same change of speed on any variant)."""
 
 from __future__ import annotations
 
@@ -27,8 +28,8 @@ NAME = "balance"
 FILE, CLASS = "balance.py", "Balance"
 JOINTS = ("l_ankle_pitch", "r_ankle_pitch")
 GIVEN = {"torso": 1.0}
-PASS = 4.5  # N s: survived, or the check fails (the PD alone does 3.5)
-SCAN = (5.0, 5.5)  # N s: then these, in order, until a fall; full marks at the last
+PASS = 5.0  # N s: survived, or the check fails (the PD alone: 3.5 given, 4.5 on a heavy torso)
+SCAN = (5.5,)  # N s: then these, in order, until a fall; full marks at the last
 TRIAL = PushTrial(direction=(1.0, 0.0, 0.0), settle=0.5, after=2.0)
 
 
@@ -81,8 +82,8 @@ def grade(ctx) -> list:
     what = (f"torso x{var['torso']:.2f}, pushed forward at the torso over 0.1 s, every push x"
             f"{scale:.3f}, the robot's mass ratio")
     return [check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault in any trial"),
-            check(f"survives {PASS:g} N s", 3.0, 1.0 if passed else 0.0,
+            check(f"survives {PASS:g} N s", 4.0, 1.0 if passed else 0.0,
                   f"{'stood' if passed else 'fell'} after {PASS:g} N s ({what})"),
-            check("largest push", 2.0, (largest - PASS) / (SCAN[-1] - PASS) if passed else 0.0,
+            check("largest push", 1.0, (largest - PASS) / (SCAN[-1] - PASS) if passed else 0.0,
                   f"survived every push up to {largest:g} N s of {PASS:g}, "
                   f"{', '.join(f'{s:g}' for s in SCAN)} (full marks at {SCAN[-1]:g})")]

@@ -1,0 +1,124 @@
+"""Exercise 14, an observer of the tilt: the student's controller exports `tilt` (the pelvis's
+roll and pitch from the vertical) from the IMU. Hidden variant: a slope (gravity tilted 2-4
+degrees: an estimate read from the simulator's world-frame truth is off by the slope), the
+IMU's noise and gyro bias. The estimate must depend on the gyro: a second run with the gyro's
+noise 10 % larger must change it (else it read the truth, perhaps offset by the tilt the
+accelerometer read at rest), and the tracking counts only then."""
+
+from __future__ import annotations
+
+import math
+import re
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from mexone.exercises.course._labtools import check, controller_fault, controller_lab, student_yaml
+from mexone.physics.world import World
+from mexone.robots import mex_one
+
+NAME = "observer"
+FILE, CLASS = "tilt_observer.py", "TiltObserver"
+GIVEN = {"slope": (0.0, 0.0), "gyro": 0.01, "bias": (0.0, 0.0), "acc": 0.1, "push": (1.0, 1.0)}
+SECONDS, SETTLE = 3.5, 0.5
+PUSHES = ((1.2, (1.5, 0.0, 0.0)), (2.3, (0.0, 1.2, 0.0)))  # s, N s at the pelvis over 0.1 s
+FULL, NONE = 8e-3, 25e-3  # rad RMS: full marks within FULL, none beyond NONE
+
+
+def variant(r: np.random.Generator | None) -> dict:
+    if r is None:
+        return GIVEN
+    axis = int(r.integers(2))
+    slope = [0.0, 0.0]
+    slope[axis] = float(r.choice([-1.0, 1.0]) * r.uniform(math.radians(2), math.radians(4)))
+    return {"slope": tuple(slope), "gyro": float(r.uniform(0.005, 0.02)),
+            "bias": tuple(float(b) for b in r.uniform(-0.005, 0.005, size=2)),
+            "acc": float(r.uniform(0.05, 0.2)),
+            "push": tuple(float(s) for s in r.choice([-1.0, 1.0], size=2))}
+
+
+def noisy_urdf(folder: Path, var: dict, louder: bool) -> Path:
+    """Mex-One's URDF with the variant's IMU noise (Gazebo's <noise>: stddev, bias_mean);
+    louder: the gyro's noise 10 % larger (the same draws, scaled), the accelerometer's as it
+    was."""
+    text = mex_one.urdf_path().read_text()
+    bias = np.array([*var["bias"], 0.0])
+    scale = 1.1 if louder else 1.0
+
+    def noise(block: str, std: float, means) -> None:
+        nonlocal text
+        match = re.search(rf"<{block}>.*?</{block}>", text, flags=re.S)
+        body = match.group(0)
+        for axis, mean in zip("xyz", means, strict=True):
+            body = re.sub(rf"<{axis}>.*?</{axis}>", f'<{axis}><noise type="gaussian"><stddev>{std}'
+                          f"</stddev><bias_mean>{mean}</bias_mean></noise></{axis}>", body,
+                          flags=re.S)
+        text = text[:match.start()] + body + text[match.end():]
+
+    noise("angular_velocity", scale * var["gyro"], bias)
+    noise("linear_acceleration", var["acc"], (0.0, 0.0, 0.0))
+    path = folder / "robot.urdf"
+    path.write_text(text)
+    return path
+
+
+def gravity(slope) -> np.ndarray:
+    ax, ay = slope
+    return 9.81 * np.array([math.sin(ay), -math.sin(ax) * math.cos(ay), -math.cos(ax) * math.cos(ay)])
+
+
+def measure(submission: Path, var: dict, louder: bool = False):
+    """In the isolated child: (RMS error rad, the true tilt's RMS, the estimate, fault)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        path = student_yaml(folder, submission, FILE, CLASS, NAME, (), {})
+        g = gravity(var["slope"])
+        lab = controller_lab(path, {}, model=noisy_urdf(folder, var, louder),
+                             world=World(gravity=tuple(g)))
+        down = g / np.linalg.norm(g)
+        pelvis = lab.sim.compiled.bodies["pelvis"]
+        true, estimate = [], []
+
+        def sample(sim) -> None:
+            up = sim.data.xmat[pelvis].reshape(3, 3).T @ (-down)
+            true.append((math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2]))))
+            estimate.append(np.array(lab.manager.exports()[f"{NAME}/tilt"]))
+
+        lab.sim.add_periodic(lab.sim.timestep, sample)
+        for at, impulse in PUSHES:
+            lab.sim.run(at - lab.sim.time)
+            force = np.asarray(impulse) * np.array([var["push"][0], var["push"][1], 1.0]) / 0.1
+            lab.sim.apply_wrench("pelvis", tuple(force), (0.0, 0.0, 0.0), duration=0.1)
+        lab.sim.run(SECONDS - lab.sim.time)
+        fault = controller_fault(lab, NAME)
+    true, estimate = np.array(true), np.array(estimate)
+    keep = np.arange(len(true)) * 1e-3 >= SETTLE
+    error = estimate[keep] - true[keep]
+    rms = float(np.sqrt(np.mean(error**2))) if np.isfinite(error).all() else math.inf
+    return rms, float(np.sqrt(np.mean(true[keep] ** 2))), estimate, fault
+
+
+def grade(ctx) -> list:
+    var = variant(None if ctx.local else ctx.rng)
+    rms, size, estimate, fault = ctx.run(measure, ctx.submission, var)
+    runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"exported a tilt for {SECONDS} s")
+    what = (f"slope {math.degrees(var['slope'][0]):.1f}/{math.degrees(var['slope'][1]):.1f} deg, "
+            f"gyro {var['gyro']:g} rad/s (bias {var['bias'][0]:+.4f}, {var['bias'][1]:+.4f}), "
+            f"accelerometer {var['acc']:g} m/s^2")
+    frac = 0.0 if fault or not math.isfinite(rms) else (NONE - rms) / (NONE - FULL)
+    tracks = check("tracks the tilt", 6.0, frac,
+                   f"RMS error {rms * 1e3:.2f} mrad on a tilt of {size * 1e3:.1f} mrad RMS (full "
+                   f"marks <= {FULL * 1e3:g}, none >= {NONE * 1e3:g}; {what})",
+                   requires="uses the IMU")
+    _, _, again, fault2 = ctx.run(measure, ctx.submission, var, True)
+    n = min(len(estimate), len(again))
+    moved = float(np.abs(estimate[:n] - again[:n]).max()) if n else 0.0
+    reads = moved > 1e-6 and not fault2
+    why = "" if reads else (": it does not fuse the gyro (the accelerometer alone, or the "
+                            "simulator's truth: state.base, state.all_q and the IMU's orientation "
+                            "are not measurements)")
+    uses = check("uses the IMU", 3.0, 1.0 if reads else 0.0,
+                 f"with the gyro's noise 10 % larger the estimate changed by up to "
+                 f"{moved * 1e3:.3f} mrad{why}", requires="runs")
+    return [runs, tracks, uses]

@@ -1,0 +1,134 @@
+"""Course exercises 11-13 (issue 39): the walking stack's COM planner, whole-body weights and
+estimator, each graded through the framework on a short walk under the hidden variant (masses,
+friction, a push). The reference scores full marks, the starter fails, and a cheat fails its
+method check: the shipped planner under the student's name, a key that is not a QP weight,
+an estimator that copies the simulator's base (which the grader hides from it)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mexone.exercises import find_exercise, grade
+
+COURSE = Path(__file__).resolve().parents[2] / "src" / "mexone" / "exercises" / "course"
+WRONG = Path(__file__).resolve().parent / "wrong"
+NAMES = ("walk_com_planner", "walk_faster", "walk_estimator")
+
+
+@pytest.fixture(scope="module")
+def graded():
+    """grade(name, which) once per (exercise, reference | starter | cheat), shared by the
+    tests below (each grading is a walk of a few seconds in the isolated child)."""
+    cache: dict = {}
+
+    def get(name: str, which: str):
+        if (name, which) not in cache:
+            exercise = find_exercise(name)
+            path = {"reference": exercise.solution, "starter": exercise.starter,
+                    "cheat": WRONG / name / exercise.file}[which]
+            cache[name, which] = grade(exercise, path)
+        return cache[name, which]
+    return get
+
+
+def checks(result) -> dict:
+    return {c.name: (score, c.output) for c, score, _ in result.checks}
+
+
+def why(result) -> list[str]:
+    return [f"{c.name}: {c.output}" for c, _, _ in result.checks] + [result.failure or ""]
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_the_hidden_variant_is_not_the_given_robot(name):
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", COURSE / name / "grader.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    hidden = module.variant(np.random.default_rng(1))
+    assert hidden != module.variant(None) and hidden.push is not None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_the_reference_walks_for_full_marks_on_the_hidden_variant(graded, name):
+    result = graded(name, "reference")
+    assert result.score == pytest.approx(find_exercise(name).points), why(result)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NAMES)
+def test_the_starter_fails(graded, name):
+    result = graded(name, "starter")
+    assert result.score < find_exercise(name).pass_mark, why(result)
+    if name == "walk_estimator":  # it walks, on a robot it believes stands still
+        assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
+    else:
+        assert checks(result)["stays up"][0] == 0, why(result)
+
+
+def test_the_shipped_planner_under_the_students_name_scores_zero(graded):
+    result = graded("walk_com_planner", "cheat")
+    assert result.score == 0, why(result)
+    assert "imports mexone.walking.mpc" in checks(result)["your planner in the chain"][1]
+
+
+def test_the_shipped_planner_imported_by_name_at_run_time_scores_zero():
+    exercise = find_exercise("walk_com_planner")
+    result = grade(exercise, WRONG / "walk_com_planner" / "dynamic.py")
+    assert result.score == 0 and "imports by name at run time (importlib)" in why(result)[1], \
+        why(result)
+
+
+def test_a_key_that_is_not_a_weight_of_the_qp_scores_zero_in_one_line(graded):
+    result = graded("walk_faster", "cheat")
+    assert result.score == 0 and "'max_forward' is not a task weight or gain" in why(result)[0], \
+        why(result)
+
+
+@pytest.mark.slow
+def test_an_estimator_that_copies_the_simulators_base_fails(graded):
+    """The grader hides the floating base from the student's class: a copy of state.all_q's
+    base is the robot where it was put, so the stack walks on a robot standing still."""
+    result = graded("walk_estimator", "cheat")
+    assert result.score < find_exercise("walk_estimator").pass_mark, why(result)
+    assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
+
+
+SPY = '''
+from mexone.control import PythonController
+
+
+class MyEstimator(PythonController):
+    exports = {"base": 13, "contact": 2}
+
+    def update(self, state, t, dt):  # what it sees, in its base export (it may run elsewhere)
+        self.exports["base"][:4] = (state.all_q[0], state.base.position[0],
+                                    self.dynamics.pose("pelvis")[0][0], state.all_dq[0])
+'''
+
+
+def test_the_estimators_view_of_the_floating_base_is_where_the_robot_was_put(tmp_path):
+    """The mechanism of exercise 13's method check: the robot moved 0.3 m forward at 1 m/s, the
+    student's class still reads it at the start, at rest (all_q, state.base, self.dynamics),
+    while the other parts read the simulator."""
+    from mexone.exercises.course._walktools import _blind, stack_yaml
+    from mexone.lab import Lab
+
+    source = tmp_path / "spy.py"
+    source.write_text(SPY)
+    work = tmp_path / "run"
+    work.mkdir()
+    lab = Lab.create(controllers=stack_yaml(work, "estimator", source, "spy.py", "MyEstimator"))
+    start = float(lab.sim.data.qpos[0])
+    _blind(lab, "estimator")
+    lab.sim.data.qpos[0] += 0.3
+    lab.sim.data.qvel[0] = 1.0
+    lab.sim.step(10)
+    seen = lab.manager.controllers["estimator"].exports["base"][:4]
+    assert np.allclose(seen[:3], start) and seen[3] == 0.0, (seen, start)
+    whole_body = lab.manager.controllers["whole_body"]
+    assert whole_body.state.all_q[0] > start + 0.29  # the others read the truth
