@@ -281,8 +281,7 @@ def test_a_symlinked_submission_scores_nothing(tmp_path):
     link = tmp_path / "routine.py"
     link.symlink_to(reference)
     result = grade(exercise, link)
-    assert result.score == 0 and result.failure == \
-        "routine.py is a symbolic link, not a file: hand in the file itself"
+    assert result.score == 0 and result.failure.startswith("routine.py is a symbolic link")
 
 
 def test_the_secret_is_never_in_a_report(tmp_path, monkeypatch):
