@@ -62,14 +62,21 @@ def _bye() -> None:
 
 
 def test_run_isolated_limits_cpu_and_wall_time():
+    """The CPU limit ends a spinning run (not the 20 s wall limit), the wall limit a sleeping
+    one within its grace, an os._exit is a failure, a good run returns its value."""
+    from mexone.exercises.isolate import END_GRACE, prewarm
+
+    prewarm()
     began = time.monotonic()
     with pytest.raises(SubmissionFailed, match="CPU time"):
         run_isolated(_spin, limits=Limits(time=20, cpu=1))
+    assert time.monotonic() - began < 20
+    began = time.monotonic()
     with pytest.raises(SubmissionFailed, match="time limit of 1 s"):
         run_isolated(_sleep, limits=Limits(time=1, cpu=10))
+    assert time.monotonic() - began < 1 + END_GRACE + 10  # its grace, a loaded machine's start
     with pytest.raises(SubmissionFailed, match="ended the grading process"):
         run_isolated(_bye)
-    assert time.monotonic() - began < 10
     assert run_isolated(sum, [1, 2, 3]) == 6  # and a good one returns its value
 
 
@@ -223,16 +230,18 @@ raise RuntimeError("found: " + (", ".join(found) or "nothing"))
 
 
 def _spy_run(path: Path, own_process: bool) -> str:
+    from mexone.exercises.isolate import run_trusted
     from mexone.exercises.sim import Variation, simulate
 
-    run = run_isolated(simulate, 0.05, routine=path, variation=Variation(mass=1.2345),
-                       raise_routine_errors=False, own_process=own_process)
+    run = run_trusted(simulate, 0.05, routine=path, variation=Variation(mass=1.2345),
+                      raise_routine_errors=False, own_process=own_process)
     return run.error
 
 
 def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
-    """The routine's process holds no model, no variation, no secret: the same spy run in the
-    simulator's process (own_process=False, what a fork would see) finds them."""
+    """The routine's process holds no model, no variation, no secret; the simulator, which
+    holds them, refuses to run the spy in its own process (own_process=False): it runs no
+    student code."""
     from mexone.exercises.grading import SECRET_ENV
 
     monkeypatch.setenv(SECRET_ENV, "teacher-secret-xyz")
@@ -240,7 +249,33 @@ def test_a_graded_routine_cannot_read_the_varied_model(tmp_path, monkeypatch):
     path.write_text(SPY)
     assert _spy_run(path, own_process=True).endswith("RuntimeError: found: nothing")
     inside = _spy_run(path, own_process=False)
-    assert all(s in inside for s in ("Variation", "Lab", "mujoco imported")), inside
+    assert "UntrustedCode: the grader's simulator runs no student code, and spy.py (Python " \
+        "code) is not the grader's" in inside, inside
+
+
+def _load(path: str | Path) -> str:
+    from mexone.description.loader import load_model
+    from mexone.errors import MexoneError
+
+    try:
+        load_model(path)
+    except MexoneError as exc:
+        return exc.one_line()
+    return "loaded"
+
+
+def test_the_simulator_expands_no_students_xacro(tmp_path):
+    """xacro's expressions are Python: the simulator refuses a student's (a grader expands
+    one with ctx.run, in a jail); the robots mexone ships expand as ever."""
+    from mexone.exercises.isolate import run_jailed, run_trusted
+
+    path = tmp_path / "robot.urdf.xacro"
+    path.write_text('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+                    '<link name="${\'base\'}"/></robot>\n')
+    with pytest.raises(SubmissionFailed, match=r"UntrustedCode: the grader's simulator runs no "
+                       r"student code, and robot.urdf.xacro \(a xacro file"):
+        run_trusted(_load, str(path))
+    assert run_jailed(_load, path) == "loaded"  # a copy of it, in the jail
 
 
 def _scan_for_grader_state() -> list[str]:
@@ -296,9 +331,21 @@ def test_which_routines_get_a_process_of_their_own():
     ex = find_exercise("pid_spec")
     ctx = GradeContext(ex, ex.folder / "step.py", seed=1)
     calls = []
-    ctx.run = lambda target, *args, **kwargs: calls.append(kwargs.get("own_process"))
+    ctx.measure = lambda target, *args, **kwargs: calls.append(kwargs.get("own_process"))
     ctx.simulate(1.0, routine=ctx.submission)
     ctx.simulate(1.0, routine=ex.folder / "step.py", controllers=ex.solution)
     ctx.submission = ex.solution
     ctx.simulate(1.0, routine=ex.folder / "step.py")
     assert calls == [None, None, False]  # None: simulate's default, own process unless shipped
+
+
+def test_runs_at_once_share_nothing():
+    """Several graded runs at once (issue 37's --workers): each its own fork, jail and uid;
+    every result is its own call's."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from mexone.exercises.isolate import run_jailed, run_trusted
+
+    with ThreadPoolExecutor(6) as pool:
+        futures = [pool.submit(run_jailed if k % 2 else run_trusted, abs, -k) for k in range(12)]
+        assert [f.result() for f in futures] == list(range(12))

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from mexone.exercises import run_isolated
+from mexone.exercises.isolate import run_trusted
 from mexone.exercises.sim import Variation, simulate
 
 FEEDBACK = '''"""Every rospy path a graded routine takes: a parameter, wait_for_message, a subscriber
@@ -47,8 +47,11 @@ def feedback(tmp_path_factory) -> Path:
 
 
 def _run(path: Path, own_process: bool):
-    return run_isolated(simulate, 0.7, routine=path, variation=Variation(mass=1.05),
-                        params={"_gain": 0.2, "__name": "renamed"}, own_process=own_process)
+    """In the simulator (the routine in its jail), or all in this process (the simulator
+    itself refuses to run a student's routine in its own process)."""
+    call = run_trusted if own_process else (lambda f, *args, **kwargs: f(*args, **kwargs))
+    return call(simulate, 0.7, routine=path, variation=Variation(mass=1.05),
+                params={"_gain": 0.2, "__name": "renamed"}, own_process=own_process)
 
 
 def test_own_process_moves_the_robot_exactly_as_in_process(feedback):
@@ -68,23 +71,35 @@ def test_a_routine_that_uses_the_lab_gets_one_clear_line(tmp_path):
     path = tmp_path / "uses_model.py"
     path.write_text("from mexone import rospy\nfrom mexone.routines import runtime\n"
                     "rospy.init_node('m')\nprint(runtime.current().lab.sim.model.nbody)\n")
-    run = run_isolated(simulate, 0.05, routine=path, raise_routine_errors=False)
+    run = run_trusted(simulate, 0.05, routine=path, raise_routine_errors=False)
     assert "uses_model.py:4" in run.error and "not offered to a routine graded in its own " \
         "process" in run.error, run.error
 
 
 def test_a_routine_sending_a_pickle_of_its_own_class_is_refused(tmp_path):
-    """What the routine's process sends is read as messages and plain data, never code."""
+    """What the routine's process sends is read as JSON against the protocol's schema, never
+    unpickled: a message holding an object of its own cannot be sent, and a pickle written on
+    its socket past rospy is not JSON; neither runs anything in the simulator."""
+    pwned = tmp_path / "pwned"
+    evil = ("import os, pickle, struct\n"
+            "class Evil:\n    def __reduce__(self):\n"
+            f"        return (os.system, ('touch {pwned}',))\n")
     path = tmp_path / "evil.py"
-    path.write_text("import os\nfrom mexone import rospy\nfrom mexone.msgs import Float64\n"
-                    "rospy.init_node('e')\n"
-                    "class Evil:\n    def __reduce__(self):\n"
-                    "        return (os.system, ('touch " + str(tmp_path / "pwned") + "',))\n"
-                    "p = rospy.Publisher('/x', Float64, queue_size=1)\n"
+    path.write_text(evil + "from mexone import rospy\nfrom mexone.msgs import Float64\n"
+                    "rospy.init_node('e')\np = rospy.Publisher('/x', Float64, queue_size=1)\n"
                     "p.publish(Float64(Evil()))\nrospy.sleep(0.01)\n")
-    run = run_isolated(simulate, 0.05, routine=path, raise_routine_errors=False)
-    assert "posix.system is not a message type of mexone.msgs" in run.error, run.error
-    assert not (tmp_path / "pwned").exists()
+    run = run_trusted(simulate, 0.05, routine=path, raise_routine_errors=False)
+    assert "evil.py:9: ProtocolError: Float64 cannot be sent to the simulator: cannot send a " \
+        "Evil" in run.error, run.error
+    raw = tmp_path / "raw.py"
+    raw.write_text(evil + "import gc, socket\nfrom mexone import rospy\nrospy.init_node('r')\n"
+                   "sock = next(o for o in gc.get_objects() if isinstance(o, socket.socket))\n"
+                   "data = pickle.dumps(([], (Evil(),)))\n"
+                   "sock.sendall(struct.pack('!I', len(data)) + data)\nrospy.sleep(1.0)\n")
+    run = run_trusted(simulate, 0.3, routine=raw, raise_routine_errors=False)
+    assert "the routine's process sent what mexone cannot read: message: not JSON" in run.error, \
+        run.error
+    assert not pwned.exists()
 
 
 def test_a_routine_talking_past_rospy_on_its_socket_ends_with_one_line(tmp_path):
@@ -93,5 +108,5 @@ def test_a_routine_talking_past_rospy_on_its_socket_ends_with_one_line(tmp_path)
                     "rospy.init_node('t')\n"
                     "sock = next(o for o in gc.get_objects() if isinstance(o, socket.socket))\n"
                     "remote.send(sock, ([], ('wait', 'soon')))\nrospy.sleep(1.0)\n")
-    run = run_isolated(simulate, 0.3, routine=path, raise_routine_errors=False)
+    run = run_trusted(simulate, 0.3, routine=path, raise_routine_errors=False)
     assert "the routine's process sent a malformed request (ValueError" in run.error, run.error

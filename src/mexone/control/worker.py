@@ -776,11 +776,11 @@ def _readable(found: Found, yaml_dir: Path | None) -> tuple[Path, ...]:
     folders = [yaml_dir] if yaml_dir is not None else []
     if found.kind == "file":
         folders.append(Path(found.name).parent)
-    elif found.kind == "module":
+    elif found.kind in ("module", "entry"):  # an entry point's value: "package.module:Class"
         with contextlib.suppress(ImportError, ValueError, AttributeError):
             import importlib.util
 
-            spec = importlib.util.find_spec(found.name.split(".")[0])
+            spec = importlib.util.find_spec(found.name.partition(":")[0].split(".")[0])
             origin = Path(spec.origin) if spec and spec.origin else None
             if origin is not None:
                 folders.append(origin.parent.parent if origin.name == "__init__.py"

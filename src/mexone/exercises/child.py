@@ -1,5 +1,5 @@
-"""The fork server of exercises.isolate.run_isolated: `python -m mexone.exercises.child --server
-FD` (a fresh interpreter, so nothing of the grader's is in it, or in the runs it forks)."""
+"""The fork server of exercises.isolate (`python -m mexone.exercises.child --server FD`): a fresh
+interpreter, so nothing of the grader's is in it, or in the runs it forks."""
 
 import sys
 

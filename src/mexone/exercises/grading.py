@@ -1,7 +1,11 @@
 """Grade one submission: the exercise's grader.py draws the hidden variation from the secret
-seed here, in the grading process, and runs the student's part through GradeContext.run /
-simulate in an isolated child. A submission that fails (raises, hangs, ends the process, runs
-out of memory) gets 0 points with the reason; only a broken exercise is an error of the grader.
+seed here, in the grading process, which runs no student code and holds the teacher's secret
+(non-dumpable: no process of its user reads its memory or environment). The episodes run out of
+it (exercises.isolate): ctx.simulate and ctx.measure in the simulator, where a student's routine
+or controller runs in a jail of its own; ctx.run in a jail with the student's part. Each sees a
+private copy of the submission only. A submission that fails (raises, hangs, ends the process,
+runs out of memory) gets 0 points with the reason; only a broken exercise is an error of the
+grader.
 """
 
 from __future__ import annotations
@@ -10,7 +14,10 @@ import csv
 import hashlib
 import hmac
 import json
+import logging
 import os
+import re
+import secrets
 import shutil
 import tempfile
 import time
@@ -22,9 +29,16 @@ import numpy as np
 
 from mexone.errors import InputError, printable
 from mexone.exercises.exercise import Exercise
-from mexone.exercises.isolate import SECRET_ENV, SubmissionFailed, prewarm, run_isolated
+from mexone.exercises.isolate import (
+    SECRET_ENV,
+    SubmissionFailed,
+    prewarm,
+    run_jailed,
+    run_trusted,
+)
 from mexone.exercises.sim import Variation, simulate
 from mexone.files import replacing
+from mexone.sandbox import isolation, keep_private
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
            "submissions_in", "not_handed_in", "existing_plots", "SECRET_ENV", "SECRET_MIN",
@@ -133,14 +147,24 @@ class GradeContext:
         return Variation(*(float(1 + rng.uniform(-s, s)) for s in (mass, damping, friction)))
 
     def run(self, target: Callable, *args, **kwargs):
-        """`target(*args, **kwargs)` in an isolated child under the exercise's limits (it loads
-        and runs the student's part); its return value. A failure there ends the grading of
-        this submission with 0 points and its reason."""
-        return run_isolated(target, *args, limits=self.exercise.limits, **kwargs)
+        """`target(*args, **kwargs)` in a jail under the exercise's limits (it loads and runs
+        the student's part: an `estimate(bag)` function, a model); its return value, read
+        against `target`'s return annotation: the student's own answer, not a measurement. A
+        Path argument is copied into the jail (the submission's folder is readable there). A
+        failure ends the grading of this submission with 0 points and its reason."""
+        return run_jailed(target, *args, limits=self.exercise.limits,
+                          readable=(self.submission.parent,), **kwargs)
+
+    def measure(self, target: Callable, *args, **kwargs):
+        """`target(*args, **kwargs)` in the simulator under the exercise's limits (it builds a
+        lab, runs it and measures): a process that runs no student code -- a student's routine
+        or controller in its lab runs in a jail of its own -- so what it returns is what the
+        simulator observed, which the student cannot forge."""
+        return run_trusted(target, *args, limits=self.exercise.limits, **kwargs)
 
     def simulate(self, duration: float, **kwargs):
-        """sim.simulate(duration, ...) in the isolated child: a Run of plain arrays. A routine
-        runs in a process of its own there (no model, no variation), unless it is mexone's
+        """sim.simulate(duration, ...) in the simulator (ctx.measure): a Run of plain arrays. A
+        routine runs in a jail of its own (no model, no variation), unless it is mexone's
         shipped one or a file of the exercise's own folder (the teacher's, trusted)."""
         routine = kwargs.get("routine")
         if routine is not None and "own_process" not in kwargs and Path(routine).is_file():
@@ -148,7 +172,7 @@ class GradeContext:
             if path != self.submission.resolve() \
                     and path.is_relative_to(self.exercise.folder.resolve()):
                 kwargs["own_process"] = False
-        return self.run(simulate, duration, **kwargs)
+        return self.measure(simulate, duration, **kwargs)
 
     def beside(self, files: dict[str, str], as_name: str | None = None) -> Path:
         """A scratch folder holding a copy of the submission (named `as_name`, default its own
@@ -156,10 +180,14 @@ class GradeContext:
         finds the student's my_law.py next to it; the folder's path. Removed after grading."""
         if self._scratch is None:
             self._scratch = Path(tempfile.mkdtemp(prefix="mexone-exercise-"))
+            os.chmod(self._scratch, 0o711)  # a jail's uid reads its folders, lists none
         folder = Path(tempfile.mkdtemp(dir=self._scratch))
+        os.chmod(folder, 0o755)
         shutil.copyfile(self.submission, folder / (as_name or self.submission.name))
         for name, text in files.items():
             (folder / name).write_text(text)
+        for path in folder.iterdir():
+            os.chmod(path, 0o644)
         return folder
 
     def cleanup(self) -> None:
@@ -270,13 +298,72 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     if not submission.is_file():
         raise InputError(f"no submission file {submission}",
                          hint=f"hand in the exercise's {exercise.file}")
+    keep_private()  # the teacher's secret is in this process: no one of its user reads it
     prewarm()  # the runs' fork server starts while the grader imports and draws
+    _warn_if_exposed()
+    with tempfile.TemporaryDirectory(prefix="mexone-grade-") as work:
+        copy = _private_copy(submission, Path(work))
+        result = _grade(exercise, submission, copy, local, plots, force)
+    return _scrubbed(result, copy.parent)
+
+
+_warned: list[bool] = []
+
+
+def _warn_if_exposed() -> None:
+    """Once per process: a warning when this machine cannot keep the teacher's secret from a
+    submission (no namespace, no other uid, no Landlock: it runs as the grader's own user)."""
+    iso = isolation()
+    if iso.mode == "none" and not iso.landlock and os.environ.get(SECRET_ENV) and not _warned:
+        _warned.append(True)
+        logging.getLogger("mexone.sandbox").warning(
+            "mexone: warning: this machine isolates a submission with limits only (no user "
+            "namespace, no root, no Landlock): it runs as your user and can read %s from this "
+            "process's ancestors (docs/exercises.md, what a grading machine needs)", SECRET_ENV)
+
+
+def _private_copy(submission: Path, work: Path) -> Path:
+    """The submission as the runs see it: a copy, read-only, alone in a folder of its own
+    (readable by a jail's uid, not listable): never the student's folder, nor another's."""
+    os.chmod(work, 0o711)
+    folder = work / secrets.token_hex(8)
+    folder.mkdir(mode=0o755)
+    copy = folder / submission.name
+    try:
+        with open(submission, "rb", opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as src, \
+                open(copy, "wb") as dst:
+            shutil.copyfileobj(src, dst)
+    except OSError as exc:
+        raise InputError(f"cannot read the submission: {exc.strerror or exc}",
+                         file=submission) from None
+    os.chmod(copy, 0o444)
+    return copy
+
+
+def _scrubbed(result: Result, folder: Path) -> Result:
+    """The result as the student reads it: the private copy's folder not named (the file by
+    its name), and the teacher's secret nowhere, whatever a run wrote."""
+    secret = os.environ.get(SECRET_ENV, "")
+
+    def clean(text: str) -> str:
+        text = text.replace(str(folder) + "/", "")
+        text = re.sub(r"/\S*/mexone-jail-[^/\s]+/scratch/inputs/\d+/", "", text)
+        return text.replace(secret, "[the secret]") if secret else text
+
+    result.failure = clean(result.failure) if result.failure else result.failure
+    result.output = clean(result.output)
+    result.checks = [(replace(c, output=clean(c.output)), s, m) for c, s, m in result.checks]
+    return result
+
+
+def _grade(exercise: Exercise, submission: Path, copy: Path, local: bool, plots: Path | None,
+           force: bool) -> Result:
     grader = exercise.grader()
     began = time.monotonic()
     per_seed: list[list[Check]] = []
     saved: list[Path] = []
     for seed in exercise.seeds:
-        ctx = GradeContext(exercise, submission.resolve(), seed, local, plots, force)
+        ctx = GradeContext(exercise, copy, seed, local, plots, force)
         try:
             checks = list(grader.grade(ctx))
         except SubmissionFailed as exc:

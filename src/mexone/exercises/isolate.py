@@ -1,13 +1,24 @@
-"""Run a student's submission in its own process: CPU-time, memory and wall-clock limits, its
-output captured, whatever it started stopped. The grading process never runs student code.
+"""Graded runs, out of the grading process: the simulator, where no student code runs, and the
+jail, where a student's part runs. The grading process never runs student code and reads
+nothing from a run but JSON checked against a schema (mexone.sandbox.wire).
 
-The child is never a fork of the grading process: that one holds the secret seed and draws the
-hidden variation, and a fork would copy them into the student's reach. A fork server (a fresh
-interpreter started once, with MuJoCo and mexone imported, nothing of a grader's) forks each run;
-it gets only the call (the grader's target and its arguments, pickled, through a pipe), in its
-own process group, with resource.setrlimit applied before it reads the call.
-It sends back one picklable value through a pipe; anything else (a crash, os._exit, a kill by
-the kernel, a hang) is a `SubmissionFailed` with one line saying why, never the grader's crash.
+Both kinds of run are forks of a fork server: a fresh interpreter started once per grading,
+with MuJoCo and mexone imported and nothing of a grader's (no secret in its environment, no
+seed, no exercise), so a run costs a fork, not an interpreter's start.
+
+- `run_trusted(target, ...)`: the **simulator**. `target` (the grader's function: build a lab,
+  simulate, measure) runs in the fork itself, under an audit hook that refuses to execute code
+  from any file outside Python's installation, mexone and the grader's own folder: a student's
+  routine or controller in the lab it builds runs in a jail of its own (the routine's process,
+  the controller's worker), and what `target` returns is what the simulator measured.
+- `run_jailed(target, ...)` (`run_isolated`): the **jail**. The fork confines itself as
+  mexone.sandbox says (namespaces, another uid, Landlock, seccomp, limits) before it runs
+  `target`, which loads the student's part (an `estimate(bag)` function, a URDF); its files are
+  copies in the jail's scratch folder. What it returns is the student's own answer.
+
+What comes back is `target`'s return value as JSON, read against its return annotation (no
+annotation: plain JSON). A run that raises, ends, hangs, is killed or sends what does not fit is
+a `SubmissionFailed` with one line saying why, never the grader's crash.
 """
 
 from __future__ import annotations
@@ -15,39 +26,40 @@ from __future__ import annotations
 import contextlib
 import importlib
 import importlib.util
+import json
+import math
 import os
 import pickle
-import resource
 import select
+import shutil
 import signal
 import socket
 import struct
 import subprocess
 import sys
+import sysconfig
 import tempfile
 import threading
 import time
 import traceback
+import typing
 from collections.abc import Callable
-from dataclasses import dataclass
+from pathlib import Path
 
 from mexone import signals
+from mexone.control import worker as controller_worker
 from mexone.errors import MexoneError
 from mexone.routines import processes
+from mexone.sandbox import Jail, Limits, confine, isolation, trust, wire
+from mexone.sandbox.spawn import SECRET_ENV, jail_plan, prepare
+from mexone.sandbox.trust import UntrustedCode
 
-__all__ = ["Limits", "SubmissionFailed", "run_isolated", "active_limits", "prewarm"]
+__all__ = ["Limits", "SubmissionFailed", "run_isolated", "run_jailed", "run_trusted",
+           "active_limits", "prewarm", "UntrustedCode", "SECRET_ENV"]
 
 TRACEBACK = "Traceback (most recent call last):"
 OUTPUT_TAIL = 1500  # characters of the submission's own output kept for the report
-
-
-@dataclass(frozen=True)
-class Limits:
-    """What one isolated run may use: wall seconds, CPU seconds, address space in MB."""
-
-    time: float = 30.0
-    cpu: float = 60.0
-    memory_mb: int = 2048
+END_GRACE = 3.0  # s a run's relay gets to end its jail before it is killed
 
 
 class SubmissionFailed(Exception):  # noqa: N818 - it is what happened to the submission
@@ -59,44 +71,85 @@ class SubmissionFailed(Exception):  # noqa: N818 - it is what happened to the su
         self.output = output
 
 
-_ACTIVE: Limits | None = None  # in an isolated child: its limits
-SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret (grading): never in a run's env
+_ACTIVE: Limits | None = None  # in a run: its limits
+DEFAULTS = Limits()
 
 
-def _limit(limits: Limits) -> None:
-    cpu = max(1, int(limits.cpu))
-    resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
-    mem = int(limits.memory_mb) * 1024 * 1024
-    with contextlib.suppress(ValueError, OSError):
-        resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
-    with contextlib.suppress(ValueError, OSError):
-        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+def run_trusted(target: Callable, *args, limits: Limits = DEFAULTS, **kwargs):
+    """`target(*args, **kwargs)` in the simulator (see the module's docstring); its return
+    value, read against its return annotation. `target` is importable code of the grader's
+    (a function of a module or of the exercise's grader.py, not a lambda)."""
+    return _run(target, args, kwargs, limits, None)
 
 
-def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
-    """`target(*args, **kwargs)` in a child process under `limits`; its return value (picklable).
-    Raises SubmissionFailed(reason) if it raised, ended the process, was killed or ran out of
-    time. `target` must be importable code of the grader's, never the student's (a function of
-    a module or of the exercise's grader.py, not a lambda): it is the one that loads and runs
-    the student's part. The child is forked from the fork server (a fresh interpreter with
-    MuJoCo and mexone imported, never anything of a grader's): it holds only the call (target
-    and arguments), never this process's state (the secret seed, the episode's seed,
-    $MEXONE_EXERCISE_SECRET)."""
+def run_jailed(target: Callable, *args, limits: Limits = DEFAULTS,
+               readable: tuple[Path, ...] = (), **kwargs):
+    """`target(*args, **kwargs)` in a jail (see the module's docstring); its return value, read
+    against its return annotation. A `Path` among the arguments is copied into the jail's
+    scratch folder and `target` gets the copy; `readable` folders it may read as they are."""
+    jail = Jail(limits=limits, readable=tuple(readable), another_user=True)
+    work, scratch, root, _, slot = prepare(jail)
+    try:
+        inputs = scratch / "inputs"
+        inputs.mkdir()
+        args = tuple(_copied(a, inputs, k) for k, a in enumerate(args))
+        kwargs = {k: _copied(v, inputs, k) for k, v in kwargs.items()}
+        if slot is not None:
+            for folder, dirs, files in os.walk(scratch):
+                for name in (folder, *(os.path.join(folder, f) for f in dirs + files)):
+                    with contextlib.suppress(OSError):
+                        os.chown(name, slot.uid, slot.uid, follow_symlinks=False)
+        plan = jail_plan(jail, scratch, root, slot)
+        plan.parent = 0  # the run's monitor, which the run itself fills in
+        return _run(target, args, kwargs, limits, plan)
+    finally:
+        if slot is not None:
+            slot.release()
+        shutil.rmtree(work, ignore_errors=True)
+
+
+run_isolated = run_jailed  # the name graders used: the student's part in a process of its own
+
+
+def _copied(value: object, folder: Path, key: object) -> object:
+    """A Path argument's copy in the jail's inputs (a folder of its own per argument)."""
+    if not isinstance(value, Path):
+        return value
+    own = folder / str(key)
+    own.mkdir()
+    target = own / value.name
+    if value.is_dir():
+        shutil.copytree(value, target, symlinks=False)
+    elif value.is_file():
+        shutil.copyfile(value, target)
+    else:
+        return value
+    for path in (own, target, *(target.rglob("*") if target.is_dir() else ())):
+        with contextlib.suppress(OSError):
+            os.chmod(path, 0o755 if path.is_dir() else 0o644)
+    return target
+
+
+def _run(target: Callable, args: tuple, kwargs: dict, limits: Limits,
+         plan: confine.Plan | None):
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(OSError, ValueError):
             stream.flush()
+    returns = _returns(target)
     call = _call_bytes(target, args, kwargs)
     out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in the finally below
     call_read, call_write = os.pipe()
     read_fd, write_fd = os.pipe()
     status_read, status_write = os.pipe()
+    request = json.dumps({"cpu": limits.cpu, "memory_mb": int(limits.memory_mb),
+                          "plan": None if plan is None else plan.dumps()}).encode()
     try:
         try:
             try:
-                _server().start(limits, (call_read, write_fd, out.fileno(), status_write))
+                _server().start(request, (call_read, write_fd, out.fileno(), status_write))
             except OSError:  # it ended meanwhile (killed?): a new one
-                _server(restart=True).start(limits, (call_read, write_fd, out.fileno(),
-                                                     status_write))
+                _server(restart=True).start(request, (call_read, write_fd, out.fileno(),
+                                                      status_write))
         finally:
             for fd in (call_read, write_fd, status_write):
                 os.close(fd)
@@ -107,13 +160,21 @@ def run_isolated(target: Callable, *args, limits: Limits = Limits(), **kwargs):
         if pid is None:
             raise MexoneError("the grader's fork server did not start the submission's process",
                               hint="see its output above; is the machine out of memory?")
-        return _collect(pid, read_fd, status_read, out, limits)
+        return _collect(pid, read_fd, status_read, out, limits, returns, plan)
     finally:
         for fd in (read_fd, status_read, call_write):
             if fd is not None:
                 with contextlib.suppress(OSError):
                     os.close(fd)
         out.close()
+
+
+def _returns(target: Callable) -> object:
+    """`target`'s return annotation: the schema its result is read against."""
+    try:
+        return typing.get_type_hints(target).get("return", wire.PLAIN)
+    except Exception:  # noqa: BLE001 - an annotation that does not resolve: plain JSON
+        return wire.PLAIN
 
 
 class _ForkServer:
@@ -140,9 +201,8 @@ class _ForkServer:
     def alive(self) -> bool:
         return self.process.poll() is None
 
-    def start(self, limits: Limits, fds: tuple[int, int, int, int]) -> None:
+    def start(self, request: bytes, fds: tuple[int, int, int, int]) -> None:
         """Fork a run: (call read end, result write end, output file, status write end)."""
-        request = f"{limits.cpu:g} {int(limits.memory_mb)}".encode()
         with self.lock:
             socket.send_fds(self.sock, [request], list(fds))
 
@@ -162,8 +222,10 @@ def _server(restart: bool = False) -> _ForkServer:
 
 
 def prewarm() -> None:
-    """Start the fork server now (it imports MuJoCo while the grader prepares the first run)."""
+    """Start the fork server now (it imports MuJoCo while the grader prepares the first run)
+    and probe the machine's isolation (once per process)."""
     _server()
+    isolation()
 
 
 def _read_int(fd: int, timeout: float) -> int | None:
@@ -195,7 +257,7 @@ def serve(fd: int) -> None:
                 pass
         if not select.select([sock], [], [], 0.5)[0]:
             continue
-        request, fds, _, _ = socket.recv_fds(sock, 256, 4)
+        request, fds, _, _ = socket.recv_fds(sock, 1 << 16, 4)
         if not request:
             os._exit(0)
         if len(fds) != 4:
@@ -204,12 +266,12 @@ def serve(fd: int) -> None:
             continue
         if os.fork() == 0:
             sock.close()
-            _monitor(fds, server, *request.decode().split())
+            _monitor(fds, server, request)
         for x in fds:
             os.close(x)
 
 
-def _monitor(fds: list[int], server: int, cpu: str, memory_mb: str) -> None:
+def _monitor(fds: list[int], server: int, request: bytes) -> None:
     """Between the fork server and one run: forks the run (its own process group), tells the
     grader its pid, waits for it and tells the grader how it ended."""
     call_fd, result_fd, out_fd, status_fd = fds
@@ -228,7 +290,7 @@ def _monitor(fds: list[int], server: int, cpu: str, memory_mb: str) -> None:
             os.dup2(out_fd, 2)
             for x in (null, out_fd):
                 os.close(x)
-            child_main([str(call_fd), str(result_fd), cpu, memory_mb])
+            child_main(call_fd, result_fd, json.loads(request))
         with contextlib.suppress(OSError):
             os.setpgid(pid, pid)
         for x in (call_fd, result_fd, out_fd):
@@ -243,8 +305,9 @@ def _monitor(fds: list[int], server: int, cpu: str, memory_mb: str) -> None:
 
 
 def _call_bytes(target: Callable, args: tuple, kwargs: dict) -> bytes:
-    """What the child needs to make the call: this process's sys.path, the target's module
-    (a grader.py is loaded from its file) and the call, pickled by reference."""
+    """What the run needs to make the call: this process's sys.path, the target's module (a
+    grader.py is loaded from its file) and the call, pickled by reference. (From the grader to
+    the fork server: the grader's own data, never read back from a run.)"""
     module = sys.modules.get(getattr(target, "__module__", None) or "")
     modules = []
     if module is not None and getattr(module, "__file__", None):
@@ -264,36 +327,44 @@ def _write_all(fd: int, data: bytes) -> None:
         os.close(fd)
 
 
-def child_main(argv: list[str]) -> None:
-    """The child (python -m mexone.exercises.child CALL_FD RESULT_FD CPU MB): limits first,
-    then the call, then one pickled ("ok", value) or ("failed", reason) to RESULT_FD."""
-    call_fd, write_fd, cpu, memory_mb = argv[:4]
-    write_fd = int(write_fd)
-    limits = Limits(cpu=float(cpu), memory_mb=int(memory_mb))
+def child_main(call_fd: int, result_fd: int, request: dict) -> None:
+    """A run: its limits, the call, then (jailed: confined first; trusted: under the audit
+    hook) the call made and its result, as JSON, to `result_fd`."""
     code = 0
     try:
         sys.stdout.reconfigure(line_buffering=True)
         sys.stderr.reconfigure(line_buffering=True)
-        _limit(limits)
+        limits = Limits(cpu=float(request["cpu"]), memory_mb=int(request["memory_mb"]))
         global _ACTIVE
         _ACTIVE = limits
         try:
-            target, args, kwargs = _read_call(int(call_fd))
-            payload = ("ok", target(*args, **kwargs))
+            target, args, kwargs, folders = _read_call(call_fd)
+            if request.get("plan"):
+                plan = confine.Plan.loads(request["plan"])
+                plan.parent = os.getppid()
+                confine.jail(plan, keep_fds=(result_fd,))  # from here on: the jail
+            else:
+                _limit(limits)
+                trust.trust_only(_trusted_roots(folders))
+                _jail_controllers(limits)
+            payload = {"ok": target(*args, **kwargs)}
             for stream in (sys.stdout, sys.stderr):  # its output, before it is judged
                 with contextlib.suppress(Exception):
                     stream.flush()
         except SubmissionFailed as exc:
-            payload = ("failed", exc.reason)
+            payload = {"failed": exc.reason}
         except MemoryError:
-            payload = ("failed", f"ran out of memory (the limit is {limits.memory_mb} MB)")
+            payload = {"failed": f"ran out of memory (the limit is {limits.memory_mb} MB)"}
         except BaseException as exc:  # noqa: BLE001 - reported as the submission's failure
             last = traceback.format_exception_only(type(exc), exc)[-1].strip()
-            payload = ("failed", f"the grader could not run the submission: {last}")
-        data = pickle.dumps(payload)
+            payload = {"failed": f"the grader could not run the submission: {last}"}
+        try:
+            data = wire.dumps(payload)
+        except wire.WireError as exc:
+            data = wire.dumps({"failed": f"the run's result cannot be sent: {exc}"})
         view = memoryview(data)
         while view:
-            view = view[os.write(write_fd, view):]
+            view = view[os.write(result_fd, view):]
     except BaseException:  # noqa: BLE001
         code = 3
     finally:
@@ -303,7 +374,29 @@ def child_main(argv: list[str]) -> None:
         os._exit(code)
 
 
+def _jail_controllers(limits: Limits) -> None:
+    """In the simulator: a student's controller in the lab it builds runs in its worker
+    (control/worker.py), jailed as a grader's run is (a uid of the pool as root), under the
+    run's CPU and memory limits for as long as the lab lives."""
+    controller_worker.set_jail(Jail(limits=Limits(time=math.inf, cpu=limits.cpu,
+                                                  memory_mb=limits.memory_mb), another_user=True))
+
+
+def _limit(limits: Limits) -> None:
+    import resource
+
+    cpu = max(1, int(limits.cpu))
+    resource.setrlimit(resource.RLIMIT_CPU, (cpu, cpu + 1))
+    mem = int(limits.memory_mb) * 1024 * 1024
+    with contextlib.suppress(ValueError, OSError):
+        resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
+    with contextlib.suppress(ValueError, OSError):
+        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
+
+
 def _read_call(fd: int) -> tuple:
+    """The grader's call (its own pickle, from the grading process): target, args, kwargs and
+    the folders of the grader's modules it imported."""
     chunks = []
     while chunk := os.read(fd, 1 << 16):
         chunks.append(chunk)
@@ -320,45 +413,63 @@ def _read_call(fd: int) -> tuple:
             module = importlib.util.module_from_spec(spec)
             sys.modules[name] = module
             spec.loader.exec_module(module)
-    return pickle.loads(payload)
+    target, args, kwargs = pickle.loads(payload)
+    return target, args, kwargs, [str(Path(file).resolve().parent) for _, file in modules]
+
+
+def _trusted_roots(folders: list[str]) -> list[str]:
+    """Where the simulator's code may come from: Python's installation (its standard library
+    and site-packages), mexone, and the folders of the grader's own modules."""
+    import mexone
+
+    roots = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
+             str(Path(mexone.__file__).resolve().parent), *folders}
+    roots |= {v for k, v in sysconfig.get_paths().items() if k in ("stdlib", "platstdlib",
+                                                                     "purelib", "platlib")}
+    roots |= {p for p in sys.path if p and os.path.basename(p) in ("site-packages",
+                                                                    "dist-packages")}
+    return sorted(roots)
 
 
 def active_limits() -> Limits:
-    """The limits of the isolated child this code runs in (Limits() outside one): what a
-    routine's own process started from there gets too."""
+    """The limits of the run this code runs in (Limits() outside one): what a routine's own
+    process started from there gets too."""
     return _ACTIVE or Limits()
 
 
-def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits):
+def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits, returns: object,
+             plan: confine.Plan | None):
     deadline = time.monotonic() + limits.time
     chunks: list[bytes] = []
+    size = 0
     status = None
     timed_out = False
     while status is None:
         if signals.requested():  # Ctrl-C or SIGTERM to the grader: the run ends with it
-            _kill(pid)
+            _kill(pid, plan)
             signals.check()
         left = deadline - time.monotonic()
         if left <= 0:
             timed_out = True
-            _signal_group(pid)
-            status = _read_int(status_fd, timeout=10.0)
-            if status is None:
-                status = signal.SIGKILL
+            status = _end(pid, status_fd)
             break
         ready = select.select([fd, status_fd], [], [], min(left, 0.05))[0]
         if fd in ready:
             data = os.read(fd, 1 << 16)
             if data:
-                chunks.append(data)
+                size += len(data)
+                if size <= wire.MAX_BYTES:
+                    chunks.append(data)
                 continue
         if status_fd in ready:
             status = _read_int(status_fd, timeout=10.0)
             if status is None:
                 status = signal.SIGKILL
     while data := _read_rest(fd):
-        chunks.append(data)
-    _kill(pid)  # whatever it left in its group
+        size += len(data)
+        if size <= wire.MAX_BYTES:
+            chunks.append(data)
+    _kill(pid, plan)  # whatever it left
     output = _tail(out)
     if timed_out:
         raise SubmissionFailed(f"exceeded the time limit of {limits.time:g} s (a loop that never "
@@ -376,13 +487,18 @@ def _collect(pid: int, fd: int, status_fd: int, out, limits: Limits):
         code = os.WEXITSTATUS(status) if os.WIFEXITED(status) else -1
         raise SubmissionFailed(f"the submission ended the grading process (exit status {code}) "
                                "before its result", output)
+    if size > wire.MAX_BYTES:
+        raise SubmissionFailed(f"the run sent more than {wire.MAX_BYTES >> 20} MB", output)
     try:
-        kind, value = pickle.loads(b"".join(chunks))
-    except Exception:  # noqa: BLE001 - a truncated result is the submission's doing
-        raise SubmissionFailed("the submission's run ended before its result was sent",
+        message = wire.loads(b"".join(chunks), dict[str, object])
+        if set(message) == {"failed"}:
+            raise SubmissionFailed(str(wire.read(message["failed"], str, "reason")), output)
+        if set(message) != {"ok"}:
+            raise wire.WireError("result: neither ok nor failed")
+        value = wire.read(message["ok"], returns)
+    except wire.WireError as exc:  # a truncated or forged message is the submission's doing
+        raise SubmissionFailed(f"the run's result is not what the grader reads ({exc})",
                                output) from None
-    if kind == "failed":
-        raise SubmissionFailed(value, output)
     if TRACEBACK in output:  # it caught its own error and printed it: a crash all the same
         last = [line for line in output.splitlines() if line.strip()][-1].strip()
         raise SubmissionFailed(f"the submission printed a traceback ({last[:200]})", output)
@@ -396,6 +512,17 @@ def _read_rest(fd: int) -> bytes:
     return b""
 
 
+def _end(pid: int, status_fd: int) -> int:
+    """Ask the run's relay to end its jail (SIGTERM), then kill it: its wait status."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.kill(pid, signal.SIGTERM)
+    status = _read_int(status_fd, timeout=END_GRACE)
+    if status is None:
+        _signal_group(pid)
+        status = _read_int(status_fd, timeout=10.0)
+    return signal.SIGKILL if status is None else status
+
+
 def _signal_group(pid: int) -> None:
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(pid, signal.SIGKILL)
@@ -403,13 +530,20 @@ def _signal_group(pid: int) -> None:
         os.kill(pid, signal.SIGKILL)
 
 
-def _kill(pid: int) -> None:
-    """End the run's process group: whatever the submission started goes with it."""
+def _kill(pid: int, plan: confine.Plan | None) -> None:
+    """End the run and whatever it left: its relay's jail, its process group, its uid."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.kill(pid, signal.SIGTERM)
+    deadline = time.monotonic() + END_GRACE
+    while time.monotonic() < deadline and processes.group(pid):
+        select.select([], [], [], 0.01)
     _signal_group(pid)
     with contextlib.suppress(Exception):
         left = processes.group(pid)
         if left:
             processes.stop(left)
+    if plan is not None and plan.mode == "uid":
+        confine.sweep(plan)
 
 
 def _tail(out) -> str:

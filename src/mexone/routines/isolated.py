@@ -1,8 +1,10 @@
 """IsolatedRoutineRunner: a routine in a process of its own (routines.remote), the simulation here.
 
-The grader's way to run a student's routine: the routine's process is a fresh interpreter under
-CPU-time and memory limits, holding nothing of this process (the lab, its varied model, the
-grader's state); it reaches the simulation only through mexone.rospy. Here a proxy thread stands
+The grader's way to run a student's routine: the routine's process is a fresh interpreter in a
+jail (mexone.sandbox.spawn: it reads the routine and Python, writes a scratch folder, has CPU-time
+and memory limits and no network), holding nothing of this process (the lab, its varied model,
+the grader's state); it reaches the simulation only through mexone.rospy, in JSON read against
+the protocol's schema (routines.remote). Here a proxy thread stands
 for it in the runtime's Scheduler, exactly where the routine's own thread stands in-process: it
 holds the clock while the routine computes, waits when the routine waits, and hands it the
 messages delivered meanwhile. So the lockstep, the stall watchdog (a routine that stops yielding
@@ -12,10 +14,8 @@ is abandoned after `stall` s) and determinism are those of `mexone run`.
 from __future__ import annotations
 
 import contextlib
-import os
 import signal
 import socket
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -25,6 +25,7 @@ from mexone.errors import MexoneError
 from mexone.routines import remote
 from mexone.routines.runner import Routine, RoutineRunner
 from mexone.routines.runtime import RoutineContext, Shutdown, bind
+from mexone.sandbox import Jail, Limits, spawn
 
 __all__ = ["IsolatedRoutineRunner"]
 
@@ -87,11 +88,11 @@ class _Proxy:
         self.lab = context.lab
         ours, theirs = socket.socketpair()
         self.sock = ours
+        jail = Jail(readable=(path,), limits=Limits(cpu=runner.cpu, memory_mb=runner.memory_mb),
+                    another_user=True)  # a grader's: a uid of the pool as root
         try:
-            self.process = subprocess.Popen(
-                [sys.executable, "-m", "mexone.routines.remote", str(theirs.fileno()),
-                 f"{runner.cpu:g}", str(int(runner.memory_mb)), str(os.getpid())],
-                pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
+            self.process = spawn([sys.executable, "-m", "mexone.routines.remote",
+                                  str(theirs.fileno())], jail, pass_fds=(theirs.fileno(),))
         finally:
             theirs.close()
         self.publishers: dict[str, rospy.Publisher] = {}
@@ -106,7 +107,7 @@ class _Proxy:
         """Wait for the routine's process to be ready to run the routine (an interpreter's
         start is mexone's time, not the routine's: the stall watchdog allows it more)."""
         _, call = self._receive()
-        if call != ("ready",):
+        if call != ["ready"]:
             raise _Failed("the routine's process did not start")
 
     def serve(self) -> tuple[str | None, int | None]:
@@ -115,11 +116,11 @@ class _Proxy:
             ops, call = self._receive()
             for op in ops:
                 self._apply(op)
-            kind = call[0] if isinstance(call, tuple) and call else None
+            kind = call[0]
             if kind == "wait":
                 self._wait(call)
             elif kind == "count":
-                topic = self.lab.bus.topics.get(str(call[1]))
+                topic = self.lab.bus.topics.get(str(call[1])) if len(call) == 2 else None
                 remote.send(self.sock, ("count", len(topic.subscriptions) if topic else 0))
             elif kind == "end" and len(call) == 4:
                 _, error, line, errors = call
@@ -131,7 +132,10 @@ class _Proxy:
             else:
                 raise _Failed(f"the routine's process sent an unknown request {kind!r}")
 
-    def _wait(self, call: tuple) -> None:
+    def _wait(self, call: list) -> None:
+        if len(call) != 2 or isinstance(call[1], bool) or not isinstance(call[1], int | float):
+            raise _Failed(f"the routine's process sent a malformed request (ValueError: wait "
+                          f"until {str(call[1:])[:40]})")
         wake = float(call[1])
         try:
             self.runner.scheduler.wait(wake, ready=lambda: bool(self.outbox))
@@ -154,8 +158,8 @@ class _Proxy:
         with contextlib.suppress(Exception):
             remote.send(self.sock, ("shutdown",))
             while True:
-                _, call = remote.safe_loads(remote.receive_bytes(self.sock, poll))
-                if call[0] == "end":
+                _, call = remote.receive(self.sock, poll)
+                if call[0] == "end" and len(call) == 4:
                     self.context.errors.extend(str(e) for e in call[3] or ())
                     if call[1] is not None:
                         self.context.errors.append(str(call[1]))
@@ -163,25 +167,24 @@ class _Proxy:
                     return
                 remote.send(self.sock, ("shutdown",) if call[0] == "wait" else ("count", 0))
 
-    def _receive(self) -> tuple[list, tuple]:
+    def _receive(self) -> tuple[list, list]:
         try:
-            data = remote.receive_bytes(self.sock, _idle)
-            message = remote.safe_loads(data)
+            message = remote.receive(self.sock, _idle)
         except remote.ProtocolError as exc:
             raise _Failed(self._ended() or f"the routine's process sent what mexone cannot read: "
                           f"{exc}") from None
         except OSError:
             raise _Failed(self._ended() or "the routine's process hung up") from None
-        if not (isinstance(message, tuple) and len(message) == 2 and isinstance(message[0], list)
-                and isinstance(message[1], tuple) and message[1]):
+        if not (len(message) == 2 and isinstance(message[0], list)
+                and isinstance(message[1], list) and message[1]
+                and isinstance(message[1][0], str)):
             raise _Failed("the routine's process sent a malformed request")
         return message
 
     def _ended(self) -> str | None:
         """Why the routine's process ended, if it did (it is waited for up to a second)."""
-        try:
-            status = self.process.wait(timeout=1.0)
-        except subprocess.TimeoutExpired:
+        status = self.process.wait(timeout=1.0)
+        if status is None:
             return None
         if status >= 0:
             return (f"the routine's process ended (exit status {status}) before the routine "
@@ -199,31 +202,34 @@ class _Proxy:
 
     def _apply(self, op: object) -> None:
         """One of the routine's queued requests, as its rospy call would do it in-process."""
-        if not isinstance(op, tuple) or not op:
+        if not isinstance(op, list) or not op:
             raise _Failed("the routine's process sent a malformed request")
         kind, args = op[0], op[1:]
         try:
             if kind == "pub" and len(args) == 2:
-                publisher = self.publishers.get(args[0])
+                publisher = self.publishers.get(args[0]) if isinstance(args[0], str) else None
                 if publisher is None:
-                    raise _Failed(f"the routine published on {args[0]!r} before advertising it")
-                publisher.publish(args[1])
+                    raise _Failed(f"the routine published on {str(args[0])[:60]!r} before "
+                                  "advertising it")
+                publisher.publish(remote.message(args[1], publisher.data_class))
             elif kind == "adv" and len(args) == 2 and isinstance(args[0], str):
-                self.publishers[args[0]] = rospy.Publisher(args[0], _message_type(args[1]))
-            elif kind == "sub" and len(args) == 4 and isinstance(args[1], str):
+                self.publishers[args[0]] = rospy.Publisher(args[0], remote.message_type(args[1]))
+            elif kind == "sub" and len(args) == 4 and isinstance(args[1], str) \
+                    and isinstance(args[0], int):
                 sid, name, msg_type, node = args
                 self.context.node_name = str(node) or self.context.node_name
                 deliver = self.context.deliver
                 outbox_add = self._deliver
                 self.subscriptions[int(sid)] = self.lab.bus.subscribe(
-                    name, _message_type(msg_type),
+                    name, remote.message_type(msg_type),
                     lambda msg, sid=int(sid): deliver(outbox_add, (sid, msg)),
                     node=self.context.node_name)
-            elif kind == "unsub" and len(args) == 1:
+            elif kind == "unsub" and len(args) == 1 and isinstance(args[0], int):
                 sub = self.subscriptions.pop(args[0], None)
                 if sub is not None:
                     sub.unregister()
-            elif kind == "param" and len(args) == 2 and isinstance(args[0], str):
+            elif kind == "param" and len(args) == 2 and isinstance(args[0], str) \
+                    and remote.plain(args[1]):
                 self.runner.params[args[0]] = args[1]
             elif kind == "unparam" and len(args) == 1 and isinstance(args[0], str):
                 self.runner.params.pop(args[0], None)
@@ -235,6 +241,8 @@ class _Proxy:
                 raise _Failed(f"the routine's process sent an unknown request {kind!r}")
         except (_Failed, Shutdown):
             raise
+        except remote.ProtocolError as exc:  # a message that is not its topic's type
+            raise _Failed(f"the routine's process sent what mexone cannot read: {exc}") from None
         except MexoneError as exc:  # e.g. a topic of another type: as rospy raises in-process
             raise _Failed(exc.one_line()) from None
         except Exception as exc:  # noqa: BLE001 - the routine's request, not the simulator, failed
@@ -253,23 +261,10 @@ class _Proxy:
         with contextlib.suppress(OSError):
             self.sock.close()
         if self.process.poll() is None:
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                self.process.wait(timeout=0.2)
-        if self.process.poll() is None:
-            with contextlib.suppress(ProcessLookupError):
-                self.process.kill()
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                self.process.wait(timeout=5)
+            self.process.wait(timeout=0.2)
+        self.process.kill()  # its jail, with whatever it left there
 
 
 def _idle() -> None:
     """While the routine computes: Python code runs every 50 ms, so the stall watchdog's
     interruption (runtime._interrupt) reaches this thread."""
-
-
-def _message_type(value: object) -> type:
-    from mexone.bus import msgs
-
-    if isinstance(value, type) and value.__module__ == msgs.__name__:
-        return value
-    raise _Failed(f"{value!r} is not a message type of mexone.msgs")

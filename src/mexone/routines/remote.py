@@ -12,18 +12,19 @@ or delivered messages, which come back with the answer and run in the routine's 
 do in-process. Anything else of the lab (its model, mexone.motion's helpers that need it) is not
 offered: it raises one clear error.
 
-What a routine's process sends is untrusted: the other side reads it with `safe_loads` (mexone's
-message types and plain data, never code).
+What crosses is JSON (mexone.sandbox.wire), read against the protocol's schema, never a pickle:
+requests and answers are lists of plain data, a message is a mexone.msgs dataclass read as the
+class its topic was advertised or subscribed with (a routine names a message type by its name,
+which the simulator looks up among mexone.msgs' messages only). The routine's process is a jail
+(mexone.sandbox.spawn): it reads the routine and Python, writes its scratch folder only.
 """
 
 from __future__ import annotations
 
 import contextlib
-import io
+import dataclasses
 import math
 import os
-import pickle
-import resource
 import select
 import socket
 import struct
@@ -34,8 +35,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import SimpleNamespace
 
-__all__ = ["send", "receive", "receive_bytes", "safe_loads", "plain", "ProtocolError", "NotOffered",
-           "main", "MAX_FRAME"]
+__all__ = ["send", "receive", "receive_bytes", "plain", "ProtocolError", "NotOffered",
+           "main", "MAX_FRAME", "message_type", "message", "type_name"]
 
 MAX_FRAME = 64 << 20  # bytes one message may have (a routine's 10 GB message ends it)
 _HEADER = struct.Struct("!I")
@@ -50,8 +51,13 @@ class NotOffered(Exception):  # noqa: N818 - what the routine asked for
 
 
 def send(sock: socket.socket, obj: object) -> None:
-    """One message: its length, then its pickle."""
-    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    """One message: its length, then its JSON (mexone.sandbox.wire)."""
+    from mexone.sandbox import wire
+
+    try:
+        data = wire.dumps(obj)
+    except wire.WireError as exc:
+        raise ProtocolError(str(exc)) from None
     sock.sendall(_HEADER.pack(len(data)) + data)
 
 
@@ -65,9 +71,18 @@ def receive_bytes(sock: socket.socket, poll: Callable[[], None] | None = None) -
     return _read(sock, size, poll)
 
 
-def receive(sock: socket.socket, poll: Callable[[], None] | None = None) -> object:
-    """One message from a trusted side (the simulator's answers to the routine's process)."""
-    return pickle.loads(receive_bytes(sock, poll))
+def receive(sock: socket.socket, poll: Callable[[], None] | None = None) -> list:
+    """One message: a non-empty list of plain JSON (its parts are read against their own
+    schemas by the receiver: `message`); ProtocolError for anything else."""
+    from mexone.sandbox import wire
+
+    try:
+        value = wire.loads(receive_bytes(sock, poll), list, "message")
+    except wire.WireError as exc:
+        raise ProtocolError(str(exc)) from None
+    if not value:
+        raise ProtocolError("an empty message")
+    return value
 
 
 def _read(sock: socket.socket, size: int, poll: Callable[[], None] | None) -> bytes:
@@ -83,44 +98,37 @@ def _read(sock: socket.socket, size: int, poll: Callable[[], None] | None) -> by
     return bytes(buf)
 
 
-_NUMPY = {("numpy.core.multiarray", "_reconstruct"), ("numpy._core.multiarray", "_reconstruct"),
-          ("numpy.core.multiarray", "scalar"), ("numpy._core.multiarray", "scalar"),
-          ("numpy", "ndarray"), ("numpy", "dtype")}
-_BUILTINS = {"set", "frozenset", "bytearray", "complex"}
+def message_type(name: object) -> type:
+    """The mexone.msgs message class of this name (ProtocolError for any other name)."""
+    from mexone.bus import msgs
 
-
-class _SafeUnpickler(pickle.Unpickler):
-    """Only mexone's message classes, numpy arrays and scalars, and plain data: a pickle from
-    the routine's process cannot name (and so run) anything else."""
-
-    def find_class(self, module: str, name: str):
-        if module == "mexone.bus.msgs":
-            from mexone.bus import msgs
-
-            found = getattr(msgs, name, None)
-            if isinstance(found, type) and found.__module__ == module:
-                return found
-        elif (module, name) in _NUMPY or (module == "builtins" and name in _BUILTINS):
-            return super().find_class(module, name)
-        raise ProtocolError(f"{module}.{name} is not a message type of mexone.msgs: a routine "
+    found = getattr(msgs, name, None) if isinstance(name, str) and name in msgs.__all__ else None
+    if not (isinstance(found, type) and dataclasses.is_dataclass(found)):
+        raise ProtocolError(f"{str(name)[:60]!r} is not a message type of mexone.msgs: a routine "
                             "graded in its own process sends mexone.msgs messages and plain data")
+    return found
 
 
-def safe_loads(data: bytes) -> object:
-    """Unpickle what an untrusted process sent (see _SafeUnpickler)."""
+def type_name(msg_type: type) -> str:
+    """What names `msg_type` on the wire (its class's name, a message of mexone.msgs)."""
+    return getattr(msg_type, "__name__", str(msg_type))
+
+
+def message(raw: object, msg_type: type) -> object:
+    """A message received, read as `msg_type` (ProtocolError if it is not one)."""
+    from mexone.sandbox import wire
+
     try:
-        return _SafeUnpickler(io.BytesIO(data)).load()
-    except ProtocolError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - whatever a hostile pickle makes the reader raise
-        raise ProtocolError(f"an unreadable message ({type(exc).__name__}: {exc})") from None
+        return wire.read(raw, msg_type, "message")
+    except wire.WireError as exc:
+        raise ProtocolError(str(exc)) from None
 
 
 def plain(value: object, depth: int = 0) -> bool:
     """Whether `value` is plain data (what a parameter server holds)."""
     if depth > 20:
         return False
-    if value is None or isinstance(value, bool | int | float | str | bytes):
+    if value is None or isinstance(value, bool | int | float | str):
         return True
     if isinstance(value, list | tuple):
         return all(plain(v, depth + 1) for v in value)
@@ -143,6 +151,7 @@ class _Client:
         self.time = 0.0
         self.time_ns = 0
         self.callbacks: dict[int, Callable[[object], None]] = {}
+        self.types: dict[int, type] = {}  # each subscription's message type
         self.next_id = 0
         self.stopped = False
 
@@ -150,7 +159,7 @@ class _Client:
         with self.queue_lock:
             self.queue.append(request)
 
-    def call(self, *request: object) -> tuple:
+    def call(self, *request: object) -> list:
         from mexone.routines.runtime import Forked
 
         if os.getpid() != self.pid:
@@ -211,10 +220,18 @@ class _Bus:
         self._client = client
 
     def advertise(self, name: str, msg_type: type) -> None:
-        self._client.post("adv", name, msg_type)
+        self._client.post("adv", name, type_name(msg_type))
 
     def publish(self, name: str, msg: object) -> None:
-        self._client.post("pub", name, msg)
+        from mexone.sandbox import wire
+
+        try:  # here, so a message that cannot cross fails at the routine's publish
+            data = wire.plain(msg)
+        except wire.WireError as exc:
+            raise ProtocolError(f"{type_name(type(msg))} cannot be sent to the simulator: "
+                                f"{exc} (a routine graded in its own process sends mexone.msgs "
+                                "messages and plain data)") from None
+        self._client.post("pub", name, data)
 
     def subscribe(self, name: str, msg_type: type, callback: Callable[[object], None],
                   latched: bool = False, node: str = "") -> _Subscription:
@@ -222,7 +239,8 @@ class _Bus:
         with client.queue_lock:
             sid = client.next_id = client.next_id + 1
         client.callbacks[sid] = callback
-        client.post("sub", sid, name, msg_type, node)
+        client.types[sid] = msg_type
+        client.post("sub", sid, name, type_name(msg_type), node)
         return _Subscription(client, sid)
 
     @property
@@ -304,10 +322,10 @@ class _Scheduler:
                 client.stopped = True
                 raise Shutdown
             _, client.time, client.time_ns, delivered = answer
-            for sid, msg in delivered:
+            for sid, raw in delivered:
                 callback = client.callbacks.get(sid)
                 if callback is not None:
-                    callback(msg)
+                    callback(message(raw, client.types[sid]))
 
     @contextmanager
     def busy(self, what: str) -> Iterator[None]:
@@ -326,16 +344,6 @@ def _context_class():
                 self.params._client.post("node", value)
 
     return _Context
-
-
-def _limit(cpu: float, memory_mb: int) -> None:
-    cpu_s = max(1, int(cpu))
-    resource.setrlimit(resource.RLIMIT_CPU, (cpu_s, cpu_s + 1))
-    mem = int(memory_mb) * 1024 * 1024
-    with contextlib.suppress(ValueError, OSError):
-        resource.setrlimit(resource.RLIMIT_AS, (mem, mem))
-    with contextlib.suppress(ValueError, OSError):
-        resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
 
 
 def _run(path: Path) -> tuple[str | None, int | None]:
@@ -365,13 +373,9 @@ def _run(path: Path) -> tuple[str | None, int | None]:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """The routine's process (FD CPU_S MEMORY_MB SIMULATOR_PID): limits first, then the
-    routine, then one last message; it ends with the simulator's process."""
-    fd, cpu, memory_mb, parent = (argv or sys.argv[1:])[:4]
-    _limit(float(cpu), int(memory_mb))
-    from mexone.routines import processes
-
-    processes.die_with_parent(int(parent))
+    """The routine's process (FD), in its jail (mexone.sandbox.spawn: its limits, its end with
+    the simulator's): the routine, then one last message."""
+    fd = (argv or sys.argv[1:])[0]
     sock = socket.socket(fileno=int(fd))
     code = 0
     try:

@@ -1,33 +1,55 @@
-"""The wire between mexone and a student's process: frames of one kind byte, a length and a
-payload (bytes, or JSON text for structured messages), and descriptors (a shared-memory block)
-handed over on a socket of their own. Never a pickle: what a student's process sends is data,
-read with a size limit and `json.loads`, so no object of its making reaches mexone.
+"""The wire between mexone and a student's process, and what may cross it: data, never a pickle.
 
+Framing: frames of one kind byte, a length and a payload (bytes, or JSON text for structured
+messages), and descriptors (a shared-memory block) handed over on a socket of their own.
 `Channel` is one end. mexone's end never blocks past a deadline: `receive` takes a timeout, and
 `send` gives up when the other side stops reading; a process that hangs or floods is the
 caller's to end (its `StudentProcess.kill`). A frame with no payload is five bytes: what a
 lockstep loop sends each way per cycle (`frame`).
+
+Payloads: `dumps(value)` writes plain data, dataclasses (their fields and their class's name
+under "$"), numpy arrays (dtype, shape and the raw bytes in base64, under "$a") and bytes (base64
+under "$b"). `loads(data, schema)` (and `Channel.json(payload, schema)`) reads it back only as
+`schema` says: `float`, `int`, `bool`, `str`, `bytes`, `None`, `Path`, `numpy.ndarray`,
+`list[X]`, `tuple[X, ...]`, `tuple[X, Y]`, `dict[str, X]`, `X | Y`, a dataclass (its fields'
+annotations, recursively) or `object` (plain JSON only). A class is never looked up by a name
+the sender chose: a dataclass is read only where the schema names it, the "$" tag only picks
+among the schema's own alternatives. Whatever does not fit, is not JSON, is too large or too
+deep is a WireError naming where (`result[2].position: expected float, got str`).
 """
 
 from __future__ import annotations
 
+import base64
 import contextlib
+import dataclasses
 import json
+import math
 import os
 import select
 import socket
 import struct
 import time
+import types
+import typing
+from collections.abc import Sequence
+from pathlib import Path
 
-__all__ = ["Channel", "WireError", "MAX_FRAME", "pair", "frame"]
+__all__ = ["Channel", "WireError", "MAX_FRAME", "pair", "frame", "dumps", "loads", "plain", "read",
+           "MAX_BYTES", "PLAIN"]
 
 MAX_FRAME = 1 << 20  # bytes one frame may carry (a report, a class's description, a fault)
+MAX_BYTES = 64 << 20  # the largest message `loads` reads (a graded run's samples are under 1 MB)
+MAX_DEPTH = 64
+PLAIN = object  # the schema of plain JSON: dicts, lists, strings, numbers, booleans, None
+_DTYPES = ("float64", "float32", "int64", "int32", "int8", "uint8", "bool")
 _HEADER = struct.Struct("<cI")  # kind (one byte), payload length
 _CHUNK = 1 << 16
 
 
 class WireError(Exception):
-    """The other side hung up, sent what the protocol does not allow, or stopped reading."""
+    """The other side hung up, stopped reading, or sent what the protocol or the schema does
+    not allow (or what is not JSON); also what cannot be sent."""
 
 
 def frame(kind: bytes, payload: bytes = b"") -> bytes:
@@ -202,15 +224,247 @@ class Channel:
         return kind, payload
 
     @staticmethod
-    def json(payload: bytes) -> object:
-        """A JSON payload as data (WireError if it is not JSON)."""
-        try:
-            return json.loads(payload)
-        except (ValueError, RecursionError) as exc:
-            raise WireError(f"a message that is not JSON ({type(exc).__name__})") from None
+    def json(payload: bytes, schema: object = PLAIN, where: str = "message") -> typing.Any:
+        """A JSON payload read as `schema` says (`loads`; WireError if it is not JSON or does
+        not fit)."""
+        return loads(payload, schema, where)
 
     def close(self) -> None:
         for sock in (self.sock, self.fds):
             if sock is not None:
                 with contextlib.suppress(OSError):
                     sock.close()
+
+
+# ----- payloads: JSON against a schema ---------------------------------------------------------------
+def _plain(value: object, depth: int = 0) -> object:
+    if depth > MAX_DEPTH:
+        raise WireError("nested too deeply")
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return value
+    if isinstance(value, bytes | bytearray | memoryview):
+        return {"$b": base64.b64encode(bytes(value)).decode()}
+    if isinstance(value, Path):
+        return str(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        out = {"$": type(value).__name__}
+        for f in dataclasses.fields(value):
+            out[f.name] = _plain(getattr(value, f.name), depth + 1)
+        return out
+    if isinstance(value, dict):
+        return {str(k): _plain(v, depth + 1) for k, v in value.items()}
+    if isinstance(value, list | tuple | set | frozenset):
+        return [_plain(v, depth + 1) for v in value]
+    numpy = _numpy()
+    if numpy is not None:
+        if isinstance(value, numpy.ndarray):
+            dtype = value.dtype.name if value.dtype.name in _DTYPES else "float64"
+            data = numpy.asarray(value, dtype=dtype).tobytes()  # C order, any layout, 0-d too
+            return {"$a": [dtype, list(value.shape), base64.b64encode(data).decode()]}
+        if isinstance(value, numpy.generic):
+            return _plain(value.item(), depth)
+    raise WireError(f"cannot send a {type(value).__name__}")
+
+
+def plain(value: object) -> object:
+    """`value` as the plain data `dumps` writes (WireError for what cannot be sent)."""
+    return _plain(value)
+
+
+def dumps(value: object) -> bytes:
+    """`value` as JSON bytes (NaN and infinities as JSON's common extension)."""
+    try:
+        return json.dumps(_plain(value), separators=(",", ":")).encode()
+    except WireError:
+        raise
+    except (TypeError, ValueError, RecursionError) as exc:
+        raise WireError(f"cannot send it: {exc}") from None
+
+
+def loads(data: bytes | str, schema: object = PLAIN, where: str = "result") -> object:
+    """`data` read as `schema` says (WireError if it does not fit)."""
+    if len(data) > MAX_BYTES:
+        raise WireError(f"{where}: {len(data)} bytes, more than {MAX_BYTES >> 20} MB")
+    try:
+        raw = json.loads(data)
+    except (ValueError, RecursionError) as exc:
+        raise WireError(f"{where}: not JSON ({type(exc).__name__})") from None
+    return read(raw, schema, where)
+
+
+def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> object:
+    """Decoded JSON `raw` checked and built as `schema` says."""
+    if depth > MAX_DEPTH:
+        raise WireError(f"{where}: nested too deeply")
+    origin = typing.get_origin(schema)
+    args = typing.get_args(schema)
+    if schema is typing.Any or schema is object:
+        return _check_plain(raw, where, depth)
+    if schema is None or schema is type(None):
+        if raw is not None:
+            raise _expected("None", raw, where)
+        return None
+    if origin in (typing.Union, types.UnionType):
+        tag = raw.get("$") if isinstance(raw, dict) else None
+        errors = []
+        for option in args:
+            if tag is not None and dataclasses.is_dataclass(option) and option.__name__ != tag:
+                continue
+            try:
+                return read(raw, option, where, depth)
+            except WireError as exc:
+                errors.append(exc)
+        if errors and len(errors) == 1:
+            raise errors[0]
+        raise WireError(f"{where}: {_shown(raw)} is none of {_names(args)}")
+    if schema is float:
+        if isinstance(raw, bool) or not isinstance(raw, int | float):
+            raise _expected("float", raw, where)
+        return float(raw)
+    if schema is int:
+        if isinstance(raw, bool) or not isinstance(raw, int):
+            raise _expected("int", raw, where)
+        return raw
+    if schema is bool:
+        if not isinstance(raw, bool):
+            raise _expected("bool", raw, where)
+        return raw
+    if schema is str:
+        if not isinstance(raw, str):
+            raise _expected("str", raw, where)
+        return raw
+    if schema is bytes:
+        return _bytes(raw, where)
+    if schema is Path:
+        if not isinstance(raw, str):
+            raise _expected("a path", raw, where)
+        return Path(raw)
+    if origin in (list, Sequence) or schema is list:
+        if not isinstance(raw, list):
+            raise _expected("list", raw, where)
+        item = args[0] if args else object
+        if item is float and all(type(x) is float for x in raw):  # the common case, quickly
+            return raw
+        return [read(x, item, f"{where}[{i}]", depth + 1) for i, x in enumerate(raw)]
+    if origin is tuple or schema is tuple:
+        if not isinstance(raw, list):
+            raise _expected("tuple", raw, where)
+        if not args or (len(args) == 2 and args[1] is Ellipsis):
+            item = args[0] if args else object
+            return tuple(read(x, item, f"{where}[{i}]", depth + 1) for i, x in enumerate(raw))
+        if len(raw) != len(args):
+            raise WireError(f"{where}: {len(raw)} items, expected {len(args)}")
+        return tuple(read(x, t, f"{where}[{i}]", depth + 1)
+                     for i, (x, t) in enumerate(zip(raw, args, strict=True)))
+    if origin is dict or schema is dict:
+        if not isinstance(raw, dict):
+            raise _expected("dict", raw, where)
+        key, value = args if args else (str, object)
+        if key not in (str, typing.Any, object):
+            raise WireError(f"{where}: a schema's dict keys are str")
+        return {k: read(v, value, f"{where}[{k!r}]", depth + 1) for k, v in raw.items()}
+    numpy = _numpy()
+    if numpy is not None and schema is numpy.ndarray:
+        return _array(raw, where, numpy)
+    if dataclasses.is_dataclass(schema) and isinstance(schema, type):
+        return _dataclass(raw, schema, where, depth)
+    raise WireError(f"{where}: the schema {schema!r} is not one this module reads")
+
+
+def _dataclass(raw: object, cls: type, where: str, depth: int) -> object:
+    if not isinstance(raw, dict):
+        raise _expected(cls.__name__, raw, where)
+    if raw.get("$", cls.__name__) != cls.__name__:
+        raise WireError(f"{where}: a {_shown(raw.get('$'))}, expected {cls.__name__}")
+    hints = _hints(cls)
+    fields = {f.name: f for f in dataclasses.fields(cls)}
+    unknown = sorted(set(raw) - set(fields) - {"$"})
+    if unknown:
+        raise WireError(f"{where}: {cls.__name__} has no field {unknown[0]!r}")
+    values = {}
+    for name, f in fields.items():
+        if name in raw:
+            values[name] = read(raw[name], hints.get(name, object), f"{where}.{name}", depth + 1)
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            raise WireError(f"{where}: {cls.__name__}'s field {name!r} is missing")
+    try:
+        return cls(**values)
+    except Exception as exc:  # noqa: BLE001 - a class's own checks refusing the values
+        raise WireError(f"{where}: {cls.__name__}: {exc}") from None
+
+
+_HINTS: dict[type, dict] = {}
+
+
+def _hints(cls: type) -> dict:
+    hints = _HINTS.get(cls)
+    if hints is None:
+        hints = _HINTS[cls] = typing.get_type_hints(cls)
+    return hints
+
+
+def _bytes(raw: object, where: str) -> bytes:
+    if not (isinstance(raw, dict) and set(raw) == {"$b"} and isinstance(raw["$b"], str)):
+        raise _expected("bytes", raw, where)
+    try:
+        return base64.b64decode(raw["$b"], validate=True)
+    except ValueError:
+        raise WireError(f"{where}: bytes that are not base64") from None
+
+
+def _array(raw: object, where: str, numpy):
+    if isinstance(raw, list):  # a list of numbers is an array too
+        try:
+            array = numpy.asarray(raw, dtype=float)
+        except (TypeError, ValueError):
+            raise _expected("an array of numbers", raw, where) from None
+        return array
+    if not (isinstance(raw, dict) and set(raw) == {"$a"} and isinstance(raw["$a"], list)
+            and len(raw["$a"]) == 3):
+        raise _expected("an array", raw, where)
+    dtype, shape, data = raw["$a"]
+    if dtype not in _DTYPES or not isinstance(shape, list) or len(shape) > 8 \
+            or not all(isinstance(n, int) and not isinstance(n, bool) and n >= 0 for n in shape):
+        raise WireError(f"{where}: an array of dtype {_shown(dtype)}, shape {_shown(shape)}")
+    buffer = _bytes({"$b": data}, where)
+    size = math.prod(shape) * numpy.dtype(dtype).itemsize
+    if size != len(buffer):
+        raise WireError(f"{where}: an array of shape {shape} with {len(buffer)} bytes")
+    return numpy.frombuffer(buffer, dtype=dtype).reshape(shape).copy()
+
+
+def _check_plain(raw: object, where: str, depth: int) -> object:
+    if depth > MAX_DEPTH:
+        raise WireError(f"{where}: nested too deeply")
+    if isinstance(raw, list):
+        for i, x in enumerate(raw):
+            _check_plain(x, f"{where}[{i}]", depth + 1)
+    elif isinstance(raw, dict):
+        for k, v in raw.items():
+            _check_plain(v, f"{where}[{k!r}]", depth + 1)
+    return raw
+
+
+def _numpy() -> typing.Any:
+    import sys
+
+    return sys.modules.get("numpy")
+
+
+def _expected(what: str, raw: object, where: str) -> WireError:
+    return WireError(f"{where}: expected {what}, got {_shown(raw)}")
+
+
+def _shown(raw: object) -> str:
+    if isinstance(raw, dict):
+        return "an object"
+    if isinstance(raw, list):
+        return "a list"
+    text = repr(raw)
+    return f"{type(raw).__name__} {text[:40]}"
+
+
+def _names(options: tuple) -> str:
+    return ", ".join(getattr(o, "__name__", repr(o)) for o in options)

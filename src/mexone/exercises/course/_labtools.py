@@ -1,10 +1,12 @@
 """What the graders of course exercises 5-10 share: a lab with the student's controller on some
 joints (the shipped PIDs on the rest), a heavier or lighter link for the hidden variant, the
 controller's fault, a check. grade(ctx) runs in the grading process and draws the variant there;
-these helpers run inside ctx.run's isolated child, where the lab imports the student's file."""
+these helpers run in the simulator (ctx.measure), whose lab runs the student's class in its
+controller worker, a jail of its own: what they measure is the simulation's, not the student's."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 from collections.abc import Callable, Sequence
@@ -68,12 +70,15 @@ def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
         raise SubmissionFailed(InputError(f"{source}: no such file", hint=f"hand in {file}").one_line())
     shutil.copyfile(source, workdir / file)
     source = workdir / file
+    os.chmod(workdir, 0o755)  # the controller's worker, a jail of another uid, reads them
+    os.chmod(source, 0o644)
     shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
     ns, controllers = next(iter(shipped.items()))
     kept = {k: v for k, v in controllers.items() if v.get("joint") not in joints}
     entry = {"type": f"{source.stem}/{cls}", "joints": list(joints), **params}
     out = workdir / "controllers.yaml"
     out.write_text(yaml.safe_dump({ns: {name: entry, **kept}}, sort_keys=False))
+    os.chmod(out, 0o644)
     return out
 
 

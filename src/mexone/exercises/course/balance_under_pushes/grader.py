@@ -78,7 +78,7 @@ def trials(submission: Path, var: dict, scale: float) -> tuple[bool, float, str 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
     scale = mass_ratio(var)
-    passed, largest, fault = ctx.run(trials, ctx.submission, var, scale)
+    passed, largest, fault = ctx.measure(trials, ctx.submission, var, scale)
     what = (f"torso x{var['torso']:.2f}, pushed forward at the torso over 0.1 s, every push x"
             f"{scale:.3f}, the robot's mass ratio")
     return [check("runs", 1.0, 0.0 if fault else 1.0, fault or "no fault in any trial"),

@@ -79,8 +79,8 @@ def shipped_rms(var: dict) -> float:
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    error, fault = ctx.run(student_rms, ctx.submission, var)
-    shipped = ctx.run(shipped_rms, var)
+    error, fault = ctx.measure(student_rms, ctx.submission, var)
+    shipped = ctx.measure(shipped_rms, var)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
     frac = 0.0 if fault else float(np.clip((BAD - error) / (BAD - GOOD), 0.0, 1.0))
     what = (f"A {var['amplitude']:.2f} rad, f {var['frequency']:.2f} Hz, payload "

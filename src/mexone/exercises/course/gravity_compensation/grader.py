@@ -85,7 +85,7 @@ def measure(submission: Path, var: dict) -> tuple[float, tuple[tuple[float, floa
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    sag, gains, fault = ctx.run(measure, ctx.submission, var)
+    sag, gains, fault = ctx.measure(measure, ctx.submission, var)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
     share = 0.0 if fault else min(gain_share(k, KP) * gain_share(d, KD) for k, d in gains)
     method = check(METHOD, 1.0, share,

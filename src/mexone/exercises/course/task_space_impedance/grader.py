@@ -101,7 +101,7 @@ def measure(submission: Path, var: dict) -> tuple[dict[str, float], float, dict,
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    moved, back, applied, fault = ctx.run(measure, ctx.submission, var)
+    moved, back, applied, fault = ctx.measure(measure, ctx.submission, var)
     expected = var["force"] / var["stiffness"]
     stiffness, damping = var["stiffness"], 0.1 * var["stiffness"]
     checks = [check("runs", 1.0, 0.0 if fault else 1.0, fault or "ran the pushes without a fault")]

@@ -35,7 +35,7 @@ def variant(r: np.random.Generator | None) -> Variation:
 
 
 def walk(gait: Path, variation: Variation) -> dict:
-    """In the isolated child: the walk routine with the student's gait on the course [forward
+    """In the simulator (ctx.measure): the walk routine with the student's gait on the course [forward
     GOAL]; the base's x, y every SAMPLE s and when the robot fell (None: it did not)."""
     from mexone.lab import Lab
     from mexone.physics.monitor import has_fallen
@@ -73,7 +73,7 @@ def walk(gait: Path, variation: Variation) -> dict:
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    run = ctx.run(walk, ctx.submission, var)
+    run = ctx.measure(walk, ctx.submission, var)
     t, x, y = (np.asarray(run[k]) for k in ("t", "x", "y"))
     x, y = x - x[0], y - y[0]
     what = f"mass x{var.mass:.2f}, friction x{var.friction:.2f}"
