@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from mexone.control.config import load_control_config
 from mexone.design import deploy, linearize, lqr, measure_frequency_response, operating_point
 from mexone.design.friction import friction_model
 from mexone.design.loop import LoopModel, linearize_loop
@@ -97,7 +98,8 @@ def student(tmp_path_factory):
     (folder / "arm_pd.py").write_text(STUDENT)
     path = _yaml_with(folder, "arm_pd", {"type": "arm_pd/FilteredPD", "joints": ARM,
                                          "update_rate": 1000})
-    lab = Lab.create(controllers=path)
+    # the analysis reaches into the object: imported here, as `mexone certify` does
+    lab = Lab.create(controllers=load_control_config(path, in_process=True))
     lab.sim.run(0.8)
     return lab
 
@@ -336,12 +338,16 @@ def test_an_observer_from_a_yaml_exports_what_its_class_declares(elbow_pp, tmp_p
     '''))
     base = {"joints": [], "update_rate": 1000, "design_file": "kf.npz"}
     good = _yaml_with(tmp_path, "rate_kf", {"type": "rate_kf/RateKF", **base})
-    run = Lab.create(controllers=good, options=CompileOptions(fixed_base=True))
+    # an Observer reads the simulator's sensors itself: a subclass runs in the lab's process
+    # (in_process), not in a controller worker (there it has no simulator: issue 38's note)
+    run = Lab.create(controllers=load_control_config(good, in_process=True),
+                     options=CompileOptions(fixed_base=True))
     run.sim.run(0.05)
     assert np.isfinite(run.manager.exports()["rate_kf/rate"]).all()
     bad = _yaml_with(tmp_path, "rate_kf", {"type": "rate_kf/Wrong", **base})
     with pytest.raises(InputError, match=r"exports \{'rate': 2\}, the design file kf.npz gives \{'rate': 1\}"):
-        Lab.create(controllers=bad, options=CompileOptions(fixed_base=True))
+        Lab.create(controllers=load_control_config(bad, in_process=True),
+                   options=CompileOptions(fixed_base=True))
 
 
 def test_bad_requests_are_one_line(arm_lab, elbow_pp):

@@ -127,7 +127,12 @@ def run(args: argparse.Namespace) -> int:
         check_output(args.output, args.force)
     if not args.controllers.is_file():
         raise InputError("controllers file does not exist", file=args.controllers)
-    lab = Lab.create(args.model, args.controllers, options=CompileOptions(fixed_base=args.fixed_base))
+    from mexone.control.config import load_control_config
+
+    # the user's own controllers on their own machine, imported here (as a notebook's): the
+    # analysis differentiates their update on copies of the object
+    config = load_control_config(args.controllers, in_process=True)
+    lab = Lab.create(args.model, config, options=CompileOptions(fixed_base=args.fixed_base))
     if lab.manager is None:
         raise InputError("the lab has no controllers", file=args.controllers)
     _place(lab, args, pose)

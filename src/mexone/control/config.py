@@ -20,6 +20,7 @@ from mexone.control.resolve import (
     RESERVED_KEYS,
     Plugin,
     check_settings,
+    resolve_class,
     validate_params,
 )
 from mexone.control.spec import ControlConfig, ControllerSpec, PidGains
@@ -39,13 +40,26 @@ __all__ = [
 ]
 
 
-def load_control_config(path: Path | str, classes: dict[str, type] | None = None) -> ControlConfig:
+def load_control_config(path: Path | str, classes: dict[str, type] | None = None,
+                        in_process: bool = False) -> ControlConfig:
     """A ros_control controller YAML (what `rosparam load` and the controller_manager read), every
     mistake one line at the file's line. A student's class its `type:` names runs in a process
     of its own (control/worker.py); `classes` maps `type:` names to classes handed over in
-    Python (a notebook's own), which run in this process."""
+    Python (a notebook's own), which run in this process. `in_process`: every class the YAML
+    names is imported here, as a notebook's would be -- for an analysis that reaches into the
+    controller's object (`mexone certify`, design.linearize_loop) on the user's own machine;
+    never for grading, whose controllers stay in their workers."""
     path = Path(path)
-    return parse_control_config(read_input_text(path), path, classes)
+    text = read_input_text(path)
+    config = parse_control_config(text, path, classes)
+    if not in_process:
+        return config
+    imported = dict(classes or {})
+    for spec in config.controllers.values():
+        plugin = spec.plugin
+        if plugin is not None and plugin.isolated and plugin.type not in imported:
+            imported[plugin.type] = resolve_class(plugin.type, plugin.yaml_dir, [])[0]
+    return parse_control_config(text, path, imported)
 
 
 class _Reader:

@@ -453,7 +453,7 @@ class Observer(_Deployed):
         return est
 
     @classmethod
-    def _design_of(cls, name: str, design_file: str, yaml_dir):
+    def _design_of(cls, name: str, design_file: str, yaml_dir, robot=None):
         return cls._given if cls._given is not None else cls._load(name, design_file, yaml_dir)
 
     def configure(self) -> None:
@@ -479,7 +479,7 @@ class Observer(_Deployed):
                 self._readers.append((what, None, None, int(adr)))
         joints = [label.rpartition(":")[0] for label in est.inputs]
         kinds = {label.rpartition(":")[2] for label in est.inputs}
-        self._input_kind = kinds.pop() if len(kinds) == 1 else "effort"
+        self._effort_inputs = (kinds.pop() if len(kinds) == 1 else "effort") == "effort"
         ids = [model.joint(j).id for j in joints]
         self._input_dofs = np.array([model.jnt_dofadr[i] for i in ids], dtype=int)
         motors = [model.actuator(j).id for j in joints]
@@ -552,7 +552,7 @@ class Observer(_Deployed):
         """The plant's inputs as applied over the last period (deviations from u0): the motors'
         torques (effort inputs) or the PIDs' setpoints (position inputs)."""
         data = self._sim.data
-        if self._input_kind == "effort":
+        if self._effort_inputs:
             u = data.qfrc_actuator[self._input_dofs]
         else:
             u = data.ctrl[self._input_ctrl] / self._gear

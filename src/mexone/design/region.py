@@ -164,7 +164,7 @@ def _job(lab, controller, plant, names, grid, duration, P) -> dict:
         manager = lab.manager
         runner = manager.controllers[controller.name]
         hw = manager.hw
-        motors = hw.motor[runner.rows]
+        motors = hw.layout.motor[runner.rows]
         ff = m.actuator_ctrladr[motors] + 2
         gear = m.actuator_gear[motors, 0]
         limits = hw.effort_limit[runner.rows].copy()

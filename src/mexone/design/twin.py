@@ -17,6 +17,7 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
+from mexone.control.controllers.python import PythonRunner
 from mexone.control.hardware import set_actuator_state
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.physics.compile import CompileOptions, SpecEdit
@@ -42,7 +43,7 @@ def python_runners(lab, names: Sequence[str] | None = None) -> list:
     manager = getattr(lab, "manager", None)
     if manager is None:
         raise ArgumentTypeError("give a mexone Lab with controllers (Lab.create(controllers=...))")
-    running = [c for c in manager.controllers.values() if c.running and c.kind == "python"]
+    running = [c for c in manager.controllers.values() if c.running and isinstance(c, PythonRunner)]
     if names is None:
         if not running:
             raise InputError("no Python controller is running in the lab",
@@ -171,7 +172,7 @@ def snapshot(lab) -> _Snapshot:
             commands = {name: np.array(getattr(c, name)) for name in vars(c) if name != "n"}
             running = tuple(ctrl.name for ctrl in manager.controllers.values() if ctrl.running)
             for ctrl in manager.controllers.values():
-                if ctrl.running and ctrl.kind == "python":
+                if ctrl.running and isinstance(ctrl, PythonRunner):
                     states[ctrl.name] = ControllerState.of(ctrl.name, ctrl.impl)
         return _Snapshot(fields, options, data.qpos.copy(), data.qvel.copy(), data.act.copy(),
                          data.ctrl.copy(), data.qacc_warmstart.copy(), sim.time_ns, data.time,
@@ -262,9 +263,7 @@ def place(lab, qpos: np.ndarray) -> None:
         data = sim.data
         if np.shape(qpos) != data.qpos.shape:
             raise InputError(f"a pose of {np.size(qpos)} positions for a model of {data.qpos.size}")
-        data.qpos[:] = qpos
-        data.qvel[:] = 0.0
-        mujoco.mj_forward(sim.model, data)
+        sim.set_state(qpos, np.zeros(sim.model.nv))
         manager = lab.manager
         if manager is not None:
             manager.hold([j for c in manager.controllers.values() if c.running for j in c.joints])
