@@ -66,8 +66,9 @@ def test_the_starter_fails(graded, name):
     assert result.score < find_exercise(name).pass_mark, why(result)
     if name == "walk_estimator":  # it walks, on a robot it believes stands still
         assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
-    else:
-        assert checks(result)["stays up"][0] == 0, why(result)
+    else:  # it falls, or (on a variant where it stays up) walks nowhere near the speed
+        said = checks(result)
+        assert said["stays up"][0] == 0 or said.get("speed", (1,))[0] == 0, why(result)
 
 
 def test_the_shipped_planner_under_the_students_name_scores_zero(graded):
