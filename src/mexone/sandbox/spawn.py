@@ -187,7 +187,10 @@ def _python_paths() -> list[str]:
              os.path.dirname(os.path.realpath(sys.executable))}
     paths |= {p for p in sys.path if p and os.path.basename(p) in ("site-packages",
                                                                     "dist-packages")}
-    return sorted({os.path.realpath(p) for p in paths if p and os.path.exists(p)})
+    # each as the process names it too: a venv reached through a symlink keeps that path in
+    # sys.path and in mexone.__path__, which a jail's later imports go through
+    return sorted({q for p in paths if p and os.path.exists(p)
+                   for q in (os.path.abspath(p), os.path.realpath(p))})
 
 
 class UidSlot:
@@ -216,10 +219,26 @@ class UidSlot:
             self.sock.close()
 
 
+def _closed_to_others(paths: list[str]) -> str | None:
+    """The first of `paths` (folders a jail binds) another user cannot enter, if any: its
+    bind keeps its mode, so a jail of a uid of its own could not import from it."""
+    for path in paths:
+        with contextlib.suppress(OSError):
+            if os.path.isdir(path) and not os.stat(path).st_mode & stat.S_IXOTH:
+                return path
+    return None
+
+
 def jail_plan(jail: Jail, scratch: Path, root: Path | None, slot: UidSlot | None) -> Plan:
     """The Plan confine.jail carries out for `jail` on this machine."""
     iso = isolation()
     uid = slot.uid if slot is not None else None
+    if uid is not None:
+        closed = _closed_to_others(_python_paths() + [os.path.realpath(p) for p in jail.readable])
+        if closed is not None:
+            raise OSError(f"a jail runs as a user of its own, who cannot enter {closed} (mode "
+                          f"{stat.S_IMODE(os.stat(closed).st_mode):o}): let others read it "
+                          f"(chmod o+rx {closed}), or grade as a user who is not root")
     return Plan(mode=iso.mode, scratch=str(scratch), root=str(root) if root else "",
                 readable=_python_paths() + [os.path.realpath(p) for p in jail.readable],
                 hidden=_hidden_defaults() + [os.path.realpath(p) for p in jail.hidden],
