@@ -68,7 +68,8 @@ def gravity(slope) -> np.ndarray:
     return 9.81 * np.array([math.sin(ay), -math.sin(ax) * math.cos(ay), -math.cos(ax) * math.cos(ay)])
 
 
-def measure(submission: Path, var: dict, louder: bool = False):
+def measure(submission: Path, var: dict, louder: bool = False
+            ) -> tuple[float, float, np.ndarray, str | None]:
     """In the isolated child: (RMS error rad, the true tilt's RMS, the estimate, fault)."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
