@@ -185,7 +185,11 @@ def test_a_grader_that_is_not_root_gets_a_user_namespace(mode, listener):
         python = _python("uid")
         for name, text in (("spawner.py", SPAWNER), ("attack.py", ATTACK)):
             (folder / name).write_text(text)
-        src = Path(__file__).resolve().parents[2] / "src"
+        # mexone where nobody can read it: a checkout may sit in a folder only root enters
+        # (CI's clone), and a grader's code is installed for the user who runs it
+        src = folder / "src"
+        shutil.copytree(Path(__file__).resolve().parents[2] / "src" / "mexone", src / "mexone",
+                        ignore=shutil.ignore_patterns("__pycache__"))
         command = (f"cd {folder} && MEXONE_SANDBOX={mode} MEXONE_EXERCISE_SECRET={SECRET} "
                    f"PYTHONPATH={src} timeout 120 "
                    f"{python} spawner.py {python} {other} {listener.getsockname()[1]} "
