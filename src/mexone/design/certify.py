@@ -62,6 +62,7 @@ class Certificate:
         return all(o.agrees for o in self.onsets)
 
     def as_dict(self) -> dict:
+        """The certificate as plain JSON values (`mexone certify --json`)."""
         loop = self.loop
         return {"controllers": list(loop.controllers), "joints": list(loop.joints),
                 "interface": loop.interface, "period": loop.period,
@@ -76,6 +77,7 @@ class Certificate:
                 "seconds": self.seconds, "notes": list(self.notes)}
 
     def json(self) -> str:
+        """The certificate as indented JSON text."""
         return json.dumps(self.as_dict(), indent=2)
 
     def lines(self) -> list[str]:

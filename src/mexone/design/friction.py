@@ -52,10 +52,12 @@ class FrictionModel:
 
     @property
     def damping(self) -> np.ndarray:
+        """Viscous damping per joint (N m s/rad) the smoothed Coulomb friction acts as near zero speed."""
         return self.reference / self.softness
 
     @property
     def band(self) -> np.ndarray:
+        """Speed per joint (rad/s) below which the friction acts as damping (Coulomb over damping)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             return np.where(self.damping > 0, self.coulomb / self.damping, 0.0)
 

@@ -64,10 +64,12 @@ class LoopModel:
 
     @property
     def inputs(self) -> tuple[str, ...]:
+        """The plant's input labels the loop is closed through (`joint:effort`, ...)."""
         return tuple(self.plant.input_labels)
 
     @property
     def channels(self) -> int:
+        """How many input channels the loop has (one margin each, and all at once)."""
         return self.plant.ninputs
 
     def series(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

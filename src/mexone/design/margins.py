@@ -109,6 +109,7 @@ class Margins:
         raise InputError(f"no loop named {name!r}", hint=", ".join(m.name for m in self.loops))
 
     def as_dict(self) -> dict:
+        """The margins as plain JSON values (`mexone certify --json`)."""
         return {"period": self.period, "spectral_radius": self.spectral_radius,
                 "method": self.method, "notes": list(self.notes),
                 "all": self.all.as_dict(), "loops": [m.as_dict() for m in self.loops]}

@@ -73,6 +73,7 @@ class Mismatch:
         return sorted(rows, key=lambda r: -r[2])
 
     def as_dict(self) -> dict:
+        """The numbers as plain JSON values (`mexone certify --mismatch --json`)."""
         return {"relative": self.relative, "without": self.without, "explained": self.explained,
                 "residual": self.residual, "friction_aware": self.friction_aware,
                 "dead_band": None if self.dead_band is None else self.dead_band.tolist(),

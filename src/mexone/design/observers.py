@@ -78,10 +78,12 @@ class Estimator:
 
     @property
     def dt(self) -> float:
+        """The estimator's sample period (s), as python-control names it."""
         return self.period
 
     @property
     def time_varying(self) -> bool:
+        """Whether the gain is recomputed each step (a time-varying Kalman filter)."""
         return self.gain is None
 
     def initial(self) -> tuple[np.ndarray, np.ndarray | None]:
@@ -120,13 +122,16 @@ class LqgDesign:
 
     @property
     def dt(self) -> float:
+        """The LQG's sample period (s): its estimator's."""
         return self.estimator.period
 
     @property
     def point(self):
+        """The operating point the LQG was designed at: its estimator's."""
         return self.estimator.point
 
     def deployed(self, rate: float | None):
+        """(controller class, design, rate, exports) for `deploy`: the LQG as one chained controller."""
         est = self.estimator
         return Lqg, self, _rate(est, rate), {k: v.shape[0] for k, v in est.outputs.items()}
 

@@ -51,6 +51,8 @@ class Onset:
 
     @property
     def agrees(self) -> bool:
+        """Whether the simulated onset of instability is within `tolerance` of the prediction
+        (s for a delay, relative for a gain); False where either is not finite."""
         if not (math.isfinite(self.predicted) and math.isfinite(self.onset)):
             return False
         if self.kind == "delay":
@@ -65,6 +67,7 @@ class Onset:
         return self.onset / self.predicted - 1.0
 
     def as_dict(self) -> dict:
+        """The prediction and the simulated onset as plain JSON values."""
         def num(x):
             return float(x) if math.isfinite(x) else ("inf" if x > 0 else "nan")
         return {"kind": self.kind, "predicted": num(self.predicted), "onset": num(self.onset),

@@ -27,7 +27,7 @@ import numpy as np
 from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _on_sim
 from mexone.design.deploy import StateFeedback
-from mexone.errors import InputError
+from mexone.errors import InputError, install_extra
 from mexone.ranges import number_text
 
 __all__ = ["Region", "region_of_attraction", "plot_region", "BACKENDS"]
@@ -60,9 +60,11 @@ class Region:
 
     @property
     def fraction(self) -> float:
+        """The share of the grid's starting points the controller brought back."""
         return float(self.back.mean())
 
     def as_dict(self) -> dict:
+        """The region of attraction as plain JSON values."""
         return {"axes": list(self.axes), "points": int(self.back.size),
                 "fraction_back": self.fraction, "level": _finite(self.level),
                 "saturation_level": _finite(self.saturation_level), "duration": self.duration,
@@ -299,7 +301,7 @@ def _on_ray(job: dict, starts: np.ndarray, address: str | None, threads: int | N
     try:
         import ray
     except ImportError:
-        raise InputError("the ray backend needs Ray", hint="pip install 'mexone[cluster]'") from None
+        raise InputError("the ray backend needs Ray", hint=install_extra("cluster")) from None
     started = not ray.is_initialized()
     if started:
         kwargs = {"address": address} if address else {"num_cpus": threads or os.cpu_count() or 1}

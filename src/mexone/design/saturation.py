@@ -68,6 +68,7 @@ class Saturation:
     notes: tuple[str, ...] = field(default=())
 
     def as_dict(self) -> dict:
+        """The saturation analysis as plain JSON values."""
         def num(x):
             return float(x) if math.isfinite(x) else "inf"
         return {"k_low": self.k_low, "amplitude": num(self.amplitude), "notes": list(self.notes),
