@@ -3,11 +3,13 @@ Debian's Chromium driven by Playwright for the page tests."""
 
 from __future__ import annotations
 
+import os
 import shutil
 import socket
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -132,3 +134,19 @@ def built_panel(cls, server, lab):
     panel = cls(host)
     panel.build()
     return panel
+
+
+def sleeping(duration: str) -> list[int]:
+    """The pids of live `sleep DURATION` processes: an attack's left-behind programs, found by
+    the duration only they sleep."""
+    found = []
+    for pid in os.listdir("/proc"):
+        if pid.isdigit():
+            try:
+                words = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except OSError:
+                continue
+            if words[:2] == [b"sleep", duration.encode()] and state not in "ZX":
+                found.append(int(pid))
+    return found

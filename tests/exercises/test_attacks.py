@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import wait_until
+from helpers import sleeping, wait_until
 
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="the jail's layers are Linux's")
 
@@ -170,17 +170,7 @@ def _attack_estimate(other: Path, port: int, pwned: Path) -> tuple[str, str]:
 
 
 def _sleeps() -> list[int]:
-    found = []
-    for pid in os.listdir("/proc"):
-        if pid.isdigit():
-            try:
-                words = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except OSError:
-                continue
-            if words[:2] == [b"sleep", SLEEP.encode()] and state not in "ZX":
-                found.append(int(pid))
-    return found
+    return sleeping(SLEEP)
 
 
 def _exercise(folder: Path, files: dict[str, str]) -> Path:

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from helpers import wait_until
+from helpers import sleeping, wait_until
 from mexone.sandbox import Jail, spawn
 from mexone.sandbox.spawn import MODE_ENV, isolation
 
@@ -78,17 +78,7 @@ SPAWNER = textwrap.dedent('''
 
 
 def _sleeps() -> list[int]:
-    found = []
-    for pid in os.listdir("/proc"):
-        if pid.isdigit():
-            try:
-                words = Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")
-                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-            except OSError:
-                continue
-            if words[:2] == [b"sleep", MARK.encode()] and state not in "ZX":
-                found.append(int(pid))
-    return found
+    return sleeping(MARK)
 
 
 def _outside(wrote: list[str], private_tmp: bool) -> list[str]:

@@ -233,14 +233,15 @@ def jail_plan(jail: Jail, scratch: Path, root: Path | None, slot: UidSlot | None
     """The Plan confine.jail carries out for `jail` on this machine."""
     iso = isolation()
     uid = slot.uid if slot is not None else None
+    readable = _python_paths() + [os.path.realpath(p) for p in jail.readable]
     if uid is not None:
-        closed = _closed_to_others(_python_paths() + [os.path.realpath(p) for p in jail.readable])
+        closed = _closed_to_others(readable)
         if closed is not None:
             raise OSError(f"a jail runs as a user of its own, who cannot enter {closed} (mode "
                           f"{stat.S_IMODE(os.stat(closed).st_mode):o}): let others read it "
                           f"(chmod o+rx {closed}), or grade as a user who is not root")
     return Plan(mode=iso.mode, scratch=str(scratch), root=str(root) if root else "",
-                readable=_python_paths() + [os.path.realpath(p) for p in jail.readable],
+                readable=readable,
                 hidden=_hidden_defaults() + [os.path.realpath(p) for p in jail.hidden],
                 uid=uid, gid=uid,
                 user_namespace=iso.mode == "namespaces" and not iso.root,
