@@ -13,9 +13,11 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from mexone.errors import InputError, install_extra
+from mexone.errors import InputError, MexoneError, install_extra
 
 __all__ = ["ray_session"]
+
+ATTEMPTS = 3  # starts of a local Ray before giving up (each waits up to Ray's fixed 30 s)
 
 
 def _import_ray() -> Any:
@@ -27,16 +29,19 @@ def _import_ray() -> Any:
 
 
 def _start(ray: Any, kwargs: dict[str, Any]) -> None:
-    """ray.init, once more when a local node missed Ray's fixed 30 s start-up wait (a loaded
-    machine: "The current node timed out during startup")."""
-    for attempt in (1, 2):
+    """ray.init, up to ATTEMPTS times when a local node missed Ray's fixed 30 s start-up wait (a
+    loaded machine: "The current node timed out during startup"), then a one-line error."""
+    for _ in range(ATTEMPTS):
         try:
             ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
             return
         except Exception as exc:  # Ray raises a bare Exception for this one
-            if attempt == 2 or "timed out during startup" not in str(exc):
+            if "timed out during startup" not in str(exc):
                 raise
             ray.shutdown()
+    raise MexoneError(f"a local Ray did not start: its node missed Ray's 30 s start-up wait "
+                      f"{ATTEMPTS} times", hint="the machine is too busy now: try again later, "
+                      "or use the local backend")
 
 
 @contextmanager
