@@ -124,7 +124,7 @@ def _on_ray(jobs: dict[str, tuple], workers: int, address: str | None,
     in the submissions' order. A signal cancels the tasks in flight (their runs die with their
     workers) and stops the grading."""
     with ray_session(workers, address) as ray:
-        from ray.exceptions import RayTaskError, WorkerCrashedError
+        from ray.exceptions import RayError, RayTaskError
 
         remote = ray.remote(max_retries=RETRIES, retry_exceptions=False)(_grade_one)
         refs = {remote.remote(*job): student for student, job in jobs.items()}
@@ -144,12 +144,13 @@ def _on_ray(jobs: dict[str, tuple], workers: int, address: str | None,
                 while turn is not None and turn in finished:
                     try:
                         result = ray.get(by_student[turn])
-                    except WorkerCrashedError:
-                        raise MexoneError(f"Ray workers died {RETRIES + 1} times grading "
-                                          f"{turn}", hint="see the Ray logs (out of memory?), "
-                                          "or grade with fewer --workers") from None
                     except RayTaskError as exc:  # the grader's own error, as serially
                         raise exc.cause from None
+                    except RayError as exc:  # its workers died RETRIES + 1 times, a node lost
+                        raise MexoneError(f"Ray could not grade {turn}: {type(exc).__name__} "
+                                          f"({str(exc).splitlines()[0] if str(exc) else ''})",
+                                          hint="see the Ray logs (out of memory?), or grade "
+                                          "with fewer --workers") from None
                     yield turn, result
                     turn = next(order, None)
         finally:
