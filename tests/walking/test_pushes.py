@@ -36,13 +36,14 @@ def _lowest_until(lab: Lab, until: float) -> float:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("angle, at", [(90, 5.0), (-90, 5.0), (90, 5.5), (0, 5.1), (0, 5.5)],
-                         ids=["left-right-foot-swinging", "right-towards-the-standing-foot",
-                              "left-towards-the-standing-foot", "forward-both-feet-down",
+@pytest.mark.parametrize("angle, at", [(90, 5.0), (90, 5.1), (-90, 5.0), (0, 5.1), (0, 5.5)],
+                         ids=["left-towards-the-standing-foot", "left-both-feet-down",
+                              "right-the-swinging-foots-side", "forward-both-feet-down",
                               "forward-both-feet-down-later"])
 def test_walking_at_0_3_m_s_it_survives_a_6_n_s_push(angle, at):
     """Steps lift every 0.4 s from 1.6 s, the right foot first: at 5.0 s the right foot is in
-    the air (landing at 5.1 s), at 5.1-5.2 s and 5.5-5.6 s both feet are down."""
+    the air (landing at 5.1 s) over the standing left one, at 5.1-5.2 s and 5.5-5.6 s both feet
+    are down (forward there the steps needed more reach than 0.25 m: the push outran them)."""
     lab = _walking()
     force = 6.0 / 0.1
     direction = math.radians(angle)
@@ -54,7 +55,7 @@ def test_walking_at_0_3_m_s_it_survives_a_6_n_s_push(angle, at):
     reports = {n: c.impl.report() for n, c in lab.manager.controllers.items() if hasattr(c, "impl")}
     assert reports["whole_body"]["stopped"] is None and reports["com_planner"]["stopped"] is None
     assert float(lab.sim.data.qpos[0]) - x0 > 0.6  # still walking forward, not just standing up
-    if angle:  # the steps came sooner to catch it (step timing adaptation)
+    if angle == 90 and at == 5.0:  # towards the standing foot: the steps came sooner
         assert reports["footsteps"]["hurried"] >= 1, reports["footsteps"]
 
 
