@@ -20,7 +20,10 @@ WALK = 1.0  # s: the footstep planner walks from here (its `settle`), the first 
 
 
 def _walking(world=None, spawn: Spawn = Spawn()) -> Lab:
+    """The shipped stack, commanded 0.3 m/s after it settled for a second (as
+    benchmarks/walking_stack.py's `stack`)."""
     lab = Lab.create(controllers=mex_one.walking_path(), world=world, spawn=spawn)
+    lab.sim.step(round(WALK / lab.sim.timestep))
     lab.manager.set_param("footsteps", "vx", 0.3)
     return lab
 
@@ -69,11 +72,11 @@ def test_it_steps_down_the_2_cm_step_at_the_shipped_rates():
     assert rates == {"estimator": 500, "footsteps": 100, "com_planner": 250, "whole_body": 500}
     lab = _walking(read_world(mex_one.world_path("step")), Spawn(xyz=(2.2, 0.0, 0.02)))
     sim = lab.sim
-    sim.step(1500)
+    sim.step(500)
     on_top = float(sim.data.qpos[2])
     lowest = _lowest_until(lab, 7.0)
     assert lowest > 0.5, f"fell or crouched (base at {lowest:.3f} m)"
     feet = [sim.data.xpos[sim.model.body(name).id].copy() for name in ("l_foot", "r_foot")]
     assert min(float(f[0]) for f in feet) > 2.6, feet  # both feet off the platform
-    assert abs(float(feet[0][2] - feet[1][2])) < 0.005, feet  # both on the floor
+    assert min(float(f[2]) for f in feet) == pytest.approx(0.06, abs=0.005)  # a sole on the floor
     assert float(sim.data.qpos[2]) == pytest.approx(on_top - 0.02, abs=0.01)  # 2 cm down
