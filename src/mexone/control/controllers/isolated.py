@@ -86,6 +86,7 @@ class IsolatedRunner(PythonRunner):
             self._close_blocks()
             worker.call({"call": "create", "name": self.name, "joints": list(self.joints),
                          "dofs": self.dofs.tolist(), "params": dict(self._mirror),
+                         "update_rate": self.plugin.update_rate,
                          "effort_limits": [min(float(v), 1e300) for v in self._effort_limit]},
                         watchdog.STUDENT_SETUP_TIMEOUT)
         except StudentFault as exc:
