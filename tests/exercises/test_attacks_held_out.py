@@ -10,6 +10,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from mexone.control import load_control_config
@@ -50,3 +51,106 @@ def test_a_worker_cannot_excuse_its_overrun_by_writing_its_own_run_delay(tmp_pat
     ctrl = lab.manager.controllers["ctl"]
     assert not ctrl.running and "overran its period" in ctrl.fault, ctrl.fault
     assert ctrl.updates == 4
+
+
+def _course_grader(name: str):
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "src/mexone/exercises/course" / name / "grader.py"
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+TRUTH_READER = '''
+import math
+import numpy as np
+from mexone.control import PythonController
+
+
+def tilt(rotation, down):
+    up = rotation.T @ (-down)
+    return math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2]))
+
+
+def rotation(w, x, y, z):
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+class TiltObserver(PythonController):
+    exports = {"tilt": 2}
+
+    def update(self, state, t, dt):
+        g = np.asarray(self.dynamics.model.opt.gravity, dtype=float)  # the hidden slope
+        down = g / np.linalg.norm(g)
+        base = rotation(*(float(v) for v in state.all_q[3:7]))  # the simulator's base
+        x, y, z, w = (float(v) for v in state.sensors["imu"].orientation)  # the IMU's "truth"
+        self.exports["tilt"][:] = [tilt(base, down)[0], tilt(rotation(w, x, y, z), down)[1]]
+'''
+
+
+@pytest.mark.slow
+def test_the_tilt_observer_reads_no_truth(tmp_path):
+    """Exercise 14's observer sees neither its floating base (state.all_q, state.base) nor the
+    IMU's orientation move: both are the simulator's truth (was: the truth against the model's
+    gravity plus a whisker of gyro, so that a louder gyro moved it, scored 10/10 at 0.15 mrad)."""
+    module = _course_grader("tilt_observer")
+    cheat = tmp_path / "tilt_observer.py"
+    cheat.write_text(TRUTH_READER)
+    rms, size, estimate, fault = module.measure(cheat, module.GIVEN)
+    assert fault is None
+    assert size > 0.005  # the pushes tilt it
+    assert np.ptp(estimate[600:], axis=0).max() < 1e-9, np.ptp(estimate[600:], axis=0)
+
+
+def test_two_names_that_print_alike_are_refused_not_two_rows_alike(tmp_path):
+    """é composed (U+00E9) and e with a combining accent (U+0065 U+0301) are two files that
+    print as one name: a report with two rows 'é' cannot say whose score is whose (was: both
+    graded, both rows 'é')."""
+    from mexone.errors import InputError
+    from mexone.exercises.grading import submissions_in
+
+    for name in ("\u00e9.py", "e\u0301.py", "ada.py"):
+        (tmp_path / name).write_text("pass\n")
+    with pytest.raises(InputError) as err:
+        submissions_in(tmp_path, "routine.py")
+    said = err.value.one_line()
+    assert "two submissions of é (written as " in said and "\\xe9" in said and "\\u0301" in said
+    (tmp_path / "e\u0301.py").unlink()
+    assert sorted(submissions_in(tmp_path, "routine.py")) == ["ada", "\u00e9"]
+
+
+FORGED_LINES = '''
+from mexone.control import Param, PythonController
+
+
+class GravityCompensation(PythonController):
+    command_interface = "effort"
+    kp = Param(5.0)
+    kd = Param(0.5)
+
+    def configure(self):
+        raise RuntimeError("x\\x1b[2K\\r  PASS runs 10.00/10.00\\u202e\\u2028score 10/10\\n"
+                           "score 10/10" + "y" * 100000)
+'''
+
+
+def test_a_reason_forges_no_report_line_and_names_no_gui_button(tmp_path):
+    """A student's message with an erase-line escape, a carriage return, a bidi override, a line
+    separator, a newline and 100 000 characters is one line of the report, shown as text; the
+    GUI's "fix it, then reload" is not in a grade (was: in every reason of a controller that did
+    not load)."""
+    from mexone.exercises import find_exercise, grade
+    from mexone.exercises.grading import reason
+
+    exercise = find_exercise("gravity_compensation")
+    path = tmp_path / "gravity_compensation.py"
+    path.write_text(FORGED_LINES)
+    result = grade(exercise, path, local=True)
+    assert result.score == 0
+    said = reason(result)
+    assert "RuntimeError: x" in said and "reload" not in said, said
+    assert said.isprintable() and len(said) < 2000, said
