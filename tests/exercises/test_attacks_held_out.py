@@ -83,6 +83,13 @@ def rotation(w, x, y, z):
 class TiltObserver(PythonController):
     exports = {"tilt": 2}
 
+    def configure(self):
+        import os
+
+        beside = set(os.listdir(os.path.dirname(os.path.abspath(__file__))))
+        if beside - {"tilt_observer.py", "controllers.yaml"}:  # the noisy URDF: the hidden bias
+            raise RuntimeError(f"found {sorted(beside)}")
+
     def update(self, state, t, dt):
         g = np.asarray(self.dynamics.model.opt.gravity, dtype=float)  # the hidden slope
         down = g / np.linalg.norm(g)
@@ -96,7 +103,9 @@ class TiltObserver(PythonController):
 def test_the_tilt_observer_reads_no_truth(tmp_path):
     """Exercise 14's observer sees neither its floating base (state.all_q, state.base) nor the
     IMU's orientation move: both are the simulator's truth (was: the truth against the model's
-    gravity plus a whisker of gyro, so that a louder gyro moved it, scored 10/10 at 0.15 mrad)."""
+    gravity plus a whisker of gyro, so that a louder gyro moved it, scored 10/10 at 0.15 mrad);
+    nor the noisy URDF beside its file (was: the hidden gyro bias and noise, and which run is
+    the louder one, read from it)."""
     module = _course_grader("tilt_observer")
     cheat = tmp_path / "tilt_observer.py"
     cheat.write_text(TRUTH_READER)

@@ -92,11 +92,13 @@ def blind(lab, name: str) -> None:
 def measure(submission: Path, var: dict, louder: bool = False
             ) -> tuple[float, float, np.ndarray, str | None]:
     """In the isolated child: (RMS error rad, the true tilt's RMS, the estimate, fault)."""
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as hidden:
         folder = Path(tmp)
         path = student_yaml(folder, submission, FILE, CLASS, NAME, (), {})
         g = gravity(var["slope"])
-        lab = controller_lab(path, {}, model=noisy_urdf(folder, var, louder),
+        # the model in a folder of its own: the controller's worker reads the YAML's folder,
+        # and the URDF holds the hidden noise and bias (and which run is the louder one)
+        lab = controller_lab(path, {}, model=noisy_urdf(Path(hidden), var, louder),
                              world=World(gravity=tuple(g)))
         blind(lab, NAME)
         down = g / np.linalg.norm(g)
