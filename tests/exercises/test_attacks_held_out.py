@@ -163,3 +163,44 @@ def test_a_reason_forges_no_report_line_and_names_no_gui_button(tmp_path):
     said = reason(result)
     assert "RuntimeError: x" in said and "reload" not in said, said
     assert said.isprintable() and len(said) < 2000, said
+
+
+@pytest.mark.parametrize("mode", ["namespaces", "none"])
+def test_a_controller_cannot_signal_the_lab_past_its_guards(tmp_path, turntable, monkeypatch,
+                                                            mode):
+    """libc's kill (past the guarded os.kill) from a controller's worker at the lab's own pid,
+    whichever isolation the machine offers (held: the PID namespace, or Landlock's signal
+    scope where there is none)."""
+    import importlib
+    import os
+    import signal
+
+    spawn = importlib.import_module("mexone.sandbox.spawn")  # the module (its spawn() shadows it)
+    monkeypatch.setenv(spawn.MODE_ENV, mode)
+    monkeypatch.setenv("MEXONE_TEST_LAB_PID", str(os.getpid()))
+    monkeypatch.setattr(spawn, "_isolation", None)  # probed again, as the mode says
+    got: list[int] = []
+    previous = signal.signal(signal.SIGUSR2, lambda signum, frame: got.append(signum))
+    try:
+        lab = _turntable_lab(tmp_path, turntable, """
+            import ctypes, os, signal
+
+            def hit():
+                ctypes.CDLL(None).kill(int(os.environ["MEXONE_TEST_LAB_PID"]), signal.SIGUSR2)
+
+            class Ctl(PythonController):
+                def configure(self):
+                    hit()
+
+                def update(self, state, t, dt):
+                    hit()
+                    return np.zeros(1)
+            """)
+        lab.sim.step(20)
+        ctrl = lab.manager.controllers["ctl"]
+        assert ctrl.running and ctrl.updates >= 20, ctrl.fault
+        assert spawn.isolation().mode == mode
+        lab.manager.close()
+    finally:
+        signal.signal(signal.SIGUSR2, previous)
+    assert got == []
