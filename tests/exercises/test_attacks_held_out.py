@@ -204,3 +204,36 @@ def test_a_controller_cannot_signal_the_lab_past_its_guards(tmp_path, turntable,
     finally:
         signal.signal(signal.SIGUSR2, previous)
     assert got == []
+
+
+def test_a_jail_fills_no_disk_of_the_machines(monkeypatch):
+    """A run that writes file after file (each under the per-file limit) into its scratch
+    folder stops at the scratch's own size, not at the machine's free disk, which other runs
+    and the grader need (was: 3 GB in seconds, on the grader's disk, until my own cap)."""
+    import importlib
+    import json
+    import os
+    import subprocess
+
+    spawn_module = importlib.import_module("mexone.sandbox.spawn")
+    from mexone.sandbox import Jail, spawn
+
+    if spawn_module.isolation().mode != "namespaces":
+        pytest.skip("a scratch of its own size takes a mount namespace")
+    code = textwrap.dedent('''
+        import errno, json, os
+        block, total, n, why = b"\\0" * (4 << 20), 0, 0, ""
+        try:
+            while total < (2 << 30):
+                with open(f"f{n}", "wb") as f:
+                    f.write(block)
+                total += len(block)
+                n += 1
+        except OSError as exc:
+            why = errno.errorcode.get(exc.errno, str(exc.errno))
+        print(json.dumps({"mb": total >> 20, "why": why}))
+    ''')
+    jail = Jail(another_user=os.geteuid() == 0)
+    with spawn([sys.executable, "-c", code], jail, stdout=subprocess.PIPE) as proc:
+        out = json.loads(proc.popen.stdout.read())
+    assert out["why"] == "ENOSPC" and out["mb"] <= 256, out
