@@ -206,6 +206,7 @@ class RunDelayOf:
             return 0.0
 
     def close(self) -> None:
+        """Close its /proc file (the process ended, or another took its place)."""
         if self._fd is not None:
             with contextlib.suppress(OSError):
                 os.close(self._fd)
