@@ -174,3 +174,16 @@ def test_start_writes_the_stack_with_the_students_class_in_its_place(name, part,
     (folder / "controllers.yaml").write_text("mine\n")
     code, _, err = run_cli(["exercise", "start", name, folder])
     assert code == 2 and "exists" in err and (folder / "controllers.yaml").read_text() == "mine\n"
+
+
+def test_a_graders_files_naming_a_folder_is_one_line_and_writes_nothing(tmp_path):
+    """A teacher's grader.py whose files() names a path out of the student's folder: refused."""
+    from helpers import run_cli
+
+    exercise = tmp_path / "mine"
+    assert run_cli(["exercise", "new", "mine", exercise])[0] == 0
+    with (exercise / "grader.py").open("a") as grader:
+        grader.write("\n\ndef files():\n    return {'../escaped.yaml': 'x: 1\\n'}\n")
+    code, _, err = run_cli(["exercise", "start", exercise, tmp_path / "st"])
+    assert code == 2 and "files() names '../escaped.yaml'" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "escaped.yaml").exists() and not (tmp_path / "st").exists()

@@ -153,6 +153,11 @@ def _start(args) -> int:
             files[dest / "figures" / path.relative_to(figures)] = path
     extra = getattr(ex.grader(), "files", None)  # optional: more files the student needs
     for name, text in (extra() if callable(extra) else {}).items():
+        if not isinstance(name, str) or not isinstance(text, str) or Path(name).name != name \
+                or name in ("", ".", "..", "check.py", "README.md", ex.file):
+            raise InputError(f"files() names {name!r}: a file name (no folder) for text, not the "
+                             "statement, the starter or check.py", file=ex.folder / "grader.py",
+                             hint="return {'controllers.yaml': text, ...}")
         files[dest / name] = text
     files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
                                                else str(ex.folder), file=ex.file)
