@@ -34,10 +34,12 @@ def not_numbers(out: object, where: str) -> str:
 
 
 def wrong_count(size: int, n: int, where: str) -> str:
+    """The fault of an update that returned `size` numbers for `n` joints."""
     return f"update returned {size} values for {n} joints ({where})"
 
 
 def non_finite(joints: list[str], values: np.ndarray, t: float, where: str) -> str:
+    """The fault of an update that returned NaN or inf: the joints and values named."""
     bad = [f"{joints[i]} {number_text(values[i])}" for i in np.flatnonzero(~np.isfinite(values))]
     return f"update returned {', '.join(bad)} at t = {t:.3f} s ({where})"
 

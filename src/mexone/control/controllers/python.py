@@ -91,6 +91,10 @@ class BudgetMeter:
 
 
 class PythonRunner(Controller):
+    """The framework's side of a student's PythonController in the simulation's process: it
+    reads the state into `State`, calls update in lockstep, checks and clamps what it returns and
+    writes it through the hardware's writers; a fault stops it and holds its joints."""
+
     kind = "python"
     sliders = False
     reloadable = True
