@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, cast
 import numpy as np
 from numpy.typing import ArrayLike
 
-from mexone.errors import InputError
+from mexone.errors import InputError, warn_renamed
 from mexone.ranges import Range, number_text
 
 if TYPE_CHECKING:
@@ -52,7 +52,7 @@ class Param:
         if not isinstance(default, bool | int | float | str):
             raise TypeError(f"Param default must be a float, int, bool or str, not "
                             f"{type(default).__name__}")
-        self.kind: type = type(default)
+        self.value_type: type = type(default)  # float, int, bool or str
         self.low, self.high, self.doc, self.unit = low, high, doc, unit
         self.choices = tuple(choices) if choices else None
         self.name = ""
@@ -61,7 +61,7 @@ class Param:
             self.range = Range(self.name or "parameter", unit,
                                -math.inf if low is None else float(low),
                                math.inf if high is None else float(high),
-                               integer=self.kind is int)
+                               integer=self.value_type is int)
             if low is not None and high is not None and low > high:
                 raise TypeError(f"Param low {low} > high {high}")
             if not self.range.contains(float(default)):  # a YAML without it would run with it
@@ -71,15 +71,22 @@ class Param:
             raise TypeError(f"Param default {default!r} is not {self.describe()}")
 
     @property
+    def kind(self) -> type:
+        """The former name of `value_type` (issue 40: `kind` is a controller's family in
+        mexone.control); kept for one release, with a warning."""
+        warn_renamed("Param.kind", "Param.value_type")
+        return self.value_type
+
+    @property
     def numeric(self) -> bool:
         """Whether the parameter is a number (int or float): a page shows it as a number field."""
-        return self.kind in (int, float)
+        return self.value_type in (int, float)
 
     def __set_name__(self, owner: type, name: str) -> None:
         self.name = name
         if self.numeric:
             self.range = Range(name, self.unit, self.range.low, self.range.high,
-                               integer=self.kind is int)
+                               integer=self.value_type is int)
 
     def __get__(self, obj: PythonController | None, owner: type | None = None) -> Any:
         if obj is None:
@@ -91,11 +98,11 @@ class Param:
 
     def describe(self) -> str:
         """What a valid value is, in words (for errors, the page and `mexone controllers`)."""
-        if self.kind is bool:
+        if self.value_type is bool:
             return "true or false"
-        if self.kind is str:
+        if self.value_type is str:
             return "one of " + ", ".join(self.choices) if self.choices else "a string"
-        kind = "a whole number" if self.kind is int else "a finite number"
+        kind = "a whole number" if self.value_type is int else "a finite number"
         parts = []
         if self.low is not None:
             parts.append(f">= {number_text(self.low)}")
@@ -108,16 +115,16 @@ class Param:
         """`value` converted to this parameter's type, or an InputError (one line, located by
         `where`: file=, line=) saying what a valid value is."""
         label = what or self.name
-        if self.kind is bool:
+        if self.value_type is bool:
             if isinstance(value, bool):
                 return value
-        elif self.kind is str:
+        elif self.value_type is str:
             if isinstance(value, str) and (self.choices is None or value in self.choices):
                 return value
         elif not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
             number = float(value)
             if self.range.contains(number):
-                return int(number) if self.kind is int else number
+                return int(number) if self.value_type is int else number
         shown = number_text(value) if isinstance(value, int | float) and not isinstance(value, bool) \
             else repr(value)[:60]
         raise InputError(f"{label} {shown} must be {self.describe()}", **where)
