@@ -269,7 +269,7 @@ def _assert_robot_in_the_middle(app, page) -> None:
                                                   .sum(axis=2) > 30).mean() > 0.02)
     app.work.call(lambda: app.scene.set_robot_visible(True))
     assert gone, "the robot is not in the middle of the view"
-    assert wait_for_picture(page, robot_drawn)  # back, for the next look
+    assert wait_until(lambda: robot_drawn(page), timeout=30, poll=0.2)  # back, for the next look
 
 
 def test_centre_of_mass_markers_show_through_the_links(app, page):
