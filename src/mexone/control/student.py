@@ -82,7 +82,7 @@ class Param:
         """Whether the parameter is a number (int or float): a page shows it as a number field."""
         return self.value_type in (int, float)
 
-    def __set_name__(self, owner: type, name: str) -> None:
+    def __set_name__(self, owner: type | None, name: str) -> None:
         self.name = name
         if self.numeric:
             self.range = Range(name, self.unit, self.range.low, self.range.high,
