@@ -58,7 +58,9 @@ def pixels(tab) -> np.ndarray:
 
     from PIL import Image
 
-    return np.asarray(Image.open(io.BytesIO(tab.screenshot())).convert("RGB"), dtype=np.int16)
+    # software WebGL on a loaded machine can keep a frame from the compositor for long
+    shot = tab.screenshot(timeout=120_000)
+    return np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"), dtype=np.int16)
 
 
 def robot_drawn(tab) -> bool:

@@ -35,7 +35,7 @@ def page(app):
         tab.wait_for_selector("canvas", timeout=30_000)
         tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
         assert wait_until(lambda: len(app.server.get_clients()) == 1, timeout=30)
-        assert wait_until(lambda: robot_drawn(tab), timeout=60)  # meshes arrived, frames drawn
+        assert wait_until(lambda: robot_drawn(tab), timeout=120)  # meshes arrived, frames drawn
         yield tab
 
 

@@ -60,7 +60,7 @@ def page(app):
         tab.wait_for_selector("canvas", timeout=30_000)
         tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
         assert wait_until(lambda: len(app.server.get_clients()) == 1, timeout=30)
-        assert wait_until(lambda: robot_drawn(tab), timeout=60)
+        assert wait_until(lambda: robot_drawn(tab), timeout=120)
         close = tab.locator(".mantine-Notification-closeButton")  # "software WebGL" notice
         if close.count():
             close.first.click()
