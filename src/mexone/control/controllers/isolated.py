@@ -59,6 +59,8 @@ __all__ = ["IsolatedRunner"]
 class IsolatedRunner(PythonRunner):
     """PythonRunner whose student object runs in a worker process."""
 
+    _delay_meter: watchdog.RunDelayOf | None = None  # the kernel's wait count for the worker
+
     # ----- loading ------------------------------------------------------------------------------
     def _instantiate(self, plugin: Plugin) -> PythonController:
         # the stand-in class worker.py made for the student's carries its description
@@ -178,7 +180,7 @@ class IsolatedRunner(PythonRunner):
         if self.worker is not None:
             self.worker.kill()
             self.worker = None
-        meter = getattr(self, "_delay_meter", None)
+        meter = self._delay_meter
         if meter is not None:
             meter.close()
             self._delay_meter = None
@@ -443,7 +445,7 @@ class IsolatedRunner(PythonRunner):
         """s the worker's main thread has waited for a CPU, as the kernel says (not as its
         shared memory says: the student writes there)."""
         pid = worker.pid or worker.process.pid
-        meter = getattr(self, "_delay_meter", None)
+        meter = self._delay_meter
         if meter is None or meter.pid != pid:
             if meter is not None:
                 meter.close()
