@@ -14,6 +14,7 @@ networkx): a student's lab, which only draws and bounds its meshes, would pay it
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -74,7 +75,7 @@ class Triangles:
         """(2, 3): the lower and upper corners of the axis-aligned box around the vertices."""
         return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
 
-    def scaled(self, scale) -> Triangles:
+    def scaled(self, scale: Sequence[float] | float) -> Triangles:
         """Scaled per axis; a mirroring scale reverses each face's winding (as trimesh does), so
         the outside stays outside."""
         factors = np.broadcast_to(np.asarray(scale, dtype=float), (3,))
