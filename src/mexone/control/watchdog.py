@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from mexone.ranges import number_text
 
 __all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running",
-           "run_delay"]
+           "run_delay", "RunDelayOf"]
 
 log = logging.getLogger("mexone.control")
 # wall s for importing a student's file or creating/configuring/activating the controller: a
@@ -167,7 +167,7 @@ def run_delay() -> float:
     try:
         if fd is None:
             fd = _schedstat[tid] = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
-        return int(os.pread(fd, 100, 0).split()[1]) / 1e9
+        return _waited(fd)
     except (OSError, ValueError, IndexError):
         if _schedstat.pop(tid, None) is not None:  # a thread of that id that has ended
             with contextlib.suppress(OSError):
@@ -177,3 +177,37 @@ def run_delay() -> float:
 
 GUARD = _HangGuard()
 _thread_id = threading.get_ident
+
+
+def _waited(fd: int) -> float:
+    """s waited for a CPU, from an open /proc schedstat (its second field, in ns)."""
+    return int(os.pread(fd, 100, 0).split()[1]) / 1e9
+
+
+class RunDelayOf:
+    """`run_delay` of another process's main thread, as the kernel counts it (its /proc
+    schedstat, readable by any user): what excuses a worker's slow update on a loaded machine
+    is measured here, never a number the student's process reports (it could make one up)."""
+
+    def __init__(self, pid: int):
+        self.pid = pid
+        try:
+            self._fd: int | None = os.open(f"/proc/{pid}/schedstat", os.O_RDONLY)
+        except OSError:
+            self._fd = None
+
+    def __call__(self) -> float:
+        """s the process's main thread has waited for a CPU so far (0.0 where unknown)."""
+        if self._fd is None:
+            return 0.0
+        try:
+            return _waited(self._fd)
+        except (OSError, ValueError, IndexError):
+            return 0.0
+
+    def close(self) -> None:
+        """Close its /proc file (the process ended, or another took its place)."""
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+            self._fd = None

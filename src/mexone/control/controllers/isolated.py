@@ -86,6 +86,7 @@ class IsolatedRunner(PythonRunner):
             self._close_blocks()
             worker.call({"call": "create", "name": self.name, "joints": list(self.joints),
                          "dofs": self.dofs.tolist(), "params": dict(self._mirror),
+                         "update_rate": self.plugin.update_rate,
                          "effort_limits": [min(float(v), 1e300) for v in self._effort_limit]},
                         watchdog.STUDENT_SETUP_TIMEOUT)
         except StudentFault as exc:
@@ -170,6 +171,10 @@ class IsolatedRunner(PythonRunner):
         if self.worker is not None:
             self.worker.kill()
             self.worker = None
+        meter = getattr(self, "_delay_meter", None)
+        if meter is not None:
+            meter.close()
+            self._delay_meter = None
 
     # ----- what front ends read ---------------------------------------------------------------------
     @property
@@ -389,7 +394,7 @@ class IsolatedRunner(PythonRunner):
                 self._send_messages(worker)
             suspect = self._suspect
             if suspect:  # an update overran: measure what the machine took from the next ones
-                switches, waited = _preemptions(), run_delay()
+                switches, waited, theirs = _preemptions(), run_delay(), self._their_delay(worker)
             if suspect != self._measuring:
                 self._measuring = suspect
                 self._inp[2] = 1.0 if suspect else 0.0
@@ -417,10 +422,22 @@ class IsolatedRunner(PythonRunner):
             self._exported()
         if (elapsed > self._max_time or suspect) and self._overran(  # the machine's delays are
                 elapsed, switches if suspect else 0,  # not the update's: both sides' waits for
-                elapsed - float(self._out[1]) - (run_delay() - waited) if suspect else None):  # a CPU
+                elapsed - (self._their_delay(worker) - theirs) - (run_delay() - waited)  # a CPU
+                if suspect else None):
             return
         if kind == DONE:
             self._write(self._cmd.copy(), t)
+
+    def _their_delay(self, worker: Worker) -> float:
+        """s the worker's main thread has waited for a CPU, as the kernel says (not as its
+        shared memory says: the student writes there)."""
+        pid = worker.pid or worker.process.pid
+        meter = getattr(self, "_delay_meter", None)
+        if meter is None or meter.pid != pid:
+            if meter is not None:
+                meter.close()
+            meter = self._delay_meter = watchdog.RunDelayOf(pid)
+        return meter()
 
     def _update_fault(self, payload: bytes) -> str:
         try:
