@@ -1,5 +1,5 @@
 """The four worked controllers (examples/controllers/): each one's real-time factor per CPU
-second, and the LQR balance's push recovery against PD alone (push_recovery.py's method).
+second, and the LQR sway's push recovery against PD alone (push_recovery.py's method).
 
     PYTHONPATH=src python benchmarks/worked_controllers.py [--seconds 5] [--no-push]
 
@@ -49,12 +49,12 @@ def main() -> None:
         print(f"{example.name:<28} {rtf:14.1f}", flush=True)
     if args.no_push:
         return
-    balance = EXAMPLES / "04_lqr_balance" / "controllers.yaml"
+    sway = EXAMPLES / "04_lqr_sway" / "controllers.yaml"
     print(f"\n{'direction':<10} {'PD alone':>9} {'LQR':>9}   (N s at the torso)")
     for name, direction in DIRECTIONS.items():
         trial = PushTrial(direction=direction)
         pd = largest_impulse(trial, 20.0, 0.5)
-        lqr = largest_impulse(trial, 20.0, 0.5, make_lab=lambda: Lab.create(controllers=balance))
+        lqr = largest_impulse(trial, 20.0, 0.5, make_lab=lambda: Lab.create(controllers=sway))
         print(f"{name:<10} {pd:9.2f} {lqr:9.2f}", flush=True)
 
 

@@ -1,6 +1,6 @@
-"""The former name of one_foot_lqr.py (the standing LQR controller is
-examples/controllers/04_lqr_balance/lqr_balance.py: two files of one name, issue 40). Kept for
-one release: importing or running it warns and does what one_foot_lqr.py does."""
+"""The former name of one_foot_lqr.py (renamed when examples/controllers/ had a standing
+lqr_balance.py too: two files of one name, issue 40). Kept for one release: importing or running it
+warns and does what one_foot_lqr.py does."""
 
 from one_foot_lqr import (  # noqa: F401 - the names the former module had
     Design,

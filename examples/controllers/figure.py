@@ -115,15 +115,15 @@ def main() -> None:
            aspect="equal")
 
     ax = axes[1, 1]
-    balance = HERE / "04_lqr_balance" / "controllers.yaml"
-    for label, make in (("LQR balance", lambda: Lab.create(controllers=balance)),
-                        ("PD alone", Lab.create)):
-        lab = make()
+    for label, shipped in (("LQR on the sway", False), ("PD alone", True)):
+        lab = lab_of("04_lqr_sway", shipped)
         lab.sim.run(0.5)
-        lab.sim.apply_wrench("torso", (5.0 / PUSH_SECONDS, 0.0, 0.0), duration=PUSH_SECONDS)
-        t, v = record(lab, 2.0, lambda s: s.data.qpos[2])
+        y0 = lab.sim.data.subtree_com[1][1]
+        lab.sim.apply_wrench("torso", (0.0, 1.0 / PUSH_SECONDS, 0.0), duration=PUSH_SECONDS)
+        t, v = record(lab, 1.5, lambda s, y0=y0: 1e3 * (s.data.subtree_com[1][1] - y0))
         ax.plot(t, v, label=label)
-    ax.set(title="4. 5 N s forward push at the torso", xlabel="t (s)", ylabel="pelvis height (m)")
+    ax.set(title="4. 1 N s sideways push at the torso", xlabel="t (s)",
+           ylabel="centre of mass, y (mm)")
 
     for ax in axes.flat:
         ax.grid(alpha=0.3)

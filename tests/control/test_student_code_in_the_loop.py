@@ -34,8 +34,7 @@ LOOP_CASES = {
                 raise RuntimeError("first fault")  # <-
             return 0.0 * state.q
         def deactivate(self):
-            while True:  # <- deactivate
-                pass
+            while True: pass  # one line: the dump lands on it wherever it stops # <- deactivate
         """),
     "SysExitInDeactivate": ("neck_yaw", """
         def update(self, state, t, dt):

@@ -338,8 +338,8 @@ def test_an_observer_from_a_yaml_exports_what_its_class_declares(elbow_pp, tmp_p
     '''))
     base = {"joints": [], "update_rate": 1000, "design_file": "kf.npz"}
     good = _yaml_with(tmp_path, "rate_kf", {"type": "rate_kf/RateKF", **base})
-    # an Observer reads the simulator's sensors itself: a subclass runs in the lab's process
-    # (in_process), not in a controller worker (there it has no simulator: issue 38's note)
+    # in the lab's process here (in_process); from a plain YAML it runs in a controller worker,
+    # as tests/control/test_worker_observer.py checks
     run = Lab.create(controllers=load_control_config(good, in_process=True),
                      options=CompileOptions(fixed_base=True))
     run.sim.run(0.05)

@@ -60,9 +60,8 @@ def test_the_truth_offset_by_the_accelerometers_slope_is_caught():
     # reads the gyro, so its estimate does not move with it, and its tracking is not counted
     exercise = find_exercise("tilt_observer")
     cheat = CHEAT / "tilt_observer" / exercise.file
-    module = grader("tilt_observer")
-    rms, *_ = module.measure(cheat, module.variant(np.random.default_rng(3)))
-    assert rms < module.FULL  # on a slope: it would earn the tracking's full marks
+    # (it tracked within the full marks when the observer read the truth; it reads none since the
+    # held-out round: test_attacks_held_out.py::test_the_tilt_observer_reads_no_truth)
     result = grade(exercise, cheat)
     said = outputs(result)
     assert failed(result) == ["tracks the tilt", "uses the IMU"], said

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import dis
 import logging
+from collections.abc import MutableMapping
+from typing import Any
 
 import numpy as np
 
@@ -14,11 +16,12 @@ from mexone.ranges import number_text
 __all__ = ["StudentLog", "not_numbers", "wrong_count", "non_finite", "return_lines"]
 
 
-class StudentLog(logging.LoggerAdapter):
+class StudentLog(logging.LoggerAdapter[logging.Logger]):
     """`self.log` of a Python controller: its lines prefixed with the controller's name."""
 
-    def process(self, msg, kwargs):
-        return f"{self.extra['name']}: {msg}", kwargs
+    def process(self, msg: object, kwargs: MutableMapping[str, Any]
+                ) -> tuple[object, MutableMapping[str, Any]]:
+        return f"{self.extra['name']}: {msg}", kwargs  # type: ignore[index]  # extra is given
 
 
 def not_numbers(out: object, where: str) -> str:
@@ -31,15 +34,17 @@ def not_numbers(out: object, where: str) -> str:
 
 
 def wrong_count(size: int, n: int, where: str) -> str:
+    """The fault of an update that returned `size` numbers for `n` joints."""
     return f"update returned {size} values for {n} joints ({where})"
 
 
 def non_finite(joints: list[str], values: np.ndarray, t: float, where: str) -> str:
+    """The fault of an update that returned NaN or inf: the joints and values named."""
     bad = [f"{joints[i]} {number_text(values[i])}" for i in np.flatnonzero(~np.isfinite(values))]
     return f"update returned {', '.join(bad)} at t = {t:.3f} s ({where})"
 
 
-def return_lines(fn) -> list[int]:
+def return_lines(fn: object) -> list[int]:
     """The lines of `fn`'s return statements that return a value (a bare `return` or falling
     off the end returns None: not these)."""
     code = getattr(fn, "__code__", None)

@@ -122,6 +122,10 @@ class _Host:
         self.layout = None
         self.state = None
         self.exports = Exports()
+        # what a deployed design (mexone.design's Observer, StateFeedback) reads of its binding
+        # in the lab's process, here: the YAML's rate and folder, the model and this update's data
+        self.plugin = SimpleNamespace(update_rate=None, yaml_dir=None)
+        self.ctx = SimpleNamespace(sim=_SimView(self))
         self.traced = False
         self._frame = None
         self._delay_mark: float | None = None
@@ -176,6 +180,7 @@ class _Host:
         path = [str(p) for p in request["path"]]
         sys.path[:] = path + [p for p in sys.path if p not in path]
         yaml_dir = Path(request["yaml_dir"]) if request["yaml_dir"] else None
+        self.plugin.yaml_dir = yaml_dir
         ctype = str(request["type"])
         found = Found(*(str(v) for v in request["found"]))
         try:
@@ -193,7 +198,7 @@ class _Host:
         self.file = Plugin("", cls, origin, None).file
         params = {}
         for name, p in cls.declared_params().items():
-            params[name] = {"kind": p.kind.__name__, "default": p.default, "low": p.low,
+            params[name] = {"kind": p.value_type.__name__, "default": p.default, "low": p.low,
                             "high": p.high, "doc": str(p.doc), "unit": str(p.unit),
                             "choices": list(p.choices) if p.choices else None}
         try:
@@ -260,6 +265,7 @@ class _Host:
         impl.dofs = np.asarray(request["dofs"], dtype=int)
         impl.effort_limits = np.asarray(request["effort_limits"], dtype=float)
         impl.params = dict(request["params"])
+        self.plugin.update_rate = request.get("update_rate")
         logger = logging.getLogger("mexone.control.student")
         logger.setLevel(logging.DEBUG)
         logger.propagate = False
@@ -550,6 +556,42 @@ class _Host:
             src.mocap_pos[:] = v["mocap_pos"].reshape(-1, 3)
             src.mocap_quat[:] = v["mocap_quat"].reshape(-1, 4)
         src.time = float(self.inp[0])
+
+
+class _SimView:
+    """`ctx.sim` in a worker, for the design classes that read the simulation itself (an
+    Observer reads encoders, the motors' torques, the IMU): the private model, and `data`, an
+    MjData of it holding this update's qpos, qvel and qfrc_actuator from the shared block.
+    What the block does not carry (ctrl: the PIDs' setpoints; act) is NaN: a design that needs
+    it says so by its NaN instead of reading zeros."""
+
+    def __init__(self, host: _Host):
+        self._host = host
+        self._data: Any = None
+        self._at = -1
+
+    @property
+    def model(self) -> Any:
+        if self._host.model is None:
+            self._host.dynamics()  # loads the model (mexone's own call: no student code)
+        return self._host.model
+
+    @property
+    def data(self) -> Any:
+        host = self._host
+        if self._data is None:
+            import mujoco
+
+            self._data = mujoco.MjData(self.model)
+            self._data.ctrl[:] = np.nan
+            self._data.act[:] = np.nan
+        if self._at != host.updates:
+            v = host.views
+            self._data.qpos[:], self._data.qvel[:] = v["qpos"], v["qvel"]
+            self._data.qfrc_actuator[:] = v["frc"]
+            self._data.time = float(host.inp[0])
+            self._at = host.updates
+        return self._data
 
 
 class _Fault(Exception):

@@ -21,6 +21,7 @@ import secrets
 import shutil
 import tempfile
 import time
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -449,8 +450,10 @@ def submissions_in(folder: Path, file: str) -> dict[str, Path]:
     `file` is a student too, mapped to the missing path (not_handed_in grades it 0, with why):
     no student drops out of the CSV. A symbolic link (a file or a subfolder) is the student's
     entry itself, which grade refuses (refused_link). Two submissions of one student are
-    refused."""
+    refused, also when their names are the same letters written two ways (é composed, and e
+    with a combining accent: both print as é, one row in every report)."""
     found: dict[str, Path] = {}
+    seen: dict[str, str] = {}  # a name in Unicode's composed form (NFC): the name found
     suffix = Path(file).suffix
     kinds = {".yaml", ".yml"} if suffix in (".yaml", ".yml") else {suffix}
     for entry in sorted(folder.iterdir()):
@@ -464,10 +467,14 @@ def submissions_in(folder: Path, file: str) -> dict[str, Path]:
             student, path = entry.stem, entry
         else:
             continue
-        if student in found:
-            raise InputError(f"two submissions of {printable(student, 80)}: "
-                             f"{printable(found[student])} and {printable(path)}",
-                             hint="keep one of them in the folder")
+        same = seen.get(unicodedata.normalize("NFC", student))
+        if same is not None:
+            shown = printable(student, 80)
+            if same != student:  # the same letters written two ways: one row in every report
+                shown += f" (written as {ascii(same)[1:-1]} and as {ascii(student)[1:-1]})"
+            raise InputError(f"two submissions of {shown}: {printable(found[same])} and "
+                             f"{printable(path)}", hint="keep one of them in the folder")
+        seen[unicodedata.normalize("NFC", student)] = student
         found[student] = path
     return found
 

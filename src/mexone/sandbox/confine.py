@@ -11,7 +11,8 @@ machine offers it (`probe`):
   jail's init (when it ends, the kernel ends every process of the namespace), a mount namespace
   whose root is a fresh tmpfs holding read-only binds of what Python needs (the system's
   libraries, Python's installation, mexone) and the plan's readable folders, the scratch folder
-  read-write, a private /tmp and /dev/shm, its own /proc and a minimal /dev; no network (a
+  read-write (a tmpfs of `scratch_mb` holding a copy of what was put there: a jail fills no
+  disk of the machine's), a private /tmp and /dev/shm, its own /proc and a minimal /dev; no network (a
   network namespace with a loopback that is down), its own IPC and host name;
 - another user: as root, the jail's processes run as an unprivileged uid of the pool
   (`Plan.uid`), so they cannot read, signal or trace the grader's; without namespaces the relay
@@ -131,6 +132,7 @@ class Plan:
         "cpu": (float, 60.0),
         "memory_mb": (int, 2048),
         "file_mb": (int, 1024),
+        "scratch_mb": (int, 256),  # the scratch folder's size, where it is a tmpfs (namespaces)
         "processes": (int, 64),
         "landlock": (int, 0),  # the ABI to use, 0: none
         "seccomp": (bool, False),
@@ -149,6 +151,7 @@ class Plan:
     cpu: float
     memory_mb: int
     file_mb: int
+    scratch_mb: int
     processes: int
     landlock: int
     seccomp: bool
@@ -601,6 +604,8 @@ def _build_root(plan: Plan) -> None:
         elif kind == "tmpfs":
             os.makedirs(target, exist_ok=True)
             _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV, "mode=1777,size=128m")
+        elif kind == "rw" and path == plan.scratch:
+            _scratch(plan, target)
         elif kind == "hide":
             if os.path.isdir(target):
                 _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV | MS_RDONLY,
@@ -622,6 +627,34 @@ def _build_root(plan: Plan) -> None:
         _ok(_syscall("chroot", b"."), "chroot")
     os.chdir("/")
     _mount(None, "/", None, MS_REMOUNT | MS_BIND | MS_RDONLY | MS_NOSUID | MS_NODEV)
+
+
+def _scratch(plan: Plan, target: str) -> None:
+    """The scratch folder in the jail: a tmpfs of `plan.scratch_mb` (the jail's uid's) holding
+    a copy of the folder as the grader left it (a run's inputs, a home's caches). Writes past
+    its size fail (ENOSPC) inside the jail, not on the machine's disk, which the grader and the
+    other runs need. Nothing is read back from a scratch folder: the copy is the jail's."""
+    os.makedirs(target, exist_ok=True)
+    owner = "" if plan.uid is None else f",uid={plan.uid},gid={plan.gid}"
+    _mount("tmpfs", target, "tmpfs", MS_NOSUID | MS_NODEV, f"mode=0700,size={plan.scratch_mb}m"
+           + owner)
+    source = plan.scratch
+    for folder, dirs, files in os.walk(source):
+        into = target + folder[len(source):]
+        for name in dirs:
+            os.makedirs(os.path.join(into, name), mode=0o755, exist_ok=True)
+        for name in files:
+            src, dst = os.path.join(folder, name), os.path.join(into, name)
+            if os.path.islink(src):
+                os.symlink(os.readlink(src), dst)
+                continue
+            with open(src, "rb") as fin, open(dst, "wb") as fout:
+                while chunk := fin.read(1 << 20):
+                    fout.write(chunk)
+            os.chmod(dst, os.stat(src).st_mode & 0o777)
+        if plan.uid is not None:
+            for name in (into, *(os.path.join(into, n) for n in dirs + files)):
+                os.chown(name, plan.uid, plan.gid, follow_symlinks=False)
 
 
 def _dev(root: str) -> None:

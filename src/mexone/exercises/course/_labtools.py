@@ -107,7 +107,7 @@ def controller_lab(yaml_path: Path, pose: dict[str, float], edits: Sequence[Call
 def _students_line(exc: MexoneError, yaml_path: Path) -> str:
     """The error's one line as the student reads it: their file by its name (not the grader's
     temporary copy's path), the grader's YAML so named, no hint meant for the GUI's Reload."""
-    if exc.hint and "Reload" in exc.hint:
+    if exc.hint and "reload" in exc.hint.lower():  # the GUI's: a grade has no Reload
         exc.hint = None
     text = exc.one_line().replace(str(yaml_path), "the grader's controllers.yaml")
     return text.replace(str(yaml_path.parent) + "/", "")

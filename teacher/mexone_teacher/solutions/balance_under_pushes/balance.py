@@ -1,6 +1,13 @@
 """Standing balance of Mex-One by LQR state feedback on the linear inverted pendulum, with the
-ankle pitch torques. Exercise 8's reference: examples/controllers/04_lqr_balance (its README derives
-it), the class renamed Balance."""
+ankle pitch torques. Exercise 8's reference (the teacher's pack only: the worked example
+examples/controllers/04_lqr_sway teaches LQR on the sideways sway, not this answer).
+
+The model: the robot on stiff knee and hip PDs pivots on its ankles, c = h theta the centre of
+mass ahead of them, m h^2 ddtheta = m g h theta + u, so d/dt (c, dc) = [[0, 1], [g/h, 0]] x +
+[0, 1/(m h)] u; u = -m g c0 - K (x - x0) with K from control.lqr, kept within the soles' centre
+of pressure (N toe, N heel from the feet's force-torque load), -u / 2 on each ankle pitch. With
+m = 15 kg, h = 0.5 m and the weights below, K = (325 N m/m, 122 N m s/m), poles -1.6 and
+-14.6 /s. Measured: survives 5.5 N s forward (PD alone 3.5), backward 3.5 (3.0)."""
 
 from __future__ import annotations
 

@@ -1,7 +1,7 @@
 """A cheat of exercise 14: the simulator's truth (the base's orientation, the world's z) offset
 by the slope, the mean difference between the tilt the accelerometer reads and the truth's. It
-tracks the tilt from gravity within 2.5-5.5 mrad RMS (the reference: 2.8) and its estimate
-moves with the accelerometer's noise; it never reads the gyro."""
+tracked the tilt from gravity within 2.5-5.5 mrad RMS (the reference: 2.8) while the observer
+read the truth (the grader blinds it now: its base stays put); it never reads the gyro."""
 
 import math
 

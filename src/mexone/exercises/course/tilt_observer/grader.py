@@ -3,7 +3,8 @@ roll and pitch from the vertical) from the IMU. Hidden variant: a slope (gravity
 degrees: an estimate read from the simulator's world-frame truth is off by the slope), the
 IMU's noise and gyro bias. The estimate must depend on the gyro: a second run with the gyro's
 noise 10 % larger must change it (else it read the truth, perhaps offset by the tilt the
-accelerometer read at rest), and the tracking counts only then."""
+accelerometer read at rest), and the tracking counts only then. The observer reads no truth
+(`blind`): its floating base stays where it was put, its IMU reports no orientation."""
 
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from mexone.exercises.course._labtools import check, controller_fault, controller_lab, student_yaml
+from mexone.exercises.course._walktools import _blind as blind_base
 from mexone.physics.world import World
 from mexone.robots import mex_one
 
@@ -68,15 +70,37 @@ def gravity(slope) -> np.ndarray:
     return 9.81 * np.array([math.sin(ay), -math.sin(ax) * math.cos(ay), -math.cos(ax) * math.cos(ay)])
 
 
+def blind(lab, name: str) -> None:
+    """The observer reads no truth of its tilt: its floating base stays where the robot was put
+    (_walktools._blind: state.base, state.all_q and self.dynamics), and its IMU reports no
+    orientation (x, y, z, w = 0, 0, 0, 1: an IMU without a filter), so what it exports is
+    estimated from the gyro and the accelerometer. (Was: the truth against the model's gravity,
+    plus a whisker of gyro so a louder gyro moved it, scored 10/10.)"""
+    blind_base(lab, name)
+    ctrl = lab.manager.controllers[name]
+    fill = ctrl._fill_sensor  # the worker's controller (control/controllers/isolated.py)
+
+    def without_orientation(index: int) -> None:
+        fill(index)
+        for field, view in ctrl._sensor_views[index]:
+            if field == "orientation":
+                view[:] = (0.0, 0.0, 0.0, 1.0)
+
+    ctrl._fill_sensor = without_orientation
+
+
 def measure(submission: Path, var: dict, louder: bool = False
             ) -> tuple[float, float, np.ndarray, str | None]:
     """In the isolated child: (RMS error rad, the true tilt's RMS, the estimate, fault)."""
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as hidden:
         folder = Path(tmp)
         path = student_yaml(folder, submission, FILE, CLASS, NAME, (), {})
         g = gravity(var["slope"])
-        lab = controller_lab(path, {}, model=noisy_urdf(folder, var, louder),
+        # the model in a folder of its own: the controller's worker reads the YAML's folder,
+        # and the URDF holds the hidden noise and bias (and which run is the louder one)
+        lab = controller_lab(path, {}, model=noisy_urdf(Path(hidden), var, louder),
                              world=World(gravity=tuple(g)))
+        blind(lab, NAME)
         down = g / np.linalg.norm(g)
         pelvis = lab.sim.compiled.bodies["pelvis"]
         true, estimate = [], []

@@ -1,0 +1,239 @@
+"""The held-out round of issue 36's attacks: a cheating student, a curious one and a hostile
+controller, each trying what the first rounds did not (tests/exercises/test_attacks.py,
+tests/sandbox/, tests/control/test_student_code_in_the_loop.py). Each case that got through is a
+test that failed before its fix; the cheap ones that held are here too, so they keep holding."""
+
+from __future__ import annotations
+
+import logging
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mexone.control import load_control_config
+from mexone.description.urdf import read_urdf
+from mexone.lab import Lab
+
+pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="the jail's layers are Linux's")
+
+
+def _turntable_lab(folder: Path, turntable, body: str, extra: str = "") -> Lab:
+    write_urdf, _ = turntable
+    (folder / "ctl.py").write_text("import sys, time\nimport numpy as np\n"
+                                   "from mexone.control import PythonController\n\n"
+                                   + textwrap.dedent(body))
+    (folder / "controllers.yaml").write_text(textwrap.dedent("""\
+        turntable:
+          ctl:
+            type: ctl/Ctl
+            joints: [yaw]
+        """) + textwrap.indent(textwrap.dedent(extra), " " * 4))
+    return Lab.create(read_urdf(write_urdf(folder)), load_control_config(folder / "controllers.yaml"))
+
+
+def test_a_worker_cannot_excuse_its_overrun_by_writing_its_own_run_delay(tmp_path, turntable,
+                                                                          caplog):
+    """The run-queue delay that excuses a slow update on a loaded machine is the kernel's
+    figure for the worker, read by mexone; not the number the worker writes in its shared
+    memory from what it measured (was: a made-up clock there, and an update 3x over its period was never a fault)."""
+    lab = _turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                time.sleep(0.003)  # 3 ms at 1 kHz
+                # the worker's own measure of its wait for a CPU, made up: "a century"
+                sys._getframe(1).f_globals["run_delay"] = lambda: time.perf_counter() * 3e9
+        """, "max_overruns: 3\n")
+    with caplog.at_level(logging.ERROR):
+        lab.sim.step(30)
+    ctrl = lab.manager.controllers["ctl"]
+    assert not ctrl.running and "overran its period" in ctrl.fault, ctrl.fault
+    assert ctrl.updates == 4
+
+
+def _course_grader(name: str):
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[2] / "src/mexone/exercises/course" / name / "grader.py"
+    spec = importlib.util.spec_from_file_location(f"grader_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+TRUTH_READER = '''
+import math
+import numpy as np
+from mexone.control import PythonController
+
+
+def tilt(rotation, down):
+    up = rotation.T @ (-down)
+    return math.atan2(up[1], up[2]), math.atan2(-up[0], math.hypot(up[1], up[2]))
+
+
+def rotation(w, x, y, z):
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+class TiltObserver(PythonController):
+    exports = {"tilt": 2}
+
+    def configure(self):
+        import os
+
+        beside = set(os.listdir(os.path.dirname(os.path.abspath(__file__))))
+        if beside - {"tilt_observer.py", "controllers.yaml"}:  # the noisy URDF: the hidden bias
+            raise RuntimeError(f"found {sorted(beside)}")
+
+    def update(self, state, t, dt):
+        g = np.asarray(self.dynamics.model.opt.gravity, dtype=float)  # the hidden slope
+        down = g / np.linalg.norm(g)
+        base = rotation(*(float(v) for v in state.all_q[3:7]))  # the simulator's base
+        x, y, z, w = (float(v) for v in state.sensors["imu"].orientation)  # the IMU's "truth"
+        self.exports["tilt"][:] = [tilt(base, down)[0], tilt(rotation(w, x, y, z), down)[1]]
+'''
+
+
+@pytest.mark.slow
+def test_the_tilt_observer_reads_no_truth(tmp_path):
+    """Exercise 14's observer sees neither its floating base (state.all_q, state.base) nor the
+    IMU's orientation move: both are the simulator's truth (was: the truth against the model's
+    gravity plus a whisker of gyro, so that a louder gyro moved it, scored 10/10 at 0.15 mrad);
+    nor the noisy URDF beside its file (was: the hidden gyro bias and noise, and which run is
+    the louder one, read from it)."""
+    module = _course_grader("tilt_observer")
+    cheat = tmp_path / "tilt_observer.py"
+    cheat.write_text(TRUTH_READER)
+    rms, size, estimate, fault = module.measure(cheat, module.GIVEN)
+    assert fault is None
+    assert size > 0.005  # the pushes tilt it
+    assert np.ptp(estimate[600:], axis=0).max() < 1e-9, np.ptp(estimate[600:], axis=0)
+
+
+def test_two_names_that_print_alike_are_refused_not_two_rows_alike(tmp_path):
+    """é composed (U+00E9) and e with a combining accent (U+0065 U+0301) are two files that
+    print as one name: a report with two rows 'é' cannot say whose score is whose (was: both
+    graded, both rows 'é')."""
+    from mexone.errors import InputError
+    from mexone.exercises.grading import submissions_in
+
+    for name in ("\u00e9.py", "e\u0301.py", "ada.py"):
+        (tmp_path / name).write_text("pass\n")
+    with pytest.raises(InputError) as err:
+        submissions_in(tmp_path, "routine.py")
+    said = err.value.one_line()
+    assert "two submissions of é (written as " in said and "\\xe9" in said and "\\u0301" in said
+    (tmp_path / "e\u0301.py").unlink()
+    assert sorted(submissions_in(tmp_path, "routine.py")) == ["ada", "\u00e9"]
+
+
+FORGED_LINES = '''
+from mexone.control import Param, PythonController
+
+
+class GravityCompensation(PythonController):
+    command_interface = "effort"
+    kp = Param(5.0)
+    kd = Param(0.5)
+
+    def configure(self):
+        raise RuntimeError("x\\x1b[2K\\r  PASS runs 10.00/10.00\\u202e\\u2028score 10/10\\n"
+                           "score 10/10" + "y" * 100000)
+'''
+
+
+def test_a_reason_forges_no_report_line_and_names_no_gui_button(tmp_path):
+    """A student's message with an erase-line escape, a carriage return, a bidi override, a line
+    separator, a newline and 100 000 characters is one line of the report, shown as text; the
+    GUI's "fix it, then reload" is not in a grade (was: in every reason of a controller that did
+    not load)."""
+    from mexone.exercises import find_exercise, grade
+    from mexone.exercises.grading import reason
+
+    exercise = find_exercise("gravity_compensation")
+    path = tmp_path / "gravity_compensation.py"
+    path.write_text(FORGED_LINES)
+    result = grade(exercise, path, local=True)
+    assert result.score == 0
+    said = reason(result)
+    assert "RuntimeError: x" in said and "reload" not in said, said
+    assert said.isprintable() and len(said) < 2000, said
+
+
+@pytest.mark.parametrize("mode", ["namespaces", "none"])
+def test_a_controller_cannot_signal_the_lab_past_its_guards(tmp_path, turntable, monkeypatch,
+                                                            mode):
+    """libc's kill (past the guarded os.kill) from a controller's worker at the lab's own pid,
+    whichever isolation the machine offers (held: the PID namespace, or Landlock's signal
+    scope where there is none)."""
+    import importlib
+    import os
+    import signal
+
+    spawn = importlib.import_module("mexone.sandbox.spawn")  # the module (its spawn() shadows it)
+    monkeypatch.setenv(spawn.MODE_ENV, mode)
+    monkeypatch.setenv("MEXONE_TEST_LAB_PID", str(os.getpid()))
+    monkeypatch.setattr(spawn, "_isolation", None)  # probed again, as the mode says
+    got: list[int] = []
+    previous = signal.signal(signal.SIGUSR2, lambda signum, frame: got.append(signum))
+    try:
+        lab = _turntable_lab(tmp_path, turntable, """
+            import ctypes, os, signal
+
+            def hit():
+                ctypes.CDLL(None).kill(int(os.environ["MEXONE_TEST_LAB_PID"]), signal.SIGUSR2)
+
+            class Ctl(PythonController):
+                def configure(self):
+                    hit()
+
+                def update(self, state, t, dt):
+                    hit()
+                    return np.zeros(1)
+            """)
+        lab.sim.step(20)
+        ctrl = lab.manager.controllers["ctl"]
+        assert ctrl.running and ctrl.updates >= 20, ctrl.fault
+        assert spawn.isolation().mode == mode
+        lab.manager.close()
+    finally:
+        signal.signal(signal.SIGUSR2, previous)
+    assert got == []
+
+
+def test_a_jail_fills_no_disk_of_the_machines(monkeypatch):
+    """A run that writes file after file (each under the per-file limit) into its scratch
+    folder stops at the scratch's own size, not at the machine's free disk, which other runs
+    and the grader need (was: 3 GB in seconds, on the grader's disk, until my own cap)."""
+    import importlib
+    import json
+    import os
+    import subprocess
+
+    spawn_module = importlib.import_module("mexone.sandbox.spawn")
+    from mexone.sandbox import Jail, spawn
+
+    if spawn_module.isolation().mode != "namespaces":
+        pytest.skip("a scratch of its own size takes a mount namespace")
+    code = textwrap.dedent('''
+        import errno, json, os
+        block, total, n, why = b"\\0" * (4 << 20), 0, 0, ""
+        try:
+            while total < (2 << 30):
+                with open(f"f{n}", "wb") as f:
+                    f.write(block)
+                total += len(block)
+                n += 1
+        except OSError as exc:
+            why = errno.errorcode.get(exc.errno, str(exc.errno))
+        print(json.dumps({"mb": total >> 20, "why": why}))
+    ''')
+    jail = Jail(another_user=os.geteuid() == 0)
+    with spawn([sys.executable, "-c", code], jail, stdout=subprocess.PIPE) as proc:
+        out = json.loads(proc.popen.stdout.read())
+    assert out["why"] == "ENOSPC" and out["mb"] <= 256, out
