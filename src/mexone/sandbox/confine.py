@@ -36,8 +36,14 @@ import struct
 import sys
 import time
 
+TYPE_CHECKING = False  # typing's flag without typing's import (the relay's start); mypy: True
+if TYPE_CHECKING:
+    from collections.abc import Callable, Sequence
+    from types import FrameType, TracebackType
+    from typing import Any
+
 try:  # the C module: `signal` imports enum, a third of this module's start in the jail's relay
-    import _signal as signal
+    import _signal as signal  # type: ignore[import-not-found]  # typeshed has no stub for the C module
 except ImportError:  # pragma: no cover - every CPython has it
     import signal
 
@@ -119,7 +125,7 @@ class Plan:
     (A plain class, not a dataclass: dataclasses imports inspect, which the relay's start
     would pay for.)"""
 
-    FIELDS = {  # name: (kind, default)
+    FIELDS: dict[str, tuple[Any, Any]] = {  # name: (kind, default); a kind may be `int | None`
         "mode": (str, "none"),
         "scratch": (str, ""),
         "root": (str, ""),  # an empty folder the new root is mounted on (namespaces)
@@ -157,7 +163,7 @@ class Plan:
     seccomp: bool
     parent: int
 
-    def __init__(self, **values: object):
+    def __init__(self, **values: Any):
         unknown = set(values) - set(self.FIELDS)
         if unknown:
             raise TypeError(f"Plan has no field {sorted(unknown)[0]!r}")
@@ -185,7 +191,7 @@ class Plan:
 
     @classmethod
     def loads(cls, text: str) -> Plan:
-        values: dict = {}
+        values: dict[str, Any] = {}
         for item in text.split("\x1e"):
             name, _, shown = item.partition("=")
             kind, default = cls.FIELDS[name]
@@ -211,15 +217,16 @@ class _suppress:  # contextlib.suppress without contextlib's imports (the relay'
     def __enter__(self) -> None:
         return None
 
-    def __exit__(self, kind, value, tb) -> bool:
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 tb: TracebackType | None) -> bool:
         return kind is not None and issubclass(kind, self.kinds)
 
 
 # ----- the C library ------------------------------------------------------------------------
-_libc = None
+_libc: ctypes.CDLL | None = None
 
 
-def _lib():
+def _lib() -> ctypes.CDLL:
     global _libc
     if _libc is None:
         _libc = ctypes.CDLL(None, use_errno=True)
@@ -243,7 +250,7 @@ def _nr(name: str) -> int | None:
     return _SYSCALLS.get(os.uname().machine, {}).get(name)
 
 
-def _syscall(name: str, *args) -> int:
+def _syscall(name: str, *args: object) -> int:
     number = _nr(name)
     if number is None:
         raise JailError(38, f"{name}: no such system call here")
@@ -259,7 +266,7 @@ def _prctl(option: int, arg: int = 0) -> int:
 
 def _mount(source: str | None, target: str, fstype: str | None, flags: int,
            data: str | None = None) -> None:
-    enc = (lambda s: None if s is None else s.encode())  # noqa: E731
+    enc: Callable[[str | None], bytes | None] = (lambda s: None if s is None else s.encode())  # noqa: E731
     _ok(_lib().mount(enc(source), enc(target), enc(fstype), flags, enc(data)),
         f"mount {source or fstype} on {target}")
 
@@ -282,7 +289,7 @@ def landlock_abi() -> int:
     return max(0, int(result))
 
 
-def probe() -> dict:
+def probe() -> dict[str, bool | int]:
     """What this machine offers, tried in this process (call it in a throwaway child: it
     unshares): {"namespaces": bool, "landlock": ABI, "seccomp": bool, "root": bool}."""
     root = os.geteuid() == 0
@@ -314,7 +321,7 @@ class _Stop(Exception):  # noqa: N818 - the relay was asked to end the jail
     pass
 
 
-def _stop(signum, frame) -> None:
+def _stop(signum: int, frame: FrameType | None) -> None:
     raise _Stop
 
 
@@ -353,7 +360,7 @@ def jail(plan: Plan, keep_fds: tuple[int, ...] = ()) -> None:
     _guard(lambda: _confine(plan, keep_fds))
 
 
-def _guard(step) -> None:
+def _guard(step: Callable[[], object]) -> None:
     """Run a set-up step; if it fails, the jail ends here with exit status 3 and why."""
     try:
         step()
@@ -569,7 +576,7 @@ def _bind(source: str, target: str, writable: bool) -> None:
 def _system_paths() -> list[tuple[str, str]]:
     """(kind, path) of the system's part of the view: its program and library folders (or the
     symlinks that stand for them) and the few files of /etc."""
-    out = []
+    out: list[tuple[str, str]] = []
     for path in SYSTEM_DIRS:
         if os.path.islink(path):
             out.append(("link", path))
@@ -653,6 +660,7 @@ def _scratch(plan: Plan, target: str) -> None:
                     fout.write(chunk)
             os.chmod(dst, os.stat(src).st_mode & 0o777)
         if plan.uid is not None:
+            assert plan.gid is not None  # a plan with a uid has its gid (spawn: gid=uid)
             for name in (into, *(os.path.join(into, n) for n in dirs + files)):
                 os.chown(name, plan.uid, plan.gid, follow_symlinks=False)
 
@@ -681,6 +689,7 @@ def _confine(plan: Plan, keep_fds: tuple[int, ...]) -> None:
         if _prctl(PR_CAPBSET_DROP, cap) < 0:
             break  # EINVAL: past the last capability; EPERM: it had none to drop
     if plan.uid is not None and os.geteuid() == 0:
+        assert plan.gid is not None  # a plan with a uid has its gid (spawn: gid=uid)
         os.setgroups([])
         os.setresgid(plan.gid, plan.gid, plan.gid)
         os.setresuid(plan.uid, plan.uid, plan.uid)
@@ -776,7 +785,7 @@ def _landlock(plan: Plan) -> None:
         os.close(ruleset)
 
 
-def _allow(ruleset: int, path: str, access: int, hidden) -> None:
+def _allow(ruleset: int, path: str, access: int, hidden: Sequence[str]) -> None:
     """A rule granting `access` beneath `path`; where one of `hidden` lies beneath it, the
     rule goes to each of its entries but the hidden one instead (Landlock only allows)."""
     inside = [h for h in hidden if h.startswith(path.rstrip("/") + "/")]
@@ -824,13 +833,13 @@ class _SockFprog(ctypes.Structure):
     _fields_ = [("len", ctypes.c_ushort), ("filter", ctypes.POINTER(_SockFilter))]
 
 
-def _program(network: bool, allow_all: bool = False) -> list[tuple[int, object, object, int]]:
+def _program(network: bool, allow_all: bool = False) -> list[tuple[Any, ...]]:
     """The filter as (code, jump-if-true, jump-if-false, k); jumps name labels."""
     machine = os.uname().machine
     table = _SYSCALLS[machine]
     if allow_all:
         return [(_RET, 0, 0, _ALLOW)]
-    prog: list = [(_LD, 0, 0, 4), (_JEQ, 0, "kill", _AUDIT_ARCH[machine]), (_LD, 0, 0, 0)]
+    prog: list[tuple[Any, ...]] = [(_LD, 0, 0, 4), (_JEQ, 0, "kill", _AUDIT_ARCH[machine]), (_LD, 0, 0, 0)]
     if machine == "x86_64":
         prog.append((_JGE, "eperm", 0, 0x40000000))  # the x32 ABI's numbers
     for name in DENIED:
@@ -858,16 +867,18 @@ def _program(network: bool, allow_all: bool = False) -> list[tuple[int, object, 
     return prog
 
 
-def _assemble(prog: list) -> list[tuple[int, int, int, int]]:
+def _assemble(prog: list[tuple[Any, ...]]) -> list[tuple[int, int, int, int]]:
+    labels: dict[str, int]
+    out: list[tuple[Any, ...]]
     labels, out = {}, []
     for item in prog:
         if len(item) == 2:
             labels[item[0]] = len(out)
         else:
             out.append(item)
-    code = []
+    code: list[tuple[int, int, int, int]] = []
     for i, (op, jt, jf, k) in enumerate(out):
-        def jump(to, i=i):
+        def jump(to: int | str, i: int = i) -> int:
             return to if isinstance(to, int) else labels[to] - i - 1
         code.append((op, jump(jt), jump(jf), k))
         if not (0 <= code[-1][1] <= 255 and 0 <= code[-1][2] <= 255):
