@@ -31,8 +31,8 @@ import time
 import traceback
 from collections.abc import Iterator, Mapping
 from pathlib import Path
-from types import SimpleNamespace
-from typing import Any
+from types import FrameType, SimpleNamespace
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -61,6 +61,11 @@ from mexone.control.worker import (
 from mexone.errors import MexoneError
 from mexone.sandbox import ended, guard
 from mexone.sandbox.wire import Channel, frame
+
+if TYPE_CHECKING:
+    from collections.abc import Callable
+
+    from mexone.dynamics import Dynamics
 
 
 def main(argv: list[str]) -> None:
@@ -102,32 +107,32 @@ class _Host:
                             max_frame=1 << 28, student=True)  # mexone's frames (a camera image)
         self.chan.introduce()
         self.lock = threading.Lock()  # a thread of the student's logs or faults too
-        self.cls = None
-        self.impl = None
+        self.cls: type[PythonController] | None = None
+        self.impl: PythonController | None = None
         self.file = ""
         self.updates = 0
         self.pid = os.getpid()
         self.kinds = {UPDATE: self.update, CALL: self.request, MESSAGES: self.take_messages}
         self.topics: tuple[str, ...] = ()  # the class's declared topics
         self.inbox: dict[str, Any] = {}  # the messages for the next update
-        self.sent_params: dict = {}
-        self._dyn = None
+        self.sent_params: dict[str, Any] = {}
+        self._dyn: Dynamics | None = None
         self._dyn_at = -1
-        self.model = None
+        self.model: Any = None  # mujoco.MjModel (mujoco has no type information)
         self._model_fd: int | None = None
         self._model_size = 0
-        self.source = None
+        self.source: Any = None  # mujoco.MjData
         self.links: dict[str, int] = {}
         self.bodies: list[int] = []
-        self.layout = None
-        self.state = None
+        self.layout: Layout | None = None
+        self.state: State | None = None
         self.exports = Exports()
         # what a deployed design (mexone.design's Observer, StateFeedback) reads of its binding
         # in the lab's process, here: the YAML's rate and folder, the model and this update's data
         self.plugin = SimpleNamespace(update_rate=None, yaml_dir=None)
         self.ctx = SimpleNamespace(sim=_SimView(self))
         self.traced = False
-        self._frame = None
+        self._frame: FrameType | None = None
         self._delay_mark: float | None = None
         self._reply(REPLY, {"seq": 0, "ok": {"thread": threading.get_ident(), "pid": self.pid}})
         threading.excepthook = self._thread_raised
@@ -176,7 +181,7 @@ class _Host:
         self._params_changed()
 
     # ----- describe: import the class ---------------------------------------------------------------
-    def do_describe(self, request: dict) -> dict:
+    def do_describe(self, request: dict[str, Any]) -> dict[str, Any]:
         path = [str(p) for p in request["path"]]
         sys.path[:] = path + [p for p in sys.path if p not in path]
         yaml_dir = Path(request["yaml_dir"]) if request["yaml_dir"] else None
@@ -194,7 +199,7 @@ class _Host:
         self.watch_threads()
         return info
 
-    def describe(self, cls, origin: str) -> dict:
+    def describe(self, cls: type[PythonController], origin: str) -> dict[str, Any]:
         self.file = Plugin("", cls, origin, None).file
         params = {}
         for name, p in cls.declared_params().items():
@@ -206,15 +211,16 @@ class _Host:
         except (OSError, TypeError):
             line = None
         self.returns = return_lines(cls.update)
+        # a classmethod read on its class is a bound method (mypy: a plain callable, no __func__)
         checks = getattr(cls.check_entry, "__func__", None) is not \
-            PythonController.check_entry.__func__
+            PythonController.check_entry.__func__  # type: ignore[attr-defined]
         return {"name": cls.__name__, "file": self.file, "origin": origin,
                 "command_interface": cls.command_interface, "params": params,
                 "update_line": line, "report": callable(getattr(cls, "report", None)),
                 "check_entry": checks, "exports": dict(getattr(cls, "exports", {}) or {}),
                 "inputs": dict(getattr(cls, "inputs", {}) or {}), "topics": self.declare_topics(cls)}
 
-    def declare_topics(self, cls) -> dict[str, str]:
+    def declare_topics(self, cls: type[PythonController]) -> dict[str, str]:
         """The class's topics as names of mexone.bus.msgs classes (all a worker is sent)."""
         from mexone.bus import msgs
 
@@ -233,34 +239,36 @@ class _Host:
         """The messages that arrived since the last update (mexone's, rebuilt here)."""
         self.inbox = {str(k): message_from(v) for k, v in json.loads(payload).items()}
 
-    def do_check_entry(self, request: dict) -> None:
+    def do_check_entry(self, request: dict[str, Any]) -> None:
         p = request["plugin"]
-        plugin = Plugin(p["type"], self.cls, self.file, None,
+        cls = cast("type[PythonController]", self.cls)  # set by describe, mexone's first call
+        plugin = Plugin(p["type"], cls, self.file, None,
                         {k: (v, p["lines"].get(k)) for k, v in p["raw"].items()}, p["params"],
                         update_rate=p["update_rate"], source=Path(p["source"]) if p["source"] else None,
                         line=p["line"], lines=p["lines"])
         try:  # an InputError is the class's finding (at the YAML's line): said as it is
-            self.cls.check_entry(request["name"], tuple(request["joints"]), plugin,
-                                 float(request["timestep"]))
+            cls.check_entry(request["name"], tuple(request["joints"]), plugin,
+                            float(request["timestep"]))
         except MexoneError:
             raise
         except BaseException as exc:  # noqa: BLE001 - the student's, said in one line
             raise _Fault(f"check_entry raised {self.where(exc)}") from None
 
     # ----- create: the object, its state, its model ---------------------------------------------------
-    def do_bind(self, request: dict) -> None:
+    def do_bind(self, request: dict[str, Any]) -> None:
         """mexone's own setup, before any student code: the shared block, the model, the state
         (a rebind after the model changed: the same, the object's dofs updated)."""
         self.attach(request)
+        assert self.layout is not None  # attach() has just set it
         if self.state is None:
             self.state = State(self.layout.n, None, None, None)
         if self.impl is not None:
             self.impl.dofs = np.asarray(request["dofs"], dtype=int)
         self.bind_state(request)
 
-    def do_create(self, request: dict) -> dict:
+    def do_create(self, request: dict[str, Any]) -> dict[str, Any]:
         self.name = str(request["name"])
-        impl = self.student("creating", self.cls)
+        impl = self.student("creating", cast("type[PythonController]", self.cls))  # set by describe
         impl.name, impl.joints = self.name, list(request["joints"])
         impl.dofs = np.asarray(request["dofs"], dtype=int)
         impl.effort_limits = np.asarray(request["effort_limits"], dtype=float)
@@ -276,12 +284,13 @@ class _Host:
         self.impl = impl
         self.update_fn = impl.update
         self.traced = len(self.returns) > 1
+        assert self.layout is not None  # mexone's side binds before it creates
         self.shape = (self.layout.n,)
         self.student("configure", impl.configure)
         self.sent_params = dict(impl.params) if isinstance(impl.params, dict) else {}
         return self.sent_params
 
-    def attach(self, request: dict) -> None:
+    def attach(self, request: dict[str, Any]) -> None:
         """Map the shared block (the fd sent with the request), load the model if one came."""
         layout = Layout.from_json(request["layout"])
         fds = self.take_fds(1 + ("model" in request))
@@ -301,7 +310,7 @@ class _Host:
     def take_fds(self, count: int) -> list[int]:
         return self.chan.take(count)
 
-    def load_model(self, fd: int, about: dict) -> None:
+    def load_model(self, fd: int, about: dict[str, Any]) -> None:
         """Keep the compiled model's file; it is loaded when `self.dynamics` is first read (a
         controller that never reads it never imports MuJoCo)."""
         if self._model_fd is not None:
@@ -315,17 +324,19 @@ class _Host:
     def _load_model(self) -> None:
         import mujoco
 
+        assert self._model_fd is not None  # its one caller, dynamics(), has checked
         data = os.pread(self._model_fd, self._model_size, 0)
         self.model = mujoco.MjModel.from_binary_path("model.mjb", {"model.mjb": data})
         self.source = mujoco.MjData(self.model)
 
-    def do_model(self, request: dict) -> None:
+    def do_model(self, request: dict[str, Any]) -> None:
         self.load_model(self.take_fds(1)[0], request["model"])
 
-    def bind_state(self, request: dict) -> None:
+    def bind_state(self, request: dict[str, Any]) -> None:
         """state.q, dq, effort and all_q, all_dq as read-only views of the shared block."""
         v = self.views
         state = self.state
+        assert state is not None and self.layout is not None  # do_bind, its caller, set both
         qadr = np.asarray(request["qpos_adr"], dtype=int)
         dadr = np.asarray(request["dof_adr"], dtype=int)
         base = request.get("base_joint")
@@ -334,8 +345,8 @@ class _Host:
         views = [strided_view(v["qpos"], qadr), strided_view(v["qvel"], dadr),
                  strided_view(v["frc"], dadr)]
         self.gather = None if all(x is not None for x in views) else (qadr, dadr)
-        if self.gather is None:
-            state.q, state.dq, state.effort = views
+        if self.gather is None:  # every view an array (all not None above): numpy's 1-d shape unknown
+            state.q, state.dq, state.effort = views  # type: ignore[assignment]
         self.sensor_map = _Sensors(self, self.layout)
         inputs = {}
         for name, view in v["inputs"].items():
@@ -350,6 +361,7 @@ class _Host:
     # ----- the lifecycle ------------------------------------------------------------------------------
     def fresh_state(self) -> Any:
         state, inp = self.state, self.inp
+        assert state is not None  # bound before anything asks for the state
         state.time = float(inp[0])
         state._sensors = None
         state._base = None
@@ -363,26 +375,31 @@ class _Host:
         self.updates += 1
         return state
 
-    def do_activate(self, request: dict) -> None:
+    def do_activate(self, request: dict[str, Any]) -> None:
+        assert self.impl is not None  # mexone's side creates before anything else of the object
         self.student("activate", self.impl.activate, self.fresh_state())
 
-    def do_deactivate(self, request: dict) -> None:
+    def do_deactivate(self, request: dict[str, Any]) -> None:
+        assert self.impl is not None  # created before (mexone's side)
         self.student("deactivate", self.impl.deactivate)
 
-    def do_set_param(self, request: dict) -> None:
+    def do_set_param(self, request: dict[str, Any]) -> None:
+        assert self.impl is not None  # created before (mexone's side)
         self.student("set_param", self.impl.params.__setitem__, str(request["key"]),
                      request["value"])
         self.sent_params = dict(self.impl.params)
 
-    def do_report(self, request: dict) -> Any:
-        report = self.student("report", self.impl.report)
+    def do_report(self, request: dict[str, Any]) -> Any:
+        assert self.impl is not None  # created before (mexone's side)
+        # report is optional: asked only of a class that has one (describe's "report")
+        report = self.student("report", self.impl.report)  # type: ignore[attr-defined]
         try:
             return json.loads(json.dumps(report, default=_plain))
         except (TypeError, ValueError, RecursionError) as exc:
             raise _Fault(f"report() returned what is not JSON ({type(exc).__name__}: "
                          f"{_safe_str(exc)})") from None
 
-    def do_quit(self, request: dict) -> list[str]:
+    def do_quit(self, request: dict[str, Any]) -> list[str]:
         """Threads the student started still running, one line each (they end with this
         process), naming where each was started."""
         lines = []
@@ -398,12 +415,14 @@ class _Host:
         """Each thread the student's code starts remembers where (for do_quit's line)."""
         host, start = self, threading.Thread.start
 
-        def started(thread, *args, **kwargs):
+        def started(thread: threading.Thread, *args: Any, **kwargs: Any) -> None:
             line = host.line_in(sys._getframe(1))
-            thread._mexone_started = f"{host.file}:{line}" if line else host.file
+            # a mark of mexone's on the thread object, which do_quit reads back
+            thread._mexone_started = f"{host.file}:{line}" if line else host.file  # type: ignore[attr-defined]
             return start(thread, *args, **kwargs)
 
-        threading.Thread.start = started
+        # replacing Thread.start is the point: each start the student makes remembers where
+        threading.Thread.start = started  # type: ignore[method-assign,assignment]
 
     def update(self, number: bytes) -> None:
         """One update: the state is in shared memory; the command goes back there, with the
@@ -440,6 +459,7 @@ class _Host:
             self._delay_mark = None
         if os.getpid() != self.pid:  # a copy of this process (a fork past the guards): not ours
             guard.real_exit(0)
+        assert self.impl is not None  # created before any update (mexone's side)
         if self.sent_params != self.impl.params:
             self._params_changed()
         if result is None:
@@ -464,7 +484,7 @@ class _Host:
         with self.lock:
             self.chan.send_frame(self.DONE_HEAD + number)
 
-    def _trace(self, frame, event, arg):
+    def _trace(self, frame: FrameType, event: str, arg: object) -> None:
         self._frame = frame  # the update's frame: its last line, once it returns, is the return's
         sys.settrace(None)
 
@@ -479,6 +499,7 @@ class _Host:
 
     @property
     def update_line(self) -> int | None:
+        assert self.impl is not None  # read after an update, so created
         try:
             return inspect.getsourcelines(type(self.impl).update)[1]
         except (OSError, TypeError):
@@ -491,7 +512,7 @@ class _Host:
             self.chan.send(UPDATE_FAULT, number + data)
 
     # ----- the student's code ----------------------------------------------------------------------
-    def student(self, what: str, fn, *args):
+    def student(self, what: str, fn: Callable[..., Any], *args: Any) -> Any:
         try:
             return fn(*args)
         except BaseException as exc:  # noqa: BLE001 - the student's, said in one line
@@ -507,11 +528,11 @@ class _Host:
         first = text[0] if text else ""
         return f"{self.file}:{line or '?'}: {type(exc).__name__}" + (f": {first}" if first else "")
 
-    def line_in(self, frame) -> int | None:
+    def line_in(self, frame: FrameType) -> int | None:
         ours = [f for f in traceback.extract_stack(frame) if f.filename == self.file]
         return ours[-1].lineno if ours else None
 
-    def _thread_raised(self, args) -> None:
+    def _thread_raised(self, args: threading.ExceptHookArgs) -> None:
         """A thread the student started raised: the controller's fault, in one line."""
         if args.exc_type is SystemExit:
             return
@@ -530,7 +551,7 @@ class _Host:
                                           if isinstance(v, bool | int | float | str)}})
 
     # ----- what the student's object asks of its binding ------------------------------------------------
-    def dynamics(self):
+    def dynamics(self) -> Dynamics:
         """The robot's dynamics at this update's state, on the private model."""
         if self._model_fd is None:
             raise AttributeError("dynamics: no model was sent to this controller's process")
@@ -598,15 +619,15 @@ class _Fault(Exception):
     """The student's code failed in a call (its one line)."""
 
 
-class _Sensors(Mapping):
+class _Sensors(Mapping[str, Any]):
     """state.sensors in the worker: each sensor's state over read-only shared memory, filled by
     mexone from the first update that looks it up (the first look asks for it at once)."""
 
-    def __init__(self, host: _Host, layout):
+    def __init__(self, host: _Host, layout: Layout):
         self.host = host
         self.index = {name: i for i, (name, _, _) in enumerate(layout.sensors)}
         self.wanted = [False] * len(layout.sensors)
-        self.objects = []
+        self.objects: list[Any] = []
         for (_name, path, _), views in zip(layout.sensors, host.views["sensors"], strict=True):
             module, _, qualname = path.rpartition(":")
             obj = None
@@ -617,7 +638,7 @@ class _Sensors(Mapping):
                     object.__setattr__(obj, field, view)
             self.objects.append(obj)
 
-    def __getitem__(self, name: str):
+    def __getitem__(self, name: str) -> Any:
         index = self.index.get(name)
         if index is None:
             raise KeyError(f"no sensor named '{name}' with state interfaces (sensors: "
@@ -656,7 +677,7 @@ def _safe_str(exc: BaseException) -> str:
         return f"(its str() raised {type(inner).__name__})"
 
 
-def _plain(value):
+def _plain(value: object) -> Any:
     """numpy numbers and arrays as JSON's; anything else as its text."""
     tolist = getattr(value, "tolist", None)
     return tolist() if callable(tolist) else str(value)
