@@ -109,10 +109,71 @@ def test_the_tilt_observer_reads_no_truth(tmp_path):
     module = _course_grader("tilt_observer")
     cheat = tmp_path / "tilt_observer.py"
     cheat.write_text(TRUTH_READER)
-    rms, size, estimate, fault = module.measure(cheat, module.GIVEN)
+    true, estimate, fault = module.measure(cheat, module.GIVEN)
     assert fault is None
-    assert size > 0.005  # the pushes tilt it
+    assert np.ptp(true[600:], axis=0).max() > 0.01  # the pushes tilt it
     assert np.ptp(estimate[600:], axis=0).max() < 1e-9, np.ptp(estimate[600:], axis=0)
+
+
+SLOPE_HELD = '''
+import math
+import numpy as np
+from mexone.control import PythonController
+
+
+class TiltObserver(PythonController):
+    """The slope's tilt the accelerometer read while the robot stood, held; a whisker of gyro."""
+    exports = {"tilt": 2}
+
+    def activate(self, state):
+        self.read, self.held = [], None
+
+    def update(self, state, t, dt):
+        imu = state.sensors["imu"]
+        ax, ay, az = (float(v) for v in imu.linear_acceleration)
+        now = np.array([math.atan2(ay, az), math.atan2(-ax, math.hypot(ay, az))])
+        if self.held is None and t >= 1.0:
+            self.held = np.mean(self.read, axis=0)
+        elif self.held is None and t >= 0.3:
+            self.read.append(now)
+        gyro = np.asarray(imu.angular_velocity[:2], dtype=float)
+        self.exports["tilt"][:] = (now if self.held is None else self.held) + 1e-6 * gyro
+'''
+
+
+def test_a_tilt_that_holds_still_tracks_none_of_the_tilts_changes():
+    """Exercise 14's tracking, on made-up series: an estimate that holds the mean tilt (the
+    slope, most of it) earns nothing however small its error; one that follows the tilt plus a
+    steady offset within the full marks earns them all."""
+    module = _course_grader("tilt_observer")
+    t = np.arange(int(module.SECONDS / module.STEP)) * module.STEP
+    sway = np.where(t > module.PUSHES[0][0], 0.01 * np.sin(2 * np.pi * 1.5 * t), 0.0)
+    true = np.c_[np.full_like(t, 0.06), sway]  # a 3.4 degree slope, swaying after the push
+    held = module.tracking(true, np.tile(true.mean(axis=0), (len(t), 1)))
+    assert held.error < module.FULL and held.change_share == pytest.approx(1.0)
+    assert held.fraction() <= 0.0
+    follows = module.tracking(true, true + 0.004)
+    assert follows.change_error < 1e-12 and follows.fraction() >= 1.0
+    assert module.tracking(true, np.full_like(true, np.nan)).fraction() == 0.0
+
+
+@pytest.mark.slow
+def test_the_tilt_observer_is_graded_on_the_tilts_changes(tmp_path):
+    """Exercise 14 grades how the estimate follows what the pushes change, not only its error on
+    the tilt, most of which is the slope, still: its tilt read from the accelerometer at rest and
+    held, plus a whisker of gyro so a louder gyro moves it (was: 10/10 at 6.17 mrad RMS under the
+    hidden slope, against the reference's 3.20, with no observer at all)."""
+    from mexone.exercises import find_exercise, grade
+
+    exercise = find_exercise("tilt_observer")
+    cheat = tmp_path / exercise.file
+    cheat.write_text(SLOPE_HELD)
+    result = grade(exercise, cheat)
+    said = {c.name: c.output for c, _, _ in result.checks}
+    earned = {c.name: score for c, score, _ in result.checks}
+    assert earned["uses the IMU"] == 3.0, said  # the whisker moves it: not what catches it
+    assert "(100% of their" in said["tracks the tilt"], said
+    assert earned["tracks the tilt"] == 0.0 and result.score < exercise.pass_mark, said
 
 
 def test_two_names_that_print_alike_are_refused_not_two_rows_alike(tmp_path):
