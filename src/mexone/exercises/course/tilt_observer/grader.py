@@ -1,10 +1,12 @@
 """Exercise 14, an observer of the tilt: the student's controller exports `tilt` (the pelvis's
 roll and pitch from the vertical) from the IMU. Hidden variant: a slope (gravity tilted 2-4
 degrees: an estimate read from the simulator's world-frame truth is off by the slope), the
-IMU's noise and gyro bias. The estimate must depend on the gyro: a second run with the gyro's
-noise 10 % larger must change it (else it read the truth, perhaps offset by the tilt the
-accelerometer read at rest), and the tracking counts only then. The observer reads no truth
-(`blind`): its floating base stays where it was put, its IMU reports no orientation."""
+IMU's noise and gyro bias. Graded: the estimate's RMS error, and that of its changes over the
+pushes (most of the tilt is the slope, still: an estimate held still would pass on the first
+alone). The estimate must depend on the gyro: a second run with the gyro's noise 10 % larger
+must change it (else it read the truth, perhaps offset by the tilt the accelerometer read at
+rest), and the tracking counts only then. The observer reads no truth (`blind`): its floating
+base stays where it was put, its IMU reports no orientation."""
 
 from __future__ import annotations
 
