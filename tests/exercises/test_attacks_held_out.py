@@ -218,6 +218,7 @@ def test_a_tilt_that_holds_still_tracks_none_of_the_tilts_changes():
     follows = module.tracking(true, true + 0.004)
     assert follows.change_error < 1e-12 and follows.fraction() >= 1.0
     assert module.tracking(true, np.full_like(true, np.nan)).fraction() == 0.0
+    assert module.tracking(true[:300], true[:300]).fraction() == 0.0  # it ended before SETTLE
 
 
 @pytest.mark.slow

@@ -67,9 +67,9 @@ def tracking(true: np.ndarray, estimate: np.ndarray) -> Tracking:
     n = min(len(true), len(estimate))
     true, estimate = true[:n], estimate[:n]
     t = np.arange(n) * STEP
-    if n == 0 or not np.isfinite(estimate[t >= SETTLE]).all():
-        return Tracking(math.inf, 0.0, math.inf, 0.0)
     keep = t >= SETTLE
+    if not keep.any() or not np.isfinite(estimate[keep]).all():  # ended early, or NaN
+        return Tracking(math.inf, 0.0, math.inf, 0.0)
     error = estimate[keep] - true[keep]
     changes, truths = [], []
     for at, _ in PUSHES:
