@@ -151,11 +151,21 @@ def _start(args) -> int:
     for path in sorted(figures.rglob("*")) if figures.is_dir() else []:
         if _handed_out(path):
             files[dest / "figures" / path.relative_to(figures)] = path
+    extra = getattr(ex.grader(), "files", None)  # optional: more files the student needs
+    for name, text in (extra() if callable(extra) else {}).items():
+        if not isinstance(name, str) or not isinstance(text, str) or Path(name).name != name \
+                or name in ("", ".", "..", "check.py", "README.md", ex.file):
+            raise InputError(f"files() names {name!r}: a file name (no folder) for text, not the "
+                             "statement, the starter or check.py", file=ex.folder / "grader.py",
+                             hint="return {'controllers.yaml': text, ...}")
+        files[dest / name] = text
     files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
                                                else str(ex.folder), file=ex.file)
     _copy_tree(files, args.force)
+    more = "".join(f", {p.name}" for p in files if p.parent == dest and p.name not in
+                   ("README.md", ex.file, "check.py"))
     print(f"mexone: wrote {ex.title} to {dest}/: README.md (the statement), {ex.file} (your "
-          f"starting point), check.py (python3 {dest}/check.py checks it)")
+          f"starting point){more}, check.py (python3 {dest}/check.py checks it)")
     return 0
 
 

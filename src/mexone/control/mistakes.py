@@ -8,7 +8,8 @@ import dis
 import logging
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, MutableMapping
+from typing import Any
 
 import numpy as np
 
@@ -55,21 +56,23 @@ def dropped_lines(name: str, count: int, per_second: int) -> str:
             f"{per_second} a second)")
 
 
-class StudentLog(logging.LoggerAdapter):
+class StudentLog(logging.LoggerAdapter[logging.Logger]):
     """`self.log` of a Python controller: its lines prefixed with the controller's name; with a
     LogLimit (extra "limit"), at most its lines a second."""
 
-    def process(self, msg, kwargs):
-        return f"{self.extra['name']}: {msg}", kwargs
+    def process(self, msg: object, kwargs: MutableMapping[str, Any]
+                ) -> tuple[object, MutableMapping[str, Any]]:
+        return f"{self.extra['name']}: {msg}", kwargs  # type: ignore[index]  # extra is given
 
-    def log(self, level, msg, *args, **kwargs):
-        limit = self.extra.get("limit")
-        if limit is None or not self.isEnabledFor(level):
+    def log(self, level: int, msg: object, *args: Any, **kwargs: Any) -> None:
+        limit = (self.extra or {}).get("limit")
+        if not isinstance(limit, LogLimit) or not self.isEnabledFor(level):
             super().log(level, msg, *args, **kwargs)
             return
         shown, dropped = limit.admit()
         if dropped:
-            self.logger.warning("%s", dropped_lines(self.extra["name"], dropped, limit.per_second))
+            name = str((self.extra or {}).get("name"))
+            self.logger.warning("%s", dropped_lines(name, dropped, limit.per_second))
         if shown:
             super().log(level, msg, *args, **kwargs)
 
@@ -84,15 +87,17 @@ def not_numbers(out: object, where: str) -> str:
 
 
 def wrong_count(size: int, n: int, where: str) -> str:
+    """The fault of an update that returned `size` numbers for `n` joints."""
     return f"update returned {size} values for {n} joints ({where})"
 
 
 def non_finite(joints: list[str], values: np.ndarray, t: float, where: str) -> str:
+    """The fault of an update that returned NaN or inf: the joints and values named."""
     bad = [f"{joints[i]} {number_text(values[i])}" for i in np.flatnonzero(~np.isfinite(values))]
     return f"update returned {', '.join(bad)} at t = {t:.3f} s ({where})"
 
 
-def return_lines(fn) -> list[int]:
+def return_lines(fn: object) -> list[int]:
     """The lines of `fn`'s return statements that return a value (a bare `return` or falling
     off the end returns None: not these)."""
     code = getattr(fn, "__code__", None)
