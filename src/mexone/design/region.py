@@ -19,17 +19,17 @@ import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from types import ModuleType
 from typing import TYPE_CHECKING, Any, cast
 
 import control
 import mujoco
 import numpy as np
 
+from mexone.cluster import ray_session
 from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _on_sim
 from mexone.design.deploy import StateFeedback
-from mexone.errors import InputError, install_extra
+from mexone.errors import InputError
 from mexone.ranges import number_text
 
 if TYPE_CHECKING:
@@ -300,37 +300,13 @@ def _deviations(job: dict[str, Any], model: mujoco.MjModel, state: np.ndarray,
     return out
 
 
-def _start_ray(ray: ModuleType, kwargs: dict[str, Any]) -> None:
-    """ray.init, once more when a local node missed Ray's fixed 30 s start-up wait (a loaded
-    machine: "The current node timed out during startup")."""
-    for attempt in (1, 2):
-        try:
-            ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
-            return
-        except Exception as exc:  # Ray raises a bare Exception for this one
-            if attempt == 2 or "timed out during startup" not in str(exc):
-                raise
-            ray.shutdown()
-
-
 def _on_ray(job: dict[str, Any], starts: np.ndarray, address: str | None, threads: int | None) -> np.ndarray:
-    try:
-        import ray
-    except ImportError:
-        raise InputError("the ray backend needs Ray", hint=install_extra("cluster")) from None
-    started = not ray.is_initialized()
-    if started:
-        kwargs = {"address": address} if address else {"num_cpus": threads or os.cpu_count() or 1}
-        _start_ray(ray, kwargs)
-    try:
-        workers = max(1, int(ray.cluster_resources().get("CPU", 1)))  # type: ignore[no-untyped-call]
+    with ray_session(threads or os.cpu_count() or 1, address) as ray:
+        workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         remote = ray.remote(_rollouts)
         shared = ray.put(job)
         chunks = np.array_split(starts, workers)
         return np.concatenate(ray.get([remote.remote(shared, c, 1) for c in chunks if len(c)]))
-    finally:
-        if started:
-            ray.shutdown()
 
 
 def plot_region(region: Region, ax: Axes | None = None) -> Figure | SubFigure:
