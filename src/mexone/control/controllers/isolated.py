@@ -237,10 +237,14 @@ class IsolatedRunner(PythonRunner):
         if worker is not None:
             for line in worker.quit():
                 log.warning("controller '%s': %s", self.name, line)
+        self.say_dropped()
 
     # ----- the worker's requests while mexone waits ----------------------------------------------
     def on_log(self, level: int, text: str) -> None:
-        STUDENT_LOG.log(level, "%s", text)
+        shown, dropped = self.log_limit.admit()
+        self.say_dropped(dropped)
+        if shown:
+            STUDENT_LOG.log(level, "%s", text)
 
     def on_thread_fault(self, text: str) -> None:
         self._thread_fault = self._thread_fault or text

@@ -34,7 +34,15 @@ from mexone import signals
 from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
-from mexone.control.mistakes import StudentLog, non_finite, not_numbers, return_lines, wrong_count
+from mexone.control.mistakes import (
+    LogLimit,
+    StudentLog,
+    dropped_lines,
+    non_finite,
+    not_numbers,
+    return_lines,
+    wrong_count,
+)
 from mexone.control.resolve import Plugin, student_line
 from mexone.control.student import (
     Exports,
@@ -110,6 +118,7 @@ class PythonRunner(Controller):
         self.dofs = hw.dof_adr[self.rows].copy()
         self.fault: str | None = None
         self.updates = 0
+        self.log_limit = LogLimit()  # its self.log's lines a second
         self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
         self.meter = BudgetMeter()  # the real-time budget since it started: every update counted
         self._update_time = 0.0
@@ -214,7 +223,7 @@ class PythonRunner(Controller):
         impl.dofs = self.dofs.copy()
         impl.effort_limits = self._effort_limit.copy()
         impl.params = dict(plugin.params)
-        impl.log = StudentLog(STUDENT_LOG, {"name": self.name})
+        impl.log = StudentLog(STUDENT_LOG, {"name": self.name, "limit": self.log_limit})
         impl.exports = self.exports
         impl.__dict__["_mexone_binding"] = self
         self._call(impl.configure, "configure")
@@ -394,7 +403,17 @@ class PythonRunner(Controller):
         return callable(getattr(self.impl, "report", None))
 
     def close(self) -> None:
-        """It is unloaded for good (nothing to end in-process)."""
+        """It is unloaded for good (nothing to end in-process): the log lines it had dropped
+        are said."""
+        self.say_dropped()
+
+    def say_dropped(self, dropped: int | None = None) -> None:
+        """The line saying how many of its log lines the LogLimit dropped (None: those not said
+        yet), if any were."""
+        if dropped is None:
+            dropped = self.log_limit.flush()
+        if dropped:
+            STUDENT_LOG.warning("%s", dropped_lines(self.name, dropped, self.log_limit.per_second))
 
     def hold(self, damp: bool = False) -> None:
         """The joints hold their measured position (or are only damped) by MuJoCo's servo."""
