@@ -1,5 +1,5 @@
 """A student's walking part in its own process (issue 36) against the same class in the lab's
-process: the shipped skeleton (`mexone controllers new --kind KIND`) swapped into the walking
+process: the shipped skeleton (`mexone controllers new --part KIND`) swapped into the walking
 stack, run twice -- named by the YAML (a worker process) and handed over in Python (in-process).
 Per update of that part: the wall time, the lab's CPU, the student's own update as the worker
 timed it, the worker's overhead (wall minus that), and from the worker's /proc schedstat how

@@ -1,6 +1,6 @@
 """The walking stack in the simulation: the shipped parts chained by the manager walk Mex-One
 torque-level with the estimator in the loop; each part swapped for a student's (the skeletons
-`mexone controllers new --kind` writes) still walks; bad input is one line and a safe stop."""
+`mexone controllers new --part` writes) still walks; bad input is one line and a safe stop."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 from mexone.bus.msgs import Twist, Vector3
 from mexone.lab import Lab
 from mexone.robots import mex_one
-from mexone.walking.skeletons import KINDS, walking_skeleton_files
+from mexone.walking.skeletons import PARTS, walking_skeleton_files
 
 
 def _yaw(q) -> float:
@@ -95,13 +95,13 @@ def test_the_stack_turns_a_quarter_and_walks_sideways_without_a_fall(course):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind", list(KINDS))
+@pytest.mark.parametrize("kind", list(PARTS))
 def test_each_part_swapped_for_a_students_still_walks(kind, tmp_path):
     files = walking_skeleton_files(f"my_{kind}", kind)
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     lab = Lab.create(controllers=tmp_path / "controllers.yaml")
-    assert type(lab.manager.controllers[KINDS[kind][2]].impl).__name__ == \
+    assert type(lab.manager.controllers[PARTS[kind][2]].impl).__name__ == \
         "My" + "".join(p.title() for p in kind.split("_"))
     lowest = [1.0]
     _run(lab, 1.0, lowest)
@@ -176,3 +176,25 @@ def test_a_nan_com_reference_is_one_line_and_the_robot_stands(walking_lab, caplo
     assert "robot stands" in lines[0]
     assert lab.manager.controllers["whole_body"].impl.report()["standing"]
     assert lab.sim.data.qpos[2] > 0.5
+
+
+def test_the_renamed_kind_option_still_writes_a_part_and_says_its_new_name(tmp_path):
+    """`controllers new --kind PART` was renamed `--part` (a walking part is not a controller's
+    kind): for one release it works the same and says the new name on stderr."""
+    import warnings
+
+    from helpers import run_cli
+    from mexone.walking import skeletons
+
+    code, _, err = run_cli(["controllers", "new", "my_est", str(tmp_path / "old"),
+                            "--kind", "estimator"])
+    assert code == 0 and "--kind is renamed --part" in err, err
+    code, _, err = run_cli(["controllers", "new", "my_est", str(tmp_path / "new"),
+                            "--part", "estimator"])
+    assert code == 0 and "renamed" not in err, err
+    for name in ("my_est.py", "controllers.yaml"):
+        assert (tmp_path / "old" / name).read_text() == (tmp_path / "new" / name).read_text()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert skeletons.KINDS is skeletons.PARTS
+    assert "renamed PARTS" in str(caught[0].message)

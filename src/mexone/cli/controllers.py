@@ -4,6 +4,7 @@ written as a ros_control YAML and a transmissions xacro a student edits from the
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from mexone.cli import add_input_limit_option
@@ -17,7 +18,7 @@ from mexone.files import check_output, write_text
 from mexone.lab import robot_namespace
 from mexone.physics.compile import Spawn, initial_positions
 from mexone.physics.world import default_world, read_world
-from mexone.walking.skeletons import KINDS as WALKING_KINDS
+from mexone.walking.skeletons import PARTS as WALKING_PARTS
 from mexone.walking.skeletons import walking_skeleton_files
 
 HELP = """\
@@ -37,9 +38,18 @@ _transmissions.xacro, or --transmissions. Existing files are not replaced withou
 
 `mexone controllers new NAME [DIR]` writes your own controller instead: DIR/<name>.py, a
 commented PythonController holding Mex-One's left arm, and DIR/controllers.yaml running it
-beside the shipped controllers (DIR defaults to NAME; see docs/controllers.md). With --kind
+beside the shipped controllers (DIR defaults to NAME; see docs/controllers.md). With --part
 footsteps, com_planner, estimator or whole_body: a part of the walking stack instead, and the
 stack's YAML with that part replaced by it (docs/walking-stack.md)."""
+
+
+class _RenamedKind(argparse.Action):
+    """`--kind` was renamed `--part` (a walking part is not a controller's kind)."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        print("mexone controllers: --kind is renamed --part; the old name goes in the next release",
+              file=sys.stderr)
+        setattr(namespace, self.dest, values)
 
 
 def add_parser(sub) -> None:
@@ -57,9 +67,11 @@ def add_parser(sub) -> None:
                                               "(default: 1 ms)")
     p.add_argument("--fixed-base", action="store_true",
                    help="the robot is welded where it spawns: no joint lifts the rest of it")
-    p.add_argument("--kind", default="arm", choices=("arm", *WALKING_KINDS),
+    p.add_argument("--part", default="arm", choices=("arm", *WALKING_PARTS),
                    help="after 'new': what to write: arm (a PD on the left arm, default) or a part "
                         "of the walking stack, in walking.yaml (docs/walking-stack.md)")
+    p.add_argument("--kind", dest="part", choices=("arm", *WALKING_PARTS), action=_RenamedKind,
+                   help=argparse.SUPPRESS)  # renamed --part: works, and says so, for one release
     p.add_argument("--force", action="store_true", help="overwrite files that exist")
     add_joint_pose_options(p)
     add_input_limit_option(p)
@@ -116,7 +128,7 @@ def _new(args: argparse.Namespace) -> int:
         raise InputError("usage: mexone controllers new NAME [DIR]",
                          hint="e.g. mexone controllers new my_controller")
     name = args.new_args[0]
-    files = skeleton_files(name) if args.kind == "arm" else walking_skeleton_files(name, args.kind)
+    files = skeleton_files(name) if args.part == "arm" else walking_skeleton_files(name, args.part)
     folder = Path(args.new_args[1]) if len(args.new_args) > 1 else Path(class_name(name)[0])
     if folder.exists() and not folder.is_dir():
         raise InputError("is a file, not a folder", file=folder, hint="name a folder")
@@ -130,7 +142,7 @@ def _new(args: argparse.Namespace) -> int:
     yaml_path = paths[1]
     print(f"wrote {paths[0]}: the controller (edit update())")
     print(f"wrote {yaml_path}: " + ("Mex-One's controllers with the left arm driven by it"
-                                    if args.kind == "arm" else
-                                    f"Mex-One's walking stack with its {args.kind} replaced by it"))
+                                    if args.part == "arm" else
+                                    f"Mex-One's walking stack with its {args.part} replaced by it"))
     print(f"run it: mexone sim --controllers {yaml_path}")
     return 0

@@ -1,4 +1,4 @@
-'''`mexone controllers new NAME --kind PART`: a student's own walking part, runnable as written.
+'''`mexone controllers new NAME --part PART`: a student's own walking part, runnable as written.
 
 Each kind is a short, complete implementation of one part's interface (a different method from
 the shipped one, so there is something to compare), and the YAML is Mex-One's walking stack
@@ -11,10 +11,10 @@ from __future__ import annotations
 import re
 
 from mexone.control.skeleton import class_name
-from mexone.errors import InputError
+from mexone.errors import InputError, warn_renamed
 from mexone.robots import mex_one
 
-__all__ = ["KINDS", "walking_skeleton_files"]
+__all__ = ["PARTS", "walking_skeleton_files"]
 
 _HEADER = '''"""{cls}: my own {what} for Mex-One's walking stack (docs/walking-stack.md).
 
@@ -247,8 +247,8 @@ class {cls}(PythonController):
         return solution.tau + self.damping * state.dq
 '''
 
-# kind -> (template, what it is, the walking.yaml controller it replaces)
-KINDS = {
+# part -> (template, what it is, the walking.yaml controller it replaces)
+PARTS = {
     "footsteps": (_FOOTSTEPS, "footstep planner", "footsteps"),
     "com_planner": (_COM, "centre-of-mass planner", "com_planner"),
     "estimator": (_ESTIMATOR, "state estimator", "estimator"),
@@ -257,12 +257,12 @@ KINDS = {
 
 
 def walking_skeleton_files(name: str, kind: str, yaml_name: str = "controllers.yaml") -> dict[str, str]:
-    """{file name: text}: `<stem>.py` (a walking part of kind `kind`) and the walking stack's
-    YAML with that part replaced by it."""
-    if kind not in KINDS:
-        raise InputError(f"unknown kind '{kind}'", hint="kinds: arm, " + ", ".join(KINDS))
+    """{file name: text}: `<stem>.py` (the walking stack's part `kind`, one of PARTS) and the
+    walking stack's YAML with that part replaced by it."""
+    if kind not in PARTS:
+        raise InputError(f"unknown part '{kind}'", hint="parts: arm, " + ", ".join(PARTS))
     stem, cls = class_name(name)
-    template, what, part = KINDS[kind]
+    template, what, part = PARTS[kind]
     code = _HEADER.format(cls=cls, what=what, part=part) + template.format(cls=cls)
     yaml_text = mex_one.walking_path().read_text()
     pattern = re.compile(rf"(\n  {part}:[^\n]*\n    type: )\S+")
@@ -285,3 +285,10 @@ def _unbind_base(text: str, part: str) -> str:
             continue
         out.append(line.replace(", base: estimator/base}", "}") if inside else line)
     return "\n".join(out)
+
+
+def __getattr__(name: str) -> object:
+    if name == "KINDS":  # renamed: a walking part is not a controller's kind
+        warn_renamed("mexone.walking.skeletons.KINDS", "PARTS")
+        return PARTS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

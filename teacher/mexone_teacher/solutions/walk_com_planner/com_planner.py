@@ -1,5 +1,5 @@
 """Exercise 11's reference: a centre-of-mass planner on the divergent component of motion
-(Englsberger et al. 2015), the DCM planner of `mexone controllers new --kind com_planner` with a
+(Englsberger et al. 2015), the DCM planner of `mexone controllers new --part com_planner` with a
 stiffer DCM feedback (gain 8/s: the grader's heavier robots and pushes need it).
 
 xi = c + dc/omega must end each step on the next foothold, so its reference runs backwards

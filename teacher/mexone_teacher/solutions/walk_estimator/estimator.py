@@ -1,5 +1,5 @@
 """Exercise 13's reference: leg odometry with the IMU's attitude (the estimator
-`mexone controllers new --kind estimator` writes). A foot on the ground does not move, so the
+`mexone controllers new --part estimator` writes). A foot on the ground does not move, so the
 base's velocity is v = -(J_foot dq) with the base's linear columns left out (the joints' and the
 IMU's angular velocity only), turned into the world by the IMU's attitude; the position is where
 the standing foot touched down, less that foot's offset from the base. It reads no base pose
