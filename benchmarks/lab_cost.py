@@ -7,6 +7,7 @@ whole cost of a page, without a browser drawing it on the same two cores. The cl
 (benchmarks/hub_class.py) puts 20 of these behind a real JupyterHub.
 
     python benchmarks/lab_cost.py [--seconds 20] [--pages 0 1]
+    python benchmarks/lab_cost.py --stages    # where the memory goes: VmRSS after each stage
 """
 
 from __future__ import annotations
@@ -123,11 +124,50 @@ def start_lab(port: int, env: dict | None = None) -> subprocess.Popen:
                             env={**os.environ, **(env or {})})
 
 
+STAGES = """
+import json, sys
+def rss():
+    for line in open("/proc/self/status"):
+        if line.startswith("VmRSS"):
+            return int(line.split()[1]) / 1024
+stages = [("python", rss())]
+from mexone.cli import build_parser
+from mexone.cli.common import lab_from_args, options_from_args
+import mexone.gui.app
+args = build_parser().parse_args(["sim", "--port", "0"])
+stages.append(("imports (the CLI, MuJoCo, viser, numpy)", rss()))
+lab = lab_from_args(args)
+stages.append(("the Lab (Mex-One, its controllers)", rss()))
+app = mexone.gui.app.GuiApp(lambda options: lab, options_from_args(args), port=0)
+stages.append(("the page (scene, panels)", rss()))
+heavy = sorted({"trimesh", "scipy", "networkx", "mink", "qpsolvers", "matplotlib", "control",
+                "rosbags"} & {name.split(".")[0] for name in sys.modules})
+app.stop()
+print(json.dumps({"stages": stages, "heavy_imports": heavy}))
+"""
+
+
+def stages() -> None:
+    """VmRSS after each stage of what `mexone sim` builds, in a fresh process (as a lab starts)."""
+    done = subprocess.run([sys.executable, "-c", STAGES], capture_output=True, text=True, check=True)
+    report = json.loads(done.stdout.strip().splitlines()[-1])
+    previous = 0.0
+    for name, mb in report["stages"]:
+        print(f"{name:45s} {mb:6.1f} MB  (+{mb - previous:5.1f})")
+        previous = mb
+    print(f"heavy modules imported: {report['heavy_imports'] or 'none'}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=20.0)
     parser.add_argument("--pages", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--stages", action="store_true",
+                        help="print resident memory after each stage of a lab's start, then exit")
     args = parser.parse_args()
+    if args.stages:
+        stages()
+        return
     import socket
 
     print(f"load: {os.getloadavg()}", file=sys.stderr)

@@ -6,6 +6,11 @@ deadline misses), the largest 0.1 s torso push survived while walking, forward a
 and the same for `mexone run walk`.
 
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py [--seconds 60] [--quick]
+    OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --pushes [--phases]
+
+--quick: the solves, the per-update costs, the 60 s paced walk and today's walk (no courses, no
+pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks per direction and
+walker), --phases with 6 N s at each tenth of a stride.
 
 The machine is shared: the load average is printed before and after. What the code costs is
 measured on a core of its own: run it as root under `chrt -f 20 taskset -c 1` (SCHED_FIFO on one
@@ -259,24 +264,55 @@ def routine_walk(impulse: float = 0.0, direction: float = 0.0) -> tuple[bool, fl
     return lowest[0] > FALLEN, walked / max(sim.time - 2.0, 1e-9), sim.time / wall, sim.time / cpu
 
 
-def largest(survives, impulses) -> float:
-    """The largest impulse of a rising scan survived before the first fall."""
-    best = 0.0
-    for impulse in impulses:
-        if not survives(impulse):
-            break
-        best = impulse
-    return best
+def largest(survives, impulses: list[float]) -> float:
+    """The largest of the rising `impulses` survived, by bisection (survival taken as monotonic
+    in the impulse: log2 of the list's length runs, 3 for 7 values); 0 when the first falls."""
+    low, high = -1, len(impulses)  # impulses[low] survived, impulses[high] fell
+    while high - low > 1:
+        mid = (low + high) // 2
+        if survives(impulses[mid]):
+            low = mid
+        else:
+            high = mid
+    return impulses[low] if low >= 0 else 0.0
+
+
+def push_scan(phases: bool) -> None:
+    """The largest push survived while walking, the stack's (0.3 m/s) and today's walk's (~0.17
+    m/s), forward and sideways, in one run; `phases`: 6 N s at each tenth of a stride too."""
+    impulses = [2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
+    for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2),
+                             ("sideways (right)", -math.pi / 2)):
+        cpu = time.process_time()
+        mine = largest(lambda i, d=direction: survives_stack(i, d), impulses)
+        theirs = largest(lambda i, d=direction: routine_walk(i, d)[0], impulses)
+        print(f"largest push survived while walking, {label}, at t = {PUSH_AT:g} s: stack "
+              f"{mine:g} N s (at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s) "
+              f"[{time.process_time() - cpu:.0f} CPU s]", flush=True)
+    if not phases:
+        return
+    at = [PUSH_AT + 0.1 * k for k in range(8)]  # a stride: two steps of 0.4 s
+    for label, direction in (("forward", 0.0), ("left", math.pi / 2), ("right", -math.pi / 2)):
+        stood = [survives_stack(6.0, direction, when) for when in at]
+        print(f"6 N s {label} over a stride (pushed at {at[0]:g}..{at[-1]:g} s by 0.1 s): "
+              f"survived {sum(stood)} of {len(stood)} ({''.join('S' if ok else 'F' for ok in stood)})",
+              flush=True)
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="s of walking for the RTF")
-    parser.add_argument("--quick", action="store_true", help="no push scans")
+    parser.add_argument("--quick", action="store_true", help="no push scans, no courses")
+    parser.add_argument("--pushes", action="store_true", help="only the push scans")
+    parser.add_argument("--phases", action="store_true", help="6 N s at each tenth of a stride too")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()}; scheduler: "
           f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
           f"cores {sorted(os.sched_getaffinity(0))}")
+    if args.pushes:
+        push_scan(args.phases)
+        print(f"load average after: {os.getloadavg()}")
+        return
     bare = bare_step_ms()
     print(f"bare MuJoCo step of Mex-One walking: {bare * 1e3:.1f} us (CPU): the yardstick, 'x' below")
     problems = record_problems()
@@ -317,20 +353,7 @@ def main() -> None:
             print(f"course, {world}.world 20 s at 0.3 m/s: x = {walk['x']:.2f} m (the terrain ends at "
                   f"5.5 m / 2.5 m), lowest base {walk['lowest']:.3f} m; "
                   f"{walk['reports']['whole_body']}")
-        impulses = [2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0]
-        for label, direction in (("forward", 0.0), ("sideways (left)", math.pi / 2),
-                                 ("sideways (right)", -math.pi / 2)):
-            mine = largest(lambda i, d=direction: survives_stack(i, d), impulses)
-            theirs = largest(lambda i, d=direction: routine_walk(i, d)[0], impulses)
-            print(f"largest push survived while walking, {label}, at t = {PUSH_AT:g} s: stack "
-                  f"{mine:g} N s (at 0.3 m/s), today's walk {theirs:g} N s (at ~0.17 m/s)")
-        phases = [PUSH_AT + 0.1 * k for k in range(8)]  # a stride: two steps of 0.4 s
-        for impulse in (5.0, 6.0):
-            for label, direction in (("forward", 0.0), ("left", math.pi / 2), ("right", -math.pi / 2)):
-                stood = [survives_stack(impulse, direction, at) for at in phases]
-                print(f"{impulse:g} N s {label} over a stride (pushed at {phases[0]:g}..{phases[-1]:g} s "
-                      f"by 0.1 s): survived {sum(stood)} of {len(stood)} "
-                      f"({''.join('S' if ok else 'F' for ok in stood)})")
+        push_scan(args.phases)
     print(f"load average after: {os.getloadavg()}")
 
 

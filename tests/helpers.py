@@ -52,6 +52,39 @@ def chromium() -> Iterator:
             browser.close()
 
 
+def pixels(tab) -> np.ndarray:
+    """The page as the user sees it now (a screenshot), RGB as int16 (differences stay signed)."""
+    import io
+
+    from PIL import Image
+
+    # software WebGL on a loaded machine can keep a frame from the compositor for long
+    shot = tab.screenshot(timeout=120_000)
+    return np.asarray(Image.open(io.BytesIO(shot)).convert("RGB"), dtype=np.int16)
+
+
+def robot_drawn(tab) -> bool:
+    """The robot's first frame is on a 1280 x 800 page's canvas (dark pixels mid-view)."""
+    centre = pixels(tab)[200:600, 500:760]
+    return bool((centre.sum(axis=2) < 200).mean() > 0.002)
+
+
+def wait_for_picture(tab, shows: Callable[[np.ndarray], object], timeout: float = 30.0) -> bool:
+    """Until the page's picture `shows` what a test waits for (a gizmo drawn, markers gone): a
+    condition, never a guessed sleep, polled at a screenshot's pace (each costs tens of ms of
+    software WebGL, more under load)."""
+    return wait_until(lambda: shows(pixels(tab)), timeout=timeout, poll=0.2)
+
+
+def changed_near(before: np.ndarray, point: tuple[float, float], radius: int = 24,
+                 threshold: int = 60) -> Callable[[np.ndarray], bool]:
+    """A `wait_for_picture` condition: something new is drawn within `radius` CSS pixels of
+    `point` (a gizmo's handle arriving where the mouse will grab it)."""
+    x, y = int(round(point[0])), int(round(point[1]))
+    box = (slice(max(0, y - radius), y + radius), slice(max(0, x - radius), x + radius))
+    return lambda now: bool((np.abs(now[box] - before[box]).sum(axis=2) > threshold).any())
+
+
 def on_screen(tab, server, point) -> tuple[float, float]:
     """Where the first page's camera draws a world point on `tab`, in CSS pixels (three.js: a
     vertical field of view, +z up in viser's world): for mouse clicks and drags in the canvas."""

@@ -10,7 +10,7 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parents[1] / "src" / "mexone"
 
 # core layers, lowest first; a module may import its own layer and those below it
-CORE = {"errors": 0, "inputs": 0, "sandbox": 0, "yamlio": 0, "files": 0, "ranges": 0, "origins": 0, "description": 1, "robots": 1, "physics": 2, "dynamics": 2,
+CORE = {"errors": 0, "cluster": 0, "inputs": 0, "sandbox": 0, "yamlio": 0, "files": 0, "ranges": 0, "origins": 0, "description": 1, "robots": 1, "physics": 2, "dynamics": 2,
         "bus": 2, "control": 3, "sensors": 3, "design": 4, "walking": 4}
 # front ends, lowest first; a module may import its own front end, the core and the front ends
 # of the layers below. routines/ is the machinery that runs routines in lockstep with the

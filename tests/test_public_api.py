@@ -128,3 +128,13 @@ def test_list_controllers_and_its_former_name():
     manager = Lab.create().manager
     with pytest.warns(DeprecationWarning, match="ControllerManager.list is renamed"):
         assert manager.list() == manager.list_controllers()
+
+
+def test_a_params_value_type_and_its_former_name():
+    """`kind` is a controller's family in mexone.control; a Param's is its value's type."""
+    from mexone.control import Param
+
+    gain = Param(2.0, low=0.0)
+    assert gain.value_type is float and Param(3).value_type is int
+    with pytest.warns(DeprecationWarning, match="Param.kind is renamed Param.value_type"):
+        assert gain.kind is float

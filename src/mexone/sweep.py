@@ -21,9 +21,10 @@ from pathlib import Path
 import numpy as np
 
 from mexone import signals
+from mexone.cluster import ray_session
 from mexone.control.metrics import overshoot, rise_time, settling_time
 from mexone.control.spec import PidGains, controller_name
-from mexone.errors import InputError, install_extra
+from mexone.errors import InputError
 from mexone.lab import Lab, cached_lab
 from mexone.physics.monitor import has_fallen
 from mexone.ranges import GAINS, number_text
@@ -280,16 +281,8 @@ def _end_workers(pool: ProcessPoolExecutor) -> None:
 
 def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
                  address: str | None) -> Iterator[dict]:
-    try:
-        import ray
-    except ImportError:
-        raise InputError("the ray backend needs Ray", hint=install_extra("cluster")) from None
-    started_here = not ray.is_initialized()
-    if started_here:
-        kwargs = {"address": address} if address else {"num_cpus": workers}
-        ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
-    remote = ray.remote(run_trial)
-    try:
+    with ray_session(workers, address) as ray:
+        remote = ray.remote(run_trial)
         pending = [remote.remote(spec, t) for t in trials]
         while pending and not signals.requested():
             finished, pending = ray.wait(pending, num_returns=1, timeout=POLL)
@@ -297,9 +290,6 @@ def _ray_results(spec: SweepSpec, trials: list[Trial], workers: int,
                 yield ray.get(finished[0])
         for ref in pending:  # stopped by a signal: the runs in flight are dropped
             ray.cancel(ref, force=True)
-    finally:
-        if started_here:
-            ray.shutdown()
 
 
 # ----- results ---------------------------------------------------------------------------------

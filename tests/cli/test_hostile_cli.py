@@ -124,6 +124,10 @@ CASES = [
     ("ray-address-form", [*SWEEP, "--backend", "ray", "--address", "cluster"], "is not HOST:PORT"),
     ("ray-address-closed", [*SWEEP, "--backend", "ray", "--address", "127.0.0.1:1"],
      "cannot reach the Ray cluster at 127.0.0.1:1"),
+    ("grade-address-local", ["exercise", "grade", "home_hold", ".", "--address", "10.0.0.5:6379"],
+     "add --backend ray"),
+    ("grade-address-closed", ["exercise", "grade", "home_hold", ".", "--backend", "ray",
+                              "--address", "127.0.0.1:1"], "cannot reach the Ray cluster"),
     # --- no verb overwrites a user's file without --force -----------------------------------------
     ("plot-over-file", ["plot", "a.mcap", "-o", "exists.png"], "exists.png: already exists"),
     ("plot-csv-over-file", ["plot", "a.mcap", "-o", "exists.csv"], "exists.csv: already exists"),

@@ -133,3 +133,57 @@ def test_the_estimators_view_of_the_floating_base_is_where_the_robot_was_put(tmp
     assert np.allclose(seen[:3], start) and seen[3] == 0.0, (seen, start)
     whole_body = lab.manager.controllers["whole_body"]
     assert whole_body.state.all_q[0] > start + 0.29  # the others read the truth
+
+
+@pytest.mark.parametrize("name, part, cls", [("walk_com_planner", "com_planner", "MyComPlanner"),
+                                             ("walk_estimator", "estimator", "MyEstimator"),
+                                             ("walk_faster", None, None)])
+def test_start_writes_the_stack_with_the_students_class_in_its_place(name, part, cls, tmp_path):
+    """`mexone exercise start` hands out controllers.yaml beside the starter: mexone's
+    walking.yaml with the student's class in its part's place and the graded gait, which the
+    lab loads from the started folder (the class from the student's own file); nothing the
+    student made is overwritten without --force."""
+    import yaml
+
+    from helpers import run_cli
+    from mexone.robots import mex_one
+
+    folder = tmp_path / name
+    code, out, err = run_cli(["exercise", "start", name, folder])
+    assert code == 0 and "controllers.yaml" in out, err
+    exercise = find_exercise(name)
+    assert sorted(p.name for p in folder.iterdir()) == sorted(
+        ["README.md", "check.py", "controllers.yaml", exercise.file])
+    handed = next(iter(yaml.safe_load((folder / "controllers.yaml").read_text()).values()))
+    shipped = next(iter(yaml.safe_load(mex_one.walking_path().read_text()).values()))
+    assert handed.keys() == shipped.keys()
+    gait = {"vx", "settle"} | ({"max_forward", "single_support", "double_support"} if part is None
+                               else set())
+    for key, entry in shipped.items():  # the shipped stack but the student's part and the gait
+        changed = {k for k in entry.keys() | handed[key].keys() if entry.get(k) != handed[key].get(k)}
+        assert changed == ({"type"} if key == part else gait if key == "footsteps" else set()), key
+    if part is not None:
+        assert handed[part]["type"] == f"{exercise.file[:-3]}/{cls}"
+        from mexone.lab import Lab
+
+        lab = Lab.create(controllers=folder / "controllers.yaml")
+        ran = lab.manager.controllers[part]
+        assert type(ran.impl).__name__ == cls
+        assert ran.code_file and Path(ran.code_file).resolve() == (folder / exercise.file).resolve()
+    assert "mexone sim --controllers controllers.yaml" in (folder / "controllers.yaml").read_text()
+    (folder / "controllers.yaml").write_text("mine\n")
+    code, _, err = run_cli(["exercise", "start", name, folder])
+    assert code == 2 and "exists" in err and (folder / "controllers.yaml").read_text() == "mine\n"
+
+
+def test_a_graders_files_naming_a_folder_is_one_line_and_writes_nothing(tmp_path):
+    """A teacher's grader.py whose files() names a path out of the student's folder: refused."""
+    from helpers import run_cli
+
+    exercise = tmp_path / "mine"
+    assert run_cli(["exercise", "new", "mine", exercise])[0] == 0
+    with (exercise / "grader.py").open("a") as grader:
+        grader.write("\n\ndef files():\n    return {'../escaped.yaml': 'x: 1\\n'}\n")
+    code, _, err = run_cli(["exercise", "start", exercise, tmp_path / "st"])
+    assert code == 2 and "files() names '../escaped.yaml'" in err and len(err.strip().splitlines()) == 1, err
+    assert not (tmp_path / "escaped.yaml").exists() and not (tmp_path / "st").exists()

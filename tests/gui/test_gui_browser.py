@@ -3,14 +3,13 @@ moves its joint, the Collisions toggle adds the collision shapes; bad input is r
 
 from __future__ import annotations
 
-import io
 import threading
 import time
 
 import numpy as np
 import pytest
 
-from helpers import chromium, free_port, wait_frames, wait_until
+from helpers import chromium, free_port, pixels, robot_drawn, wait_for_picture, wait_frames, wait_until
 from mexone.errors import MexoneError
 from mexone.gui.app import GuiApp
 from mexone.lab import Lab
@@ -35,24 +34,18 @@ def page(app):
         tab.goto(f"http://127.0.0.1:{app.server.get_port()}")
         tab.wait_for_selector("canvas", timeout=30_000)
         tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
-        time.sleep(3.0)  # meshes arrive and the first frames render
+        assert wait_until(lambda: len(app.server.get_clients()) == 1, timeout=30)
+        assert wait_until(lambda: robot_drawn(tab), timeout=120)  # meshes arrived, frames drawn
         yield tab
-
-
-def pixels(tab) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(tab.screenshot())).convert("RGB"), dtype=np.int16)
 
 
 def test_the_page_draws_the_robot(app, page):
     with_robot = pixels(page)
     app.do(lambda: app.scene.set_robot_visible(False))
-    time.sleep(1.0)  # a condition would take a screenshot per poll: slower than this under load
-    empty = pixels(page)
+    gone = wait_for_picture(page, lambda empty: (np.abs(with_robot - empty).sum(axis=2) > 30).mean()
+                            > 0.005)
     app.do(lambda: app.scene.set_robot_visible(True))
-    changed = np.abs(with_robot - empty).sum(axis=2) > 30
-    assert changed.mean() > 0.005, "the robot is not on screen"
+    assert gone, "the robot is not on screen"
 
 
 def test_pause_stops_sim_time(app, page):
@@ -82,9 +75,8 @@ def test_collisions_toggle_adds_collision_geometry(app, page):
     before = pixels(page)
     page.get_by_text("Collisions", exact=True).click()
     assert wait_until(lambda: all(h.visible for h in app.scene.overlays["Collisions"]))
-    time.sleep(1.0)  # the page draws them (polling would take a screenshot per try)
-    after = pixels(page)
-    assert (np.abs(after - before).sum(axis=2) > 30).mean() > 0.002
+    assert wait_for_picture(page, lambda after: (np.abs(after - before).sum(axis=2) > 30).mean()
+                            > 0.002)  # the page draws them
 
 
 def test_bad_numbers_are_refused_not_crashing(app):
@@ -104,7 +96,8 @@ def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
     tabs = [page.context.browser.new_page() for _ in range(4)]
     for tab in tabs:
         tab.goto(page.url)
-    time.sleep(2.0)
+    assert wait_until(lambda: len(app.server.get_clients()) >= 5, timeout=120)  # all served
+    # the rate is measured over fixed windows of wall time: what is measured, not a wait
     start_wall, start_sim = time.time(), app.lab.sim.time
     time.sleep(4.0)
     for tab in tabs[:2]:
@@ -132,7 +125,8 @@ def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):
     assert wait_until(lambda: slider.value < -0.3)  # the slider shows the routine's command
     app.do(app.panels["routines"].stop_routine)
     assert wait_until(lambda: app.routine is None)
-    assert "joint_steps.py ended" in app.panels["routines"].console_view.content
+    assert wait_until(lambda: "joint_steps.py ended" in app.panels["routines"].console_view.content,
+                      timeout=30)  # the console's last line comes after
 
 
 def test_reset_model_returns_home(app):
@@ -175,7 +169,7 @@ def test_plot_axes_read_seconds_and_minus_signs_and_typed_numbers_come_back(app,
         pane = app.panels["plots"].plots[0]._impl.uuid  # l_elbow: command and position
         shown[:] = [page.evaluate(script.replace("PANE", pane))]
         return bool(shown[0] and any(v.startswith(("-1", "−1")) for v in shown[0][1]))
-    assert wait_until(drawn, timeout=10), shown  # -1 rad has its minus sign
+    assert wait_until(drawn, timeout=60), shown  # -1 rad has its minus sign (uPlot redraws)
     x_values, y_values, x_label = shown[0]
     assert x_label == "sim time (s)"
     assert all(":" not in v and "/" not in v for v in x_values)  # seconds, not a date

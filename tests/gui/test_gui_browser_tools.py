@@ -17,7 +17,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from helpers import chromium, free_port, on_screen, wait_until
+from helpers import (
+    changed_near,
+    chromium,
+    free_port,
+    on_screen,
+    pixels,
+    robot_drawn,
+    wait_for_picture,
+    wait_frames,
+    wait_until,
+)
 from mexone.gui.app import GuiApp
 from mexone.gui.inspector import DRAG, JOINT_ARROW
 from mexone.lab import Lab
@@ -50,23 +60,11 @@ def page(app):
         tab.wait_for_selector("canvas", timeout=30_000)
         tab.get_by_text("Simulation").first.wait_for(timeout=30_000)
         assert wait_until(lambda: len(app.server.get_clients()) == 1, timeout=30)
-        assert wait_until(lambda: _drawn(tab), timeout=60)
+        assert wait_until(lambda: robot_drawn(tab), timeout=120)
         close = tab.locator(".mantine-Notification-closeButton")  # "software WebGL" notice
         if close.count():
             close.first.click()
         yield tab
-
-
-def _drawn(tab) -> bool:
-    """The robot's first frame is on the canvas (dark pixels in the middle of the view)."""
-    centre = pixels(tab)[200:600, 500:760]
-    return bool((centre.sum(axis=2) < 200).mean() > 0.002)
-
-
-def pixels(tab) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(tab.screenshot())).convert("RGB"), dtype=np.int16)
 
 
 def client(app):
@@ -85,6 +83,11 @@ def shoot(tab, name: str, reveal=None) -> None:
     Path(SHOTS).mkdir(parents=True, exist_ok=True)
     image = Image.open(io.BytesIO(tab.screenshot())).convert("RGB")
     image.quantize(256).save(Path(SHOTS) / name, optimize=True)  # a quarter of the bytes
+
+
+def _blue(im: np.ndarray) -> int:
+    """Pixels of a picture that are clearly blue (the centres of mass' markers)."""
+    return int(((im[..., 2] - np.maximum(im[..., 0], im[..., 1])) > 80).sum())
 
 
 def paused_fresh(app) -> None:
@@ -134,12 +137,14 @@ def test_the_push_handle_is_dragged_with_the_mouse(app, page):
     tools.mode.value, tools.direction.value = "push", DRAG
     sim = app.lab.sim
     torso = sim.data.xipos[sim.compiled.bodies["torso"]]
+    bare = pixels(page)
     page.mouse.click(*on_screen(page, app.server, torso))
     assert wait_until(lambda: tools.aim is not None and tools.dragged is not None, timeout=15)
     start = tools.dragged.copy()
-    time.sleep(1.0)  # the gizmo arrives on the page
-    # grab the gizmo's z arrow (its handle sits along +z from the centre) and pull it up
+    # grab the gizmo's z arrow (its handle sits along +z from the centre) and pull it up, once
+    # the page draws it there
     grab = on_screen(page, app.server, start + np.array([0.0, 0.0, 0.6 * 0.25]))
+    assert wait_for_picture(page, changed_near(bare, grab)), "the push gizmo is not drawn"
     page.mouse.move(*grab)
     page.mouse.down()
     for k in range(1, 6):
@@ -174,10 +179,11 @@ def test_the_move_gizmo_lifts_the_robot_with_the_mouse(app, page):
     sim, move = app.lab.sim, app.panels["tools"].move
     root = sim.compiled.root_body
     before = sim.data.xpos[root].copy()
+    bare = pixels(page)
     page.get_by_text("Move the robot").click()
     assert wait_until(lambda: move.enabled.value and move.gizmo.visible, timeout=10)
-    time.sleep(1.0)  # the gizmo arrives on the page
     grab = on_screen(page, app.server, before + np.array([0.0, 0.0, 0.6 * 0.35]))  # its z arrow
+    assert wait_for_picture(page, changed_near(bare, grab)), "the move gizmo is not drawn"
     page.mouse.move(*grab)
     page.mouse.down()
     for k in range(1, 6):
@@ -188,22 +194,27 @@ def test_the_move_gizmo_lifts_the_robot_with_the_mouse(app, page):
     assert wait_until(lambda: move.holding is None, timeout=10)  # let go
     assert sim.paused  # paused, it stays where it was put
     lifted = sim.data.xpos[root][2]
-    time.sleep(0.5)
+    assert wait_frames(app, 15)  # loop iterations that ran, paused
     assert sim.data.xpos[root][2] == lifted
     shoot(page, "gui_move.png", page.get_by_text("Move the robot"))
     page.get_by_text("Move the robot").click()
     assert wait_until(lambda: not move.gizmo.visible, timeout=10)
 
 
-def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, page):
+def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, page, monkeypatch):
     from PIL import Image
 
+    import mexone.gui.simulation
+
+    # the page's picture, however loaded the machine (software WebGL on 2 shared cores can take
+    # longer than the product's 10 s before it falls back to MuJoCo's render)
+    monkeypatch.setattr(mexone.gui.simulation, "PAGE_RENDER_SECONDS", 120.0)
     paused_fresh(app)
     folder = app.panels["simulation"].screenshots.folder
     camera = client(app).camera
     page.get_by_role("button", name="Screenshot").click()
     first = folder / "mexone_screenshot_001.png"
-    assert wait_until(first.exists, timeout=30)
+    assert wait_until(first.exists, timeout=150)
     assert wait_until(lambda: app.panels["simulation"].last_screenshot == first, timeout=10)
     plain = np.asarray(Image.open(first).convert("RGB"), dtype=np.int16)
     # the page's picture (its canvas' size, not MuJoCo's 1280 x 720): the robot in the middle,
@@ -215,15 +226,14 @@ def test_screenshot_button_saves_the_pages_own_picture_with_its_overlays(app, pa
     # an overlay only the page draws: the links' centres of mass, blue spheres
     page.get_by_text("Center of Mass", exact=True).click()
     assert wait_until(lambda: all(h.visible for h in app.scene.overlays["Center of Mass"]))
-    time.sleep(1.0)  # the page draws them
+    assert wait_for_picture(page, lambda now: _blue(now) > _blue(plain) + 50)  # the page draws them
     page.get_by_role("button", name="Screenshot").click()
     second = folder / "mexone_screenshot_002.png"
-    assert wait_until(second.exists, timeout=30)
+    assert wait_until(second.exists, timeout=150)
     assert wait_until(lambda: app.panels["simulation"].last_screenshot == second, timeout=10)
     marked = np.asarray(Image.open(second).convert("RGB"), dtype=np.int16)
     page.get_by_text("Center of Mass", exact=True).click()
-    blue = lambda im: ((im[..., 2] - np.maximum(im[..., 0], im[..., 1])) > 80).sum()  # noqa: E731
-    assert blue(marked) > blue(plain) + 50, (blue(marked), blue(plain))
+    assert _blue(marked) > _blue(plain) + 50, (_blue(marked), _blue(plain))
 
 
 def test_follow_robot_keeps_it_in_view_after_a_jump_and_a_reset(app, page):
@@ -250,30 +260,31 @@ def test_follow_robot_keeps_it_in_view_after_a_jump_and_a_reset(app, page):
 
 
 def _assert_robot_in_the_middle(app, page) -> None:
-    time.sleep(1.0)
+    """Hiding the robot changes the middle of the view (the camera has come to it: the caller
+    waited on the page's camera)."""
     shown = pixels(page)
     app.work.call(lambda: app.scene.set_robot_visible(False))
-    time.sleep(1.0)
-    hidden = pixels(page)
-    app.work.call(lambda: app.scene.set_robot_visible(True))
     middle = (slice(150, 650), slice(440, 840))
-    assert (np.abs(shown[middle] - hidden[middle]).sum(axis=2) > 30).mean() > 0.02
+    gone = wait_for_picture(page, lambda hidden: (np.abs(shown[middle] - hidden[middle])
+                                                  .sum(axis=2) > 30).mean() > 0.02)
+    app.work.call(lambda: app.scene.set_robot_visible(True))
+    assert gone, "the robot is not in the middle of the view"
+    assert wait_until(lambda: robot_drawn(page), timeout=30, poll=0.2)  # back, for the next look
 
 
 def test_centre_of_mass_markers_show_through_the_links(app, page):
     paused_fresh(app)
+    opaque = pixels(page)
     page.get_by_text("Center of Mass", exact=True).click()
     assert wait_until(lambda: app.panels["view"].overlay_boxes["Center of Mass"].value, timeout=10)
     assert wait_until(lambda: all(h.opacity for h in app.scene.visuals), timeout=10)
-    time.sleep(1.5)
+    assert wait_for_picture(page, lambda now: _blue(now) > _blue(opaque) + 50)  # drawn through
     with_markers = pixels(page)
     app.work.call(lambda: [setattr(h, "visible", False)
                            for h in app.scene.overlays["Center of Mass"]])
-    time.sleep(1.5)
-    without = pixels(page)
     # the blue markers sit inside the links: seen only because the links turned see-through
-    changed = np.abs(with_markers - without).sum(axis=2) > 40
-    assert changed.mean() > 0.0005
+    assert wait_for_picture(page, lambda without: (np.abs(with_markers - without).sum(axis=2) > 40)
+                            .mean() > 0.0005)
     page.get_by_text("Center of Mass", exact=True).click()
     assert wait_until(lambda: not app.panels["view"].overlay_boxes["Center of Mass"].value, timeout=10)
     assert wait_until(lambda: all(h.opacity is None for h in app.scene.visuals), timeout=10)

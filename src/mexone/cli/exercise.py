@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mexone.cli.sweep import WORKERS
+from mexone.cli.sweep import WORKERS, _check_ray_address
 from mexone.errors import InputError, OutputExistsError, printable
 from mexone.files import check_output, replacing, write_text
 
@@ -65,6 +65,11 @@ def add_parser(sub) -> None:
     s.add_argument("--workers", type=WORKERS, default=1, metavar="N",
                    help="grade a folder's submissions N at a time, each in its own isolated "
                         "process (default 1; the report and CSV are the same in any case)")
+    s.add_argument("--backend", choices=("local", "ray"), default="local",
+                   help="grade on this machine's processes, or as Ray tasks (the cluster at "
+                        "--address, else a local Ray of --workers CPUs; the `cluster` extra)")
+    s.add_argument("--address", help="the Ray cluster's address (ray://HOST:10001, HOST:6379 or "
+                   "auto; its nodes started with $MEXONE_EXERCISE_SECRET exported)")
     s.add_argument("--force", action="store_true", help="overwrite --json/--csv files and "
                    "--plots PNGs")
     s = verbs.add_parser("new", help="write a new exercise folder that grades as written")
@@ -151,15 +156,27 @@ def _start(args) -> int:
     for path in sorted(figures.rglob("*")) if figures.is_dir() else []:
         if _handed_out(path):
             files[dest / "figures" / path.relative_to(figures)] = path
+    extra = getattr(ex.grader(), "files", None)  # optional: more files the student needs
+    for name, text in (extra() if callable(extra) else {}).items():
+        if not isinstance(name, str) or not isinstance(text, str) or Path(name).name != name \
+                or name in ("", ".", "..", "check.py", "README.md", ex.file):
+            raise InputError(f"files() names {name!r}: a file name (no folder) for text, not the "
+                             "statement, the starter or check.py", file=ex.folder / "grader.py",
+                             hint="return {'controllers.yaml': text, ...}")
+        files[dest / name] = text
     files[dest / "check.py"] = CHECK_PY.format(name=ex.name if ex.folder.parent.name == "course"
                                                else str(ex.folder), file=ex.file)
     _copy_tree(files, args.force)
+    more = "".join(f", {p.name}" for p in files if p.parent == dest and p.name not in
+                   ("README.md", ex.file, "check.py"))
     print(f"mexone: wrote {ex.title} to {dest}/: README.md (the statement), {ex.file} (your "
-          f"starting point), check.py (python3 {dest}/check.py checks it)")
+          f"starting point){more}, check.py (python3 {dest}/check.py checks it)")
     return 0
 
 
 def _grade(args) -> int:
+    from tqdm import tqdm
+
     from mexone.exercises.exercise import find_exercise
     from mexone.exercises.grading import (
         as_text,
@@ -171,6 +188,8 @@ def _grade(args) -> int:
     from mexone.exercises.pool import grade_all
 
     ex = find_exercise(args.name)
+    if args.address is not None:
+        _check_ray_address(args.address, args.backend)
     for out in (args.json, args.csv):  # before any grading: a class's grades take minutes
         if out is not None and out != Path("-"):
             if out.exists() and not out.is_dir() and not args.force:
@@ -192,13 +211,23 @@ def _grade(args) -> int:
             _plots_clear(ex, [args.plots / student for student in found], args.force)
         results = {}
         to_stdout = args.csv == Path("-")
-        for student, result in grade_all(ex, found, args.workers, local=args.local,
-                                         plots=args.plots, force=args.force):
-            results[student] = result
-            print(f"{printable(student, 80):<24} {result.score:6.2f}/{result.max_score:g} "
-                  f"{'passed' if result.passed else 'not passed':<11} "
-                  + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)), flush=True,
-                  file=sys.stderr if to_stdout else sys.stdout)
+        report = sys.stderr if to_stdout else sys.stdout
+        # submissions done / total, on a terminal only: a test's or a pipe's stderr stays clean
+        bar = tqdm(total=len(found), unit="submission", desc="grading", leave=False,
+                   disable=not sys.stderr.isatty())
+        try:
+            for student, result in grade_all(ex, found, args.workers, local=args.local,
+                                             plots=args.plots, force=args.force,
+                                             backend=args.backend, address=args.address,
+                                             progress=bar.update):
+                results[student] = result
+                line = (f"{printable(student, 80):<24} {result.score:6.2f}/{result.max_score:g} "
+                        f"{'passed' if result.passed else 'not passed':<11} "
+                        + (result.failure or " ".join(f"FAIL {n}" for n in result.failing)))
+                bar.write(line, file=report)  # above the bar (print() when there is none)
+                report.flush()
+        finally:
+            bar.close()
         if to_stdout:  # was: a file named "-"
             with tempfile.TemporaryDirectory() as tmp:
                 write_csv(results, Path(tmp) / "grades.csv")

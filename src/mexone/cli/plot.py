@@ -8,8 +8,6 @@ from pathlib import Path
 
 from mexone.errors import InputError
 from mexone.files import check_output, replacing
-from mexone.record.plot import pick_joints, plot_fields, plot_joints, write_csv, write_fields_csv
-from mexone.record.reader import read_field_series, read_joint_series
 
 HELP = """\
 Plot a recorded bag (.mcap or .bag): for each joint, command vs actual position (rad), then
@@ -39,6 +37,10 @@ def add_parser(sub) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    # here, not at the top: the CLI imports every verb, and rosbags would cost each lab ~6 MB
+    from mexone.record.plot import pick_joints, plot_fields, plot_joints, write_csv, write_fields_csv
+    from mexone.record.reader import read_field_series, read_joint_series
+
     out: Path = args.output
     if out.suffix.lower() not in (".png", ".pdf", ".svg", ".csv"):
         raise InputError(f"cannot write '{out.suffix or out.name}'", file=out,

@@ -15,14 +15,19 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 
-from mexone.errors import InputError
+from mexone.errors import InputError, warn_renamed
 from mexone.ranges import Range, number_text
+
+if TYPE_CHECKING:
+    from mexone.dynamics import Dynamics
+    from mexone.sensors import SensorSuite
 
 __all__ = ["PythonController", "Param", "State", "BaseState", "sensor_states", "COMMAND_INTERFACES",
            "declared_lengths", "Exports"]
@@ -47,7 +52,7 @@ class Param:
         if not isinstance(default, bool | int | float | str):
             raise TypeError(f"Param default must be a float, int, bool or str, not "
                             f"{type(default).__name__}")
-        self.kind: type = type(default)
+        self.value_type: type = type(default)  # float, int, bool or str
         self.low, self.high, self.doc, self.unit = low, high, doc, unit
         self.choices = tuple(choices) if choices else None
         self.name = ""
@@ -56,40 +61,48 @@ class Param:
             self.range = Range(self.name or "parameter", unit,
                                -math.inf if low is None else float(low),
                                math.inf if high is None else float(high),
-                               integer=self.kind is int)
+                               integer=self.value_type is int)
             if low is not None and high is not None and low > high:
                 raise TypeError(f"Param low {low} > high {high}")
             if not self.range.contains(float(default)):  # a YAML without it would run with it
-                raise TypeError(f"Param default {number_text(default)} is not {self.describe()}")
+                raise TypeError(f"Param default {number_text(cast(float, default))} is not "  # numeric
+                                f"{self.describe()}")
         elif self.choices is not None and default not in self.choices:
             raise TypeError(f"Param default {default!r} is not {self.describe()}")
 
     @property
+    def kind(self) -> type:
+        """The former name of `value_type` (issue 40: `kind` is a controller's family in
+        mexone.control); kept for one release, with a warning."""
+        warn_renamed("Param.kind", "Param.value_type")
+        return self.value_type
+
+    @property
     def numeric(self) -> bool:
         """Whether the parameter is a number (int or float): a page shows it as a number field."""
-        return self.kind in (int, float)
+        return self.value_type in (int, float)
 
-    def __set_name__(self, owner: type, name: str) -> None:
+    def __set_name__(self, owner: type | None, name: str) -> None:
         self.name = name
         if self.numeric:
             self.range = Range(name, self.unit, self.range.low, self.range.high,
-                               integer=self.kind is int)
+                               integer=self.value_type is int)
 
-    def __get__(self, obj, owner=None):
+    def __get__(self, obj: PythonController | None, owner: type | None = None) -> Any:
         if obj is None:
             return self
         return obj.params.get(self.name, self.default)
 
-    def __set__(self, obj, value) -> None:
+    def __set__(self, obj: PythonController, value: object) -> None:
         obj.params[self.name] = self.check(value)
 
     def describe(self) -> str:
         """What a valid value is, in words (for errors, the page and `mexone controllers`)."""
-        if self.kind is bool:
+        if self.value_type is bool:
             return "true or false"
-        if self.kind is str:
+        if self.value_type is str:
             return "one of " + ", ".join(self.choices) if self.choices else "a string"
-        kind = "a whole number" if self.kind is int else "a finite number"
+        kind = "a whole number" if self.value_type is int else "a finite number"
         parts = []
         if self.low is not None:
             parts.append(f">= {number_text(self.low)}")
@@ -98,20 +111,20 @@ class Param:
         unit = f" ({self.unit})" if self.unit else ""
         return f"{kind} {' and '.join(parts)}{unit}".replace("  ", " ").strip()
 
-    def check(self, value: Any, what: str | None = None, **where) -> Any:
+    def check(self, value: Any, what: str | None = None, **where: Any) -> Any:
         """`value` converted to this parameter's type, or an InputError (one line, located by
         `where`: file=, line=) saying what a valid value is."""
         label = what or self.name
-        if self.kind is bool:
+        if self.value_type is bool:
             if isinstance(value, bool):
                 return value
-        elif self.kind is str:
+        elif self.value_type is str:
             if isinstance(value, str) and (self.choices is None or value in self.choices):
                 return value
         elif not isinstance(value, bool) and isinstance(value, int | float | np.integer | np.floating):
             number = float(value)
             if self.range.contains(number):
-                return int(number) if self.kind is int else number
+                return int(number) if self.value_type is int else number
         shown = number_text(value) if isinstance(value, int | float) and not isinstance(value, bool) \
             else repr(value)[:60]
         raise InputError(f"{label} {shown} must be {self.describe()}", **where)
@@ -128,7 +141,7 @@ class BaseState:
     angular_velocity: np.ndarray
 
 
-def sensor_states(suite) -> Mapping:
+def sensor_states(suite: SensorSuite | None) -> Mapping[str, Any]:
     """`state.sensors`: the sensors' state interfaces of `suite` (a mexone.sensors SensorSuite,
     or None), by name (`SensorSuite.states`: each read only when looked up, once an instant)."""
     return {} if suite is None else suite.states
@@ -148,18 +161,19 @@ class State:
     __slots__ = ("q", "dq", "effort", "time", "_data", "_base_joint", "_sensor_source",
                  "_sensors", "_base", "inputs", "messages", "_all_q", "_all_dq")
 
-    def __init__(self, n: int, data, base_joint: tuple[int, int] | None, sensor_source=None):
+    def __init__(self, n: int, data: Any, base_joint: tuple[int, int] | None,
+                 sensor_source: Callable[[], Mapping[str, Any]] | None = None) -> None:
         self.q, self.dq, self.effort = np.zeros(n), np.zeros(n), np.zeros(n)
         self.time = 0.0
         self._base_joint = base_joint  # qpos/qvel address of the free joint, or None
         self._sensor_source = sensor_source  # () -> mapping, or None
-        self._sensors: Mapping | None = None
+        self._sensors: Mapping[str, Any] | None = None
         self._base: BaseState | None = None
         self.inputs: Mapping[str, np.ndarray] = {}
         self.messages: Mapping[str, object | None] = {}
         self._bind(data)
 
-    def _bind(self, data) -> None:
+    def _bind(self, data: Any) -> None:  # MuJoCo's MjData (untyped) or a stand-in
         """Read from `data` (MuJoCo's MjData, or anything with qpos and qvel arrays): all_q and
         all_dq become read-only views of them."""
         self._data = data
@@ -193,7 +207,7 @@ class State:
         return self._base
 
     @property
-    def sensors(self) -> Mapping:
+    def sensors(self) -> Mapping[str, Any]:
         """The sensors' state interfaces by name (state.sensors["imu"].orientation, ...)."""
         if self._sensors is None:
             self._sensors = self._sensor_source() if self._sensor_source is not None else {}
@@ -258,9 +272,9 @@ class PythonController:
     dofs: np.ndarray
     effort_limits: np.ndarray
     params: dict[str, Any]
-    log: logging.LoggerAdapter
+    log: logging.LoggerAdapter[logging.Logger]
 
-    def __init_subclass__(cls, **kwargs) -> None:
+    def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
         declared: dict[str, Param] = {}
         for klass in reversed(cls.__mro__):
@@ -290,7 +304,7 @@ class PythonController:
         refuse that the YAML alone shows. Nothing by default."""
 
     @property
-    def dynamics(self):
+    def dynamics(self) -> Dynamics:
         """The robot's dynamics at the state of this update (mexone.dynamics.Dynamics)."""
         binding = self.__dict__.get("_mexone_binding")
         if binding is None:
@@ -304,7 +318,7 @@ class PythonController:
     def activate(self, state: State) -> None:
         """ros_control's starting(): the controller takes over its joints at `state`."""
 
-    def update(self, state: State, t: float, dt: float):
+    def update(self, state: State, t: float, dt: float) -> ArrayLike | None:
         """Every period (in lockstep with the simulation): return one command per joint in the claimed
         interface's unit (N m, rad, rad/s), or None to keep the last command."""
         return None
@@ -313,11 +327,11 @@ class PythonController:
         """ros_control's stopping()."""
 
 
-class Exports(dict):
+class Exports(dict[str, np.ndarray]):
     """A controller's exports: its readers hold views of these very arrays, so they are written
     into, never replaced."""
 
-    def __setitem__(self, key, value) -> None:
+    def __setitem__(self, key: str, value: np.ndarray) -> None:
         raise TypeError(f"exports[{key!r:.40}] is the framework's array, which its readers see: "
                         f"write into it (self.exports[{key!r:.40}][:] = value)")
 

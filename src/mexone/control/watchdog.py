@@ -17,8 +17,12 @@ import traceback
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from mexone.control.controllers.python import PythonRunner
 
 __all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running",
            "run_delay", "RunDelayOf"]
@@ -60,12 +64,12 @@ class _HangGuard:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         # thread -> (since, runner or Watched) of the student's code in progress there
-        self._entries: dict[int, tuple[float, object]] = {}
+        self._entries: dict[int, tuple[float, PythonRunner | Watched]] = {}
         self._injected: set[int] = set()
         self._running = False
         self._last = 0.0
 
-    def enter(self, runner, now: float) -> int:
+    def enter(self, runner: PythonRunner | Watched, now: float) -> int:
         """A PythonRunner's update (or a Watched setup) starts in this thread (`now`:
         time.perf_counter()); returns the thread's id for `leave`."""
         self._last = now
@@ -106,7 +110,7 @@ class _HangGuard:
             self.leave(tid)
 
     @staticmethod
-    def _describe(what) -> tuple[str, str, str, float]:
+    def _describe(what: PythonRunner | Watched) -> tuple[str, str, str, float]:
         if isinstance(what, Watched):
             timeout = STUDENT_SETUP_TIMEOUT if what.timeout is None else what.timeout
             return what.label, what.file, what.doing, timeout
@@ -116,7 +120,7 @@ class _HangGuard:
         said_stuck: set[tuple[int, float]] = set()
         while True:
             time.sleep(self._POLL)
-            said: list[tuple[str, tuple]] = []
+            said: list[tuple[str, tuple[str, ...]]] = []
             with self._lock:
                 now = time.perf_counter()
                 if not self._entries:
@@ -169,9 +173,10 @@ def run_delay() -> float:
             fd = _schedstat[tid] = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
         return _waited(fd)
     except (OSError, ValueError, IndexError):
-        if _schedstat.pop(tid, None) is not None:  # a thread of that id that has ended
+        stale = _schedstat.pop(tid, None)
+        if stale is not None:  # a thread of that id that has ended
             with contextlib.suppress(OSError):
-                os.close(fd)
+                os.close(stale)
         return 0.0
 
 

@@ -45,7 +45,7 @@ import weakref
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, NoReturn
 
 import numpy as np
 
@@ -57,6 +57,13 @@ from mexone.ranges import number_text
 from mexone.sandbox import Jail, Limits, StudentProcess, spawn
 from mexone.sandbox.ended import WHERE_SIGNAL, read_dump, student_line, why_ended
 from mexone.sandbox.wire import Channel, WireError, frame, pair
+
+if TYPE_CHECKING:
+    import mmap
+
+    import mujoco
+
+    from mexone.control.resolve import Plugin
 
 __all__ = ["ClassInfo", "Layout", "Worker", "WorkerFailed", "StudentFault", "describe", "claim",
            "resolve", "prestart", "stand_in", "set_jail", "end_all", "message_data", "message_from",
@@ -252,7 +259,7 @@ class _StandIn:
     """What the lab holds for a worker's controller object: the framework's attributes (name,
     joints, dofs, params) and nothing of the student's, which live in the worker."""
 
-    def __getattr__(self, name: str):
+    def __getattr__(self, name: str) -> NoReturn:
         if name.startswith("__"):
             raise AttributeError(name)
         raise AttributeError(f"'{name}' is an attribute of the controller's object, which runs in "
@@ -282,9 +289,10 @@ def _message_classes(info: ClassInfo) -> dict[str, type]:
     return {name: getattr(msgs, kind) for name, kind in info.topics.items()}
 
 
-def _check_entry_in_worker(cls, name: str, joints: tuple[str, ...], plugin, timestep: float) -> None:
+def _check_entry_in_worker(cls: type[PythonController], name: str, joints: tuple[str, ...],
+                           plugin: Plugin, timestep: float) -> None:
     """`check_entry` of a class whose own runs in its worker (mexone check --controllers)."""
-    info: ClassInfo = cls._mexone_worker
+    info: ClassInfo = cls._mexone_worker  # type: ignore[attr-defined]  # stand_in's class carries it
     worker = claim(info, plugin.type, plugin.yaml_dir)
     try:
         worker.call({"call": "check_entry", "name": name, "joints": list(joints),
@@ -378,7 +386,7 @@ class Layout:
                 "inputs": [list(i) for i in self.inputs], "exports": [list(e) for e in self.exports]}
 
     @classmethod
-    def from_json(cls, obj: dict) -> Layout:
+    def from_json(cls, obj: dict[str, Any]) -> Layout:
         return cls(int(obj["n"]), int(obj["nq"]), int(obj["nv"]), int(obj["nmocap"]),
                    tuple((str(n), str(c), tuple((str(f), int(s)) for f, s in fields))
                          for n, c, fields in obj["sensors"]),
@@ -397,7 +405,7 @@ def shared_block(nbytes: int) -> int:
     return fd
 
 
-def model_block(model) -> tuple[int, int]:
+def model_block(model: mujoco.MjModel) -> tuple[int, int]:
     """The compiled model as MuJoCo's binary (MJB) in a sealed memfd: (fd, size)."""
     import fcntl
 
@@ -407,7 +415,7 @@ def model_block(model) -> tuple[int, int]:
     buf = np.empty(size, np.uint8)
     mujoco.mj_saveModel(model, None, buf)
     fd = os.memfd_create("mexone-model", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
-    view = memoryview(buf)
+    view = memoryview(buf)  # type: ignore[arg-type]  # numpy's stubs: no __buffer__ on 3.11
     while view:
         view = view[os.write(fd, view):]
     fcntl.fcntl(fd, fcntl.F_ADD_SEALS, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW |
@@ -436,7 +444,7 @@ class Worker:
         self.seq = 0  # the last request's number: every answer names the one it answers
         self.inputs: np.ndarray | None = None
         self.outputs: np.ndarray | None = None
-        self._mapped = None
+        self._mapped: mmap.mmap | None = None
         chan, theirs = pair()
         dump_r, dump_w = os.pipe()
         fds = (theirs[0].fileno(), theirs[1].fileno(), dump_w)
@@ -468,7 +476,7 @@ class Worker:
         # the process itself (a jail's relay may stand between): whom WHERE_SIGNAL goes to
         self.pid = self.chan.peer(1.0) or self.process.pid
 
-    def call(self, request: dict, timeout: float, fds: Sequence[int] = ()) -> Any:
+    def call(self, request: dict[str, Any], timeout: float, fds: Sequence[int] = ()) -> Any:
         """Ask; the answer's value, StudentFault for the student's error, WorkerFailed else."""
         self.seq += 1
         try:
@@ -545,7 +553,7 @@ class Worker:
             if kind not in _ENDS_UPDATE:
                 self.serve(kind, payload)
 
-    def _broke(self, exc: WireError) -> None:
+    def _broke(self, exc: WireError) -> NoReturn:
         """The channel failed: the process ended (why), or it sent what the protocol forbids."""
         if "hung up" in str(exc):
             self._ended()
@@ -600,7 +608,7 @@ class Worker:
         return fd
 
     # ----- ending -------------------------------------------------------------------------------
-    def _hung(self, timeout: float) -> None:
+    def _hung(self, timeout: float) -> NoReturn:
         line = self.where()
         self.kill()
         raise WorkerFailed(f"did not return within {number_text(timeout)} s", line, hung=True)
@@ -618,7 +626,7 @@ class Worker:
                                 self.thread)
         return None
 
-    def _ended(self) -> None:
+    def _ended(self) -> NoReturn:
         status = self.process.wait(2.0)
         self.process.kill()  # what it started goes too (and with it the dump pipe's writers)
         dump = read_dump(self.dump, WHERE_TIMEOUT)
@@ -627,7 +635,7 @@ class Worker:
         raise WorkerFailed(why_ended(status, self.jail.limits.cpu if self.jail.limits.cpu < 1e8
                                      else None), line)
 
-    def _failed(self, why: str) -> None:
+    def _failed(self, why: str) -> NoReturn:
         self.kill()
         raise WorkerFailed(f"its process {why}")
 
@@ -704,12 +712,12 @@ def _environment() -> dict[str, str]:
 @dataclass
 class _Pooled:
     info: ClassInfo
-    key: tuple
+    key: tuple[object, ...]
     worker: Worker
 
 
 _pool: list[_Pooled] = []
-_described: dict[tuple, ClassInfo] = {}
+_described: dict[tuple[object, ...], ClassInfo] = {}
 _lock = threading.Lock()
 _POOL_MAX = 32
 

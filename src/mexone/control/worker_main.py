@@ -198,7 +198,7 @@ class _Host:
         self.file = Plugin("", cls, origin, None).file
         params = {}
         for name, p in cls.declared_params().items():
-            params[name] = {"kind": p.kind.__name__, "default": p.default, "low": p.low,
+            params[name] = {"kind": p.value_type.__name__, "default": p.default, "low": p.low,
                             "high": p.high, "doc": str(p.doc), "unit": str(p.unit),
                             "choices": list(p.choices) if p.choices else None}
         try:

@@ -19,6 +19,7 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -32,6 +33,13 @@ from mexone.design.twin import python_runners
 from mexone.errors import InputError
 from mexone.files import write_text
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    import control
+    from matplotlib.figure import Figure
+
+    from mexone.design.deploy import StateFeedback
+    from mexone.lab import Lab
 
 __all__ = ["Certificate", "certify", "ENCODER_NOISE"]
 
@@ -61,7 +69,7 @@ class Certificate:
         """Every simulated check agrees with its prediction."""
         return all(o.agrees for o in self.onsets)
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The certificate as plain JSON values (`mexone certify --json`)."""
         loop = self.loop
         return {"controllers": list(loop.controllers), "joints": list(loop.joints),
@@ -121,7 +129,7 @@ class Certificate:
         matplotlib.use("Agg")
         figures = [_png(plot_margins(self.margins))]
         if self.region is not None:
-            figures.append(_png(plot_region(self.region)))
+            figures.append(_png(cast("Figure", plot_region(self.region))))  # no ax: its own
         if self.mismatch is not None:
             figures.append(_png(plot_mismatch(self.mismatch)))
         rows = "".join(f"<tr><td>{html.escape(i.name)}</td>{_cells(i)}</tr>"
@@ -172,7 +180,7 @@ def _cells(item: LoopMargins) -> str:
             f"<td>{_g(item.peak_s)}</td><td>{_g(item.peak_t)}</td>")
 
 
-def _png(fig) -> str:
+def _png(fig: Figure) -> str:
     import matplotlib.pyplot as plt
 
     buffer = io.BytesIO()
@@ -192,9 +200,9 @@ def command_noise(loop: LoopModel, noise: Sequence[float] = ENCODER_NOISE) -> np
     return np.sqrt(np.einsum("ij,j,ij->i", d, std**2, d))
 
 
-def certify(lab, controllers: Sequence[str] | None = None, verify: bool = True,
+def certify(lab: Lab, controllers: Sequence[str] | None = None, verify: bool = True,
             region: Mapping[str, tuple[float, float]] | None = None,
-            shape: tuple[int, int] = (16, 16), lyapunov=None, backend: str = "threads",
+            shape: tuple[int, int] = (16, 16), lyapunov: np.ndarray | None = None, backend: str = "threads",
             deviation: Mapping[str, float] | None = None) -> Certificate:
     """The report of the lab's running Python controllers (or those named) at the lab's
     current state. verify: check the predictions on the simulated robot; region: two state
@@ -236,7 +244,7 @@ def certify(lab, controllers: Sequence[str] | None = None, verify: bool = True,
                        tuple(notes), decomposed)
 
 
-def _state_feedback(lab, controllers, what: str):
+def _state_feedback(lab: Lab, controllers: Sequence[str] | None, what: str) -> StateFeedback:
     """The one StateFeedback certified (one line otherwise)."""
     from mexone.design.deploy import StateFeedback
 
@@ -248,7 +256,7 @@ def _state_feedback(lab, controllers, what: str):
     return runners[0].impl
 
 
-def _plant_of(controller, loop: LoopModel):
+def _plant_of(controller: StateFeedback, loop: LoopModel) -> control.StateSpace:
     """The plant the StateFeedback was designed on, if the loop's model is it (the same states:
     a design on the whole robot); else one line."""
     states = tuple(controller.design.point.states)
@@ -260,5 +268,5 @@ def _plant_of(controller, loop: LoopModel):
     return loop.robot
 
 
-def _finite(value: float):
+def _finite(value: float) -> float | str:
     return value if math.isfinite(value) else "inf"

@@ -12,11 +12,14 @@ import io
 import math
 import zipfile
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO, Any
 
 import numpy as np
 from numpy.lib import format as npy
+from numpy.typing import ArrayLike
 
 from mexone import yamlio
 from mexone.errors import InputError, printable
@@ -59,7 +62,7 @@ class RawDesign:
 
 
 def check_on_robot(path: Path, qpos_index: np.ndarray, qvel_index: np.ndarray,
-                   act_actuators, nq: int, nv: int, actuators: set[str] | None) -> None:
+                   act_actuators: Sequence[str], nq: int, nv: int, actuators: set[str] | None) -> None:
     """A design file's indices within a robot of nq positions and nv velocities (at most), its
     activation states' actuators among `actuators` (None: not known here)."""
     for name, index, size in (("qpos_index", qpos_index, nq), ("qvel_index", qvel_index, nv)):
@@ -114,7 +117,7 @@ def _npz(data: bytes, path: Path) -> dict[str, np.ndarray]:
     return out
 
 
-def _header(member, key: str, path: Path) -> tuple[tuple[int, ...], np.dtype]:
+def _header(member: IO[bytes], key: str, path: Path) -> tuple[tuple[int, ...], np.dtype]:
     version = npy.read_magic(member)
     if version == (1, 0):
         shape, _, dtype = npy.read_array_header_1_0(member)
@@ -142,7 +145,7 @@ def _dims(most: int) -> str:
     return ("one value", "a list", "a matrix (joints x states)")[most]
 
 
-def _yaml(data: bytes, path: Path) -> dict:
+def _yaml(data: bytes, path: Path) -> dict[str, Any]:
     raw = yamlio.load(data.decode("utf-8-sig"), path)
     if not isinstance(raw, dict):
         raise _error(path, "is not a mapping of K, u0, joints, states, qpos, qvel, ...")
@@ -158,7 +161,8 @@ def _yaml(data: bytes, path: Path) -> dict:
     return out
 
 
-def _numbers(raw: dict, key: str, path: Path, default=None) -> np.ndarray:
+def _numbers(raw: dict[str, Any], key: str, path: Path, default: ArrayLike | None = None
+             ) -> np.ndarray:
     if key not in raw:
         if default is None:
             raise _error(path, f"has no {key!r}")
@@ -172,7 +176,7 @@ def _numbers(raw: dict, key: str, path: Path, default=None) -> np.ndarray:
     return values
 
 
-def _indices(raw: dict, key: str, size: int, path: Path) -> np.ndarray:
+def _indices(raw: dict[str, Any], key: str, size: int, path: Path) -> np.ndarray:
     values = _numbers(raw, key, path, default=np.arange(size))
     if values.size != size:
         raise _error(path, f"{key} has {values.size} entries for {size} values of "
@@ -184,12 +188,13 @@ def _indices(raw: dict, key: str, size: int, path: Path) -> np.ndarray:
     return values.astype(int)
 
 
-def _texts(raw: dict, key: str, path: Path, default=()) -> tuple[str, ...]:
+def _texts(raw: dict[str, Any], key: str, path: Path, default: Sequence[str] = ()
+           ) -> tuple[str, ...]:
     values = np.asarray(raw.get(key, default)).reshape(-1)
     return tuple(str(v) for v in values)
 
 
-def _checked(raw: dict, path: Path) -> RawDesign:
+def _checked(raw: dict[str, Any], path: Path) -> RawDesign:
     for key in REQUIRED:
         if key not in raw:
             raise _error(path, f"has no {key!r}")

@@ -22,9 +22,10 @@ model, or what `mexone identify` fitted: `with_identified`), and gives three vie
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, cast
 
 import control
 import mujoco
@@ -32,6 +33,12 @@ import numpy as np
 
 from mexone.errors import InputError
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from numpy.typing import ArrayLike
+
+    from mexone.design.deploy import SystemDesign, _Deployed
+    from mexone.lab import Lab
 
 __all__ = ["FrictionModel", "friction_model"]
 
@@ -97,8 +104,9 @@ class FrictionModel:
         return replace(self, coulomb=coulomb, source=str(path))
 
     # ----- with a closed loop ------------------------------------------------------------------
-    def predict(self, controller, plant, deviation=None, duration: float = 1.0,
-                reference=None) -> np.ndarray:
+    def predict(self, controller: _Deployed, plant: control.StateSpace,
+                deviation: Mapping[str, float] | ArrayLike | None = None, duration: float = 1.0,
+                reference: Mapping[str, float] | ArrayLike | None = None) -> np.ndarray:
         """The linear closed loop of a deployed controller with this friction in it, from the
         point plus `deviation` (as compare takes it): len x nx of the plant's states."""
         from mexone.design.check import _vector, closed_loop
@@ -106,7 +114,8 @@ class FrictionModel:
         sys = closed_loop(controller, plant)
         labels = list(plant.state_labels)
         dx0 = _vector(deviation, labels, "deviation")
-        ref_labels = labels if sys.ninputs == plant.nstates else list(controller.design.inputs)
+        ref_labels = labels if sys.ninputs == plant.nstates \
+            else list(cast("SystemDesign", controller.design).inputs)  # a gain's loop takes states
         r = _vector(reference, ref_labels, "reference")
         a, b = np.asarray(sys.A), np.asarray(sys.B) @ r
         cols, qrows, vrows = self._columns(plant)
@@ -122,7 +131,8 @@ class FrictionModel:
             x = free + cols @ f
         return out
 
-    def bound(self, controller, plant) -> tuple[np.ndarray, np.ndarray]:
+    def bound(self, controller: _Deployed, plant: control.StateSpace
+              ) -> tuple[np.ndarray, np.ndarray]:
         """(largest difference per plant state the friction can make, up to Fc on every joint
         at once: the sum over time of the impulse response's magnitude times Fc; the dead band
         per joint: Fc over the loop's static stiffness)."""
@@ -144,7 +154,7 @@ class FrictionModel:
         stiffness = 1.0 / np.abs(np.diag(np.atleast_2d(static)))
         return total, self.coulomb / stiffness
 
-    def _columns(self, plant):
+    def _columns(self, plant: control.StateSpace) -> tuple[np.ndarray, list[int], list[int]]:
         inputs = [label.rpartition(":")[0] for label in plant.input_labels]
         states = list(plant.state_labels)
         missing = [j for j in self.joints if j not in inputs]
@@ -157,7 +167,7 @@ class FrictionModel:
         return cols, qrows, vrows
 
 
-def friction_model(lab, plant, joints: Sequence[str] | None = None) -> FrictionModel:
+def friction_model(lab: Lab, plant: control.StateSpace, joints: Sequence[str] | None = None) -> FrictionModel:
     """The dry friction of the plant's input joints (or `joints`), from the lab's model: Fc
     (frictionloss), MuJoCo's constraint parameters, and the joints' inverse inertia per step
     from the plant's own B (its velocity row, so the model's inertia and implicit damping)."""

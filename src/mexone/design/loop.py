@@ -19,19 +19,25 @@ closed loop with a gain on each channel (`closed_matrix`): what `margins` reads.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, cast
 
 import control
 import mujoco
 import numpy as np
 
+from mexone.control.controllers.python import PythonRunner
 from mexone.control.hardware import set_actuator_state
 from mexone.design.linear import linearize
 from mexone.design.twin import python_runners, snapshot, twin
 from mexone.errors import InputError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from mexone.design.twin import _Snapshot
+    from mexone.lab import Lab
 
 __all__ = ["LoopModel", "linearize_loop", "REST_SPEED"]
 
@@ -120,7 +126,7 @@ class LoopModel:
                           inputs=[self.inputs[i]], outputs=[self.inputs[i]], name=f"L_{i}")
 
 
-def linearize_loop(lab, controllers: Sequence[str] | None = None) -> LoopModel:
+def linearize_loop(lab: Lab, controllers: Sequence[str] | None = None) -> LoopModel:
     """The closed loop of the lab's running Python controllers (or those named) at the lab's
     current state (put the robot at its point first: a design's operating point, or where a
     controller holds it). The live lab is only read: everything runs on a copy."""
@@ -147,10 +153,12 @@ def linearize_loop(lab, controllers: Sequence[str] | None = None) -> LoopModel:
                          f"physics steps ({number_text(step)} s)", hint="set update_rate to divide "
                          f"{number_text(1 / step)} Hz")
     robot = linearize(copy_lab, inputs=interface, joints=list(joints), period=period)
-    probe = _Probe(copy_lab, [copy_lab.manager.controllers[n] for n in names], taken, robot,
-                   joints, interface, period)
+    manager = copy_lab.manager
+    assert manager is not None  # the copy has the live lab's controllers (python_runners found some)
+    probe = _Probe(copy_lab, [cast(PythonRunner, manager.controllers[n]) for n in names], taken,
+                   robot, joints, interface, period)
     plant, controller = probe.differentiate()
-    hw = copy_lab.manager.hw
+    hw = manager.hw
     limits = hw.effort_limit[hw.rows(list(joints))] if interface == "effort" \
         else np.full(len(joints), np.inf)
     notes = list(probe.notes)
@@ -167,7 +175,9 @@ class _Probe:
     """Evaluates the controllers' updates on the copy at a perturbed state (plant state dx,
     internal states xc, last command m) and differentiates them."""
 
-    def __init__(self, copy_lab, runners, taken, robot, joints, interface, period):
+    def __init__(self, copy_lab: Lab, runners: list[PythonRunner], taken: _Snapshot,
+                 robot: control.StateSpace, joints: tuple[str, ...], interface: str,
+                 period: float) -> None:
         self.lab, self.runners, self.robot = copy_lab, runners, robot
         self.period, self.interface = period, interface
         sim = copy_lab.sim
@@ -179,6 +189,7 @@ class _Probe:
         self.act_rows = np.asarray(lin.act_rows, int)
         self.nv = self.qvel_index.size
         self.nx = robot.nstates
+        assert copy_lab.manager is not None  # linearize_loop's copy runs the controllers
         hw = copy_lab.manager.hw
         self.hw, self.rows = hw, hw.rows(list(joints))
         self.command0 = getattr(hw.command, interface)[self.rows].copy()
@@ -275,7 +286,8 @@ class _Probe:
                              "in its derivative)")
         return plant, controller
 
-    def _columns(self, fn, n: int, eps) -> tuple[np.ndarray, np.ndarray]:
+    def _columns(self, fn: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], n: int,
+                 eps: float | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         eps = np.broadcast_to(np.asarray(eps, dtype=float), (n,))
         du = np.zeros((self.nu, n))
         dn = np.zeros((self.xc0.size, n))

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import control
 import numpy as np
@@ -35,6 +36,9 @@ import numpy as np
 from mexone.design.loop import LoopModel
 from mexone.errors import InputError
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
 
 __all__ = ["Margins", "LoopMargins", "loop_margins", "plot_margins", "frequency_response", "STABLE_TOL"]
 
@@ -74,7 +78,7 @@ class LoopMargins:
         """The upper gain margin in dB."""
         return 20 * math.log10(self.gain_increase) if self.gain_increase > 0 else -math.inf
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """JSON-ready (inf as "inf")."""
         out = {}
         for key in self.__dataclass_fields__:
@@ -108,14 +112,14 @@ class Margins:
                 return item
         raise InputError(f"no loop named {name!r}", hint=", ".join(m.name for m in self.loops))
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The margins as plain JSON values (`mexone certify --json`)."""
         return {"period": self.period, "spectral_radius": self.spectral_radius,
                 "method": self.method, "notes": list(self.notes),
                 "all": self.all.as_dict(), "loops": [m.as_dict() for m in self.loops]}
 
 
-def _json(value):
+def _json(value: object) -> object:
     if isinstance(value, float | np.floating):
         value = float(value)
         return value if math.isfinite(value) else ("inf" if value > 0 else "-inf")
@@ -178,8 +182,8 @@ def frequency_response(a: np.ndarray, b: np.ndarray, c: np.ndarray, z: np.ndarra
     return out
 
 
-def _gain_limits(loop: LoopModel, ag, bg, cg, channels: np.ndarray, level: float) \
-        -> tuple[float, float, float]:
+def _gain_limits(loop: LoopModel, ag: np.ndarray, bg: np.ndarray, cg: np.ndarray,
+                 channels: np.ndarray, level: float) -> tuple[float, float, float]:
     """(upper factor, lower factor, Hz of the upper's critical pole) for a common gain on
     `channels` (the others at 1), bisected on the closed loop's spectral radius."""
     def unstable(k: float) -> bool:
@@ -295,7 +299,9 @@ def _perron(mag: np.ndarray) -> np.ndarray:
     return np.maximum(vector, 1e-12)
 
 
-def _all_at_once(loop, ag, bg, cg, f, z, full, sigma_s, sigma_t, level):
+def _all_at_once(loop: LoopModel, ag: np.ndarray, bg: np.ndarray, cg: np.ndarray, f: np.ndarray,
+                 z: np.ndarray, full: np.ndarray, sigma_s: np.ndarray, sigma_t: np.ndarray,
+                 level: float) -> tuple[str, LoopMargins]:
     everything = np.arange(loop.channels)
     high, low, gain_f = _gain_limits(loop, ag, bg, cg, everything, level)
     eig = np.linalg.eigvals(full)
@@ -308,7 +314,8 @@ def _all_at_once(loop, ag, bg, cg, f, z, full, sigma_s, sigma_t, level):
                                float(f[i_t]), tuple(notes))
 
 
-def _single(loop, i, ag, bg, cg, f, z, level):
+def _single(loop: LoopModel, i: int, ag: np.ndarray, bg: np.ndarray, cg: np.ndarray,
+            f: np.ndarray, z: np.ndarray, level: float) -> tuple[LoopMargins, np.ndarray]:
     high, low, gain_f = _gain_limits(loop, ag, bg, cg, np.array([i]), level)
     system = loop.loop_at(i)
     response = frequency_response(np.asarray(system.A), np.asarray(system.B),
@@ -335,7 +342,7 @@ def _gain_notes(high: float, low: float) -> list[str]:
     return notes
 
 
-def plot_margins(result: Margins, fig=None):
+def plot_margins(result: Margins, fig: Figure | None = None) -> Figure:
     """Nyquist-style loop gains per break, and S and T against frequency; returns the Figure."""
     import matplotlib.pyplot as plt
 

@@ -26,9 +26,10 @@ model is changed for each run, in its simulation thread, and always put back.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import mujoco
 import numpy as np
@@ -38,6 +39,15 @@ from mexone.design.deploy import StateFeedback
 from mexone.design.friction import FrictionModel, friction_model
 from mexone.errors import InputError
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    import control
+    from matplotlib.figure import Figure
+    from numpy.typing import ArrayLike
+
+    from mexone.control.controllers.python import PythonRunner
+    from mexone.design.deploy import SystemDesign, _Deployed
+    from mexone.lab import Lab
 
 __all__ = ["Mismatch", "mismatch", "plot_mismatch", "describe", "design_plant", "EFFECTS"]
 
@@ -72,7 +82,7 @@ class Mismatch:
         rows = [(e, self.without[e], self.explained[e]) for e in self.without]
         return sorted(rows, key=lambda r: -r[2])
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The numbers as plain JSON values (`mexone certify --mismatch --json`)."""
         return {"relative": self.relative, "without": self.without, "explained": self.explained,
                 "residual": self.residual, "friction_aware": self.friction_aware,
@@ -80,7 +90,9 @@ class Mismatch:
                 "notes": list(self.notes)}
 
 
-def mismatch(lab, controller, plant, deviation=None, reference=None, duration: float = 1.0,
+def mismatch(lab: Lab, controller: _Deployed, plant: control.StateSpace,
+             deviation: Mapping[str, float] | ArrayLike | None = None,
+             reference: Mapping[str, float] | ArrayLike | None = None, duration: float = 1.0,
              effects: Sequence[str] = EFFECTS, identified: str | None = None) -> Mismatch:
     """Decompose compare(lab, controller, plant, deviation, reference, duration) (see the
     module's docstring). identified: a `mexone identify` output (folder or identify.json) whose
@@ -95,8 +107,9 @@ def mismatch(lab, controller, plant, deviation=None, reference=None, duration: f
     compare(lab, controller, plant, deviation, reference, duration)
     runs = {"robot": compare(lab, controller, plant, deviation, reference, duration)}
     base = runs["robot"]
-    notes = []
-    without, explained = {}, {}
+    notes: list[str] = []
+    without: dict[str, float] = {}
+    explained: dict[str, float] = {}
     removers = _removers(lab, controller, plant, base, notes)
     for effect in effects:
         if effect == "amplitude":
@@ -145,7 +158,7 @@ def mismatch(lab, controller, plant, deviation=None, reference=None, duration: f
                     bound, dead, describing, runs, tuple(notes))
 
 
-def design_plant(lab, controller):
+def design_plant(lab: Lab, controller: _Deployed) -> control.StateSpace:
     """The plant a deployed StateFeedback's design was made on, linearised again at the lab's
     current state (put the robot at the design's point first): its joints as inputs, the others
     welded when its states leave them out, the base fixed when they leave it out, at its period
@@ -171,23 +184,25 @@ def design_plant(lab, controller):
     return plant
 
 
-def _relative(base: Comparison, prediction: np.ndarray, plant) -> float:
+def _relative(base: Comparison, prediction: np.ndarray, plant: control.StateSpace) -> float:
     npos = plant.linearization.qvel.size
     diff = base.measured[:, :npos] - prediction[:, :npos]
     scale = np.linalg.norm(base.measured[0, :npos]) or np.linalg.norm(base.reference[:npos])
     return float(np.sqrt(np.mean(np.sum(diff**2, axis=1))) / scale) if scale else float("nan")
 
 
-def _scaled(deviation, plant, factor: float):
+def _scaled(deviation: Mapping[str, float] | ArrayLike | None, plant: control.StateSpace, factor: float
+            ) -> np.ndarray | None:
     if deviation is None:
         return None
     vector = _vector(deviation, list(plant.state_labels), "deviation")
     return vector * factor
 
 
-def _scaled_ref(reference, controller, plant):
+def _scaled_ref(reference: Mapping[str, float] | ArrayLike, controller: _Deployed,
+                plant: control.StateSpace) -> np.ndarray:
     labels = list(plant.state_labels) if isinstance(controller, StateFeedback) \
-        else list(controller.design.inputs)
+        else list(cast("SystemDesign", controller.design).inputs)  # a LinearController's
     return _vector(reference, labels, "reference") * _SMALL
 
 
@@ -196,7 +211,7 @@ Edit = Callable[[], Callable[[], None]]  # applies a change, returns its undo
 
 
 @contextmanager
-def _edited(lab, edits: Sequence[Edit]) -> Iterator[None]:
+def _edited(lab: Lab, edits: Sequence[Edit]) -> Iterator[None]:
     undo = _on_sim(lab, lambda: [edit() for edit in edits])
     try:
         yield
@@ -204,17 +219,18 @@ def _edited(lab, edits: Sequence[Edit]) -> Iterator[None]:
         _on_sim(lab, lambda: [u() for u in reversed(undo)])
 
 
-def _removers(lab, controller, plant, base: Comparison, notes: list[str]) -> dict[str, Edit]:
+def _removers(lab: Lab, controller: _Deployed, plant: control.StateSpace, base: Comparison,
+              notes: list[str]) -> dict[str, Edit]:
     sim = lab.sim
     model = sim.model
 
-    def fields(*names: str, value=0) -> Edit:
-        def edit():
+    def fields(*names: str, value: float = 0) -> Edit:
+        def edit() -> Callable[[], None]:
             saved = {n: getattr(model, n).copy() for n in names}
             for n in names:
                 getattr(model, n)[:] = value
 
-            def undo():
+            def undo() -> None:
                 for n, v in saved.items():
                     getattr(model, n)[:] = v
             return undo
@@ -234,7 +250,7 @@ def _removers(lab, controller, plant, base: Comparison, notes: list[str]) -> dic
     if touching is None:
         notes.append("contacts changing: nothing touches at the start (no contacts to keep)")
     else:
-        def keep_contacts():
+        def keep_contacts() -> Callable[[], None]:
             saved = (model.geom_contype.copy(), model.geom_conaffinity.copy())
             others = np.ones(model.ngeom, dtype=bool)
             others[list(touching)] = False
@@ -242,19 +258,20 @@ def _removers(lab, controller, plant, base: Comparison, notes: list[str]) -> dic
             model.geom_contype[others] = 0
             model.geom_conaffinity[others] = 0
 
-            def undo():
+            def undo() -> None:
                 model.geom_contype[:], model.geom_conaffinity[:] = saved
             return undo
         out["contacts changing"] = keep_contacts
     return out
 
 
-def _no_effort_limits(lab, controller) -> Edit:
+def _no_effort_limits(lab: Lab, controller: _Deployed) -> Edit:
     model = lab.sim.model
     manager = lab.manager
-    runner = manager.controllers[controller.name]
+    assert manager is not None  # compare ran the controller in it
+    runner = cast("PythonRunner", manager.controllers[controller.name])
 
-    def edit():
+    def edit() -> Callable[[], None]:
         saved = (model.actuator_forcelimited.copy(), model.jnt_actfrclimited.copy(),
                  list(runner._limits), runner._effort_limit.copy(),
                  manager.hw.effort_limit.copy())
@@ -264,7 +281,7 @@ def _no_effort_limits(lab, controller) -> Edit:
         runner._effort_limit[:] = np.inf
         manager.hw.effort_limit[:] = np.inf
 
-        def undo():
+        def undo() -> None:
             model.actuator_forcelimited[:], model.jnt_actfrclimited[:] = saved[:2]
             runner._limits = saved[2]
             runner._effort_limit[:] = saved[3]
@@ -273,14 +290,15 @@ def _no_effort_limits(lab, controller) -> Edit:
     return edit
 
 
-def _touching_geoms(lab, controller) -> set[int] | None:
+def _touching_geoms(lab: Lab, controller: _Deployed) -> set[int] | None:
     """The geoms in contact with the robot at the design's point (None: none)."""
-    def find():
+    def find() -> set[int] | None:
         sim = lab.sim
         model = sim.model
         data = mujoco.MjData(model)
         mujoco.mj_copyData(data, model, sim.data)
         point = controller.design.point
+        assert point is not None  # _check refused a design without its point
         data.qpos[point.qpos_index] = point.qpos
         data.qvel[:] = 0.0
         mujoco.mj_forward(model, data)
@@ -290,7 +308,8 @@ def _touching_geoms(lab, controller) -> set[int] | None:
 
 
 # ----- the figure ----------------------------------------------------------------------------------
-def plot_mismatch(result: Mismatch, label: str | None = None, fig=None):
+def plot_mismatch(result: Mismatch, label: str | None = None, fig: Figure | None = None
+                  ) -> Figure:
     """Left: the robot, the linear model, the robot without dry friction and the friction-aware
     model for the state that moves most (or `label`); right: each effect's share of the
     difference. Returns the Figure."""
@@ -338,6 +357,7 @@ def describe(result: Mismatch) -> list[str]:
     if result.friction is not None:
         lines.append(f"model with the dry friction ({result.friction.source}): "
                      f"{number_text(100 * result.friction_aware)} %")
+        assert result.dead_band is not None and result.describing is not None  # with the friction
         for j, joint in enumerate(result.friction.joints):
             lines.append(f"  {joint}: Coulomb {number_text(result.friction.coulomb[j])} N m, "
                          f"stiction band {number_text(result.friction.band[j])} rad/s, dead band "

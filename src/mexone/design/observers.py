@@ -25,10 +25,10 @@ is exported at once: a reader updated in the same cycle acts on it (no delay).
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import TYPE_CHECKING, Any, cast
 
 import control
 import mujoco
@@ -36,10 +36,19 @@ import numpy as np
 
 from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _run
-from mexone.design.deploy import _Deployed, _design_path, _new_npz, _point_of, lqr
+from mexone.design.deploy import _Deployed, _design_path, _new_npz, _Point, _point_of, lqr
 from mexone.errors import InputError
 from mexone.files import replacing
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+    from numpy.typing import ArrayLike
+
+    from mexone.control.student import State
+    from mexone.lab import Lab
+    from mexone.physics.simulation import Periodic, Simulation
 
 __all__ = ["Estimator", "kalman", "luenberger", "lqg", "Observer", "Lqg", "LqgDesign",
            "EstimateRun", "compare_estimate", "plot_estimate", "save_estimator",
@@ -71,7 +80,7 @@ class Estimator:
     outputs: dict[str, np.ndarray]
     inputs: tuple[str, ...]
     u0: np.ndarray
-    point: object  # deploy._Point
+    point: _Point
     states: tuple[str, ...]
     joints: tuple[str, ...] = ()  # an observer drives no joint
     interface: str = "effort"
@@ -91,20 +100,22 @@ class Estimator:
         n = self.A.shape[0]
         return np.zeros(n), None if self.P0 is None else self.P0.copy()
 
-    def step(self, x: np.ndarray, P: np.ndarray | None, y: np.ndarray, u: np.ndarray):
+    def step(self, x: np.ndarray, P: np.ndarray | None, y: np.ndarray, u: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray | None]:
         """One update: the prior from the last estimate and the applied input u (deviation),
         then the correction by the measurement y (deviation from y0)."""
         prior = self.A @ x + self.B @ u
         innovation = y - self.C @ prior - self.D @ u
         if self.gain is not None:
             return prior + self.gain @ innovation, None
+        assert P is not None and self.process is not None and self.noise is not None  # time-varying
         P = self.A @ P @ self.A.T + self.process
         S = self.C @ P @ self.C.T + self.noise
         M = np.linalg.solve(S, self.C @ P).T
         P = P - M @ self.C @ P
         return prior + M @ innovation, 0.5 * (P + P.T)
 
-    def deployed(self, rate: float | None):
+    def deployed(self, rate: float | None) -> tuple[type[Observer], Estimator, float, dict[str, int]]:
         """deploy's hook: (controller class, design, rate, exports)."""
         return Observer, self, _rate(self, rate), {k: v.shape[0] for k, v in self.outputs.items()}
 
@@ -126,11 +137,11 @@ class LqgDesign:
         return self.estimator.period
 
     @property
-    def point(self):
+    def point(self) -> _Point:
         """The operating point the LQG was designed at: its estimator's."""
         return self.estimator.point
 
-    def deployed(self, rate: float | None):
+    def deployed(self, rate: float | None) -> tuple[type[Lqg], LqgDesign, float, dict[str, int]]:
         """(controller class, design, rate, exports) for `deploy`: the LQG as one chained controller."""
         est = self.estimator
         return Lqg, self, _rate(est, rate), {k: v.shape[0] for k, v in est.outputs.items()}
@@ -147,7 +158,7 @@ def _rate(est: Estimator, rate: float | None) -> float:
 
 
 # ----- the measurement model --------------------------------------------------------------------
-def rows_of(plant, labels: Sequence[str], rate: bool = False) -> np.ndarray:
+def rows_of(plant: control.StateSpace, labels: Sequence[str], rate: bool = False) -> np.ndarray:
     """Rows on the plant's state for some of its outputs or states (by label); rate=True: their
     time derivative, for outputs that are positions (a frame's pose, the centre of mass: C is
     [J, 0], the rate is [0, J])."""
@@ -172,7 +183,9 @@ def rows_of(plant, labels: Sequence[str], rate: bool = False) -> np.ndarray:
     return np.array(rows)
 
 
-def _measurement(plant, measured: Sequence[str]):
+def _measurement(plant: control.StateSpace, measured: Sequence[str]
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...],
+                            tuple[tuple[str, str], ...]]:
     """(C, D, y0, labels, groups) of the measured signals (see the module's docstring)."""
     if isinstance(measured, str) or not measured:
         raise InputError("measured: give a list of signals (e.g. ['imu/gyro', 'imu/acc', "
@@ -183,8 +196,12 @@ def _measurement(plant, measured: Sequence[str]):
     outs, states = list(plant.output_labels), list(plant.state_labels)
     c_all, d_all = np.asarray(plant.C), np.asarray(plant.D)
     nv = lin.qvel.size
-    rows_c, rows_d, y0, labels, groups = [], [], [], [], []
-    sensed = None
+    rows_c: list[np.ndarray] = []
+    rows_d: list[np.ndarray] = []
+    y0: list[float] = []
+    labels: list[str] = []
+    groups: list[tuple[str, str]] = []
+    sensed: Callable[[str, str], float] | None = None
     for name in measured:
         if name == "encoders":
             picked = [s for s in states[6 if states[0].startswith("base:") else 0:nv] if s.endswith(":q")]
@@ -234,13 +251,13 @@ def _measurement(plant, measured: Sequence[str]):
     return (np.array(rows_c), np.array(rows_d), np.array(y0), tuple(labels), tuple(groups))
 
 
-def _qpos_of(lin, full_adr: int) -> int:
+def _qpos_of(lin: Any, full_adr: int) -> int:  # lin: design.linear's Linearization
     index = np.asarray(lin.qpos_index)
     hit = np.flatnonzero(index == full_adr)
     return int(hit[0]) if hit.size else full_adr
 
 
-def _sensor_values(lin):
+def _sensor_values(lin: Any) -> Callable[[str, str], float]:  # lin: a Linearization
     """sensor name, axis -> its value at the point (the model as linearised, at rest)."""
     model = lin.model
     data = mujoco.MjData(model)
@@ -265,10 +282,10 @@ def _sensor_values(lin):
     return value
 
 
-def _outputs(plant, exports: Mapping[str, np.ndarray] | None) -> dict[str, np.ndarray]:
+def _outputs(plant: control.StateSpace, exports: Mapping[str, np.ndarray] | None) -> dict[str, np.ndarray]:
     if exports is None:
         return {"x": np.eye(plant.nstates)}
-    out = {}
+    out: dict[str, np.ndarray] = {}
     for name, rows in exports.items():
         rows = np.atleast_2d(np.asarray(rows, dtype=float))
         if not str(name).isidentifier():
@@ -280,7 +297,7 @@ def _outputs(plant, exports: Mapping[str, np.ndarray] | None) -> dict[str, np.nd
     return out
 
 
-def _covariance(value, n: int, what: str) -> np.ndarray:
+def _covariance(value: ArrayLike, n: int, what: str) -> np.ndarray:
     m = np.atleast_1d(np.asarray(value, dtype=float))
     if m.ndim == 1:
         m = np.diag(np.broadcast_to(m, (n,)) if m.size in (1, n) else m)
@@ -293,7 +310,9 @@ def _covariance(value, n: int, what: str) -> np.ndarray:
     return m
 
 
-def _base(plant, measured, exports):
+def _base(plant: control.StateSpace, measured: Sequence[str], exports: Mapping[str, np.ndarray] | None
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, tuple[str, ...], tuple[tuple[str, str], ...],
+                     _Point, Any, dict[str, np.ndarray]]:
     if plant.dt in (0, None, True):
         raise InputError("the plant is continuous: an observer runs on the discrete model",
                          hint="linearize(..., period=1/rate)")
@@ -302,7 +321,8 @@ def _base(plant, measured, exports):
     return c, d, y0, labels, groups, point, lin, _outputs(plant, exports)
 
 
-def kalman(plant, measured: Sequence[str], W, V, *, time_varying: bool = False, P0=None,
+def kalman(plant: control.StateSpace, measured: Sequence[str], W: ArrayLike, V: ArrayLike, *,
+           time_varying: bool = False, P0: ArrayLike | None = None,
            exports: Mapping[str, np.ndarray] | None = None) -> Estimator:
     """A Kalman filter for `plant` (from linearize, with the sensors among its outputs) on the
     `measured` signals. W: the process noise covariance, on the inputs (m x m, or m variances:
@@ -337,20 +357,20 @@ def kalman(plant, measured: Sequence[str], W, V, *, time_varying: bool = False, 
                      tuple(plant.state_labels))
 
 
-def luenberger(plant, measured: Sequence[str], poles: Sequence[complex], *,
+def luenberger(plant: control.StateSpace, measured: Sequence[str], poles: Sequence[complex], *,
                exports: Mapping[str, np.ndarray] | None = None) -> Estimator:
     """A Luenberger observer: the gain M that puts the estimation error's poles (the
     eigenvalues of A - M C A, discrete z; use exp(s dt) for continuous ones) at `poles`."""
     c, d, y0, labels, groups, point, lin, outputs = _base(plant, measured, exports)
     a, b = np.asarray(plant.A), np.asarray(plant.B)
-    poles = np.asarray(poles, dtype=complex).reshape(-1)
-    if poles.size != a.shape[0]:
-        raise InputError(f"luenberger: {poles.size} poles for a plant of {a.shape[0]} states")
-    if np.any(np.abs(poles) >= 1):
+    placed = np.asarray(poles, dtype=complex).reshape(-1)
+    if placed.size != a.shape[0]:
+        raise InputError(f"luenberger: {placed.size} poles for a plant of {a.shape[0]} states")
+    if np.any(np.abs(placed) >= 1):
         raise InputError("luenberger: the poles are discrete (|z| < 1 is stable): use "
                          "np.exp(s * dt) for continuous ones")
     try:
-        gain = np.asarray(control.place(a.T, (c @ a).T, poles)).T
+        gain = np.asarray(control.place(a.T, (c @ a).T, placed)).T
     except (ValueError, np.linalg.LinAlgError) as exc:
         raise InputError(f"luenberger: the poles cannot be placed: {str(exc).splitlines()[0]}",
                          hint="is every mode observable from the measured signals? (a pole can "
@@ -360,7 +380,8 @@ def luenberger(plant, measured: Sequence[str], poles: Sequence[complex], *,
                      np.asarray(lin.u0, float), point, tuple(plant.state_labels))
 
 
-def lqg(plant, Q, R, W, V, measured: Sequence[str], *, time_varying: bool = False,
+def lqg(plant: control.StateSpace, Q: ArrayLike, R: ArrayLike, W: ArrayLike, V: ArrayLike,
+        measured: Sequence[str], *, time_varying: bool = False,
         exports: Mapping[str, np.ndarray] | None = None) -> LqgDesign:
     """The LQG compensator: K from `lqr(plant, Q, R)` on the Kalman filter's estimate
     (`kalman(plant, measured, W, V)`); `deploy(lab, lqg(...))` runs it as one controller."""
@@ -407,7 +428,8 @@ def load_estimator(path: str | Path) -> Estimator:
                     for k in ("gain", "process", "noise", "P0")}
         sizes = np.asarray(raw["output_sizes"], int)
         rows = np.asarray(raw["output_rows"], float)
-        outputs, at = {}, 0
+        outputs: dict[str, np.ndarray] = {}
+        at = 0
         for name, size in zip(raw["output_names"], sizes, strict=True):
             outputs[str(name)] = rows[at:at + size]
             at += size
@@ -443,10 +465,11 @@ class Observer(_Deployed):
     to try it under sensors noisier than the simulated ones."""
 
     command_interface = "effort"
-    exports: ClassVar = {}
+    exports: Any = {}
 
     @classmethod
-    def _load(cls, name: str, design_file: str, yaml_dir):
+    def _load(cls, name: str, design_file: str, yaml_dir: Path | None,  # type: ignore[override]
+              robot: Any = None) -> Estimator:  # an observer's design: an Estimator (see design)
         path = _design_path(name, design_file, yaml_dir, "save_estimator")
         est = load_estimator(path)
         declared = dict(getattr(cls, "exports", {}) or {})
@@ -458,14 +481,15 @@ class Observer(_Deployed):
         return est
 
     @classmethod
-    def _design_of(cls, name: str, design_file: str, yaml_dir, robot=None):
+    def _design_of(cls, name: str, design_file: str, yaml_dir: Path | None,  # type: ignore[override]
+                   robot: Any = None) -> Estimator | LqgDesign:
         return cls._given if cls._given is not None else cls._load(name, design_file, yaml_dir)
 
     def configure(self) -> None:
         super().configure()
         est = self._estimator
         model = self._sim.model
-        self._readers = []
+        self._readers: list[tuple[str, str, str, int]] = []  # kind, imu, its field, index
         for kind, label in self._groups():
             if kind == "imu":
                 sensor, _, axis = label.partition(":")
@@ -476,12 +500,12 @@ class Observer(_Deployed):
                                      "<joint>:q, <joint>:dq, encoders, pose:<frame>")
                 self._readers.append(("imu", imu, _IMU_FIELDS[what], "xyz".index(axis)))
             elif kind == "still":
-                self._readers.append(("still", None, None, 0))
+                self._readers.append(("still", "", "", 0))
             else:
                 joint, _, what = label.rpartition(":")
                 jid = model.joint(joint).id
                 adr = model.jnt_qposadr[jid] if what == "q" else model.jnt_dofadr[jid]
-                self._readers.append((what, None, None, int(adr)))
+                self._readers.append((what, "", "", int(adr)))
         joints = [label.rpartition(":")[0] for label in est.inputs]
         kinds = {label.rpartition(":")[2] for label in est.inputs}
         self._effort_inputs = (kinds.pop() if len(kinds) == 1 else "effort") == "effort"
@@ -493,9 +517,11 @@ class Observer(_Deployed):
 
     @property
     def _estimator(self) -> Estimator:
-        return self.design
+        # _Deployed.design is typed for the state-feedback designs; an Observer's holds an
+        # Estimator (its _design_of), an Lqg's an LqgDesign
+        return cast(Estimator, self.design)
 
-    def _groups(self):
+    def _groups(self) -> list[tuple[str, str]]:
         est = self._estimator
         out = []
         for label in est.labels:
@@ -528,10 +554,10 @@ class Observer(_Deployed):
             std[hits] = float(value)
         return std
 
-    def activate(self, state) -> None:
+    def activate(self, state: State) -> None:
         self.reset()
 
-    def measure(self, state) -> np.ndarray:
+    def measure(self, state: State) -> np.ndarray:
         """The measured signals' deviations from the point (y - y0)."""
         data = self._sim.data
         est = self._estimator
@@ -563,7 +589,7 @@ class Observer(_Deployed):
             u = data.ctrl[self._input_ctrl] / self._gear
         return u - self._estimator.u0
 
-    def estimate(self, state) -> np.ndarray:
+    def estimate(self, state: State) -> np.ndarray:
         """Run one update of the estimator and export its outputs; returns the estimate."""
         est = self._estimator
         y = self.measure(state)
@@ -577,7 +603,7 @@ class Observer(_Deployed):
             self.exports[name][:] = rows @ self.x
         return self.x
 
-    def update(self, state, t: float, dt: float):
+    def update(self, state: State, t: float, dt: float) -> np.ndarray | None:
         x = self.estimate(state)
         if self.trace is not None:
             self._record(t, self.deviation(), x.copy())
@@ -590,11 +616,15 @@ class Lqg(Observer):
 
     @property
     def _estimator(self) -> Estimator:
-        return self.design.estimator
+        return self._lqg.estimator
 
-    def update(self, state, t: float, dt: float):
+    @property
+    def _lqg(self) -> LqgDesign:
+        return cast(LqgDesign, self.design)  # an Lqg's design (see Observer._estimator)
+
+    def update(self, state: State, t: float, dt: float) -> np.ndarray:
         x = self.estimate(state)
-        u = self.design.u0 - self.design.K @ x
+        u = self._lqg.u0 - self._lqg.K @ x
         if self.trace is not None:
             self._record(t, self.deviation(), x.copy())
         return u
@@ -614,14 +644,14 @@ class EstimateRun:
     outputs: dict[str, tuple[np.ndarray, np.ndarray]]
     rms: dict[str, np.ndarray]
     settle: float = 0.0
-    pushes: tuple = field(default=())
+    pushes: tuple[tuple[float, str, Sequence[float]], ...] = field(default=())
 
     def error(self, name: str) -> float:
         """The RMS error of an export over its components (sqrt of the mean square)."""
         return float(np.sqrt(np.mean(self.rms[name] ** 2)))
 
 
-def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: float = 0.2,
+def compare_estimate(lab: Lab, observer: Observer, duration: float = 2.0, settle: float = 0.2,
                      pushes: Sequence[tuple[float, str, Sequence[float]]] = (),
                      push_seconds: float = 0.1) -> EstimateRun:
     """Run `duration` s with the observer in the loop (from where the lab is), the pushes
@@ -633,15 +663,16 @@ def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: flo
         raise InputError(f"duration {duration} is not a positive number of seconds")
     sim = lab.sim
 
-    def start():
+    def start() -> None:
         observer.trace_full.clear()
         observer.trace_length = max(2, round(duration * observer.rate))
         observer.trace = []
         for at, link, impulse in pushes:
             force = np.asarray(impulse, dtype=float) / push_seconds
-            handle: list = []
+            handle: list[Periodic] = []
 
-            def kick(s, force=force, link=link, handle=handle):
+            def kick(s: Simulation, force: np.ndarray = force, link: str = link,
+                     handle: list[Periodic] = handle) -> None:
                 s.remove_periodic(handle[0])
                 s.apply_wrench(link, force, (0.0, 0.0, 0.0), duration=push_seconds)
             handle.append(sim.add_periodic(float(at), kick))
@@ -653,7 +684,8 @@ def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: flo
     true = np.array([row[1] for row in trace])
     estimate = np.array([row[2] for row in trace])
     keep = t >= settle
-    outputs, rms = {}, {}
+    outputs: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    rms: dict[str, np.ndarray] = {}
     for name, rows in est.outputs.items():
         a, b = true @ rows.T, estimate @ rows.T
         outputs[name] = (a, b)
@@ -661,7 +693,8 @@ def compare_estimate(lab, observer: Observer, duration: float = 2.0, settle: flo
     return EstimateRun(t, true, estimate, est.states, outputs, rms, settle, tuple(pushes))
 
 
-def plot_estimate(run: EstimateRun, name: str | None = None, ax=None):
+def plot_estimate(run: EstimateRun, name: str | None = None, ax: Axes | None = None
+                  ) -> Figure | SubFigure:
     """The true value (solid) and the estimate (dashed) of one export (default the first), with
     its RMS error in the title; returns the Figure."""
     import matplotlib.pyplot as plt
@@ -670,6 +703,7 @@ def plot_estimate(run: EstimateRun, name: str | None = None, ax=None):
     if name not in run.outputs:
         raise InputError(f"no export named {name!r}", hint=", ".join(run.outputs))
     true, est = run.outputs[name]
+    fig: Figure | SubFigure
     if ax is None:
         fig, ax = plt.subplots(figsize=(7, 3.5))
     else:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -26,6 +27,15 @@ from mexone.design.margins import LoopMargins
 from mexone.design.twin import python_runners, restore, snapshot, twin
 from mexone.errors import InputError, MexoneError
 from mexone.physics.monitor import has_fallen
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from mexone.control.controllers.python import PythonRunner
+    from mexone.control.student import State
+    from mexone.description.model import RobotModel
+    from mexone.lab import Lab
+    from mexone.physics.simulation import Simulation
 
 __all__ = ["Onset", "simulate_onset", "GAIN_TOLERANCE", "KICK"]
 
@@ -66,9 +76,9 @@ class Onset:
             return self.onset - self.predicted
         return self.onset / self.predicted - 1.0
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The prediction and the simulated onset as plain JSON values."""
-        def num(x):
+        def num(x: float) -> float | str:
             return float(x) if math.isfinite(x) else ("inf" if x > 0 else "nan")
         return {"kind": self.kind, "predicted": num(self.predicted), "onset": num(self.onset),
                 "tolerance": float(self.tolerance), "agrees": bool(self.agrees), "note": self.note,
@@ -79,12 +89,13 @@ class _Trials:
     """The copy the trials run on: a command history on the controlled joints' motors, the
     controllers' updates wrapped to scale their commands."""
 
-    def __init__(self, lab, loop: LoopModel, duration: float, kick: float, friction: bool):
+    def __init__(self, lab: Lab, loop: LoopModel, duration: float, kick: float, friction: bool
+                 ) -> None:
         self.loop, self.duration, self.kick = loop, duration, kick
         steps = int(math.ceil(_MAX_DELAY / lab.sim.model.opt.timestep)) + 2
         joints = set(loop.joints)
 
-        def history(spec, robot) -> None:
+        def history(spec: mujoco.MjSpec, robot: RobotModel) -> None:
             for joint in joints:
                 actuator = spec.actuator(joint)
                 actuator.nsample, actuator.delay = steps, 0.0
@@ -98,6 +109,7 @@ class _Trials:
         model = sim.model
         self.motors = np.array([model.actuator(j).id for j in loop.joints], dtype=int)
         self.step = model.opt.timestep
+        assert self.lab.manager is not None  # the copy runs the loop's controllers
         hw = self.lab.manager.hw
         rows = hw.rows(list(loop.joints))
         self.qadr, self.dadr = hw.qpos_adr[rows], hw.dof_adr[rows]
@@ -112,17 +124,17 @@ class _Trials:
         rng = np.random.default_rng(38)
         self.direction = rng.choice([-1.0, 1.0], size=len(rows))
 
-    def _wrap(self, runner) -> None:
+    def _wrap(self, runner: PythonRunner) -> None:
         impl, update = runner.impl, type(runner.impl).update
         at = [list(self.loop.joints).index(j) for j in runner.joints]
         u0 = self.loop.u0[at] if at else np.zeros(0)
 
-        def scaled(state, t, dt):
+        def scaled(state: State, t: float, dt: float) -> Any:
             out = update(impl, state, t, dt)
             if out is None or self.gain == 1.0 or not at:
                 return out
             return u0 + self.gain * (np.asarray(out, dtype=float).reshape(-1) - u0)
-        impl.update = scaled
+        impl.update = scaled  # type: ignore[method-assign]  # this instance's update, scaled
 
     def unstable(self, delay: float = 0.0, gain: float = 1.0) -> bool:
         sim = self.lab.sim
@@ -136,7 +148,7 @@ class _Trials:
         samples: list[tuple[float, float]] = []
         fell = [False]
 
-        def watch(s) -> None:
+        def watch(s: Simulation) -> None:
             dev = s.data.qpos[self.qadr] - self.q0
             force = s.data.actuator_force[self.motors] - self.force0
             samples.append((float(np.sqrt(dev @ dev)), float(np.sqrt(force @ force))))
@@ -150,7 +162,9 @@ class _Trials:
         finally:
             self.gain = 1.0
         manager = self.lab.manager
-        if fell[0] or any(manager.controllers[r.name].fault for r in self.runners):
+        assert manager is not None  # the copy runs the loop's controllers
+        if fell[0] or any(cast("PythonRunner", manager.controllers[r.name]).fault
+                          for r in self.runners):
             return True
         trace = np.array(samples)
         late = trace[3 * len(trace) // 4:].max(axis=0)  # decayed, or grown (or held by a limit)
@@ -160,7 +174,7 @@ class _Trials:
         return bool(np.any((late > _GROWTH * self.nominal) & (late > 1e-9)))
 
 
-def simulate_onset(lab, loop: LoopModel, every: LoopMargins, duration: float = 2.0,
+def simulate_onset(lab: Lab, loop: LoopModel, every: LoopMargins, duration: float = 2.0,
                    kick: float = KICK, gains: bool = True, delay: bool = True,
                    friction: bool = False) -> list[Onset]:
     """Check the all-channels margins of `every` (loop_margins(loop).all) on copies of `lab` (at the

@@ -19,16 +19,25 @@ import os
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, cast
 
 import control
 import mujoco
 import numpy as np
 
+from mexone.cluster import ray_session
 from mexone.control.hardware import set_actuator_state
 from mexone.design.check import _on_sim
 from mexone.design.deploy import StateFeedback
-from mexone.errors import InputError, install_extra
+from mexone.errors import InputError
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure, SubFigure
+
+    from mexone.control.controllers.python import PythonRunner
+    from mexone.lab import Lab
 
 __all__ = ["Region", "region_of_attraction", "plot_region", "BACKENDS"]
 
@@ -63,7 +72,7 @@ class Region:
         """The share of the grid's starting points the controller brought back."""
         return float(self.back.mean())
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The region of attraction as plain JSON values."""
         return {"axes": list(self.axes), "points": int(self.back.size),
                 "fraction_back": self.fraction, "level": _finite(self.level),
@@ -71,13 +80,15 @@ class Region:
                 "seconds": self.seconds, "backend": self.backend, "notes": list(self.notes)}
 
 
-def _finite(x: float):
+def _finite(x: float) -> float | str:
     return x if math.isfinite(x) else "inf"
 
 
-def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float, float]],
+def region_of_attraction(lab: Lab, controller: object, plant: control.StateSpace,
+                         axes: Mapping[str, tuple[float, float]],
                          shape: tuple[int, int] = (32, 32), duration: float = 1.5,
-                         lyapunov=None, threads: int | None = None, backend: str = "threads",
+                         lyapunov: np.ndarray | None = None, threads: int | None = None,
+                         backend: str = "threads",
                          address: str | None = None) -> Region:
     """The region of attraction of a deployed StateFeedback (from deploy, on `plant`) on a grid
     over two state labels (`axes`: label -> (low, high), deviations from the design's point),
@@ -94,7 +105,8 @@ def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float,
     labels = list(plant.state_labels)
     if len(axes) != 2:
         raise InputError(f"axes: give two state labels with their ranges, not {len(axes)}")
-    names = tuple(axes)
+    first, second = axes
+    names = (first, second)
     for name in names:
         if name not in labels:
             raise InputError(f"axis {name!r} is not a state of the plant",
@@ -106,7 +118,8 @@ def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float,
         raise InputError(f"shape {shape}: two sizes of at least 2")
     if not math.isfinite(duration) or duration <= 0:
         raise InputError(f"duration {duration} is not a positive number of seconds")
-    grid = tuple(np.linspace(*map(float, axes[n]), int(k)) for n, k in zip(names, shape, strict=True))
+    grid = (np.linspace(float(axes[first][0]), float(axes[first][1]), int(shape[0])),
+            np.linspace(float(axes[second][0]), float(axes[second][1]), int(shape[1])))
     design = controller.design
     K = design.K
     a, b = np.asarray(plant.A), np.asarray(plant.B)
@@ -151,20 +164,22 @@ def region_of_attraction(lab, controller, plant, axes: Mapping[str, tuple[float,
                   seconds, backend, tuple(notes))
 
 
-def _job(lab, controller, plant, names, grid, duration, P) -> dict:
+def _job(lab: Lab, controller: StateFeedback, plant: control.StateSpace, names: tuple[str, str],
+         grid: tuple[np.ndarray, np.ndarray], duration: float, P: np.ndarray) -> dict[str, Any]:
     """Everything a worker needs, picklable: the model as set now (gains, clamps), the base
     controls, the starts (full physics states), the law and how to read dx."""
     design = controller.design
     point = design.point
     labels = list(plant.state_labels)
 
-    def take():
+    def take() -> dict[str, Any]:
         sim = lab.sim
         m = copy.copy(sim.model)
         data = mujoco.MjData(m)
         mujoco.mj_copyData(data, m, sim.data)
         manager = lab.manager
-        runner = manager.controllers[controller.name]
+        assert manager is not None  # the StateFeedback runs in it
+        runner = cast("PythonRunner", manager.controllers[controller.name])
         hw = manager.hw
         motors = hw.layout.motor[runner.rows]
         ff = m.actuator_ctrladr[motors] + 2
@@ -218,7 +233,7 @@ def _offsets(model: mujoco.MjModel) -> tuple[int, int, int]:
     return t, q, v
 
 
-def _rollouts(job: dict, starts: np.ndarray, threads: int) -> np.ndarray:
+def _rollouts(job: dict[str, Any], starts: np.ndarray, threads: int) -> np.ndarray:
     """Each start's fastest velocity at the end (inf: fell or diverged). The fallen leave the
     batch at once."""
     from mujoco import rollout
@@ -263,7 +278,8 @@ def _rollouts(job: dict, starts: np.ndarray, threads: int) -> np.ndarray:
     return speed
 
 
-def _deviations(job: dict, model, state: np.ndarray, offsets) -> np.ndarray:
+def _deviations(job: dict[str, Any], model: mujoco.MjModel, state: np.ndarray,
+                offsets: tuple[int, int, int]) -> np.ndarray:
     """dx of each state in the batch: the design's coordinates (mj_differentiatePos)."""
     t_off, q_off, v_off = offsets
     qpos_index, qvel_index = job["qpos_index"], job["qvel_index"]
@@ -284,44 +300,21 @@ def _deviations(job: dict, model, state: np.ndarray, offsets) -> np.ndarray:
     return out
 
 
-def _start_ray(ray, kwargs: dict) -> None:
-    """ray.init, once more when a local node missed Ray's fixed 30 s start-up wait (a loaded
-    machine: "The current node timed out during startup")."""
-    for attempt in (1, 2):
-        try:
-            ray.init(include_dashboard=False, log_to_driver=False, configure_logging=False, **kwargs)
-            return
-        except Exception as exc:  # Ray raises a bare Exception for this one
-            if attempt == 2 or "timed out during startup" not in str(exc):
-                raise
-            ray.shutdown()
-
-
-def _on_ray(job: dict, starts: np.ndarray, address: str | None, threads: int | None) -> np.ndarray:
-    try:
-        import ray
-    except ImportError:
-        raise InputError("the ray backend needs Ray", hint=install_extra("cluster")) from None
-    started = not ray.is_initialized()
-    if started:
-        kwargs = {"address": address} if address else {"num_cpus": threads or os.cpu_count() or 1}
-        _start_ray(ray, kwargs)
-    try:
+def _on_ray(job: dict[str, Any], starts: np.ndarray, address: str | None, threads: int | None) -> np.ndarray:
+    with ray_session(threads or os.cpu_count() or 1, address) as ray:
         workers = max(1, int(ray.cluster_resources().get("CPU", 1)))
         remote = ray.remote(_rollouts)
         shared = ray.put(job)
         chunks = np.array_split(starts, workers)
         return np.concatenate(ray.get([remote.remote(shared, c, 1) for c in chunks if len(c)]))
-    finally:
-        if started:
-            ray.shutdown()
 
 
-def plot_region(region: Region, ax=None):
+def plot_region(region: Region, ax: Axes | None = None) -> Figure | SubFigure:
     """The starts that came back (filled) and did not (crosses) on the two axes, with the
     Lyapunov level sets: the largest holding only returns, and the saturation-free one."""
     import matplotlib.pyplot as plt
 
+    fig: Figure | SubFigure
     if ax is None:
         fig, ax = plt.subplots(figsize=(5.5, 4.5))
     else:

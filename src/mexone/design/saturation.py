@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -67,9 +68,9 @@ class Saturation:
     critical: np.ndarray
     notes: tuple[str, ...] = field(default=())
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """The saturation analysis as plain JSON values."""
-        def num(x):
+        def num(x: float) -> float | str:
             return float(x) if math.isfinite(x) else "inf"
         return {"k_low": self.k_low, "amplitude": num(self.amplitude), "notes": list(self.notes),
                 "inputs": list(self.inputs), "headroom": [num(h) for h in self.headroom],

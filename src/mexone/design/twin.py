@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, TypeVar, cast
 
 import mujoco
 import numpy as np
@@ -21,6 +22,11 @@ from mexone.control.controllers.python import PythonRunner
 from mexone.control.hardware import set_actuator_state
 from mexone.errors import ArgumentTypeError, InputError
 from mexone.physics.compile import CompileOptions, SpecEdit
+
+if TYPE_CHECKING:
+    from mexone.lab import Lab
+
+T = TypeVar("T")
 
 __all__ = ["twin", "ControllerState", "python_runners", "on_sim", "place"]
 
@@ -31,13 +37,13 @@ _MAX_SLOTS = 20_000  # floats in one controller's state: beyond it, a buffer tha
 _SKIP_MODEL = ("history", "delay")  # the copy's own (a delay line the trials add)
 
 
-def on_sim(lab, fn: Callable):
+def on_sim(lab: Lab, fn: Callable[[], T]) -> T:
     """Run `fn()` in the lab's simulation thread (now, if no other thread runs the loop)."""
     sim = lab.sim
     return sim.work.call(fn) if sim.loop_elsewhere() else fn()
 
 
-def python_runners(lab, names: Sequence[str] | None = None) -> list:
+def python_runners(lab: Lab, names: Sequence[str] | None = None) -> list[PythonRunner]:
     """The running Python controllers (PythonRunner) in the manager's update order, or the ones
     named; one line for a name that is not a running Python controller."""
     manager = getattr(lab, "manager", None)
@@ -70,8 +76,10 @@ class ControllerState:
     labels: tuple[str, ...]
 
     @classmethod
-    def of(cls, name: str, impl) -> ControllerState:
-        slots, values, labels = [], [], []
+    def of(cls, name: str, impl: object) -> ControllerState:
+        slots: list[tuple[str, str | None, tuple[int, ...]]] = []
+        values: list[np.ndarray] = []
+        labels: list[str] = []
         for attr, value in sorted(vars(impl).items()):
             if attr in _FRAMEWORK or attr.startswith("__"):
                 continue
@@ -92,7 +100,7 @@ class ControllerState:
                              hint="keep large buffers in a list or an int array")
         return cls(name, slots, vector, tuple(labels))
 
-    def read(self, impl) -> np.ndarray:
+    def read(self, impl: object) -> np.ndarray:
         """The vector as the object holds it now (a slot gone or reshaped reads as before)."""
         out, at = self.values.copy(), 0
         for attr, key, shape in self.slots:
@@ -106,7 +114,7 @@ class ControllerState:
             at += size
         return out
 
-    def write(self, impl, vector: np.ndarray) -> None:
+    def write(self, impl: object, vector: np.ndarray) -> None:
         """Put `vector` into the object: arrays in place (a reader's view of an export stays
         valid), scalars as floats."""
         at = 0
@@ -124,7 +132,7 @@ class ControllerState:
                 setattr(impl, attr, float(part[0]) if not shape else part.reshape(shape).copy())
 
 
-def _floats(value) -> np.ndarray | None:
+def _floats(value: object) -> np.ndarray | None:
     """A float or float array's values, flat; None for anything else."""
     if isinstance(value, bool | int | np.integer):
         return None
@@ -158,7 +166,7 @@ _OPTIONS = ("timestep", "gravity", "disableflags", "enableflags", "integrator", 
             "tolerance", "ls_iterations", "cone", "solver", "impratio", "noslip_iterations")
 
 
-def snapshot(lab) -> _Snapshot:
+def snapshot(lab: Lab) -> _Snapshot:
     """The live lab's parameters, state, commands and controllers' state (simulation thread)."""
     def take() -> _Snapshot:
         sim, manager = lab.sim, lab.manager
@@ -166,7 +174,9 @@ def snapshot(lab) -> _Snapshot:
         fields = {name: np.array(getattr(model, name)) for name in _model_fields(model)}
         options = {name: copy.copy(getattr(model.opt, name)) for name in _OPTIONS
                    if hasattr(model.opt, name)}
-        commands, states, running = {}, {}, ()
+        commands: dict[str, np.ndarray] = {}
+        states: dict[str, ControllerState] = {}
+        running: tuple[str, ...] = ()
         if manager is not None:
             c = manager.hw.command
             commands = {name: np.array(getattr(c, name)) for name in vars(c) if name != "n"}
@@ -191,7 +201,7 @@ def _model_fields(model: mujoco.MjModel) -> list[str]:
     return names
 
 
-def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
+def twin(lab: Lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None) -> Lab:
     """A private Lab like `lab` (see the module's docstring), with `edits` on its spec; its
     Python controllers are fresh objects of the same classes holding the live ones' state."""
     sim = getattr(lab, "sim", None)
@@ -224,13 +234,13 @@ def twin(lab, edits: Sequence[SpecEdit] = (), taken: _Snapshot | None = None):
         target = getattr(model, name)
         if target.shape == value.shape:
             target[...] = value
-    for name, value in taken.options.items():
-        setattr(model.opt, name, copy.copy(value))
+    for name, option in taken.options.items():
+        setattr(model.opt, name, copy.copy(option))
     restore(copy_lab, taken)
     return copy_lab
 
 
-def restore(copy_lab, taken: _Snapshot) -> None:
+def restore(copy_lab: Lab, taken: _Snapshot) -> None:
     """The copy back at the snapshot's state, its Python controllers holding the snapshot's
     internal state (between trials)."""
     sim = copy_lab.sim
@@ -250,12 +260,12 @@ def restore(copy_lab, taken: _Snapshot) -> None:
     if stopped:  # a trial's fault stopped them
         manager.switch(start=stopped)
     for name, state in taken.controllers.items():
-        runner = manager.controllers[name]
+        runner = cast(PythonRunner, manager.controllers[name])  # snapshot took Python ones
         runner.fault = None
         state.write(runner.impl, state.values)
 
 
-def place(lab, qpos: np.ndarray) -> None:
+def place(lab: Lab, qpos: np.ndarray) -> None:
     """The robot at `qpos`, at rest, every running controller restarted to hold it there (their
     integrals restart with them)."""
     def put() -> None:

@@ -84,7 +84,7 @@ class ControllersPanel(Panel):
             for key, param in declared.items():
                 value = ctrl.params.get(key, param.default)
                 hint = " ".join(p for p in (param.doc, f"({param.describe()})") if p)
-                if param.kind is bool:
+                if param.value_type is bool:
                     handle = gui.add_checkbox(key, bool(value), hint=hint)
                 else:
                     shown = number_text(value) if param.numeric else str(value)

@@ -4,7 +4,8 @@ A 30-link robot with full-resolution meshes sent ~35 MB over the websocket and d
 for 20 s. The page only needs what a person sees: each mesh is decimated (quadric error, via
 trimesh and fast-simplification) to its share of `TRIANGLE_BUDGET`, in proportion to its size
 in triangles, and the result cached on disk by file content and target, so the second start is
-instant. Physics, `check` and exports keep the full meshes (description/meshes.py).
+instant. Physics, `check` and exports keep the full meshes (description/meshes.py). Meshes are
+`Triangles` (arrays): trimesh is imported only to simplify, the first time a big robot is shown.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from mexone import files
-from mexone.description.meshes import load_mesh, resolve_mesh
+from mexone.description.meshes import Triangles, read_triangles, resolve_mesh
 from mexone.description.model import Mesh, RobotModel
 
 __all__ = ["TRIANGLE_BUDGET", "display_budgets", "display_mesh", "cache_dir"]
@@ -48,7 +49,7 @@ def display_budgets(robot: RobotModel, budget: int = TRIANGLE_BUDGET) -> dict[st
     """Faces each visual mesh (by filename as written) may keep; None: keep them all. Every
     visual that draws a mesh counts: each is sent to the page."""
     uses = _uses(robot)
-    faces = {name: len(load_mesh(path).faces) for name, (path, _) in uses.items()}
+    faces = {name: len(read_triangles(path).faces) for name, (path, _) in uses.items()}
     total = sum(faces[name] * n for name, (_, n) in uses.items())
     if total <= budget:
         return dict.fromkeys(faces)
@@ -57,23 +58,26 @@ def display_budgets(robot: RobotModel, budget: int = TRIANGLE_BUDGET) -> dict[st
             for name, n in faces.items()}
 
 
-def display_mesh(path: Path, faces: int | None):
+def display_mesh(path: Path, faces: int | None) -> Triangles:
     """The mesh at path with at most `faces` triangles (cached on disk); the file's own if None
     or already small enough."""
-    mesh = load_mesh(path)
+    mesh = read_triangles(path)
     if faces is None or len(mesh.faces) <= faces:
         return mesh
     digest = hashlib.sha1(path.read_bytes()).hexdigest()[:20]
     cached = cache_dir() / f"{digest}-{faces}.npz"
     try:
         with np.load(cached) as stored:
-            import trimesh
-
-            return trimesh.Trimesh(stored["vertices"], stored["faces"], process=False)
+            return Triangles(stored["vertices"].astype(np.float64), stored["faces"].astype(np.int64))
     except (OSError, KeyError, ValueError):
         pass
     try:
-        small = mesh.simplify_quadric_decimation(face_count=faces)
+        import trimesh  # only here: its import costs ~65 MB (description/meshes.py)
+
+        whole = trimesh.Trimesh(mesh.vertices, mesh.faces, process=False)
+        simplified = whole.simplify_quadric_decimation(face_count=faces)
+        small = Triangles(np.asarray(simplified.vertices, np.float64),
+                          np.asarray(simplified.faces, np.int64))
     except Exception as exc:  # noqa: BLE001 - a mesh the decimator cannot take is drawn whole
         _log.warning(f"could not simplify '{path}' for display ({exc}); drawing it whole")
         return mesh

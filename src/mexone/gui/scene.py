@@ -35,8 +35,13 @@ SENT_MOVE = 2e-5
 SHADOW_TRIANGLES = 30_000  # a robot drawn with more triangles casts no shadow (see build)
 
 
-def trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | None] | None = None):
-    """A trimesh to draw; meshes named in `budgets` are simplified to their share (display only)."""
+# triangles the page draws for a primitive (three.js's box, 32-segment cylinder, icosahedron of
+# detail 2): they count towards the shadow budget as a mesh's do
+_PRIMITIVE_TRIANGLES = {Box: 12, Cylinder: 128, Sphere: 180}
+
+
+def trimesh_of(geometry: Geometry, robot: RobotModel):
+    """A trimesh of the geometry (the model editor's; the lab's page draws without trimesh)."""
     import trimesh
 
     match geometry:
@@ -47,9 +52,7 @@ def trimesh_of(geometry: Geometry, robot: RobotModel, budgets: dict[str, int | N
         case Sphere(radius):
             return trimesh.creation.icosphere(subdivisions=2, radius=radius)
         case Mesh(filename, scale):
-            path = resolve_mesh(filename, robot.base_dir)
-            faces = (budgets or {}).get(filename)
-            mesh = (display_mesh(path, faces) if faces else load_mesh(path)).copy()
+            mesh = load_mesh(resolve_mesh(filename, robot.base_dir)).copy()
             mesh.apply_scale(scale)
             return mesh
     raise TypeError(geometry)
@@ -114,19 +117,19 @@ class RobotScene:
             self.links[name] = node
             link = robot.links[name]
             for i, vis in enumerate(link.visuals):
-                mesh = trimesh_of(vis.geometry, robot, budgets)
-                self.triangles += len(mesh.faces)
                 rgba = display_rgba(robot, name, vis)
-                self.visuals.append(scene.add_mesh_simple(
-                    f"/robot/{name}/visual_{i}", mesh.vertices.astype(np.float32), mesh.faces,
+                handle, triangles = self._add_shape(
+                    f"/robot/{name}/visual_{i}", vis.geometry, budgets,
                     color=tuple(int(255 * c) for c in rgba[:3]),
-                    position=vis.origin.xyz, wxyz=_wxyz(vis.origin.matrix[:3, :3])))
+                    position=vis.origin.xyz, wxyz=_wxyz(vis.origin.matrix[:3, :3]))
+                self.visuals.append(handle)
+                self.triangles += triangles
             for i, col in enumerate(link.collisions):
-                mesh = trimesh_of(col.geometry, robot, budgets)
-                self.overlays["Collisions"].append(scene.add_mesh_simple(
-                    f"/robot/{name}/collision_{i}", mesh.vertices.astype(np.float32), mesh.faces,
+                handle, _ = self._add_shape(
+                    f"/robot/{name}/collision_{i}", col.geometry, budgets,
                     color=_COLLISION_RGB, opacity=0.55, position=col.origin.xyz,
-                    wxyz=_wxyz(col.origin.matrix[:3, :3]), visible=False))
+                    wxyz=_wxyz(col.origin.matrix[:3, :3]), visible=False)
+                self.overlays["Collisions"].append(handle)
             if link.inertial and link.inertial.mass > 0:
                 self._add_inertial(name, link.inertial)
             joint = robot.parent_joint.get(name)
@@ -146,6 +149,29 @@ class RobotScene:
                                     wxyz=_wxyz(_look(np.array(self.sim.compiled.world.sun_direction))))
         loading.visible = False
         self.update()
+
+    def _add_shape(self, name: str, geometry: Geometry, budgets: dict[str, int | None],
+                   **style) -> tuple[viser.SceneNodeHandle, int]:
+        """(the scene node, triangles drawn): primitives as viser's, meshes as their arrays
+        (float32 vertices, uint32 faces: what goes on the wire, and no trimesh imported)."""
+        scene = self.server.scene
+        match geometry:
+            case Box(size):
+                handle = scene.add_box(name, dimensions=tuple(size), **style)
+            case Cylinder(radius, length):
+                handle = scene.add_cylinder(name, radius=radius, height=length, radial_segments=32,
+                                            **style)
+            case Sphere(radius):
+                handle = scene.add_icosphere(name, radius=radius, subdivisions=2, **style)
+            case Mesh(filename, scale):
+                path = resolve_mesh(filename, self.sim.robot.base_dir)
+                mesh = display_mesh(path, budgets.get(filename)).scaled(scale)
+                handle = scene.add_mesh_simple(name, mesh.vertices.astype(np.float32),
+                                               mesh.faces.astype(np.uint32), **style)
+                return handle, len(mesh.faces)
+            case _:
+                raise TypeError(geometry)
+        return handle, _PRIMITIVE_TRIANGLES[type(geometry)]
 
     def _add_inertial(self, name: str, inertial) -> None:
         scene = self.server.scene

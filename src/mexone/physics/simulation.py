@@ -686,7 +686,8 @@ class Simulation:
             return begin, FOREVER
         return begin, begin + round(duration * NS)
 
-    def apply_wrench(self, link: str, force: Sequence[float], torque: Sequence[float] = (0, 0, 0),
+    def apply_wrench(self, link: str, force: Sequence[float] | np.ndarray,
+                     torque: Sequence[float] = (0, 0, 0),
                      point: Sequence[float] | None = None, frame: str = "world",
                      duration: float | None = None, start: float | None = None) -> None:
         """Push a link: `force` (N) and `torque` (N m) expressed in `frame` ("world" or a link),

@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from mexone import signals
 from mexone.bus import msgs
@@ -71,6 +70,10 @@ bool antiwindup
 def typestore_for(ros1: bool) -> Any:
     """rosbags' type store for a ROS 1 .bag (Noetic) or an MCAP (ROS 2), with mexone's message
     types it lacks added."""
+    # here, not at the top: the page's Topics panel imports this module, and rosbags costs
+    # every lab ~6 MB it needs only when it records
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
     store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
     missing = {}
     if "tf2_msgs/msg/TFMessage" not in store.types:

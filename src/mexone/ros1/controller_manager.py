@@ -436,7 +436,7 @@ def params_config_type(declared: dict, values: dict):
 
     parameters = []
     for key, param in declared.items():
-        kind = _DR_TYPES[param.kind]
+        kind = _DR_TYPES[param.value_type]
         lo = param.low if param.low is not None else -_DR_BOUND
         hi = param.high if param.high is not None else _DR_BOUND
         if kind == "bool":

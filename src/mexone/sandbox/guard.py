@@ -10,10 +10,11 @@ from __future__ import annotations
 import os
 import subprocess
 from collections.abc import Callable
+from typing import Any
 
 __all__ = ["Refused", "install", "real_exit"]
 
-_real: dict[tuple[str, str], Callable] = {}
+_real: dict[tuple[str, str], Callable[..., Any]] = {}
 
 
 class Refused(BaseException):
@@ -49,8 +50,8 @@ def install(whose: str) -> None:
     spawn = _refuse("subprocess.Popen", starts)
     _real[("_posixsubprocess", "fork_exec")] = _posixsubprocess.fork_exec
     _posixsubprocess.fork_exec = spawn
-    if getattr(subprocess, "_fork_exec", None) is not None:
-        subprocess._fork_exec = spawn
+    if getattr(subprocess, "_fork_exec", None) is not None:  # Python 3.12's private alias
+        setattr(subprocess, "_fork_exec", spawn)  # noqa: B010 - not in the stubs
     for name in ("kill", "killpg"):
         _real[("os", name)] = original = getattr(os, name)
         guarded = _own_only(name, original, whose)
@@ -58,8 +59,8 @@ def install(whose: str) -> None:
         setattr(posix, name, guarded)
 
 
-def _refuse(name: str, why: str) -> Callable:
-    def refused(*args, **kwargs):
+def _refuse(name: str, why: str) -> Callable[..., Any]:
+    def refused(*args: object, **kwargs: object) -> Any:
         if name == "_exit":
             raise Refused(f"_exit({repr(args[0])[:40] if args else ''}) {why}")
         raise Refused(f"{name}(): {why}")
@@ -68,8 +69,8 @@ def _refuse(name: str, why: str) -> Callable:
     return refused
 
 
-def _own_only(name: str, original: Callable, whose: str) -> Callable:
-    def guarded(pid: int, sig: int):
+def _own_only(name: str, original: Callable[..., Any], whose: str) -> Callable[[int, int], Any]:
+    def guarded(pid: int, sig: int) -> Any:
         own = os.getpid() if name == "kill" else os.getpgrp()
         if pid not in (own, 0):
             raise Refused(f"os.{name}({pid}, {sig}): {whose} may signal only its own process")

@@ -52,7 +52,7 @@ def check(path: str | Path, what: str = "code") -> None:
                             "ctx.run, in a jail")
 
 
-def _hook(event: str, args: tuple) -> None:
+def _hook(event: str, args: tuple[object, ...]) -> None:
     if event == "exec":
         name = getattr(args[0], "co_filename", "") if args else ""
     elif event == "ctypes.dlopen":

@@ -34,6 +34,7 @@ import types
 import typing
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 __all__ = ["Channel", "WireError", "MAX_FRAME", "pair", "frame", "dumps", "loads", "plain", "read",
            "MAX_BYTES", "PLAIN"]
@@ -122,16 +123,20 @@ class Channel:
     def send_json(self, kind: bytes, obj: object, timeout: float = 10.0) -> None:
         self.send(kind, json.dumps(obj, separators=(",", ":")).encode(), timeout)
 
+    def _fds(self) -> socket.socket:
+        assert self.fds is not None, "a channel without its descriptor socket"  # pair() makes one
+        return self.fds
+
     def hand_over(self, descriptors: tuple[int, ...]) -> None:
         """Descriptors for the other side (which `take`s them), on the descriptor socket."""
         try:
-            socket.send_fds(self.fds, [b"d"], list(descriptors))
+            socket.send_fds(self._fds(), [b"d"], list(descriptors))
         except OSError as exc:
             raise WireError(f"the other side hung up ({exc.strerror})") from None
 
     def take(self, count: int) -> list[int]:
         """The student's end: the `count` descriptors mexone handed over with its last call."""
-        _, fds, _, _ = socket.recv_fds(self.fds, 1, count)
+        _, fds, _, _ = socket.recv_fds(self._fds(), 1, count)
         if len(fds) != count:
             for fd in fds:
                 os.close(fd)
@@ -141,17 +146,20 @@ class Channel:
     def introduce(self) -> None:
         """The student's end, once: one byte on the descriptor socket, whose credentials the
         kernel attaches (`peer`)."""
-        self.fds.sendall(b"c")
+        self._fds().sendall(b"c")
 
     def peer(self, timeout: float) -> int | None:
         """mexone's end: the pid (as this process sees it: a PID namespace translated) of the
         process that `introduce`d itself, as the kernel says, not as it might claim; None where
         the kernel does not say (not Linux) or nothing came within `timeout` s."""
         cred = getattr(socket, "SCM_CREDENTIALS", None)
-        if cred is None or not select.select([self.fds], [], [], timeout)[0]:
+        if cred is None:
+            return None
+        fds = self._fds()
+        if not select.select([fds], [], [], timeout)[0]:
             return None
         try:
-            _, ancillary, _, _ = self.fds.recvmsg(1, socket.CMSG_SPACE(struct.calcsize("3i")))
+            _, ancillary, _, _ = fds.recvmsg(1, socket.CMSG_SPACE(struct.calcsize("3i")))
         except OSError:
             return None
         for level, kind, data in ancillary:
@@ -249,7 +257,7 @@ def _plain(value: object, depth: int = 0) -> object:
     if isinstance(value, Path):
         return str(value)
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        out = {"$": type(value).__name__}
+        out: dict[str, object] = {"$": type(value).__name__}
         for f in dataclasses.fields(value):
             out[f.name] = _plain(getattr(value, f.name), depth + 1)
         return out
@@ -310,7 +318,8 @@ def read(raw: object, schema: object, where: str = "result", depth: int = 0) -> 
         tag = raw.get("$") if isinstance(raw, dict) else None
         errors = []
         for option in args:
-            if tag is not None and dataclasses.is_dataclass(option) and option.__name__ != tag:
+            if tag is not None and isinstance(option, type) and dataclasses.is_dataclass(option) \
+                    and option.__name__ != tag:
                 continue
             try:
                 return read(raw, option, where, depth)
@@ -395,10 +404,10 @@ def _dataclass(raw: object, cls: type, where: str, depth: int) -> object:
         raise WireError(f"{where}: {cls.__name__}: {exc}") from None
 
 
-_HINTS: dict[type, dict] = {}
+_HINTS: dict[type, dict[str, Any]] = {}
 
 
-def _hints(cls: type) -> dict:
+def _hints(cls: type) -> dict[str, Any]:
     hints = _HINTS.get(cls)
     if hints is None:
         hints = _HINTS[cls] = typing.get_type_hints(cls)
@@ -414,7 +423,7 @@ def _bytes(raw: object, where: str) -> bytes:
         raise WireError(f"{where}: bytes that are not base64") from None
 
 
-def _array(raw: object, where: str, numpy):
+def _array(raw: object, where: str, numpy: types.ModuleType) -> Any:  # a numpy array
     if isinstance(raw, list):  # a list of numbers is an array too
         try:
             array = numpy.asarray(raw, dtype=float)
@@ -466,5 +475,5 @@ def _shown(raw: object) -> str:
     return f"{type(raw).__name__} {text[:40]}"
 
 
-def _names(options: tuple) -> str:
+def _names(options: tuple[object, ...]) -> str:
     return ", ".join(getattr(o, "__name__", repr(o)) for o in options)

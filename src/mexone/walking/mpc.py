@@ -311,7 +311,7 @@ class ComPlanner(PythonController):
                       "across", unit="m")
     max_apart = Param(0.45, low=0.0, high=1.0, doc="a moved landing stays within this of the other "
                       "foot, across", unit="m")
-    reach_forward = Param(0.25, low=0.0, high=1.0, doc="a moved landing is at most this far ahead of "
+    reach_forward = Param(0.32, low=0.0, high=1.0, doc="a moved landing is at most this far ahead of "
                           "the other foot", unit="m")
     reach_back = Param(0.15, low=0.0, high=1.0, doc="a moved landing is at most this far behind the "
                        "other foot", unit="m")

@@ -90,7 +90,7 @@ class ControllerInterface:
     `mexone.control.PythonController` (`mexone.Controller`)."""
 
     kind: ClassVar[str] = ""  # position, velocity, effort, trajectory, state: control/'s own label
-    unit: ClassVar[str] = ""  # of its commands: rad, rad/s, N m
+    unit: str = ""  # of its commands: rad, rad/s, N m (a class's, or per instance: a Python one's)
     sliders: ClassVar[bool] = True  # a GUI slider per joint makes sense
     # ----- capabilities: what front ends ask of a controller ----------------------------------
     holds_position: ClassVar[bool] = False  # takes joint-position setpoints (`command`) and holds them
@@ -108,7 +108,8 @@ class ControllerInterface:
         self.joints = list(spec.joints)
         self.rows = self.hw.rows(self.joints) if self.joints else np.zeros(0, dtype=int)
         self.running = False
-        self.msg_type: type = Float64 if self.type.single_joint else Float64MultiArray
+        # the command topic's message class (None: it takes none, as a Python controller)
+        self.msg_type: type | None = Float64 if self.type.single_joint else Float64MultiArray
         self._pending: Any = None  # the latest command (values() made it), for the next update
         self.every_period = False  # the manager's: update runs every period (periodic or timed)
         self._warned: set[str] = set()
@@ -224,7 +225,8 @@ class ControllerInterface:
         elif isinstance(msg, Float64MultiArray):
             values = np.asarray(msg.data, dtype=float)
         else:
-            raise InputError(f"{self.name} takes {self.msg_type.__name__}, not {type(msg).__name__}")
+            takes = self.msg_type.__name__ if self.msg_type is not None else "no message"
+            raise InputError(f"{self.name} takes {takes}, not {type(msg).__name__}")
         if values.shape != (len(self.rows),):
             self.warn_once("size", f"command has {values.size} values for {len(self.rows)} joints; "
                                    "ignored")

@@ -15,7 +15,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -49,15 +49,22 @@ from mexone.physics.simulation import NS
 from mexone.ranges import number_text
 from mexone.sandbox.wire import Channel, WireError
 
+if TYPE_CHECKING:
+    from mexone.control.resolve import Plugin
+    from mexone.control.student import PythonController
+
 __all__ = ["IsolatedRunner"]
 
 
 class IsolatedRunner(PythonRunner):
     """PythonRunner whose student object runs in a worker process."""
 
+    _delay_meter: watchdog.RunDelayOf | None = None  # the kernel's wait count for the worker
+
     # ----- loading ------------------------------------------------------------------------------
-    def _instantiate(self, plugin):
-        self.info: ClassInfo = plugin.cls._mexone_worker
+    def _instantiate(self, plugin: Plugin) -> PythonController:
+        # the stand-in class worker.py made for the student's carries its description
+        self.info: ClassInfo = plugin.cls._mexone_worker  # type: ignore[attr-defined]
         self.worker: Worker | None = None
         self._mirror: dict[str, Any] = dict(plugin.params)
         self._thread_fault: str | None = None
@@ -153,9 +160,11 @@ class IsolatedRunner(PythonRunner):
                       tuple(declared_lengths(cls, "exports").items()))
 
     def _views_of(self, worker: Worker) -> None:
-        views = self._layout.views(worker.inputs, worker.outputs)
+        inp, out = worker.inputs, worker.outputs
+        assert inp is not None and out is not None  # a started worker has its block
+        views = self._layout.views(inp, out)
         data = self.ctx.sim.data
-        self._inp, self._out = worker.inputs, worker.outputs
+        self._inp, self._out = inp, out
         self._cmd = views["command"]
         self._dst = (views["qpos"], views["qvel"], views["frc"])
         self._src = (data.qpos, data.qvel, data.qfrc_actuator)
@@ -171,7 +180,7 @@ class IsolatedRunner(PythonRunner):
         if self.worker is not None:
             self.worker.kill()
             self.worker = None
-        meter = getattr(self, "_delay_meter", None)
+        meter = self._delay_meter
         if meter is not None:
             meter.close()
             self._delay_meter = None
@@ -181,7 +190,7 @@ class IsolatedRunner(PythonRunner):
     def params(self) -> dict[str, Any]:
         return dict(self._mirror)
 
-    def set_param(self, key: str, value) -> Any:
+    def set_param(self, key: str, value: object) -> Any:
         param = self.plugin.cls.declared_params().get(key)
         if param is None:
             raise InputError(f"controller '{self.name}' has no parameter '{key}'",
@@ -228,10 +237,14 @@ class IsolatedRunner(PythonRunner):
         if worker is not None:
             for line in worker.quit():
                 log.warning("controller '%s': %s", self.name, line)
+        self.say_dropped()
 
     # ----- the worker's requests while mexone waits ----------------------------------------------
     def on_log(self, level: int, text: str) -> None:
-        STUDENT_LOG.log(level, "%s", text)
+        shown, dropped = self.log_limit.admit()
+        self.say_dropped(dropped)
+        if shown:
+            STUDENT_LOG.log(level, "%s", text)
 
     def on_thread_fault(self, text: str) -> None:
         self._thread_fault = self._thread_fault or text
@@ -244,7 +257,7 @@ class IsolatedRunner(PythonRunner):
             self._wanted.append(index)
         return True
 
-    def on_params(self, params: dict) -> None:
+    def on_params(self, params: dict[str, Any]) -> None:
         declared = self.plugin.cls.declared_params()
         for key, value in params.items():
             param = declared.get(key)
@@ -253,7 +266,9 @@ class IsolatedRunner(PythonRunner):
                     self._mirror[key] = param.check(value)
 
     def _fill_sensor(self, index: int) -> None:
-        obj = self.ctx.sensors()[self._sensor_names[index]]
+        sensors = self.ctx.sensors
+        assert sensors is not None  # a sensor index exists only with the lab's sensors
+        obj = sensors()[self._sensor_names[index]]
         for name, view in self._sensor_views[index]:
             view[:] = np.ravel(getattr(obj, name))
 
@@ -307,6 +322,7 @@ class IsolatedRunner(PythonRunner):
         try:
             self._check_model()
             self._fill(t, 0.0)
+            assert self.worker is not None  # started above
             self.worker.call({"call": "activate"}, watchdog.STUDENT_SETUP_TIMEOUT)
             self._exported()
         except StudentFault as exc:
@@ -348,6 +364,7 @@ class IsolatedRunner(PythonRunner):
         if self._version == sim.model_version:
             return
         fd, size = model_block(sim.model)
+        assert self.worker is not None  # asked only with a worker
         try:
             self.worker.call({"call": "model", "model": {"size": size, "links": self._links(),
                                                          "bodies": list(self._links().values())}},
@@ -432,7 +449,7 @@ class IsolatedRunner(PythonRunner):
         """s the worker's main thread has waited for a CPU, as the kernel says (not as its
         shared memory says: the student writes there)."""
         pid = worker.pid or worker.process.pid
-        meter = getattr(self, "_delay_meter", None)
+        meter = self._delay_meter
         if meter is None or meter.pid != pid:
             if meter is not None:
                 meter.close()

@@ -20,12 +20,13 @@ import inspect
 import logging
 import threading
 import time
-from typing import Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
 
 try:
     import resource
 except ImportError:  # Windows
-    resource = None
+    resource = None  # type: ignore[assignment]  # the standard optional-module idiom
 
 import numpy as np
 
@@ -33,7 +34,15 @@ from mexone import signals
 from mexone.control import watchdog
 from mexone.control.controllers.base import Controller, ControllerType
 from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
-from mexone.control.mistakes import StudentLog, non_finite, not_numbers, return_lines, wrong_count
+from mexone.control.mistakes import (
+    LogLimit,
+    StudentLog,
+    dropped_lines,
+    non_finite,
+    not_numbers,
+    return_lines,
+    wrong_count,
+)
 from mexone.control.resolve import Plugin, student_line
 from mexone.control.student import (
     Exports,
@@ -49,6 +58,14 @@ from mexone.control.watchdog import ControllerHang, Watched
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
+
+if TYPE_CHECKING:
+    import mujoco
+
+    from mexone.bus.topics import Subscription
+    from mexone.control.controllers.base import ControllerContext
+    from mexone.control.spec import ControllerSpec
+    from mexone.dynamics import Dynamics
 
 __all__ = ["PythonRunner", "ControllerHang", "HOLD_BANDWIDTH", "BudgetMeter"]
 
@@ -73,7 +90,7 @@ class BudgetMeter:
     def __init__(self) -> None:
         self.updates, self.total, self.worst, self.misses = 0, 0.0, 0.0, 0
 
-    def as_dict(self, deadline: float) -> dict:
+    def as_dict(self, deadline: float) -> dict[str, Any]:
         """For `sim --json` and the page: ms per update (mean, worst), the deadline (ms), misses."""
         mean = self.total / self.updates if self.updates else 0.0
         return {"updates": self.updates, "update_ms_mean": round(mean * 1e3, 4),
@@ -82,11 +99,15 @@ class BudgetMeter:
 
 
 class PythonRunner(Controller):
+    """The framework's side of a student's PythonController in the simulation's process: it
+    reads the state into `State`, calls update in lockstep, checks and clamps what it returns and
+    writes it through the hardware's writers; a fault stops it and holds its joints."""
+
     kind = "python"
     sliders = False
     reloadable = True
 
-    def __init__(self, spec, ctx):
+    def __init__(self, spec: ControllerSpec, ctx: ControllerContext) -> None:
         plugin: Plugin = spec.plugin
         self.plugin = plugin
         super().__init__(spec, ctx)
@@ -97,6 +118,7 @@ class PythonRunner(Controller):
         self.dofs = hw.dof_adr[self.rows].copy()
         self.fault: str | None = None
         self.updates = 0
+        self.log_limit = LogLimit()  # its self.log's lines a second
         self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
         self.meter = BudgetMeter()  # the real-time budget since it started: every update counted
         self._update_time = 0.0
@@ -106,7 +128,7 @@ class PythonRunner(Controller):
         self._last_t: float | None = None
         self._overruns = 0
         self._suspect = False  # the last update overran: the next are checked for preemption
-        self._dyn = None
+        self._dyn: Dynamics | None = None
         self._dyn_at = -1
         self._limits_said: set[str] = set()
         self._command = np.zeros(len(self.rows))
@@ -115,8 +137,9 @@ class PythonRunner(Controller):
         self._limits = [min(float(v), 1e300) for v in self._effort_limit]
         self._n = len(self.rows)
         self._effort = self.interface_name == "effort"
-        self.writer = lambda values: None  # the manager's: hw.rows_writer for these joints
-        self.float_writer = None  # the manager's: hw.effort_floats_writer (effort, few joints)
+        # the manager's: hw.writers(rows, interface) for these joints (floats: effort, few joints)
+        self.writer: Callable[[np.ndarray], None] = lambda values: None
+        self.float_writer: Callable[[list[float]], None] | None = None
         self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
         self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
         self._span: slice | None = None
@@ -133,10 +156,10 @@ class PythonRunner(Controller):
         self._topics = declared_topics(plugin.cls)
         self._inbox: dict[str, object] = {}
         self._inbox_lock = threading.Lock()
-        self._subscriptions: list = []
+        self._subscriptions: list[Subscription] = []
 
     @classmethod
-    def type_of(cls, spec) -> ControllerType:
+    def type_of(cls, spec: ControllerSpec) -> ControllerType:
         return ControllerType(spec.type, cls, spec.plugin.interface, False)
 
     # ----- what front ends read -----------------------------------------------------------------
@@ -156,7 +179,7 @@ class PythonRunner(Controller):
     def timed(self) -> bool:
         return True
 
-    def budget(self) -> dict:
+    def budget(self) -> dict[str, Any]:
         """The real-time budget meter's figures (BudgetMeter.as_dict)."""
         return self.meter.as_dict(self._max_time)
 
@@ -164,14 +187,14 @@ class PythonRunner(Controller):
     def params(self) -> dict[str, Any]:
         return dict(self.impl.params)
 
-    def declared_params(self) -> dict:
+    def declared_params(self) -> dict[str, Any]:
         return self.plugin.cls.declared_params()
 
     @property
     def code_file(self) -> str | None:
         return self.plugin.file
 
-    def set_param(self, key: str, value) -> Any:
+    def set_param(self, key: str, value: object) -> Any:
         """Change a declared parameter live (simulation thread), validated as the YAML's."""
         param = self.plugin.cls.declared_params().get(key)
         if param is None:
@@ -200,13 +223,13 @@ class PythonRunner(Controller):
         impl.dofs = self.dofs.copy()
         impl.effort_limits = self._effort_limit.copy()
         impl.params = dict(plugin.params)
-        impl.log = StudentLog(STUDENT_LOG, {"name": self.name})
+        impl.log = StudentLog(STUDENT_LOG, {"name": self.name, "limit": self.log_limit})
         impl.exports = self.exports
         impl.__dict__["_mexone_binding"] = self
         self._call(impl.configure, "configure")
         return impl
 
-    def _call(self, fn, what: str, *args):
+    def _call(self, fn: Callable[..., Any], what: str, *args: object) -> Any:
         try:
             with _GUARD.watching(Watched(f"controller '{self.name}'", self.plugin.file, what)):
                 return fn(*args)
@@ -234,7 +257,7 @@ class PythonRunner(Controller):
     def update_line(self) -> str:
         """file:line of the student's update method (what an overrun points at)."""
         try:
-            line = inspect.getsourcelines(type(self.impl).update)[1]
+            line = str(inspect.getsourcelines(type(self.impl).update)[1])
         except (OSError, TypeError):
             line = "?"
         return f"{self.plugin.file}:{line}"
@@ -246,7 +269,7 @@ class PythonRunner(Controller):
         return f"{self.plugin.file}:{lines[0]}" if len(lines) == 1 else self.update_line()
 
     # ----- dynamics at the live state -----------------------------------------------------------
-    def dynamics(self):
+    def dynamics(self) -> Dynamics:
         sim = self.ctx.sim
         if self._dyn is None or self._dyn.model is not sim.model or self._dyn._source is not sim.data:
             from mexone.dynamics import Dynamics
@@ -265,7 +288,7 @@ class PythonRunner(Controller):
         if bus is None or self._subscriptions:
             return
         for name, msg_type in self._topics.items():
-            def keep(msg, name=name):
+            def keep(msg: object, name: str = name) -> None:
                 with self._inbox_lock:
                     self._inbox[name] = msg
             self._subscriptions.append(bus.subscribe(f"{ns}/{name}", msg_type, keep, node=self.name))
@@ -302,8 +325,9 @@ class PythonRunner(Controller):
                 c.teleport[rows] = TELEPORT_POSITION
             self._command = hw.state.position[rows].copy()
         elif self.interface_name == "velocity":
-            gains = [self.pid_for(j) for j in self.joints]
-            if None in gains:
+            found = [self.pid_for(j) for j in self.joints]
+            gains = [g for g in found if g is not None]
+            if len(gains) < len(found):
                 c.teleport[rows] = TELEPORT_VELOCITY
             else:
                 c.kd[rows] = [g.p for g in gains]
@@ -329,8 +353,9 @@ class PythonRunner(Controller):
     def _write_pid(self, damp: bool = False) -> bool:
         """The YAML's PID gains on the claimed joints (p, d only when damping); False if a joint
         has none."""
-        gains = [self.pid_for(j) for j in self.joints]
-        if None in gains:
+        found = [self.pid_for(j) for j in self.joints]
+        gains = [g for g in found if g is not None]
+        if len(gains) < len(found):
             return False
         c, rows = self.hw.command, self.rows
         c.kp[rows] = 0.0 if damp else [g.p for g in gains]
@@ -378,7 +403,17 @@ class PythonRunner(Controller):
         return callable(getattr(self.impl, "report", None))
 
     def close(self) -> None:
-        """It is unloaded for good (nothing to end in-process)."""
+        """It is unloaded for good (nothing to end in-process): the log lines it had dropped
+        are said."""
+        self.say_dropped()
+
+    def say_dropped(self, dropped: int | None = None) -> None:
+        """The line saying how many of its log lines the LogLimit dropped (None: those not said
+        yet), if any were."""
+        if dropped is None:
+            dropped = self.log_limit.flush()
+        if dropped:
+            STUDENT_LOG.warning("%s", dropped_lines(self.name, dropped, self.log_limit.per_second))
 
     def hold(self, damp: bool = False) -> None:
         """The joints hold their measured position (or are only damped) by MuJoCo's servo."""
@@ -420,9 +455,10 @@ class PythonRunner(Controller):
             state.q, state.dq, state.effort = (_EMPTY for _ in range(3))
             self.direct = True
             return
-        views = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
+        found = [strided_view(data.qpos, hw.qpos_adr[rows]), strided_view(data.qvel, hw.dof_adr[rows]),
                  strided_view(data.qfrc_actuator, hw.dof_adr[rows])]
-        if any(v is None for v in views):
+        views = [v for v in found if v is not None]
+        if len(views) < len(found):
             self._span = _span_of(rows)
             if self._span is None:
                 state.q, state.dq, state.effort = (np.zeros(len(rows)) for _ in range(3))
@@ -521,7 +557,7 @@ class PythonRunner(Controller):
             self._suspect, self._overruns = False, 0
         return False
 
-    def _write(self, out, t: float) -> None:
+    def _write(self, out: object, t: float) -> None:
         """Check the student's commands, clamp them, and send them to MuJoCo (through the
         hardware's writer for these joints: the manager's fast write needs nothing else)."""
         n = self._n
@@ -572,7 +608,8 @@ class PythonRunner(Controller):
         self._command = values
         self.writer(values)
 
-    def _clamped(self, values, lower, upper, what: str) -> np.ndarray:
+    def _clamped(self, values: np.ndarray, lower: np.ndarray, upper: np.ndarray, what: str
+                 ) -> np.ndarray:
         """Clamp, saying once per joint (Gazebo clamps efforts to the URDF limit too)."""
         clamped = np.clip(values, lower, upper)
         fresh = [i for i in np.flatnonzero(clamped != values) if self.joints[i] not in self._limits_said]
@@ -609,7 +646,7 @@ def _preemptions() -> int:
     return 0 if who is None else resource.getrusage(who).ru_nivcsw
 
 
-def _inertia_diagonal(model, data, dofs: np.ndarray) -> np.ndarray:
+def _inertia_diagonal(model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
     """M(q)[i, i] for each dof i: the inertia the joint moves now (armature included)."""
     import mujoco
 
@@ -631,7 +668,9 @@ def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> i
     rate = runner.plugin.update_rate
     period = 1.0 / rate if rate else control_period
     if period < timestep * (1 - 1e-9):
-        runner.warn_once("rate", f"update_rate {number_text(rate)} Hz is faster than the physics "
+        asked = f"update_rate {number_text(rate)} Hz" if rate else \
+            f"the control rate {number_text(1 / control_period)} Hz"
+        runner.warn_once("rate", f"{asked} is faster than the physics "
                                  f"step ({number_text(1 / timestep)} Hz): it updates every step")
         period = timestep
     return max(1, round(period * NS))

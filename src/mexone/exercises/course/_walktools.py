@@ -22,7 +22,8 @@ from mexone.exercises.isolate import SubmissionFailed
 from mexone.exercises.sim import Variation
 from mexone.robots import mex_one
 
-__all__ = ["Push", "Variant", "draw", "stack_yaml", "walk", "speed_check", "imports", "rows", "UP"]
+__all__ = ["Push", "Variant", "draw", "stack_text", "handout", "stack_yaml", "walk", "speed_check",
+           "imports", "rows", "UP"]
 
 UP = "stays up"
 SAMPLE = 0.02  # s between the grader's samples of the walk
@@ -69,22 +70,47 @@ def draw(r: np.random.Generator | None, push: tuple[float, float] | None,
                                    0.0 if r.random() < 0.5 else math.pi))
 
 
+def stack_text(part: str | None = None, kind: str = "", params: dict[str, dict] | None = None,
+               header: str = "") -> str:
+    """walking.yaml's text with the controller `part`'s type replaced by `kind` (FILE_STEM/CLASS:
+    a class in a file next to the YAML) and `params` ({controller: {param: value}}) set, under
+    the comment `header`."""
+    data = yaml.safe_load(mex_one.walking_path().read_text())
+    ns, controllers = next(iter(data.items()))
+    if part is not None:
+        controllers[part]["type"] = kind
+    for name, values in (params or {}).items():
+        controllers[name].update(values)
+    comment = "".join(f"# {line}".rstrip() + "\n" for line in header.splitlines())
+    return comment + yaml.safe_dump(data, sort_keys=False)
+
+
+def handout(part: str | None, file: str, cls: str, params: dict[str, dict] | None,
+            exercise: str) -> dict[str, str]:
+    """What `mexone exercise start` writes beside the starter: controllers.yaml, the walking
+    stack with the student's class (`cls` of `file`) in `part`'s place (or the stack alone) and
+    the grader's gait, to run the part locally as it is graded."""
+    what = (f"the walking stack with your {cls} ({file}) as its {part}" if part else
+            "the walking stack")
+    header = (f"Exercise {exercise}: {what}, walking as the grader commands.\n"
+              "  mexone sim --controllers controllers.yaml         (the page: watch it, push it)\n"
+              "  mexone sim --headless --duration 5 --controllers controllers.yaml --json\n"
+              "Written by `mexone exercise start` from mexone's walking.yaml (docs/walking-stack.md).")
+    kind = f"{Path(file).stem}/{cls}" if part else ""
+    return {"controllers.yaml": stack_text(part, kind, params, header)}
+
+
 def stack_yaml(workdir: Path, part: str | None = None, source: Path | None = None,
                file: str = "", cls: str = "", params: dict[str, dict] | None = None) -> Path:
     """walking.yaml in `workdir` with the controller `part`'s type replaced by the student's
     class `cls` of `source` (copied next to it as `file`, whatever the student named it), and
     `params` ({controller: {param: value}}) set; its path."""
-    data = yaml.safe_load(mex_one.walking_path().read_text())
-    ns, controllers = next(iter(data.items()))
     if part is not None:
-        if not source.is_file():
+        if source is None or not source.is_file():
             raise SubmissionFailed(InputError(f"{source}: no such file", hint=f"hand in {file}").one_line())
         shutil.copyfile(source, workdir / file)
-        controllers[part]["type"] = f"{Path(file).stem}/{cls}"
-    for name, values in (params or {}).items():
-        controllers[name].update(values)
     out = workdir / "controllers.yaml"
-    out.write_text(yaml.safe_dump(data, sort_keys=False))
+    out.write_text(stack_text(part, f"{Path(file).stem}/{cls}", params))
     return out
 
 

@@ -1,7 +1,11 @@
-"""Exercise 14 (reference): the pelvis's tilt from gravity with its IMU alone: the gyro's bias
-measured while the robot stands still, then a complementary filter, the gyro integrated and
-pulled slowly toward the tilt the accelerometer reads (gravity, when nothing else accelerates
-it much)."""
+"""Exercise 14 (reference): the pelvis's tilt from gravity with its IMU alone: a complementary
+filter, the gyro integrated and pulled toward the tilt the accelerometer reads (gravity, when
+nothing else accelerates it much). On a slope the robot sways on its feet from the start, and
+its accelerometer reads the sway many times over: the pull starts as the running mean of what
+the accelerometer said since landing (a Kalman filter's gain for a constant) and settles to the
+crossover's, and the gyro's bias is learned slowly from the same pull (an integral term, as in
+Mahony's filter), not measured in a moment the robot is assumed still (was: 7-17 mrad RMS
+under a pitched slope, a bias read while it swayed)."""
 
 from __future__ import annotations
 
@@ -17,12 +21,11 @@ G = 9.81
 class TiltObserver(PythonController):
     exports = {"tilt": 2}
     crossover = Param(0.15, low=0.01, high=20.0, unit="Hz")
-    calibrate = Param(0.8, low=0.0, high=5.0, unit="s")
+    integral = Param(0.05, low=0.0, high=5.0, unit="1/s^2")
 
     def activate(self, state):
         self.tilt = np.zeros(2)
         self.bias = np.zeros(2)
-        self.samples = 0
         self.started = None  # the time gravity alone was first read
 
     @staticmethod
@@ -39,12 +42,8 @@ class TiltObserver(PythonController):
                 self.started, self.tilt = t, self.from_gravity(acc)
             self.exports["tilt"][:] = self.tilt
             return
-        if t - self.started < self.calibrate:  # standing still: the gyro reads its bias
-            self.samples += 1
-            self.bias += (rate - self.bias) / self.samples
-            self.tilt += 0.05 * (self.from_gravity(acc) - self.tilt)
-        else:
-            k = 2 * math.pi * self.crossover
-            self.tilt = self.tilt + (rate - self.bias) * dt
-            self.tilt = self.tilt + k * dt * (self.from_gravity(acc) - self.tilt)
+        gain = max(1.0 / (t - self.started + dt), 2 * math.pi * self.crossover)  # 1/s
+        miss = self.from_gravity(acc) - self.tilt
+        self.tilt = self.tilt + (rate - self.bias) * dt + gain * dt * miss
+        self.bias = self.bias - self.integral * dt * miss
         self.exports["tilt"][:] = self.tilt

@@ -1,10 +1,12 @@
 """Exercise 14, an observer of the tilt: the student's controller exports `tilt` (the pelvis's
 roll and pitch from the vertical) from the IMU. Hidden variant: a slope (gravity tilted 2-4
 degrees: an estimate read from the simulator's world-frame truth is off by the slope), the
-IMU's noise and gyro bias. The estimate must depend on the gyro: a second run with the gyro's
-noise 10 % larger must change it (else it read the truth, perhaps offset by the tilt the
-accelerometer read at rest), and the tracking counts only then. The observer reads no truth
-(`blind`): its floating base stays where it was put, its IMU reports no orientation."""
+IMU's noise and gyro bias. Graded: the estimate's RMS error, and that of its changes over the
+pushes (most of the tilt is the slope, still: an estimate held still would pass on the first
+alone). The estimate must depend on the gyro: a second run with the gyro's noise 10 % larger
+must change it (else it read the truth, perhaps offset by the tilt the accelerometer read at
+rest), and the tracking counts only then. The observer reads no truth (`blind`): its floating
+base stays where it was put, its IMU reports no orientation."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import math
 import re
 import tempfile
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -26,6 +29,61 @@ GIVEN = {"slope": (0.0, 0.0), "gyro": 0.01, "bias": (0.0, 0.0), "acc": 0.1, "pus
 SECONDS, SETTLE = 3.5, 0.5
 PUSHES = ((1.2, (1.5, 0.0, 0.0)), (2.3, (0.0, 1.2, 0.0)))  # s, N s at the pelvis over 0.1 s
 FULL, NONE = 8e-3, 25e-3  # rad RMS: full marks within FULL, none beyond NONE
+# the tilt's changes over the AFTER s after each push, from its mean over the BEFORE s before it:
+# their RMS error over their RMS, full marks within CHANGE_FULL, none beyond CHANGE_NONE (an
+# estimate that holds still, the slope's tilt read once, scores 1: none)
+CHANGE_FULL, CHANGE_NONE, BEFORE, AFTER = 0.4, 0.8, 0.05, 0.6
+STEP = 1e-3  # s between samples: the simulator's timestep
+
+
+class Tracking(NamedTuple):
+    """How an estimate of the tilt followed it after SETTLE (rad): its RMS error on the tilt's
+    RMS, and the RMS error of its changes after the pushes on the changes' RMS. Most of the
+    tilt is the slope, which holds still: an estimate that holds still too (the slope guessed,
+    or the accelerometer's reading at rest held) had a small error and full marks (was: 6.17
+    mrad RMS, 10/10) while it tracked nothing the pushes did."""
+
+    error: float
+    size: float
+    change_error: float
+    change_size: float
+
+    @property
+    def change_share(self) -> float:
+        """The changes' RMS error over their RMS (inf: none, or not finite)."""
+        ok = math.isfinite(self.change_error) and self.change_size > 0
+        return self.change_error / self.change_size if ok else math.inf
+
+    def fraction(self) -> float:
+        """The share of the marks (0..1): the lower of the tilt's and its changes'."""
+        if not (math.isfinite(self.error) and math.isfinite(self.change_share)):
+            return 0.0
+        return min((NONE - self.error) / (NONE - FULL),
+                   (CHANGE_NONE - self.change_share) / (CHANGE_NONE - CHANGE_FULL))
+
+
+def tracking(true: np.ndarray, estimate: np.ndarray) -> Tracking:
+    """The Tracking of `estimate` against `true`, each (steps, 2) rad sampled every STEP."""
+    n = min(len(true), len(estimate))
+    true, estimate = true[:n], estimate[:n]
+    t = np.arange(n) * STEP
+    keep = t >= SETTLE
+    if not keep.any() or not np.isfinite(estimate[keep]).all():  # ended early, or NaN
+        return Tracking(math.inf, 0.0, math.inf, 0.0)
+    error = estimate[keep] - true[keep]
+    changes, truths = [], []
+    for at, _ in PUSHES:
+        before, window = (t >= at - BEFORE) & (t < at), (t >= at) & (t < at + AFTER)
+        if before.any() and window.any():
+            moved = true[window] - true[before].mean(axis=0)
+            changes.append(estimate[window] - estimate[before].mean(axis=0) - moved)
+            truths.append(moved)
+    if not changes:
+        return Tracking(float(np.sqrt(np.mean(error**2))), float(np.sqrt(np.mean(true[keep]**2))),
+                        math.inf, 0.0)
+    change, moved = np.concatenate(changes), np.concatenate(truths)
+    return Tracking(float(np.sqrt(np.mean(error**2))), float(np.sqrt(np.mean(true[keep]**2))),
+                    float(np.sqrt(np.mean(change**2))), float(np.sqrt(np.mean(moved**2))))
 
 
 def variant(r: np.random.Generator | None) -> dict:
@@ -90,8 +148,9 @@ def blind(lab, name: str) -> None:
 
 
 def measure(submission: Path, var: dict, louder: bool = False
-            ) -> tuple[float, float, np.ndarray, str | None]:
-    """In the isolated child: (RMS error rad, the true tilt's RMS, the estimate, fault)."""
+            ) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """In the isolated child: the pelvis's true tilt from gravity and the student's estimate,
+    each (steps, 2) rad, one row a step from the start; the controller's fault."""
     with tempfile.TemporaryDirectory() as tmp, tempfile.TemporaryDirectory() as hidden:
         folder = Path(tmp)
         path = student_yaml(folder, submission, FILE, CLASS, NAME, (), {})
@@ -117,26 +176,25 @@ def measure(submission: Path, var: dict, louder: bool = False
             lab.sim.apply_wrench("pelvis", tuple(force), (0.0, 0.0, 0.0), duration=0.1)
         lab.sim.run(SECONDS - lab.sim.time)
         fault = controller_fault(lab, NAME)
-    true, estimate = np.array(true), np.array(estimate)
-    keep = np.arange(len(true)) * 1e-3 >= SETTLE
-    error = estimate[keep] - true[keep]
-    rms = float(np.sqrt(np.mean(error**2))) if np.isfinite(error).all() else math.inf
-    return rms, float(np.sqrt(np.mean(true[keep] ** 2))), estimate, fault
+    return np.array(true, dtype=float), np.array(estimate, dtype=float), fault
 
 
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
-    rms, size, estimate, fault = ctx.run(measure, ctx.submission, var)
+    true, estimate, fault = ctx.run(measure, ctx.submission, var)
+    how = tracking(true, estimate)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"exported a tilt for {SECONDS} s")
     what = (f"slope {math.degrees(var['slope'][0]):.1f}/{math.degrees(var['slope'][1]):.1f} deg, "
             f"gyro {var['gyro']:g} rad/s (bias {var['bias'][0]:+.4f}, {var['bias'][1]:+.4f}), "
             f"accelerometer {var['acc']:g} m/s^2")
-    frac = 0.0 if fault or not math.isfinite(rms) else (NONE - rms) / (NONE - FULL)
+    frac = 0.0 if fault else how.fraction()
     tracks = check("tracks the tilt", 6.0, frac,
-                   f"RMS error {rms * 1e3:.2f} mrad on a tilt of {size * 1e3:.1f} mrad RMS (full "
-                   f"marks <= {FULL * 1e3:g}, none >= {NONE * 1e3:g}; {what})",
-                   requires="uses the IMU")
-    _, _, again, fault2 = ctx.run(measure, ctx.submission, var, True)
+                   f"RMS error {how.error * 1e3:.2f} mrad on a tilt of {how.size * 1e3:.1f} mrad "
+                   f"RMS, and {how.change_error * 1e3:.2f} mrad on its changes after the pushes "
+                   f"({how.change_share:.0%} of their {how.change_size * 1e3:.1f} mrad RMS) (full "
+                   f"marks <= {FULL * 1e3:g} mrad and <= {CHANGE_FULL:.0%}, none >= "
+                   f"{NONE * 1e3:g} mrad or >= {CHANGE_NONE:.0%}; {what})", requires="uses the IMU")
+    _, again, fault2 = ctx.run(measure, ctx.submission, var, True)
     n = min(len(estimate), len(again))
     moved = float(np.abs(estimate[:n] - again[:n]).max()) if n else 0.0
     reads = moved > 1e-6 and not fault2

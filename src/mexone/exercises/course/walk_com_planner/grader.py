@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from mexone.exercises.course._labtools import check
-from mexone.exercises.course._walktools import UP, draw, imports, rows, speed_check, stack_yaml, walk
+from mexone.exercises.course._walktools import UP, draw, handout, imports, rows, speed_check, stack_yaml, walk
 
 FILE, CLASS, PART = "com_planner.py", "MyComPlanner", "com_planner"
 SHIPPED = "mexone.walking.mpc"
@@ -23,6 +23,12 @@ SECONDS, VX = 4.5, 0.3  # s of walk, m/s commanded
 GAIT = {"footsteps": {"vx": VX, "settle": 0.5}}
 WINDOW, NONE, FULL = 2.0, 0.08, 0.22  # the speed over the last WINDOW s: m/s for none, full marks
 METHOD = "your planner in the chain"
+
+
+def files() -> dict[str, str]:
+    """What `mexone exercise start` writes beside the starter: the stack's YAML with the
+    student's class in its part's place, walking as graded."""
+    return handout(PART, FILE, CLASS, GAIT, "walk_com_planner")
 
 
 def variant(r: np.random.Generator | None):

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from mexone.exercises.course._labtools import check
-from mexone.exercises.course._walktools import UP, draw, rows, speed_check, stack_yaml, walk
+from mexone.exercises.course._walktools import UP, draw, handout, rows, speed_check, stack_yaml, walk
 
 FILE, CLASS, PART = "estimator.py", "MyEstimator", "estimator"
 SECONDS, VX = 4.5, 0.3  # s of walk, m/s commanded
@@ -22,6 +22,12 @@ WINDOW, NONE, FULL = 2.0, 0.08, 0.22  # the speed over the last WINDOW s: m/s fo
 VELOCITY = (0.06, 0.15)  # m/s RMS of the horizontal velocity's error: full marks, none
 POSITION = (0.05, 0.15)  # m: the horizontal position's error at the end: full marks, none
 TRACKS = "estimate tracks the truth"
+
+
+def files() -> dict[str, str]:
+    """What `mexone exercise start` writes beside the starter: the stack's YAML with the
+    student's class in its part's place, walking as graded."""
+    return handout(PART, FILE, CLASS, GAIT, "walk_estimator")
 
 
 def variant(r: np.random.Generator | None):
