@@ -19,7 +19,6 @@ from __future__ import annotations
 import builtins
 import difflib
 import importlib
-import importlib.metadata
 import importlib.util
 import inspect
 import sys
@@ -28,7 +27,7 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType, TracebackType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mexone import signals
 from mexone.control import watchdog
@@ -36,6 +35,9 @@ from mexone.control.student import COMMAND_INTERFACES, PythonController
 from mexone.control.watchdog import GUARD, ControllerHang, Watched
 from mexone.errors import InputError, MexoneError, printable
 from mexone.ranges import HANG_TIMEOUT, OVERRUNS, UPDATE_RATE, UPDATE_TIME, number_text
+
+if TYPE_CHECKING:
+    import importlib.metadata
 
 __all__ = ["Plugin", "Found", "locate", "load_class", "resolve_class", "validate_params", "student_line",
            "ENTRY_POINT_GROUP", "RESERVED_KEYS", "FAULT_MODES"]
@@ -196,6 +198,8 @@ def _class_from(module: ModuleType, cls_name: str, where: str) -> type[PythonCon
 
 
 def _entry_point(ctype: str) -> importlib.metadata.EntryPoint | None:
+    import importlib.metadata  # here: a controller's worker that never looks one up skips it
+
     try:
         points = importlib.metadata.entry_points(group=ENTRY_POINT_GROUP)
     except Exception:  # noqa: BLE001 - a broken installed distribution must not stop the lookup

@@ -35,7 +35,6 @@ from __future__ import annotations
 import atexit
 import contextlib
 import dataclasses
-import hashlib
 import math
 import os
 import re
@@ -176,6 +175,8 @@ class ClassInfo:
 
 
 def _digest(path: str) -> str | None:
+    import hashlib  # here: not in a worker's start (OpenSSL's load)
+
     try:
         with open(path, "rb") as file:
             return hashlib.sha256(file.read(1 << 24)).hexdigest()

@@ -30,6 +30,9 @@ __all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
 HAND_POINT = np.array([0.0, 0.0, -0.17])  # m: the hand, the forearm's far end, in its frame
 ARM = ("l_shoulder_pitch", "l_shoulder_roll", "l_elbow")
+# libyaml's safe loader and dumper when present: the shipped YAML in ~0.01 s, not ~0.1 s (per run)
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 GAIN_FULL, GAIN_NONE = 1.25, 2.0  # a measured gain within x/÷ GAIN_FULL of the asked: full marks
 
 
@@ -72,12 +75,12 @@ def student_yaml(workdir: Path, source: Path, file: str, cls: str, name: str,
     source = workdir / file
     os.chmod(workdir, 0o755)  # the controller's worker, a jail of another uid, reads them
     os.chmod(source, 0o644)
-    shipped = yaml.safe_load(Path(mex_one.controllers_path()).read_text())
+    shipped = yaml.load(Path(mex_one.controllers_path()).read_text(), Loader=_LOADER)
     ns, controllers = next(iter(shipped.items()))
     kept = {k: v for k, v in controllers.items() if v.get("joint") not in joints}
     entry = {"type": f"{source.stem}/{cls}", "joints": list(joints), **params}
     out = workdir / "controllers.yaml"
-    out.write_text(yaml.safe_dump({ns: {name: entry, **kept}}, sort_keys=False))
+    out.write_text(yaml.dump({ns: {name: entry, **kept}}, Dumper=_DUMPER, sort_keys=False))
     os.chmod(out, 0o644)
     return out
 
