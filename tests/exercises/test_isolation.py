@@ -264,23 +264,6 @@ def _load(path: str | Path) -> str:
     return "loaded"
 
 
-def _probed() -> list[bool]:
-    import importlib
-
-    spawn = importlib.import_module("mexone.sandbox.spawn")  # the module, not its function
-    return [spawn._isolation is not None, spawn._hidden is not None]
-
-
-def test_a_trusted_run_starts_with_the_fork_servers_probe():
-    """The fork server probes the machine's isolation and finds the folders a jail hides once;
-    a run it forks (whose lab may start a controller's worker in a jail) starts knowing both,
-    without an interpreter of its own to probe and a scan of the installed distributions (was:
-    ~0.1 s CPU of every graded run)."""
-    from mexone.exercises.isolate import run_trusted
-
-    assert run_trusted(_probed) == [True, True]
-
-
 def test_the_simulator_expands_no_students_xacro(tmp_path):
     """xacro's expressions are Python: the simulator refuses a student's (a grader expands
     one with ctx.run, in a jail); the robots mexone ships expand as ever."""

@@ -247,9 +247,7 @@ def serve(fd: int) -> None:
     """The fork server's loop: one run forked per request, until the grader hangs up."""
     import mexone.lab  # noqa: F401 - what every run imports (MuJoCo), imported once
     import mexone.routines.isolated  # noqa: F401
-    from mexone.sandbox.spawn import probe_now
 
-    probe_now()  # once here, not in each run's lab that starts a controller's worker
     sock = socket.socket(fileno=fd)
     processes.die_with_parent(int(os.environ.pop("MEXONE_GRADER_PID", "0")))
     server = os.getpid()

@@ -26,7 +26,7 @@ from typing import IO, Any
 
 from mexone.sandbox.confine import Plan, sweep
 
-__all__ = ["Limits", "Jail", "StudentProcess", "spawn", "Isolation", "isolation", "probe_now", "jail_plan",
+__all__ = ["Limits", "Jail", "StudentProcess", "spawn", "Isolation", "isolation", "jail_plan",
            "UidSlot", "keep_private", "SECRET_ENV", "MODE_ENV", "UIDS_ENV"]
 
 SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret: never in a student's process
@@ -177,14 +177,6 @@ def _hidden_defaults() -> list[str]:
                     found.add(os.path.realpath(spec.origin))
         _hidden = sorted(found - {os.path.realpath(PACKAGE_PARENT + "/mexone")})
     return _hidden
-
-
-def probe_now() -> None:
-    """Probe the machine (`isolation`) and find the hidden folders now, once for this process
-    and every fork of it: a fork server does, so that each run it forks starts a jail without a
-    probe's interpreter and a scan of the installed distributions of its own."""
-    isolation()
-    _hidden_defaults()
 
 
 def _python_paths() -> list[str]:
