@@ -75,7 +75,10 @@ def test_nothing_but_the_hardware_interface_writes_actuator_state():
                SRC / "bench.py",  # bench: bare MuJoCo on an MjData of its own, for comparison
                # the grader's perturbation of the plant (an amplifier k times stronger, after
                # the hardware read the gear), on the grader's own lab: the trial, not a control
-               SRC / "exercises" / "course" / "robust_arm" / "grader.py"}
+               SRC / "exercises" / "course" / "robust_arm" / "grader.py",
+               # a controller worker's private MjData, read by a student's deployed design: its
+               # ctrl and act NaN (the worker is not told them), in the worker's own process
+               SRC / "control" / "worker_main.py"}
     for path in SRC.rglob("*.py"):
         if path in allowed:
             continue
