@@ -24,10 +24,10 @@ SHORT = [("forward", 0.12)]  # two steps, then two closing ones
 
 def _targets(gait, feet, course):
     """Every footstep the planner plans, open loop, in order."""
-    out, seen = [], set()
+    out, seen = [], []  # the swings themselves kept: an id() is reused once its object is freed
     for tick in FootstepPlanner(gait, feet, course_steps(gait, course)):
-        if tick.swing is not None and id(tick.swing) not in seen:
-            seen.add(id(tick.swing))
+        if tick.swing is not None and not any(tick.swing is s for s in seen):
+            seen.append(tick.swing)
             out.append(tick.swing.target.copy())
     return out
 
