@@ -116,7 +116,7 @@ def test_the_estimators_view_of_the_floating_base_is_where_the_robot_was_put(tmp
     """The mechanism of exercise 13's method check: the robot moved 0.3 m forward at 1 m/s, the
     student's class still reads it at the start, at rest (all_q, state.base, self.dynamics),
     while the other parts read the simulator."""
-    from mexone.exercises.course._walktools import _blind, stack_yaml
+    from mexone.exercises.course._walktools import blind_base, stack_yaml
     from mexone.lab import Lab
 
     source = tmp_path / "spy.py"
@@ -125,7 +125,7 @@ def test_the_estimators_view_of_the_floating_base_is_where_the_robot_was_put(tmp
     work.mkdir()
     lab = Lab.create(controllers=stack_yaml(work, "estimator", source, "spy.py", "MyEstimator"))
     start = float(lab.sim.data.qpos[0])
-    _blind(lab, "estimator")
+    blind_base(lab, "estimator")
     lab.sim.data.qpos[0] += 0.3
     lab.sim.data.qvel[0] = 1.0
     lab.sim.step(10)

@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mexone.cli.sweep import WORKERS, _check_ray_address
+from mexone.cli.sweep import WORKERS, check_ray_address
 from mexone.errors import InputError, OutputExistsError, printable
 from mexone.files import check_output, replacing, write_text
 
@@ -189,7 +189,7 @@ def _grade(args) -> int:
 
     ex = find_exercise(args.name)
     if args.address is not None:
-        _check_ray_address(args.address, args.backend)
+        check_ray_address(args.address, args.backend)
     for out in (args.json, args.csv):  # before any grading: a class's grades take minutes
         if out is not None and out != Path("-"):
             if out.exists() and not out.is_dir() and not args.force:

@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         raise InputError(f"the grid has {size} points, more than {MAX_TRIALS}",
                          hint="fewer values per gain, or --random N")
     if args.address is not None:
-        _check_ray_address(args.address, args.backend)
+        check_ray_address(args.address, args.backend)
     spec = SweepSpec(tuple(args.joint), DEFAULT_STEP if args.step is None else args.step,
                      args.routine, args.duration, args.model, args.controllers)
     spec, namespace = _check_spec(spec, step_given=args.step is not None)
@@ -127,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     return _report(spec, rows, ranges, args, out, len(trials), namespace)
 
 
-def _check_ray_address(address: str, backend: str) -> None:
+def check_ray_address(address: str, backend: str) -> None:
     """A cluster that cannot be reached is one line now, not Ray retrying for minutes."""
     if backend != "ray":
         raise InputError("--address is the Ray cluster's", hint="add --backend ray")

@@ -49,6 +49,21 @@ class LogLimit:
         dropped, self.dropped = self.dropped, 0
         return dropped
 
+    def let_through(self, logger: logging.Logger, name: str) -> bool:
+        """Whether controller `name`'s next line is logged; the lines dropped before it are
+        said on `logger` first."""
+        shown, dropped = self.admit()
+        self.say(logger, name, dropped)
+        return shown
+
+    def say(self, logger: logging.Logger, name: str, dropped: int | None = None) -> None:
+        """The line saying how many of `name`'s lines were dropped (None: those not said yet),
+        if any were."""
+        if dropped is None:
+            dropped = self.flush()
+        if dropped:
+            logger.warning("%s", dropped_lines(name, dropped, self.per_second))
+
 
 def dropped_lines(name: str, count: int, per_second: int) -> str:
     """The line that says a controller's log lines were dropped."""
@@ -65,16 +80,12 @@ class StudentLog(logging.LoggerAdapter[logging.Logger]):
         return f"{self.extra['name']}: {msg}", kwargs  # type: ignore[index]  # extra is given
 
     def log(self, level: int, msg: object, *args: Any, **kwargs: Any) -> None:
-        limit = (self.extra or {}).get("limit")
-        if not isinstance(limit, LogLimit) or not self.isEnabledFor(level):
-            super().log(level, msg, *args, **kwargs)
+        extra = self.extra or {}
+        limit = extra.get("limit")
+        if isinstance(limit, LogLimit) and self.isEnabledFor(level) and \
+                not limit.let_through(self.logger, str(extra.get("name"))):
             return
-        shown, dropped = limit.admit()
-        if dropped:
-            name = str((self.extra or {}).get("name"))
-            self.logger.warning("%s", dropped_lines(name, dropped, limit.per_second))
-        if shown:
-            super().log(level, msg, *args, **kwargs)
+        super().log(level, msg, *args, **kwargs)
 
 
 def not_numbers(out: object, where: str) -> str:

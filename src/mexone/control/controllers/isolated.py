@@ -241,9 +241,7 @@ class IsolatedRunner(PythonRunner):
 
     # ----- the worker's requests while mexone waits ----------------------------------------------
     def on_log(self, level: int, text: str) -> None:
-        shown, dropped = self.log_limit.admit()
-        self.say_dropped(dropped)
-        if shown:
+        if self.log_limit.let_through(STUDENT_LOG, self.name):
             STUDENT_LOG.log(level, "%s", text)
 
     def on_thread_fault(self, text: str) -> None:

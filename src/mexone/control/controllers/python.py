@@ -37,7 +37,6 @@ from mexone.control.hardware import TELEPORT_POSITION, TELEPORT_VELOCITY
 from mexone.control.mistakes import (
     LogLimit,
     StudentLog,
-    dropped_lines,
     non_finite,
     not_numbers,
     return_lines,
@@ -407,13 +406,10 @@ class PythonRunner(Controller):
         are said."""
         self.say_dropped()
 
-    def say_dropped(self, dropped: int | None = None) -> None:
-        """The line saying how many of its log lines the LogLimit dropped (None: those not said
-        yet), if any were."""
-        if dropped is None:
-            dropped = self.log_limit.flush()
-        if dropped:
-            STUDENT_LOG.warning("%s", dropped_lines(self.name, dropped, self.log_limit.per_second))
+    def say_dropped(self) -> None:
+        """The line saying how many of its log lines the LogLimit dropped and has not said yet,
+        if any were."""
+        self.log_limit.say(STUDENT_LOG, self.name)
 
     def hold(self, damp: bool = False) -> None:
         """The joints hold their measured position (or are only damped) by MuJoCo's servo."""

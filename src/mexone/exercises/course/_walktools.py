@@ -22,8 +22,8 @@ from mexone.exercises.isolate import SubmissionFailed
 from mexone.exercises.sim import Variation
 from mexone.robots import mex_one
 
-__all__ = ["Push", "Variant", "draw", "stack_text", "handout", "stack_yaml", "walk", "speed_check",
-           "imports", "rows", "UP"]
+__all__ = ["Push", "Variant", "draw", "stack_text", "handout", "stack_yaml", "blind_base", "walk",
+           "speed_check", "imports", "rows", "UP"]
 
 UP = "stays up"
 SAMPLE = 0.02  # s between the grader's samples of the walk
@@ -114,7 +114,7 @@ def stack_yaml(workdir: Path, part: str | None = None, source: Path | None = Non
     return out
 
 
-def _blind(lab, name: str) -> None:
+def blind_base(lab, name: str) -> None:
     """The controller `name` reads no truth of the floating base: its state.all_q / all_dq (and
     so state.base and self.dynamics) hold the base where the robot was put and at rest -- as a
     real robot's estimator knows only where it started; the sensors (IMU, contacts) and the
@@ -164,7 +164,7 @@ def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = N
     """In the isolated child: the stack of `yaml_path` walks `seconds` s (the footstep planner's
     vx from the YAML) on `variant`; every SAMPLE s the base's x, y, the robot's COM and what
     `part` exports (its `com` or `base`). Ends AFTER_FALL s after a fall. `blind`: `part`
-    reads no truth of the floating base (_blind). Returns plain lists."""
+    reads no truth of the floating base (blind_base). Returns plain lists."""
     from mexone.motion.push import PUSH_SECONDS, apply_wrench
     from mexone.physics.monitor import has_fallen
 
@@ -172,7 +172,7 @@ def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = N
     lab = controller_lab(yaml_path, {}, [variant.variation.edit])
     sim = lab.sim
     if blind:
-        _blind(lab, part)
+        blind_base(lab, part)
     push = variant.push
     if push is not None:
         force = push.impulse * variant.variation.mass / PUSH_SECONDS * \

@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numpy as np
 
 from mexone.exercises.course._labtools import check, controller_fault, controller_lab, student_yaml
-from mexone.exercises.course._walktools import _blind as blind_base
+from mexone.exercises.course._walktools import blind_base
 from mexone.physics.world import World
 from mexone.robots import mex_one
 
@@ -130,7 +130,7 @@ def gravity(slope) -> np.ndarray:
 
 def blind(lab, name: str) -> None:
     """The observer reads no truth of its tilt: its floating base stays where the robot was put
-    (_walktools._blind: state.base, state.all_q and self.dynamics), and its IMU reports no
+    (_walktools.blind_base: state.base, state.all_q and self.dynamics), and its IMU reports no
     orientation (x, y, z, w = 0, 0, 0, 1: an IMU without a filter), so what it exports is
     estimated from the gyro and the accelerometer. (Was: the truth against the model's gravity,
     plus a whisker of gyro so a louder gyro moved it, scored 10/10.)"""

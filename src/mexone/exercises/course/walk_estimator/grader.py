@@ -1,6 +1,6 @@
 """Exercise 13, walk on your own state estimate: the walking stack with the student's class in
 the estimator's place walks 4.5 s at 0.3 m/s, every other part computing at its estimate. The
-truth is hidden from the class (_walktools._blind: its view of the floating base stays where
+truth is hidden from the class (_walktools.blind_base: its view of the floating base stays where
 the robot was put, at rest), so an estimator that copies the simulator's base exports a robot
 standing still; the estimate is also graded against the truth. Hidden variant: masses,
 friction and a push forward or backward while walking."""
