@@ -25,7 +25,7 @@ from mexone.errors import MexoneError
 from mexone.gui.fields import NumberFields
 from mexone.gui.health import Health
 from mexone.gui.panels import FPS, PageSettings, Panel, panel_types
-from mexone.gui.plots import PLOT_PERIOD, SignalLog
+from mexone.gui.plots import SignalLog
 from mexone.gui.scene import RobotScene
 from mexone.gui.security import LabAccess, guard, lab_access, warn_if_exposed
 from mexone.lab import AUTO, Lab
@@ -155,7 +155,9 @@ class GuiApp:
                 time.sleep(1.0 / FPS)
             else:
                 gate = self.routine.scheduler if self.routine and self.routine.running else None
-                tick = min(frame, TICK if self.tick_hooks else PLOT_PERIOD)
+                # the log samples on its own sim-time timer (SignalLog): without ROS's 1 ms
+                # /clock the run paces (sleeps) once a frame, the page's own granularity
+                tick = min(frame, TICK) if self.tick_hooks else frame
                 try:
                     sim.run(frame, tick=tick, gate=gate, on_tick=self._tick,
                             until=signals.requested)

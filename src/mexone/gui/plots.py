@@ -152,6 +152,12 @@ class SignalLog:
         self.next_sample = 0.0
         self.watched: dict = {}  # topic -> the plots' subscription (lazy publishers start)
         self.plotted: set[str] = set()  # topics with a field in the log: watched for good
+        # a sim-time timer, so the samples fall every PLOT_PERIOD exactly while MuJoCo steps
+        # the rest in C: the page's loop then paces once a frame, not once a sample
+        self._timer = sim.add_periodic(PLOT_PERIOD, self._on_timer)
+
+    def _on_timer(self, _sim) -> None:
+        self.sample()
 
     # ----- any topic's numbers (rqt_plot's /topic/field paths) -----------------------------------
     def watch(self, topic: str) -> None:
@@ -185,6 +191,8 @@ class SignalLog:
         return name
 
     def close(self) -> None:
+        """Stop sampling and let go of the topics watched (the robot is unloaded)."""
+        self.lab.sim.remove_periodic(self._timer)
         for sub in self.watched.values():
             sub.unregister()
         self.watched.clear()
