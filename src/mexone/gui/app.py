@@ -218,16 +218,19 @@ class GuiApp:
     # ----- per frame --------------------------------------------------------------------------
     def _after_frame(self) -> None:
         self._frames += 1
-        self.fields.commit()
-        self.scene.update()
-        self._sample()
-        for problem in self.health.check():
-            self.notify("Simulation problem", problem, color="orange")
-        if self._frames % 5 == 0 and not self.error:
-            self._status.content = self.status_text()
-        for name, panel in self.panels.items():
-            if self._frames % panel.period == 0:
-                self._panel_call(name, panel.update)
+        # what a frame changes goes to the page as one batch: each message outside a batch
+        # wakes viser's event loop (a thread switch, a websocket frame of its own)
+        with self.server.atomic():
+            self.fields.commit()
+            self.scene.update()
+            self._sample()
+            for problem in self.health.check():
+                self.notify("Simulation problem", problem, color="orange")
+            if self._frames % 5 == 0 and not self.error:
+                self._status.content = self.status_text()
+            for name, panel in self.panels.items():
+                if self._frames % panel.period == 0:
+                    self._panel_call(name, panel.update)
 
     def status_text(self) -> str:
         """The status line: what the simulation is doing, whatever is wrong with it, and what

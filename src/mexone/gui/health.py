@@ -3,7 +3,8 @@
 MuJoCo counts its warnings in `data.warning` (and prints each kind once to the terminal); a
 gain far beyond what the time step allows does not diverge when the motor saturates, it
 chatters: the effort flips between its limits every few steps while the joint stands still.
-Both are read here once a frame, in the simulation thread, and named on the page.
+Both are read here in the simulation thread and named on the page: the warnings once a
+frame, the efforts' window every CHATTER_EVERY samples of the signal log (0.1 s of sim time).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 
 from mexone.gui.plots import SignalLog
 
-__all__ = ["Health", "WARNINGS", "CHATTER_WINDOW"]
+__all__ = ["Health", "WARNINGS", "CHATTER_WINDOW", "CHATTER_EVERY"]
 
 WARNINGS = {  # MuJoCo's own words (engine_io.c), and what to do
     "mjWARN_INERTIA": "inertia matrix too close to singular: check the links' inertias",
@@ -27,6 +28,7 @@ WARNINGS = {  # MuJoCo's own words (engine_io.c), and what to do
                       "(gains too high?)",
 }
 CHATTER_WINDOW = 0.3  # s of sim time looked at
+CHATTER_EVERY = 10  #: log samples (0.1 s of sim time running) between two looks at the window
 _AT_LIMIT = 0.9  # of the effort limit
 _FLIPS = 0.3  # share of samples where the effort changes sign
 
@@ -46,6 +48,7 @@ class Health:
         self.limits = np.array(limits)
         self.warnings: dict[str, str] = {}
         self.chatter: str | None = None
+        self._chatter_at = -CHATTER_EVERY  # the log's count when the window was last looked at
 
     def check(self) -> list[str]:
         """The problems that appeared since the last check (their text)."""
@@ -62,10 +65,13 @@ class Health:
                 new.append(f"MuJoCo warning: {WARNINGS.get(name, name)}")
             self.warnings[name] = f"MuJoCo warning: {WARNINGS.get(name, name)} ({counts[i]}×)"
         self.seen = counts
-        chatter = self._chatter()
-        if chatter and chatter != self.chatter:
-            new.append(chatter)
-        self.chatter = chatter
+        count = self.log.count
+        if not 0 <= count - self._chatter_at < CHATTER_EVERY:  # 10 new samples, or a reset
+            self._chatter_at = count
+            chatter = self._chatter()
+            if chatter and chatter != self.chatter:
+                new.append(chatter)
+            self.chatter = chatter
         return new
 
     @property

@@ -13,6 +13,7 @@ micro-) units and says so in its axis label: 0.0041 and 0.0042 never both read "
 
 from __future__ import annotations
 
+import bisect
 import csv
 import dataclasses
 import io
@@ -138,7 +139,8 @@ class SignalLog:
         signals += [Signal("base/x", "m"), Signal("base/y", "m"), Signal("base/height", "m"),
                     Signal("base/tilt", "rad")]
         root = sim.compiled.root_body
-        readers.append(lambda: np.r_[sim.data.xpos[root], sim.base_tilt])
+
+        readers.append(lambda: np.append(sim.data.xpos[root], sim.base_tilt))
         for sensor in lab.sensors.sensors.values():  # each sensor type's plot signals
             if sensor.state_type is not None and sensor.plot:
                 signals += [Signal(n, u) for n, u in sensor.signals()]
@@ -223,11 +225,14 @@ class SignalLog:
         n = min(self.count, CAPACITY)
         if n == 0:
             return np.zeros(0), np.zeros((len(names), 0))
-        order = (np.arange(self.count - n, self.count)) % CAPACITY
-        t = self.t[order]
-        keep = t >= t[-1] - seconds - 1e-9
+        t, oldest = self.t, self.count - n
+        # the ring's times only grow (sample() starts afresh on a jump back): a binary search
+        # finds the window's first row, and only its rows of the named columns are copied
+        first = bisect.bisect_left(range(n), t[(self.count - 1) % CAPACITY] - seconds - 1e-9,
+                                   key=lambda i: t[(oldest + i) % CAPACITY])
+        rows = np.arange(oldest + first, self.count) % CAPACITY
         cols = [self.index[name] for name in names]
-        return t[keep], self.values[order[keep]][:, cols].T.astype(float)
+        return t[rows], self.values[rows[:, None], cols].T.astype(float)
 
 
 class Pane:
