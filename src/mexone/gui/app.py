@@ -10,6 +10,7 @@ trusted to respect its own widgets' limits (see also gui/security.py).
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
@@ -218,9 +219,10 @@ class GuiApp:
     # ----- per frame --------------------------------------------------------------------------
     def _after_frame(self) -> None:
         self._frames += 1
-        # what a frame changes goes to the page as one batch: each message outside a batch
-        # wakes viser's event loop (a thread switch, a websocket frame of its own)
-        with self.server.atomic():
+        # what a running frame changes goes to the page as one batch: each message outside a
+        # batch wakes viser's event loop (a thread switch, a websocket frame of its own); a
+        # paused frame mostly changes nothing, and an empty batch would wake it all the same
+        with self.server.atomic() if not self.lab.sim.paused else contextlib.nullcontext():
             self.fields.commit()
             self.scene.update()
             self._sample()

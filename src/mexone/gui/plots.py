@@ -244,6 +244,7 @@ class Pane:
         self.server, self.log, self.folder, self.title, self.aspect = server, log, folder, title, aspect
         self.names = list(names)
         self._shown: tuple = ()  # what the pane last drew (skip idle pushes)
+        self._look: tuple = ((),)  # (scale, names, signals), and the series and axes for them
         shown = self.names or ["(nothing)"]
         self.plot = server.gui.add_uplot((np.zeros(1),) * (1 + len(shown)), self._series(1.0),
                                          title=title, aspect=aspect,
@@ -285,7 +286,10 @@ class Pane:
             return
         factor = axis_scale(values)
         self._shown = key
-        series, axes = self._series(factor), self._axes(factor)
+        look = (factor, tuple(self.names), len(self.log.signals))
+        if self._look[0] != look:  # labels and axes only change with the scale or the names
+            self._look = (look, self._series(factor), self._axes(factor))
+        _, series, axes = self._look
         data = (t, *(v * factor for v in values))
         if plot.series != series or plot.axes != axes:
             # a new chart, not new options on the old one: the page's uPlot kept its old

@@ -85,6 +85,7 @@ class RobotScene:
     overlays: dict[str, list] = field(default_factory=lambda: {k: [] for k in OVERLAYS})
     showing: set[str] = field(default_factory=set)  # the overlays shown now
     _sent: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))  # poses last sent
+    _ids: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))  # their bodies
 
     def _terrain(self) -> None:
         """The world's static boxes (slopes, steps: physics.world.Block), as MuJoCo places them."""
@@ -191,12 +192,12 @@ class RobotScene:
         costs the page almost no messages, where each link's pose every frame was most of a
         lab's CPU with its page open (benchmarks/RESULTS.md, "what one lab costs").
         `everything`: every link's pose (a recording's first frame, where its loop restarts)."""
-        data = self.sim.data
-        names = list(self.sim.compiled.bodies)
-        if everything or len(self._sent) != len(names):
-            self._sent = np.full((len(names), 7), np.nan)  # nothing sent yet
-        ids = list(self.sim.compiled.bodies.values())
-        now = np.hstack([data.xpos[ids], data.xquat[ids]])
+        data, bodies = self.sim.data, self.sim.compiled.bodies
+        if everything or len(self._sent) != len(bodies):
+            self._sent = np.full((len(bodies), 7), np.nan)  # nothing sent yet
+            self._ids = np.fromiter(bodies.values(), dtype=int, count=len(bodies))
+        names, ids = list(bodies), self._ids
+        now = np.concatenate((data.xpos[ids], data.xquat[ids]), axis=1)
         # NaN (never sent) compares False: every link goes out the first time
         moved = np.flatnonzero(~(np.abs(now - self._sent).max(axis=1) <= SENT_MOVE))
         contacts = self.overlays["Contacts"][0]
