@@ -156,9 +156,7 @@ class GuiApp:
                 time.sleep(1.0 / FPS)
             else:
                 gate = self.routine.scheduler if self.routine and self.routine.running else None
-                # the log samples on its own sim-time timer (SignalLog): without ROS's 1 ms
-                # /clock the run paces (sleeps) once a frame, the page's own granularity
-                tick = min(frame, TICK) if self.tick_hooks else frame
+                tick = min(frame, TICK) if self.tick_hooks else frame  # log: its own timer
                 try:
                     sim.run(frame, tick=tick, gate=gate, on_tick=self._tick,
                             until=signals.requested)
@@ -188,11 +186,6 @@ class GuiApp:
     def _tick(self, sim: Simulation) -> None:
         for hook in self.tick_hooks:
             hook(sim)
-        self._sample()
-
-    def _sample(self) -> None:
-        if self.log.due(self.lab.sim.time):
-            self.log.sample()  # the first sample, and one after a reset or a single Step
 
     def stop(self) -> None:
         self.stopping.set()
@@ -219,13 +212,12 @@ class GuiApp:
     # ----- per frame --------------------------------------------------------------------------
     def _after_frame(self) -> None:
         self._frames += 1
-        # what a running frame changes goes to the page as one batch: each message outside a
-        # batch wakes viser's event loop (a thread switch, a websocket frame of its own); a
-        # paused frame mostly changes nothing, and an empty batch would wake it all the same
+        # a running frame's changes in one batch (each message outside one wakes viser's loop)
         with self.server.atomic() if not self.lab.sim.paused else contextlib.nullcontext():
             self.fields.commit()
             self.scene.update()
-            self._sample()
+            if self.log.due(self.lab.sim.time):  # the first sample (paused), one after a reset
+                self.log.sample()
             for problem in self.health.check():
                 self.notify("Simulation problem", problem, color="orange")
             if self._frames % 5 == 0 and not self.error:
