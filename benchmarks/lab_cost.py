@@ -8,6 +8,7 @@ whole cost of a page, without a browser drawing it on the same two cores. The cl
 
     python benchmarks/lab_cost.py [--seconds 20] [--pages 0 1]
     python benchmarks/lab_cost.py --stages    # where the memory goes: VmRSS after each stage
+    python benchmarks/lab_cost.py --ab OTHER/src --rounds 3   # A/B: alternate another checkout
 """
 
 from __future__ import annotations
@@ -164,36 +165,55 @@ def main() -> None:
     parser.add_argument("--pages", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--stages", action="store_true",
                         help="print resident memory after each stage of a lab's start, then exit")
+    parser.add_argument("--ab", metavar="SRC", type=Path,
+                        help="another checkout's src folder: alternate its labs with this one's, "
+                             "--rounds times (each row says which side it is)")
+    parser.add_argument("--rounds", type=int, default=1)
     args = parser.parse_args()
     if args.stages:
         stages()
         return
+    print(f"load: {os.getloadavg()}", file=sys.stderr)
+    if args.ab is None:
+        for n in args.pages:
+            print(json.dumps(asdict(run_lab(n, args.seconds))))
+        return
+    here = str(Path(__file__).resolve().parents[1] / "src")
+    for r in range(args.rounds):
+        for side, src in (("other", str(args.ab.resolve())), ("this", here)):
+            for n in args.pages:
+                env = {"PYTHONPATH": os.pathsep.join([src, os.environ.get("PYTHONPATH", "")])}
+                row = {"round": r + 1, "side": side, "load": os.getloadavg()[0],
+                       **asdict(run_lab(n, args.seconds, env))}
+                print(json.dumps(row), flush=True)
+
+
+def run_lab(n: int, seconds: float, env: dict | None = None) -> Cost:
+    """One `mexone sim` on a free port with `n` pages' traffic, measured over `seconds`."""
     import socket
 
-    print(f"load: {os.getloadavg()}", file=sys.stderr)
-    for n in args.pages:
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", 0))
-            port = s.getsockname()[1]
-        lab = start_lab(port)
-        try:
-            deadline = time.monotonic() + 120
-            while time.monotonic() < deadline:
-                try:
-                    socket.create_connection(("127.0.0.1", port), timeout=1).close()
-                    break
-                except OSError:
-                    time.sleep(0.2)
-            pages = [Page(f"ws://127.0.0.1:{port}/") for _ in range(n)]
-            for page in pages:
-                page.start()
-            cost = measure(lab.pid, pages, args.seconds)
-            for page in pages:
-                page.stop.set()
-            print(json.dumps(asdict(cost)))
-        finally:
-            lab.terminate()
-            lab.wait(timeout=20)
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    lab = start_lab(port, env)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            try:
+                socket.create_connection(("127.0.0.1", port), timeout=1).close()
+                break
+            except OSError:
+                time.sleep(0.2)
+        pages = [Page(f"ws://127.0.0.1:{port}/") for _ in range(n)]
+        for page in pages:
+            page.start()
+        cost = measure(lab.pid, pages, seconds)
+        for page in pages:
+            page.stop.set()
+        return cost
+    finally:
+        lab.terminate()
+        lab.wait(timeout=20)
 
 
 if __name__ == "__main__":
