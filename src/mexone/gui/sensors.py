@@ -133,7 +133,9 @@ class SensorPanel(Panel):
             self._update_balance()
         if self.viewed:
             lines = [sensor.view() for sensor in self.viewed]
-            self.contact_view.content = " &nbsp; ".join(line for line in lines if line)
+            text = " &nbsp; ".join(line for line in lines if line)
+            if text != self.contact_view.content:  # a standing robot's lights stay as they are
+                self.contact_view.content = text
         if now_wall - self._last_image >= 1.0 / CAMERA_FPS:
             self._last_image = now_wall
             self._update_images()
