@@ -10,7 +10,6 @@ trusted to respect its own widgets' limits (see also gui/security.py).
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import threading
@@ -211,20 +210,20 @@ class GuiApp:
 
     # ----- per frame --------------------------------------------------------------------------
     def _after_frame(self) -> None:
+        # no viser batch around a frame: its end would wake viser's loop even when nothing
+        # changed (most frames of a standing robot), twice the cost of the messages it saves
         self._frames += 1
-        # a running frame's changes in one batch (each message outside one wakes viser's loop)
-        with self.server.atomic() if not self.lab.sim.paused else contextlib.nullcontext():
-            self.fields.commit()
-            self.scene.update()
-            if self.log.due(self.lab.sim.time):  # the first sample (paused), one after a reset
-                self.log.sample()
-            for problem in self.health.check():
-                self.notify("Simulation problem", problem, color="orange")
-            if self._frames % 5 == 0 and not self.error:
-                self._status.content = self.status_text()
-            for name, panel in self.panels.items():
-                if self._frames % panel.period == 0:
-                    self._panel_call(name, panel.update)
+        self.fields.commit()
+        self.scene.update()
+        if self.log.due(self.lab.sim.time):  # the first sample (paused), one after a reset
+            self.log.sample()
+        for problem in self.health.check():
+            self.notify("Simulation problem", problem, color="orange")
+        if self._frames % 5 == 0 and not self.error:
+            self._status.content = self.status_text()
+        for name, panel in self.panels.items():
+            if self._frames % panel.period == 0:
+                self._panel_call(name, panel.update)
 
     def status_text(self) -> str:
         """The status line: what the simulation is doing, whatever is wrong with it, and what
