@@ -228,8 +228,8 @@ class WholeBodyController(PythonController):
 
     kp_com = Param(60.0, low=0.0, high=1e4, doc="COM stiffness", unit="1/s^2")
     kd_com = Param(15.0, low=0.0, high=1e3, doc="COM damping", unit="1/s")
-    kp_foot = Param(300.0, low=0.0, high=1e5, doc="swing foot stiffness", unit="1/s^2")
-    kd_foot = Param(35.0, low=0.0, high=1e3, doc="swing foot damping", unit="1/s")
+    kp_foot = Param(700.0, low=0.0, high=1e5, doc="swing foot stiffness", unit="1/s^2")
+    kd_foot = Param(53.0, low=0.0, high=1e3, doc="swing foot damping", unit="1/s")
     kp_torso = Param(200.0, low=0.0, high=1e5, doc="torso attitude stiffness", unit="1/s^2")
     kd_torso = Param(30.0, low=0.0, high=1e3, doc="torso attitude damping", unit="1/s")
     kp_posture = Param(50.0, low=0.0, high=1e5, doc="posture stiffness", unit="1/s^2")
