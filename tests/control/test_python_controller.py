@@ -585,29 +585,46 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
     np.testing.assert_array_equal(q, q_from_all)  # quaternion)
 
 
-def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
-    """A Python controller's fast write (a few joints, Python floats) sends the same bits to
-    MuJoCo's ctrl and to the hardware's effort commands as the numpy writer does."""
+def test_a_row_writer_sends_what_write_sends(arm):
+    """A Python controller's fast write (SimHardware.writer: views where rows and controls are
+    evenly spaced, a copy for unit gears, a divide otherwise, a scatter for scattered joints)
+    leaves the hardware's commands and MuJoCo's ctrl bit for bit as the full write() does."""
+    from dataclasses import replace
+
     _, lab = arm
-    hw, data = lab.manager.hw, lab.sim.data
-    saved = data.ctrl.copy(), hw.command.effort.copy()
+    hw, data, c = lab.manager.hw, lab.sim.data, lab.manager.hw.command
+    layout = hw.layout
+    interfaces = ("effort", "position", "velocity")
     values = np.random.default_rng(25).normal(0.0, 30.0, 3)
+    hw.write()  # ctrl now says what the commands say
+    saved = data.ctrl.copy(), {name: getattr(c, name).copy() for name in interfaces}
+
+    def restore() -> None:
+        data.ctrl[:] = saved[0]
+        for name in interfaces:
+            getattr(c, name)[:] = saved[1][name]
+
     try:
-        for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # a strided view
-                       ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
-            rows = hw.rows(joints)
-            hw.writers(rows, "effort").floats(values.tolist())
-            fast = data.ctrl.copy(), hw.command.effort.copy()
-            data.ctrl[:], hw.command.effort[:] = saved
-            hw.command.effort[rows] = values
-            hw.writers(rows, "effort").values(values)
-            np.testing.assert_array_equal(fast[0], data.ctrl)
-            np.testing.assert_array_equal(fast[1], hw.command.effort)
-            assert list(fast[0][hw.layout.ff[rows]]) == list(values / hw.gear[rows])
-            data.ctrl[:], hw.command.effort[:] = saved
-        assert hw.writers(np.arange(len(hw.joints)), "effort").floats is None  # many joints: numpy
+        for gear in (1.0, 2.5):
+            hw.layout = replace(layout, gear=layout.gear * gear)
+            hw.gear = hw.layout.gear
+            for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # strided views
+                           ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
+                rows = hw.rows(joints)
+                for name in interfaces:
+                    hw.writer(rows, name)(values)
+                    fast = data.ctrl.copy(), getattr(c, name).copy()
+                    restore()
+                    getattr(c, name)[rows] = values
+                    hw.write()
+                    np.testing.assert_array_equal(fast[0], data.ctrl, err_msg=f"{name} {joints}")
+                    np.testing.assert_array_equal(fast[1], getattr(c, name))
+                    assert not np.array_equal(fast[0], saved[0])  # it did write
+                    restore()
     finally:
-        data.ctrl[:], hw.command.effort[:] = saved
+        hw.layout, hw.gear = layout, layout.gear
+        restore()
+        hw.write()
 
 
 def test_an_update_blocked_outside_python_is_ended_and_a_signal_still_stops_the_run(tmp_path):
