@@ -135,7 +135,6 @@ class PythonRunner(Controller):
         # the same, as Python floats capped finite: an inf command never passes the fast check
         self._limits = [min(float(v), 1e300) for v in self._effort_limit]
         self._n = len(self.rows)
-        self._shape = (self._n,)
         self._effort = self.interface_name == "effort"
         # the manager's: hw.writer(rows, interface), the hardware's commands and MuJoCo's ctrl
         self.writer: Callable[[np.ndarray], None] = lambda values: None
@@ -575,21 +574,24 @@ class PythonRunner(Controller):
         them to the hardware's commands and MuJoCo, through the hardware's writer for these
         joints (the manager's fast path needs nothing else)."""
         n = self._n
+        if self._effort and type(out) is _NDARRAY and out.dtype is _FLOAT and out.ndim == 1:
+            # the usual case (a float array), checked in Python floats: numpy calls cost more
+            # for a limb's joints, cold after a physics step; each finite and within +-its
+            # limit (NaN fails every comparison)
+            floats = out.tolist()
+            if len(floats) == n:
+                for value, limit in zip(floats, self._limits):  # noqa: B905 - both n long
+                    if not -limit <= value <= limit:
+                        break
+                else:
+                    self._command = out
+                    self.writer(out)
+                    return
         try:
-            values = _asarray(out, dtype=float)
+            values = np.asarray(out, dtype=float)
         except Exception:  # noqa: BLE001 - whatever their object raises
             self._fault(not_numbers(out, self.return_line()))
             return
-        if self._effort and values.shape == self._shape:  # the usual case, checked in Python
-            # floats (numpy calls cost more for a limb's joints): each finite and within +-its
-            # limit (NaN fails every comparison)
-            for value, limit in zip(values.tolist(), self._limits):  # noqa: B905 - both n long
-                if not -limit <= value <= limit:
-                    break
-            else:
-                self._command = values
-                self.writer(values)
-                return
         if values.shape != (n,):
             if values.size == n:
                 values = values.reshape(n)
@@ -669,7 +671,7 @@ def _inertia_diagonal(model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarr
 
 _clock = time.perf_counter
 _thread_id = threading.get_ident  # the hang guard's key (watchdog._thread_id)
-_asarray = np.asarray
+_NDARRAY, _FLOAT = np.ndarray, np.dtype(float)  # a float array: float64 in this byte order
 
 
 def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:
