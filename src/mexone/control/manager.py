@@ -129,11 +129,12 @@ class ControllerManager:
         now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
         timed = self._timed  # every controller scheduled first: a hang below must not lose a wake
+        wake: float
         if self._step_ns:  # every Python controller at the physics step, nothing else periodic
             wake = now + self._step_ns  # (known since _schedule): each is due at every step
-            for ctrl in timed:
-                ctrl.due = True
-                ctrl.next_ns = wake
+            for runner in timed:
+                runner.due = True
+                runner.next_ns = wake
         else:
             wake = math.inf
             if self._periodic:
@@ -141,14 +142,14 @@ class ControllerManager:
                     self._next_period_ns = now + self._period_ns
                 wake = self._next_period_ns
             half = self._half_step_ns
-            for ctrl in timed:
-                next_ns = ctrl.next_ns
+            for runner in timed:
+                next_ns = runner.next_ns
                 if now >= next_ns - half:
-                    ctrl.due = True
-                    next_ns += ctrl.period_ns
+                    runner.due = True
+                    next_ns += runner.period_ns
                     if next_ns < now + half:  # fell behind (a step longer than the period)
-                        next_ns = now + ctrl.period_ns
-                    ctrl.next_ns = next_ns
+                        next_ns = now + runner.period_ns
+                    runner.next_ns = next_ns
                 if next_ns < wake:
                     wake = next_ns
         if wake < self.wake_ns:
