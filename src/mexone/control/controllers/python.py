@@ -574,29 +574,29 @@ class PythonRunner(Controller):
         them to the hardware's commands and MuJoCo, through the hardware's writer for these
         joints (the manager's fast path needs nothing else)."""
         n = self._n
-        if self._effort and type(out) is _NDARRAY and out.dtype is _FLOAT and out.ndim == 1:
-            # the usual case (a float array), checked in Python floats: numpy calls cost more
-            # for a limb's joints, cold after a physics step; each finite and within +-its
-            # limit (NaN fails every comparison)
-            floats = out.tolist()
-            if len(floats) == n:
-                for value, limit in zip(floats, self._limits):  # noqa: B905 - both n long
-                    if not -limit <= value <= limit:
-                        break
-                else:
-                    self._command = out
-                    self.writer(out)
-                    return
-        try:
-            values = np.asarray(out, dtype=float)
-        except Exception:  # noqa: BLE001 - whatever their object raises
-            self._fault(not_numbers(out, self.return_line()))
-            return
-        if values.shape != (n,):
+        if type(out) is _NDARRAY and out.dtype is _FLOAT:  # the usual case: taken as it is
+            values = out
+        else:
+            try:
+                values = np.asarray(out, dtype=float)
+            except Exception:  # noqa: BLE001 - whatever their object raises
+                self._fault(not_numbers(out, self.return_line()))
+                return
+        if values.ndim != 1 or len(values) != n:
             if values.size == n:
                 values = values.reshape(n)
             else:
                 self._fault(wrong_count(values.size, n, self.return_line()))
+                return
+        if self._effort:  # the usual case, checked in Python floats (numpy calls cost more for
+            # a limb's joints, cold after a physics step): each finite and within +-its limit
+            # (NaN fails every comparison)
+            for value, limit in zip(values.tolist(), self._limits):  # noqa: B905 - both n long
+                if not -limit <= value <= limit:
+                    break
+            else:
+                self._command = values
+                self.writer(values)
                 return
         if not np.isfinite(values).all():
             self._fault(non_finite(self.joints, values, t, self.return_line()))
