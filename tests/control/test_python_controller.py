@@ -95,6 +95,31 @@ def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
     assert info.update_rate == pytest.approx(250.0) and info.update_time > 0
 
 
+def test_a_new_physics_step_replans_the_updates(tmp_path, turntable):
+    """At the physics step a controller updates every step (the manager's short schedule, set
+    when the controllers start); a new step re-plans it: at 1 kHz on a 0.5 ms step it updates
+    every other step, at 1 kHz on 1 ms every step again, with dt the time between updates."""
+    lab = turntable_lab(tmp_path, turntable, """
+        class Ctl(PythonController):
+            def configure(self):
+                self.times, self.dts = [], []
+            def update(self, state, t, dt):
+                self.times.append(t)
+                self.dts.append(dt)
+            def report(self):
+                return {"times": self.times, "dts": self.dts}
+        """, "update_rate: 1000\n", in_process=True)
+    ctrl, sim = lab.manager.controllers["ctl"], lab.sim
+    sim.step(10)
+    sim.set_timestep(0.0005)
+    sim.step(20)
+    sim.set_timestep(0.001)
+    sim.step(10)
+    times = np.array(ctrl.report()["times"])
+    assert len(times) == 31 and np.allclose(times, np.arange(31) * 0.001)
+    assert np.allclose(ctrl.report()["dts"][1:], 0.001)
+
+
 def test_effort_reaches_qfrc_actuator_exactly_and_is_clamped_once(tmp_path, turntable, caplog):
     lab = turntable_lab(tmp_path, turntable, """
         class Ctl(PythonController):

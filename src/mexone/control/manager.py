@@ -95,8 +95,6 @@ class ControllerManager:
         self._fast = False  # _direct and no shipped controller's period: update's fast path
         self._dt = self.control_period  # cached for the loop; _schedule refreshes it
         self._period_ns = round(self._dt * NS)
-        self._step_ns = 0  # the physics step when every running controller updates at it (only
-        # Python controllers run, at their rate, all equal to the step): update's short schedule
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
         self._state_timer: Periodic | None = None
@@ -128,30 +126,23 @@ class ControllerManager:
         a Python controller (benchmarks/RESULTS.md), so keep it to plain attribute work."""
         now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
-        timed = self._timed  # every controller scheduled first: a hang below must not lose a wake
-        wake: float
-        if self._step_ns:  # every Python controller at the physics step, nothing else periodic
-            wake = now + self._step_ns  # (known since _schedule): each is due at every step
-            for runner in timed:
-                runner.due = True
-                runner.next_ns = wake
-        else:
-            wake = math.inf
-            if self._periodic:
-                if now >= self._next_period_ns - self._half_step_ns:
-                    self._next_period_ns = now + self._period_ns
-                wake = self._next_period_ns
-            half = self._half_step_ns
-            for runner in timed:
-                next_ns = runner.next_ns
-                if now >= next_ns - half:
-                    runner.due = True
-                    next_ns += runner.period_ns
-                    if next_ns < now + half:  # fell behind (a step longer than the period)
-                        next_ns = now + runner.period_ns
-                    runner.next_ns = next_ns
-                if next_ns < wake:
-                    wake = next_ns
+        wake: float = math.inf  # every controller scheduled first: a hang below must not lose a wake
+        if self._periodic:
+            if now >= self._next_period_ns - self._half_step_ns:
+                self._next_period_ns = now + self._period_ns
+            wake = self._next_period_ns
+        half = self._half_step_ns
+        timed = self._timed
+        for runner in timed:
+            next_ns = runner.next_ns
+            if now >= next_ns - half:  # due (a wake at the same instant, by a command or a
+                runner.due = True  # switch, is not: it ran already)
+                next_ns += runner.period_ns
+                if next_ns < now + half:  # fell behind (a step longer than the period)
+                    next_ns = now + runner.period_ns
+                runner.next_ns = next_ns
+            if next_ns < wake:
+                wake = next_ns
         if wake < self.wake_ns:
             self.wake_ns = wake
         self.updates += 1
@@ -402,16 +393,12 @@ class ControllerManager:
         self._half_step_ns = round(self.sim.timestep * NS / 2)
         self._dt = self.control_period
         self._period_ns = round(self._dt * NS)
-        step_ns = round(self.sim.timestep * NS)
         for ctrl in self._timed:
             ctrl.writer = self.hw.writer(ctrl.rows, ctrl.interface_name)
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
             ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now
                 ctrl.next_ns = now
-        every_step = bool(self._timed) and not self._periodic and self._every is self._timed \
-            and all(c.period_ns == step_ns for c in self._timed)
-        self._step_ns = step_ns if every_step else 0
         self._next_period_ns = now
         self._wake()
 
