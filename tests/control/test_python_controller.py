@@ -73,18 +73,21 @@ def errors(caplog) -> list[str]:
 
 
 # ----- the loop ----------------------------------------------------------------------------------
+RECORDER = """
+    class Ctl(PythonController):
+        def configure(self):
+            self.times, self.dts = [], []
+        def update(self, state, t, dt):
+            self.times.append(t)
+            self.dts.append(dt)
+            assert state.time == t
+        def report(self):
+            return {"times": self.times, "dts": self.dts}
+    """  # a controller that records when it updated and its dt
+
+
 def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
-    lab = turntable_lab(tmp_path, turntable, """
-        class Ctl(PythonController):
-            def configure(self):
-                self.times, self.dts = [], []
-            def update(self, state, t, dt):
-                self.times.append(t)
-                self.dts.append(dt)
-                assert state.time == t
-            def report(self):
-                return {"times": self.times, "dts": self.dts}
-        """, "update_rate: 250\n")
+    lab = turntable_lab(tmp_path, turntable, RECORDER, "update_rate: 250\n")
     ctrl = lab.manager.controllers["ctl"]
     lab.sim.step(1000)  # 1 s of 1 ms steps
     report = ctrl.report()
@@ -99,16 +102,7 @@ def test_a_new_physics_step_replans_the_updates(tmp_path, turntable):
     """At the physics step a controller updates every step (the manager's short schedule, set
     when the controllers start); a new step re-plans it: at 1 kHz on a 0.5 ms step it updates
     every other step, at 1 kHz on 1 ms every step again, with dt the time between updates."""
-    lab = turntable_lab(tmp_path, turntable, """
-        class Ctl(PythonController):
-            def configure(self):
-                self.times, self.dts = [], []
-            def update(self, state, t, dt):
-                self.times.append(t)
-                self.dts.append(dt)
-            def report(self):
-                return {"times": self.times, "dts": self.dts}
-        """, "update_rate: 1000\n", in_process=True)
+    lab = turntable_lab(tmp_path, turntable, RECORDER, "update_rate: 1000\n", in_process=True)
     ctrl, sim = lab.manager.controllers["ctl"], lab.sim
     sim.step(10)
     sim.set_timestep(0.0005)
