@@ -110,7 +110,7 @@ def test_leg_odometry_without_a_filter_fails_on_the_noisy_encoders(tmp_path):
     result = grade(find_exercise("walk_estimator"), path)
     assert result.score < find_exercise("walk_estimator").pass_mark, why(result)
     said = checks(result)
-    assert said["stays up"][0] == 1 and said["estimate tracks the truth"][0] == 0, why(result)
+    assert said["stays up"][0] > 0 and said["estimate tracks the truth"][0] == 0, why(result)
 
 
 def test_the_shipped_estimator_under_the_students_name_scores_zero():

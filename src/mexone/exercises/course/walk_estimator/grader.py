@@ -15,19 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
+from mexone.exercises.course import _walktools as tools
 from mexone.exercises.course._labtools import check
-from mexone.exercises.course._walktools import (
-    UP,
-    Encoders,
-    built_on,
-    draw,
-    handout,
-    refused_import,
-    rows,
-    speed_check,
-    stack_yaml,
-    walk,
-)
+from mexone.exercises.course._walktools import UP
 
 FILE, CLASS, PART = "estimator.py", "MyEstimator", "estimator"
 SHIPPED = "mexone.walking.estimator"  # the shipped Kalman filter: the student writes their own
@@ -45,19 +35,19 @@ ANGLE_NOISE, VELOCITY_NOISE = 2e-4, 0.1  # rad, rad/s: the encoders' noise (Enco
 def files() -> dict[str, str]:
     """What `mexone exercise start` writes beside the starter: the stack's YAML with the
     student's class in its part's place, walking as graded."""
-    return handout(PART, FILE, CLASS, GAIT, "walk_estimator")
+    return tools.handout(PART, FILE, CLASS, GAIT, "walk_estimator")
 
 
 def variant(r: np.random.Generator | None):
-    return draw(r, push=(2.0, 3.0))
+    return tools.draw(r, push=(2.0, 3.0))
 
 
-def run(submission: Path, var, encoders: Encoders) -> dict:
+def run(submission: Path, var, encoders: tools.Encoders) -> dict:
     """In the isolated child: the stack walks on the student's estimate, the truth hidden from
     the student's class, its encoders noisy."""
     with tempfile.TemporaryDirectory() as tmp:
-        path = stack_yaml(Path(tmp), PART, submission, FILE, CLASS, GAIT)
-        return walk(path, var, SECONDS, PART, blind=True, encoders=encoders)
+        path = tools.stack_yaml(Path(tmp), PART, submission, FILE, CLASS, GAIT)
+        return tools.walk(path, var, SECONDS, PART, blind=True, encoders=encoders)
 
 
 def _share(error: float, limits: tuple[float, float]) -> float:
@@ -67,18 +57,18 @@ def _share(error: float, limits: tuple[float, float]) -> float:
 def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
     what = var.describe()
-    why = refused_import(ctx.submission, SHIPPED, "the shipped estimator")
+    why = tools.refused_import(ctx.submission, SHIPPED, "the shipped estimator")
     if why:  # no walk: the shipped filter would be graded
         return [check("runs", 1.0, 0.0, "not run: " + why), check(UP, 2.0, 0.0, "not run"),
                 check(TRACKS, 4.0, 0.0, why), check("speed", 3.0, 0.0, "not run")]
     # the noise's draws keyed by the secret too: a class that knew them could subtract them
     seed = 0 if ctx.local else int(ctx.rng.integers(2**32))
-    out = ctx.run(run, ctx.submission, var, Encoders(ANGLE_NOISE, VELOCITY_NOISE, seed))
-    data = rows(out, 20)
+    out = ctx.run(run, ctx.submission, var, tools.Encoders(ANGLE_NOISE, VELOCITY_NOISE, seed))
+    data = tools.rows(out, 20)
     t, x = data[:, 0], data[:, 1]
     true_p, true_v, est_p, est_v = data[:, 1:3], data[:, 4:6], data[:, 10:12], data[:, 17:19]
     up = out["fell"] is None
-    shipped = built_on(out, SHIPPED)
+    shipped = tools.built_on(out, SHIPPED)
     if shipped:
         tracks, why = 0.0, f"your class is built on the shipped estimator ({shipped})"
     elif np.isfinite(est_p).all() and np.isfinite(est_v).all() and len(t):
@@ -90,7 +80,7 @@ def grade(ctx) -> list:
                f"marks within {POSITION[0] * 100:g}, none at {POSITION[1] * 100:g})")
     else:
         tracks, why = 0.0, "your `base` was not finite at every sample"
-    speed, _ = speed_check("speed", 3.0, t, x, WINDOW, NONE, FULL, f"{VX:g} m/s commanded")
+    speed, _ = tools.speed_check("speed", 3.0, t, x, WINDOW, NONE, FULL, f"{VX:g} m/s commanded")
     if up and tracks < 0.5:  # a walk on a wrong estimate is no walk on the estimate
         speed = check("speed", 3.0, 0.0, f"not counted: {TRACKS} earned {tracks:.0%} (at least "
                       f"50 % counts the speed; {speed.output})")
