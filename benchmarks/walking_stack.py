@@ -138,6 +138,85 @@ def per_update(seconds: float, every_500: bool) -> dict:
     return {"rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu, "parts": parts}
 
 
+def cpu_profile(seconds: float) -> dict:
+    """`seconds` of walking at 0.3 m/s (shipped rates) as fast as the machine goes, through the
+    lab's loop (`Simulation.run`, unpaced): each part's THREAD CPU time per update (ns, every
+    update: what another process's load does not add) and every garbage collection (generation,
+    CPU ns, inside a part's update or not). Wall-clock misses on a shared machine mostly measure
+    the other processes; this is what the code costs."""
+    import gc
+    import resource
+
+    usage, thread = resource.getrusage, resource.RUSAGE_THREAD
+    lab = stack()
+    spent: dict[str, list[int]] = {}
+    inside = [""]
+    clock = time.thread_time_ns
+    for name, runner in lab.manager.controllers.items():
+        impl = getattr(runner, "impl", None)
+        if impl is None:
+            continue
+        times = spent.setdefault(name, [])
+
+        def timed(state, t, dt, update=impl.update, times=times, name=name):
+            inside[0] = name
+            switches = usage(thread).ru_nivcsw
+            start = clock()
+            out = update(state, t, dt)
+            elapsed = clock() - start
+            # preempted meanwhile (its caches someone else's when it came back): flagged negative
+            times.append(elapsed if usage(thread).ru_nivcsw == switches else -elapsed)
+            inside[0] = ""
+            return out
+
+        impl.update = timed
+    collections: list[tuple[int, int, str]] = []  # generation, CPU ns, the part it ran in
+    began = [0]
+
+    def watch(phase: str, info: dict) -> None:
+        if phase == "start":
+            began[0] = clock()
+        else:
+            collections.append((info["generation"], clock() - began[0], inside[0]))
+
+    lab.sim.run(2.0)  # up to speed
+    for times in spent.values():
+        times.clear()
+    gc.callbacks.append(watch)
+    try:
+        cpu = time.process_time()
+        lab.sim.run(seconds)
+        cpu = time.process_time() - cpu
+    finally:
+        gc.callbacks.remove(watch)
+    return {"rtf_cpu": seconds / cpu, "parts": {n: np.array(v) for n, v in spent.items()},
+            "deadline_ms": {n: c.budget()["deadline_ms"] for n, c in lab.manager.controllers.items()
+                            if hasattr(c, "budget")},
+            "collections": collections}
+
+
+def print_profile(result: dict) -> None:
+    """The per-part CPU distributions and the collections, one line each."""
+    print(f"  {result['rtf_cpu']:.2f} s of sim per CPU second")
+    for name, t in result["parts"].items():
+        ms, alone = np.abs(t) / 1e6, t >= 0
+        deadline = result["deadline_ms"][name]
+        over = ms > deadline
+        print(f"  {name:12s} CPU per update (ms): median {np.median(ms):.3f}, p99 "
+              f"{np.percentile(ms, 99):.3f}, p99.9 {np.percentile(ms, 99.9):.3f}, max {ms.max():.3f} "
+              f"(not preempted: max {ms[alone].max():.3f}); over its {deadline:g} ms deadline: "
+              f"{int(over.sum())} of {len(ms)}, {int((over & alone).sum())} not preempted")
+    for gen in (0, 1, 2):
+        mine = [(ns, part) for g, ns, part in result["collections"] if g == gen]
+        if not mine:
+            print(f"  gc generation {gen}: none")
+            continue
+        ms = np.array([ns for ns, _ in mine]) / 1e6
+        during = sum(1 for _, part in mine if part)
+        print(f"  gc generation {gen}: {len(ms)} collections, CPU median {np.median(ms):.3f} ms, "
+              f"max {ms.max():.3f} ms; {during} inside a part's update")
+
+
 def stack(vx: float = 0.3, world=None, rates: int | None = None) -> Lab:
     """The shipped stack walking at `vx` after a second's settling; `rates`: every part's."""
     controllers = mex_one.walking_path()
@@ -304,11 +383,18 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="s of walking for the RTF")
     parser.add_argument("--quick", action="store_true", help="no push scans, no courses")
     parser.add_argument("--pushes", action="store_true", help="only the push scans")
+    parser.add_argument("--cpu", action="store_true",
+                        help="only each part's thread CPU time per update and the collections")
     parser.add_argument("--phases", action="store_true", help="6 N s at each tenth of a stride too")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()}; scheduler: "
           f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
           f"cores {sorted(os.sched_getaffinity(0))}")
+    if args.cpu:
+        print(f"stack, {args.seconds:g} s at 0.3 m/s through the lab's loop, unpaced (thread CPU time):")
+        print_profile(cpu_profile(args.seconds))
+        print(f"load average after: {os.getloadavg()}")
+        return
     if args.pushes:
         push_scan(args.phases)
         print(f"load average after: {os.getloadavg()}")
