@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -258,7 +259,7 @@ class WholeBodyController(PythonController):
         self.stopped: str | None = None  # the QP failed: the joints hold (the safe stop's end)
         self.standing: str | None = None  # bad input: it stands, the plan ignored
         self.finish: np.ndarray | None = None  # the step that lands before it stands
-        self.solve_times: list[float] = []
+        self.solve_times: deque[float] = deque(maxlen=5000)  # the last 5000: bounded
         self.swing_from: dict[int, np.ndarray] = {}
 
     def activate(self, state: State) -> None:
@@ -440,7 +441,7 @@ class WholeBodyController(PythonController):
         return g + 200.0 * (self.q_hold - state.q) - 5.0 * state.dq
 
     def report(self) -> dict[str, Any]:
-        times = np.asarray(self.solve_times[-5000:]) * 1e3
+        times = np.asarray(self.solve_times) * 1e3
         out: dict[str, Any] = {"stopped": self.stopped, "standing": self.standing}
         if len(times):
             out.update(qp_ms_median=round(float(np.median(times)), 3),
