@@ -7,10 +7,13 @@ and the same for `mexone run walk`.
 
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py [--seconds 60] [--quick]
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --pushes [--phases]
+    OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --cpu [--seconds 60]
 
---quick: the solves, the per-update costs, the 60 s paced walk and today's walk (no courses, no
-pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks per direction and
-walker), --phases with 6 N s at each tenth of a stride.
+--cpu: only each part's thread CPU time per update (median, p99, p99.9, max) and every garbage
+collection over `--seconds` of walking through the lab's loop unpaced, then the paced walk's
+deadline misses; --quick: the solves, the per-update costs, the 60 s paced walk and today's
+walk (no courses, no pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks
+per direction and walker), --phases with 6 N s at each tenth of a stride.
 
 The machine is shared: the load average is printed before and after. What the code costs is
 measured on a core of its own: run it as root under `chrt -f 20 taskset -c 1` (SCHED_FIFO on one
@@ -254,6 +257,18 @@ def walk_stack(seconds: float) -> dict:
             "reports": {n: c.impl.report() for n, c in parts.items()}}
 
 
+def print_paced(result: dict, seconds: float) -> None:
+    """walk_stack's figures: the walk, then each part's budget (wall clock: the machine's load
+    counts) and report."""
+    print(f"stack, {seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
+          f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
+          f"{result['rtf_cpu']:.2f} (per CPU second)")
+    for name, budget in result["budget"].items():
+        print(f"  {name:12s} {budget['update_ms_mean']:.3f} ms/update (max {budget['update_ms_max']:.2f}), "
+              f"deadline {budget['deadline_ms']:g} ms, {budget['deadline_misses']} missed of "
+              f"{budget['updates']}; {result['reports'][name]}")
+
+
 def survives_stack(impulse: float, direction: float, at: float = PUSH_AT) -> bool:
     """A 0.1 s push of `impulse` N s at the torso, `direction` rad (0 forward, pi/2 left),
     `at` s (walking at 0.3 m/s from 1 s): still standing 4 s later?"""
@@ -393,6 +408,7 @@ def main() -> None:
     if args.cpu:
         print(f"stack, {args.seconds:g} s at 0.3 m/s through the lab's loop, unpaced (thread CPU time):")
         print_profile(cpu_profile(args.seconds))
+        print_paced(walk_stack(args.seconds), args.seconds)
         print(f"load average after: {os.getloadavg()}")
         return
     if args.pushes:
@@ -418,14 +434,7 @@ def main() -> None:
         for name, (n, median, p99) in result["parts"].items():
             print(f"  {name:12s} CPU per update: median {median:.3f} ms ({median / bare:.1f}x), "
                   f"p99 {p99:.3f} ms ({n} updates)")
-    result = walk_stack(args.seconds)
-    print(f"stack, {args.seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
-          f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
-          f"{result['rtf_cpu']:.2f} (per CPU second)")
-    for name, budget in result["budget"].items():
-        print(f"  {name:12s} {budget['update_ms_mean']:.3f} ms/update (max {budget['update_ms_max']:.2f}), "
-              f"deadline {budget['deadline_ms']:g} ms, {budget['deadline_misses']} missed of "
-              f"{budget['updates']}; {result['reports'][name]}")
+    print_paced(walk_stack(args.seconds), args.seconds)
     ok, speed, rtf_wall, rtf_cpu = routine_walk()
     print(f"today's walk (mexone run walk, 2 m): stood {ok}, {speed:.3f} m/s, RTF {rtf_wall:.2f} "
           f"(wall), {rtf_cpu:.2f} (per CPU second)")
