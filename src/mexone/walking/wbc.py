@@ -439,7 +439,8 @@ class WholeBodyController(PythonController):
             jac.flags.writeable = drift.flags.writeable = False
             self._posture_rows = (jac, drift)
         acc = self.kp_posture * (self.posture - state.q) - self.kd_posture * state.dq
-        return Task(*self._posture_rows, acc, self.w_posture)
+        jacobian, drift = self._posture_rows
+        return Task(jacobian, drift, acc, self.w_posture)
 
     def _swing_task(self, swing: np.ndarray, f: int, centre: np.ndarray, rot: np.ndarray,
                     jac: np.ndarray, drift: np.ndarray, dq: np.ndarray, t: float) -> Task:
