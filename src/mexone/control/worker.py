@@ -42,7 +42,7 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -88,13 +88,17 @@ FILLED_FRAME = frame(FILLED)
 _UPDATE_HEAD = frame(UPDATE, bytes(8))[:5]  # an update's frame: this, then its number (8 bytes)
 
 _jail = Jail(limits=Limits(time=math.inf, cpu=1e9, memory_mb=4096))
+_starter: Callable[..., StudentProcess] = spawn
 
 
-def set_jail(jail: Jail) -> None:
+def set_jail(jail: Jail, starter: Callable[..., StudentProcess] | None = None) -> None:
     """The jail every controller worker starts in from now on (a grader's: its limits, its
-    scratch folder). Default: no CPU limit, 4 GB of address space, a scratch folder of its own."""
-    global _jail
+    scratch folder). Default: no CPU limit, 4 GB of address space, a scratch folder of its own.
+    `starter`: what starts a worker in it, with `sandbox.spawn`'s signature (default: spawn; a
+    grader's simulator forks it from its warm fork server, exercises.isolate)."""
+    global _jail, _starter
     _jail = jail
+    _starter = starter or spawn
 
 
 class WorkerFailed(Exception):
@@ -450,7 +454,7 @@ class Worker:
         fds = (theirs[0].fileno(), theirs[1].fileno(), dump_w)
         try:
             os.set_blocking(dump_r, False)
-            self.process: StudentProcess = spawn(
+            self.process: StudentProcess = _starter(
                 [sys.executable, "-m", MAIN, *map(str, fds)], self.jail, pass_fds=fds,
                 env=_environment(), stdout=2)
         except BaseException:
