@@ -4,9 +4,10 @@ control/worker_main.py).
 A controller class resolved from a file or a module (the YAML's `type:`) never runs in the lab's
 process: a segfault, `posix._exit`, a ctypes write into MuJoCo's memory or a frozen update
 cannot be survived there, and a graded controller must not share a process with the simulator
-that measures it. Its worker is started by `mexone.sandbox.spawn` (in the jail `set_jail` sets),
-imports the student's module, and runs the same lifecycle and API in lockstep with the
-controller manager:
+that measures it. Its worker is started by `mexone.sandbox.spawn` (in the jail `set_jail` sets; in
+a grader's simulator, by set_jail's starter: forked warm by the runs' fork server and jailed the
+same way, exercises.isolate), imports the student's module, and runs the same lifecycle and
+API in lockstep with the controller manager:
 
 - each update, what the controller reads (MuJoCo's qpos, qvel and actuator forces, the time,
   the sensors it asked for, its chained inputs) goes into shared memory the worker maps
