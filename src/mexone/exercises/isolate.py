@@ -297,17 +297,9 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         monitor = os.getpid()
         pid = os.fork()
         if pid == 0:
-            processes.die_with_parent(monitor)
-            os.setpgid(0, 0)
-            os.close(status_fd)
+            _forked(monitor, status_fd, out_fd)
             if json.loads(request).get("plan") and _door is not None:
                 _door.close()  # a jailed run never reaches the fork server
-            null = os.open(os.devnull, os.O_RDONLY)
-            os.dup2(null, 0)
-            os.dup2(out_fd, 1)
-            os.dup2(out_fd, 2)
-            for x in (null, out_fd):
-                os.close(x)
             child_main(call_fd, result_fd, json.loads(request))
         with contextlib.suppress(OSError):
             os.setpgid(pid, pid)
@@ -320,6 +312,20 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         code = 3
     finally:
         os._exit(code)
+
+
+def _forked(monitor: int, status_fd: int, out_fd: int) -> None:
+    """A monitor's child's start: it dies with the monitor, in a process group of its own, its
+    output to `out_fd`, no input, and not the monitor's status pipe."""
+    processes.die_with_parent(monitor)
+    os.setpgid(0, 0)
+    os.close(status_fd)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.dup2(out_fd, 1)
+    os.dup2(out_fd, 2)
+    for x in (null, out_fd):
+        os.close(x)
 
 
 def _monitor_worker(fds: list[int], server: int, request: bytes) -> None:
@@ -355,15 +361,7 @@ def _worker_child(keep: list[int], out_fd: int, status_fd: int, monitor: int,
     control.worker_main as `python -m` would run it."""
     code = 3
     try:
-        processes.die_with_parent(monitor)
-        os.setpgid(0, 0)
-        os.close(status_fd)
-        null = os.open(os.devnull, os.O_RDONLY)
-        os.dup2(null, 0)
-        os.dup2(out_fd, 1)
-        os.dup2(out_fd, 2)
-        for x in (null, out_fd):
-            os.close(x)
+        _forked(monitor, status_fd, out_fd)
         os.environ.clear()
         os.environ.update(env)
         plan.parent = monitor
