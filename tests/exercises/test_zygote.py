@@ -108,3 +108,18 @@ def test_a_worker_forked_by_the_zygote_reaches_neither_it_nor_the_secret(tmp_pat
     assert found["shared"] == 0 and found["fds"] <= 4, found  # frames, descriptors, dump (+ ls)
     if os.geteuid() == 0:
         assert found["uid"] != 0, found
+
+
+def _probed() -> list[bool]:
+    import importlib
+
+    spawn = importlib.import_module("mexone.sandbox.spawn")  # the module, not its function
+    return [spawn._isolation is not None, spawn._hidden is not None]
+
+
+def test_the_simulator_inherits_the_probe_and_a_jail_probes_its_own():
+    """The fork server probes the machine once for its simulators; a jailed run forgets that
+    answer (inside, seccomp refuses new namespaces: a jail it starts, exercise 14's observer's,
+    set up with the outside's answer ended with exit status 3 in every run)."""
+    assert isolate.run_trusted(_probed) == [True, True]
+    assert isolate.run_jailed(_probed) == [False, False]

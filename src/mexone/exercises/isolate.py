@@ -51,7 +51,15 @@ from mexone.control import worker as controller_worker
 from mexone.errors import MexoneError
 from mexone.routines import processes
 from mexone.sandbox import Jail, Limits, StudentProcess, confine, isolation, spawn, trust, wire
-from mexone.sandbox.spawn import SECRET_ENV, Forked, environment, jail_plan, prepare
+from mexone.sandbox.spawn import (
+    SECRET_ENV,
+    Forked,
+    environment,
+    forget_probe,
+    jail_plan,
+    prepare,
+    probe_now,
+)
 from mexone.sandbox.trust import UntrustedCode
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated", "run_jailed", "run_trusted",
@@ -258,6 +266,7 @@ def serve(fd: int) -> None:
     import mexone.routines.isolated  # noqa: F401
 
     global _door
+    probe_now()  # once here, not in each simulator whose lab starts a worker
     sock = socket.socket(fileno=fd)
     door, _door = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
     processes.die_with_parent(int(os.environ.pop("MEXONE_GRADER_PID", "0")))
@@ -298,8 +307,10 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         pid = os.fork()
         if pid == 0:
             _forked(monitor, status_fd, out_fd)
-            if json.loads(request).get("plan") and _door is not None:
-                _door.close()  # a jailed run never reaches the fork server
+            if json.loads(request).get("plan"):  # a jailed run never reaches the fork server
+                if _door is not None:
+                    _door.close()
+                forget_probe()  # and probes the jail it is in for its own jails
             child_main(call_fd, result_fd, json.loads(request))
         with contextlib.suppress(OSError):
             os.setpgid(pid, pid)

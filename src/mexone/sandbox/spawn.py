@@ -179,6 +179,25 @@ def _hidden_defaults() -> list[str]:
     return _hidden
 
 
+def probe_now() -> None:
+    """Probe the machine (`isolation`), find the hidden folders and matplotlib's font list now,
+    once for this process and the forks it makes (a grader's fork server: its simulators then
+    start their controllers' jails without a probe's interpreter and a scan of the installed
+    distributions each). A fork that confines itself calls `forget_probe`."""
+    isolation()
+    _hidden_defaults()
+    _matplotlib_fonts()
+
+
+def forget_probe() -> None:
+    """In a jail forked from a process that probed: what the machine offered outside is not
+    what it offers in here (seccomp refuses new namespaces), so a jail started from in here
+    probes again."""
+    global _isolation, _hidden
+    _isolation = _hidden = None
+    _font_list.clear()
+
+
 def _python_paths() -> list[str]:
     """Python's installation, its site-packages and the folder holding mexone: what a jail
     reads besides the system's libraries (nothing else of the grader's sys.path: its working
