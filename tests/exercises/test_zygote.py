@@ -110,16 +110,17 @@ def test_a_worker_forked_by_the_zygote_reaches_neither_it_nor_the_secret(tmp_pat
         assert found["uid"] != 0, found
 
 
-def _probed() -> list[bool]:
+def _probed() -> list[object]:
     import importlib
 
     spawn = importlib.import_module("mexone.sandbox.spawn")  # the module, not its function
-    return [spawn._isolation is not None, spawn._hidden is not None]
+    return [spawn._hidden is not None, spawn.isolation().mode]
 
 
 def test_the_simulator_inherits_the_probe_and_a_jail_probes_its_own():
     """The fork server probes the machine once for its simulators; a jailed run forgets that
     answer (inside, seccomp refuses new namespaces: a jail it starts, exercise 14's observer's,
     set up with the outside's answer ended with exit status 3 in every run)."""
-    assert isolate.run_trusted(_probed) == [True, True]
-    assert isolate.run_jailed(_probed) == [False, False]
+    assert isolate.run_trusted(_probed) == [True, isolation().mode]
+    hidden, mode = isolate.run_jailed(_probed)
+    assert not hidden and mode != "namespaces"

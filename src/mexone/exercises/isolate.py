@@ -307,10 +307,8 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         pid = os.fork()
         if pid == 0:
             _forked(monitor, status_fd, out_fd)
-            if json.loads(request).get("plan"):  # a jailed run never reaches the fork server
-                if _door is not None:
-                    _door.close()
-                forget_probe()  # and probes the jail it is in for its own jails
+            if json.loads(request).get("plan") and _door is not None:
+                _door.close()  # a jailed run never reaches the fork server
             child_main(call_fd, result_fd, json.loads(request))
         with contextlib.suppress(OSError):
             os.setpgid(pid, pid)
@@ -377,6 +375,7 @@ def _worker_child(keep: list[int], out_fd: int, status_fd: int, monitor: int,
         os.environ.update(env)
         plan.parent = monitor
         confine.jail(plan, keep_fds=tuple(keep))  # from here on: the jail
+        forget_probe()
         from mexone.control import worker_main
 
         worker_main.main([str(fd) for fd in keep])
@@ -476,6 +475,7 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
                 plan = confine.Plan.loads(request["plan"])
                 plan.parent = os.getppid()
                 confine.jail(plan, keep_fds=(result_fd,))  # from here on: the jail
+                forget_probe()  # what the machine offered outside: a jail it starts probes in here
             else:
                 _limit(limits)
                 trust.trust_only(_trusted_roots(folders))
