@@ -406,8 +406,28 @@ def shared_block(nbytes: int) -> int:
 
     fd = os.memfd_create("mexone-controller", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
     os.ftruncate(fd, nbytes)
-    fcntl.fcntl(fd, fcntl.F_ADD_SEALS, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_SEAL)
+    _seal(fd, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_SEAL)
     return fd
+
+
+SEAL_TRIES = 6
+
+
+def _seal(fd: int, seals: int) -> None:
+    """`fcntl(fd, F_ADD_SEALS, seals)`, tried again on EBUSY: Linux refuses F_SEAL_WRITE while
+    it still holds a page of the file pinned (one just written, not yet out of a CPU's LRU
+    batch), a passing state; "OSError: [Errno 16]" ended a graded run once (issue 36)."""
+    import errno
+    import fcntl
+
+    for attempt in range(SEAL_TRIES):
+        try:
+            fcntl.fcntl(fd, fcntl.F_ADD_SEALS, seals)
+            return
+        except OSError as exc:
+            if exc.errno != errno.EBUSY or attempt == SEAL_TRIES - 1:
+                raise
+            time.sleep(0.01 * 2 ** attempt)  # the kernel waited ~75 ms itself
 
 
 def model_block(model: mujoco.MjModel) -> tuple[int, int]:
@@ -423,8 +443,7 @@ def model_block(model: mujoco.MjModel) -> tuple[int, int]:
     view = memoryview(buf)  # type: ignore[arg-type]  # numpy's stubs: no __buffer__ on 3.11
     while view:
         view = view[os.write(fd, view):]
-    fcntl.fcntl(fd, fcntl.F_ADD_SEALS, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW |
-                fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL)
+    _seal(fd, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL)
     return fd, size
 
 
