@@ -77,9 +77,10 @@ def _in_forks(lab: Lab, x0: float, pushes: list[tuple[int, float]], at_once: int
         while todo and len(running) < at_once:
             push = todo.pop(0)
             read, write = os.pipe()
-            with GUARD._lock:  # the controller watchdog's lock free in the child
+            with GUARD.lock:  # the controller watchdog's lock free in the child
                 pid = os.fork()
             if pid == 0:  # the child: one push, its verdict down the pipe
+                GUARD.running = False  # its watchdog thread was not forked: the next update starts one
                 os.close(read)
                 signal.alarm(600)  # a hung child dies rather than hangs the suite
                 try:
