@@ -7,10 +7,13 @@ and the same for `mexone run walk`.
 
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py [--seconds 60] [--quick]
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --pushes [--phases]
+    OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --cpu [--seconds 60]
 
---quick: the solves, the per-update costs, the 60 s paced walk and today's walk (no courses, no
-pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks per direction and
-walker), --phases with 6 N s at each tenth of a stride.
+--cpu: only each part's thread CPU time per update (median, p99, p99.9, max) and every garbage
+collection over `--seconds` of walking through the lab's loop unpaced, then the paced walk's
+deadline misses; --quick: the solves, the per-update costs, the 60 s paced walk and today's
+walk (no courses, no pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks
+per direction and walker), --phases with 6 N s at each tenth of a stride.
 
 The machine is shared: the load average is printed before and after. What the code costs is
 measured on a core of its own: run it as root under `chrt -f 20 taskset -c 1` (SCHED_FIFO on one
@@ -138,6 +141,85 @@ def per_update(seconds: float, every_500: bool) -> dict:
     return {"rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu, "parts": parts}
 
 
+def cpu_profile(seconds: float) -> dict:
+    """`seconds` of walking at 0.3 m/s (shipped rates) as fast as the machine goes, through the
+    lab's loop (`Simulation.run`, unpaced): each part's THREAD CPU time per update (ns, every
+    update: what another process's load does not add) and every garbage collection (generation,
+    CPU ns, inside a part's update or not). Wall-clock misses on a shared machine mostly measure
+    the other processes; this is what the code costs."""
+    import gc
+    import resource
+
+    usage, thread = resource.getrusage, resource.RUSAGE_THREAD
+    lab = stack()
+    spent: dict[str, list[int]] = {}
+    inside = [""]
+    clock = time.thread_time_ns
+    for name, runner in lab.manager.controllers.items():
+        impl = getattr(runner, "impl", None)
+        if impl is None:
+            continue
+        times = spent.setdefault(name, [])
+
+        def timed(state, t, dt, update=impl.update, times=times, name=name):
+            inside[0] = name
+            switches = usage(thread).ru_nivcsw
+            start = clock()
+            out = update(state, t, dt)
+            elapsed = clock() - start
+            # preempted meanwhile (its caches someone else's when it came back): flagged negative
+            times.append(elapsed if usage(thread).ru_nivcsw == switches else -elapsed)
+            inside[0] = ""
+            return out
+
+        impl.update = timed
+    collections: list[tuple[int, int, str]] = []  # generation, CPU ns, the part it ran in
+    began = [0]
+
+    def watch(phase: str, info: dict) -> None:
+        if phase == "start":
+            began[0] = clock()
+        else:
+            collections.append((info["generation"], clock() - began[0], inside[0]))
+
+    lab.sim.run(2.0)  # up to speed
+    for times in spent.values():
+        times.clear()
+    gc.callbacks.append(watch)
+    try:
+        cpu = time.process_time()
+        lab.sim.run(seconds)
+        cpu = time.process_time() - cpu
+    finally:
+        gc.callbacks.remove(watch)
+    return {"rtf_cpu": seconds / cpu, "parts": {n: np.array(v) for n, v in spent.items()},
+            "deadline_ms": {n: c.budget()["deadline_ms"] for n, c in lab.manager.controllers.items()
+                            if hasattr(c, "budget")},
+            "collections": collections}
+
+
+def print_profile(result: dict) -> None:
+    """The per-part CPU distributions and the collections, one line each."""
+    print(f"  {result['rtf_cpu']:.2f} s of sim per CPU second")
+    for name, t in result["parts"].items():
+        ms, alone = np.abs(t) / 1e6, t >= 0
+        deadline = result["deadline_ms"][name]
+        over = ms > deadline
+        print(f"  {name:12s} CPU per update (ms): median {np.median(ms):.3f}, p99 "
+              f"{np.percentile(ms, 99):.3f}, p99.9 {np.percentile(ms, 99.9):.3f}, max {ms.max():.3f} "
+              f"(not preempted: max {ms[alone].max():.3f}); over its {deadline:g} ms deadline: "
+              f"{int(over.sum())} of {len(ms)}, {int((over & alone).sum())} not preempted")
+    for gen in (0, 1, 2):
+        mine = [(ns, part) for g, ns, part in result["collections"] if g == gen]
+        if not mine:
+            print(f"  gc generation {gen}: none")
+            continue
+        ms = np.array([ns for ns, _ in mine]) / 1e6
+        during = sum(1 for _, part in mine if part)
+        print(f"  gc generation {gen}: {len(ms)} collections, CPU median {np.median(ms):.3f} ms, "
+              f"max {ms.max():.3f} ms; {during} inside a part's update")
+
+
 def stack(vx: float = 0.3, world=None, rates: int | None = None) -> Lab:
     """The shipped stack walking at `vx` after a second's settling; `rates`: every part's."""
     controllers = mex_one.walking_path()
@@ -173,6 +255,18 @@ def walk_stack(seconds: float) -> dict:
             "rtf_wall": seconds / wall, "rtf_cpu": seconds / cpu,
             "budget": {n: c.budget() for n, c in parts.items()},
             "reports": {n: c.impl.report() for n, c in parts.items()}}
+
+
+def print_paced(result: dict, seconds: float) -> None:
+    """walk_stack's figures: the walk, then each part's budget (wall clock: the machine's load
+    counts) and report."""
+    print(f"stack, {seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
+          f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
+          f"{result['rtf_cpu']:.2f} (per CPU second)")
+    for name, budget in result["budget"].items():
+        print(f"  {name:12s} {budget['update_ms_mean']:.3f} ms/update (max {budget['update_ms_max']:.2f}), "
+              f"deadline {budget['deadline_ms']:g} ms, {budget['deadline_misses']} missed of "
+              f"{budget['updates']}; {result['reports'][name]}")
 
 
 def survives_stack(impulse: float, direction: float, at: float = PUSH_AT) -> bool:
@@ -304,11 +398,19 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="s of walking for the RTF")
     parser.add_argument("--quick", action="store_true", help="no push scans, no courses")
     parser.add_argument("--pushes", action="store_true", help="only the push scans")
+    parser.add_argument("--cpu", action="store_true",
+                        help="only each part's thread CPU time per update and the collections")
     parser.add_argument("--phases", action="store_true", help="6 N s at each tenth of a stride too")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()}; scheduler: "
           f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
           f"cores {sorted(os.sched_getaffinity(0))}")
+    if args.cpu:
+        print(f"stack, {args.seconds:g} s at 0.3 m/s through the lab's loop, unpaced (thread CPU time):")
+        print_profile(cpu_profile(args.seconds))
+        print_paced(walk_stack(args.seconds), args.seconds)
+        print(f"load average after: {os.getloadavg()}")
+        return
     if args.pushes:
         push_scan(args.phases)
         print(f"load average after: {os.getloadavg()}")
@@ -332,14 +434,7 @@ def main() -> None:
         for name, (n, median, p99) in result["parts"].items():
             print(f"  {name:12s} CPU per update: median {median:.3f} ms ({median / bare:.1f}x), "
                   f"p99 {p99:.3f} ms ({n} updates)")
-    result = walk_stack(args.seconds)
-    print(f"stack, {args.seconds:g} s at 0.3 m/s paced at real time: {result['distance']:.2f} m, "
-          f"lowest base {result['lowest']:.3f} m, RTF {result['rtf_wall']:.2f} (wall), "
-          f"{result['rtf_cpu']:.2f} (per CPU second)")
-    for name, budget in result["budget"].items():
-        print(f"  {name:12s} {budget['update_ms_mean']:.3f} ms/update (max {budget['update_ms_max']:.2f}), "
-              f"deadline {budget['deadline_ms']:g} ms, {budget['deadline_misses']} missed of "
-              f"{budget['updates']}; {result['reports'][name]}")
+    print_paced(walk_stack(args.seconds), args.seconds)
     ok, speed, rtf_wall, rtf_cpu = routine_walk()
     print(f"today's walk (mexone run walk, 2 m): stood {ok}, {speed:.3f} m/s, RTF {rtf_wall:.2f} "
           f"(wall), {rtf_cpu:.2f} (per CPU second)")

@@ -73,18 +73,21 @@ def errors(caplog) -> list[str]:
 
 
 # ----- the loop ----------------------------------------------------------------------------------
+RECORDER = """
+    class Ctl(PythonController):
+        def configure(self):
+            self.times, self.dts = [], []
+        def update(self, state, t, dt):
+            self.times.append(t)
+            self.dts.append(dt)
+            assert state.time == t
+        def report(self):
+            return {"times": self.times, "dts": self.dts}
+    """  # a controller that records when it updated and its dt
+
+
 def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
-    lab = turntable_lab(tmp_path, turntable, """
-        class Ctl(PythonController):
-            def configure(self):
-                self.times, self.dts = [], []
-            def update(self, state, t, dt):
-                self.times.append(t)
-                self.dts.append(dt)
-                assert state.time == t
-            def report(self):
-                return {"times": self.times, "dts": self.dts}
-        """, "update_rate: 250\n")
+    lab = turntable_lab(tmp_path, turntable, RECORDER, "update_rate: 250\n")
     ctrl = lab.manager.controllers["ctl"]
     lab.sim.step(1000)  # 1 s of 1 ms steps
     report = ctrl.report()
@@ -93,6 +96,22 @@ def test_updates_at_its_rate_against_sim_time(tmp_path, turntable):
     assert np.allclose(np.diff(times), 0.004) and np.allclose(report["dts"], 0.004)
     info = {i.name: i for i in lab.manager.list_controllers()}["ctl"]
     assert info.update_rate == pytest.approx(250.0) and info.update_time > 0
+
+
+def test_a_new_physics_step_replans_the_updates(tmp_path, turntable):
+    """At the physics step a controller updates every step (the manager's short schedule, set
+    when the controllers start); a new step re-plans it: at 1 kHz on a 0.5 ms step it updates
+    every other step, at 1 kHz on 1 ms every step again, with dt the time between updates."""
+    lab = turntable_lab(tmp_path, turntable, RECORDER, "update_rate: 1000\n", in_process=True)
+    ctrl, sim = lab.manager.controllers["ctl"], lab.sim
+    sim.step(10)
+    sim.set_timestep(0.0005)
+    sim.step(20)
+    sim.set_timestep(0.001)
+    sim.step(10)
+    times = np.array(ctrl.report()["times"])
+    assert len(times) == 31 and np.allclose(times, np.arange(31) * 0.001)
+    assert np.allclose(ctrl.report()["dts"][1:], 0.001)
 
 
 def test_effort_reaches_qfrc_actuator_exactly_and_is_clamped_once(tmp_path, turntable, caplog):
@@ -585,29 +604,46 @@ def test_joints_in_any_order_read_and_write_the_right_dofs(tmp_path):
     np.testing.assert_array_equal(q, q_from_all)  # quaternion)
 
 
-def test_float_effort_writer_writes_what_the_numpy_writer_writes(arm):
-    """A Python controller's fast write (a few joints, Python floats) sends the same bits to
-    MuJoCo's ctrl and to the hardware's effort commands as the numpy writer does."""
+def test_a_row_writer_sends_what_write_sends(arm):
+    """A Python controller's fast write (SimHardware.writer: views where rows and controls are
+    evenly spaced, a copy for unit gears, a divide otherwise, a scatter for scattered joints)
+    leaves the hardware's commands and MuJoCo's ctrl bit for bit as the full write() does."""
+    from dataclasses import replace
+
     _, lab = arm
-    hw, data = lab.manager.hw, lab.sim.data
-    saved = data.ctrl.copy(), hw.command.effort.copy()
+    hw, data, c = lab.manager.hw, lab.sim.data, lab.manager.hw.command
+    layout = hw.layout
+    interfaces = ("effort", "position", "velocity")
     values = np.random.default_rng(25).normal(0.0, 30.0, 3)
+    hw.write()  # ctrl now says what the commands say
+    saved = data.ctrl.copy(), {name: getattr(c, name).copy() for name in interfaces}
+
+    def restore() -> None:
+        data.ctrl[:] = saved[0]
+        for name in interfaces:
+            getattr(c, name)[:] = saved[1][name]
+
     try:
-        for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # a strided view
-                       ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
-            rows = hw.rows(joints)
-            hw.writers(rows, "effort").floats(values.tolist())
-            fast = data.ctrl.copy(), hw.command.effort.copy()
-            data.ctrl[:], hw.command.effort[:] = saved
-            hw.command.effort[rows] = values
-            hw.writers(rows, "effort").values(values)
-            np.testing.assert_array_equal(fast[0], data.ctrl)
-            np.testing.assert_array_equal(fast[1], hw.command.effort)
-            assert list(fast[0][hw.layout.ff[rows]]) == list(values / hw.gear[rows])
-            data.ctrl[:], hw.command.effort[:] = saved
-        assert hw.writers(np.arange(len(hw.joints)), "effort").floats is None  # many joints: numpy
+        for gear in (1.0, 2.5):
+            hw.layout = replace(layout, gear=layout.gear * gear)
+            hw.gear = hw.layout.gear
+            for joints in (["l_shoulder_pitch", "l_shoulder_roll", "l_elbow"],  # strided views
+                           ["r_elbow", "l_shoulder_pitch", "waist_yaw"]):  # scattered
+                rows = hw.rows(joints)
+                for name in interfaces:
+                    hw.writer(rows, name)(values)
+                    fast = data.ctrl.copy(), getattr(c, name).copy()
+                    restore()
+                    getattr(c, name)[rows] = values
+                    hw.write()
+                    np.testing.assert_array_equal(fast[0], data.ctrl, err_msg=f"{name} {joints}")
+                    np.testing.assert_array_equal(fast[1], getattr(c, name))
+                    assert not np.array_equal(fast[0], saved[0])  # it did write
+                    restore()
     finally:
-        data.ctrl[:], hw.command.effort[:] = saved
+        hw.layout, hw.gear = layout, layout.gear
+        restore()
+        hw.write()
 
 
 def test_an_update_blocked_outside_python_is_ended_and_a_signal_still_stops_the_run(tmp_path):

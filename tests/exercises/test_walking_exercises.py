@@ -99,6 +99,26 @@ def test_an_estimator_that_copies_the_simulators_base_fails(graded):
     assert checks(result)["estimate tracks the truth"][0] == 0, why(result)
 
 
+@pytest.mark.slow
+def test_leg_odometry_without_a_filter_fails_on_the_noisy_encoders(tmp_path):
+    """The skeleton `controllers new --part estimator` writes (leg odometry) walks, but the
+    encoders' noise reaches its velocity: it earns nothing for the estimate and so no speed."""
+    from mexone.walking.skeletons import walking_skeleton_files
+
+    path = tmp_path / "estimator.py"
+    path.write_text(walking_skeleton_files("my_estimator", "estimator")["my_estimator.py"])
+    result = grade(find_exercise("walk_estimator"), path)
+    assert result.score < find_exercise("walk_estimator").pass_mark, why(result)
+    said = checks(result)
+    assert said["stays up"][0] > 0 and said["estimate tracks the truth"][0] == 0, why(result)
+
+
+def test_the_shipped_estimator_under_the_students_name_scores_zero():
+    result = grade(find_exercise("walk_estimator"), WRONG / "walk_estimator" / "shipped.py")
+    assert result.score == 0, why(result)
+    assert "imports mexone.walking.estimator" in checks(result)["estimate tracks the truth"][1]
+
+
 SPY = '''
 from mexone.control import PythonController
 
@@ -187,3 +207,41 @@ def test_a_graders_files_naming_a_folder_is_one_line_and_writes_nothing(tmp_path
     code, _, err = run_cli(["exercise", "start", exercise, tmp_path / "st"])
     assert code == 2 and "files() names '../escaped.yaml'" in err and len(err.strip().splitlines()) == 1, err
     assert not (tmp_path / "escaped.yaml").exists() and not (tmp_path / "st").exists()
+
+
+ENCODER_SPY = '''
+from mexone.control import PythonController
+
+
+class MyEstimator(PythonController):
+    exports = {"base": 13, "contact": 2}
+
+    def update(self, state, t, dt):  # a joint's angle and velocity as it reads them
+        self.exports["base"][:4] = (state.all_q[7], state.all_dq[6], state.all_q[8], state.all_dq[7])
+'''
+
+
+def test_the_estimators_encoders_are_noisy_and_only_its_own(tmp_path):
+    """Exercise 13's encoders: the student's class reads each joint's angle and velocity with
+    the noise Encoders names (measured: the standard deviation of what it reads less the
+    truth), drawn from the seed; the other parts read the simulator."""
+    from mexone.exercises.course._walktools import Encoders, blind_base, stack_yaml
+    from mexone.lab import Lab
+
+    source = tmp_path / "spy.py"
+    source.write_text(ENCODER_SPY)
+    work = tmp_path / "run"
+    work.mkdir()
+    lab = Lab.create(controllers=stack_yaml(work, "estimator", source, "spy.py", "MyEstimator"))
+    blind_base(lab, "estimator", Encoders(angle=0.01, velocity=0.5, seed=3))
+    sim, base = lab.sim, lab.manager.controllers["estimator"].exports["base"]
+    errors = []
+    for _ in range(200):
+        sim.step(1)
+        errors.append(np.array(base[:4]) - sim.data.qpos[7:9].repeat(2) * [1, 0, 1, 0]
+                      - sim.data.qvel[6:8].repeat(2) * [0, 1, 0, 1])
+    spread = np.std(errors, axis=0)
+    assert np.all((spread[[0, 2]] > 0.007) & (spread[[0, 2]] < 0.013)), spread
+    assert np.all((spread[[1, 3]] > 0.35) & (spread[[1, 3]] < 0.65)), spread
+    whole_body = lab.manager.controllers["whole_body"]
+    assert np.array_equal(whole_body.state.all_dq[6:], sim.data.qvel[6:])  # the others: exact

@@ -1,12 +1,14 @@
 """The walking stack holds up (issue 39's acceptance): walking at 0.3 m/s it survives a 0.1 s
-push of 6 N s at the torso, sideways either way and forward, at the phases of the stride that
-were the hard ones (both feet down, the push towards the standing foot); and it steps down
+push of 6 N s at the torso, sideways either way and forward, at every tenth of a stride (the
+hard ones: pushed towards the foot that has just landed); and it steps down
 the 2 cm step at the shipped rates (footsteps 100 Hz, COM planner 250 Hz, the rest 500 Hz),
 the estimator in the loop. benchmarks/walking_stack.py scans the largest push survived."""
 
 from __future__ import annotations
 
 import math
+import os
+import signal
 
 import pytest
 
@@ -38,28 +40,92 @@ def _lowest_until(lab: Lab, until: float) -> float:
     return lowest
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("angle, at", [(90, 5.0), (90, 5.1), (-90, 5.0), (0, 5.1), (0, 5.5)],
-                         ids=["left-towards-the-standing-foot", "left-both-feet-down",
-                              "right-the-swinging-foots-side", "forward-both-feet-down",
-                              "forward-both-feet-down-later"])
-def test_walking_at_0_3_m_s_it_survives_a_6_n_s_push(angle, at):
-    """Steps lift every 0.4 s from 1.6 s, the right foot first: at 5.0 s the right foot is in
-    the air (landing at 5.1 s) over the standing left one, at 5.1-5.2 s and 5.5-5.6 s both feet
-    are down (forward there the steps needed more reach than 0.25 m: the push outran them)."""
-    lab = _walking()
+PHASES = [round(5.0 + 0.1 * k, 1) for k in range(8)]  # s: a stride, two steps of 0.4 s
+PUSHES = [(angle, at) for angle in (90, -90, 0) for at in PHASES]
+WATCH = 3.0  # s after the push it must still stand
+
+
+def _pushed(lab: Lab, x0: float, angle: float, at: float) -> str:
+    """The walk pushed 6 N s at `angle` degrees (0 forward, 90 left) at `at` s: "" if it stood
+    for WATCH s and walks on, else what went wrong."""
     force = 6.0 / 0.1
     direction = math.radians(angle)
     lab.sim.apply_wrench("torso", [force * math.cos(direction), force * math.sin(direction), 0.0],
                          duration=0.1, start=at)
-    x0 = float(lab.sim.data.qpos[0])
-    lowest = _lowest_until(lab, at + 3.0)
-    assert lowest > FALLEN, f"fell (base at {lowest:.3f} m)"
+    lowest = _lowest_until(lab, at + WATCH)
+    if lowest <= FALLEN:
+        return f"fell (base at {lowest:.3f} m)"
     reports = {n: c.impl.report() for n, c in lab.manager.controllers.items() if hasattr(c, "impl")}
-    assert reports["whole_body"]["stopped"] is None and reports["com_planner"]["stopped"] is None
-    assert float(lab.sim.data.qpos[0]) - x0 > 0.6  # still walking forward, not just standing up
-    if angle == 90 and at == 5.0:  # towards the standing foot: the steps came sooner
-        assert reports["footsteps"]["hurried"] >= 1, reports["footsteps"]
+    if reports["whole_body"]["stopped"] is not None or reports["com_planner"]["stopped"] is not None:
+        return f"stopped: {reports['whole_body']['stopped']} {reports['com_planner']['stopped']}"
+    if float(lab.sim.data.qpos[0]) - x0 < 0.6:  # still walking forward, not just standing up
+        return f"stood but walked only {float(lab.sim.data.qpos[0]) - x0:.2f} m"
+    if angle == 90 and at == 5.0 and reports["footsteps"]["hurried"] < 1:  # the steps came sooner
+        return f"not hurried: {reports['footsteps']}"
+    return ""
+
+
+def _in_forks(lab: Lab, x0: float, pushes: list[tuple[int, float]], at_once: int = 2) -> dict:
+    """Each push on a fork of the warmed-up walk (the whole lab's state, no copy to keep in
+    step), `at_once` at a time: {push: "" or what went wrong}."""
+    from mexone.control.watchdog import GUARD
+
+    results: dict = {}
+    running: dict[int, tuple[tuple[int, float], int]] = {}
+    todo = list(pushes)
+    while todo or running:
+        while todo and len(running) < at_once:
+            push = todo.pop(0)
+            read, write = os.pipe()
+            with GUARD.lock:  # the controller watchdog's lock free in the child
+                pid = os.fork()
+            if pid == 0:  # the child: one push, its verdict down the pipe
+                GUARD.running = False  # its watchdog thread was not forked: the next update starts one
+                os.close(read)
+                signal.alarm(600)  # a hung child dies rather than hangs the suite
+                try:
+                    verdict = _pushed(lab, x0, *push)
+                except BaseException as exc:  # noqa: BLE001 - reported by the parent
+                    verdict = f"raised {exc!r}"
+                os.write(write, (verdict or "ok").encode()[:4000])
+                os._exit(0)
+            os.close(write)
+            running[pid] = (push, read)
+        pid, status = os.wait()
+        push, read = running.pop(pid)
+        with os.fdopen(read, "rb") as pipe:
+            said = pipe.read().decode()
+        results[push] = "" if said == "ok" else (said or f"the child ended with status {status}")
+    return results
+
+
+@pytest.fixture(scope="module")
+def pushed_over_a_stride() -> dict:
+    """6 N s at each tenth of a stride, left, right and forward, each on a fork of one walk
+    that went on to just before the first push (one warm-up for all 24)."""
+    lab = _walking()
+    x0 = float(lab.sim.data.qpos[0])
+    lab.sim.step(round((PHASES[0] - 0.05 - lab.sim.time) / lab.sim.timestep))
+    return _in_forks(lab, x0, PUSHES)
+
+
+# not met yet: pushed right at 5.3 s (the left foot in the air) the right foot steps out and the
+# capture point comes back over it, but the next hurried step is the left's, inwards, while the
+# capture point is still at the right sole's outer edge: it runs away (benchmarks/RESULTS.md)
+NOT_YET = {(-90, 5.3)}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("angle, at", [pytest.param(a, t, marks=pytest.mark.xfail(
+    strict=True, reason="see NOT_YET")) if (a, t) in NOT_YET else (a, t) for a, t in PUSHES],
+                         ids=[f"{ {90: 'left', -90: 'right', 0: 'forward'}[a]}-at-{t:g}s" for a, t in PUSHES])
+def test_walking_at_0_3_m_s_it_survives_a_6_n_s_push_at_every_phase(pushed_over_a_stride, angle, at):
+    """Steps lift every 0.4 s from 1.6 s, the right foot first: over 5.0-5.7 s the right foot is
+    in the air until 5.1 s, both feet down 5.1-5.2 s, the left in the air 5.2-5.5 s, both down
+    5.5-5.6 s, the right in the air from 5.6 s. The hard ones: pushed towards the foot that has
+    just landed (left at 5.5-5.7 s, right at 5.1-5.2 s), which must step again further out."""
+    verdict = pushed_over_a_stride[(angle, at)]
+    assert verdict == "", verdict
 
 
 @pytest.mark.slow

@@ -13,7 +13,7 @@ gives every joint with a <transmission> two MuJoCo actuators::
 and limits the joint's total actuator torque to the URDF effort limit. Gains, clamps and setpoints
 are model and data fields, so retuning costs nothing and the whole PID runs in C every step.
 
-`read()` copies the joint state into `state`; `write()` sends `command` to MuJoCo; `writers(rows,
+`read()` copies the joint state into `state`; `write()` sends `command` to MuJoCo; `writer(rows,
 interface)` is write() of one command interface on a few joints alone, for a Python controller's
 update (the manager's fast path). All run in the simulation thread only. Where each joint's
 controls live is one `ControlLayout`, which every writer reads (write, the writers, a
@@ -24,7 +24,6 @@ mechanicalReduction r is folded in here (actuator length = r q, torque = r force
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from typing import TypeVar
@@ -33,12 +32,12 @@ import mujoco
 import numpy as np
 
 from mexone.control.spec import PidGains
-from mexone.control.student import strided_view  # noqa: F401 - its home was here
+from mexone.control.student import strided_view
 from mexone.description.model import RobotModel
 from mexone.errors import InputError, ModelError
 from mexone.physics.simulation import Simulation
 
-__all__ = ["SimHardware", "ControlLayout", "RowWriters", "strided_view", "JointCommands",
+__all__ = ["SimHardware", "ControlLayout", "strided_view", "JointCommands",
            "JointStates", "build_actuators", "bake_gains", "INTEGRAL_SUFFIX", "set_motor_gain",
            "motor_gains", "set_integral_gain", "set_hold_controls", "clear_integrals",
            "copy_actuator_state", "set_actuator_state", "gain_to_biasprm", "biasprm_to_gain",
@@ -47,7 +46,6 @@ __all__ = ["SimHardware", "ControlLayout", "RowWriters", "strided_view", "JointC
 
 INTEGRAL_SUFFIX = "/i"
 Q_REF, V_REF, FF = 0, 1, 2  # the motor's three control inputs, in ctrl order (_MOTOR_INPUTS)
-FLOAT_WRITE_JOINTS = 6  # a float-by-float effort writer up to this many joints (numpy beyond)
 TELEPORT_NONE, TELEPORT_POSITION, TELEPORT_VELOCITY = 0, 1, 2
 _MOTOR_INPUTS = int(mujoco.mjtCtrlInput.mjINPUT_POS | mujoco.mjtCtrlInput.mjINPUT_VEL
                     | mujoco.mjtCtrlInput.mjINPUT_FF)
@@ -248,16 +246,6 @@ class ControlLayout:
         return ControlLayout(*(getattr(self, f.name)[rows] for f in fields(self)))
 
 
-@dataclass(frozen=True)
-class RowWriters:
-    """write() of one command interface on a few joints alone, taking the new values: `values`
-    (a numpy array) always; `floats` (a list of checked Python floats) for the effort of up to
-    FLOAT_WRITE_JOINTS joints, a handful of stores costing less than two numpy calls."""
-
-    values: Callable[[np.ndarray], None]
-    floats: Callable[[list[float]], None] | None = None
-
-
 @dataclass
 class JointStates:
     """The state interfaces, as read at the start of an update (joint space)."""
@@ -377,69 +365,60 @@ class SimHardware:
         self.gains_changed(rows)
         self.reset_integral(rows)
 
-    def writers(self, rows: np.ndarray, interface: str) -> RowWriters:
+    def writer(self, rows: np.ndarray, interface: str) -> Callable[[np.ndarray], None]:
         """write() of one command interface ("effort", "position", "velocity") on `rows` alone,
-        for a loop cycle in which nothing else changed (a Python controller's update): the same
-        ctrl (and, for an ideal servo, qpos/qvel) as write() would send, in a few stores. Built
-        after the controller started (its teleport mode is read now); rebuilt when the model
-        changes."""
+        for a loop cycle in which nothing else changed (a Python controller's update): the
+        returned function stores its values (checked, clamped, one per row) into `command` and
+        sends the same ctrl (and, for an ideal servo, qpos/qvel) as write() would, in a few
+        stores (views where the rows and controls are evenly spaced). Built after the controller
+        started (its teleport mode is read now); rebuilt when the model changes."""
+        rows = np.asarray(rows, dtype=int)
         layout = self.layout.take(rows)
         ctrl = self.sim.data.ctrl  # MuJoCo keeps its arrays for the model's life
         gear = layout.gear
         teleport = bool(np.count_nonzero(self.command.teleport[rows]))
+        commands: np.ndarray = getattr(self.command, interface)
+        held = strided_view(commands, rows)
         if interface == "effort":
-            return RowWriters(self._effort_writer(layout, ctrl),
-                              self._effort_floats(np.asarray(rows, dtype=int), layout, ctrl))
+            ff = layout.ff
+            view = strided_view(ctrl, ff)
+            if held is None or view is None:
+                def write_effort(values: np.ndarray) -> None:
+                    commands[rows] = values
+                    ctrl[ff] = values / gear
+                return write_effort
+            if bool(np.all(gear == 1.0)):  # values / 1.0 is values, bit for bit
+                def write_effort_copy(values: np.ndarray) -> None:
+                    held[...] = values
+                    view[...] = values
+                return write_effort_copy
+
+            def write_effort_view(values: np.ndarray) -> None:  # one ufunc, no temporary
+                held[...] = values
+                np.divide(values, gear, out=view)
+            return write_effort_view
         sim = self.sim
         if interface == "velocity":
             v_ref, dofs = layout.v_ref, layout.dof
 
             def write_velocity(values: np.ndarray) -> None:
+                commands[rows] = values
                 ctrl[v_ref] = gear * values
                 if teleport:
                     sim.data.qvel[dofs] = values
-            return RowWriters(write_velocity)
+            return write_velocity
         index = np.concatenate((layout.q_ref, layout.i_ref))  # the motor's, the integral's
         both = np.concatenate((gear, np.ones(len(gear))))
         qpos, dofs = layout.qpos, layout.dof
 
         def write_position(values: np.ndarray) -> None:
+            commands[rows] = values
             ctrl[index] = both * np.concatenate((values, values))
             if teleport:
                 data = sim.data
                 data.qpos[qpos] = values
                 data.qvel[dofs] = 0.0
-        return RowWriters(write_position)
-
-    @staticmethod
-    def _effort_writer(layout: ControlLayout, ctrl: np.ndarray) -> Callable[[np.ndarray], None]:
-        ff, gear = layout.ff, layout.gear
-        view = strided_view(ctrl, ff)
-        if view is not None:  # one ufunc into MuJoCo's ctrl, no temporary
-            def write_effort_view(values: np.ndarray) -> None:
-                np.divide(values, gear, out=view)
-            return write_effort_view
-
-        def write_effort(values: np.ndarray) -> None:
-            ctrl[ff] = values / gear
-        return write_effort
-
-    def _effort_floats(self, rows: np.ndarray, layout: ControlLayout,
-                       ctrl: np.ndarray) -> Callable[[list[float]], None] | None:
-        """Effort commands from Python floats (checked already) into the hardware's commands
-        and MuJoCo's ctrl at once, float by float; None for more than FLOAT_WRITE_JOINTS."""
-        gears = [float(g) for g in layout.gear]
-        if len(gears) > FLOAT_WRITE_JOINTS or not all(g != 0.0 and math.isfinite(g) for g in gears):
-            return None
-        effort = self.command.effort
-        slots = [(int(row), int(ff), gear) for row, ff, gear in zip(rows, layout.ff, gears, strict=True)]
-
-        def write_effort_floats(values: list[float]) -> None:
-            for (row, ff, gear), value in zip(slots, values):  # noqa: B905 - both n long
-                effort[row] = value
-                ctrl[ff] = value / gear
-
-        return write_effort_floats
+        return write_position
 
     def write(self) -> None:
         """Send the commands to MuJoCo: the only place that writes ctrl, act and actuator

@@ -94,6 +94,7 @@ class ControllerManager:
         self._direct = False  # only Python controllers reading MuJoCo directly run every period
         self._fast = False  # _direct and no shipped controller's period: update's fast path
         self._dt = self.control_period  # cached for the loop; _schedule refreshes it
+        self._period_ns = round(self._dt * NS)
         self._next_period_ns = 0
         self._state_topics: set[str] = set()
         self._state_timer: Periodic | None = None
@@ -115,14 +116,35 @@ class ControllerManager:
         return max(self._explicit_period or 0.0, self.sim.timestep)
 
     def update(self, sim: Simulation) -> None:
-        """read -> every running controller's update -> write. When only Python controllers that
-        read MuJoCo themselves run and no command waits (the common case with a student's
+        """read -> every running controller's update -> write, after the loop's one schedule:
+        the control period's next instant, which Python controllers are due now (each at its
+        own rate), and when to wake next (the earliest of those; a command buffered meanwhile by
+        another thread has set -inf, which stays). When only Python controllers that read
+        MuJoCo themselves run and no command waits (the common case with a student's
         controller), there is no read, and each one's command goes out through its own hardware
         writer, so no full write either: what that costs per update is the framework's cost of
         a Python controller (benchmarks/RESULTS.md), so keep it to plain attribute work."""
         now = sim._time_ns
         self.wake_ns = math.inf  # first: a command buffered from now on wakes us again
-        self._due(now)  # every controller first: a hang below must not lose a wake
+        wake: float = math.inf  # every controller scheduled first: a hang below must not lose a wake
+        if self._periodic:
+            if now >= self._next_period_ns - self._half_step_ns:
+                self._next_period_ns = now + self._period_ns
+            wake = self._next_period_ns
+        half = self._half_step_ns
+        timed = self._timed
+        for runner in timed:
+            next_ns = runner.next_ns
+            if now >= next_ns - half:  # due (a wake at the same instant, by a command or a
+                runner.due = True  # switch, is not: it ran already)
+                next_ns += runner.period_ns
+                if next_ns < now + half:  # fell behind (a step longer than the period)
+                    next_ns = now + runner.period_ns
+                runner.next_ns = next_ns
+            if next_ns < wake:
+                wake = next_ns
+        if wake < self.wake_ns:
+            self.wake_ns = wake
         self.updates += 1
         t = now / NS
         waiting = self._waiting
@@ -133,7 +155,7 @@ class ControllerManager:
                 self.hw.read()
         try:
             if fast:
-                for runner in self._timed:
+                for runner in timed:
                     runner.update(t, 0.0)  # a Python controller takes its own dt
             else:  # an idle controller (no command waiting, no period) has nothing to do
                 dt = self._dt
@@ -144,30 +166,9 @@ class ControllerManager:
             log.error("a controller's update was interrupted after it returned; no harm done")
         if self._ctx.faults:
             self._stop_faulted()
-        elif not waiting and self._every is self._timed:  # only Python controllers ran: each
-            return  # wrote its own joints' commands (its hardware writer)
+        elif not waiting and self._every is timed:  # only Python controllers ran: each wrote
+            return  # its own joints' commands (its hardware writer)
         self.hw.write()
-
-    def _due(self, now: int) -> None:
-        """The one schedule of the loop: the control period's next instant, which Python
-        controllers are due at `now` (each at its own rate), and when to wake next (the earliest
-        of those; a command buffered meanwhile by another thread has set -inf, which stays)."""
-        wake = math.inf
-        if self._periodic:
-            if now >= self._next_period_ns - self.sim.timestep * NS / 2:
-                self._next_period_ns = now + round(self.control_period * NS)
-            wake = self._next_period_ns
-        half = self._half_step_ns
-        for ctrl in self._timed:
-            if now >= ctrl.next_ns - half:
-                ctrl.due = True
-                ctrl.next_ns += ctrl.period_ns
-                if ctrl.next_ns < now + half:  # fell behind (a step longer than the period)
-                    ctrl.next_ns = now + ctrl.period_ns
-            if ctrl.next_ns < wake:
-                wake = ctrl.next_ns
-        if wake < self.wake_ns:
-            self.wake_ns = wake
 
     def _rebind(self) -> None:
         """Models were added or removed: MuJoCo addresses moved; Python controllers follow."""
@@ -391,9 +392,9 @@ class ControllerManager:
         now = self.sim.time_ns
         self._half_step_ns = round(self.sim.timestep * NS / 2)
         self._dt = self.control_period
+        self._period_ns = round(self._dt * NS)
         for ctrl in self._timed:
-            writers = self.hw.writers(ctrl.rows, ctrl.interface_name)
-            ctrl.writer, ctrl.float_writer = writers.values, writers.floats
+            ctrl.writer = self.hw.writer(ctrl.rows, ctrl.interface_name)
             ctrl.period_ns = period_ns(ctrl, self.control_period, self.sim.timestep)
             ctrl._max_time = ctrl.plugin.max_update_time or ctrl.period_ns / NS
             if ctrl.next_ns < 0:  # just started: its first update is now

@@ -56,42 +56,55 @@ class _HangGuard:
     """One watchdog thread: interrupts a student's update that has not returned after its
     hang_timeout, or a Watched setup past its timeout. It lives only while student code runs:
     idle for half a second, it ends. Entries are tracked per thread (two labs may step in two
-    threads)."""
+    threads).
+
+    PythonRunner.update inlines `enter` and `leave` (a few stores per update, the framework's
+    cost of a Python controller): `entries`, `lock` and `injected` are the parts it touches, in
+    the same order as these two methods."""
 
     _IDLE = 0.5  # s without updates after which the thread ends
     _POLL = 0.05  # s
 
     def __init__(self) -> None:
-        self._lock = threading.Lock()
+        self.lock = threading.Lock()  # the watchdog thread's and `leave`'s: never replaced
         # thread -> (since, runner or Watched) of the student's code in progress there
-        self._entries: dict[int, tuple[float, PythonRunner | Watched]] = {}
-        self._injected: set[int] = set()
-        self._running = False
-        self._last = 0.0
+        self.entries: dict[int, tuple[float, PythonRunner | Watched]] = {}
+        self.injected: set[int] = set()  # threads interrupted, their exception not yet withdrawn
+        self.running = False  # the watchdog thread runs
+        self.last = 0.0  # perf_counter() of the last enter: the thread ends _IDLE s after
 
     def enter(self, runner: PythonRunner | Watched, now: float) -> int:
         """A PythonRunner's update (or a Watched setup) starts in this thread (`now`:
         time.perf_counter()); returns the thread's id for `leave`."""
-        self._last = now
+        self.last = now
         tid = _thread_id()
-        self._entries[tid] = (now, runner)
-        if not self._running:
-            self._running = True
-            threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
+        self.entries[tid] = (now, runner)
+        if not self.running:
+            self.start()
         return tid
+
+    def start(self) -> None:
+        """Start the watchdog thread (an entry was just made and it was not running)."""
+        self.running = True
+        threading.Thread(target=self._watch, daemon=True, name="mexone controller watchdog").start()
 
     def leave(self, tid: int | None = None) -> bool:
         """The update returned (in thread `tid`, default this one); True if the watchdog had
         interrupted it (the pending exception is withdrawn: it must not land in the manager)."""
         if tid is None:
             tid = _thread_id()
-        with self._lock:
-            self._entries.pop(tid, None)
-            if tid not in self._injected:
+        with self.lock:
+            self.entries.pop(tid, None)
+            if tid not in self.injected:
                 return False
-            self._injected.discard(tid)
-            ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
+            self.withdraw(tid)
         return True
+
+    def withdraw(self, tid: int) -> None:
+        """Withdraw the ControllerHang injected into thread `tid` (with `lock` held): its code
+        returned meanwhile, so the exception must not land in the caller."""
+        self.injected.discard(tid)
+        ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), None)
 
     @contextmanager
     def watching(self, watched: Watched) -> Iterator[None]:
@@ -99,7 +112,7 @@ class _HangGuard:
         after `watched.timeout` s. A block inside another (an import inside a configure) leaves
         the outer one watched as it was."""
         tid = _thread_id()
-        outer = self._entries.get(tid)
+        outer = self.entries.get(tid)
         if outer is not None:  # already watched: the outer entry's time runs on
             yield
             return
@@ -121,23 +134,23 @@ class _HangGuard:
         while True:
             time.sleep(self._POLL)
             said: list[tuple[str, tuple[str, ...]]] = []
-            with self._lock:
+            with self.lock:
                 now = time.perf_counter()
-                if not self._entries:
+                if not self.entries:
                     said_stuck.clear()
-                    if now - self._last > self._IDLE:
-                        self._running = False
-                        if not self._entries:
+                    if now - self.last > self._IDLE:
+                        self.running = False
+                        if not self.entries:
                             return
-                        self._running = True
+                        self.running = True
                     continue
-                for tid, (since, what) in list(self._entries.items()):
+                for tid, (since, what) in list(self.entries.items()):
                     label, file, doing, timeout = self._describe(what)
                     if now - since < timeout:
                         continue
                     where = where_running(tid, file)
-                    if tid not in self._injected:
-                        self._injected.add(tid)
+                    if tid not in self.injected:
+                        self.injected.add(tid)
                         ctypes.pythonapi.PyThreadState_SetAsyncExc(
                             ctypes.c_ulong(tid), ctypes.py_object(ControllerHang))
                         said.append(("%s: %s has not returned for %s s (%s): interrupting it",

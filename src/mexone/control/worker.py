@@ -4,9 +4,10 @@ control/worker_main.py).
 A controller class resolved from a file or a module (the YAML's `type:`) never runs in the lab's
 process: a segfault, `posix._exit`, a ctypes write into MuJoCo's memory or a frozen update
 cannot be survived there, and a graded controller must not share a process with the simulator
-that measures it. Its worker is started by `mexone.sandbox.spawn` (in the jail `set_jail` sets),
-imports the student's module, and runs the same lifecycle and API in lockstep with the
-controller manager:
+that measures it. Its worker is started by `mexone.sandbox.spawn` (in the jail `set_jail` sets; in
+a grader's simulator, by set_jail's starter: forked warm by the runs' fork server and jailed the
+same way, exercises.isolate), imports the student's module, and runs the same lifecycle and
+API in lockstep with the controller manager:
 
 - each update, what the controller reads (MuJoCo's qpos, qvel and actuator forces, the time,
   the sensors it asked for, its chained inputs) goes into shared memory the worker maps
@@ -42,7 +43,7 @@ import sys
 import threading
 import time
 import weakref
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, NoReturn
@@ -88,13 +89,17 @@ FILLED_FRAME = frame(FILLED)
 _UPDATE_HEAD = frame(UPDATE, bytes(8))[:5]  # an update's frame: this, then its number (8 bytes)
 
 _jail = Jail(limits=Limits(time=math.inf, cpu=1e9, memory_mb=4096))
+_starter: Callable[..., StudentProcess] = spawn
 
 
-def set_jail(jail: Jail) -> None:
+def set_jail(jail: Jail, starter: Callable[..., StudentProcess] | None = None) -> None:
     """The jail every controller worker starts in from now on (a grader's: its limits, its
-    scratch folder). Default: no CPU limit, 4 GB of address space, a scratch folder of its own."""
-    global _jail
+    scratch folder). Default: no CPU limit, 4 GB of address space, a scratch folder of its own.
+    `starter`: what starts a worker in it, with `sandbox.spawn`'s signature (default: spawn; a
+    grader's simulator forks it from its warm fork server, exercises.isolate)."""
+    global _jail, _starter
     _jail = jail
+    _starter = starter or spawn
 
 
 class WorkerFailed(Exception):
@@ -401,8 +406,28 @@ def shared_block(nbytes: int) -> int:
 
     fd = os.memfd_create("mexone-controller", os.MFD_CLOEXEC | os.MFD_ALLOW_SEALING)
     os.ftruncate(fd, nbytes)
-    fcntl.fcntl(fd, fcntl.F_ADD_SEALS, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_SEAL)
+    _seal(fd, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_SEAL)
     return fd
+
+
+SEAL_TRIES = 6
+
+
+def _seal(fd: int, seals: int) -> None:
+    """`fcntl(fd, F_ADD_SEALS, seals)`, tried again on EBUSY: Linux refuses F_SEAL_WRITE while
+    it still holds a page of the file pinned (one just written, not yet out of a CPU's LRU
+    batch), a passing state; "OSError: [Errno 16]" ended a graded run once (issue 36)."""
+    import errno
+    import fcntl
+
+    for attempt in range(SEAL_TRIES):
+        try:
+            fcntl.fcntl(fd, fcntl.F_ADD_SEALS, seals)
+            return
+        except OSError as exc:
+            if exc.errno != errno.EBUSY or attempt == SEAL_TRIES - 1:
+                raise
+            time.sleep(0.01 * 2 ** attempt)  # the kernel waited ~75 ms itself
 
 
 def model_block(model: mujoco.MjModel) -> tuple[int, int]:
@@ -418,8 +443,7 @@ def model_block(model: mujoco.MjModel) -> tuple[int, int]:
     view = memoryview(buf)  # type: ignore[arg-type]  # numpy's stubs: no __buffer__ on 3.11
     while view:
         view = view[os.write(fd, view):]
-    fcntl.fcntl(fd, fcntl.F_ADD_SEALS, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW |
-                fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL)
+    _seal(fd, fcntl.F_SEAL_SHRINK | fcntl.F_SEAL_GROW | fcntl.F_SEAL_WRITE | fcntl.F_SEAL_SEAL)
     return fd, size
 
 
@@ -450,7 +474,7 @@ class Worker:
         fds = (theirs[0].fileno(), theirs[1].fileno(), dump_w)
         try:
             os.set_blocking(dump_r, False)
-            self.process: StudentProcess = spawn(
+            self.process: StudentProcess = _starter(
                 [sys.executable, "-m", MAIN, *map(str, fds)], self.jail, pass_fds=fds,
                 env=_environment(), stdout=2)
         except BaseException:

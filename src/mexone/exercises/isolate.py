@@ -50,8 +50,16 @@ from mexone import signals
 from mexone.control import worker as controller_worker
 from mexone.errors import MexoneError
 from mexone.routines import processes
-from mexone.sandbox import Jail, Limits, confine, isolation, trust, wire
-from mexone.sandbox.spawn import SECRET_ENV, jail_plan, prepare
+from mexone.sandbox import Jail, Limits, StudentProcess, confine, isolation, spawn, trust, wire
+from mexone.sandbox.spawn import (
+    SECRET_ENV,
+    Forked,
+    environment,
+    forget_probe,
+    jail_plan,
+    prepare,
+    probe_now,
+)
 from mexone.sandbox.trust import UntrustedCode
 
 __all__ = ["Limits", "SubmissionFailed", "run_isolated", "run_jailed", "run_trusted",
@@ -187,6 +195,8 @@ class _ForkServer:
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
         env = {k: v for k, v in os.environ.items() if k != SECRET_ENV}
         env["MEXONE_GRADER_PID"] = str(os.getpid())  # the server ends with this process
+        for key in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            env[key] = "1"  # as in a controller's worker it forks (numpy imported here, once)
         try:
             self.process = subprocess.Popen(
                 [sys.executable, "-m", "mexone.exercises.child", "--server",
@@ -243,32 +253,47 @@ def _read_int(fd: int, timeout: float) -> int | None:
     return struct.unpack("!i", data)[0]
 
 
+_door: socket.socket | None = None  # in a trusted run: its fork server's door for workers
+
+
 def serve(fd: int) -> None:
-    """The fork server's loop: one run forked per request, until the grader hangs up."""
+    """The fork server's loop: one run forked per request, until the grader hangs up. Its
+    trusted runs (the simulators) inherit a door of their own, through which they have their
+    controllers' workers forked here too (`_start_worker`): warm (MuJoCo, numpy and the
+    worker's modules imported once), from a process that holds nothing of the grader's."""
+    import mexone.control.worker_main  # noqa: F401 - a controller's worker, forked warm
     import mexone.lab  # noqa: F401 - what every run imports (MuJoCo), imported once
     import mexone.routines.isolated  # noqa: F401
 
+    global _door
+    probe_now()  # once here, not in each simulator whose lab starts a worker
     sock = socket.socket(fileno=fd)
+    door, _door = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
     processes.die_with_parent(int(os.environ.pop("MEXONE_GRADER_PID", "0")))
     server = os.getpid()
     while True:
         with contextlib.suppress(ChildProcessError):
             while os.waitpid(-1, os.WNOHANG)[0] > 0:  # the monitors that ended
                 pass
-        if not select.select([sock], [], [], 0.5)[0]:
-            continue
-        request, fds, _, _ = socket.recv_fds(sock, 1 << 16, 4)
-        if not request:
-            os._exit(0)
-        if len(fds) != 4:
+        ready = select.select([sock, door], [], [], 0.5)[0]
+        if sock in ready:
+            request, fds, _, _ = socket.recv_fds(sock, 1 << 16, 4)
+            if not request:
+                os._exit(0)
+            if len(fds) == 4 and os.fork() == 0:
+                sock.close()
+                door.close()
+                _monitor(fds, server, request)
             for x in fds:
                 os.close(x)
-            continue
-        if os.fork() == 0:
-            sock.close()
-            _monitor(fds, server, request)
-        for x in fds:
-            os.close(x)
+        if door in ready:
+            request, fds, _, _ = socket.recv_fds(door, 1 << 20, 5)
+            if len(fds) == 5 and os.fork() == 0:
+                for end in (sock, door, _door):
+                    end.close()
+                _monitor_worker(fds, server, request)
+            for x in fds:
+                os.close(x)
 
 
 def _monitor(fds: list[int], server: int, request: bytes) -> None:
@@ -281,15 +306,9 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         monitor = os.getpid()
         pid = os.fork()
         if pid == 0:
-            processes.die_with_parent(monitor)
-            os.setpgid(0, 0)
-            os.close(status_fd)
-            null = os.open(os.devnull, os.O_RDONLY)
-            os.dup2(null, 0)
-            os.dup2(out_fd, 1)
-            os.dup2(out_fd, 2)
-            for x in (null, out_fd):
-                os.close(x)
+            _forked(monitor, status_fd, out_fd)
+            if json.loads(request).get("plan") and _door is not None:
+                _door.close()  # a jailed run never reaches the fork server
             child_main(call_fd, result_fd, json.loads(request))
         with contextlib.suppress(OSError):
             os.setpgid(pid, pid)
@@ -302,6 +321,119 @@ def _monitor(fds: list[int], server: int, request: bytes) -> None:
         code = 3
     finally:
         os._exit(code)
+
+
+def _forked(monitor: int, status_fd: int, out_fd: int) -> None:
+    """A monitor's child's start: it dies with the monitor, in a process group of its own, its
+    output to `out_fd`, no input, and not the monitor's status pipe."""
+    processes.die_with_parent(monitor)
+    os.setpgid(0, 0)
+    os.close(status_fd)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.dup2(out_fd, 1)
+    os.dup2(out_fd, 2)
+    for x in (null, out_fd):
+        os.close(x)
+
+
+def _monitor_worker(fds: list[int], server: int, request: bytes) -> None:
+    """Between the fork server and one controller's worker (a trusted run's): forks it, which
+    confines itself (confine.jail, as `sandbox.spawn`'s jails: its relay, then the jail) before
+    any student code and keeps only its three descriptors; tells the run the relay's pid, waits
+    for it and tells the run how it ended. When the run lets go of the status pipe (it ended,
+    or forgot the worker), the worker is killed: nothing outlives the lab it served."""
+    *keep, out_fd, status_fd = fds
+    code = 0
+    try:
+        processes.die_with_parent(server)
+        order = json.loads(request)
+        plan = confine.Plan.loads(order["plan"])
+        monitor = os.getpid()
+        pid = os.fork()
+        if pid == 0:
+            _worker_child(keep, out_fd, status_fd, monitor, plan, order["env"])
+        for x in (*keep, out_fd):
+            os.close(x)
+        os.write(status_fd, struct.pack("!i", pid))
+        status = _wait_or_end(pid, status_fd, plan)
+        os.write(status_fd, struct.pack("!i", status))
+    except BaseException:  # noqa: BLE001 - the run sees the pipe close
+        code = 3
+    finally:
+        os._exit(code)
+
+
+def _worker_child(keep: list[int], out_fd: int, status_fd: int, monitor: int,
+                  plan: confine.Plan, env: dict[str, str]) -> None:
+    """The worker's process, forked warm: its environment and output, then the jail, then
+    control.worker_main as `python -m` would run it."""
+    code = 3
+    try:
+        _forked(monitor, status_fd, out_fd)
+        os.environ.clear()
+        os.environ.update(env)
+        plan.parent = monitor
+        confine.jail(plan, keep_fds=tuple(keep))  # from here on: the jail
+        forget_probe()
+        from mexone.control import worker_main
+
+        worker_main.main([str(fd) for fd in keep])
+        code = 0
+    finally:
+        os._exit(code)
+
+
+def _wait_or_end(pid: int, status_fd: int, plan: confine.Plan) -> int:
+    """The wait status of the worker's relay `pid`; killed (and, by uid, swept) first if the
+    run that asked for it closes its end of `status_fd`."""
+    import select as _select
+
+    poll = _select.poll()
+    poll.register(status_fd, 0)  # POLLERR: the reader closed
+    while True:
+        done, status = os.waitpid(pid, os.WNOHANG)
+        if done:
+            return status
+        if poll.poll(100):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
+            _, status = os.waitpid(pid, 0)
+            if plan.mode == "uid":
+                confine.sweep(plan)
+            return status
+
+
+def _start_worker(argv: list[str], jail: Jail, *, pass_fds: tuple[int, ...] = (),
+                  env: dict[str, str] | None = None, stdout: int | None = None,
+                  **kwargs: object) -> StudentProcess:
+    """In a trusted run: a controller's worker forked by the fork server (`serve`), jailed as
+    `sandbox.spawn` would jail it (the same folders, plan and environment, made here), without
+    an interpreter's start; `spawn` itself for anything else, or if the server is gone."""
+    if _door is None or argv[1:3] != ["-m", controller_worker.MAIN] or len(pass_fds) != 3 \
+            or kwargs:
+        return spawn(argv, jail, pass_fds=pass_fds, env=env, stdout=stdout, **kwargs)
+    work, scratch, root, own, slot = prepare(jail)
+    status_r, status_w = os.pipe()
+    try:
+        plan = jail_plan(jail, scratch, root, slot)
+        order = {"plan": plan.dumps(), "env": environment(env, scratch)}
+        socket.send_fds(_door, [json.dumps(order).encode()],
+                        [*pass_fds, stdout if stdout is not None else 2, status_w])
+        os.close(status_w)
+        status_w = -1
+        pid = _read_int(status_r, timeout=60.0)
+        if pid is None:
+            raise OSError("the fork server did not start the worker")
+    except OSError:
+        for fd in (status_r, status_w):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        if slot is not None:
+            slot.release()
+        shutil.rmtree(work, ignore_errors=True)
+        return spawn(argv, jail, pass_fds=pass_fds, env=env, stdout=stdout)
+    return StudentProcess(Forked(pid, status_r), jail, scratch, work, own, plan, slot)
 
 
 def _call_bytes(target: Callable, args: tuple, kwargs: dict) -> bytes:
@@ -343,6 +475,7 @@ def child_main(call_fd: int, result_fd: int, request: dict) -> None:
                 plan = confine.Plan.loads(request["plan"])
                 plan.parent = os.getppid()
                 confine.jail(plan, keep_fds=(result_fd,))  # from here on: the jail
+                forget_probe()  # what the machine offered outside: a jail it starts probes in here
             else:
                 _limit(limits)
                 trust.trust_only(_trusted_roots(folders))
@@ -379,7 +512,8 @@ def _jail_controllers(limits: Limits) -> None:
     (control/worker.py), jailed as a grader's run is (a uid of the pool as root), under the
     run's CPU and memory limits for as long as the lab lives."""
     controller_worker.set_jail(Jail(limits=Limits(time=math.inf, cpu=limits.cpu,
-                                                  memory_mb=limits.memory_mb), another_user=True))
+                                                  memory_mb=limits.memory_mb), another_user=True),
+                               starter=_start_worker)
 
 
 def _limit(limits: Limits) -> None:

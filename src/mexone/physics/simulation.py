@@ -41,6 +41,7 @@ from mexone.physics.compile import (
 )
 from mexone.physics.divergence import DivergenceError, Watchdog, link_speeds
 from mexone.physics.forces import FOREVER, Forces, JointEffort, Wrench
+from mexone.physics.gc_policy import REAL_TIME_GC
 from mexone.physics.world import World
 from mexone.ranges import GRAVITY, TIMESTEP, number_text
 
@@ -412,6 +413,11 @@ class Simulation:
         the caller stays responsive. `until()` true ends the run early. Progress is counted in
         steps, so a reset during the run (a service call, a button) restarts nothing."""
         self.loop_thread = threading.get_ident()
+        with REAL_TIME_GC:  # older generations collected between ticks, not in a control step
+            return self._run(duration, on_tick, tick, gate, until)
+
+    def _run(self, duration: float, on_tick: Callable[[Simulation], None] | None, tick: float,
+             gate: Gate | None, until: Callable[[], bool] | None) -> float:
         budget = math.inf if duration == math.inf else round(duration * NS)
         tick_ns = max(1, round(tick * NS))
         done = 0
@@ -419,6 +425,7 @@ class Simulation:
         while done < budget - self._step_ns // 2 and not (until and until()):
             self.work.drain()
             if self.paused:  # on_tick still runs: it may be what resumes us (a ROS service)
+                REAL_TIME_GC.idle()
                 time.sleep(0.01)
                 self._pace_origin = None
                 if on_tick:
@@ -442,6 +449,7 @@ class Simulation:
                 gate.advance(self.time)
             if done >= next_tick - self._step_ns // 2:
                 next_tick += tick_ns
+                REAL_TIME_GC.idle()  # before the pacing: its sleep absorbs the collection
                 self._pace()
                 if on_tick:
                     on_tick(self)

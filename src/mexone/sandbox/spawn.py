@@ -27,7 +27,7 @@ from typing import IO, Any
 from mexone.sandbox.confine import Plan, sweep
 
 __all__ = ["Limits", "Jail", "StudentProcess", "spawn", "Isolation", "isolation", "jail_plan",
-           "UidSlot", "keep_private", "SECRET_ENV", "MODE_ENV", "UIDS_ENV"]
+           "UidSlot", "keep_private", "SECRET_ENV", "MODE_ENV", "UIDS_ENV", "Forked"]
 
 SECRET_ENV = "MEXONE_EXERCISE_SECRET"  # a teacher's own secret: never in a student's process
 MODE_ENV = "MEXONE_SANDBOX"  # namespaces | uid | none: the isolation to use (default: the best)
@@ -179,6 +179,25 @@ def _hidden_defaults() -> list[str]:
     return _hidden
 
 
+def probe_now() -> None:
+    """Probe the machine (`isolation`), find the hidden folders and matplotlib's font list now,
+    once for this process and the forks it makes (a grader's fork server: its simulators then
+    start their controllers' jails without a probe's interpreter and a scan of the installed
+    distributions each). A fork that confines itself calls `forget_probe`."""
+    isolation()
+    _hidden_defaults()
+    _matplotlib_fonts()
+
+
+def forget_probe() -> None:
+    """In a jail forked from a process that probed: what the machine offered outside is not
+    what it offers in here (seccomp refuses new namespaces), so a jail started from in here
+    probes again."""
+    global _isolation, _hidden
+    _isolation = _hidden = None
+    _font_list.clear()
+
+
 def _python_paths() -> list[str]:
     """Python's installation, its site-packages and the folder holding mexone: what a jail
     reads besides the system's libraries (nothing else of the grader's sys.path: its working
@@ -324,11 +343,66 @@ def environment(env: Mapping[str, str] | None, scratch: Path) -> dict[str, str]:
     return environ
 
 
+class Forked:
+    """A jail's relay that a warm fork server forked (not this process's child): Popen's face
+    over its pid and the pipe on which the server's monitor, its parent, writes its wait status
+    (4 bytes, then the pipe closes). Signals go to it only until that status came: before, the
+    monitor has not reaped it, so the pid is still its own."""
+
+    def __init__(self, pid: int, status_fd: int):
+        self.pid = pid
+        self.returncode: int | None = None
+        self._fd: int | None = status_fd
+        self._data = b""
+        self._lock = threading.Lock()
+
+    def _read(self, timeout: float | None) -> int | None:
+        with self._lock:
+            import select
+            import struct
+            import time
+
+            deadline = None if timeout is None else time.monotonic() + timeout
+            while self.returncode is None and self._fd is not None:
+                left = None if deadline is None else max(0.0, deadline - time.monotonic())
+                if not select.select([self._fd], [], [], left)[0]:
+                    break
+                chunk = os.read(self._fd, 4 - len(self._data))
+                self._data += chunk
+                if len(self._data) == 4 or not chunk:  # a monitor that died: killed, say
+                    status = struct.unpack("!i", self._data)[0] if chunk else signal.SIGKILL
+                    self.returncode = os.waitstatus_to_exitcode(status) if chunk else -status
+                    os.close(self._fd)
+                    self._fd = None
+            return self.returncode
+
+    def poll(self) -> int | None:
+        return self._read(0.0)
+
+    def wait(self, timeout: float | None = None) -> int:
+        code = self._read(timeout)
+        if code is None:
+            raise subprocess.TimeoutExpired(f"pid {self.pid}", timeout or 0.0)
+        return code
+
+    def send_signal(self, sig: int) -> None:
+        if self.poll() is None:
+            os.kill(self.pid, sig)
+
+    def kill(self) -> None:
+        self.send_signal(signal.SIGKILL)
+
+    def __del__(self) -> None:
+        if self._fd is not None:
+            with contextlib.suppress(OSError):
+                os.close(self._fd)
+
+
 class StudentProcess:
     """A running student process. `kill()` ends it and everything it started; it is a context
     manager that does so on exit."""
 
-    def __init__(self, popen: subprocess.Popen[bytes], jail: Jail, scratch: Path, work: Path,
+    def __init__(self, popen: subprocess.Popen[bytes] | Forked, jail: Jail, scratch: Path, work: Path,
                  own_scratch: bool, plan: Plan, slot: UidSlot | None):
         self.popen = popen
         self.jail = jail

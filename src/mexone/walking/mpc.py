@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
@@ -324,7 +325,7 @@ class ComPlanner(PythonController):
         model = self.dynamics.model
         self.scratch = mujoco.MjData(model)
         self.dyn = _body.state_dynamics(model, self.scratch)
-        self.solve_times: list[float] = []
+        self.solve_times: deque[float] = deque(maxlen=20000)  # the last 20000: bounded
         self.mpc: LipmMpc | None = None
         self.stopped: str | None = None
 
@@ -416,7 +417,7 @@ class ComPlanner(PythonController):
         return steps
 
     def report(self) -> dict[str, Any]:
-        times = np.asarray(self.solve_times[-20000:]) * 1e3
+        times = np.asarray(self.solve_times) * 1e3
         out: dict[str, Any] = {"stopped": self.stopped}
         if len(times):
             out.update(mpc_ms_median=round(float(np.median(times)), 3),

@@ -22,6 +22,7 @@ from __future__ import annotations
 import functools
 import math
 import time
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -127,6 +128,24 @@ class WholeBodyQP:
                 self._pyramid[4 * c + r, 3 * c + axis] = sign
                 self._pyramid[4 * c + r, 3 * c + 2] = -mu
         self._regularisation = np.concatenate([np.full(nv, accel_weight), np.full(self.nf, force_weight)])
+        self._shapes: dict[int, _Shape] = {}  # per number of feet down: what does not change
+
+    def _shape(self, n_down: int) -> _Shape:
+        """The parts of the QP fixed by how many feet are down (built once each: an update only
+        fills in the rows that change)."""
+        shape = self._shapes.get(n_down)
+        if shape is None:
+            nv, na, nu = self.nv, len(self.actuated), len(self.unactuated)
+            nx = nv + 12 * n_down
+            G = np.zeros((nu + na + 16 * n_down, nx))
+            for k in range(n_down):
+                G[nu + na + 16 * k:nu + na + 16 * (k + 1), nv + 12 * k:nv + 12 * (k + 1)] = self._pyramid
+            lb = np.full(nx, -np.inf)
+            lb[nv + 2::3] = self.min_force
+            lb.flags.writeable = False
+            shape = self._shapes[n_down] = _Shape(G, lb, np.diag_indices(nx), np.zeros(16 * n_down),
+                                                  np.full(16 * n_down, -np.inf))
+        return shape
 
     def solve(self, M: np.ndarray, h: np.ndarray, tasks: Sequence[Task], feet: Sequence[Foot]
               ) -> Solution:
@@ -153,28 +172,26 @@ class WholeBodyQP:
             local = np.vstack([rt @ foot.jacobian[:3], rt @ foot.jacobian[3:]])  # (6, nv)
             corners = np.ascontiguousarray(foot.corners, dtype=float).tobytes()
             jct[:, 12 * k:12 * (k + 1)] = local.T @ _wrench_map(corners)
+        shape = self._shape(len(down))
         J = np.vstack(rows)
         P = np.zeros((nx, nx))
         P[:nv, :nv] = J.T @ J
         q = np.zeros(nx)
         q[:nv] = -(J.T @ np.concatenate(rhs))
-        P[np.diag_indices(nx)] += self._regularisation[:nx]
+        P[shape.diagonal] += self._regularisation[:nx]
         # the unactuated rows of M q̈ + h = S^T τ + J_c^T f (equalities), then the torque limits
         # on τ = M_a q̈ + h_a - J_c,a^T f and the pyramids (two-sided where they can be)
         na, nu = len(self.actuated), len(self.unactuated)
-        G = np.zeros((nu + na + 16 * len(down), nx))
+        G = shape.G  # its pyramid rows filled once; the rows below are all written each time
         G[:nu, :nv] = M[self.unactuated]
         G[:nu, nv:] = -jct[self.unactuated]
         act = G[nu:nu + na]
         act[:, :nv] = M[self.actuated]
         act[:, nv:] = -jct[self.actuated]
-        for k in range(len(down)):
-            G[nu + na + 16 * k:nu + na + 16 * (k + 1), nv + 12 * k:nv + 12 * (k + 1)] = self._pyramid
         h_a = h[self.actuated]
-        high = np.concatenate([self.limit - h_a, np.zeros(16 * len(down))])
-        low = np.concatenate([-self.limit - h_a, np.full(16 * len(down), -np.inf)])
-        lb = np.full(nx, -np.inf)
-        lb[nv + 2::3] = self.min_force
+        high = np.concatenate([self.limit - h_a, shape.high])
+        low = np.concatenate([-self.limit - h_a, shape.low])
+        lb = shape.lb if self.solver == "daqp" else shape.lb.copy()  # daqp reads it only
         x = qp.solve(P, q, G[nu:], high, G[:nu], -h[self.unactuated], lb=lb, G_low=low,
                      solver=self.solver, what="whole-body QP")
         qdd = x[:nv]
@@ -186,6 +203,19 @@ class WholeBodyQP:
                 k += 1
         tau = act[:, :nv] @ qdd + act[:, nv:] @ x[nv:] + h_a
         return Solution(qdd, forces, tau)
+
+
+@dataclass
+class _Shape:
+    """A WholeBodyQP's fixed parts for a number of feet down: the inequality rows' matrix (its
+    pyramid rows set, the rest overwritten by each solve), the variables' lower bounds, the
+    cost's diagonal, the pyramids' upper and lower sides."""
+
+    G: np.ndarray
+    lb: np.ndarray
+    diagonal: tuple[np.ndarray, ...]
+    high: np.ndarray
+    low: np.ndarray
 
 
 @functools.lru_cache(maxsize=16)
@@ -228,8 +258,8 @@ class WholeBodyController(PythonController):
 
     kp_com = Param(60.0, low=0.0, high=1e4, doc="COM stiffness", unit="1/s^2")
     kd_com = Param(15.0, low=0.0, high=1e3, doc="COM damping", unit="1/s")
-    kp_foot = Param(300.0, low=0.0, high=1e5, doc="swing foot stiffness", unit="1/s^2")
-    kd_foot = Param(35.0, low=0.0, high=1e3, doc="swing foot damping", unit="1/s")
+    kp_foot = Param(700.0, low=0.0, high=1e5, doc="swing foot stiffness", unit="1/s^2")
+    kd_foot = Param(53.0, low=0.0, high=1e3, doc="swing foot damping", unit="1/s")
     kp_torso = Param(200.0, low=0.0, high=1e5, doc="torso attitude stiffness", unit="1/s^2")
     kd_torso = Param(30.0, low=0.0, high=1e3, doc="torso attitude damping", unit="1/s")
     kp_posture = Param(50.0, low=0.0, high=1e5, doc="posture stiffness", unit="1/s^2")
@@ -258,8 +288,9 @@ class WholeBodyController(PythonController):
         self.stopped: str | None = None  # the QP failed: the joints hold (the safe stop's end)
         self.standing: str | None = None  # bad input: it stands, the plan ignored
         self.finish: np.ndarray | None = None  # the step that lands before it stands
-        self.solve_times: list[float] = []
+        self.solve_times: deque[float] = deque(maxlen=5000)  # the last 5000: bounded
         self.swing_from: dict[int, np.ndarray] = {}
+        self._posture_rows: tuple[np.ndarray, np.ndarray] | None = None
 
     def activate(self, state: State) -> None:
         self.stopped = self.standing = self.finish = None
@@ -401,11 +432,15 @@ class WholeBodyController(PythonController):
         return Task(jac, dyn.jacobian_dot_qdot(_body.TORSO)[3:], acc, self.w_torso)
 
     def _posture_task(self, state: State) -> Task:
-        n = self.scratch.qvel.shape[0]
-        jac = np.zeros((len(self.dofs), n))
-        jac[np.arange(len(self.dofs)), self.dofs] = 1.0
+        if self._posture_rows is None:  # the joints' rows of the identity: built once
+            jac = np.zeros((len(self.dofs), self.scratch.qvel.shape[0]))
+            jac[np.arange(len(self.dofs)), self.dofs] = 1.0
+            drift = np.zeros(len(self.dofs))
+            jac.flags.writeable = drift.flags.writeable = False
+            self._posture_rows = (jac, drift)
         acc = self.kp_posture * (self.posture - state.q) - self.kd_posture * state.dq
-        return Task(jac, np.zeros(len(self.dofs)), acc, self.w_posture)
+        jacobian, drift = self._posture_rows
+        return Task(jacobian, drift, acc, self.w_posture)
 
     def _swing_task(self, swing: np.ndarray, f: int, centre: np.ndarray, rot: np.ndarray,
                     jac: np.ndarray, drift: np.ndarray, dq: np.ndarray, t: float) -> Task:
@@ -440,7 +475,7 @@ class WholeBodyController(PythonController):
         return g + 200.0 * (self.q_hold - state.q) - 5.0 * state.dq
 
     def report(self) -> dict[str, Any]:
-        times = np.asarray(self.solve_times[-5000:]) * 1e3
+        times = np.asarray(self.solve_times) * 1e3
         out: dict[str, Any] = {"stopped": self.stopped, "standing": self.standing}
         if len(times):
             out.update(qp_ms_median=round(float(np.median(times)), 3),

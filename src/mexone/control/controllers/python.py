@@ -118,8 +118,8 @@ class PythonRunner(Controller):
         self.fault: str | None = None
         self.updates = 0
         self.log_limit = LogLimit()  # its self.log's lines a second
-        self._spent, self._timed_updates = 0.0, 0  # wall time of updates since last asked
         self.meter = BudgetMeter()  # the real-time budget since it started: every update counted
+        self._seen = (0, 0.0)  # the meter's updates and total when update_time was last read
         self._update_time = 0.0
         self.due = False
         self.next_ns = 0
@@ -136,17 +136,14 @@ class PythonRunner(Controller):
         self._limits = [min(float(v), 1e300) for v in self._effort_limit]
         self._n = len(self.rows)
         self._effort = self.interface_name == "effort"
-        # the manager's: hw.writers(rows, interface) for these joints (floats: effort, few joints)
+        # the manager's: hw.writer(rows, interface), the hardware's commands and MuJoCo's ctrl
         self.writer: Callable[[np.ndarray], None] = lambda values: None
-        self.float_writer: Callable[[list[float]], None] | None = None
         self._max_time = 0.001  # s: max_update_time, else the period (set by the manager)
         self.state = State(len(self.rows), ctx.sim.data, self._base_joint(), ctx.sensors)
         self._span: slice | None = None
         self.direct = False  # state views of MuJoCo's arrays: no hardware read needed
         self._gather = False  # neither: state.q, dq, effort are gathered each update
         self._views()
-        self._cmd_index = _span_of(self.rows) or self.rows  # where its commands go
-        self._efforts = hw.command.effort  # the hardware's effort commands (a fixed array)
         # chained controllers: what it exports (its own arrays), what it reads (the manager binds)
         self.exports = Exports({k: np.full(n, np.nan)
                                  for k, n in declared_lengths(plugin.cls, "exports").items()})
@@ -169,9 +166,10 @@ class PythonRunner(Controller):
     @property
     def update_time(self) -> float:
         """s of wall time per update: the mean since the last time this was read."""
-        if self._timed_updates:
-            self._update_time = self._spent / self._timed_updates
-            self._spent, self._timed_updates = 0.0, 0
+        meter, (updates, total) = self.meter, self._seen
+        if meter.updates > updates:
+            self._update_time = (meter.total - total) / (meter.updates - updates)
+            self._seen = (meter.updates, meter.total)
         return self._update_time
 
     @property
@@ -313,7 +311,7 @@ class PythonRunner(Controller):
         hw.release(rows)
         c = hw.command
         self.fault, self._overruns, self._last_t, self._suspect = None, 0, None, False
-        self.meter = BudgetMeter()
+        self.meter, self._seen = BudgetMeter(), (0, 0.0)
         self.next_ns, self.due = -1, False  # the manager schedules the first update now
         self._limits_said.clear()
         for array in self.exports.values():  # NaN until this run writes them
@@ -480,7 +478,9 @@ class PythonRunner(Controller):
     def update(self, t: float, dt: float) -> None:
         """The framework around the student's update, every period: what runs here is what a
         Python controller costs beyond its own code (benchmarks/RESULTS.md), so it is kept to
-        plain attribute work; the student's own update is timed alone."""
+        plain attribute work: the hang guard's enter and leave (as `_HangGuard.enter`/`leave`
+        do them) and the budget meter (as `_metered`) are inlined; the student's own update is
+        timed alone."""
         if not self.due:
             return
         self.due = False
@@ -494,10 +494,15 @@ class PythonRunner(Controller):
         if self._topics:
             self._deliver(state)
         self.updates += 1
+        suspect = self._suspect
+        switches = _preemptions() if suspect else 0  # only after an overrun: a syscall
         guard = _GUARD
-        switches = _preemptions() if self._suspect else 0  # only after an overrun: a syscall
+        tid = _thread_id()
         start = _clock()
-        tid = guard.enter(self, start)
+        guard.last = start  # _HangGuard.enter
+        guard.entries[tid] = (start, self)
+        if not guard.running:
+            guard.start()
         try:
             out = self.impl.update(state, t, dt)
         except (Exception, SystemExit) as exc:  # noqa: BLE001 - the student's fault
@@ -512,20 +517,31 @@ class PythonRunner(Controller):
                         f"{self.plugin.file}:{student_line(self.plugin.file, exc.__traceback__) or '?'})")
             return
         elapsed = _clock() - start
-        if guard.leave(tid):
+        with guard.lock:  # _HangGuard.leave: the lock is the watchdog thread's safety
+            guard.entries.pop(tid, None)
+            hung = tid in guard.injected
+            if hung:
+                guard.withdraw(tid)
+        if hung:
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
-        self._metered(elapsed)
-        if (elapsed > self._max_time or self._suspect) and self._overran(elapsed, switches):
+        meter = self.meter  # _metered
+        meter.updates += 1
+        meter.total += elapsed
+        if elapsed > meter.worst:
+            meter.worst = elapsed
+        if elapsed > self._max_time:
+            meter.misses += 1
+            if self._overran(elapsed, switches):
+                return
+        elif suspect and self._overran(elapsed, switches):
             return
         if out is not None:
             self._write(out, t)
 
     def _metered(self, elapsed: float) -> None:
         """An update's time, into the budget meter (a miss counted whoever's doing it was: the
-        fault `_overran` finds is the controller's only)."""
-        self._spent += elapsed
-        self._timed_updates += 1
+        fault `_overran` finds is the controller's only). PythonRunner.update inlines it."""
         meter = self.meter
         meter.updates += 1
         meter.total += elapsed
@@ -554,33 +570,33 @@ class PythonRunner(Controller):
         return False
 
     def _write(self, out: object, t: float) -> None:
-        """Check the student's commands, clamp them, and send them to MuJoCo (through the
-        hardware's writer for these joints: the manager's fast write needs nothing else)."""
+        """Check the student's commands (numbers, one per joint, finite), clamp them, and send
+        them to the hardware's commands and MuJoCo, through the hardware's writer for these
+        joints (the manager's fast path needs nothing else)."""
         n = self._n
-        try:
-            values = np.asarray(out, dtype=float)
-        except Exception:  # noqa: BLE001 - whatever their object raises
-            self._fault(not_numbers(out, self.return_line()))
-            return
-        if values.shape != (n,):
+        if type(out) is _NDARRAY and out.dtype is _FLOAT:  # the usual case: taken as it is
+            values = out
+        else:
+            try:
+                values = np.asarray(out, dtype=float)
+            except Exception:  # noqa: BLE001 - whatever their object raises
+                self._fault(not_numbers(out, self.return_line()))
+                return
+        if values.ndim != 1 or len(values) != n:
             if values.size == n:
                 values = values.reshape(n)
             else:
                 self._fault(wrong_count(values.size, n, self.return_line()))
                 return
         if self._effort:  # the usual case, checked in Python floats (numpy calls cost more for
-            # a limb's joints): every value finite and within +-its limit (NaN fails every test)
-            floats = values.tolist()
-            for value, limit in zip(floats, self._limits):  # noqa: B905 - both n long
+            # a limb's joints, cold after a physics step): each finite and within +-its limit
+            # (NaN fails every comparison)
+            for value, limit in zip(values.tolist(), self._limits):  # noqa: B905 - both n long
                 if not -limit <= value <= limit:
                     break
             else:
                 self._command = values
-                if self.float_writer is not None:  # a few joints: float stores
-                    self.float_writer(floats)
-                else:
-                    self._efforts[self._cmd_index] = values
-                    self.writer(values)
+                self.writer(values)
                 return
         if not np.isfinite(values).all():
             self._fault(non_finite(self.joints, values, t, self.return_line()))
@@ -590,17 +606,14 @@ class PythonRunner(Controller):
             limit = hw.effort_limit[rows]
             if (np.abs(values) > limit).any():
                 values = self._clamped(values, -limit, limit, "URDF effort limit")
-            hw.command.effort[rows] = values
         elif kind == "position":
             lo, hi = hw.lower[rows], hw.upper[rows]
             if (values < lo).any() or (values > hi).any():
                 values = self._clamped(values, lo, hi, "joint limits")
-            hw.command.position[rows] = values
         else:
             limit = hw.velocity_limit[rows]
             if (np.abs(values) > limit).any():
                 values = self._clamped(values, -limit, limit, "URDF velocity limit")
-            hw.command.velocity[rows] = values
         self._command = values
         self.writer(values)
 
@@ -657,6 +670,8 @@ def _inertia_diagonal(model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarr
 
 
 _clock = time.perf_counter
+_thread_id = threading.get_ident  # the hang guard's key (watchdog._thread_id)
+_NDARRAY, _FLOAT = np.ndarray, np.dtype(float)  # a float array: float64 in this byte order
 
 
 def period_ns(runner: PythonRunner, control_period: float, timestep: float) -> int:

@@ -22,8 +22,8 @@ from mexone.exercises.isolate import SubmissionFailed
 from mexone.exercises.sim import Variation
 from mexone.robots import mex_one
 
-__all__ = ["Push", "Variant", "draw", "stack_text", "handout", "stack_yaml", "blind_base", "walk",
-           "speed_check", "imports", "rows", "UP"]
+__all__ = ["Push", "Variant", "draw", "stack_text", "handout", "stack_yaml", "Encoders", "blind_base", "walk",
+           "speed_check", "imports", "refused_import", "built_on", "rows", "UP"]
 
 UP = "stays up"
 SAMPLE = 0.02  # s between the grader's samples of the walk
@@ -114,11 +114,23 @@ def stack_yaml(workdir: Path, part: str | None = None, source: Path | None = Non
     return out
 
 
-def blind_base(lab, name: str) -> None:
+@dataclass(frozen=True)
+class Encoders:
+    """What a real robot's joint encoders read: each joint's angle with noise of `angle` rad
+    (quantisation) and its velocity with noise of `velocity` rad/s (a differentiated, quantised
+    angle), Gaussian and independent per update, drawn from `seed` so a grading repeats."""
+
+    angle: float = 0.0
+    velocity: float = 0.0
+    seed: int = 0
+
+
+def blind_base(lab, name: str, encoders: Encoders = Encoders()) -> None:
     """The controller `name` reads no truth of the floating base: its state.all_q / all_dq (and
     so state.base and self.dynamics) hold the base where the robot was put and at rest -- as a
-    real robot's estimator knows only where it started; the sensors (IMU, contacts) and the
-    encoders are as measured. Only this controller's view: the others read the simulator."""
+    real robot's estimator knows only where it started; the sensors (IMU, contacts) are as
+    measured, the encoders as `encoders` say. Only this controller's view: the others read the
+    simulator."""
     import mujoco
 
     from mexone.dynamics import Dynamics
@@ -128,10 +140,16 @@ def blind_base(lab, name: str) -> None:
     blind = mujoco.MjData(sim.model)
     start = sim.data.qpos[:7].copy()
     dynamics = Dynamics(sim.model, blind, copy=False)
+    noise = np.random.default_rng(encoders.seed)
+    joints_q, joints_v = sim.model.nq - 7, sim.model.nv - 6
 
     def refresh() -> None:
         blind.qpos[:], blind.qvel[:] = sim.data.qpos, sim.data.qvel
         blind.qpos[:7], blind.qvel[:6] = start, 0.0
+        if encoders.angle:
+            blind.qpos[7:] += noise.normal(0.0, encoders.angle, joints_q)
+        if encoders.velocity:
+            blind.qvel[6:] += noise.normal(0.0, encoders.velocity, joints_v)
         blind.time = sim.data.time
         dynamics.refresh()
 
@@ -160,11 +178,12 @@ def blind_base(lab, name: str) -> None:
 
 
 def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = None,
-         blind: bool = False) -> dict:
+         blind: bool = False, encoders: Encoders = Encoders()) -> dict:
     """In the isolated child: the stack of `yaml_path` walks `seconds` s (the footstep planner's
     vx from the YAML) on `variant`; every SAMPLE s the base's x, y, the robot's COM and what
     `part` exports (its `com` or `base`). Ends AFTER_FALL s after a fall. `blind`: `part`
-    reads no truth of the floating base (blind_base). Returns plain lists."""
+    reads no truth of the floating base, its encoders as `encoders` say (blind_base). Returns
+    plain lists."""
     from mexone.motion.push import PUSH_SECONDS, apply_wrench
     from mexone.physics.monitor import has_fallen
 
@@ -172,7 +191,7 @@ def walk(yaml_path: Path, variant: Variant, seconds: float, part: str | None = N
     lab = controller_lab(yaml_path, {}, [variant.variation.edit])
     sim = lab.sim
     if blind:
-        blind_base(lab, part)
+        blind_base(lab, part, encoders)
     push = variant.push
     if push is not None:
         force = push.impulse * variant.variation.mass / PUSH_SECONDS * \
@@ -222,6 +241,32 @@ def speed_check(name: str, weight: float, t: np.ndarray, x: np.ndarray, window: 
     return check(name, weight, (speed - none) / (full - none),
                  f"{speed:.3f} m/s forward over the last {window:g} s (full marks from {full:g}, "
                  f"none at {none:g}; {what})", requires=UP), speed
+
+
+DYNAMIC = {"importlib", "__import__", "exec", "eval"}  # what would hide an import from imports()
+
+
+def refused_import(submission: Path, shipped: str, what: str) -> str | None:
+    """Why the student's file is not run (None: it is): it imports the shipped part `shipped`
+    (`what`, e.g. "the shipped planner": the grade would be mexone's, not the student's), or
+    imports by name at run time, which would hide that from this check."""
+    found = imports(submission)
+    if shipped in found:
+        return f"{submission.name} imports {shipped}, {what}: write your own"
+    dynamic = found & DYNAMIC
+    if dynamic:
+        return (f"{submission.name} imports by name at run time ({sorted(dynamic)[0]}): import "
+                "what you use with `import`")
+    return None
+
+
+def built_on(out: dict, shipped: str) -> str | None:
+    """The shipped module `shipped` the student's class was built on or imported in the run
+    (walk's `mro` and `modules`), None if neither: a class in a worker process shows only what
+    its source imports (refused_import)."""
+    found = [c for c in out.get("mro", []) if c.startswith(shipped)] or \
+        [m for m in out.get("modules", []) if m.startswith(shipped)]
+    return found[0] if found else None
 
 
 def imports(source: Path) -> set[str]:
