@@ -70,14 +70,18 @@ class Gate:
         started = threading.Event()
         failure: list[BaseException] = []
 
-        async def listen() -> None:
+        async def listen() -> bool:
             try:
                 self._server = await asyncio.start_server(self._client, host, port,
                                                           limit=_HEAD_LIMIT)
+                return True
             except OSError as exc:
                 failure.append(exc)
+                return False
             finally:
                 started.set()
+
+        self._closing = False
 
         self._thread = threading.Thread(target=self._run, args=(listen,), daemon=True,
                                         name="mexone-foxglove-gate")
@@ -91,8 +95,10 @@ class Gate:
 
     def _run(self, listen) -> None:
         asyncio.set_event_loop(self._loop)
-        self._loop.run_until_complete(listen())
-        self._loop.run_forever()
+        # not serving (the port taken), or closed already: a close() whose stop ran inside
+        # run_until_complete would not stop a run_forever started after it
+        if self._loop.run_until_complete(listen()) and not self._closing:
+            self._loop.run_forever()
         left = asyncio.all_tasks(self._loop)  # cancelled by close(): let them end
         self._loop.run_until_complete(asyncio.gather(*left, return_exceptions=True))
         self._loop.close()
@@ -155,7 +161,8 @@ class Gate:
                 task.cancel()
             self._loop.stop()
 
-        if self._loop.is_running():
+        self._closing = True  # before the stop is scheduled: _run reads it (see there)
+        with contextlib.suppress(RuntimeError):  # the loop closed already: nothing to stop
             self._loop.call_soon_threadsafe(stop)
         self._thread.join(timeout=5)
 
