@@ -479,8 +479,7 @@ class PythonRunner(Controller):
         """The framework around the student's update, every period: what runs here is what a
         Python controller costs beyond its own code (benchmarks/RESULTS.md), so it is kept to
         plain attribute work: the hang guard's enter and leave (as `_HangGuard.enter`/`leave`
-        do them) and the budget meter (as `_metered`) are inlined; the student's own update is
-        timed alone."""
+        do them) are inlined; the student's own update is timed alone."""
         if not self.due:
             return
         self.due = False
@@ -525,23 +524,15 @@ class PythonRunner(Controller):
         if hung:
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
-        meter = self.meter  # _metered
-        meter.updates += 1
-        meter.total += elapsed
-        if elapsed > meter.worst:
-            meter.worst = elapsed
-        if elapsed > self._max_time:
-            meter.misses += 1
-            if self._overran(elapsed, switches):
-                return
-        elif suspect and self._overran(elapsed, switches):
+        self._metered(elapsed)
+        if (elapsed > self._max_time or suspect) and self._overran(elapsed, switches):
             return
         if out is not None:
             self._write(out, t)
 
     def _metered(self, elapsed: float) -> None:
         """An update's time, into the budget meter (a miss counted whoever's doing it was: the
-        fault `_overran` finds is the controller's only). PythonRunner.update inlines it."""
+        fault `_overran` finds is the controller's only)."""
         meter = self.meter
         meter.updates += 1
         meter.total += elapsed
