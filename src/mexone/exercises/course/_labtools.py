@@ -121,13 +121,15 @@ def controller_fault(lab: Lab, name: str) -> str | None:
     ctrl = lab.manager.controllers.get(name)
     if ctrl is None:
         return f"controller {name} was not loaded"
-    if getattr(ctrl, "fault", None):  # the student's file named without the grader's temp folder
-        return re.sub(r"(?:/[^/\s:]+)+/([^/\s:]+\.py)", r"\1", str(ctrl.fault))
+    # the class's interface first: it is the reason whatever the run did (an ideal servo's
+    # teleported joints can also make its updates overrun on a loaded machine)
     interface = getattr(getattr(ctrl, "impl", None), "command_interface", "effort")
     if interface != "effort":  # without gains it is an ideal servo: the joints teleported
         return (f"command_interface is '{interface}': the exercise is a torque law "
                 "(command_interface = 'effort'); a position or velocity command with no gains "
                 "moves the joints ideally, without the robot's dynamics")
+    if getattr(ctrl, "fault", None):  # the student's file named without the grader's temp folder
+        return re.sub(r"(?:/[^/\s:]+)+/([^/\s:]+\.py)", r"\1", str(ctrl.fault))
     if not ctrl.running:
         return f"controller {name} stopped"
     return None
