@@ -387,9 +387,7 @@ def _worker_child(keep: list[int], out_fd: int, status_fd: int, monitor: int,
 def _wait_or_end(pid: int, status_fd: int, plan: confine.Plan) -> int:
     """The wait status of the worker's relay `pid`; killed (and, by uid, swept) first if the
     run that asked for it closes its end of `status_fd`."""
-    import select as _select
-
-    poll = _select.poll()
+    poll = select.poll()
     poll.register(status_fd, 0)  # POLLERR: the reader closed
     while True:
         done, status = os.waitpid(pid, os.WNOHANG)

@@ -82,7 +82,6 @@ class Gate:
                 started.set()
 
         self._closing = False
-
         self._thread = threading.Thread(target=self._run, args=(listen,), daemon=True,
                                         name="mexone-foxglove-gate")
         self._thread.start()

@@ -11,14 +11,17 @@ import contextlib
 import json
 import logging
 import os
+import select
 import shutil
 import signal
 import socket
 import stat
+import struct
 import subprocess
 import sys
 import tempfile
 import threading
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -358,10 +361,6 @@ class Forked:
 
     def _read(self, timeout: float | None) -> int | None:
         with self._lock:
-            import select
-            import struct
-            import time
-
             deadline = None if timeout is None else time.monotonic() + timeout
             while self.returncode is None and self._fd is not None:
                 left = None if deadline is None else max(0.0, deadline - time.monotonic())
