@@ -177,11 +177,85 @@ def test_overrun_stops_it(tmp_path, turntable, caplog, in_process):
     lab.sim.step(30)
     ctrl = lab.manager.controllers["ctl"]
     # the first overrun starts the watch; the next three are counted (a sleep is the update's own
-    # doing; a busy loop the OS preempted on a loaded machine would not be)
-    assert not ctrl.running and ctrl.updates == 4
+    # doing; a busy loop's wait for a CPU on a loaded machine would not be). On a loaded machine
+    # a worker's sleep can pass unseen behind the lab's own wait for a CPU: a few more updates
+    assert not ctrl.running and (ctrl.updates == 4 if in_process else ctrl.updates >= 4)
     [line] = errors(caplog)
     assert "overran its period: 3 updates in a row took longer than 1 ms" in line
     assert f"{tmp_path / 'ctl.py'}:7)" in line  # def update
+
+
+@IN_PROCESS
+def test_a_busy_update_is_stopped_whatever_the_machine_did(tmp_path, turntable, caplog,
+                                                           in_process):
+    """3 ms of CPU time an update at 1 kHz: over the period however the kernel scheduled it."""
+    lab = turntable_lab(tmp_path, turntable, """
+        import time
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                end = time.thread_time() + 0.003
+                while time.thread_time() < end:
+                    pass
+        """, "max_overruns: 3\n", in_process=in_process)
+    lab.sim.step(30)
+    ctrl = lab.manager.controllers["ctl"]
+    assert not ctrl.running and ctrl.updates == 4
+    assert "overran its period: 3 updates in a row" in ctrl.fault
+
+
+@IN_PROCESS
+def test_a_stalled_machine_is_not_the_controllers_fault(tmp_path, turntable, monkeypatch,
+                                                        in_process):
+    """An update the kernel says ran in one go (no sleep, no wait for a CPU: woken once, a
+    worker for the request) with 0.05 ms of CPU time, 3 ms of wall time: the virtual CPU was
+    stopped by its host (steal time, counted nowhere else), not counted (was: ten trivial
+    updates in a row on a stalled CI machine stopped two controllers)."""
+    from mexone.control import watchdog
+    from mexone.control.controllers import python
+
+    clock = {"cpu": 0.0, "slices": 0}
+
+    def stalled(*_args: object) -> tuple[float, float, int]:
+        clock["cpu"] += 0.000025  # two reads an update: 0.05 ms of CPU
+        return clock["cpu"], 0.0, clock["slices"]
+
+    def woken_once(*_args: object) -> tuple[float, float, int]:
+        clock["slices"] += 1  # read before the request and after the reply: one wake
+        return stalled()
+
+    monkeypatch.setattr(python, "_sched", stalled)
+    monkeypatch.setattr(watchdog.SchedOf, "__call__", woken_once)
+    lab = turntable_lab(tmp_path, turntable, """
+        import time
+        class Ctl(PythonController):
+            def update(self, state, t, dt):
+                time.sleep(0.003)   # the wall time a stalled virtual CPU adds
+        """, "max_overruns: 3\n", in_process=in_process)
+    lab.sim.step(30)
+    ctrl = lab.manager.controllers["ctl"]
+    assert ctrl.running and ctrl.fault is None and ctrl.updates >= 30
+
+
+def test_own_time_is_the_cpu_time_of_an_update_in_one_go_else_wall_less_waits():
+    from mexone.control.watchdog import own_time
+
+    # ran in one go: its CPU time, whatever the wall time (the host stopped the virtual CPU)
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.0, 7)) == pytest.approx(0.0002)
+    # a worker woken once for the request: still one go
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.0, 8), wakes=1) == pytest.approx(0.0002)
+    # slept or preempted: the wall time less its waits for a CPU, and the caller's where it
+    # cannot have been at the same time (0.5 ms past its 0.2 ms of CPU and 1 ms of waits)
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.001, 9), wakes=1,
+                    also_waited=0.0017) == pytest.approx(0.0035)
+    # a caller that waited while its worker ran on its CPU: one interval, taken off once
+    assert own_time(0.0045, (1.0, 2.0, 7), (1.003, 2.001, 9), wakes=1,
+                    also_waited=0.003) == pytest.approx(0.0035)
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.004, 8)) == pytest.approx(0.001)
+    # never less than its CPU time (a wait just before the update is in the kernel's window)
+    assert own_time(0.004, (1.0, 2.0, 7), (1.003, 2.004, 8)) == pytest.approx(0.003)
+    # the kernel does not say: every overrun counts
+    assert own_time(0.005, None, (1.0, 2.0, 7)) == 0.005
+    assert own_time(0.005, (1.0, 2.0, 7), None) == 0.005
 
 
 @IN_PROCESS

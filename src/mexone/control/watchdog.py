@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from mexone.control.controllers.python import PythonRunner
 
 __all__ = ["ControllerHang", "Watched", "GUARD", "STUDENT_SETUP_TIMEOUT", "where_running",
-           "run_delay", "RunDelayOf"]
+           "sched", "own_time", "Sched", "SchedOf"]
 
 log = logging.getLogger("mexone.control")
 # wall s for importing a student's file or creating/configuring/activating the controller: a
@@ -175,53 +175,80 @@ def where_running(tid: int, file: str) -> str:
 
 _schedstat: dict[int, int] = {}  # thread -> its open /proc schedstat
 
+# (CPU s, s waited for a CPU, times it got a CPU) of a thread so far: Linux's schedstat (its
+# CPU time is the kernel's as of the thread's last tick or switch, up to 4 ms behind: taken
+# from the CPU-time clock instead, which is exact)
+Sched = tuple[float, float, int]
 
-def run_delay() -> float:
-    """s the calling thread has waited for a CPU so far (runnable, not running: Linux's
-    schedstat); 0.0 where unknown. What a loaded machine, not the code, added to a wall time."""
+
+def sched() -> Sched | None:
+    """The calling thread's schedstat (CPU s, s waited for a CPU, times it got a CPU) so far;
+    None where unknown. What tells a loaded or stalled machine's share of a wall time from the
+    code's own (`own_time`)."""
     tid = threading.get_native_id()
     fd = _schedstat.get(tid)
     try:
         if fd is None:
             fd = _schedstat[tid] = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
-        return _waited(fd)
+        fields = os.pread(fd, 100, 0).split()
+        return time.thread_time(), int(fields[1]) / 1e9, int(fields[2])
     except (OSError, ValueError, IndexError):
         stale = _schedstat.pop(tid, None)
         if stale is not None:  # a thread of that id that has ended
             with contextlib.suppress(OSError):
                 os.close(stale)
-        return 0.0
+        return None
+
+
+def own_time(elapsed: float, before: Sched | None, after: Sched | None, wakes: int = 0,
+             also_waited: float = 0.0) -> float:
+    """The part of an update's `elapsed` wall s that was the code's own, from its thread's
+    schedstat `before` and `after` it: its CPU time if it ran in one go (got the CPU no more
+    than `wakes` times: it neither slept nor was preempted, so the rest was the host's: a
+    virtual CPU stopped, its steal time, which the kernel counts nowhere else), else the wall
+    time less its waits for a CPU (a sleep is the code's own) and what of `also_waited` (the
+    caller's own wait, a worker's caller) cannot have been at the same time as the code ran
+    or waited (woken on the caller's CPU, a worker runs while its caller waits: one interval,
+    not two), never less than its CPU time (a wait just outside `elapsed` is in the
+    schedstat's window). `elapsed` where the kernel does not say (every overrun counts)."""
+    if before is None or after is None:
+        return elapsed
+    cpu, waited = after[0] - before[0], after[1] - before[1]
+    if after[2] - before[2] <= wakes:
+        return cpu
+    return max(cpu, elapsed - waited - max(0.0, also_waited - cpu - waited))
 
 
 GUARD = _HangGuard()
 _thread_id = threading.get_ident
 
 
-def _waited(fd: int) -> float:
-    """s waited for a CPU, from an open /proc schedstat (its second field, in ns)."""
-    return int(os.pread(fd, 100, 0).split()[1]) / 1e9
 
 
-class RunDelayOf:
-    """`run_delay` of another process's main thread, as the kernel counts it (its /proc
-    schedstat, readable by any user): what excuses a worker's slow update on a loaded machine
-    is measured here, never a number the student's process reports (it could make one up)."""
+
+class SchedOf:
+    """`sched` of another process, as the kernel counts it (its main thread's /proc schedstat,
+    readable by any user; the CPU time of all its threads, every one the student's): what
+    excuses a worker's slow update on a loaded machine is measured here, never a number the
+    student's process reports (it could make one up)."""
 
     def __init__(self, pid: int):
         self.pid = pid
+        self._cpu_clock = (~pid << 3) | 2  # Linux's CPU-time clock of process `pid` (CPUCLOCK_SCHED)
         try:
             self._fd: int | None = os.open(f"/proc/{pid}/schedstat", os.O_RDONLY)
         except OSError:
             self._fd = None
 
-    def __call__(self) -> float:
-        """s the process's main thread has waited for a CPU so far (0.0 where unknown)."""
+    def __call__(self) -> Sched | None:
+        """The process's main thread's schedstat so far (None where unknown)."""
         if self._fd is None:
-            return 0.0
+            return None
         try:
-            return _waited(self._fd)
+            fields = os.pread(self._fd, 100, 0).split()
+            return time.clock_gettime(self._cpu_clock), int(fields[1]) / 1e9, int(fields[2])
         except (OSError, ValueError, IndexError):
-            return 0.0
+            return None
 
     def close(self) -> None:
         """Close its /proc file (the process ended, or another took its place)."""

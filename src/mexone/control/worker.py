@@ -319,10 +319,11 @@ def _check_entry_in_worker(cls: type[PythonController], name: str, joints: tuple
 @dataclass(frozen=True)
 class Layout:
     """Where each number is in a worker's shared memory (float64 slots). The input block (the
-    worker maps it read-only): t, dt, measure, qpos, qvel, qfrc_actuator, mocap positions and
+    worker maps it read-only): t, dt, qpos, qvel, qfrc_actuator, mocap positions and
     quaternions, each sensor's fields, each chained input. The output block (page-aligned
-    after it; the worker may write it): its update's wall time, its run-queue delay, the line
-    of the `return` that produced the command, the command, each export."""
+    after it; the worker may write it): the line of the `return` that produced the command,
+    the command, each export. Nothing the worker writes there times or excuses it: mexone
+    measures its updates itself (IsolatedRunner)."""
 
     n: int
     nq: int
@@ -332,8 +333,8 @@ class Layout:
     inputs: tuple[tuple[str, int], ...] = ()
     exports: tuple[tuple[str, int], ...] = ()
 
-    HEAD = 3  # t, dt, measure
-    OUT_HEAD = 3  # elapsed, run delay, return line
+    HEAD = 2  # t, dt
+    OUT_HEAD = 1  # return line
 
     @property
     def inputs_size(self) -> int:

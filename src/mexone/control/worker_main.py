@@ -27,7 +27,6 @@ import select
 import socket
 import sys
 import threading
-import time
 import traceback
 from collections.abc import Iterator, Mapping
 from pathlib import Path
@@ -40,7 +39,6 @@ from mexone.control import watchdog
 from mexone.control.mistakes import StudentLog, not_numbers, return_lines, wrong_count
 from mexone.control.resolve import Found, Plugin, _import_failure, load_class, student_line
 from mexone.control.student import Exports, PythonController, State, declared_topics, strided_view
-from mexone.control.watchdog import run_delay
 from mexone.control.worker import (
     CALL,
     DONE,
@@ -133,7 +131,6 @@ class _Host:
         self.ctx = SimpleNamespace(sim=_SimView(self))
         self.traced = False
         self._frame: FrameType | None = None
-        self._delay_mark: float | None = None
         self._reply(REPLY, {"seq": 0, "ok": {"thread": threading.get_ident(), "pid": self.pid}})
         threading.excepthook = self._thread_raised
 
@@ -434,10 +431,6 @@ class _Host:
             state.messages = {name: inbox.get(name) for name in self.topics}
         inp, out = self.inp, self.out
         t, dt = state.time, float(inp[1])
-        measure = inp[2] != 0.0
-        if measure:  # since the end of the last update: the wake-up's wait for a CPU included
-            before = self._delay_mark if self._delay_mark is not None else run_delay()
-        start = time.perf_counter()
         try:
             if self.traced:
                 sys.settrace(self._trace)
@@ -451,12 +444,6 @@ class _Host:
             self._frame = None
             self.fault(number, f"update raised {self.where(exc)} at t = {t:.3f} s")
             return
-        out[0] = time.perf_counter() - start
-        if measure:
-            self._delay_mark = run_delay()
-            out[1] = max(0.0, self._delay_mark - before)
-        else:
-            self._delay_mark = None
         if os.getpid() != self.pid:  # a copy of this process (a fork past the guards): not ours
             guard.real_exit(0)
         assert self.impl is not None  # created before any update (mexone's side)
@@ -468,7 +455,7 @@ class _Host:
                 self.chan.send_frame(self.KEPT_HEAD + number)
             return
         line = self._return_line()
-        out[2] = line
+        out[0] = line
         try:
             values = np.asarray(result, dtype=float)
             if values.shape != self.shape:

@@ -24,11 +24,10 @@ from mexone.control.controllers.python import (
     STUDENT_LOG,
     PythonRunner,
     _clock,
-    _preemptions,
     log,
 )
 from mexone.control.student import declared_lengths
-from mexone.control.watchdog import run_delay
+from mexone.control.watchdog import own_time, sched
 from mexone.control.worker import (
     DONE,
     MESSAGES,
@@ -59,7 +58,10 @@ __all__ = ["IsolatedRunner"]
 class IsolatedRunner(PythonRunner):
     """PythonRunner whose student object runs in a worker process."""
 
-    _delay_meter: watchdog.RunDelayOf | None = None  # the kernel's wait count for the worker
+    _sched_meter: watchdog.SchedOf | None = None  # the kernel's schedstat of the worker
+    # an update that overran while measured, judged at the next (elapsed, its worker, the
+    # worker's schedstat before it, the simulation thread's wait for a CPU meanwhile)
+    _pending: tuple[float, Worker, watchdog.Sched | None, float] | None = None
 
     # ----- loading ------------------------------------------------------------------------------
     def _instantiate(self, plugin: Plugin) -> PythonController:
@@ -70,7 +72,6 @@ class IsolatedRunner(PythonRunner):
         self._thread_fault: str | None = None
         self._wanted: list[int] = []
         self._version = -1
-        self._measuring = False
         self._sim = self.ctx.sim
         self._hang = plugin.hang_timeout
         self._start_worker()
@@ -172,7 +173,6 @@ class IsolatedRunner(PythonRunner):
             if self._layout.nmocap else None
         self._sensor_views = views["sensors"]
         self._wanted = []
-        self._measuring = False  # a fresh block asks for no measurement
         self._input_views = list(views["inputs"].items())  # chained: what it reads, and writes
         self._export_views = [(self.exports[k], v) for k, v in views["exports"].items()]
 
@@ -180,10 +180,10 @@ class IsolatedRunner(PythonRunner):
         if self.worker is not None:
             self.worker.kill()
             self.worker = None
-        meter = self._delay_meter
+        meter = self._sched_meter
         if meter is not None:
             meter.close()
-            self._delay_meter = None
+            self._sched_meter = None
 
     # ----- what front ends read ---------------------------------------------------------------------
     @property
@@ -211,7 +211,7 @@ class IsolatedRunner(PythonRunner):
     def return_line(self) -> str:
         """file:line of the `return` that produced this update's command, as the worker saw it
         (a number it may have made up: only ever shown)."""
-        line = float(self._out[2])
+        line = float(self._out[0])
         if 0 < line < 1e7 and line.is_integer():
             return f"{self.info.file}:{int(line)}"
         return self.update_line()
@@ -398,6 +398,8 @@ class IsolatedRunner(PythonRunner):
         worker = self.worker
         if worker is None:
             return
+        if self._pending is not None and self._judged(worker):
+            return
         last, self._last_t = self._last_t, t
         dt = t - last if last is not None else self.period_ns / NS
         self.updates += 1
@@ -409,10 +411,7 @@ class IsolatedRunner(PythonRunner):
                 self._send_messages(worker)
             suspect = self._suspect
             if suspect:  # an update overran: measure what the machine took from the next ones
-                switches, waited, theirs = _preemptions(), run_delay(), self._their_delay(worker)
-            if suspect != self._measuring:
-                self._measuring = suspect
-                self._inp[2] = 1.0 if suspect else 0.0
+                ours, theirs = sched(), self._their_sched(worker)
             start = _clock()
             kind, payload = worker.update(self._hang)
         except StudentFault as exc:
@@ -435,23 +434,38 @@ class IsolatedRunner(PythonRunner):
             return
         if self._export_views:
             self._exported()
-        if (elapsed > self._max_time or suspect) and self._overran(  # the machine's delays are
-                elapsed, switches if suspect else 0,  # not the update's: both sides' waits for
-                elapsed - (self._their_delay(worker) - theirs) - (run_delay() - waited)  # a CPU
-                if suspect else None):
+        if suspect and elapsed > self._max_time:  # judged when the worker has gone back to wait
+            now = sched()
+            waited = 0.0 if ours is None or now is None else now[1] - ours[1]
+            self._pending = (elapsed, worker, theirs, waited)
+        elif (elapsed > self._max_time or suspect) and self._overran(elapsed, None):
             return
         if kind == DONE:
             self._write(self._cmd.copy(), t)
 
-    def _their_delay(self, worker: Worker) -> float:
-        """s the worker's main thread has waited for a CPU, as the kernel says (not as its
-        shared memory says: the student writes there)."""
+    def _judged(self, worker: Worker) -> bool:
+        """Judge the last update, which overran while measured, now that its worker waits for
+        the next: its own time (watchdog.own_time: its CPU time if it was woken once for it and
+        ran in one go, else the round trip less both sides' waits for a CPU). Not at its reply:
+        the kernel counts another process's CPU time only at its switches and ticks (4 ms), so
+        a worker still running was behind by up to a tick. True if that made it a fault."""
+        assert self._pending is not None
+        elapsed, measured, theirs, waited = self._pending
+        self._pending = None
+        if measured is not worker or not self._suspect:  # a new worker, or started again
+            return False
+        own = own_time(elapsed, theirs, self._their_sched(worker), wakes=1, also_waited=waited)
+        return self._overran(elapsed, own)
+
+    def _their_sched(self, worker: Worker) -> watchdog.Sched | None:
+        """The worker's main thread's schedstat, as the kernel says (not as its shared memory
+        says: the student writes there)."""
         pid = worker.pid or worker.process.pid
-        meter = self._delay_meter
+        meter = self._sched_meter
         if meter is None or meter.pid != pid:
             if meter is not None:
                 meter.close()
-            meter = self._delay_meter = watchdog.RunDelayOf(pid)
+            meter = self._sched_meter = watchdog.SchedOf(pid)
         return meter()
 
     def _update_fault(self, payload: bytes) -> str:

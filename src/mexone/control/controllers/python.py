@@ -3,8 +3,8 @@
 The runner is the framework around the student's `update`: it builds the `State`, times the call,
 checks what comes back (numbers, one per joint, finite), clamps it to the joint's limits (said
 once), and writes it to the claimed command interface. The student's faults are theirs: an
-exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time` (an update the
-OS preempted meanwhile is the machine's, not counted), or an update
+exception, a NaN or inf, `max_overruns` consecutive updates over `max_update_time` (what a loaded or
+stalled machine took from an update is not counted: watchdog.own_time), or an update
 that has not returned after `hang_timeout` (a watchdog thread interrupts it) -> the manager stops
 the controller, its joints hold their measured position (or are damped: `on_fault: damp`), the
 lab runs on, and one line names the controller and the student's file:line.
@@ -22,11 +22,6 @@ import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
-
-try:
-    import resource
-except ImportError:  # Windows
-    resource = None  # type: ignore[assignment]  # the standard optional-module idiom
 
 import numpy as np
 
@@ -53,7 +48,8 @@ from mexone.control.student import (
     unit_of,
 )
 from mexone.control.watchdog import GUARD as _GUARD
-from mexone.control.watchdog import ControllerHang, Watched
+from mexone.control.watchdog import ControllerHang, Watched, own_time
+from mexone.control.watchdog import sched as _sched
 from mexone.errors import InputError, MexoneError
 from mexone.physics.simulation import NS
 from mexone.ranges import number_text
@@ -126,7 +122,7 @@ class PythonRunner(Controller):
         self.period_ns = 1
         self._last_t: float | None = None
         self._overruns = 0
-        self._suspect = False  # the last update overran: the next are checked for preemption
+        self._suspect = False  # the last update overran: the next are measured (own_time)
         self._dyn: Dynamics | None = None
         self._dyn_at = -1
         self._limits_said: set[str] = set()
@@ -494,7 +490,7 @@ class PythonRunner(Controller):
             self._deliver(state)
         self.updates += 1
         suspect = self._suspect
-        switches = _preemptions() if suspect else 0  # only after an overrun: a syscall
+        before = _sched() if suspect else None  # only after an overrun: a read of /proc
         guard = _GUARD
         tid = _thread_id()
         start = _clock()
@@ -525,7 +521,8 @@ class PythonRunner(Controller):
             self._fault(f"update did not return within hang_timeout ({self.update_line()})")
             return
         self._metered(elapsed)
-        if (elapsed > self._max_time or suspect) and self._overran(elapsed, switches):
+        if (elapsed > self._max_time or suspect) and self._overran(
+                elapsed, own_time(elapsed, before, _sched()) if suspect else None):
             return
         if out is not None:
             self._write(out, t)
@@ -541,15 +538,14 @@ class PythonRunner(Controller):
         if elapsed > self._max_time:
             meter.misses += 1
 
-    def _overran(self, elapsed: float, switches: int, theirs: float | None = None) -> bool:
-        """An update took `elapsed` s: count it if it overran and the OS did not preempt it
-        meanwhile (`switches`: this thread's preemptions before it), or (`theirs`, when known)
-        if the part of it that was not spent waiting for a CPU overran; True if that made it a
-        fault."""
-        if elapsed > self._max_time and (theirs is None or theirs > self._max_time):
-            if not self._suspect:  # the first: measure the next ones for preemption
+    def _overran(self, elapsed: float, own: float | None) -> bool:
+        """An update took `elapsed` s, `own` of them its code's own (watchdog.own_time: not the
+        machine's; None when not measured): count it if both overran; True if that made it a
+        fault. The first overrun is not counted: it starts measuring the next ones."""
+        if elapsed > self._max_time and (own is None or own > self._max_time):
+            if not self._suspect:  # the first: measure the next ones
                 self._suspect = True
-            elif theirs is not None or _preemptions() == switches:  # not the machine's doing
+            else:
                 self._overruns += 1
             if self._overruns >= self.plugin.max_overruns:
                 self._fault(f"update overran its period: {self._overruns} updates in a row took "
@@ -636,14 +632,6 @@ def _span_of(rows: np.ndarray) -> slice | None:
     if len(rows) == 0 or not np.array_equal(rows, np.arange(rows[0], rows[0] + len(rows))):
         return None
     return slice(int(rows[0]), int(rows[0]) + len(rows))
-
-
-def _preemptions() -> int:
-    """Times the OS took the CPU from this thread (involuntary context switches): an update
-    that overran while this moved was slowed by the machine, not by its code. Linux's
-    RUSAGE_THREAD; elsewhere 0 (every overrun counts)."""
-    who = getattr(resource, "RUSAGE_THREAD", None) if resource is not None else None
-    return 0 if who is None else resource.getrusage(who).ru_nivcsw
 
 
 def _inertia_diagonal(model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
