@@ -59,4 +59,15 @@ npm install --prefix tests/hub --no-audit --no-fund --silent
 [ "$(id -u)" != 0 ] || python3 tests/hub/classroom.py
 python3 -m ruff check .
 python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
-python3 -m pytest "$@"
+# Two phases (tests/conftest.py's SHARES_THE_CPU): the tests that only compute, side by side on
+# every core (pytest-xdist; a file's tests on one worker), then the ones that watch the wall clock
+# (real-time pacing, browsers, ROS, signals) one at a time, with no neighbour to slow them. Both
+# run even if the first fails; "no test selected" (exit 5, e.g. `test.sh tests/ros1`) is no failure.
+status=0
+MEXONE_TEST_PHASE=parallel python3 -m pytest -n auto --dist loadfile "$@" || status=$?
+[ "$status" != 5 ] || status=0
+serial=0
+MEXONE_TEST_PHASE=serial python3 -m pytest "$@" || serial=$?
+[ "$serial" != 5 ] || serial=0
+[ "$status" != 0 ] || status=$serial
+exit "$status"
