@@ -29,60 +29,22 @@ DATA = Path(__file__).parent / "data"
 IN_CI = os.environ.get("MEXONE_CI") == "1"
 
 
-# ----- two phases: tests that only need the CPU side by side, then the clock's tests alone -------
-# scripts/test.sh runs pytest twice: MEXONE_TEST_PHASE=parallel with pytest-xdist on every core
-# (`-n auto --dist loadfile`: a file's tests on one worker, its module fixtures built once) for
-# the files below, then MEXONE_TEST_PHASE=serial, one test at a time, for all the others. Listed
-# (read, not guessed): files whose tests compute -- physics, fits, grading -- and assert nothing
-# about the wall clock but generous timeouts (a grade's time_limit is 5-10x its measured run, an
-# overrun is an update's own CPU time: control/watchdog.py). Not listed, so alone: real-time
-# pacing and RTF, page and browser timing, a controller's budget in a paced lab, ROS and its
-# clocks, the hub, signals at a moment, "took < N s" checks, Ray's cluster (its start has its own
-# timeouts), and the wheel's session venv
-# (built once, in the serial phase). A new test file runs alone until someone reads and lists it.
-SHARES_THE_CPU = (
-    "walking/test_stack.py", "walking/test_pushes.py", "walking/test_parts.py",
-    "walking/test_worlds.py",
-    "identify/test_identify.py", "identify/test_hostile_bags.py", "identify/test_excitation.py",
-    "exercises/test_course.py", "exercises/test_course_5_10.py", "exercises/test_course_robust.py",
-    "exercises/test_walking_exercises.py", "exercises/test_method_checks.py",
-    "exercises/test_reports.py", "exercises/test_grade_outputs.py", "exercises/test_requires.py",
-    "design/test_robust.py", "design/test_lqr_balance.py",
-    "design/test_deploy.py", "design/test_linear.py", "design/test_check_deployed.py",
-    "motion/test_ik.py",
-    "description/test_any_robot.py", "description/test_check_rules.py", "description/test_convert.py",
-    "description/test_mesh_reader.py", "description/test_mjcf_in.py",
-    "description/test_sdf_versions.py", "description/test_value_conflicts.py",
-    "dynamics/",
-    "record/test_record.py", "record/test_recover.py",
-    "test_docs.py", "test_examples.py", "test_layers.py", "cli/test_example_robot.py",
-    "editor/test_editor_hostile.py", "control/test_chained_controllers.py",
-)
-PHASES = ("parallel", "serial")
-
-
-def shares_the_cpu(path: Path) -> bool:
-    """Whether the test file at `path` runs in the parallel phase (SHARES_THE_CPU)."""
-    rel = path.resolve().relative_to(Path(__file__).parent).as_posix()
-    return any(rel == entry or (entry.endswith("/") and rel.startswith(entry))
-               for entry in SHARES_THE_CPU)
-
-
+# ----- two phases (tests/phases.py): the files that only compute side by side, then the others ----
 def pytest_collection_modifyitems(config, items):
+    import phases
+
     phase = os.environ.get("MEXONE_TEST_PHASE", "")
     if not phase:
         return  # a plain `pytest`: every test, one at a time
-    if phase not in PHASES:
-        raise pytest.UsageError(f"MEXONE_TEST_PHASE={phase!r}: one of {', '.join(PHASES)}, "
+    if phase not in phases.PHASES:
+        raise pytest.UsageError(f"MEXONE_TEST_PHASE={phase!r}: one of {', '.join(phases.PHASES)}, "
                                 "or unset for every test")
-    here = Path(__file__).parent
-    missing = [entry for entry in SHARES_THE_CPU if not (here / entry).exists()]
-    if missing:
-        raise pytest.UsageError(f"tests/conftest.py's SHARES_THE_CPU names {', '.join(missing)}, "
+    if phases.missing():
+        raise pytest.UsageError(f"tests/phases.py's SHARES_THE_CPU names {', '.join(phases.missing())}, "
                                 "which do not exist: remove or rename them")
     keep, drop = [], []
     for item in items:
-        (keep if shares_the_cpu(item.path) == (phase == "parallel") else drop).append(item)
+        (keep if phases.shares_the_cpu(item.path) == (phase == "parallel") else drop).append(item)
     if drop:
         config.hook.pytest_deselected(items=drop)
         items[:] = keep
