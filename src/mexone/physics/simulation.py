@@ -296,16 +296,10 @@ class Simulation:
         self._model_hooks[:] = [h for h in self._model_hooks if kept(h)]
 
     def _fire_due(self) -> None:
-        # runs between every two chunks of steps (every step while a control needs each one):
-        # plain loops, no temporaries, no property calls
+        # what is due now (step() inlines this with _steps_until_due: keep the three alike)
         now, half = self._time_ns, self._step_ns // 2
         if self.periodic:
-            for timer in list(self.periodic):  # a callback may add or remove timers
-                if now >= timer.next_ns - half:
-                    timer.next_ns += timer.period_ns
-                    if timer.next_ns < now - half:  # fell behind (a step longer than the period)
-                        timer.next_ns = now + timer.period_ns
-                    timer.callback(self)
+            self._fire_timers(now, half)
         due = now + half
         for control in self.controls:
             if control.wake_ns <= due:
@@ -313,6 +307,14 @@ class Simulation:
         forces = self.forces
         if forces.changed or forces.wrenches or forces.efforts:
             forces.apply(self.data, now, half)
+
+    def _fire_timers(self, now: int, half: int) -> None:
+        for timer in list(self.periodic):  # a callback may add or remove timers
+            if now >= timer.next_ns - half:
+                timer.next_ns += timer.period_ns
+                if timer.next_ns < now - half:  # fell behind (a step longer than the period)
+                    timer.next_ns = now + timer.period_ns
+                timer.callback(self)
 
     def _steps_until_due(self) -> int:
         soonest = math.inf
@@ -336,9 +338,39 @@ class Simulation:
         """Advance n physics steps (even when paused: this is Gazebo's step button)."""
         model, data = self.model, self.data
         remaining = int(n)
+        inf = math.inf
         while remaining > 0:
-            self._fire_due()
-            chunk = min(remaining, _WATCH_EVERY - self._since_watch, self._steps_until_due())
+            # _fire_due and _steps_until_due inlined (keep the three alike): with a controller at
+            # the physics rate this runs every step, so what it costs is the framework's
+            now, half = self._time_ns, self._step_ns // 2
+            periodic, controls = self.periodic, self.controls
+            if periodic:
+                for timer in periodic:
+                    if now >= timer.next_ns - half:
+                        self._fire_timers(now, half)
+                        break
+            due = now + half
+            for control in controls:
+                if control.wake_ns <= due:
+                    control.update(self)
+            forces = self.forces
+            if forces.changed or forces.wrenches or forces.efforts:
+                forces.apply(self.data, now, half)
+            soonest = inf
+            for timer in self.periodic:
+                if timer.next_ns < soonest:
+                    soonest = timer.next_ns
+            for control in controls:
+                if control.wake_ns < soonest:
+                    soonest = control.wake_ns
+            now, step_ns, forces = self._time_ns, self._step_ns, self.forces  # a callback may reset
+            if forces.changed or forces.wrenches or forces.efforts:
+                soonest = min(soonest, forces.next_change_ns(now, step_ns))
+            if soonest <= now + step_ns:  # due now or at the next step (the usual case below)
+                chunk = 1
+            else:
+                chunk = min(remaining, _WATCH_EVERY - self._since_watch, _WATCH_EVERY
+                            if soonest == inf else max(1, math.ceil((soonest - now) / step_ns - 0.5)))
             try:
                 mujoco.mj_step(model, data, chunk)
             except mujoco.FatalError as exc:  # e.g. out of constraint memory: a one-line error
@@ -349,7 +381,7 @@ class Simulation:
                     "needs 'mexone check' and a smaller time step"))
                 model, data = self.model, self.data
                 continue
-            self._time_ns += chunk * self._step_ns
+            self._time_ns += chunk * step_ns
             self.steps += chunk
             remaining -= chunk
             self._since_watch += chunk
