@@ -220,7 +220,7 @@ class Simulation:
         self.recover_outside = False
         self._step_ns = round(self.model.opt.timestep * NS)
         # counts what ends a stretch of single steps step() planned: a timer added or removed,
-        # a reset, a new physics step
+        # a reset, a new physics step, a recompile (each but the first also new forces)
         self._edits = 0
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
@@ -392,14 +392,15 @@ class Simulation:
                 self._since_watch += chunk
                 if chunk == 1 and quiet:
                     # single steps while only controls are due (a controller at the physics
-                    # rate): the pass above less what cannot be due until a timer is, anything
-                    # else changes (`_edits`: timers, a reset, the step; a force) or the
-                    # watchdog's turn comes; the same calls in the same order
+                    # rate): the pass above less what cannot be due, until a timer is due, a
+                    # control changes anything else (a force; `_edits`: timers, a reset, the
+                    # step, the model) or the watchdog's turn comes; the same calls in the same
+                    # order (tests/physics/test_step_stretches.py)
                     edits, half = self._edits, step_ns // 2
                     quiet_until = timers_at - half
                     while remaining > 0 and self._since_watch < _WATCH_EVERY:
                         now = self._time_ns
-                        if now >= quiet_until or self._edits != edits:
+                        if now >= quiet_until:  # a timer is due: the full pass
                             break
                         due = now + half
                         for control in controls:
@@ -409,8 +410,7 @@ class Simulation:
                         for control in controls:
                             if control.wake_ns < soonest:
                                 soonest = control.wake_ns
-                        if (soonest > now + step_ns or forces.changed or self._edits != edits
-                                or self.forces is not forces):
+                        if soonest > now + step_ns or forces.changed or self._edits != edits:
                             fired = True  # the full pass plans from here
                             break
                         mj_step(model, data, 1)
@@ -622,6 +622,7 @@ class Simulation:
         self.watchdog = Watchdog(model, data, self.watchdog.link_names, self._likely_cause)
         self.watchdog.suspects.extend(suspects)
         self.forces = Forces()
+        self._edits += 1
         for hook in self._model_hooks:
             hook()
 
