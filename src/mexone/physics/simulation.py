@@ -219,6 +219,9 @@ class Simulation:
         # resets the world with a warning instead of ending the run (see _diverged)
         self.recover_outside = False
         self._step_ns = round(self.model.opt.timestep * NS)
+        # counts what ends a stretch of single steps step() planned: a timer added or removed,
+        # a reset, a new physics step, a recompile (each but the first also new forces)
+        self._edits = 0
         link_of_body = {body: name for name, body in self.compiled.bodies.items()}
         self.watchdog = Watchdog(self.model, self.data, link_of_body, self._likely_cause)
         self.reset()
@@ -253,6 +256,7 @@ class Simulation:
         self.model.opt.timestep = seconds
         self.model_version += 1
         self._step_ns = round(seconds * NS)
+        self._edits += 1
         for hook in self._timestep_hooks:
             hook(seconds)
 
@@ -273,12 +277,14 @@ class Simulation:
         period_ns = max(1, round(period * NS))
         timer = Periodic(period_ns, callback, self._time_ns + period_ns)
         self.periodic.append(timer)
+        self._edits += 1
         return timer
 
     def remove_periodic(self, timer: Periodic) -> None:
         """Stop a callback add_periodic started."""
         if timer in self.periodic:
             self.periodic.remove(timer)
+            self._edits += 1
 
     def add_control(self, control: Control) -> None:
         """Run `control.update(sim)` whenever it is due (its wake_ns): a controller manager."""
@@ -296,16 +302,10 @@ class Simulation:
         self._model_hooks[:] = [h for h in self._model_hooks if kept(h)]
 
     def _fire_due(self) -> None:
-        # runs between every two chunks of steps (every step while a control needs each one):
-        # plain loops, no temporaries, no property calls
+        # what is due now (step() inlines this with _steps_until_due: keep the three alike)
         now, half = self._time_ns, self._step_ns // 2
         if self.periodic:
-            for timer in list(self.periodic):  # a callback may add or remove timers
-                if now >= timer.next_ns - half:
-                    timer.next_ns += timer.period_ns
-                    if timer.next_ns < now - half:  # fell behind (a step longer than the period)
-                        timer.next_ns = now + timer.period_ns
-                    timer.callback(self)
+            self._fire_timers(now, half)
         due = now + half
         for control in self.controls:
             if control.wake_ns <= due:
@@ -313,6 +313,14 @@ class Simulation:
         forces = self.forces
         if forces.changed or forces.wrenches or forces.efforts:
             forces.apply(self.data, now, half)
+
+    def _fire_timers(self, now: int, half: int) -> None:
+        for timer in list(self.periodic):  # a callback may add or remove timers
+            if now >= timer.next_ns - half:
+                timer.next_ns += timer.period_ns
+                if timer.next_ns < now - half:  # fell behind (a step longer than the period)
+                    timer.next_ns = now + timer.period_ns
+                timer.callback(self)
 
     def _steps_until_due(self) -> int:
         soonest = math.inf
@@ -336,11 +344,80 @@ class Simulation:
         """Advance n physics steps (even when paused: this is Gazebo's step button)."""
         model, data = self.model, self.data
         remaining = int(n)
+        inf, mj_step, controls = math.inf, mujoco.mj_step, self.controls
+        fired = False  # what was due at `now` has run (the single steps below stopped after it)
+        now, half = self._time_ns, self._step_ns // 2
         while remaining > 0:
-            self._fire_due()
-            chunk = min(remaining, _WATCH_EVERY - self._since_watch, self._steps_until_due())
+            # _fire_due and _steps_until_due inlined (keep the three alike): with a controller at
+            # the physics rate this runs every step, so what it costs is the framework's
+            if fired:
+                fired = False
+            else:
+                now, half = self._time_ns, self._step_ns // 2
+                periodic = self.periodic
+                if periodic:
+                    for timer in periodic:
+                        if now >= timer.next_ns - half:
+                            self._fire_timers(now, half)
+                            break
+                due = now + half
+                for control in controls:
+                    if control.wake_ns <= due:
+                        control.update(self)
+            forces = self.forces
+            if forces.changed or forces.wrenches or forces.efforts:
+                forces.apply(self.data, now, half)
+            timers_at = inf
+            for timer in self.periodic:
+                if timer.next_ns < timers_at:
+                    timers_at = timer.next_ns
+            soonest = timers_at
+            for control in controls:
+                if control.wake_ns < soonest:
+                    soonest = control.wake_ns
+            now, step_ns, forces = self._time_ns, self._step_ns, self.forces  # a callback may reset
+            quiet = not (forces.changed or forces.wrenches or forces.efforts)
+            if not quiet:
+                soonest = min(soonest, forces.next_change_ns(now, step_ns))
+            if soonest <= now + step_ns:  # due now or at the next step (the usual case below)
+                chunk = 1
+            else:
+                chunk = min(remaining, _WATCH_EVERY - self._since_watch, _WATCH_EVERY
+                            if soonest == inf else max(1, math.ceil((soonest - now) / step_ns - 0.5)))
             try:
-                mujoco.mj_step(model, data, chunk)
+                mj_step(model, data, chunk)
+                self._time_ns += chunk * step_ns
+                self.steps += chunk
+                remaining -= chunk
+                self._since_watch += chunk
+                if chunk == 1 and quiet:
+                    # single steps while only controls are due (a controller at the physics
+                    # rate): the pass above less what cannot be due, until a timer is due, a
+                    # control changes anything else (a force; `_edits`: timers, a reset, the
+                    # step, the model) or the watchdog's turn comes; the same calls in the same
+                    # order (tests/physics/test_step_stretches.py)
+                    edits, half = self._edits, step_ns // 2
+                    quiet_until = timers_at - half
+                    while remaining > 0 and self._since_watch < _WATCH_EVERY:
+                        now = self._time_ns
+                        if now >= quiet_until:  # a timer is due: the full pass
+                            break
+                        due = now + half
+                        for control in controls:
+                            if control.wake_ns <= due:
+                                control.update(self)
+                        soonest = timers_at
+                        for control in controls:
+                            if control.wake_ns < soonest:
+                                soonest = control.wake_ns
+                        if soonest > now + step_ns or forces.changed or self._edits != edits:
+                            fired = True  # the full pass plans from here
+                            break
+                        mj_step(model, data, 1)
+                        self._time_ns += step_ns
+                        self.steps += 1
+                        remaining -= 1
+                        self._since_watch += 1
             except mujoco.FatalError as exc:  # e.g. out of constraint memory: a one-line error
                 cause = self._outside_cause()
                 self._diverged(DivergenceError(
@@ -349,10 +426,6 @@ class Simulation:
                     "needs 'mexone check' and a smaller time step"))
                 model, data = self.model, self.data
                 continue
-            self._time_ns += chunk * self._step_ns
-            self.steps += chunk
-            remaining -= chunk
-            self._since_watch += chunk
             if self._since_watch >= _WATCH_EVERY:
                 self._since_watch = 0
                 try:
@@ -495,6 +568,7 @@ class Simulation:
         self._since_watch = _WATCH_EVERY - _FIRST_WATCH  # a run's first check comes early
         for timer in self.periodic:
             timer.next_ns = timer.period_ns
+        self._edits += 1
         for hook in self._reset_hooks:
             hook()
 
@@ -548,6 +622,7 @@ class Simulation:
         self.watchdog = Watchdog(model, data, self.watchdog.link_names, self._likely_cause)
         self.watchdog.suspects.extend(suspects)
         self.forces = Forces()
+        self._edits += 1
         for hook in self._model_hooks:
             hook()
 
