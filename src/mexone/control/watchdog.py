@@ -206,17 +206,17 @@ def own_time(elapsed: float, before: Sched | None, after: Sched | None, wakes: i
     schedstat `before` and `after` it: its CPU time if it ran in one go (got the CPU no more
     than `wakes` times: it neither slept nor was preempted, so the rest was the host's: a
     virtual CPU stopped, its steal time, which the kernel counts nowhere else), else the wall
-    time less its waits for a CPU (a sleep is the code's own) and what of `also_waited` (the
-    caller's own wait, a worker's caller) cannot have been at the same time as the code ran
-    or waited (woken on the caller's CPU, a worker runs while its caller waits: one interval,
-    not two), never less than its CPU time (a wait just outside `elapsed` is in the
-    schedstat's window). `elapsed` where the kernel does not say (every overrun counts)."""
+    time less its waits for a CPU and `also_waited` (a worker's caller's: a sleep is the
+    code's own), never less than its CPU time (the two waits may overlap: woken on its
+    caller's CPU, a worker runs while the caller waits; and a wait just outside `elapsed` is
+    in the schedstat's window). `elapsed` where the kernel does not say (every overrun
+    counts)."""
     if before is None or after is None:
         return elapsed
     cpu, waited = after[0] - before[0], after[1] - before[1]
     if after[2] - before[2] <= wakes:
         return cpu
-    return max(cpu, elapsed - waited - max(0.0, also_waited - cpu - waited))
+    return max(cpu, elapsed - waited - also_waited)
 
 
 GUARD = _HangGuard()
