@@ -206,10 +206,10 @@ def test_a_busy_update_is_stopped_whatever_the_machine_did(tmp_path, turntable, 
 @IN_PROCESS
 def test_a_stalled_machine_is_not_the_controllers_fault(tmp_path, turntable, monkeypatch,
                                                         in_process):
-    """An update the kernel says ran in one go (no sleep, no wait for a CPU: woken once, a
-    worker for the request) with 0.05 ms of CPU time, 3 ms of wall time: the virtual CPU was
-    stopped by its host (steal time, counted nowhere else), not counted (was: ten trivial
-    updates in a row on a stalled CI machine stopped two controllers)."""
+    """An update the kernel says did not block (no sleep: a worker only waited for the next
+    request) with 0.05 ms of CPU time, 3 ms of wall time: the virtual CPU was stopped by its
+    host (steal time, counted nowhere else), not counted (was: ten trivial updates in a row on
+    a stalled CI machine stopped two controllers)."""
     from mexone.control import watchdog
     from mexone.control.controllers import python
 
@@ -220,7 +220,7 @@ def test_a_stalled_machine_is_not_the_controllers_fault(tmp_path, turntable, mon
         return clock["cpu"], 0.0, clock["slices"]
 
     def woken_once(*_args: object) -> tuple[float, float, int]:
-        clock["slices"] += 1  # read before the request and after the reply: one wake
+        clock["slices"] += 1  # read before a request and the next: blocked once, waiting
         return stalled()
 
     monkeypatch.setattr(python, "_sched", stalled)
@@ -239,15 +239,15 @@ def test_a_stalled_machine_is_not_the_controllers_fault(tmp_path, turntable, mon
 def test_own_time_is_the_cpu_time_of_an_update_in_one_go_else_wall_less_waits():
     from mexone.control.watchdog import own_time
 
-    # ran in one go: its CPU time, whatever the wall time (the host stopped the virtual CPU)
+    # did not block: its CPU time, whatever the wall time (waits, a virtual CPU its host stopped)
     assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.0, 7)) == pytest.approx(0.0002)
-    # a worker woken once for the request: still one go
-    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.0, 8), wakes=1) == pytest.approx(0.0002)
-    # slept or preempted: the wall time less its waits for a CPU and the caller's
-    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.001, 9), wakes=1,
+    # a worker that blocked once, to wait for the next request: still its CPU time
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.0, 8), blocks=1) == pytest.approx(0.0002)
+    # slept: the wall time less its waits for a CPU and the caller's
+    assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.001, 9), blocks=1,
                     also_waited=0.0005) == pytest.approx(0.0035)
     # a caller that waited while its worker ran on its CPU: never less than the CPU time
-    assert own_time(0.0045, (1.0, 2.0, 7), (1.003, 2.001, 9), wakes=1,
+    assert own_time(0.0045, (1.0, 2.0, 7), (1.003, 2.001, 9), blocks=1,
                     also_waited=0.003) == pytest.approx(0.003)
     assert own_time(0.005, (1.0, 2.0, 7), (1.0002, 2.004, 8)) == pytest.approx(0.001)
     # never less than its CPU time (a wait just before the update is in the kernel's window)

@@ -21,6 +21,11 @@ from typing import TYPE_CHECKING
 
 from mexone.ranges import number_text
 
+try:
+    import resource
+except ImportError:  # Windows: no /proc either, so `sched` says None
+    resource = None  # type: ignore[assignment]  # the standard optional-module idiom
+
 if TYPE_CHECKING:
     from mexone.control.controllers.python import PythonRunner
 
@@ -175,15 +180,15 @@ def where_running(tid: int, file: str) -> str:
 
 _schedstat: dict[int, int] = {}  # thread -> its open /proc schedstat
 
-# (CPU s, s waited for a CPU, times it got a CPU) of a thread so far: Linux's schedstat (its
-# CPU time is the kernel's as of the thread's last tick or switch, up to 4 ms behind: taken
-# from the CPU-time clock instead, which is exact)
+# (CPU s, s waited for a CPU, times it blocked) of a thread so far, as the kernel counts them:
+# its CPU-time clock (exact; schedstat's figure is as of its last tick or switch, up to 4 ms
+# behind), schedstat's wait, its voluntary context switches (a sleep, a lock, I/O)
 Sched = tuple[float, float, int]
 
 
 def sched() -> Sched | None:
-    """The calling thread's schedstat (CPU s, s waited for a CPU, times it got a CPU) so far;
-    None where unknown. What tells a loaded or stalled machine's share of a wall time from the
+    """The calling thread's `Sched` (CPU s, s waited for a CPU, times it blocked) so far; None
+    where unknown. What tells a loaded or stalled machine's share of a wall time from the
     code's own (`own_time`)."""
     tid = threading.get_native_id()
     fd = _schedstat.get(tid)
@@ -191,8 +196,9 @@ def sched() -> Sched | None:
         if fd is None:
             fd = _schedstat[tid] = os.open("/proc/thread-self/schedstat", os.O_RDONLY)
         fields = os.pread(fd, 100, 0).split()
-        return time.thread_time(), int(fields[1]) / 1e9, int(fields[2])
-    except (OSError, ValueError, IndexError):
+        return (time.thread_time(), int(fields[1]) / 1e9,
+                resource.getrusage(resource.RUSAGE_THREAD).ru_nvcsw)
+    except (OSError, ValueError, IndexError, AttributeError):
         stale = _schedstat.pop(tid, None)
         if stale is not None:  # a thread of that id that has ended
             with contextlib.suppress(OSError):
@@ -200,21 +206,20 @@ def sched() -> Sched | None:
         return None
 
 
-def own_time(elapsed: float, before: Sched | None, after: Sched | None, wakes: int = 0,
+def own_time(elapsed: float, before: Sched | None, after: Sched | None, blocks: int = 0,
              also_waited: float = 0.0) -> float:
     """The part of an update's `elapsed` wall s that was the code's own, from its thread's
-    schedstat `before` and `after` it: its CPU time if it ran in one go (got the CPU no more
-    than `wakes` times: it neither slept nor was preempted, so the rest was the host's: a
-    virtual CPU stopped, its steal time, which the kernel counts nowhere else), else the wall
-    time less its waits for a CPU and `also_waited` (a worker's caller's: a sleep is the
-    code's own), never less than its CPU time (the two waits may overlap: woken on its
-    caller's CPU, a worker runs while the caller waits; and a wait just outside `elapsed` is
-    in the schedstat's window). `elapsed` where the kernel does not say (every overrun
-    counts)."""
+    `Sched` `before` and `after` it: its CPU time if it did not block (no more than `blocks`
+    voluntary switches: a worker's wait for the next request), whatever else the wall time
+    holds (waits for a CPU, and a virtual CPU its host stopped, steal time, which the kernel
+    counts nowhere else); else the wall time less its waits for a CPU and `also_waited` (a
+    worker's caller's: a sleep is the code's own), never less than its CPU time (the two waits
+    may overlap: woken on its caller's CPU, a worker runs while the caller waits). `elapsed`
+    where the kernel does not say (every overrun counts)."""
     if before is None or after is None:
         return elapsed
     cpu, waited = after[0] - before[0], after[1] - before[1]
-    if after[2] - before[2] <= wakes:
+    if after[2] - before[2] <= blocks:
         return cpu
     return max(cpu, elapsed - waited - also_waited)
 
@@ -237,22 +242,27 @@ class SchedOf:
         self._cpu_clock = (~pid << 3) | 2  # Linux's CPU-time clock of process `pid` (CPUCLOCK_SCHED)
         try:
             self._fd: int | None = os.open(f"/proc/{pid}/schedstat", os.O_RDONLY)
+            self._status: int | None = os.open(f"/proc/{pid}/status", os.O_RDONLY)
         except OSError:
-            self._fd = None
+            self._fd = self._status = None
 
     def __call__(self) -> Sched | None:
         """The process's main thread's schedstat so far (None where unknown)."""
-        if self._fd is None:
+        if self._fd is None or self._status is None:
             return None
         try:
             fields = os.pread(self._fd, 100, 0).split()
-            return time.clock_gettime(self._cpu_clock), int(fields[1]) / 1e9, int(fields[2])
+            status = os.pread(self._status, 4096, 0)
+            at = status.index(b"\nvoluntary_ctxt_switches:") + 25
+            return (time.clock_gettime(self._cpu_clock), int(fields[1]) / 1e9,
+                    int(status[at:status.index(b"\n", at)]))
         except (OSError, ValueError, IndexError):
             return None
 
     def close(self) -> None:
         """Close its /proc file (the process ended, or another took its place)."""
-        if self._fd is not None:
-            with contextlib.suppress(OSError):
-                os.close(self._fd)
-            self._fd = None
+        for fd in (self._fd, self._status):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._fd = self._status = None

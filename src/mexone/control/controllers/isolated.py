@@ -445,8 +445,8 @@ class IsolatedRunner(PythonRunner):
 
     def _judged(self, worker: Worker) -> bool:
         """Judge the last update, which overran while measured, now that its worker waits for
-        the next: its own time (watchdog.own_time: its CPU time if it was woken once for it and
-        ran in one go, else the round trip less both sides' waits for a CPU). Not at its reply:
+        the next: its own time (watchdog.own_time: its CPU time if it blocked only to wait for
+        the next request, else the round trip less both sides' waits for a CPU). Not at its reply:
         the kernel counts another process's CPU time only at its switches and ticks (4 ms), so
         a worker still running was behind by up to a tick. True if that made it a fault."""
         assert self._pending is not None
@@ -454,7 +454,7 @@ class IsolatedRunner(PythonRunner):
         self._pending = None
         if measured is not worker or not self._suspect:  # a new worker, or started again
             return False
-        own = own_time(elapsed, theirs, self._their_sched(worker), wakes=1, also_waited=waited)
+        own = own_time(elapsed, theirs, self._their_sched(worker), blocks=1, also_waited=waited)
         return self._overran(elapsed, own)
 
     def _their_sched(self, worker: Worker) -> watchdog.Sched | None:
