@@ -240,11 +240,13 @@ class SchedOf:
     def __init__(self, pid: int):
         self.pid = pid
         self._cpu_clock = (~pid << 3) | 2  # Linux's CPU-time clock of process `pid` (CPUCLOCK_SCHED)
+        self._fd: int | None = None
+        self._status: int | None = None
         try:
-            self._fd: int | None = os.open(f"/proc/{pid}/schedstat", os.O_RDONLY)
-            self._status: int | None = os.open(f"/proc/{pid}/status", os.O_RDONLY)
+            self._fd = os.open(f"/proc/{pid}/schedstat", os.O_RDONLY)
+            self._status = os.open(f"/proc/{pid}/status", os.O_RDONLY)
         except OSError:
-            self._fd = self._status = None
+            self.close()  # the one opened, if any
 
     def __call__(self) -> Sched | None:
         """The process's main thread's schedstat so far (None where unknown)."""

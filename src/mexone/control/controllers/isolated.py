@@ -458,8 +458,8 @@ class IsolatedRunner(PythonRunner):
         return self._overran(elapsed, own)
 
     def _their_sched(self, worker: Worker) -> watchdog.Sched | None:
-        """The worker's main thread's schedstat, as the kernel says (not as its shared memory
-        says: the student writes there)."""
+        """The worker's `Sched` (watchdog.SchedOf), as the kernel says (not as its shared
+        memory says: the student writes there)."""
         pid = worker.pid or worker.process.pid
         meter = self._sched_meter
         if meter is None or meter.pid != pid:
