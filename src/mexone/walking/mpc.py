@@ -34,7 +34,7 @@ from mexone.control.student import Param, PythonController, State
 from mexone.dynamics import Dynamics
 from mexone.walking import body as _body
 from mexone.walking import qp
-from mexone.walking.footsteps import Steps, swing_point
+from mexone.walking.footsteps import Steps
 
 __all__ = ["LipmMpc", "Support", "Reach", "supports", "lipm_matrices", "ComPlanner"]
 
@@ -320,10 +320,6 @@ class ComPlanner(PythonController):
     feedback = Param(1.0, low=0.0, high=1.0, doc="share of the measured COM state the plan starts from")
     com_height = Param(0.0, low=0.0, high=2.0, doc="COM above the soles (0: as it stands at start)", unit="m")
     solver = Param("daqp", choices=("daqp", "proxqp", "osqp", "quadprog"), doc="qpsolvers' solver")
-    aim_past = Param(0.0, low=0.0, high=3.0, doc="the landing sent to the swing is moved on by this "
-                     "times the foot's lag behind its arc (x, y): a foot behind lands where planned")
-    aim_max = Param(0.08, low=0.0, high=0.3, doc="the most the landing sent to the swing is moved on "
-                    "(within the reach of the standing foot)", unit="m")
 
     def configure(self) -> None:
         model = self.dynamics.model
@@ -344,7 +340,6 @@ class ComPlanner(PythonController):
         self.reach = Reach(self.min_apart, self.max_apart, self.reach_forward, self.reach_back)
         c = dyn.com()
         self.shift_for, self.shift = np.nan, np.zeros(2)
-        self.lifted: tuple[float, np.ndarray] | None = None  # (t_lift, the sole's x y z yaw then)
         self.x = np.array([c[0], 0.0, 0.0])
         self.y = np.array([c[1], 0.0, 0.0])
         self.stopped = None
@@ -403,47 +398,9 @@ class ComPlanner(PythonController):
             row, shift = rows[0], shifts[0]
             self.shift = shift  # kept once the step can no longer move (its last 0.05 s)
             out["landing"][:] = [row[0], row[1] + shift[0], row[2] + shift[1], row[3], row[4]]
-            if self.aim_past > 0:
-                aim = self.aim_past * self._lag(dyn, out["landing"], row, t)
-                standing = Steps.feet(steps)[1 - int(row[0])]
-                out["landing"][1:3] += self._within_reach(aim, out["landing"], standing)
         else:
             out["landing"][:] = np.nan
         return None
-
-    def _lag(self, dyn: Dynamics, landing: np.ndarray, row: np.ndarray, t: float) -> np.ndarray:
-        """How far (x, y) the foot in the air is behind its arc to `landing` (the whole body's
-        minimum-jerk swing from where it lifted): zero before it lifts. A hurried swing lags
-        the most (its arc is short in time): the landing sent on is moved on by it."""
-        f = int(row[0])
-        p, r = dyn.pose(_body.FEET[f])
-        sole = p + r @ _body.SOLE_OFFSET
-        if t < row[7]:  # not in the air yet: where it will lift from
-            self.lifted = (row[7], np.array([*sole, _body.yaw_of(r)]))
-            return np.zeros(2)
-        if self.lifted is None or self.lifted[0] != row[7]:
-            self.lifted = (row[7], np.array([*sole, _body.yaw_of(r)]))
-        start = self.lifted[1]
-        arc = swing_point(start, landing[1:5], row[7], row[8], t, 0.0)[0]
-        return arc[:2] - sole[:2]
-
-    def _within_reach(self, aim: np.ndarray, landing: np.ndarray, standing: np.ndarray) -> np.ndarray:
-        """`aim` (x, y) cut to at most `aim_max` and so that the landing moved by it stays within
-        `reach` of the standing foot (in the landing's heading frame; never pulled back from
-        where it was going)."""
-        norm = float(np.hypot(aim[0], aim[1]))
-        if norm > self.aim_max:
-            aim = aim * (self.aim_max / norm)
-        c, s = math.cos(landing[4]), math.sin(landing[4])
-        side = 1.0 if int(landing[0]) == 0 else -1.0
-        gx, gy = landing[1] - standing[0], landing[2] - standing[1]
-        along, across = c * gx + s * gy, side * (-s * gx + c * gy)
-        a_along, a_across = c * aim[0] + s * aim[1], side * (-s * aim[0] + c * aim[1])
-        r = self.reach
-        a_along = min(max(a_along, min(-r.back - along, 0.0)), max(r.forward - along, 0.0))
-        a_across = min(max(a_across, min(r.min_apart - across, 0.0)), max(r.max_apart - across, 0.0))
-        a_across *= side
-        return np.array([c * a_along - s * a_across, s * a_along + c * a_across])
 
     def _measured(self, dyn: Dynamics, steps: np.ndarray, t: float) -> np.ndarray:
         """The plan with the feet on the ground where they really are (the encoders and the base):
