@@ -205,15 +205,14 @@ class FootstepPlanner:
         return _compose(np.array([stance[0], stance[1], stance[3]]),
                         np.array([0.0, side * self.gait.width / 2, 0.0]))
 
-    def hurry(self, t: float, outward: int | None = None, restep: bool = False) -> bool:
+    def hurry(self, t: float, outward: int | None = None) -> bool:
         """Step timing adaptation, for a push the capture point runs away with: the step in the
         air lands as soon as it can (`quick_landing` from now, its swing sped up but at least
         `quick_single` long), the next one lifts `quick_double` after it (or now, both feet
         down) and swings `quick_single`. The standing foot's next step is what catches a push
         towards its side (the foot in the air cannot cross over it): the sooner the less the
         capture point has run away. `outward`: the foot on the side the push goes (both feet
-        down, it is the one that steps next, whichever's turn it was, unless it has just
-        stepped and not `restep`). False when there is
+        down, it is the one that steps next, whichever's turn it was). False when there is
         nothing to hurry (not walking, or the plan is already hurried)."""
         g = self.gait
         if self.quick or not self.walking:
@@ -224,7 +223,7 @@ class FootstepPlanner:
             self.t_next = min(self.t_next, swing[8] + g.quick_double)
         else:
             self.t_next = min(self.t_next, t + g.quick_double)
-            if outward is not None and (outward != self.last_foot or restep):
+            if outward is not None and outward != self.last_foot:
                 self.next_foot = outward  # the foot on the push's side steps out, unless it just did
         self.quick = True
         return True
@@ -311,8 +310,6 @@ class FootstepPlannerController(PythonController):
     hurry_at = Param(0.02, low=0.0, high=1.0, doc="the capture point this far outside the standing "
                      "foot hurries the steps (step timing adaptation; 1 m: never)", unit="m")
     width = Param(0.12, low=0.08, high=0.4, doc="between the feet's centres", unit="m")
-    restep = Param(False, doc="a push hurrying the steps with both feet down: the foot on the "
-                   "push's side steps out at once, even if it has just landed")
     settle = Param(1.0, low=0.0, high=60.0, doc="s after it starts before it walks (the robot "
                    "crouches into its stance)", unit="s")
 
@@ -391,7 +388,7 @@ class FootstepPlannerController(PythonController):
             feet = self._feet(state)
             self.planner.measured(feet, t)
             outward = self._pushed_outwards(feet, t)
-            if outward is not None and self.planner.hurry(t, outward, self.restep):
+            if outward is not None and self.planner.hurry(t, outward):
                 self.hurried += 1
         self.exports["steps"][:] = self.planner.update(t)
         return None
