@@ -81,7 +81,7 @@ class Cycle:
         self.me = self
 
 mode, survivors = sys.argv[1], int(sys.argv[2])
-ballast = [Cycle() for _ in range(200_000)]  # the long-lived objects of a lab
+ballast = [Cycle() for _ in range(100_000)]  # the long-lived objects of a lab
 gc.collect()
 gc.set_threshold(700, 10, 10)  # CPython's defaults
 policy, seen, kept = RealTimeGC(), [], []
@@ -89,7 +89,7 @@ gc.callbacks.append(lambda phase, info: seen.append(info["generation"]) if phase
 with policy:
     if mode == "cpython":
         gc.set_threshold(700, 10, 10)  # no policy: CPython's own automatic collections
-    for tick in range(400):  # a tick: a few thousand objects made, some kept, then the idle moment
+    for tick in range(200):  # a tick: a few thousand objects made, some kept, then the idle moment
         for _ in range(700):
             Cycle()
         kept.append([Cycle() for _ in range(survivors)])
