@@ -1,0 +1,51 @@
+"""The wheel's venv built ahead (tests/wheelenv.py, scripts/test.sh): a session takes it only if
+it was built from the files the checkout holds now, and only one session takes it."""
+
+from __future__ import annotations
+
+import json
+
+import wheelenv
+
+
+def _prebuilt(folder, built_from: str):
+    (folder / "dist").mkdir(parents=True)
+    (folder / "venv").mkdir()
+    wheel = folder / "dist" / "mexone-0.1.0-py3-none-any.whl"
+    wheel.write_bytes(b"PK")
+    (folder / "times.json").write_text(json.dumps({"build mexone wheel": 1.5}))
+    (folder / wheelenv.FOR).write_text(built_from)
+    return wheel
+
+
+def test_one_session_takes_a_venv_built_from_these_files(tmp_path, monkeypatch):
+    monkeypatch.setattr(wheelenv, "_TAKEN", {})
+    monkeypatch.setattr(wheelenv, "TIMES", {})
+    wheel = _prebuilt(tmp_path, wheelenv.files_hash(wheelenv.ROOT, wheelenv.checkout_files()))
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, str(tmp_path))
+    assert wheelenv.take_prebuilt() == wheel
+    assert list(wheelenv._TAKEN.items()) == [(wheel, tmp_path / "venv")]  # make_venv's, in place
+    assert wheelenv.TIMES == {"build mexone wheel (ahead)": 1.5}
+    assert wheelenv.take_prebuilt() is None  # taken: the next session builds its own
+    assert (tmp_path / wheelenv.TAKEN).is_file() and not (tmp_path / wheelenv.FOR).exists()
+
+
+def test_a_venv_built_from_other_files_is_not_taken(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(wheelenv, "_TAKEN", {})
+    files = wheelenv.checkout_files()
+    _prebuilt(tmp_path, wheelenv.files_hash(wheelenv.ROOT, files[1:]))  # one file fewer
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, str(tmp_path))
+    assert wheelenv.take_prebuilt() is None
+    assert "built from other files" in capsys.readouterr().out
+    assert (tmp_path / wheelenv.FOR).is_file() and not wheelenv._TAKEN
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, "")  # none asked for
+    assert wheelenv.take_prebuilt() is None
+
+
+def test_the_hash_sees_a_byte_and_an_executable_bit(tmp_path):
+    (tmp_path / "a.py").write_text("x = 1\n")
+    first = wheelenv.files_hash(tmp_path, ["a.py"])
+    (tmp_path / "a.py").chmod(0o755)
+    second = wheelenv.files_hash(tmp_path, ["a.py"])
+    (tmp_path / "a.py").write_text("x = 2\n")
+    assert len({first, second, wheelenv.files_hash(tmp_path, ["a.py"])}) == 3
