@@ -49,3 +49,17 @@ def test_the_hash_sees_a_byte_and_an_executable_bit(tmp_path):
     second = wheelenv.files_hash(tmp_path, ["a.py"])
     (tmp_path / "a.py").write_text("x = 2\n")
     assert len({first, second, wheelenv.files_hash(tmp_path, ["a.py"])}) == 3
+
+
+def test_the_class_gets_the_wheel_once_built_and_none_if_its_build_failed(tmp_path, monkeypatch):
+    """tests/hub/classroom.py's wheel: the prebuild's, published whole (wheel.txt) before its venv."""
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, str(tmp_path))
+    assert wheelenv.prebuilt_wheel(timeout=0.3) is None  # not built (yet): the class builds one
+    wheelenv._publish(tmp_path / wheelenv.WHEEL, str(tmp_path / "mexone-0.1.0-py3-none-any.whl"))
+    assert wheelenv.prebuilt_wheel() == tmp_path / "mexone-0.1.0-py3-none-any.whl"
+    assert not list(tmp_path.glob("*.part"))
+    (tmp_path / wheelenv.WHEEL).unlink()
+    (tmp_path / wheelenv.FAILED).write_text("AssertionError: pip wheel failed")
+    assert wheelenv.prebuilt_wheel() is None  # at once, not after the timeout
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, "")
+    assert wheelenv.prebuilt_wheel() is None

@@ -25,6 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 TIMES: dict[str, float] = {}  # what building and installing cost, for the report
 PREBUILT_ENV = "MEXONE_TEST_PREBUILT"  # a folder `python3 tests/wheelenv.py DIR` built
 FOR, TAKEN = "for.sha256", "taken.sha256"  # the files' hash: ready, then taken by a session
+WHEEL, FAILED = "wheel.txt", "failed.txt"  # the wheel's path once built; why the build failed
 _TAKEN: dict[Path, Path] = {}  # a prebuilt wheel -> its venv, for make_venv
 
 
@@ -154,12 +155,35 @@ def prebuild(folder: Path) -> None:
     tree, dist = folder / "tree", folder / "dist"
     tree.mkdir()
     dist.mkdir()
-    wheel = wheel_of_checkout(tree, dist)
+    try:
+        wheel = wheel_of_checkout(tree, dist)
+    except BaseException as exc:
+        _publish(folder / FAILED, f"{type(exc).__name__}: {exc}")
+        raise
+    _publish(folder / WHEEL, str(wheel))  # tests/hub/classroom.py's, while the venv is built
     venv_with(wheel, folder / "venv")
     (folder / "times.json").write_text(json.dumps(TIMES))
-    built_from = files_hash(tree, checkout_files())  # the copies, as they were built
-    (folder / f"{FOR}.part").write_text(built_from)
-    (folder / f"{FOR}.part").rename(folder / FOR)
+    _publish(folder / FOR, files_hash(tree, checkout_files()))  # the copies, as they were built
+
+
+def _publish(path: Path, text: str) -> None:
+    """`text` in `path`, whole or not at all for a reader that waits on it."""
+    path.with_name(f"{path.name}.part").write_text(text)
+    path.with_name(f"{path.name}.part").rename(path)
+
+
+def prebuilt_wheel(timeout: float = 600.0) -> Path | None:
+    """The wheel MEXONE_TEST_PREBUILT's build makes, once built (waiting up to `timeout` s, the
+    build's own limit), or None: none asked for, or its build failed."""
+    value = os.environ.get(PREBUILT_ENV)
+    if not value:
+        return None
+    folder, end = Path(value), time.monotonic() + timeout
+    while time.monotonic() < end and not (folder / FAILED).exists():
+        if (folder / WHEEL).exists():
+            return Path((folder / WHEEL).read_text())
+        time.sleep(0.1)  # a poll on the build's file, not a wait for a guessed time
+    return None
 
 
 def take_prebuilt() -> Path | None:
