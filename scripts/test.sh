@@ -45,6 +45,7 @@ fi
 prebuilt="$(mktemp -d "${TMPDIR:-/tmp}/mexone-wheelenv.XXXXXX")"
 python3 tests/wheelenv.py "$prebuilt" >"$prebuilt.log" 2>&1 &
 prebuilding=$!
+echo "$prebuilding" >"$prebuilt/pid"  # classroom.py stops waiting for a wheel if it ends without one
 trap 'kill "$prebuilding" 2>/dev/null || true; rm -rf "$prebuilt" "$prebuilt.log"' EXIT
 export MEXONE_TEST_PREBUILT="$prebuilt"
 python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs: tests/test_docs*.py

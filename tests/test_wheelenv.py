@@ -4,6 +4,9 @@ it was built from the files the checkout holds now, and only one session takes i
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import wheelenv
 
@@ -63,3 +66,18 @@ def test_the_class_gets_the_wheel_once_built_and_none_if_its_build_failed(tmp_pa
     assert wheelenv.prebuilt_wheel() is None  # at once, not after the timeout
     monkeypatch.setenv(wheelenv.PREBUILT_ENV, "")
     assert wheelenv.prebuilt_wheel() is None
+
+
+def test_the_class_waits_no_longer_once_the_build_has_ended_without_a_wheel(tmp_path, monkeypatch):
+    """Killed before it could say why (no failed.txt): its process is gone, so is the wait."""
+    monkeypatch.setenv(wheelenv.PREBUILT_ENV, str(tmp_path))
+    polls: list[float] = []
+    monkeypatch.setattr(wheelenv.time, "sleep", polls.append)
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    (tmp_path / wheelenv.PID).write_text(str(ended.pid))
+    assert wheelenv.prebuilt_wheel(timeout=600) is None
+    assert polls == []  # seen at the first look, not after the timeout
+    (tmp_path / wheelenv.PID).write_text(str(os.getpid()))  # running: its wheel when published
+    wheelenv._publish(tmp_path / wheelenv.WHEEL, str(tmp_path / "w.whl"))
+    assert wheelenv.prebuilt_wheel(timeout=600) == tmp_path / "w.whl"

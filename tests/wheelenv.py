@@ -26,6 +26,7 @@ TIMES: dict[str, float] = {}  # what building and installing cost, for the repor
 PREBUILT_ENV = "MEXONE_TEST_PREBUILT"  # a folder `python3 tests/wheelenv.py DIR` built
 FOR, TAKEN = "for.sha256", "taken.sha256"  # the files' hash: ready, then taken by a session
 WHEEL, FAILED = "wheel.txt", "failed.txt"  # the wheel's path once built; why the build failed
+PID = "pid"  # the build's process (scripts/test.sh writes it): gone without a wheel, it failed
 _TAKEN: dict[Path, Path] = {}  # a prebuilt wheel -> its venv, for make_venv
 
 
@@ -182,8 +183,24 @@ def prebuilt_wheel(timeout: float = 600.0) -> Path | None:
     while time.monotonic() < end and not (folder / FAILED).exists():
         if (folder / WHEEL).exists():
             return Path((folder / WHEEL).read_text())
+        if not _building(folder):
+            return Path((folder / WHEEL).read_text()) if (folder / WHEEL).exists() else None
         time.sleep(0.1)  # a poll on the build's file, not a wait for a guessed time
     return None
+
+
+def _building(folder: Path) -> bool:
+    """Whether the build's process still runs (no PID file: assumed so, the timeout bounds it)."""
+    pid_file = folder / PID
+    if not pid_file.exists():
+        return True
+    try:
+        stat = Path(f"/proc/{int(pid_file.read_text())}/stat").read_text()
+    except FileNotFoundError:
+        return False  # ended (and reaped)
+    except (OSError, ValueError):
+        return True
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"  # a zombie has ended too
 
 
 def take_prebuilt() -> Path | None:
