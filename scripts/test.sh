@@ -38,6 +38,16 @@ if ((${#apt_packages[@]})); then
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${apt_packages[@]}" >/dev/null
 fi
 
+# the wheel of this checkout in a fresh venv (tests/wheelenv.py), for the tests that run what a
+# user installs: built in the background while the rest of the set-up, ruff and mypy run (one
+# core each at most), taken by the serial phase's session (which builds its own if this failed)
+# (tests/hub/classroom.py takes its wheel too)
+prebuilt="$(mktemp -d "${TMPDIR:-/tmp}/mexone-wheelenv.XXXXXX")"
+python3 tests/wheelenv.py "$prebuilt" >"$prebuilt.log" 2>&1 &
+prebuilding=$!
+echo "$prebuilding" >"$prebuilt/pid"  # classroom.py stops waiting for a wheel if it ends without one
+trap 'kill "$prebuilding" 2>/dev/null || true; rm -rf "$prebuilt" "$prebuilt.log"' EXIT
+export MEXONE_TEST_PREBUILT="$prebuilt"
 python3 -m pip install -q --disable-pip-version-check -e ".[test,docs]"  # docs: tests/test_docs*.py
 # the teacher's pack: the shipped course's reference solutions, which the wheel leaves out (the
 # exercise tests grade them); its own distribution, never installed by `pip install .`
@@ -63,6 +73,7 @@ python3 -m mypy  # strict on the core layers (pyproject.toml's [tool.mypy])
 # every core (pytest-xdist; a file's tests on one worker), then the ones that watch the wall clock
 # (real-time pacing, browsers, ROS, signals) one at a time, with no neighbour to slow them. Both
 # run even if the first fails; "no test selected" (exit 5, e.g. `test.sh tests/ros1`) is no failure.
+wait "$prebuilding" || { echo "building the wheel's venv ahead failed (the tests build it):"; tail -20 "$prebuilt.log"; }
 status=0
 MEXONE_TEST_PHASE=parallel python3 -m pytest -n auto --dist loadfile "$@" || status=$?
 [ "$status" != 5 ] || status=0

@@ -41,7 +41,7 @@ SHARES_THE_CPU = (  # paths under tests/; a folder ends in "/"
     "test_docs.py", "test_examples.py", "test_layers.py", "cli/test_example_robot.py",
     "editor/test_editor_hostile.py", "control/test_chained_controllers.py", "test_phases.py",
     "control/test_one_writer.py", "sandbox/test_wire.py",
-    "test_public_api.py",
+    "test_public_api.py", "test_wheelenv.py",
 )
 
 

@@ -9,6 +9,7 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -196,18 +197,38 @@ def test_runs_are_bit_identical_with_one_and_with_two_routines(tmp_path):
     assert not np.array_equal(one[0], two[0])  # the second routine did move the robot
 
 
-@pytest.mark.parametrize("body", ["while True:\n    x = 1\n", "import time\ntime.sleep(120)\n",
-                                  "while True:\n    try:\n        pub.publish(Float64(0.1))\n"
-                                  "    except Exception:\n        pass\n"])
-def test_a_routine_that_never_yields_is_abandoned_with_a_message(tmp_path, body):
-    path = tmp_path / "stuck.py"
+STUCK = ["while True:\n    x = 1\n", "import time\ntime.sleep(120)\n",
+         "while True:\n    try:\n        pub.publish(Float64(0.1))\n    except Exception:\n        pass\n"]
+
+
+def _run_stuck(folder: Path, body: str) -> tuple[subprocess.CompletedProcess, float]:
+    """`mexone run` of a routine that never yields: its output and its wall time (s)."""
+    path = folder / "stuck.py"
     path.write_text("from mexone import rospy\nfrom mexone.msgs import Float64\n"
                     "pub = rospy.Publisher('/mex_rb/neck_yaw_position_controller/command', Float64)\n"
                     + body)
     start = time.time()
     out = subprocess.run([sys.executable, "-m", "mexone", "run", str(path), "--duration", "3",
                           "--json"], capture_output=True, text=True, timeout=30)
-    assert time.time() - start < 25  # the 5 s watchdog and a start-up on a loaded machine, not 120 s
+    return out, time.time() - start
+
+
+@pytest.fixture(scope="module")
+def stuck_runs(tmp_path_factory, request):
+    """The selected stuck routines' runs, all started at once (each lab waits 5 s of wall time
+    for its watchdog; one at a time the waits add up): body -> Future of (output, wall time)."""
+    selected = {item.callspec.params["body"] for item in request.session.items
+                if item.module is request.module and hasattr(item, "callspec")
+                and "body" in item.callspec.params}
+    with ThreadPoolExecutor(max_workers=len(STUCK)) as pool:
+        yield {body: pool.submit(_run_stuck, tmp_path_factory.mktemp("stuck"), body)
+               for body in STUCK if body in selected}
+
+
+@pytest.mark.parametrize("body", STUCK)
+def test_a_routine_that_never_yields_is_abandoned_with_a_message(stuck_runs, body):
+    out, took = stuck_runs[body].result()
+    assert took < 25  # the 5 s watchdog and a start-up on a loaded machine, not 120 s
     assert out.returncode == 1, out.stderr
     assert "routine did not yield to the simulation for 5 s (call rate.sleep())" in out.stdout
     assert "Traceback" not in out.stderr

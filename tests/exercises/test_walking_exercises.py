@@ -113,6 +113,27 @@ def test_leg_odometry_without_a_filter_fails_on_the_noisy_encoders(tmp_path):
     assert said["stays up"][0] > 0 and said["estimate tracks the truth"][0] == 0, why(result)
 
 
+@pytest.mark.slow
+def test_the_com_planner_skeleton_handed_in_as_it_was_written_fails(tmp_path):
+    """What `controllers new --part com_planner` writes, renamed as the exercise asks (and
+    reading the estimator's base, optional): a DCM plan without its feedback, which is the
+    student's part: it falls at its first steps, before any push (it scored 10/10 when the
+    skeleton held the feedback)."""
+    from mexone.walking.skeletons import walking_skeleton_files
+
+    text = walking_skeleton_files("my_planner", "com_planner")["my_planner.py"]
+    inputs = 'inputs = {"steps": Steps.LENGTH}'
+    assert "class MyPlanner(" in text and inputs in text
+    text = text.replace("class MyPlanner(", "class MyComPlanner(").replace(
+        inputs, 'inputs = {"steps": Steps.LENGTH, "base": 13}\n    optional_inputs = ("base",)')
+    path = tmp_path / "com_planner.py"
+    path.write_text(text)
+    result = grade(find_exercise("walk_com_planner"), path)
+    assert result.score < find_exercise("walk_com_planner").pass_mark, why(result)
+    said = checks(result)
+    assert said["your planner in the chain"][0] > 0 and said["stays up"][0] == 0, why(result)
+
+
 def test_the_shipped_estimator_under_the_students_name_scores_zero():
     result = grade(find_exercise("walk_estimator"), WRONG / "walk_estimator" / "shipped.py")
     assert result.score == 0, why(result)

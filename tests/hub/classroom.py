@@ -350,4 +350,7 @@ def as_user(name: str, code: str, timeout: float = 60.0) -> dict:
 
 if __name__ == "__main__":  # scripts/test.sh: the students' venv before the tests
     sys.path.insert(0, str(ROOT / "tests"))
-    print(f"the students' venv (tests/hub): {students_venv()}")
+    import wheelenv
+
+    # the wheel scripts/test.sh builds meanwhile for the tests' venv, when there is one
+    print(f"the students' venv (tests/hub): {students_venv(wheelenv.prebuilt_wheel())}")

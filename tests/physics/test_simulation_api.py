@@ -67,7 +67,7 @@ def test_bad_joint_and_effort_are_refused(sim):
 def test_pacing_keeps_the_target_real_time_factor():
     sim = Simulation(mex_one.urdf_path(), target_rtf=2.0)
     # the suite's garbage first: a full collection of a test process's heap (~0.5 s at 2 GB,
-    # which RealTimeGC.idle() may run in the loop's first idle moment) is not the pacing's
+    # which CPython may find due in the loop's first idle moment) is not the pacing's
     gc.collect()
     start = time.perf_counter()
     sim.run(1.0)

@@ -64,7 +64,9 @@ def test_a_walk_in_the_loop_collects_old_generations_between_updates_only_and_st
     assert lab.sim.data.qpos[2] > 0.5 and lab.sim.data.qpos[0] > 0.3  # it walked
     in_updates = [(g, part) for g, part in collections if part]
     assert in_updates and {g for g, _ in in_updates} == {0}  # young ones only inside the parts
-    assert {g for g, _ in collections} == {0, 1, 2}  # the older ones ran, between ticks
-    assert REAL_TIME_GC.collected[1] > idle_before[1] and REAL_TIME_GC.collected[2] > idle_before[2]
+    assert {0, 1} <= {g for g, _ in collections}  # the older ones ran, between ticks (generation
+    # 2 only where CPython would run it: a quarter of the long-lived objects new, tests/physics/
+    # test_gc_policy.py; this walk keeps too little for that)
+    assert REAL_TIME_GC.collected[1] > idle_before[1]
     # bounded: a part that kept one object per update would add 1500 here
     assert after - before < 300, (before, after)

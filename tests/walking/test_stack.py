@@ -94,10 +94,21 @@ def test_the_stack_turns_a_quarter_and_walks_sideways_without_a_fall(course):
     assert reports["com_planner"]["stopped"] is None
 
 
+# what a student adds to the com_planner skeleton (exercise 11): the DCM's feedback
+PLAN_ONLY = "        zmp = p_ref\n"
+FEEDBACK = "        zmp = p_ref + (1.0 + 14.0 / omega) * (xi - xi_ref)\n"
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", list(PARTS))
 def test_each_part_swapped_for_a_students_still_walks(kind, tmp_path):
+    """Each skeleton walks as written; com_planner's once the student adds the DCM's feedback
+    (as written it falls: test_walking_exercises.py grades it)."""
     files = walking_skeleton_files(f"my_{kind}", kind)
+    if kind == "com_planner":
+        stem = "my_com_planner.py"
+        assert files[stem].count(PLAN_ONLY) == 1
+        files[stem] = files[stem].replace(PLAN_ONLY, FEEDBACK)
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     lab = Lab.create(controllers=tmp_path / "controllers.yaml")

@@ -79,13 +79,14 @@ class {cls}(PythonController):
     """The divergent component of motion (Englsberger et al. 2015): xi = c + dc / omega must end
     each step on the next foothold, so its reference runs backwards from the last planned step,
     xi_ref(t) = p + exp(omega (t - t_land)) (xi_end - p) about the standing foot p; the ZMP
-    command p_ref + (1 + k / omega) (xi - xi_ref), kept inside the standing sole, gives the COM's
-    acceleration omega^2 (c - zmp). Reads `steps`; exports `com` (9: position, velocity,
-    acceleration) and `landing` (5; NaN: the steps as planned)."""
+    command, kept inside the standing sole, gives the COM's acceleration omega^2 (c - zmp).
+    As written the ZMP follows the plan only (p_ref): the DCM's feedback, which steers xi back
+    to xi_ref, is yours to add (course exercise 11); without it the robot falls at its first
+    steps. Reads `steps`; exports `com` (9: position, velocity, acceleration) and `landing`
+    (5; NaN: the steps as planned)."""
 
     inputs = {{"steps": Steps.LENGTH}}
     exports = {{"com": 9, "landing": 5}}
-    gain = Param(3.0, low=0.0, high=50.0, doc="DCM feedback gain k", unit="1/s")
     height = Param(0.54, low=0.2, high=1.0, doc="COM above the soles", unit="m")
     half_length = Param(0.06, low=0.0, high=0.1, doc="ZMP limit along the sole", unit="m")
     half_width = Param(0.025, low=0.0, high=0.05, doc="ZMP limit across the sole", unit="m")
@@ -111,7 +112,9 @@ class {cls}(PythonController):
                 xi_end = stands[i] + math.exp(-omega * span) * (xi_end - stands[i])
             p_ref = stands[0]
             xi_ref = p_ref + math.exp(omega * (t - ahead[0][8])) * (xi_end - p_ref)
-        zmp = p_ref + (1.0 + self.gain / omega) * (xi - xi_ref)
+        # yours to add: the DCM's feedback. xi (measured) drifts off xi_ref exponentially; a
+        # ZMP command that leads the plan by the DCM's error brings it back
+        zmp = p_ref
         # the ZMP stays on the ground's support: the standing sole, or both soles' box
         swing = Steps.swing_now(steps, t)
         down = [f for f in range(2) if swing is None or int(swing[0]) != f]

@@ -1,6 +1,6 @@
 """Exercise 11's reference: a centre-of-mass planner on the divergent component of motion
-(Englsberger et al. 2015), the DCM planner of `mexone controllers new --part com_planner` with a
-stiffer DCM feedback (gain 8/s: the grader's heavier robots and pushes need it).
+(Englsberger et al. 2015): the plan of `mexone controllers new --part com_planner` with the
+DCM's feedback that skeleton leaves out (gain 14/s: the grader's heavier robots and pushes).
 
 xi = c + dc/omega must end each step on the next foothold, so its reference runs backwards
 from the last planned step: xi_ref(t) = p + exp(omega (t - t_land)) (xi_end - p) about the
