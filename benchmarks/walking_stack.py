@@ -7,13 +7,17 @@ and the same for `mexone run walk`.
 
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py [--seconds 60] [--quick]
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --pushes [--phases]
+    OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --phases fine
     OMP_NUM_THREADS=1 env PYTHONPATH=src python benchmarks/walking_stack.py --cpu [--seconds 60]
 
 --cpu: only each part's thread CPU time per update (median, p99, p99.9, max) and every garbage
 collection over `--seconds` of walking through the lab's loop unpaced, then the paced walk's
 deadline misses; --quick: the solves, the per-update costs, the 60 s paced walk and today's
 walk (no courses, no pushes); --pushes: only the push scans (a bisection over 2-8 N s: 3 walks
-per direction and walker), --phases with 6 N s at each tenth of a stride.
+per direction and walker), --phases with 6 N s at each tenth of a stride; --phases fine: only
+6 N s pushed left and right every 0.025 s from 5.0 to 5.775 s (32 phases each) and forward every
+0.1 s (8), 72 pushes on forks of one warmed-up walk, 2 at a time (as tests/walking/test_pushes.py
+runs its 24): each direction's S/F string and each push's lowest base.
 
 The machine is shared: the load average is printed before and after. What the code costs is
 measured on a core of its own: run it as root under `chrt -f 20 taskset -c 1` (SCHED_FIFO on one
@@ -26,11 +30,13 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import math
 import os
 import time
 
 import numpy as np
+import yaml
 
 from mexone.lab import Lab
 from mexone.robots import mex_one
@@ -393,6 +399,58 @@ def push_scan(phases: bool) -> None:
               flush=True)
 
 
+def fine_phases(at_once: int = 2, settings: tuple[str, ...] = ()) -> dict:
+    """6 N s left and right every 0.025 s over 5.0-5.775 s and forward every 0.1 s over 5.0-5.7 s,
+    each on a fork of one walk warmed up to 4.95 s (tests/walking/test_pushes.py's forks), with
+    `settings` ("part.param=value", set before the walk starts: an A/B in one run):
+    {(angle, at): (lowest base m, "" or what went wrong)}."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "walking"))
+    import test_pushes as tp
+
+    def push_one(lab: Lab, x0: float, angle: float, at: float) -> str:
+        lowest: list = []
+        verdict = tp._pushed(lab, x0, angle, at, lowest)
+        return f"{lowest[0] if lowest else math.nan:.4f} {verdict}"
+
+    pushes = [(a, round(5.0 + 0.025 * k, 3)) for a in (90, -90) for k in range(32)]
+    pushes += [(0, round(5.0 + 0.1 * k, 1)) for k in range(8)]
+    lab = tp._walking()
+    for part in lab.manager.controllers.values():  # a loaded machine stalls a fork for seconds:
+        if hasattr(part, "plugin"):               # that is no hang of the walking stack's
+            part.plugin = dataclasses.replace(part.plugin, hang_timeout=60.0)
+    for setting in settings:
+        name, _, value = setting.partition("=")
+        part, _, param = name.partition(".")
+        lab.manager.set_param(part, param, yaml.safe_load(value))
+    x0 = float(lab.sim.data.qpos[0])
+    lab.sim.step(round((5.0 - 0.05 - lab.sim.time) / lab.sim.timestep))
+    out = {}
+    for push, said in tp._in_forks(lab, x0, pushes, at_once, push_one).items():
+        lowest, _, verdict = said.partition(" ")
+        try:
+            out[push] = (float(lowest), verdict)
+        except ValueError:  # the child died before it said
+            out[push] = (math.nan, said)
+    return out
+
+
+def print_fine_phases(result: dict) -> None:
+    """fine_phases' S/F string per direction, the survivors' lowest base and each fall."""
+    for label, angle in (("left", 90), ("right", -90), ("forward", 0)):
+        mine = sorted((at, r) for (a, at), r in result.items() if a == angle)
+        flags = "".join("S" if not verdict else "F" for _, (_, verdict) in mine)
+        stood = [low for _, (low, verdict) in mine if not verdict]
+        print(f"6 N s {label}, {len(mine)} phases {mine[0][0]:g}..{mine[-1][0]:g} s: survived "
+              f"{len(stood)} of {len(mine)} {flags}; survivors' lowest base "
+              f"{min(stood) if stood else math.nan:.3f} m", flush=True)
+        for at, (_, verdict) in mine:
+            if verdict:
+                print(f"  {label} at {at:g} s: {verdict}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=60.0, help="s of walking for the RTF")
@@ -400,7 +458,11 @@ def main() -> None:
     parser.add_argument("--pushes", action="store_true", help="only the push scans")
     parser.add_argument("--cpu", action="store_true",
                         help="only each part's thread CPU time per update and the collections")
-    parser.add_argument("--phases", action="store_true", help="6 N s at each tenth of a stride too")
+    parser.add_argument("--phases", nargs="?", const="tenths", choices=("tenths", "fine"),
+                        help="6 N s at each tenth of a stride too (with --pushes); fine: only the "
+                        "72 pushes every 0.025 s (left, right) and 0.1 s (forward), on forks")
+    parser.add_argument("--set", action="append", default=[], metavar="PART.PARAM=VALUE",
+                        help="with --phases fine: a part's parameter set before the walk starts")
     args = parser.parse_args()
     print(f"load average before: {os.getloadavg()}; scheduler: "
           f"{'SCHED_FIFO' if os.sched_getscheduler(0) == os.SCHED_FIFO else 'normal'}, "
@@ -411,8 +473,16 @@ def main() -> None:
         print_paced(walk_stack(args.seconds), args.seconds)
         print(f"load average after: {os.getloadavg()}")
         return
+    if args.phases == "fine":
+        wall, cpu = time.perf_counter(), time.process_time()
+        print_fine_phases(fine_phases(settings=tuple(args.set)))
+        forks = os.times()
+        print(f"{time.perf_counter() - wall:.0f} s wall; CPU: {time.process_time() - cpu:.0f} s the "
+              f"warm-up, {forks.children_user + forks.children_system:.0f} s the forks")
+        print(f"load average after: {os.getloadavg()}")
+        return
     if args.pushes:
-        push_scan(args.phases)
+        push_scan(bool(args.phases))
         print(f"load average after: {os.getloadavg()}")
         return
     bare = bare_step_ms()
@@ -448,7 +518,7 @@ def main() -> None:
             print(f"course, {world}.world 20 s at 0.3 m/s: x = {walk['x']:.2f} m (the terrain ends at "
                   f"5.5 m / 2.5 m), lowest base {walk['lowest']:.3f} m; "
                   f"{walk['reports']['whole_body']}")
-        push_scan(args.phases)
+        push_scan(bool(args.phases))
     print(f"load average after: {os.getloadavg()}")
 
 

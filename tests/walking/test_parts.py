@@ -366,6 +366,30 @@ def test_hurry_lands_the_step_in_the_air_sooner_and_takes_the_next_quick():
     assert Steps.rows(planner.update(t))[0][7] == pytest.approx(t + gait.quick_double)
 
 
+def test_a_late_foot_lands_later_and_the_steps_after_wait_with_it():
+    """Touchdown-gated landing: the step in the air lands when asked (`late`), never more than
+    `most` after its planned landing; every later step shifts by the same wait (the double
+    support kept), and a swing is never shortened by it."""
+    gait = Gait()
+    planner = FootstepPlanner(gait, np.array([[0, 0.06, 0, 0], [0, -0.06, 0, 0]]))
+    planner.set_command(0.3, 0.0, 0.0)
+    _walk(planner, 2.0)  # at t = 2.0 a step is in the air
+    before = Steps.rows(planner.update(2.0))
+    land = before[0][8]
+    t = land - 0.01
+    assert not planner.late(t, land - 0.005, 0.05)  # sooner than planned: nothing changes
+    assert planner.late(t, land + 0.02, 0.05)
+    assert planner.late(t + 0.02, land + 0.04, 0.05)
+    assert planner.late(t + 0.04, land + 0.09, 0.05)  # cut at `most` after the planned landing
+    assert not planner.late(t + 0.05, land + 0.1, 0.05)  # waited that long already
+    rows = Steps.rows(planner.update(t + 0.05))
+    assert rows[0][8] == pytest.approx(land + 0.05)
+    assert rows[0][7] == pytest.approx(before[0][7])
+    for row, was in zip(rows[1:], before[1:], strict=True):
+        assert row[7:9] == pytest.approx(was[7:9] + 0.05)
+    assert not planner.late(land + 0.06, land + 0.2, 0.05)  # landed: nothing in the air
+
+
 def test_the_swing_lands_softly_on_its_target():
     start, target = np.array([0.0, 0.1, 0.0, 0.0]), np.array([0.2, 0.12, 0.02, 0.3])
     for t in (0.0, 0.3):

@@ -145,6 +145,7 @@ class FootstepPlanner:
         self.last_motion = np.zeros(3)  # the last committed step's motion
         self.quick = False  # the next step lifts and swings as fast as the gait allows
         self.last_foot: int | None = None  # the foot of the last step taken
+        self.planned_land: tuple[float, float] | None = None  # (t_lift, t_land) before `late`
 
     def _body(self) -> np.ndarray:
         yaw = math.atan2(math.sin(self.feet[0, 3]) + math.sin(self.feet[1, 3]),
@@ -226,6 +227,22 @@ class FootstepPlanner:
             if outward is not None and outward != self.last_foot:
                 self.next_foot = outward  # the foot on the push's side steps out, unless it just did
         self.quick = True
+        return True
+
+    def late(self, t: float, until: float, most: float) -> bool:
+        """The step in the air has not touched down: its landing (and every later step) waits
+        until `until`, at most `most` s after its planned landing. False when nothing is in
+        the air or it has waited that long already."""
+        swing = self.swing
+        if swing is None or t >= swing[8]:
+            return False
+        if self.planned_land is None or self.planned_land[0] != swing[7]:
+            self.planned_land = (swing[7], swing[8])
+        new = min(until, self.planned_land[1] + most)
+        if new <= swing[8]:
+            return False
+        self.t_next += new - swing[8]
+        swing[8] = new
         return True
 
     def update(self, t: float) -> np.ndarray:
@@ -310,6 +327,11 @@ class FootstepPlannerController(PythonController):
     hurry_at = Param(0.02, low=0.0, high=1.0, doc="the capture point this far outside the standing "
                      "foot hurries the steps (step timing adaptation; 1 m: never)", unit="m")
     width = Param(0.12, low=0.08, high=0.4, doc="between the feet's centres", unit="m")
+    touchdown = Param(0.008, low=0.0, high=0.1, doc="a sole (its lowest corner) still this high "
+                      "above the ground where it lands at its landing time lands later (0: on time)",
+                      unit="m")
+    max_late = Param(0.03, low=0.0, high=0.3, doc="a landing waits for its touchdown this long at most",
+                     unit="s")
     settle = Param(1.0, low=0.0, high=60.0, doc="s after it starts before it walks (the robot "
                    "crouches into its stance)", unit="s")
 
@@ -349,6 +371,7 @@ class FootstepPlannerController(PythonController):
         self.planner = FootstepPlanner(gait, feet, self.terrain)
         self.refused = None
         self.hurried = 0  # steps hurried by a push (step timing adaptation)
+        self.late = 0  # updates a landing waited for its foot's touchdown
         self.t_start = state.time
         self._heard_at: float | None = None
 
@@ -390,8 +413,35 @@ class FootstepPlannerController(PythonController):
             outward = self._pushed_outwards(feet, t)
             if outward is not None and self.planner.hurry(t, outward):
                 self.hurried += 1
+            wait = t + 2 * max(dt, 0.005)  # the next update looks again
+            if self.touchdown > 0 and self._in_the_air(feet, t, dt) \
+                    and self.planner.late(t, wait, self.max_late):
+                self.late += 1
         self.exports["steps"][:] = self.planner.update(t)
         return None
+
+    def _in_the_air(self, feet: np.ndarray, t: float, dt: float) -> bool:
+        """The step in the air lands by the next update but its sole is still more than
+        `touchdown` above the ground there (measured against the standing sole: the base's
+        height estimate drifts)."""
+        swing = self.planner.swing
+        if swing is None or not t < swing[8] <= t + max(dt, 0.005) + 1e-9:
+            return False
+        f = int(swing[0])
+        stand = feet[1 - f]
+        low = self._lowest_corners()  # a sole landed rolled onto an edge is down
+        above = (low[f] - low[1 - f]) - (swing[3] - self.terrain(stand[0], stand[1])[0])
+        return bool(above > self.touchdown)
+
+    def _lowest_corners(self) -> list[float]:
+        """Each sole's lowest corner's height (the scratch state `_feet` set)."""
+        out = []
+        a, b = _body.SOLE_SIZE[0] / 2, _body.SOLE_SIZE[1] / 2
+        for name in _body.FEET:
+            p, r = self.dyn.pose(name)
+            centre = p + r @ _body.SOLE_OFFSET
+            out.append(float(centre[2] - abs(r[2, 0]) * a - abs(r[2, 1]) * b))
+        return out
 
     def _pushed_outwards(self, feet: np.ndarray, t: float) -> int | None:
         """The standing foot the capture point (c + ċ/ω of the LIPM) is more than `hurry_at`
@@ -412,7 +462,8 @@ class FootstepPlannerController(PythonController):
         return None
 
     def report(self) -> dict[str, Any]:
-        return {"walking": bool(self.planner.walking), "refused": self.refused, "hurried": self.hurried}
+        return {"walking": bool(self.planner.walking), "refused": self.refused, "hurried": self.hurried,
+                "late": self.late}
 
 
 _GROUND_GROUP = np.array([1, 0, 0, 0, 0, 0], dtype=np.uint8)
