@@ -150,7 +150,12 @@ WRONG = [
 ]
 
 
-@pytest.mark.parametrize("name, value", WRONG, ids=[f"{n}={v!r}"[:40] for n, v in WRONG])
+def _id(name: str, value: object) -> str:
+    """A test id the same in every process (pytest-xdist's workers must collect the same)."""
+    return f"{name}={'a function' if callable(value) else repr(value)}"[:40]
+
+
+@pytest.mark.parametrize("name, value", WRONG, ids=[_id(n, v) for n, v in WRONG])
 def test_a_wrong_type_is_a_type_error_naming_the_parameter(name, value):
     with pytest.raises(ArgumentTypeError) as error:
         Lab.create(**{name: value})
