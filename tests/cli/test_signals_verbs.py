@@ -299,6 +299,11 @@ def test_every_verb_stops_on_a_signal_at_any_moment(verb, tmp_path, fit_bag):
         assert "Traceback" not in err and "Exception ignored" not in err, what
         assert all(line.startswith("mexone: ") for line in err.splitlines()
                    if line.strip() and not line.startswith("sweep:")), what  # and sweep's bar
-        assert re.search(rf"mexone: interrupted( by {name}| after|; finished runs)", err), what
+        # a second signal is the same stop within signals.GRACE of the first's handler; the
+        # handler runs when the main thread leaves C (a fit's solver), maybe later than GRACE:
+        # then the second signal ends the run at once, which is said in one line too
+        said = rf"mexone: interrupted( by {name}| after|; finished runs)" + (
+            "|mexone: stopping took too long; ended by a second SIG" if run.second else "")
+        assert re.search(said, err), what
         check_outputs(run)
         assert left_running(run.folder) == [], what
