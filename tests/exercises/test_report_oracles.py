@@ -7,6 +7,7 @@ of it is made."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 
@@ -59,6 +60,44 @@ def test_a_submission_over_the_input_cap_is_refused_unread(tmp_path, monkeypatch
         result.failure
     assert result.failing == ["runs"]
     assert os.path.getsize(submission) > DEFAULT_LIMIT_MB * 1e6  # the student's file untouched
+
+
+DEAD_RECKONING = """
+import numpy as np
+from mexone.control import PythonController
+
+
+class TiltObserver(PythonController):
+    exports = {"tilt": 2}
+
+    def activate(self, state):
+        self.tilt = np.zeros(2)
+
+    def update(self, state, t, dt):
+        gyro = np.asarray(state.sensors["imu"].angular_velocity, dtype=float)[:2]
+        self.tilt += dt * gyro
+        self.exports["tilt"][:] = self.tilt
+"""
+
+
+def test_tilt_observer_report_states_no_slope_nor_gyro_bias(tmp_path, monkeypatch):
+    """Was: "slope 0.0/2.0 deg, gyro 0.0181006 rad/s (bias +0.0040, +0.0032), ..." in every
+    graded report: the gyro integrated from that slope less that bias -- no accelerometer, no
+    observer -- scored 8.6/10 on a resubmission. The self-check still shows the given robot."""
+    monkeypatch.setenv(grading.SECRET_ENV, "red-team-secret-of-this-test-0123")
+    exercise = find_exercise("tilt_observer")
+    submission = tmp_path / exercise.file
+    submission.write_text(DEAD_RECKONING)
+    grader = exercise.grader()
+    var = grader.variant(GradeContext(exercise, submission, exercise.seeds[0]).rng)
+    result = grade(exercise, submission)
+    shown = as_text(result) + json.dumps(gradescope_json(result))
+    tracks = next(c for c, _, _ in result.checks if c.name == "tracks the tilt")
+    assert "hidden variant" in tracks.output, tracks.output  # it ran, and said what it hid
+    secrets = [abs(math.degrees(a)) for a in var["slope"] if a] + \
+        [abs(b) for b in var["bias"]] + [var["gyro"], var["acc"]]
+    found = [n for n in _numbers(shown) for x in secrets if abs(n / x - 1) < 0.02]
+    assert not found, (var, shown)
 
 
 @pytest.mark.parametrize("kind", ["folder", "fifo"])
