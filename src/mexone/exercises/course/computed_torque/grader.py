@@ -27,7 +27,7 @@ from mexone.exercises.course._labtools import (
     controller_fault,
     controller_lab,
     fit_gains,
-    gain_share,
+    gains_check,
     scale_mass,
     student_yaml,
 )
@@ -128,12 +128,10 @@ def grade(ctx) -> list:
     error, gains, fault = ctx.measure(student_rms, ctx.submission, var)
     shipped = ctx.measure(shipped_rms, var)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
-    share = 0.0 if fault else min(gain_share(k, KP) * gain_share(d, KD) for k, d in gains)
-    method = check(METHOD, 1.0, share,
-                   f"kp {', '.join(f'{k:.4g}' for k, _ in gains)} 1/s^2, kd "
-                   f"{', '.join(f'{d:.4g}' for _, d in gains)} 1/s (shoulder pitch, elbow: the "
-                   f"acceleration your torque asks for, M^-1 (tau - h), less the sine's, fitted "
-                   f"against e and de under +-{PROBE:g} N m pushes); kp {KP:g}, kd {KD:g} asked")
+    method = gains_check(METHOD, gains, KP, KD, fault, ("1/s^2", "1/s"),
+                         "shoulder pitch, elbow: the acceleration your torque asks for, M^-1 "
+                         f"(tau - h), less the sine's, fitted against e and de under +-{PROBE:g} "
+                         "N m pushes", digits=4)
     frac = 0.0 if fault else float(np.clip((BAD - error) / (BAD - GOOD), 0.0, 1.0))
     what = (f"A {var['amplitude']:.2f} rad, f {var['frequency']:.2f} Hz, payload "
             f"x{var['payload']:.2f}")
