@@ -108,13 +108,13 @@ def test_a_submission_that_is_no_regular_file_is_a_zero_not_the_grader_s_error(t
     submission = tmp_path / exercise.file
     submission.write_text("x")
 
-    def swapped(path, label=None):  # what is there when it is read (a race, a device)
+    def swapped(path, label=None, follow=True):  # what is there when it is read (a race, a device)
         path.unlink()
         if kind == "folder":
             path.mkdir()
         else:
             os.mkfifo(path)
-        return read_input(path, label)
+        return read_input(path, label, follow)
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(grading, "read_input", swapped, raising=False)

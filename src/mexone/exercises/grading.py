@@ -335,7 +335,7 @@ def _private_copy(submission: Path, work: Path) -> Path:
     machine's disk and read into the grader's memory (1.7 GB; a few GB more would end the
     class's grading), an InputError (the caller's zero) now."""
     try:
-        data = read_input(submission, label=submission.name)
+        data = read_input(submission, label=submission.name, follow=False)
     except InputError as exc:
         exc.hint = f"hand in the {submission.name} you wrote"
         raise
