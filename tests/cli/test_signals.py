@@ -90,11 +90,13 @@ def test_finishing_defers_a_signal_until_the_file_is_done(monkeypatch):
 
 
 def test_uninterrupted_is_cheap_enough_for_every_message():
-    start = time.perf_counter()
+    # our cost: this thread's own CPU time (0.2-0.3 us here), not the wall time a stalled host
+    # or another job on the core adds
+    start = time.thread_time()
     for _ in range(100_000):
         with signals.uninterrupted:
             pass
-    assert (time.perf_counter() - start) / 100_000 < 5e-6  # s per message
+    assert (time.thread_time() - start) / 100_000 < 5e-6  # s per message
 
 
 @pytest.fixture

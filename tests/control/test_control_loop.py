@@ -5,6 +5,7 @@ several routines at once, and a routine that stops yielding cannot freeze the la
 from __future__ import annotations
 
 import ast
+import os
 import subprocess
 import sys
 import threading
@@ -201,16 +202,28 @@ STUCK = ["while True:\n    x = 1\n", "import time\ntime.sleep(120)\n",
          "while True:\n    try:\n        pub.publish(Float64(0.1))\n    except Exception:\n        pass\n"]
 
 
-def _run_stuck(folder: Path, body: str) -> tuple[subprocess.CompletedProcess, float]:
-    """`mexone run` of a routine that never yields: its output and its wall time (s)."""
+def _run_stuck(folder: Path, body: str) -> tuple[subprocess.CompletedProcess, float, float]:
+    """`mexone run` of a routine that never yields: its output, its wall time and its own CPU
+    time (s, user + system, as the kernel counted them for that process)."""
     path = folder / "stuck.py"
     path.write_text("from mexone import rospy\nfrom mexone.msgs import Float64\n"
                     "pub = rospy.Publisher('/mex_rb/neck_yaw_position_controller/command', Float64)\n"
                     + body)
     start = time.time()
-    out = subprocess.run([sys.executable, "-m", "mexone", "run", str(path), "--duration", "3",
-                          "--json"], capture_output=True, text=True, timeout=30)
-    return out, time.time() - start
+    with (folder / "out").open("w+") as stdout, (folder / "err").open("w+") as stderr:
+        proc = subprocess.Popen([sys.executable, "-m", "mexone", "run", str(path), "--duration",
+                                 "3", "--json"], stdout=stdout, stderr=stderr, text=True)
+        guard = threading.Timer(120, proc.kill)  # a hang's guard, not the claim
+        guard.start()
+        try:  # wait4: its exit and what it used, as the kernel counted them
+            _, status, usage = os.wait4(proc.pid, 0)
+        finally:
+            guard.cancel()
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        stdout.seek(0)
+        stderr.seek(0)
+        out = subprocess.CompletedProcess(proc.args, proc.returncode, stdout.read(), stderr.read())
+    return out, time.time() - start, usage.ru_utime + usage.ru_stime
 
 
 @pytest.fixture(scope="module")
@@ -227,9 +240,15 @@ def stuck_runs(tmp_path_factory, request):
 
 @pytest.mark.parametrize("body", STUCK)
 def test_a_routine_that_never_yields_is_abandoned_with_a_message(stuck_runs, body):
-    out, took = stuck_runs[body].result()
-    assert took < 25  # the 5 s watchdog and a start-up on a loaded machine, not 120 s
+    out, took, cpu = stuck_runs[body].result()
+    print(f"abandoned after {took:.1f} s of wall time, {cpu:.1f} s of its CPU time")
     assert out.returncode == 1, out.stderr
+    if "sleep" in body:  # asleep: the watchdog's 5 s and a start-up on a loaded machine, not 120
+        assert took < 25
+    else:  # a busy loop is abandoned after 5 s of its own running (a wait for a CPU is not its,
+        # runtime._abandon_stalled): on shared cores that is the process's CPU time (5 s of the
+        # loop, the simulation stopped meanwhile, ~1 s of start-up), not the wall time
+        assert cpu < 5 + 4
     assert "routine did not yield to the simulation for 5 s (call rate.sleep())" in out.stdout
     assert "Traceback" not in out.stderr
 

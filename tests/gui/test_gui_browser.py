@@ -98,19 +98,35 @@ def test_many_tabs_and_closed_tabs_do_not_slow_the_simulation(app, page):
         tab.goto(page.url)
     assert wait_until(lambda: len(app.server.get_clients()) >= 5, timeout=120)  # all served
     # the rate is measured over fixed windows of wall time: what is measured, not a wait
-    start_wall, start_sim = time.time(), app.lab.sim.time
+    sim_thread = app.work.call(threading.get_native_id)
+    start_wall, start_sim, start_queued = time.time(), app.lab.sim.time, _queued(sim_thread)
     time.sleep(4.0)
     for tab in tabs[:2]:
         tab.close()
     time.sleep(2.0)
-    rtf = (app.lab.sim.time - start_sim) / (time.time() - start_wall)
+    wall, queued = time.time() - start_wall, _queued(sim_thread) - start_queued
+    rtf, own = (app.lab.sim.time - start_sim) / wall, (app.lab.sim.time - start_sim) / (wall - queued)
     for tab in tabs[2:]:
         tab.close()
+    print(f"rtf {rtf:.2f} over {wall:.2f} s; the simulation thread waited {queued:.2f} s for a "
+          f"CPU: rtf {own:.2f} without that wait")
     # real time is the target (1.0) with five tabs open and two closed on the way; five
     # software-GL Chromium tabs share the 2 cores with the simulation (0.71-0.86 seen in loaded
     # full runs): what this guards is that tabs never hold the simulation thread (a tab served
-    # from it, or a closed tab's queue, drops the rate far below half); speed is benchmarks'
-    assert rtf > 0.5
+    # from it, a lock, a closed tab's queue drop the rate far below half); the time the kernel
+    # kept the thread runnable without a CPU (the tabs' drawing on a slower machine, another
+    # job) is the machine's, not ours, and is left out; speed is benchmarks'
+    assert own > 0.5, f"rtf {rtf:.2f}, {own:.2f} without the {queued:.2f} s waited for a CPU"
+
+
+def _queued(tid: int) -> float:
+    """s the thread `tid` of this process has waited, runnable, for a CPU (Linux's schedstat;
+    0 where the kernel does not say)."""
+    try:
+        with open(f"/proc/self/task/{tid}/schedstat") as stat:
+            return int(stat.read().split()[1]) / 1e9
+    except (OSError, IndexError, ValueError):
+        return 0.0
 
 
 def test_routines_panel_runs_a_routine_in_real_time_and_shows_its_console(app):

@@ -28,14 +28,20 @@ def test_the_shells_are_drawn_as_fast_as_the_boxes(tmp_path, monkeypatch):
     monkeypatch.setenv("MEXONE_CACHE", str(tmp_path / "cache"))
     boxes = _boxes(tmp_path)
     with chromium() as browser:
-        # alternate, best of two each: a busy machine's noise hits both alike
-        before, after = [], []
-        for _ in range(2):
-            before.append(_time_to_draw(boxes, browser, pixels=False))
-            after.append(_time_to_draw(mex_one.urdf_path(), browser, pixels=False))
-    base, drawn = min(t for t, _, _ in before), min(t for t, _, _ in after)
-    sent = min(s for _, _, s in after)
-    print(f"boxes drawn {base:.2f} s after the load event, shells {drawn:.2f} s "
-          f"({sent / 1e6:.2f} MB sent)")
+        # boxes then shells, a pair per round; a timing on shared cores is a sample: a stall of
+        # the host (steal, another job's burst) during one load says nothing of the page, so a
+        # missed round is measured again, up to three rounds in all (as test_gui_big_robot)
+        rounds = []
+        while not any(_as_fast(b, d) for (b, _, _), (d, _, _) in rounds) and len(rounds) < 3:
+            rounds.append((_time_to_draw(boxes, browser, pixels=False),
+                           _time_to_draw(mex_one.urdf_path(), browser, pixels=False)))
+    times = [(round(b, 2), round(d, 2)) for (b, _, _), (d, _, _) in rounds]
+    sent = min(s for _, (_, _, s) in rounds)
+    print(f"(boxes, shells) drawn s after the load event: {times}; shells {sent / 1e6:.2f} MB sent")
     assert sent < 2e6
-    assert drawn <= max(1.5 * base, base + 1.0), f"the shells took {drawn:.2f} s, boxes {base:.2f} s"
+    assert any(_as_fast(b, d) for (b, _, _), (d, _, _) in rounds), f"(boxes, shells) s: {times}"
+
+
+def _as_fast(base: float, drawn: float) -> bool:
+    """The shells drawn about as fast as the boxes they replaced, loaded just before them."""
+    return drawn <= max(1.5 * base, base + 1.0)
