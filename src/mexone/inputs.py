@@ -7,6 +7,7 @@ opened without blocking and vetted on the open descriptor, so nothing is read be
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 from pathlib import Path
@@ -74,17 +75,22 @@ def vet_regular_file(path: Path | str, label: str | None = None) -> None:
         raise _refuse_kind(kind, label)
 
 
-def read_input(path: Path | str, label: str | None = None) -> bytes:
+def read_input(path: Path | str, label: str | None = None, follow: bool = True) -> bytes:
     """The bytes of a user's file, refused (InputError, one line) unless a regular file within
-    the size cap."""
+    the size cap; with `follow` False, a symbolic link is refused at the open itself (no check
+    and swap between a look and the read)."""
     label = label or str(path)
+    flags = os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0)
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+        fd = os.open(path, flags if follow else flags | os.O_NOFOLLOW)
     except FileNotFoundError:
         raise InputError("no such file", file=label, hint="check the path") from None
     except IsADirectoryError:
         raise _refuse_kind("a directory", label) from None
     except OSError as exc:
+        if not follow and exc.errno == errno.ELOOP:
+            raise InputError("is a symbolic link: refused, not read", file=label,
+                             hint="name the file itself") from None
         raise InputError(f"cannot read: {exc.strerror}", file=label) from None
     info = os.fstat(fd)
     if (kind := _kind(info.st_mode)) is not None:

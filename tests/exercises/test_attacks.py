@@ -274,6 +274,22 @@ def test_a_symlinked_submission_scores_nothing(tmp_path):
     assert result.score == 0 and result.failure.startswith("routine.py is a symbolic link")
 
 
+def test_a_submission_swapped_for_a_symlink_after_the_look_is_not_followed(tmp_path):
+    """The copy the runs see is opened with O_NOFOLLOW: a student who swaps the handed-in file
+    for a link (to the reference) between grade()'s look and its read gets a refusal."""
+    from mexone.errors import InputError
+    from mexone.exercises.grading import _private_copy
+
+    reference = tmp_path / "reference.py"
+    reference.write_text(HONEST_ROUTINE)
+    link = tmp_path / "routine.py"
+    link.symlink_to(reference)
+    (tmp_path / "work").mkdir()
+    with pytest.raises(InputError, match="routine.py: is a symbolic link: refused, not read"):
+        _private_copy(link, tmp_path / "work")
+    assert not list((tmp_path / "work").rglob("routine.py"))
+
+
 def test_the_secret_is_never_in_a_report(tmp_path, monkeypatch):
     """Even a submission that guessed the secret cannot have the grader print it: a reason and
     an output that hold it show "[the secret]" instead."""

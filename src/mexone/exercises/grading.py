@@ -39,6 +39,7 @@ from mexone.exercises.isolate import (
 )
 from mexone.exercises.sim import Variation, simulate
 from mexone.files import replacing
+from mexone.inputs import read_input
 from mexone.sandbox import isolation, keep_private
 
 __all__ = ["Check", "GradeContext", "Result", "grade", "gradescope_json", "write_csv",
@@ -303,7 +304,10 @@ def grade(exercise: Exercise, submission: str | Path, local: bool = False,
     prewarm()  # the runs' fork server starts while the grader imports and draws
     _warn_if_exposed()
     with tempfile.TemporaryDirectory(prefix="mexone-grade-") as work:
-        copy = _private_copy(submission, Path(work))
+        try:
+            copy = _private_copy(submission, Path(work))
+        except InputError as exc:  # the student's file, not the grader: 0 points and why
+            return zero(exercise, submission, exc.one_line())
         result = _grade(exercise, submission, copy, local, plots, force)
     return _scrubbed(result, copy.parent)
 
@@ -325,18 +329,21 @@ def _warn_if_exposed() -> None:
 
 def _private_copy(submission: Path, work: Path) -> Path:
     """The submission as the runs see it: a copy, read-only, alone in a folder of its own
-    (readable by a jail's uid, not listable): never the student's folder, nor another's."""
+    (readable by a jail's uid, not listable): never the student's folder, nor another's. Read
+    as every file a user names is (inputs.read_input: a regular file within the input size
+    cap, $MEXONE_MAX_INPUT_MB): a sparse file of 800 MB was copied whole onto the grading
+    machine's disk and read into the grader's memory (1.7 GB; a few GB more would end the
+    class's grading), an InputError (the caller's zero) now."""
+    try:
+        data = read_input(submission, label=submission.name, follow=False)
+    except InputError as exc:
+        exc.hint = f"hand in the {submission.name} you wrote"
+        raise
     os.chmod(work, 0o711)
     folder = work / secrets.token_hex(8)
     folder.mkdir(mode=0o755)
     copy = folder / submission.name
-    try:
-        with open(submission, "rb", opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as src, \
-                open(copy, "wb") as dst:
-            shutil.copyfileobj(src, dst)
-    except OSError as exc:
-        raise InputError(f"cannot read the submission: {exc.strerror or exc}",
-                         file=submission) from None
+    copy.write_bytes(data)
     os.chmod(copy, 0o444)
     return copy
 

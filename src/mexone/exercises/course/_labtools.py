@@ -24,7 +24,7 @@ from mexone.physics.compile import CompileOptions, Spawn
 from mexone.robots import mex_one
 
 __all__ = ["check", "student_yaml", "controller_lab", "scale_mass", "JointLog",
-           "controller_fault", "gain_share", "fit_gains", "HAND", "HAND_POINT", "ARM",
+           "controller_fault", "gain_share", "gains_check", "fit_gains", "HAND", "HAND_POINT", "ARM",
            "GAIN_FULL", "GAIN_NONE"]
 
 HAND = "l_forearm"  # the link that carries Mex-One's left hand
@@ -52,6 +52,18 @@ def gain_share(measured: float, asked: float) -> float:
     off = abs(np.log(measured / asked))
     return float(np.clip((np.log(GAIN_NONE) - off) / (np.log(GAIN_NONE) - np.log(GAIN_FULL)),
                          0.0, 1.0))
+
+
+def gains_check(name: str, gains: Sequence[tuple[float, float]], kp: float, kd: float,
+                fault: str | None, units: tuple[str, str], how: str, digits: int = 3) -> Check:
+    """The method check of a law at the grader's `kp` and `kd`: each joint's fitted (stiffness,
+    damping) earns gain_share of both, the worst joint counts, none with a `fault`; its output
+    says the fitted gains (in `units`), `how` they were fitted, and the gains asked."""
+    share = 0.0 if fault else min(gain_share(k, kp) * gain_share(d, kd) for k, d in gains)
+    return check(name, 1.0, share,
+                 f"kp {', '.join(f'{k:.{digits}g}' for k, _ in gains)} {units[0]}, kd "
+                 f"{', '.join(f'{d:.{digits}g}' for _, d in gains)} {units[1]} ({how}); "
+                 f"kp {kp:g}, kd {kd:g} asked")
 
 
 def fit_gains(force: np.ndarray, x: np.ndarray, v: np.ndarray) -> tuple[float, float, float]:

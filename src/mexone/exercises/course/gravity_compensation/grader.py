@@ -24,7 +24,7 @@ from mexone.exercises.course._labtools import (
     controller_fault,
     controller_lab,
     fit_gains,
-    gain_share,
+    gains_check,
     scale_mass,
     student_yaml,
 )
@@ -90,12 +90,9 @@ def grade(ctx) -> list:
     var = variant(None if ctx.local else ctx.rng)
     sag, gains, fault = ctx.measure(measure, ctx.submission, var)
     runs = check("runs", 1.0, 0.0 if fault else 1.0, fault or f"ran {SECONDS} s without a fault")
-    share = 0.0 if fault else min(gain_share(k, KP) * gain_share(d, KD) for k, d in gains)
-    method = check(METHOD, 1.0, share,
-                   f"kp {', '.join(f'{k:.3g}' for k, _ in gains)} N m/rad, kd "
-                   f"{', '.join(f'{d:.3g}' for _, d in gains)} N m s/rad (shoulder pitch, roll, "
-                   f"elbow: the torque less g(q) fitted against q and dq under +-{PROBE:g} N m "
-                   f"pushes); kp {KP:g}, kd {KD:g} asked")
+    method = gains_check(METHOD, gains, KP, KD, fault, ("N m/rad", "N m s/rad"),
+                         "shoulder pitch, roll, elbow: the torque less g(q) fitted against q and "
+                         f"dq under +-{PROBE:g} N m pushes")
     frac = 0.0 if fault else float(np.clip((SAG - sag) / (SAG - HOLD), 0.0, 1.0))
     hold = check("holds the arm", 3.0, frac,
                  f"largest joint error {sag * 1e3:.2f} mrad (full marks <= {HOLD * 1e3:g}, none "

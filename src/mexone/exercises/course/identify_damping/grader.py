@@ -90,5 +90,17 @@ def grade(ctx) -> list:
         return [check("damping", 1.0, 0.0, f"estimate(bag) returned {value!r}, not a damping > 0")]
     err = abs(value / truth - 1)
     return [check("damping", 1.0, (BAD - err) / (BAD - GOOD),
-                  f"estimated {value:.4g} N m s/rad, truth {truth:.4g}: off by {err:.1%} (full "
-                  f"marks within {GOOD:.0%}, none beyond {BAD:.0%})")]
+                  f"estimated {value:.4g} N m s/rad: {band(err)} (full marks within {GOOD:.0%}, "
+                  f"none beyond {BAD:.0%})")]
+
+
+def band(err: float) -> str:
+    """How far off an estimate is, without the truth or the error itself: the variant is the
+    class's (keyed by the teacher's secret, the same for every submission), and a report that
+    stated it (was: "truth 0.3284: off by 39.1%") answered the exercise to whoever handed in
+    the starter first, and to a resubmission of `return 0.3284` (10/10)."""
+    if err <= GOOD:
+        return f"within {GOOD:.0%} of the truth"
+    if err >= BAD:
+        return f"off by more than {BAD:.0%}"
+    return f"off by {GOOD:.0%} to {BAD:.0%}"
