@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import re
+import resource
 import sys
 import time
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -22,12 +23,27 @@ import docblocks  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BLOCKS = [b for page in docblocks.pages(ROOT) for b in docblocks.blocks(page)]
-TOTAL: dict[str, float] = {}
+TOTAL: dict[str, float] = {}  # page -> s from the start to its last block's end
+SECONDS: dict[str, float] = {}  # block -> s it ran
+
+
+def _children_cpu() -> float:
+    """CPU s (user + system) of this process's ended and waited-for children (and theirs)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def budget(page_blocks: list) -> float:
+    """What a page's blocks may take (s), the sum of their budgets: the pages that may take longest
+    start first, so that no long page is left to run alone at the end (the order of the pages
+    is no part of what they check: each has a scratch folder and a shell of its own)."""
+    return sum(block.timeout for block in page_blocks if block.file is None)
 
 
 @pytest.fixture(scope="module")
 def outcomes(venv, tmp_path_factory, request):
-    """Each selected block's Outcome as a Future, the pages two at a time, a page's blocks in order."""
+    """Each selected block's Outcome as a Future: the pages two at a time, the ones with the largest
+    budget first (budget), a page's blocks in order."""
     selected = {item.callspec.params["block"] for item in request.session.items
                 if item.module is request.module and hasattr(item, "callspec")
                 and "block" in item.callspec.params}
@@ -36,26 +52,34 @@ def outcomes(venv, tmp_path_factory, request):
     for block in futures:
         by_page.setdefault(block.page, []).append(block)
     env = dict(venv.env)
-    start = time.monotonic()
+    start, cpu = time.monotonic(), _children_cpu()
 
     def follow(page: Path, page_blocks: list) -> None:
         scratch = tmp_path_factory.mktemp(page.stem)
         state = tmp_path_factory.mktemp("shell") / "state.sh"
         for block in page_blocks:
             try:
-                futures[block].set_result(docblocks.run_block(block, env, scratch,
-                                                              str(venv.bin / "python"), state))
+                outcome = docblocks.run_block(block, env, scratch, str(venv.bin / "python"), state)
+                SECONDS[block.where(ROOT)] = outcome.seconds
+                futures[block].set_result(outcome)
             except Exception as error:  # noqa: BLE001 (the test reports it)
                 futures[block].set_exception(error)
         TOTAL[str(page.relative_to(ROOT))] = time.monotonic() - start
 
     pool = ThreadPoolExecutor(max_workers=2)
-    for page, page_blocks in by_page.items():
+    for page, page_blocks in sorted(by_page.items(), key=lambda item: -budget(item[1])):
         pool.submit(follow, page, page_blocks)
     yield futures
     pool.shutdown(wait=True, cancel_futures=True)
     if TOTAL:
-        print(f"\ndocs blocks: {len(futures)} in {time.monotonic() - start:.1f} s")
+        own = {str(page.relative_to(ROOT)): sum(SECONDS.get(b.where(ROOT), 0.0) for b in blocks)
+               for page, blocks in by_page.items()}
+        print(f"\ndocs blocks: {len(futures)} in {time.monotonic() - start:.1f} s (their processes' "
+              f"CPU {_children_cpu() - cpu:.0f} s); pages (s run, "
+              "s from the start to done) " + ", ".join(f"{page} {own[page]:.0f}/{s:.0f}" for page, s
+                                                     in sorted(TOTAL.items(), key=lambda i: i[1]))
+              + "; slowest blocks " + ", ".join(f"{where} {s:.1f}" for where, s in
+                                                sorted(SECONDS.items(), key=lambda i: -i[1])[:12]))
 
 
 @pytest.mark.slow

@@ -144,7 +144,8 @@ def executed(wheel, venv, tmp_path_factory):
     """Every shipped notebook run by the wheel's Python, with its saved HTML beside it."""
     assert NOTEBOOKS, "no notebooks in examples/notebooks"
     venv.run("python", "-m", "pip", "install", "-q", "--disable-pip-version-check",
-             f"{wheel}[notebook]", timeout=900)  # what docs/notebooks.md tells users
+             f"{wheel}[notebook]", timeout=900)  # what docs/notebooks.md tells users (the
+    # session's venv has it already, tests/wheelenv.py's EXTRAS: then pip finds it satisfied)
     examples = tmp_path_factory.mktemp("examples")  # as in the checkout: ../control_design
     for name in ("notebooks", "control_design"):
         shutil.copytree(NOTEBOOKS[0].parents[1] / name, examples / name,

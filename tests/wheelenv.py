@@ -4,7 +4,7 @@ tests/test_docs_commands.py, which run the shipped commands and the documented o
 
 Built ahead: `python3 tests/wheelenv.py DIR` builds both into DIR while scripts/test.sh's set-up
 (ruff, mypy) keeps one core busy, and MEXONE_TEST_PREBUILT=DIR hands them to the test session.
-One session takes them (the session changes its venv: the notebooks' extra goes in), and only
+One session takes them (a session changes its venv: docs/teaching.md installs Ray), and only
 if they were built from the files the checkout holds now (FOR: their hash); else it builds its
 own.
 """
@@ -28,6 +28,10 @@ FOR, TAKEN = "for.sha256", "taken.sha256"  # the files' hash: ready, then taken 
 WHEEL, FAILED = "wheel.txt", "failed.txt"  # the wheel's path once built; why the build failed
 PID = "pid"  # the build's process (scripts/test.sh writes it): gone without a wheel, it failed
 _TAKEN: dict[Path, Path] = {}  # a prebuilt wheel -> its venv, for make_venv
+# what tests/test_notebooks.py installs (as docs/notebooks.md tells users), installed with the
+# wheel: one resolve, its byte-code compiled with the rest, and ahead (in scripts/test.sh's
+# set-up) rather than in the serial phase
+EXTRAS = "[notebook]"
 
 
 # a clean environment: with this checkout's src/ on PYTHONPATH, pip sees its mexone.egg-info
@@ -127,7 +131,8 @@ def _venv_env(root: Path) -> dict:
 
 
 def venv_with(wheel: Path, root: Path) -> None:
-    """make_venv's work: the venv at `root` (a new folder) with the wheel and its byte-code."""
+    """make_venv's work: the venv at `root` (a new folder) with the wheel (and EXTRAS) and its
+    byte-code."""
     env = _venv_env(root)
     start = time.monotonic()
     subprocess.run([sys.executable, "-m", "venv", str(root)], check=True, timeout=300, env=env)
@@ -137,7 +142,7 @@ def venv_with(wheel: Path, root: Path) -> None:
     start = time.monotonic()
     python = str(root / "bin" / "python")
     pip = subprocess.run([python, "-m", "pip", "install", "-q", "--no-compile",
-                          "--disable-pip-version-check", str(wheel)],
+                          "--disable-pip-version-check", f"{wheel}{EXTRAS}"],
                          capture_output=True, text=True, timeout=1200, env=env)
     TIMES["pip install wheel + deps"] = time.monotonic() - start
     assert pip.returncode == 0, pip.stderr[-3000:]

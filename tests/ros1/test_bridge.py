@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import time
+import xmlrpc.client
 from pathlib import Path
 
 import mujoco
@@ -40,17 +41,37 @@ def ros_env(port: int) -> dict:
         ROS_LOG_DIR=str(Path("/tmp") / f"mexone-roslog-{port}")))
 
 
+class _Timeout(xmlrpc.client.Transport):
+    """An XML-RPC transport whose calls give up after 5 s (the standard one waits for ever)."""
+
+    def make_connection(self, host):
+        connection = super().make_connection(host)
+        connection.timeout = 5.0
+        return connection
+
+
+def master_ready(port: int) -> bool:
+    """The master on `port` answers and roscore's /rosout node has joined it (subscribes to
+    /rosout): what a fixed second's wait after the port opened stood for."""
+    master = xmlrpc.client.ServerProxy(f"http://127.0.0.1:{port}/", transport=_Timeout())
+    try:
+        code, _, (_, subscribers, _) = master.getSystemState("/mexone_test_start")
+    except (OSError, xmlrpc.client.Error, ValueError):
+        return False
+    return code == 1 and any(topic == "/rosout" and "/rosout" in nodes
+                             for topic, nodes in subscribers)
+
+
 def start_roscore(port: int) -> subprocess.Popen:
     proc = subprocess.Popen([ROSCORE, "-p", str(port)], env=ros_env(port),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
                             start_new_session=True)
     deadline = time.time() + 30
-    while time.time() < deadline:
-        with socket.socket() as s:
-            if s.connect_ex(("127.0.0.1", port)) == 0:
-                time.sleep(1.0)
-                return proc
-        time.sleep(0.2)
+    while time.time() < deadline and proc.poll() is None:
+        if master_ready(port):
+            return proc
+        time.sleep(0.1)  # polling a master that is not up yet: nothing to wait on
+    stop(proc)
     raise RuntimeError("roscore did not start")
 
 
