@@ -29,7 +29,7 @@ SHARES_THE_CPU = (  # paths under tests/; a folder ends in "/"
     "exercises/test_course.py", "exercises/test_course_5_10.py", "exercises/test_course_robust.py",
     "exercises/test_walking_exercises.py", "exercises/test_method_checks.py",
     "exercises/test_reports.py", "exercises/test_grade_outputs.py", "exercises/test_requires.py",
-    "exercises/test_autograder_pieces.py",
+    "exercises/test_autograder_pieces.py", "exercises/test_report_oracles.py",
     "design/test_robust.py", "design/test_lqr_balance.py", "design/test_deploy.py",
     "design/test_linear.py", "design/test_check_deployed.py", "design/test_design_files.py",
     "physics/test_mex_one_physics.py", "robots/test_mex_one_looks.py",
