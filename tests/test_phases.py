@@ -70,3 +70,7 @@ def test_the_test_script_runs_both_phases_with_xdist_installed():
     assert "MEXONE_TEST_PHASE=parallel python3 -m pytest -n auto --dist loadfile" in script
     assert "MEXONE_TEST_PHASE=serial python3 -m pytest" in script
     assert '"pytest-xdist' in (ROOT / "pyproject.toml").read_text()
+    # the serial phase runs a failed test once more and names it (-r R); the parallel one never
+    assert "MEXONE_TEST_PHASE=serial python3 -m pytest --reruns 1 -r fER" in script
+    assert "--reruns" not in script.split("MEXONE_TEST_PHASE=parallel")[1].split("\n")[0]
+    assert '"pytest-rerunfailures' in (ROOT / "pyproject.toml").read_text()
