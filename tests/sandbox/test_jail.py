@@ -6,9 +6,11 @@ of their own, the network, the processes it can see."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
+import signal
 import socket
 import subprocess
 import sys
@@ -202,13 +204,23 @@ def test_kill_ends_what_the_jail_started_in_any_session(tmp_path):
     code = (f"import subprocess, time\nfor _ in range(5):\n"
             f"    subprocess.Popen(['sleep', '{MARK}'], start_new_session=True)\n"
             "print('up', flush=True)\ntime.sleep(300)\n")
+    before = set(_sleeps())  # none, unless an earlier failed run left its own behind
     proc = spawn([sys.executable, "-c", code], Jail(), stdout=subprocess.PIPE)
-    assert proc.popen.stdout.readline() == b"up\n"
-    assert len(_sleeps()) == 5
-    proc.kill()
-    assert proc.returncode is not None
-    assert wait_until(lambda: not _sleeps(), timeout=10), _sleeps()
-    assert not proc.scratch.exists()  # its own scratch folder went with it
+    started: set[int] = set()
+    try:
+        assert proc.popen.stdout.readline() == b"up\n"
+        started = set(_sleeps()) - before
+        assert len(started) == 5, f"{len(started)} sleeps found of the 5 started"
+        proc.kill()
+        assert proc.returncode is not None
+        assert wait_until(lambda: not started & set(_sleeps()), timeout=10), \
+            f"alive 10 s after the kill: {sorted(started & set(_sleeps()))}"
+        assert not proc.scratch.exists()  # its own scratch folder went with it
+    finally:  # a failed run leaves nothing behind for the next one
+        proc.kill()
+        for pid in started & set(_sleeps()):
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def test_the_program_exit_status_and_signal_come_through():
